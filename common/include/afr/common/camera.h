@@ -1,0 +1,37 @@
+// A perspective camera at one instant: eye, orthonormal basis and vertical field of view.
+// Image coordinates are pixels with x to the right and y down; pixel (i, j) covers
+// [i, i + 1) x [j, j + 1), so its center is (i + 0.5, j + 0.5).
+#pragma once
+
+#include <afr/common/math.h>
+
+namespace afr {
+
+struct Ray {
+  glm::vec3 origin;
+  glm::vec3 direction;  // unit length
+};
+
+struct Camera {
+  glm::dvec3 eye{0.0};
+  glm::dvec3 right{1.0, 0.0, 0.0};
+  glm::dvec3 up{0.0, 1.0, 0.0};
+  glm::dvec3 forward{0.0, 0.0, -1.0};
+  double yfov = 0.8;  // radians, full vertical
+  double znear = 0.01;
+
+  // From a world transform whose local -Z is the view direction and +Y is up (glTF cameras).
+  static Camera from_transform(const glm::dmat4& world, double yfov, double znear);
+  // From eye, target and an up hint (need not be orthogonal to the view direction).
+  static Camera look_at(const glm::dvec3& eye, const glm::dvec3& target, const glm::dvec3& up,
+                        double yfov, double znear);
+
+  // The primary ray through image position (x, y) of a width x height image.
+  Ray ray(double x, double y, int width, int height) const;
+
+  // Projects a world point to image position (x, y). Returns false when the point is behind
+  // the camera or closer than znear; depth is the distance along `forward`.
+  bool project(const glm::dvec3& p, int width, int height, glm::dvec2* xy, double* depth) const;
+};
+
+}  // namespace afr

@@ -1,0 +1,153 @@
+// The scene model of afr: what a glTF 2.0 file (or the built-in scene) describes, in plain
+// structs: meshes, materials, textures, a node hierarchy, animations of node transforms,
+// perspective cameras and punctual lights. Scene::evaluate gives every node's world transform
+// at a time t; camera_at gives the active camera at that time.
+#pragma once
+
+#include <afr/common/animation.h>
+#include <afr/common/camera.h>
+#include <afr/common/math.h>
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace afr {
+
+// An indexed triangle list with one material. Normals are per vertex (generated when the
+// source has none); uvs are empty when the source has none.
+struct Primitive {
+  std::vector<glm::vec3> positions;
+  std::vector<glm::vec3> normals;
+  std::vector<glm::vec2> uvs;
+  std::vector<uint32_t> indices;  // 3 per triangle
+  int material = -1;              // index into Scene::materials; -1 = default material
+
+  size_t triangle_count() const { return indices.size() / 3; }
+};
+
+struct Mesh {
+  std::string name;
+  std::vector<Primitive> primitives;
+};
+
+// A decoded texture in linear RGB, row 0 at the top (v = 0), texel centers at (i + 0.5) / size.
+struct Texture {
+  std::string name;
+  int width = 0;
+  int height = 0;
+  std::vector<glm::vec3> texels;
+
+  // Bilinear lookup with REPEAT wrapping in both directions (the only wrap mode afr models).
+  glm::vec3 sample_bilinear(glm::vec2 uv) const;
+};
+
+// The part of glTF's metallic-roughness material that afr shades, plus an ambient reflectance
+// (AFF scenes carry one; for glTF without it, it is the base color).
+struct Material {
+  std::string name;
+  glm::vec4 base_color_factor{1.0f};
+  int base_color_texture = -1;  // index into Scene::textures
+  float metallic = 1.0f;
+  float roughness = 1.0f;
+  glm::vec3 emissive{0.0f};
+  std::optional<glm::vec3> ambient;  // reflectance of the scene's ambient light
+  bool double_sided = false;
+};
+
+// KHR_lights_punctual. Position and direction (local -Z) come from the light's node.
+struct Light {
+  enum class Type { kPoint, kDirectional, kSpot };
+  std::string name;
+  Type type = Type::kPoint;
+  glm::vec3 color{1.0f};
+  float intensity = 1.0f;
+  float range = 0.0f;  // 0 = infinite
+  float inner_cone_angle = 0.0f;
+  float outer_cone_angle = 0.7853981633974483f;
+  bool inverse_square_falloff = true;  // false for NFF/AFF lights, which do not fall off
+};
+
+// A glTF perspective camera. The image's aspect ratio always comes from the render target.
+struct CameraModel {
+  std::string name;
+  double yfov = 0.8;  // radians, full vertical field of view
+  double znear = 0.01;
+};
+
+struct Node {
+  std::string name;
+  int parent = -1;
+  std::vector<int> children;
+  glm::dvec3 translation{0.0};
+  glm::dquat rotation{1.0, 0.0, 0.0, 0.0};  // glm order: w, x, y, z
+  glm::dvec3 scale{1.0};
+  std::optional<glm::dmat4> matrix;  // a glTF node given as a matrix (not animatable)
+  int mesh = -1;
+  int camera = -1;
+  int light = -1;
+};
+
+// The world transforms of every node at one time.
+struct SceneState {
+  double time = 0.0;
+  std::vector<glm::dmat4> world;  // indexed like Scene::nodes
+};
+
+class Scene {
+ public:
+  std::string source;  // file name, or "builtin"
+  std::vector<Mesh> meshes;
+  std::vector<Material> materials;
+  std::vector<Texture> textures;
+  std::vector<Light> lights;
+  std::vector<CameraModel> cameras;
+  std::vector<Node> nodes;
+  std::vector<int> roots;  // nodes of the displayed scene with no parent
+  std::vector<AnimationChannel> channels;
+  glm::vec3 background{0.0f};  // radiance of rays that hit nothing
+  glm::vec3 ambient{0.0f};     // ambient light, times Material::ambient
+
+  // Checks every index and channel, fills Node::parent from children, and derives which
+  // nodes move. Call once after building or loading, before any other method. Throws
+  // afr::Error naming the first problem found.
+  void finalize();
+
+  // Seconds covered by the animation (0 for a static scene).
+  double duration() const { return duration_; }
+  bool is_animated() const { return !channels.empty(); }
+  // True when the world transform of node i depends on time (it or an ancestor is animated).
+  bool node_moves(int i) const { return node_moves_[i]; }
+  // True when any node carrying a mesh moves: samples then need a velocity.
+  bool has_moving_geometry() const { return has_moving_geometry_; }
+  // The node whose camera is active (the first camera node in scene order), or -1.
+  int camera_node() const { return camera_node_; }
+
+  // World transforms of all nodes at time t (seconds; clamped to the keyframe range by each
+  // channel). `state` is reused without allocating once sized.
+  void evaluate(double t, SceneState* state) const;
+  SceneState evaluate(double t) const;
+
+  // The active camera at the state's time. Without a camera node, a default camera that looks
+  // at the whole static scene from the +Z side.
+  Camera camera_at(const SceneState& state) const;
+
+  // World-space bounds of all geometry at time t.
+  void bounds(const SceneState& state, glm::dvec3* lo, glm::dvec3* hi) const;
+
+  size_t triangle_count() const;  // over the instanced scene (one count per mesh node)
+
+ private:
+  std::vector<char> node_moves_;
+  std::vector<int> order_;  // nodes, parents before children
+  bool has_moving_geometry_ = false;
+  int camera_node_ = -1;
+  double duration_ = 0.0;
+};
+
+// Generates normals for a primitive that has none: area-weighted vertex normals over the
+// triangles sharing a vertex, (0, 0, 1) where all of them are degenerate.
+void generate_normals(Primitive* primitive);
+
+}  // namespace afr

@@ -1,0 +1,74 @@
+// The ray tracer of afr: an Embree 3 two-level BVH over a Scene (one instance of all static
+// geometry, one instance per moving mesh node, so a new time only updates instance transforms
+// and re-commits the top level) and the shading model the scene's materials ask for.
+//
+// Order of calls: construct, set_time(t), then any number of trace/trace_crosshair/occluded
+// calls from any number of threads (each thread with its own TraceStats), then set_time again.
+// set_time must not overlap with tracing.
+#pragma once
+
+#include <afr/common/camera.h>
+#include <afr/common/scene.h>
+
+#include <array>
+#include <cstdint>
+#include <memory>
+
+namespace afr {
+
+struct TracerOptions {
+  int max_mirror_depth = 3;  // bounces of mirror reflection for smooth metals
+  bool shadows = true;
+  // Roughness at or below which a metallic material reflects as a mirror.
+  float mirror_roughness = 0.1f;
+};
+
+// Counters of one tracing thread; add them up across threads.
+struct TraceStats {
+  uint64_t primary_rays = 0;
+  uint64_t shadow_rays = 0;
+  uint64_t reflection_rays = 0;
+  uint64_t occlusion_rays = 0;  // visibility tests asked for by the sampler (occluded())
+  uint64_t sanitized = 0;       // shaded values that were NaN or Inf and were replaced
+
+  TraceStats& operator+=(const TraceStats& o);
+};
+
+// The result of one primary ray.
+struct ShadedSample {
+  glm::vec3 color{0.0f};     // linear RGB, finite, >= 0
+  glm::vec3 position{0.0f};  // world hit point; the ray direction when nothing was hit
+  glm::vec3 velocity{0.0f};  // world velocity of the hit point (m/s); 0 for static objects
+  uint32_t object_id = kNoObject;  // scene node of the hit, kNoObject on a miss
+  bool hit = false;
+
+  static constexpr uint32_t kNoObject = 0xffffffffu;
+};
+
+class Tracer {
+ public:
+  Tracer(const Scene& scene, const TracerOptions& options = {});
+  ~Tracer();
+  Tracer(const Tracer&) = delete;
+  Tracer& operator=(const Tracer&) = delete;
+
+  // Moves every animated instance to time t (seconds) and re-commits the top level.
+  void set_time(double t);
+  double time() const;
+  // The scene's active camera at the current time.
+  const Camera& camera() const;
+
+  ShadedSample trace(const Ray& ray, TraceStats* stats) const;
+  // The crosshair of section 4.1: the center sample at image position (x, y) and its four
+  // neighbours one pixel away, in the order center, x-1, x+1, y-1, y+1.
+  void trace_crosshair(const Camera& camera, double x, double y, int width, int height,
+                       std::array<ShadedSample, 5>* out, TraceStats* stats) const;
+  // True if anything blocks the segment from `from` to `to` (the sampler's occlusion ray).
+  bool occluded(const glm::vec3& from, const glm::vec3& to, TraceStats* stats) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace afr
