@@ -8,10 +8,10 @@ namespace afr::detail {
 [[noreturn]] void check_failed(const char* condition, const char* file, int line);
 }  // namespace afr::detail
 
-#define AFR_CHECK(condition)                                         \
-  do {                                                               \
-    if (!(condition)) [[unlikely]]                                   \
-      ::afr::detail::check_failed(#condition, __FILE__, __LINE__);   \
+#define AFR_CHECK(condition)                                       \
+  do {                                                             \
+    if (!(condition)) [[unlikely]]                                 \
+      ::afr::detail::check_failed(#condition, __FILE__, __LINE__); \
   } while (false)
 
 #ifdef NDEBUG

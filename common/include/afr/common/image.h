@@ -41,7 +41,7 @@ Image read_image(const std::filesystem::path& path);
 struct DecodedImage {
   int width = 0;
   int height = 0;
-  int channels = 0;  // 1..4
+  int channels = 0;           // 1..4
   std::vector<uint8_t> data;  // width * height * channels, row 0 at the top
 };
 // `name` is used in error messages (a file name or "image 3 of scene.glb").

@@ -123,6 +123,8 @@ class Scene {
   bool has_moving_geometry() const { return has_moving_geometry_; }
   // The node whose camera is active (the first camera node in scene order), or -1.
   int camera_node() const { return camera_node_; }
+  // The nodes reachable from `roots`, parents before children: what is rendered.
+  const std::vector<int>& scene_nodes() const { return scene_nodes_; }
 
   // World transforms of all nodes at time t (seconds; clamped to the keyframe range by each
   // channel). `state` is reused without allocating once sized.
@@ -140,7 +142,11 @@ class Scene {
 
  private:
   std::vector<char> node_moves_;
-  std::vector<int> order_;  // nodes, parents before children
+  std::vector<int> order_;               // all nodes, parents before children
+  std::vector<int> scene_nodes_;         // nodes reachable from roots, parents before children
+  std::vector<uint32_t> channel_start_;  // channels of node i: channel_index_[start[i]..start[i+1])
+  std::vector<uint32_t> channel_index_;
+  std::vector<glm::vec3> mesh_lo_, mesh_hi_;  // local bounds per mesh
   bool has_moving_geometry_ = false;
   int camera_node_ = -1;
   double duration_ = 0.0;
