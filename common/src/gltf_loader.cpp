@@ -1,0 +1,1076 @@
+#include <afr/common/gltf_loader.h>
+
+#include <afr/common/builtin_scene.h>
+#include <afr/common/error.h>
+#include <afr/common/image.h>
+#include <afr/common/log.h>
+
+#include <fmt/format.h>
+#include <tiny_gltf.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <numbers>
+#include <numeric>
+#include <set>
+#include <span>
+#include <string_view>
+#include <system_error>
+
+namespace afr {
+namespace {
+
+namespace fs = std::filesystem;
+
+// tinygltf takes the file length as unsigned int; larger files are refused before reading.
+constexpr uint64_t kMaxFileBytes = uint64_t(1) << 31;
+// Elements of one accessor. An accessor without a buffer view (all zeros, or sparse) has no
+// bytes behind its count, so the count alone must not decide how much memory is allocated.
+constexpr size_t kMaxAccessorCount = size_t(1) << 26;
+constexpr size_t kMaxAccessorCountWithoutView = size_t(1) << 22;
+
+// Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
+// of attributes, which the accessor reader converts anyway).
+constexpr std::array<std::string_view, 3> kSupportedExtensions = {
+    "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_mesh_quantization"};
+
+bool is_finite(std::span<const double> values) {
+  return std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); });
+}
+
+// ---- File access for tinygltf ----
+//
+// A glTF file names its buffers and images by URI. Files are untrusted, so tinygltf may read
+// only regular files inside the folder of the glTF file (never "/etc/passwd" or "../../x").
+
+struct FileAccess {
+  fs::path root;  // canonical folder of the glTF file
+  std::vector<std::string> refused;
+};
+
+bool inside_root(const FileAccess& access, const std::string& file, fs::path* resolved) {
+  std::error_code ec;
+  fs::path p = fs::weakly_canonical(fs::absolute(fs::path(file), ec), ec);
+  if (ec) return false;
+  const fs::path relative = p.lexically_relative(access.root);
+  if (relative.empty() || *relative.begin() == "..") return false;
+  *resolved = p;
+  return true;
+}
+
+bool file_exists(const std::string& file, void* user_data) {
+  auto* access = static_cast<FileAccess*>(user_data);
+  fs::path p;
+  std::error_code ec;
+  if (!inside_root(*access, file, &p)) {
+    if (fs::exists(fs::path(file), ec)) access->refused.push_back(file);
+    return false;
+  }
+  return fs::is_regular_file(p, ec);
+}
+
+std::string expand_file_path(const std::string& file, void*) { return file; }
+
+bool read_whole_file(std::vector<unsigned char>* out, std::string* err, const std::string& file,
+                     void* user_data) {
+  auto* access = static_cast<FileAccess*>(user_data);
+  fs::path p;
+  std::error_code ec;
+  if (!inside_root(*access, file, &p) || !fs::is_regular_file(p, ec)) {
+    if (err) *err += "not a file inside the folder of the glTF file";
+    return false;
+  }
+  const uintmax_t size = fs::file_size(p, ec);
+  if (ec || size > kMaxFileBytes) {
+    if (err) *err += ec ? ec.message() : std::string("file too large");
+    return false;
+  }
+  std::ifstream in(p, std::ios::binary);
+  out->resize(size_t(size));
+  if (!in || !in.read(reinterpret_cast<char*>(out->data()), std::streamsize(size))) {
+    if (err) *err += "read error";
+    return false;
+  }
+  return true;
+}
+
+bool write_whole_file(std::string* err, const std::string&, const std::vector<unsigned char>&,
+                      void*) {
+  if (err) *err += "afr never writes through the glTF loader";
+  return false;
+}
+
+// tinygltf's image hook. Images are decoded by afr::decode_image only, and only those a
+// material uses, once loading has finished (Loader::texture_for_image): here the encoded bytes
+// of a URI image are kept, and a buffer-view image is left in its buffer, whose bounds afr
+// checks itself before reading it.
+bool keep_encoded_image(tinygltf::Image* image, const int, std::string*, std::string*, int, int,
+                        const unsigned char* bytes, int size, void*) {
+  if (image->bufferView >= 0) return true;
+  if (bytes != nullptr && size > 0) image->image.assign(bytes, bytes + size);
+  image->as_is = true;
+  return true;
+}
+
+// ---- The loader ----
+
+class Loader {
+ public:
+  Loader(const fs::path& path, GltfLoadReport* report) : path_(path), report_(report) {}
+
+  Scene load();
+
+ private:
+  [[noreturn]] void fail(const std::string& problem) const {
+    throw Error(fmt::format("{}: {}", path_.string(), problem));
+  }
+  // Logs one warning per feature key, however often the feature occurs.
+  void warn_once(const std::string& feature, const std::string& message);
+
+  std::vector<uint8_t> read_file() const;
+  void parse(const std::vector<uint8_t>& bytes);
+  void check_extensions();
+
+  // Accessors.
+  std::vector<uint8_t> gather(int index, int type, const std::string& what,
+                              const tinygltf::Accessor** out);
+  std::span<const uint8_t> buffer_view_bytes(int view, const std::string& what) const;
+  std::vector<float> read_floats(int index, int type, const std::string& what);
+  std::vector<uint32_t> read_indices(int index, const std::string& what);
+
+  void load_meshes();
+  bool load_primitive(const tinygltf::Primitive& in, const std::string& what, Primitive* out);
+  void load_materials();
+  int texture_for_image(int image_index);
+  void load_cameras();
+  void load_lights();
+  void load_nodes();
+  void load_animations();
+  void load_scene_roots();
+
+  glm::vec3 read_rgb_extra(const tinygltf::Value& extras, const char* key,
+                           const std::string& what) const;
+
+  fs::path path_;
+  GltfLoadReport* report_;
+  std::set<std::string> warned_;
+  FileAccess access_;
+  tinygltf::Model model_;
+  Scene scene_;
+  std::vector<int> camera_map_;        // glTF camera -> Scene::cameras, -1 when skipped
+  std::vector<int> light_map_;         // glTF light -> Scene::lights, -1 when skipped
+  std::vector<int> image_to_texture_;  // glTF image -> Scene::textures, -1 until decoded
+};
+
+void Loader::warn_once(const std::string& feature, const std::string& message) {
+  if (!warned_.insert(feature).second) return;
+  std::string line = fmt::format("{}: {}", path_.string(), message);
+  spdlog::warn("{}", line);
+  if (report_ != nullptr) report_->warnings.push_back(std::move(line));
+}
+
+std::vector<uint8_t> Loader::read_file() const {
+  std::error_code ec;
+  if (!fs::exists(path_, ec)) fail("no such file");
+  if (!fs::is_regular_file(path_, ec)) fail("not a regular file");
+  const uintmax_t size = fs::file_size(path_, ec);
+  if (ec) fail(fmt::format("cannot read the file size: {}", ec.message()));
+  if (size > kMaxFileBytes) fail(fmt::format("file of {} bytes is larger than afr accepts", size));
+  std::vector<uint8_t> bytes(static_cast<size_t>(size));
+  std::ifstream in(path_, std::ios::binary);
+  if (!in || !in.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(size))) {
+    fail("cannot read the file");
+  }
+  return bytes;
+}
+
+void Loader::parse(const std::vector<uint8_t>& bytes) {
+  std::error_code ec;
+  access_.root = fs::weakly_canonical(fs::absolute(path_).parent_path(), ec);
+  if (ec) fail(fmt::format("cannot resolve its folder: {}", ec.message()));
+
+  tinygltf::TinyGLTF gltf;
+  gltf.SetImageLoader(&keep_encoded_image, nullptr);
+  gltf.SetFsCallbacks(
+      {&file_exists, &expand_file_path, &read_whole_file, &write_whole_file, &access_});
+
+  std::string err;
+  std::string warn;
+  const std::string base_dir = access_.root.string();
+  const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
+  bool ok = false;
+  if (binary) {
+    // tinygltf says only "Invalid glTF binary." for a cut-off file; say what is wrong.
+    uint32_t declared = 0;
+    if (bytes.size() >= 12) std::memcpy(&declared, bytes.data() + 8, 4);
+    if (bytes.size() < 20 || declared > bytes.size()) {
+      fail(fmt::format("truncated .glb: the header declares {} bytes but the file has {}", declared,
+                       bytes.size()));
+    }
+    ok = gltf.LoadBinaryFromMemory(&model_, &err, &warn, bytes.data(),
+                                   static_cast<unsigned int>(bytes.size()), base_dir);
+  } else {
+    ok = gltf.LoadASCIIFromString(&model_, &err, &warn, reinterpret_cast<const char*>(bytes.data()),
+                                  static_cast<unsigned int>(bytes.size()), base_dir);
+  }
+  if (!ok) {
+    std::string problem = err;
+    while (!problem.empty() && (problem.back() == '\n' || problem.back() == ' ')) {
+      problem.pop_back();
+    }
+    for (const std::string& file : access_.refused) {
+      problem += fmt::format(" (refused to read {}: outside the folder of the glTF file)", file);
+    }
+    fail(fmt::format("invalid glTF: {}", problem.empty() ? "unknown error" : problem));
+  }
+  // tinygltf warns about things such as a missing external image; pass them on.
+  size_t start = 0;
+  while (start < warn.size()) {
+    size_t end = warn.find('\n', start);
+    if (end == std::string::npos) end = warn.size();
+    if (end > start)
+      warn_once("tinygltf: " + warn.substr(start, end - start), warn.substr(start, end - start));
+    start = end + 1;
+  }
+}
+
+void Loader::check_extensions() {
+  std::set<std::string> used(model_.extensionsUsed.begin(), model_.extensionsUsed.end());
+  used.insert(model_.extensionsRequired.begin(), model_.extensionsRequired.end());
+  auto add = [&](const tinygltf::ExtensionMap& map) {
+    for (const auto& [name, value] : map) used.insert(name);
+  };
+  add(model_.extensions);
+  for (const auto& s : model_.scenes) add(s.extensions);
+  for (const auto& n : model_.nodes) add(n.extensions);
+  for (const auto& m : model_.meshes) {
+    add(m.extensions);
+    for (const auto& p : m.primitives) add(p.extensions);
+  }
+  for (const auto& m : model_.materials) {
+    add(m.extensions);
+    add(m.pbrMetallicRoughness.baseColorTexture.extensions);
+  }
+  for (const auto& t : model_.textures) add(t.extensions);
+  for (const auto& i : model_.images) add(i.extensions);
+  for (const auto& c : model_.cameras) add(c.extensions);
+  for (const auto& name : used) {
+    if (std::find(kSupportedExtensions.begin(), kSupportedExtensions.end(), name) !=
+        kSupportedExtensions.end()) {
+      continue;
+    }
+    const bool required =
+        std::find(model_.extensionsRequired.begin(), model_.extensionsRequired.end(), name) !=
+        model_.extensionsRequired.end();
+    warn_once("extension " + name, fmt::format("{}extension {} is not supported (ignored)",
+                                               required ? "required " : "", name));
+  }
+}
+
+// ---- Accessors ----
+
+std::span<const uint8_t> Loader::buffer_view_bytes(int view, const std::string& what) const {
+  if (view < 0 || size_t(view) >= model_.bufferViews.size()) {
+    fail(fmt::format("{} refers to buffer view {}, but there are {}", what, view,
+                     model_.bufferViews.size()));
+  }
+  const tinygltf::BufferView& bv = model_.bufferViews[size_t(view)];
+  if (bv.buffer < 0 || size_t(bv.buffer) >= model_.buffers.size()) {
+    fail(fmt::format("buffer view {} refers to buffer {}, but there are {}", view, bv.buffer,
+                     model_.buffers.size()));
+  }
+  const std::vector<unsigned char>& data = model_.buffers[size_t(bv.buffer)].data;
+  if (bv.byteLength > data.size() || bv.byteOffset > data.size() - bv.byteLength) {
+    fail(fmt::format("buffer view {} (bytes {} to {}) is out of bounds of buffer {} ({} bytes)",
+                     view, bv.byteOffset, uint64_t(bv.byteOffset) + bv.byteLength, bv.buffer,
+                     data.size()));
+  }
+  return {data.data() + bv.byteOffset, bv.byteLength};
+}
+
+std::string_view type_name(int type) {
+  switch (type) {
+    case TINYGLTF_TYPE_SCALAR:
+      return "SCALAR";
+    case TINYGLTF_TYPE_VEC2:
+      return "VEC2";
+    case TINYGLTF_TYPE_VEC3:
+      return "VEC3";
+    case TINYGLTF_TYPE_VEC4:
+      return "VEC4";
+    default:
+      return "a matrix type";
+  }
+}
+
+// The bytes of every element of accessor `index`, tightly packed, with sparse values applied:
+// the one place where accessor offsets, strides and counts meet buffer sizes.
+std::vector<uint8_t> Loader::gather(int index, int type, const std::string& what,
+                                    const tinygltf::Accessor** out) {
+  if (index < 0 || size_t(index) >= model_.accessors.size()) {
+    fail(fmt::format("{} refers to accessor {}, but there are {}", what, index,
+                     model_.accessors.size()));
+  }
+  const tinygltf::Accessor& a = model_.accessors[size_t(index)];
+  *out = &a;
+  const std::string name = fmt::format("accessor {} ({})", index, what);
+  const int component_size = tinygltf::GetComponentSizeInBytes(uint32_t(a.componentType));
+  const int components = tinygltf::GetNumComponentsInType(uint32_t(a.type));
+  if (component_size <= 0 || a.componentType == TINYGLTF_COMPONENT_TYPE_DOUBLE) {
+    fail(fmt::format("{} has invalid componentType {}", name, a.componentType));
+  }
+  if (components <= 0) fail(fmt::format("{} has an invalid type", name));
+  if (a.type != type) {
+    fail(fmt::format("{} is {} where {} is required", name, type_name(a.type), type_name(type)));
+  }
+  if (a.count > (a.bufferView >= 0 ? kMaxAccessorCount : kMaxAccessorCountWithoutView)) {
+    fail(fmt::format("{} has {} elements, more than afr accepts", name, a.count));
+  }
+  const size_t element_size = size_t(component_size) * size_t(components);
+  std::vector<uint8_t> bytes(a.count * element_size, 0);
+
+  if (a.bufferView >= 0) {
+    const std::span<const uint8_t> view = buffer_view_bytes(a.bufferView, name);
+    const size_t declared_stride = model_.bufferViews[size_t(a.bufferView)].byteStride;
+    const size_t stride = declared_stride != 0 ? declared_stride : element_size;
+    if (stride < element_size || stride > 252) {
+      fail(fmt::format("{} has byteStride {} for elements of {} bytes", name, declared_stride,
+                       element_size));
+    }
+    if (a.count > 0) {
+      const uint64_t end = uint64_t(a.byteOffset) + uint64_t(a.count - 1) * stride + element_size;
+      if (a.byteOffset > view.size() || end > view.size()) {
+        fail(fmt::format("{} is out of bounds of buffer view {}: it reads bytes {} to {} of {}",
+                         name, a.bufferView, a.byteOffset, end, view.size()));
+      }
+      for (size_t i = 0; i < a.count; ++i) {
+        std::memcpy(&bytes[i * element_size], &view[a.byteOffset + i * stride], element_size);
+      }
+    }
+  }
+
+  if (a.sparse.isSparse) {
+    const int n = a.sparse.count;
+    if (n <= 0 || size_t(n) > a.count) {
+      fail(fmt::format("{} has sparse count {} for {} elements", name, n, a.count));
+    }
+    const auto& si = a.sparse.indices;
+    const int index_size = tinygltf::GetComponentSizeInBytes(uint32_t(si.componentType));
+    if (si.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+        si.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+        si.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) {
+      fail(
+          fmt::format("{} has sparse indices of invalid componentType {}", name, si.componentType));
+    }
+    const std::span<const uint8_t> index_view =
+        buffer_view_bytes(si.bufferView, name + " sparse indices");
+    const std::span<const uint8_t> value_view =
+        buffer_view_bytes(a.sparse.values.bufferView, name + " sparse values");
+    const uint64_t index_end = uint64_t(std::max(si.byteOffset, 0)) + uint64_t(n) * index_size;
+    const uint64_t value_end =
+        uint64_t(std::max(a.sparse.values.byteOffset, 0)) + uint64_t(n) * element_size;
+    if (si.byteOffset < 0 || index_end > index_view.size()) {
+      fail(fmt::format("{} sparse indices are out of bounds of buffer view {}", name,
+                       si.bufferView));
+    }
+    if (a.sparse.values.byteOffset < 0 || value_end > value_view.size()) {
+      fail(fmt::format("{} sparse values are out of bounds of buffer view {}", name,
+                       a.sparse.values.bufferView));
+    }
+    for (int k = 0; k < n; ++k) {
+      const uint8_t* p = &index_view[size_t(si.byteOffset) + size_t(k) * size_t(index_size)];
+      uint32_t target = 0;
+      if (index_size == 1) {
+        target = p[0];
+      } else if (index_size == 2) {
+        uint16_t v;
+        std::memcpy(&v, p, 2);
+        target = v;
+      } else {
+        std::memcpy(&target, p, 4);
+      }
+      if (target >= a.count) {
+        fail(fmt::format("{} has sparse index {} out of range of its {} elements", name, target,
+                         a.count));
+      }
+      std::memcpy(&bytes[size_t(target) * element_size],
+                  &value_view[size_t(a.sparse.values.byteOffset) + size_t(k) * element_size],
+                  element_size);
+    }
+  }
+  return bytes;
+}
+
+// One component as glTF defines it: normalized integers map to [0, 1] or [-1, 1].
+double component_value(const uint8_t* p, int component_type, bool normalized) {
+  switch (component_type) {
+    case TINYGLTF_COMPONENT_TYPE_BYTE: {
+      int8_t v;
+      std::memcpy(&v, p, 1);
+      return normalized ? std::max(v / 127.0, -1.0) : double(v);
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+      return normalized ? p[0] / 255.0 : double(p[0]);
+    case TINYGLTF_COMPONENT_TYPE_SHORT: {
+      int16_t v;
+      std::memcpy(&v, p, 2);
+      return normalized ? std::max(v / 32767.0, -1.0) : double(v);
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
+      uint16_t v;
+      std::memcpy(&v, p, 2);
+      return normalized ? v / 65535.0 : double(v);
+    }
+    case TINYGLTF_COMPONENT_TYPE_INT: {
+      int32_t v;
+      std::memcpy(&v, p, 4);
+      return normalized ? std::max(v / 2147483647.0, -1.0) : double(v);
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: {
+      uint32_t v;
+      std::memcpy(&v, p, 4);
+      return normalized ? v / 4294967295.0 : double(v);
+    }
+    default: {
+      float v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+  }
+}
+
+// Components of accessor `index`, which must be of `type`, as floats; all finite.
+std::vector<float> Loader::read_floats(int index, int type, const std::string& what) {
+  const tinygltf::Accessor* a = nullptr;
+  const std::vector<uint8_t> bytes = gather(index, type, what, &a);
+  const size_t component_size = size_t(tinygltf::GetComponentSizeInBytes(a->componentType));
+  const size_t n = bytes.size() / component_size;
+  std::vector<float> values(n);
+  for (size_t i = 0; i < n; ++i) {
+    const double v = component_value(&bytes[i * component_size], a->componentType, a->normalized);
+    if (!std::isfinite(v)) {
+      fail(fmt::format("accessor {} ({}) holds a NaN or infinite value at element {}", index, what,
+                       i / size_t(tinygltf::GetNumComponentsInType(a->type))));
+    }
+    values[i] = float(v);
+  }
+  return values;
+}
+
+std::vector<uint32_t> Loader::read_indices(int index, const std::string& what) {
+  const tinygltf::Accessor* a = nullptr;
+  const std::vector<uint8_t> bytes = gather(index, TINYGLTF_TYPE_SCALAR, what, &a);
+  std::vector<uint32_t> indices(a->count);
+  switch (a->componentType) {
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+      for (size_t i = 0; i < indices.size(); ++i) indices[i] = bytes[i];
+      break;
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT:
+      for (size_t i = 0; i < indices.size(); ++i) {
+        uint16_t v;
+        std::memcpy(&v, &bytes[2 * i], 2);
+        indices[i] = v;
+      }
+      break;
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
+      if (!indices.empty()) std::memcpy(indices.data(), bytes.data(), 4 * indices.size());
+      break;
+    default:
+      fail(fmt::format("accessor {} ({}) has componentType {}, not an unsigned integer type", index,
+                       what, a->componentType));
+  }
+  return indices;
+}
+
+// ---- Meshes ----
+
+void Loader::load_meshes() {
+  for (size_t m = 0; m < model_.meshes.size(); ++m) {
+    const tinygltf::Mesh& in = model_.meshes[m];
+    Mesh mesh;
+    mesh.name = in.name;
+    for (size_t k = 0; k < in.primitives.size(); ++k) {
+      Primitive primitive;
+      if (load_primitive(in.primitives[k], fmt::format("mesh {} primitive {}", m, k), &primitive)) {
+        mesh.primitives.push_back(std::move(primitive));
+      }
+    }
+    scene_.meshes.push_back(std::move(mesh));
+  }
+}
+
+// Returns false for a primitive that is skipped (not triangles, or no triangles at all).
+bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& what,
+                            Primitive* out) {
+  const int mode = in.mode < 0 ? TINYGLTF_MODE_TRIANGLES : in.mode;
+  if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP &&
+      mode != TINYGLTF_MODE_TRIANGLE_FAN) {
+    warn_once(
+        fmt::format("mode {}", mode),
+        fmt::format("primitives of mode {} (points or lines) are not supported (skipped)", mode));
+    return false;
+  }
+  if (!in.targets.empty()) {
+    warn_once("morph targets", "morph targets are not supported (the base shape is used)");
+  }
+  for (const auto& [name, accessor] : in.attributes) {
+    if (name.rfind("COLOR_", 0) == 0) {
+      warn_once("vertex colors",
+                fmt::format("vertex colors ({}) are not supported (ignored)", name));
+    }
+  }
+  if (in.material < -1 || in.material >= int(model_.materials.size())) {
+    fail(fmt::format("{} refers to material {}, but there are {}", what, in.material,
+                     model_.materials.size()));
+  }
+  out->material = in.material;
+
+  const auto position = in.attributes.find("POSITION");
+  if (position == in.attributes.end()) fail(what + " has no POSITION attribute");
+  const std::vector<float> p =
+      read_floats(position->second, TINYGLTF_TYPE_VEC3, what + " POSITION");
+  const size_t vertex_count = p.size() / 3;
+  out->positions.resize(vertex_count);
+  for (size_t i = 0; i < vertex_count; ++i)
+    out->positions[i] = {p[3 * i], p[3 * i + 1], p[3 * i + 2]};
+
+  if (const auto normal = in.attributes.find("NORMAL"); normal != in.attributes.end()) {
+    const std::vector<float> n = read_floats(normal->second, TINYGLTF_TYPE_VEC3, what + " NORMAL");
+    if (n.size() != p.size()) {
+      fail(fmt::format("{} has {} normals for {} positions", what, n.size() / 3, vertex_count));
+    }
+    out->normals.resize(vertex_count);
+    for (size_t i = 0; i < vertex_count; ++i) {
+      const glm::vec3 v(n[3 * i], n[3 * i + 1], n[3 * i + 2]);
+      const float length = glm::length(v);
+      out->normals[i] = length > 0.0f ? v / length : glm::vec3(0.0f, 0.0f, 1.0f);
+    }
+  }
+  if (const auto uv = in.attributes.find("TEXCOORD_0"); uv != in.attributes.end()) {
+    const std::vector<float> t = read_floats(uv->second, TINYGLTF_TYPE_VEC2, what + " TEXCOORD_0");
+    if (t.size() / 2 != vertex_count) {
+      fail(fmt::format("{} has {} texture coordinates for {} positions", what, t.size() / 2,
+                       vertex_count));
+    }
+    out->uvs.resize(vertex_count);
+    for (size_t i = 0; i < vertex_count; ++i) out->uvs[i] = {t[2 * i], t[2 * i + 1]};
+  }
+
+  std::vector<uint32_t> indices;
+  if (in.indices >= 0) {
+    indices = read_indices(in.indices, what + " indices");
+  } else {
+    indices.resize(vertex_count);
+    std::iota(indices.begin(), indices.end(), 0u);
+  }
+  for (size_t i = 0; i < indices.size(); ++i) {
+    if (indices[i] >= vertex_count) {
+      fail(
+          fmt::format("index {} of {} (element {}) is out of range: the primitive has {} "
+                      "vertices",
+                      indices[i], what, i, vertex_count));
+    }
+  }
+  // glTF 2.0, section 3.7.2.1: strips and fans as lists, keeping the winding.
+  if (mode == TINYGLTF_MODE_TRIANGLES) {
+    if (indices.size() % 3 != 0) {
+      fail(fmt::format("{} has {} indices, not a multiple of 3", what, indices.size()));
+    }
+    out->indices = std::move(indices);
+  } else {
+    const size_t triangles = indices.size() >= 3 ? indices.size() - 2 : 0;
+    out->indices.reserve(3 * triangles);
+    for (size_t i = 0; i < triangles; ++i) {
+      if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+        out->indices.insert(out->indices.end(),
+                            {indices[i], indices[i + 1 + i % 2], indices[i + 2 - i % 2]});
+      } else {
+        out->indices.insert(out->indices.end(), {indices[i + 1], indices[i + 2], indices[0]});
+      }
+    }
+  }
+  if (out->indices.empty()) return false;
+  if (out->normals.empty()) generate_normals(out);
+  return true;
+}
+
+// ---- Materials and textures ----
+
+glm::vec3 Loader::read_rgb_extra(const tinygltf::Value& extras, const char* key,
+                                 const std::string& what) const {
+  const tinygltf::Value& v = extras.Get(key);
+  std::array<double, 3> rgb{};
+  bool ok = v.IsArray() && v.ArrayLen() == 3;
+  for (int i = 0; ok && i < 3; ++i) {
+    ok = v.Get(i).IsNumber() && std::isfinite(v.Get(i).GetNumberAsDouble());
+    if (ok) rgb[size_t(i)] = v.Get(i).GetNumberAsDouble();
+  }
+  if (!ok) fail(fmt::format("{} extra \"{}\" is not an array of 3 numbers", what, key));
+  return glm::vec3(float(rgb[0]), float(rgb[1]), float(rgb[2]));
+}
+
+void Loader::load_materials() {
+  image_to_texture_.assign(model_.images.size(), -1);
+  for (size_t m = 0; m < model_.materials.size(); ++m) {
+    const tinygltf::Material& in = model_.materials[m];
+    const tinygltf::PbrMetallicRoughness& pbr = in.pbrMetallicRoughness;
+    const std::string what = fmt::format("material {}", m);
+    Material out;
+    out.name = in.name;
+    if (pbr.baseColorFactor.size() != 4 || !is_finite(pbr.baseColorFactor)) {
+      fail(what + " has an invalid baseColorFactor");
+    }
+    out.base_color_factor = glm::vec4(float(pbr.baseColorFactor[0]), float(pbr.baseColorFactor[1]),
+                                      float(pbr.baseColorFactor[2]), float(pbr.baseColorFactor[3]));
+    if (!std::isfinite(pbr.metallicFactor) || !std::isfinite(pbr.roughnessFactor)) {
+      fail(what + " has an invalid metallicFactor or roughnessFactor");
+    }
+    out.metallic = float(std::clamp(pbr.metallicFactor, 0.0, 1.0));
+    out.roughness = float(std::clamp(pbr.roughnessFactor, 0.0, 1.0));
+    if (!in.emissiveFactor.empty()) {
+      if (in.emissiveFactor.size() != 3 || !is_finite(in.emissiveFactor)) {
+        fail(what + " has an invalid emissiveFactor");
+      }
+      out.emissive = glm::vec3(float(in.emissiveFactor[0]), float(in.emissiveFactor[1]),
+                               float(in.emissiveFactor[2]));
+    }
+    if (const auto ext = in.extensions.find("KHR_materials_emissive_strength");
+        ext != in.extensions.end() && ext->second.Has("emissiveStrength")) {
+      const tinygltf::Value& s = ext->second.Get("emissiveStrength");
+      if (!s.IsNumber() || !std::isfinite(s.GetNumberAsDouble()) || s.GetNumberAsDouble() < 0) {
+        fail(what + " has an invalid emissiveStrength");
+      }
+      out.emissive *= float(s.GetNumberAsDouble());
+    }
+    out.double_sided = in.doubleSided;
+    if (in.alphaMode != "OPAQUE") {
+      warn_once("alphaMode",
+                fmt::format("alphaMode {} is not supported (surfaces are opaque)", in.alphaMode));
+    }
+    if (pbr.metallicRoughnessTexture.index >= 0) {
+      warn_once("metallicRoughnessTexture",
+                "metallicRoughnessTexture is not supported (factors are used)");
+    }
+    if (in.normalTexture.index >= 0) {
+      warn_once("normalTexture", "normalTexture is not supported (ignored)");
+    }
+    if (in.occlusionTexture.index >= 0) {
+      warn_once("occlusionTexture", "occlusionTexture is not supported (ignored)");
+    }
+    if (in.emissiveTexture.index >= 0) {
+      warn_once("emissiveTexture", "emissiveTexture is not supported (emissiveFactor is used)");
+    }
+
+    const int t = pbr.baseColorTexture.index;
+    if (t >= 0) {
+      if (size_t(t) >= model_.textures.size()) {
+        fail(fmt::format("{} refers to texture {}, but there are {}", what, t,
+                         model_.textures.size()));
+      }
+      if (pbr.baseColorTexture.texCoord != 0) {
+        warn_once("texCoord", fmt::format("textures on TEXCOORD_{} are not supported "
+                                          "(TEXCOORD_0 is used)",
+                                          pbr.baseColorTexture.texCoord));
+      }
+      const tinygltf::Texture& texture = model_.textures[size_t(t)];
+      if (texture.sampler >= int(model_.samplers.size())) {
+        fail(fmt::format("texture {} refers to sampler {}, but there are {}", t, texture.sampler,
+                         model_.samplers.size()));
+      }
+      if (texture.sampler >= 0) {
+        const tinygltf::Sampler& sampler = model_.samplers[size_t(texture.sampler)];
+        if (sampler.wrapS != TINYGLTF_TEXTURE_WRAP_REPEAT ||
+            sampler.wrapT != TINYGLTF_TEXTURE_WRAP_REPEAT) {
+          warn_once("wrap",
+                    "texture wrap modes other than REPEAT are not supported (REPEAT is "
+                    "used)");
+        }
+      }
+      if (texture.source < 0) {
+        warn_once("texture without source",
+                  "textures without a PNG or JPEG source are not supported (ignored)");
+      } else {
+        if (size_t(texture.source) >= model_.images.size()) {
+          fail(fmt::format("texture {} refers to image {}, but there are {}", t, texture.source,
+                           model_.images.size()));
+        }
+        out.base_color_texture = texture_for_image(texture.source);
+      }
+    }
+    if (in.extras.Has("afr_ambient")) out.ambient = read_rgb_extra(in.extras, "afr_ambient", what);
+    scene_.materials.push_back(std::move(out));
+  }
+}
+
+// Decodes image `image_index` into Scene::textures (once) and returns its index there.
+int Loader::texture_for_image(int image_index) {
+  int& texture_index = image_to_texture_[size_t(image_index)];
+  if (texture_index >= 0) return texture_index;
+  const tinygltf::Image& image = model_.images[size_t(image_index)];
+  const std::string name =
+      image.uri.empty() || image.uri.rfind("data:", 0) == 0
+          ? fmt::format("image {} of {}", image_index, path_.string())
+          : fmt::format("image {} ({}) of {}", image_index, image.uri, path_.string());
+  std::span<const uint8_t> bytes;
+  if (image.bufferView >= 0) {
+    bytes = buffer_view_bytes(image.bufferView, fmt::format("image {}", image_index));
+  } else {
+    bytes = image.image;
+  }
+  if (bytes.empty()) {
+    std::string reason = "its data could not be read";
+    if (!access_.refused.empty()) reason += " (files outside the folder of the glTF are refused)";
+    throw Error(fmt::format("{}: {}", name, reason));
+  }
+  const DecodedImage decoded = decode_image(bytes, name);
+
+  // sRGB-encoded 8-bit values to linear, through a table.
+  std::array<float, 256> linear;
+  for (int v = 0; v < 256; ++v) linear[size_t(v)] = srgb_to_linear(float(v) / 255.0f);
+  Texture texture;
+  texture.name = image.name.empty() ? image.uri : image.name;
+  texture.width = decoded.width;
+  texture.height = decoded.height;
+  texture.texels.resize(size_t(decoded.width) * size_t(decoded.height));
+  const size_t c = size_t(decoded.channels);
+  for (size_t i = 0; i < texture.texels.size(); ++i) {
+    const uint8_t* p = &decoded.data[i * c];
+    // One channel is gray, two are gray and alpha; alpha is not modelled.
+    texture.texels[i] =
+        c >= 3 ? glm::vec3(linear[p[0]], linear[p[1]], linear[p[2]]) : glm::vec3(linear[p[0]]);
+  }
+  texture_index = int(scene_.textures.size());
+  scene_.textures.push_back(std::move(texture));
+  return texture_index;
+}
+
+// ---- Cameras and lights ----
+
+void Loader::load_cameras() {
+  for (size_t i = 0; i < model_.cameras.size(); ++i) {
+    const tinygltf::Camera& in = model_.cameras[i];
+    if (in.type != "perspective") {
+      warn_once("camera " + in.type,
+                fmt::format("{} cameras are not supported (skipped)", in.type));
+      camera_map_.push_back(-1);
+      continue;
+    }
+    const double yfov = in.perspective.yfov;
+    const double znear = in.perspective.znear;
+    if (!(yfov > 0.0 && yfov < std::numbers::pi) || !(znear > 0.0 && std::isfinite(znear))) {
+      fail(fmt::format("camera {} has an invalid yfov ({}) or znear ({})", i, yfov, znear));
+    }
+    CameraModel camera;
+    camera.name = in.name;
+    camera.yfov = yfov;
+    camera.znear = znear;
+    camera_map_.push_back(int(scene_.cameras.size()));
+    scene_.cameras.push_back(std::move(camera));
+  }
+}
+
+void Loader::load_lights() {
+  for (size_t i = 0; i < model_.lights.size(); ++i) {
+    const tinygltf::Light& in = model_.lights[i];
+    const std::string what = fmt::format("light {}", i);
+    Light light;
+    light.name = in.name;
+    if (in.type == "point") {
+      light.type = Light::Type::kPoint;
+    } else if (in.type == "directional") {
+      light.type = Light::Type::kDirectional;
+    } else if (in.type == "spot") {
+      light.type = Light::Type::kSpot;
+    } else {
+      warn_once("light " + in.type, fmt::format("lights of type \"{}\" are not supported "
+                                                "(skipped)",
+                                                in.type));
+      light_map_.push_back(-1);
+      continue;
+    }
+    if (!in.color.empty()) {
+      if (in.color.size() != 3 || !is_finite(in.color)) fail(what + " has an invalid color");
+      light.color = glm::vec3(float(in.color[0]), float(in.color[1]), float(in.color[2]));
+    }
+    if (!std::isfinite(in.intensity) || in.intensity < 0.0) {
+      fail(fmt::format("{} has an invalid intensity {}", what, in.intensity));
+    }
+    if (!std::isfinite(in.range) || in.range < 0.0) {
+      fail(fmt::format("{} has an invalid range {}", what, in.range));
+    }
+    light.intensity = float(in.intensity);
+    light.range = float(in.range);
+    if (light.type == Light::Type::kSpot) {
+      const double inner = in.spot.innerConeAngle;
+      const double outer = in.spot.outerConeAngle;
+      if (!(inner >= 0.0 && inner <= outer && outer > 0.0 &&
+            outer <= std::numbers::pi / 2 + 1e-9)) {
+        fail(fmt::format("{} has invalid cone angles (inner {}, outer {})", what, inner, outer));
+      }
+      light.inner_cone_angle = float(inner);
+      light.outer_cone_angle = float(outer);
+    }
+    if (in.extras.Has("afr_falloff")) {
+      const tinygltf::Value& falloff = in.extras.Get("afr_falloff");
+      if (falloff.IsString() && falloff.Get<std::string>() == "none") {
+        light.inverse_square_falloff = false;
+      } else if (!(falloff.IsString() && falloff.Get<std::string>() == "inverse_square")) {
+        fail(what + " extra \"afr_falloff\" is neither \"none\" nor \"inverse_square\"");
+      }
+    }
+    light_map_.push_back(int(scene_.lights.size()));
+    scene_.lights.push_back(std::move(light));
+  }
+}
+
+// ---- Nodes ----
+
+void Loader::load_nodes() {
+  const size_t count = model_.nodes.size();
+  std::vector<int> parent(count, -1);
+  for (size_t i = 0; i < count; ++i) {
+    const tinygltf::Node& in = model_.nodes[i];
+    const std::string what = fmt::format("node {}", i);
+    Node node;
+    node.name = in.name;
+    for (int child : in.children) {
+      if (child < 0 || size_t(child) >= count) {
+        fail(fmt::format("{} has child {}, but there are {} nodes", what, child, count));
+      }
+      if (size_t(child) == i)
+        fail(fmt::format("{} is its own child: a cycle in the node graph", what));
+      if (parent[size_t(child)] >= 0) {
+        fail(
+            fmt::format("node {} is a child of both node {} and node {}: the node graph is not a "
+                        "tree",
+                        child, parent[size_t(child)], i));
+      }
+      parent[size_t(child)] = int(i);
+      node.children.push_back(child);
+    }
+    if (in.mesh < -1 || in.mesh >= int(model_.meshes.size())) {
+      fail(fmt::format("{} refers to mesh {}, but there are {}", what, in.mesh,
+                       model_.meshes.size()));
+    }
+    node.mesh = in.mesh;
+    if (in.camera < -1 || in.camera >= int(model_.cameras.size())) {
+      fail(fmt::format("{} refers to camera {}, but there are {}", what, in.camera,
+                       model_.cameras.size()));
+    }
+    node.camera = in.camera >= 0 ? camera_map_[size_t(in.camera)] : -1;
+    if (in.skin >= 0 || !model_.skins.empty()) {
+      warn_once("skins", "skins are not supported (meshes are shown in their bind pose)");
+    }
+    if (const auto ext = in.extensions.find("KHR_lights_punctual"); ext != in.extensions.end()) {
+      const int light = ext->second.Has("light") && ext->second.Get("light").IsInt()
+                            ? ext->second.Get("light").GetNumberAsInt()
+                            : -1;
+      if (light < 0 || size_t(light) >= light_map_.size()) {
+        fail(fmt::format("{} refers to an invalid light (there are {})", what, light_map_.size()));
+      }
+      node.light = light_map_[size_t(light)];
+    }
+    if (!in.matrix.empty()) {
+      if (in.matrix.size() != 16 || !is_finite(in.matrix)) fail(what + " has an invalid matrix");
+      glm::dmat4 m;
+      for (int c = 0; c < 4; ++c) {
+        for (int r = 0; r < 4; ++r) m[c][r] = in.matrix[size_t(4 * c + r)];
+      }
+      node.matrix = m;
+    }
+    if (!in.translation.empty()) {
+      if (in.translation.size() != 3 || !is_finite(in.translation)) {
+        fail(what + " has an invalid translation");
+      }
+      node.translation = {in.translation[0], in.translation[1], in.translation[2]};
+    }
+    if (!in.rotation.empty()) {
+      if (in.rotation.size() != 4 || !is_finite(in.rotation)) {
+        fail(what + " has an invalid rotation");
+      }
+      // glTF stores (x, y, z, w); glm's constructor takes w first.
+      const glm::dquat q(in.rotation[3], in.rotation[0], in.rotation[1], in.rotation[2]);
+      const double length = glm::length(q);
+      if (!(length > 1e-12)) fail(what + " has a zero rotation quaternion");
+      node.rotation = q / length;
+    }
+    if (!in.scale.empty()) {
+      if (in.scale.size() != 3 || !is_finite(in.scale)) fail(what + " has an invalid scale");
+      node.scale = {in.scale[0], in.scale[1], in.scale[2]};
+    }
+    scene_.nodes.push_back(std::move(node));
+  }
+  // Every node has at most one parent now; a node not reachable from a parentless node lies
+  // on a cycle (or below one).
+  std::vector<char> reached(count, 0);
+  std::vector<int> stack;
+  for (size_t i = 0; i < count; ++i) {
+    if (parent[i] < 0) stack.push_back(int(i));
+  }
+  while (!stack.empty()) {
+    const int n = stack.back();
+    stack.pop_back();
+    reached[size_t(n)] = 1;
+    for (int child : scene_.nodes[size_t(n)].children) stack.push_back(child);
+  }
+  for (size_t i = 0; i < count; ++i) {
+    if (!reached[i]) fail(fmt::format("node {} is part of a cycle in the node graph", i));
+  }
+}
+
+// ---- Animations ----
+
+void Loader::load_animations() {
+  for (size_t a = 0; a < model_.animations.size(); ++a) {
+    const tinygltf::Animation& animation = model_.animations[a];
+    for (size_t c = 0; c < animation.channels.size(); ++c) {
+      const tinygltf::AnimationChannel& in = animation.channels[c];
+      const std::string what = fmt::format("animation {} channel {}", a, c);
+      if (in.sampler < 0 || size_t(in.sampler) >= animation.samplers.size()) {
+        fail(fmt::format("{} refers to sampler {}, but there are {}", what, in.sampler,
+                         animation.samplers.size()));
+      }
+      if (in.target_node < 0) {
+        warn_once("channel without node",
+                  "animation channels without a target node are not supported (skipped)");
+        continue;
+      }
+      if (size_t(in.target_node) >= model_.nodes.size()) {
+        fail(fmt::format("{} targets node {}, but there are {}", what, in.target_node,
+                         model_.nodes.size()));
+      }
+      AnimationChannel channel;
+      channel.node = in.target_node;
+      int value_type = TINYGLTF_TYPE_VEC3;
+      if (in.target_path == "translation") {
+        channel.path = AnimatedPath::kTranslation;
+      } else if (in.target_path == "rotation") {
+        channel.path = AnimatedPath::kRotation;
+        value_type = TINYGLTF_TYPE_VEC4;
+      } else if (in.target_path == "scale") {
+        channel.path = AnimatedPath::kScale;
+      } else {
+        warn_once("path " + in.target_path,
+                  fmt::format("animations of \"{}\" are not supported (skipped)", in.target_path));
+        continue;
+      }
+      if (scene_.nodes[size_t(in.target_node)].matrix) {
+        warn_once("animated matrix node",
+                  "animations of nodes given as a matrix are not supported (skipped)");
+        continue;
+      }
+      const tinygltf::AnimationSampler& sampler = animation.samplers[size_t(in.sampler)];
+      if (sampler.interpolation == "LINEAR") {
+        channel.interpolation = Interpolation::kLinear;
+      } else if (sampler.interpolation == "STEP") {
+        channel.interpolation = Interpolation::kStep;
+      } else if (sampler.interpolation == "CUBICSPLINE") {
+        channel.interpolation = Interpolation::kCubicSpline;
+      } else {
+        warn_once("interpolation " + sampler.interpolation,
+                  fmt::format("interpolation \"{}\" is not supported (channel skipped)",
+                              sampler.interpolation));
+        continue;
+      }
+      const std::vector<float> times =
+          read_floats(sampler.input, TINYGLTF_TYPE_SCALAR, what + " input");
+      const std::vector<float> values = read_floats(sampler.output, value_type, what + " output");
+      const size_t width = value_type == TINYGLTF_TYPE_VEC4 ? 4 : 3;
+      const size_t per_key = channel.interpolation == Interpolation::kCubicSpline ? 3 : 1;
+      if (times.empty() || values.size() != times.size() * per_key * width) {
+        fail(fmt::format("{} has {} keyframe times and {} values ({} per key expected)", what,
+                         times.size(), values.size() / width, per_key));
+      }
+      channel.times.assign(times.begin(), times.end());
+      channel.values.resize(values.size() / width);
+      for (size_t i = 0; i < channel.values.size(); ++i) {
+        const float* v = &values[i * width];
+        channel.values[i] = glm::dvec4(v[0], v[1], v[2], width == 4 ? v[3] : 0.0f);
+      }
+      channel.validate(fmt::format("{} of {}", what, path_.string()));
+      scene_.channels.push_back(std::move(channel));
+    }
+  }
+}
+
+// ---- Scene ----
+
+void Loader::load_scene_roots() {
+  if (model_.scenes.empty()) {
+    // Without scenes, every parentless node is shown.
+    std::vector<char> is_child(scene_.nodes.size(), 0);
+    for (const Node& node : scene_.nodes) {
+      for (int child : node.children) is_child[size_t(child)] = 1;
+    }
+    for (size_t i = 0; i < scene_.nodes.size(); ++i) {
+      if (!is_child[i]) scene_.roots.push_back(int(i));
+    }
+    return;
+  }
+  const int index = model_.defaultScene >= 0 ? model_.defaultScene : 0;
+  if (size_t(index) >= model_.scenes.size()) {
+    fail(
+        fmt::format("default scene {} does not exist (there are {})", index, model_.scenes.size()));
+  }
+  const tinygltf::Scene& in = model_.scenes[size_t(index)];
+  const std::string what = fmt::format("scene {}", index);
+  std::vector<char> is_child(scene_.nodes.size(), 0);
+  for (const Node& node : scene_.nodes) {
+    for (int child : node.children) is_child[size_t(child)] = 1;
+  }
+  std::vector<char> seen(scene_.nodes.size(), 0);
+  for (int root : in.nodes) {
+    if (root < 0 || size_t(root) >= scene_.nodes.size()) {
+      fail(fmt::format("{} refers to node {}, but there are {}", what, root, scene_.nodes.size()));
+    }
+    if (is_child[size_t(root)] || seen[size_t(root)]) {
+      fail(fmt::format("{} lists node {}, which is not a distinct root node", what, root));
+    }
+    seen[size_t(root)] = 1;
+    scene_.roots.push_back(root);
+  }
+  if (in.extras.Has("afr_background")) {
+    scene_.background = read_rgb_extra(in.extras, "afr_background", what);
+  }
+  if (in.extras.Has("afr_ambient")) {
+    scene_.ambient = read_rgb_extra(in.extras, "afr_ambient", what);
+  }
+}
+
+Scene Loader::load() {
+  parse(read_file());
+  check_extensions();
+  scene_.source = path_.string();
+  load_meshes();
+  load_materials();
+  load_cameras();
+  load_lights();
+  load_nodes();
+  load_animations();
+  load_scene_roots();
+  try {
+    scene_.finalize();
+  } catch (const Error& e) {
+    const std::string message = e.what();
+    if (message.find(path_.string()) != std::string::npos) throw;
+    fail(message);
+  }
+  return std::move(scene_);
+}
+
+}  // namespace
+
+Scene load_gltf(const std::filesystem::path& path, GltfLoadReport* report) {
+  return Loader(path, report).load();
+}
+
+Scene load_scene(const std::filesystem::path& path) {
+  if (path.empty()) return make_builtin_scene();
+  return load_gltf(path);
+}
+
+}  // namespace afr

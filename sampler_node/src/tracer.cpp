@@ -1,0 +1,782 @@
+#include <afr/sampler/tracer.h>
+
+#include <afr/common/check.h>
+#include <afr/common/error.h>
+
+#include <embree3/rtcore.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "shading.h"
+
+namespace afr {
+
+TraceStats& TraceStats::operator+=(const TraceStats& o) {
+  primary_rays += o.primary_rays;
+  shadow_rays += o.shadow_rays;
+  reflection_rays += o.reflection_rays;
+  occlusion_rays += o.occlusion_rays;
+  sanitized += o.sanitized;
+  return *this;
+}
+
+namespace {
+
+using shading::LightRecord;
+using shading::ShadeMaterial;
+
+// Half-width of the central difference that gives instance velocities.
+constexpr double kVelocityDt = 1e-3;
+// Secondary rays start this far (relative to the hit point's magnitude) off the surface.
+constexpr float kRayOffset = 5e-5f;
+// Mirror chains stop when what they could still add is below this.
+constexpr float kMinThroughput = 1e-3f;
+
+bool finite(const glm::vec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+float max_abs(const glm::vec3& v) {
+  return std::max(std::abs(v.x), std::max(std::abs(v.y), std::abs(v.z)));
+}
+
+// The offset that keeps a ray leaving the surface at p from hitting that surface again.
+float offset_at(const glm::vec3& p) { return kRayOffset * (1.0f + max_abs(p)); }
+
+// One Embree triangle geometry: one primitive of a mesh. Static geometry is stored in world
+// space and knows its node; geometry of an instanced mesh is in the mesh's space and takes its
+// node from the instance.
+struct GeomRecord {
+  const glm::vec3* positions = nullptr;
+  const glm::vec3* normals = nullptr;  // null when the primitive has none per vertex
+  const glm::vec2* uvs = nullptr;      // null when the primitive has none per vertex
+  const uint32_t* indices = nullptr;
+  uint32_t material = 0;  // index into Impl::materials_
+  int node = -1;
+};
+
+// A bottom-level Embree scene: all static geometry, or one mesh shared by its moving nodes.
+struct Blas {
+  RTCScene scene = nullptr;
+  std::vector<GeomRecord> geoms;  // indexed by Embree geomID
+};
+
+// One instance in the top-level scene (indexed by its instID).
+struct Instance {
+  RTCGeometry geom = nullptr;
+  int blas = 0;
+  int node = -1;  // -1 for the static instance
+  bool moves = false;
+  bool enabled = true;
+  glm::mat3 normal_matrix{1.0f};  // inverse transpose of the world transform's linear part
+  glm::mat4 velocity{0.0f};       // maps a world point to its world velocity (affine)
+};
+
+// What one Embree ray query returned, whether from a single ray or a packet lane.
+struct HitRef {
+  float t = 0.0f;
+  float u = 0.0f, v = 0.0f;
+  unsigned geom = RTC_INVALID_GEOMETRY_ID;
+  unsigned prim = 0;
+  unsigned inst = RTC_INVALID_GEOMETRY_ID;
+};
+
+// A shading point in world space.
+struct Surface {
+  glm::vec3 p{0.0f};
+  glm::vec3 ng{0.0f, 0.0f, 1.0f};  // geometric normal, unit, toward the viewer when flipped
+  glm::vec3 ns{0.0f, 0.0f, 1.0f};  // shading normal, unit
+  glm::vec2 uv{0.0f};
+  const ShadeMaterial* material = nullptr;
+  const Instance* instance = nullptr;
+  int node = -1;
+  bool back_face = false;  // a single-sided surface seen from behind
+};
+
+// What the direct-light loop needs of one shading point, computed once for all lights.
+struct LocalTerms {
+  glm::vec3 diffuse{0.0f};  // base (1 - metallic)
+  glm::vec3 f0{0.0f};
+  glm::vec3 origin{0.0f};  // of shadow rays: off the surface on the side it faces
+  float offset = 0.0f;
+  float n_dot_v = 1.0f;
+};
+
+void init_ray(RTCRay* r, const glm::vec3& o, const glm::vec3& d, float tnear, float tfar) {
+  r->org_x = o.x;
+  r->org_y = o.y;
+  r->org_z = o.z;
+  r->tnear = tnear;
+  r->dir_x = d.x;
+  r->dir_y = d.y;
+  r->dir_z = d.z;
+  r->time = 0.0f;
+  r->tfar = tfar;
+  r->mask = 0xffffffffu;
+  r->id = 0;
+  r->flags = 0;
+}
+
+void error_callback(void* /*user*/, RTCError code, const char* message) {
+  spdlog::error("embree error {}: {}", int(code), message ? message : "");
+}
+
+// Column-major 3x4 for rtcSetGeometryTransform.
+void to_float3x4(const glm::dmat4& m, float out[12]) {
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 3; ++r) out[c * 3 + r] = float(m[c][r]);
+}
+
+}  // namespace
+
+// =============================================================================================
+// Impl
+
+struct Tracer::Impl {
+  Scene scene_;
+  TracerOptions options_;
+  RTCDevice device_ = nullptr;
+  RTCScene top_ = nullptr;
+  std::vector<Blas> blas_;
+  std::vector<Instance> instances_;
+  std::vector<ShadeMaterial> materials_;  // scene materials, then the default material
+  std::vector<int> light_nodes_;          // scene nodes that carry a light
+  std::vector<LightRecord> lights_;       // placed at the current time
+  // Static geometry transformed to world space (GeomRecord points into these).
+  std::vector<std::vector<glm::vec3>> static_positions_;
+  std::vector<std::vector<glm::vec3>> static_normals_;
+  SceneState state_, state_minus_, state_plus_;
+  Camera camera_;
+
+  Impl(const Scene& scene, const TracerOptions& options);
+  ~Impl() { release(); }
+  void release();
+
+  void check_device(const char* what) const;
+  RTCGeometry new_triangle_geometry(const glm::vec3* positions, size_t vertex_count,
+                                    const uint32_t* indices, size_t triangle_count) const;
+  void build();
+  void set_time(double t);
+
+  // ---- queries (const, thread-safe) ----
+  HitRef intersect(const glm::vec3& o, const glm::vec3& d, float tnear) const;
+  bool blocked(const glm::vec3& o, const glm::vec3& d, float tnear, float tfar) const;
+  void make_surface(const HitRef& hit, const glm::vec3& o, const glm::vec3& d, Surface* s) const;
+  glm::vec3 texture_color(const Surface& s) const;
+  bool prepare_local(const Surface& s, const glm::vec3& wo, const glm::vec3& tex, glm::vec3* c,
+                     LocalTerms* terms) const;
+  bool light_contribution(const LightRecord& light, const Surface& s, const LocalTerms& terms,
+                          const glm::vec3& wo, glm::vec3* contribution, glm::vec3* l,
+                          float* shadow_tfar) const;
+  glm::vec3 shade_local(const Surface& s, const glm::vec3& wo, const glm::vec3& tex,
+                        TraceStats* stats) const;
+  void shade_local8(const Surface* s, const glm::vec3* wo, const glm::vec3* tex, const bool* hit,
+                    int n, glm::vec3* out, TraceStats* stats) const;
+  glm::vec3 mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, TraceStats* stats) const;
+  bool begin_sample(const Ray& ray, const HitRef& hit, ShadedSample* o, Surface* s,
+                    TraceStats* stats) const;
+  void sanitize(ShadedSample* o, TraceStats* stats) const;
+  void finish(const Ray& ray, const HitRef& hit, ShadedSample* out, TraceStats* stats) const;
+};
+
+Tracer::Impl::Impl(const Scene& scene, const TracerOptions& options)
+    : scene_(scene), options_(options) {
+  device_ = rtcNewDevice("verbose=0");
+  if (!device_)
+    throw Error("embree: cannot create a device (error " +
+                std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+  rtcSetDeviceErrorFunction(device_, error_callback, nullptr);
+  try {
+    build();
+    set_time(0.0);
+  } catch (...) {
+    release();  // the destructor does not run when the constructor throws
+    throw;
+  }
+}
+
+void Tracer::Impl::release() {
+  for (Instance& inst : instances_)
+    if (inst.geom) rtcReleaseGeometry(inst.geom);
+  instances_.clear();
+  if (top_) rtcReleaseScene(top_);
+  top_ = nullptr;
+  for (Blas& b : blas_)
+    if (b.scene) rtcReleaseScene(b.scene);
+  blas_.clear();
+  if (device_) rtcReleaseDevice(device_);
+  device_ = nullptr;
+}
+
+void Tracer::Impl::check_device(const char* what) const {
+  const RTCError e = rtcGetDeviceError(device_);
+  if (e != RTC_ERROR_NONE)
+    throw Error(std::string("embree: ") + what + " failed (error " + std::to_string(int(e)) +
+                ") for scene " + scene_.source);
+}
+
+RTCGeometry Tracer::Impl::new_triangle_geometry(const glm::vec3* positions, size_t vertex_count,
+                                                const uint32_t* indices,
+                                                size_t triangle_count) const {
+  RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+  // Embree's own buffers carry the padding its SIMD loads need.
+  auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
+      g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), vertex_count));
+  auto* i = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(
+      g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), triangle_count));
+  if (!v || !i) {
+    rtcReleaseGeometry(g);
+    check_device("allocating a vertex buffer");
+    throw Error("embree: cannot allocate geometry buffers for scene " + scene_.source);
+  }
+  std::copy_n(&positions[0].x, 3 * vertex_count, v);
+  std::copy_n(indices, 3 * triangle_count, i);
+  rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_HIGH);
+  rtcCommitGeometry(g);
+  return g;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Building: one BLAS of all static geometry in world space, one BLAS per mesh that a moving
+// node carries, and a top level of instances.
+
+void Tracer::Impl::build() {
+  const uint32_t default_material = uint32_t(scene_.materials.size());
+  materials_.reserve(scene_.materials.size() + 1);
+  for (const Material& m : scene_.materials)
+    materials_.push_back(shading::make_shade_material(&m, scene_, options_.mirror_roughness));
+  materials_.push_back(shading::make_shade_material(nullptr, scene_, options_.mirror_roughness));
+  auto material_of = [&](const Primitive& p) {
+    return p.material >= 0 && size_t(p.material) < scene_.materials.size() ? uint32_t(p.material)
+                                                                           : default_material;
+  };
+  auto usable = [](const Primitive& p) { return p.triangle_count() > 0 && !p.positions.empty(); };
+
+  const SceneState at0 = scene_.evaluate(0.0);
+  top_ = rtcNewScene(device_);
+  rtcSetSceneBuildQuality(top_, RTC_BUILD_QUALITY_LOW);
+  rtcSetSceneFlags(top_, RTC_SCENE_FLAG_DYNAMIC);
+
+  // The static BLAS, pre-transformed to world space.
+  Blas statics;
+  statics.scene = rtcNewScene(device_);
+  std::vector<int> mesh_blas(scene_.meshes.size(), -1);
+  std::vector<int> moving_nodes;
+  for (int n : scene_.scene_nodes()) {
+    const Node& node = scene_.nodes[size_t(n)];
+    if (node.light >= 0 && size_t(node.light) < scene_.lights.size()) light_nodes_.push_back(n);
+    if (node.mesh < 0) continue;
+    if (scene_.node_moves(n)) {
+      moving_nodes.push_back(n);
+      continue;
+    }
+    const glm::dmat4& world = at0.world[size_t(n)];
+    const glm::dmat3 normal_matrix = glm::transpose(glm::inverse(glm::dmat3(world)));
+    for (const Primitive& p : scene_.meshes[size_t(node.mesh)].primitives) {
+      if (!usable(p)) continue;
+      std::vector<glm::vec3> positions(p.positions.size());
+      for (size_t i = 0; i < positions.size(); ++i)
+        positions[i] = glm::vec3(world * glm::dvec4(glm::dvec3(p.positions[i]), 1.0));
+      std::vector<glm::vec3> normals;
+      if (p.normals.size() == p.positions.size()) {
+        normals.resize(p.normals.size());
+        // Not normalised here: a zero normal must stay zero so shading can detect it.
+        for (size_t i = 0; i < normals.size(); ++i)
+          normals[i] = glm::vec3(normal_matrix * glm::dvec3(p.normals[i]));
+      }
+      RTCGeometry g = new_triangle_geometry(positions.data(), positions.size(), p.indices.data(),
+                                            p.triangle_count());
+      rtcAttachGeometryByID(statics.scene, g, unsigned(statics.geoms.size()));
+      rtcReleaseGeometry(g);
+      static_positions_.push_back(std::move(positions));
+      static_normals_.push_back(std::move(normals));
+      GeomRecord r;
+      r.positions = static_positions_.back().data();
+      r.normals = static_normals_.back().empty() ? nullptr : static_normals_.back().data();
+      r.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
+      r.indices = p.indices.data();
+      r.material = material_of(p);
+      r.node = n;
+      statics.geoms.push_back(r);
+    }
+  }
+  if (!statics.geoms.empty()) {
+    rtcSetSceneBuildQuality(statics.scene, RTC_BUILD_QUALITY_HIGH);
+    rtcCommitScene(statics.scene);
+    check_device("building the static BVH");
+    blas_.push_back(std::move(statics));
+    Instance inst;
+    inst.blas = 0;
+    instances_.push_back(inst);
+  } else {
+    rtcReleaseScene(statics.scene);
+  }
+
+  // One BLAS per mesh of a moving node, in the mesh's own space.
+  for (int n : moving_nodes) {
+    const int mesh = scene_.nodes[size_t(n)].mesh;
+    if (mesh_blas[size_t(mesh)] < 0) {
+      Blas b;
+      b.scene = rtcNewScene(device_);
+      for (const Primitive& p : scene_.meshes[size_t(mesh)].primitives) {
+        if (!usable(p)) continue;
+        RTCGeometry g = new_triangle_geometry(p.positions.data(), p.positions.size(),
+                                              p.indices.data(), p.triangle_count());
+        rtcAttachGeometryByID(b.scene, g, unsigned(b.geoms.size()));
+        rtcReleaseGeometry(g);
+        GeomRecord r;
+        r.positions = p.positions.data();
+        r.normals = p.normals.size() == p.positions.size() ? p.normals.data() : nullptr;
+        r.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
+        r.indices = p.indices.data();
+        r.material = material_of(p);
+        b.geoms.push_back(r);
+      }
+      if (b.geoms.empty()) {
+        rtcReleaseScene(b.scene);
+        continue;
+      }
+      rtcSetSceneBuildQuality(b.scene, RTC_BUILD_QUALITY_HIGH);
+      rtcCommitScene(b.scene);
+      check_device("building a mesh BVH");
+      mesh_blas[size_t(mesh)] = int(blas_.size());
+      blas_.push_back(std::move(b));
+    }
+    Instance inst;
+    inst.blas = mesh_blas[size_t(mesh)];
+    inst.node = n;
+    inst.moves = true;
+    instances_.push_back(inst);
+  }
+
+  for (size_t i = 0; i < instances_.size(); ++i) {
+    Instance& inst = instances_[i];
+    inst.geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
+    rtcSetGeometryInstancedScene(inst.geom, blas_[size_t(inst.blas)].scene);
+    float identity[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
+    rtcSetGeometryTransform(inst.geom, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, identity);
+    rtcCommitGeometry(inst.geom);
+    rtcAttachGeometryByID(top_, inst.geom, unsigned(i));
+  }
+  check_device("building the instances");
+}
+
+void Tracer::Impl::set_time(double t) {
+  scene_.evaluate(t, &state_);
+  const bool moving =
+      std::any_of(instances_.begin(), instances_.end(), [](const Instance& i) { return i.moves; });
+  if (moving) {
+    scene_.evaluate(t - kVelocityDt, &state_minus_);
+    scene_.evaluate(t + kVelocityDt, &state_plus_);
+  }
+  for (Instance& inst : instances_) {
+    if (!inst.moves) continue;
+    const glm::dmat4& m = state_.world[size_t(inst.node)];
+    const double det = glm::determinant(glm::dmat3(m));
+    // A singular or broken transform (a scale of 0 hides an object) cannot be inverted for
+    // the ray: the instance is left out at this time.
+    const bool ok = std::isfinite(det) && std::abs(det) > 1e-30;
+    if (ok) {
+      float xfm[12];
+      to_float3x4(m, xfm);
+      rtcSetGeometryTransform(inst.geom, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm);
+      inst.normal_matrix = glm::mat3(glm::transpose(glm::inverse(glm::dmat3(m))));
+      // v(p) = dM/dt M^-1 p, with dM/dt from a central difference.
+      const glm::dmat4 dm =
+          (state_plus_.world[size_t(inst.node)] - state_minus_.world[size_t(inst.node)]) *
+          (1.0 / (2.0 * kVelocityDt));
+      inst.velocity = glm::mat4(dm * glm::inverse(m));
+    }
+    if (ok != inst.enabled) {
+      if (ok)
+        rtcEnableGeometry(inst.geom);
+      else
+        rtcDisableGeometry(inst.geom);
+      inst.enabled = ok;
+    }
+    rtcCommitGeometry(inst.geom);
+  }
+  rtcCommitScene(top_);
+  check_device("committing the top-level scene");
+
+  lights_.clear();  // capacity stays: no allocation after the first call
+  for (int n : light_nodes_)
+    lights_.push_back(shading::make_light_record(
+        scene_.lights[size_t(scene_.nodes[size_t(n)].light)], state_.world[size_t(n)]));
+  camera_ = scene_.camera_at(state_);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Queries
+
+HitRef Tracer::Impl::intersect(const glm::vec3& o, const glm::vec3& d, float tnear) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRayHit rh;
+  init_ray(&rh.ray, o, d, tnear, INFINITY);
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(top_, &ctx, &rh);
+  HitRef h;
+  h.t = rh.ray.tfar;
+  h.u = rh.hit.u;
+  h.v = rh.hit.v;
+  h.geom = rh.hit.geomID;
+  h.prim = rh.hit.primID;
+  h.inst = rh.hit.instID[0];
+  return h;
+}
+
+bool Tracer::Impl::blocked(const glm::vec3& o, const glm::vec3& d, float tnear, float tfar) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRay r;
+  init_ray(&r, o, d, tnear, tfar);
+  rtcOccluded1(top_, &ctx, &r);
+  return r.tfar < 0.0f;  // Embree sets tfar to -inf on a hit
+}
+
+void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm::vec3& d,
+                                Surface* s) const {
+  const Instance& inst = instances_[hit.inst];
+  const GeomRecord& g = blas_[size_t(inst.blas)].geoms[hit.geom];
+  const uint32_t* tri = g.indices + 3 * size_t(hit.prim);
+  const float w = 1.0f - hit.u - hit.v;
+  s->p = o + hit.t * d;
+  s->instance = &inst;
+  s->node = inst.moves ? inst.node : g.node;
+  s->material = &materials_[g.material];
+
+  const glm::vec3& p0 = g.positions[tri[0]];
+  glm::vec3 ng = glm::cross(g.positions[tri[1]] - p0, g.positions[tri[2]] - p0);
+  glm::vec3 ns(0.0f);
+  if (g.normals) ns = w * g.normals[tri[0]] + hit.u * g.normals[tri[1]] + hit.v * g.normals[tri[2]];
+  if (inst.moves) {
+    ng = inst.normal_matrix * ng;
+    ns = inst.normal_matrix * ns;
+  }
+  // Degenerate triangles and zero or broken vertex normals fall back to whatever is valid.
+  const float ng_len2 = glm::dot(ng, ng);
+  const float ns_len2 = glm::dot(ns, ns);
+  const bool ng_ok = ng_len2 > 1e-30f && std::isfinite(ng_len2);
+  const bool ns_ok = ns_len2 > 1e-20f && std::isfinite(ns_len2);
+  if (ns_ok) ns *= 1.0f / std::sqrt(ns_len2);
+  if (ng_ok)
+    ng *= 1.0f / std::sqrt(ng_len2);
+  else
+    ng = ns_ok ? ns : -d;
+  if (!ns_ok) ns = ng;
+
+  s->back_face = false;
+  if (glm::dot(ng, d) > 0.0f) {
+    if (s->material->double_sided) {
+      ng = -ng;
+      ns = -ns;
+    } else {
+      s->back_face = true;
+    }
+  }
+  s->ng = ng;
+  s->ns = ns;
+  if (g.uvs && s->material->texture)
+    s->uv = w * g.uvs[tri[0]] + hit.u * g.uvs[tri[1]] + hit.v * g.uvs[tri[2]];
+}
+
+// Emission and ambient light, and whether the surface takes direct light (then `terms` is set).
+bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const glm::vec3& tex,
+                                 glm::vec3* c, LocalTerms* terms) const {
+  const ShadeMaterial& m = *s.material;
+  *c = glm::vec3(0.0f);
+  if (m.has_emission) *c += m.emissive;
+  if (m.has_ambient) *c += scene_.ambient * m.ambient * tex;
+  if (lights_.empty() || s.back_face || !(m.has_diffuse || m.has_specular)) return false;
+  const glm::vec3 base = m.base * tex;
+  terms->diffuse = base * (1.0f - m.metallic);
+  terms->f0 = glm::mix(glm::vec3(0.04f), base, m.metallic);
+  terms->offset = offset_at(s.p);
+  terms->origin = s.p + terms->offset * s.ng;
+  terms->n_dot_v = std::max(glm::dot(s.ns, wo), 1e-4f);
+  return true;
+}
+
+// The light one light sends toward the viewer if nothing blocks it; false when it sends none.
+// `l` and `shadow_tfar` describe the shadow ray from terms.origin.
+bool Tracer::Impl::light_contribution(const LightRecord& light, const Surface& s,
+                                      const LocalTerms& terms, const glm::vec3& wo,
+                                      glm::vec3* contribution, glm::vec3* l,
+                                      float* shadow_tfar) const {
+  glm::vec3 incident;
+  float distance;
+  if (!shading::light_incidence(light, s.p, l, &distance, &incident)) return false;
+  // The light must be on the side the surface faces, for both normals.
+  if (glm::dot(*l, s.ng) <= 0.0f) return false;
+  const float n_dot_l = glm::dot(s.ns, *l);
+  if (n_dot_l <= 0.0f) return false;
+  *contribution = incident * shading::brdf_cos(*s.material, terms.diffuse, terms.f0, s.ns, wo, *l,
+                                               terms.n_dot_v, n_dot_l);
+  *shadow_tfar = distance - 2.0f * terms.offset;
+  return true;
+}
+
+// Emission, ambient and direct light at a surface seen from direction wo (unit, toward the
+// viewer). `tex` is the texture color (1 without a texture).
+glm::vec3 Tracer::Impl::shade_local(const Surface& s, const glm::vec3& wo, const glm::vec3& tex,
+                                    TraceStats* stats) const {
+  glm::vec3 c;
+  LocalTerms terms;
+  if (!prepare_local(s, wo, tex, &c, &terms)) return c;
+  for (const LightRecord& light : lights_) {
+    glm::vec3 contribution, l;
+    float tfar;
+    if (!light_contribution(light, s, terms, wo, &contribution, &l, &tfar)) continue;
+    if (options_.shadows) {
+      ++stats->shadow_rays;
+      if (blocked(terms.origin, l, 0.0f, tfar)) continue;
+    }
+    c += contribution;
+  }
+  return c;
+}
+
+// shade_local for up to 8 surfaces at once (lanes where `hit` is false are skipped): the shadow
+// rays toward one light go out as one rtcOccluded8.
+void Tracer::Impl::shade_local8(const Surface* s, const glm::vec3* wo, const glm::vec3* tex,
+                                const bool* hit, int n, glm::vec3* out, TraceStats* stats) const {
+  LocalTerms terms[8];
+  bool lit[8] = {};
+  bool any_lit = false;
+  for (int k = 0; k < n; ++k) {
+    if (!hit[k]) continue;
+    lit[k] = prepare_local(s[k], wo[k], tex[k], &out[k], &terms[k]);
+    any_lit |= lit[k];
+  }
+  if (!any_lit) return;
+  for (const LightRecord& light : lights_) {
+    alignas(32) int valid[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    RTCRay8 rays;
+    glm::vec3 contribution[8];
+    bool any_ray = false;
+    for (int k = 0; k < n; ++k) {
+      glm::vec3 l;
+      float tfar;
+      if (!lit[k] || !light_contribution(light, s[k], terms[k], wo[k], &contribution[k], &l, &tfar))
+        continue;
+      if (!options_.shadows) {
+        out[k] += contribution[k];
+        continue;
+      }
+      valid[k] = -1;
+      any_ray = true;
+      rays.org_x[k] = terms[k].origin.x;
+      rays.org_y[k] = terms[k].origin.y;
+      rays.org_z[k] = terms[k].origin.z;
+      rays.tnear[k] = 0.0f;
+      rays.dir_x[k] = l.x;
+      rays.dir_y[k] = l.y;
+      rays.dir_z[k] = l.z;
+      rays.time[k] = 0.0f;
+      rays.tfar[k] = tfar;
+      rays.mask[k] = 0xffffffffu;
+      rays.id[k] = unsigned(k);
+      rays.flags[k] = 0;
+      ++stats->shadow_rays;
+    }
+    if (!any_ray) continue;
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    rtcOccluded8(valid, top_, &ctx, &rays);
+    for (int k = 0; k < n; ++k)
+      if (valid[k] && rays.tfar[k] >= 0.0f) out[k] += contribution[k];
+  }
+}
+
+glm::vec3 Tracer::Impl::texture_color(const Surface& s) const {
+  return s.material->texture ? s.material->texture->sample_bilinear(s.uv) : glm::vec3(1.0f);
+}
+
+// The light reaching the viewer from surface s (seen along d, with texture color tex) by way
+// of mirror reflections, up to the depth limit. s's own local shading is not included.
+glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex,
+                                     TraceStats* stats) const {
+  glm::vec3 result(0.0f);
+  glm::vec3 throughput(1.0f);
+  for (int depth = 0;; ++depth) {
+    const ShadeMaterial& m = *s.material;
+    if (!m.is_mirror || s.back_face || depth >= options_.max_mirror_depth) break;
+    const float n_dot_v = -glm::dot(s.ns, d);
+    glm::vec3 r = d - 2.0f * glm::dot(d, s.ns) * s.ns;
+    // An interpolated normal can send the reflection under the surface: use the true one.
+    if (glm::dot(r, s.ng) <= 0.0f) r = d - 2.0f * glm::dot(d, s.ng) * s.ng;
+    const glm::vec3 f0 = glm::mix(glm::vec3(0.04f), m.base * tex, m.metallic);
+    throughput *= shading::fresnel_schlick(f0, n_dot_v);
+    if (std::max(throughput.r, std::max(throughput.g, throughput.b)) < kMinThroughput) break;
+
+    const float r_len2 = glm::dot(r, r);
+    if (!(r_len2 > 0.0f)) break;
+    r *= 1.0f / std::sqrt(r_len2);
+    const glm::vec3 origin = s.p + offset_at(s.p) * s.ng;
+    ++stats->reflection_rays;
+    const HitRef hit = intersect(origin, r, 0.0f);
+    if (hit.geom == RTC_INVALID_GEOMETRY_ID) {
+      result += throughput * scene_.background;
+      break;
+    }
+    make_surface(hit, origin, r, &s);
+    d = r;
+    tex = texture_color(s);
+    result += throughput * shade_local(s, -d, tex, stats);
+  }
+  return result;
+}
+
+// Fills everything of a primary sample but its color, and the surface it hit. Returns false on
+// a miss (then the color is the background).
+bool Tracer::Impl::begin_sample(const Ray& ray, const HitRef& hit, ShadedSample* o, Surface* s,
+                                TraceStats* stats) const {
+  ++stats->primary_rays;
+  if (hit.geom == RTC_INVALID_GEOMETRY_ID) {
+    o->color = scene_.background;
+    o->position = ray.direction;
+    o->velocity = glm::vec3(0.0f);
+    o->object_id = ShadedSample::kNoObject;
+    o->hit = false;
+    return false;
+  }
+  make_surface(hit, ray.origin, ray.direction, s);
+  o->position = s->p;
+  o->velocity = s->instance->moves ? glm::vec3(s->instance->velocity * glm::vec4(s->p, 1.0f))
+                                   : glm::vec3(0.0f);
+  o->object_id = uint32_t(s->node);
+  o->hit = true;
+  return true;
+}
+
+// No NaN or Inf leaves the tracer.
+void Tracer::Impl::sanitize(ShadedSample* o, TraceStats* stats) const {
+  if (!finite(o->color)) {
+    o->color = glm::vec3(0.0f);
+    ++stats->sanitized;
+  }
+  o->color = glm::max(o->color, glm::vec3(0.0f));
+  if (!finite(o->position)) {
+    o->position = glm::vec3(0.0f);
+    ++stats->sanitized;
+  }
+  if (!finite(o->velocity)) {
+    o->velocity = glm::vec3(0.0f);
+    ++stats->sanitized;
+  }
+}
+
+void Tracer::Impl::finish(const Ray& ray, const HitRef& hit, ShadedSample* out,
+                          TraceStats* stats) const {
+  Surface s;
+  if (begin_sample(ray, hit, out, &s, stats)) {
+    const glm::vec3 tex = texture_color(s);
+    out->color =
+        shade_local(s, -ray.direction, tex, stats) + mirror_chain(ray.direction, s, tex, stats);
+  }
+  sanitize(out, stats);
+}
+
+// =============================================================================================
+// Tracer
+
+Tracer::Tracer(const Scene& scene, const TracerOptions& options)
+    : impl_(std::make_unique<Impl>(scene, options)) {}
+
+Tracer::~Tracer() = default;
+
+void Tracer::set_time(double t) { impl_->set_time(t); }
+double Tracer::time() const { return impl_->state_.time; }
+const Camera& Tracer::camera() const { return impl_->camera_; }
+const TracerOptions& Tracer::options() const { return impl_->options_; }
+
+ShadedSample Tracer::trace(const Ray& ray, TraceStats* stats) const {
+  ShadedSample s;
+  // Embree's behaviour on rays with NaN or Inf is undefined: they miss.
+  const HitRef hit = finite(ray.origin) && finite(ray.direction)
+                         ? impl_->intersect(ray.origin, ray.direction, 0.0f)
+                         : HitRef{};
+  impl_->finish(ray, hit, &s, stats);
+  return s;
+}
+
+void Tracer::trace_crosshair(const Camera& camera, double x, double y, int width, int height,
+                             std::array<ShadedSample, 5>* out, TraceStats* stats) const {
+  static constexpr double kDx[5] = {0.0, -1.0, 1.0, 0.0, 0.0};
+  static constexpr double kDy[5] = {0.0, 0.0, 0.0, -1.0, 1.0};
+  Ray rays[5];
+  for (int k = 0; k < 5; ++k) rays[k] = camera.ray(x + kDx[k], y + kDy[k], width, height);
+
+  if (!impl_->options_.packet_crosshair) {
+    for (int k = 0; k < 5; ++k) (*out)[size_t(k)] = trace(rays[k], stats);
+    return;
+  }
+  alignas(32) int valid[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  RTCRayHit8 rh;
+  for (int k = 0; k < 8; ++k) {
+    const Ray& r = rays[std::min(k, 4)];
+    if (k < 5 && finite(r.origin) && finite(r.direction)) valid[k] = -1;
+    rh.ray.org_x[k] = r.origin.x;
+    rh.ray.org_y[k] = r.origin.y;
+    rh.ray.org_z[k] = r.origin.z;
+    rh.ray.tnear[k] = 0.0f;
+    rh.ray.dir_x[k] = r.direction.x;
+    rh.ray.dir_y[k] = r.direction.y;
+    rh.ray.dir_z[k] = r.direction.z;
+    rh.ray.time[k] = 0.0f;
+    rh.ray.tfar[k] = INFINITY;
+    rh.ray.mask[k] = 0xffffffffu;
+    rh.ray.id[k] = unsigned(k);
+    rh.ray.flags[k] = 0;
+    rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
+  }
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  rtcIntersect8(valid, impl_->top_, &ctx, &rh);
+  Surface surfaces[5];
+  glm::vec3 wo[5], tex[5], local[5];
+  bool hit[5];
+  for (int k = 0; k < 5; ++k) {
+    HitRef h;
+    if (valid[k]) {
+      h.t = rh.ray.tfar[k];
+      h.u = rh.hit.u[k];
+      h.v = rh.hit.v[k];
+      h.geom = rh.hit.geomID[k];
+      h.prim = rh.hit.primID[k];
+      h.inst = rh.hit.instID[0][k];
+    }
+    hit[k] = impl_->begin_sample(rays[k], h, &(*out)[size_t(k)], &surfaces[k], stats);
+    if (hit[k]) {
+      wo[k] = -rays[k].direction;
+      tex[k] = impl_->texture_color(surfaces[k]);
+    }
+  }
+  impl_->shade_local8(surfaces, wo, tex, hit, 5, local, stats);
+  for (int k = 0; k < 5; ++k) {
+    ShadedSample& o = (*out)[size_t(k)];
+    if (hit[k])
+      o.color = local[k] + impl_->mirror_chain(rays[k].direction, surfaces[k], tex[k], stats);
+    impl_->sanitize(&o, stats);
+  }
+}
+
+bool Tracer::occluded(const glm::vec3& from, const glm::vec3& to, TraceStats* stats) const {
+  ++stats->occlusion_rays;
+  const glm::vec3 d = to - from;
+  const float len = glm::length(d);
+  if (!(len > 0.0f) || !std::isfinite(len)) return false;
+  const float near = std::min(offset_at(from), 0.5f * len);
+  const float far = std::max(len - offset_at(to), near);
+  return impl_->blocked(from, d / len, near, far);
+}
+
+}  // namespace afr

@@ -1,1 +1,121 @@
+#include <afr/common/animation.h>
+
+#include <afr/common/error.h>
+
 #include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace afr {
+namespace {
+
+AnimationChannel translation_channel(Interpolation mode, std::vector<double> times,
+                                     std::vector<glm::dvec4> values) {
+  AnimationChannel ch;
+  ch.node = 0;
+  ch.path = AnimatedPath::kTranslation;
+  ch.interpolation = mode;
+  ch.times = std::move(times);
+  ch.values = std::move(values);
+  ch.validate("test");
+  return ch;
+}
+
+TEST(AnimationTest, StepHoldsEachKeyUntilTheNext) {
+  auto ch = translation_channel(Interpolation::kStep, {1.0, 2.0, 4.0},
+                                {{1, 0, 0, 0}, {2, 0, 0, 0}, {3, 0, 0, 0}});
+  EXPECT_EQ(ch.evaluate(0.0).x, 1.0);  // before the first key
+  EXPECT_EQ(ch.evaluate(1.0).x, 1.0);
+  EXPECT_EQ(ch.evaluate(1.999).x, 1.0);
+  EXPECT_EQ(ch.evaluate(2.0).x, 2.0);
+  EXPECT_EQ(ch.evaluate(3.9).x, 2.0);
+  EXPECT_EQ(ch.evaluate(4.0).x, 3.0);
+  EXPECT_EQ(ch.evaluate(100.0).x, 3.0);  // after the last key
+}
+
+TEST(AnimationTest, LinearInterpolatesBetweenKeys) {
+  auto ch =
+      translation_channel(Interpolation::kLinear, {0.0, 2.0}, {{0, 10, -4, 0}, {4, 20, 4, 0}});
+  const glm::dvec4 v = ch.evaluate(0.5);  // a quarter of the way
+  EXPECT_DOUBLE_EQ(v.x, 1.0);
+  EXPECT_DOUBLE_EQ(v.y, 12.5);
+  EXPECT_DOUBLE_EQ(v.z, -2.0);
+}
+
+TEST(AnimationTest, LinearRotationIsSlerpAlongTheShortArc) {
+  AnimationChannel ch;
+  ch.path = AnimatedPath::kRotation;
+  ch.interpolation = Interpolation::kLinear;
+  ch.times = {0.0, 1.0};
+  // 0 and 90 degrees about +Z; the second key is stored negated (the same rotation).
+  const double h = std::sqrt(0.5);
+  ch.values = {{0, 0, 0, 1}, {0, 0, -h, -h}};
+  ch.validate("test");
+  const glm::dvec4 q = ch.evaluate(0.5);
+  // Halfway is 45 degrees about +Z: (0, 0, sin 22.5, cos 22.5) up to sign.
+  const double s = std::sin(M_PI / 8.0), c = std::cos(M_PI / 8.0);
+  const double sign = q.w < 0 ? -1.0 : 1.0;
+  EXPECT_NEAR(sign * q.z, s, 1e-12);
+  EXPECT_NEAR(sign * q.w, c, 1e-12);
+  EXPECT_NEAR(q.x, 0.0, 1e-12);
+  EXPECT_NEAR(q.y, 0.0, 1e-12);
+}
+
+TEST(AnimationTest, CubicSplineIsHermiteWithTangentsScaledByTheInterval) {
+  // Keys at t = 1 and t = 3 (interval 2 s): value 0 -> 1, out-tangent 0.5/s, in-tangent -1/s.
+  auto ch = translation_channel(Interpolation::kCubicSpline, {1.0, 3.0},
+                                {{9, 9, 9, 0},
+                                 {0, 0, 0, 0},
+                                 {0.5, 0, 0, 0},  // key 0
+                                 {-1, 0, 0, 0},
+                                 {1, 0, 0, 0},
+                                 {7, 7, 7, 0}});  // key 1
+  // By hand at s = 0.25 (t = 1.5): h00 = 0.84375, h10 = 0.140625, h01 = 0.15625,
+  // h11 = -0.046875; m0 = 2 * 0.5 = 1, m1 = 2 * -1 = -2.
+  const double expected = 0.84375 * 0 + 0.140625 * 1 + 0.15625 * 1 + -0.046875 * -2;
+  EXPECT_NEAR(ch.evaluate(1.5).x, expected, 1e-12);
+  EXPECT_DOUBLE_EQ(ch.evaluate(1.0).x, 0.0);  // keys are hit exactly
+  EXPECT_DOUBLE_EQ(ch.evaluate(3.0).x, 1.0);
+  EXPECT_DOUBLE_EQ(ch.evaluate(-5.0).x, 0.0);  // clamped, tangents never leak out
+  EXPECT_DOUBLE_EQ(ch.evaluate(50.0).x, 1.0);
+}
+
+TEST(AnimationTest, CubicSplineAgreesWithNumericalDerivativeAtKeys) {
+  auto ch = translation_channel(Interpolation::kCubicSpline, {0.0, 0.5, 2.0},
+                                {{0, 0, 0, 0},
+                                 {1, 0, 0, 0},
+                                 {3, 0, 0, 0},
+                                 {-2, 0, 0, 0},
+                                 {2, 0, 0, 0},
+                                 {0.25, 0, 0, 0},
+                                 {4, 0, 0, 0},
+                                 {-1, 0, 0, 0},
+                                 {0, 0, 0, 0}});
+  const double d = 1e-6;
+  // The out-tangent of key 0 and the in-tangent of key 1 are slopes per second.
+  EXPECT_NEAR((ch.evaluate(d).x - ch.evaluate(0.0).x) / d, 3.0, 1e-4);
+  EXPECT_NEAR((ch.evaluate(0.5).x - ch.evaluate(0.5 - d).x) / d, -2.0, 1e-4);
+  EXPECT_NEAR((ch.evaluate(0.5 + d).x - ch.evaluate(0.5).x) / d, 0.25, 1e-4);
+}
+
+TEST(AnimationTest, ValidateRejectsBadChannels) {
+  AnimationChannel ch;
+  ch.interpolation = Interpolation::kLinear;
+  EXPECT_THROW(ch.validate("empty"), Error);
+  ch.times = {0.0, 0.0};
+  ch.values = {{0, 0, 0, 0}, {1, 0, 0, 0}};
+  EXPECT_THROW(ch.validate("equal times"), Error);
+  ch.times = {0.0, NAN};
+  EXPECT_THROW(ch.validate("nan time"), Error);
+  ch.times = {0.0, 1.0};
+  ch.interpolation = Interpolation::kCubicSpline;
+  try {
+    ch.validate("channel 7");
+    FAIL() << "a cubic channel with one value per key must be rejected";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("channel 7"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace afr

@@ -1,1 +1,796 @@
+#include <afr/common/gltf_loader.h>
+
+#include <afr/common/error.h>
+#include <afr/common/image.h>
+
 #include <gtest/gtest.h>
+#include <unistd.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace afr {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+constexpr int kByte = 5120;
+constexpr int kUnsignedByte = 5121;
+constexpr int kShort = 5122;
+constexpr int kUnsignedShort = 5123;
+constexpr int kUnsignedInt = 5125;
+constexpr int kFloat = 5126;
+
+std::string base64(const std::vector<uint8_t>& bytes) {
+  static const char* kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  for (size_t i = 0; i < bytes.size(); i += 3) {
+    const uint32_t b0 = bytes[i];
+    const uint32_t b1 = i + 1 < bytes.size() ? bytes[i + 1] : 0;
+    const uint32_t b2 = i + 2 < bytes.size() ? bytes[i + 2] : 0;
+    const uint32_t v = (b0 << 16) | (b1 << 8) | b2;
+    out += kAlphabet[(v >> 18) & 63];
+    out += kAlphabet[(v >> 12) & 63];
+    out += i + 1 < bytes.size() ? kAlphabet[(v >> 6) & 63] : '=';
+    out += i + 2 < bytes.size() ? kAlphabet[v & 63] : '=';
+  }
+  return out;
+}
+
+std::vector<uint8_t> read_bytes(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+void write_bytes(const fs::path& path, const void* data, size_t size) {
+  std::ofstream out(path, std::ios::binary);
+  out.write(static_cast<const char*>(data), std::streamsize(size));
+}
+
+void write_text(const fs::path& path, const std::string& text) {
+  write_bytes(path, text.data(), text.size());
+}
+
+// A glTF document and its one binary buffer, written as .gltf (embedded or external buffer)
+// or as .glb.
+class GltfBuilder {
+ public:
+  GltfBuilder() { doc_["asset"] = {{"version", "2.0"}}; }
+
+  json& doc() { return doc_; }
+  std::vector<uint8_t>& bin() { return bin_; }
+
+  // Appends `size` bytes as a new buffer view (4-byte aligned); returns its index.
+  int add_view(const void* data, size_t size, size_t stride = 0) {
+    while (bin_.size() % 4 != 0) bin_.push_back(0);
+    json view = {{"buffer", 0}, {"byteOffset", bin_.size()}, {"byteLength", size}};
+    if (stride != 0) view["byteStride"] = stride;
+    const auto* bytes = static_cast<const uint8_t*>(data);
+    bin_.insert(bin_.end(), bytes, bytes + size);
+    doc_["bufferViews"].push_back(view);
+    return int(doc_["bufferViews"].size()) - 1;
+  }
+  template <typename T>
+  int add_view(const std::vector<T>& values, size_t stride = 0) {
+    return add_view(values.data(), values.size() * sizeof(T), stride);
+  }
+
+  int add_accessor(int view, int component_type, const std::string& type, size_t count,
+                   size_t offset = 0, bool normalized = false) {
+    json accessor = {{"componentType", component_type}, {"type", type}, {"count", count}};
+    if (view >= 0) accessor["bufferView"] = view;
+    if (offset != 0) accessor["byteOffset"] = offset;
+    if (normalized) accessor["normalized"] = true;
+    doc_["accessors"].push_back(accessor);
+    return int(doc_["accessors"].size()) - 1;
+  }
+
+  // A float accessor over its own buffer view, `width` components per element.
+  int add_floats(const std::vector<float>& values, int width) {
+    static const char* kTypes[] = {"", "SCALAR", "VEC2", "VEC3", "VEC4"};
+    return add_accessor(add_view(values), kFloat, kTypes[width], values.size() / size_t(width));
+  }
+  int add_indices16(const std::vector<uint16_t>& indices) {
+    return add_accessor(add_view(indices), kUnsignedShort, "SCALAR", indices.size());
+  }
+
+  void write_embedded(const fs::path& path) {
+    json doc = doc_;
+    doc["buffers"] =
+        json::array({{{"byteLength", bin_.size()},
+                      {"uri", "data:application/octet-stream;base64," + base64(bin_)}}});
+    write_text(path, doc.dump(2));
+  }
+
+  void write_external(const fs::path& path, const std::string& bin_name) {
+    json doc = doc_;
+    doc["buffers"] = json::array({{{"byteLength", bin_.size()}, {"uri", bin_name}}});
+    write_text(path, doc.dump(2));
+    write_bytes(path.parent_path() / bin_name, bin_.data(), bin_.size());
+  }
+
+  void write_glb(const fs::path& path) {
+    json doc = doc_;
+    doc["buffers"] = json::array({{{"byteLength", bin_.size()}}});
+    std::string text = doc.dump();
+    while (text.size() % 4 != 0) text += ' ';
+    std::vector<uint8_t> bin = bin_;
+    while (bin.size() % 4 != 0) bin.push_back(0);
+    std::vector<uint8_t> glb;
+    auto u32 = [&](uint32_t v) {
+      for (int i = 0; i < 4; ++i) glb.push_back(uint8_t(v >> (8 * i)));
+    };
+    glb.insert(glb.end(), {'g', 'l', 'T', 'F'});
+    u32(2);
+    u32(uint32_t(12 + 8 + text.size() + 8 + bin.size()));
+    u32(uint32_t(text.size()));
+    u32(0x4E4F534A);  // JSON
+    glb.insert(glb.end(), text.begin(), text.end());
+    u32(uint32_t(bin.size()));
+    u32(0x004E4942);  // BIN
+    glb.insert(glb.end(), bin.begin(), bin.end());
+    write_bytes(path, glb.data(), glb.size());
+  }
+
+ private:
+  json doc_;
+  std::vector<uint8_t> bin_;
+};
+
+// The unit quad in the z = 0 plane, counter-clockwise seen from +z, as mesh 0 on node 0 of
+// scene 0. Returns the POSITION accessor.
+int add_quad(GltfBuilder* b) {
+  const int positions = b->add_floats({0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0}, 3);
+  const int indices = b->add_indices16({0, 1, 2, 0, 2, 3});
+  b->doc()["meshes"].push_back(
+      {{"name", "quad"},
+       {"primitives",
+        json::array({{{"attributes", {{"POSITION", positions}}}, {"indices", indices}}})}});
+  b->doc()["nodes"].push_back({{"mesh", 0}});
+  b->doc()["scenes"] = json::array({{{"nodes", {0}}}});
+  b->doc()["scene"] = 0;
+  return positions;
+}
+
+double reference_srgb_to_linear(double c) {
+  return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
+}
+
+size_t count_containing(const std::vector<std::string>& lines, const std::string& part) {
+  size_t n = 0;
+  for (const std::string& line : lines) n += line.find(part) != std::string::npos ? 1 : 0;
+  return n;
+}
+
+class GltfLoaderTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    root_ = fs::temp_directory_path() /
+            ("afr_gltf_test_" + std::to_string(getpid()) + "_" + info->name());
+    fs::remove_all(root_);
+    dir_ = root_ / "scenes";
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(root_); }
+
+  // Loading `path` must fail with a message that names the file and contains `problem`.
+  void expect_error(const fs::path& path, const std::string& problem) {
+    try {
+      load_gltf(path);
+      ADD_FAILURE() << path << " loaded, expected an error about " << problem;
+    } catch (const Error& e) {
+      const std::string message = e.what();
+      EXPECT_NE(message.find(path.filename().string()), std::string::npos) << message;
+      EXPECT_NE(message.find(problem), std::string::npos) << message;
+    }
+  }
+
+  fs::path root_;  // removed afterwards
+  fs::path dir_;   // where the scenes are written, one level below root_
+};
+
+// ---- Geometry ----
+
+TEST_F(GltfLoaderTest, QuadLoadsWithPositionsIndicesGeneratedNormalsAndUvs) {
+  GltfBuilder b;
+  add_quad(&b);
+  // UVs as normalized unsigned bytes, padded to the 4-byte stride vertex data must have.
+  const std::vector<uint8_t> uv_bytes = {0, 0, 9, 9, 255, 0, 9, 9, 255, 255, 9, 9, 0, 51, 9, 9};
+  const int uvs = b.add_accessor(b.add_view(uv_bytes, 4), kUnsignedByte, "VEC2", 4, 0, true);
+  b.doc()["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = uvs;
+  // A second primitive without indices, with its own (non-geometric) normals.
+  const int tri = b.add_floats({0, 0, 1, 1, 0, 1, 0, 1, 1}, 3);
+  const int normals = b.add_floats({1, 0, 0, 0, 2, 0, 0, 0, 1}, 3);
+  b.doc()["meshes"][0]["primitives"].push_back(
+      {{"attributes", {{"POSITION", tri}, {"NORMAL", normals}}}});
+  // A third over the quad's vertices with unsigned byte indices, and one with unsigned int.
+  const int quad_positions = 0;
+  const std::vector<uint8_t> byte_indices = {2, 1, 0};
+  const std::vector<uint32_t> int_indices = {3, 2, 0};
+  b.doc()["meshes"][0]["primitives"].push_back(
+      {{"attributes", {{"POSITION", quad_positions}}},
+       {"indices", b.add_accessor(b.add_view(byte_indices), kUnsignedByte, "SCALAR", 3)}});
+  b.doc()["meshes"][0]["primitives"].push_back(
+      {{"attributes", {{"POSITION", quad_positions}}},
+       {"indices", b.add_accessor(b.add_view(int_indices), kUnsignedInt, "SCALAR", 3)}});
+  const fs::path path = dir_ / "quad.gltf";
+  b.write_embedded(path);
+
+  GltfLoadReport report;
+  const Scene scene = load_gltf(path, &report);
+  EXPECT_TRUE(report.warnings.empty());
+  EXPECT_EQ(scene.source, path.string());
+  ASSERT_EQ(scene.meshes.size(), 1u);
+  EXPECT_EQ(scene.meshes[0].name, "quad");
+  ASSERT_EQ(scene.meshes[0].primitives.size(), 4u);
+
+  const Primitive& quad = scene.meshes[0].primitives[0];
+  const std::vector<glm::vec3> positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  EXPECT_EQ(quad.positions, positions);
+  EXPECT_EQ(quad.indices, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3}));
+  EXPECT_EQ(quad.triangle_count(), 2u);
+  EXPECT_EQ(quad.material, -1);
+  ASSERT_EQ(quad.normals.size(), 4u);
+  for (const glm::vec3& n : quad.normals) EXPECT_EQ(n, glm::vec3(0, 0, 1));
+  ASSERT_EQ(quad.uvs.size(), 4u);
+  EXPECT_EQ(quad.uvs[0], glm::vec2(0, 0));
+  EXPECT_EQ(quad.uvs[1], glm::vec2(1, 0));
+  EXPECT_EQ(quad.uvs[2], glm::vec2(1, 1));
+  EXPECT_FLOAT_EQ(quad.uvs[3].y, 0.2f);  // 51 / 255
+
+  const Primitive& triangle = scene.meshes[0].primitives[1];
+  EXPECT_EQ(triangle.indices, (std::vector<uint32_t>{0, 1, 2}));
+  EXPECT_TRUE(triangle.uvs.empty());
+  ASSERT_EQ(triangle.normals.size(), 3u);
+  EXPECT_EQ(triangle.normals[0], glm::vec3(1, 0, 0));
+  EXPECT_EQ(triangle.normals[1], glm::vec3(0, 1, 0));  // normalised from (0, 2, 0)
+  EXPECT_EQ(triangle.normals[2], glm::vec3(0, 0, 1));
+
+  EXPECT_EQ(scene.meshes[0].primitives[2].indices, (std::vector<uint32_t>{2, 1, 0}));
+  // Clockwise seen from +z: the generated normals point down.
+  EXPECT_EQ(scene.meshes[0].primitives[2].normals[0], glm::vec3(0, 0, -1));
+  EXPECT_EQ(scene.meshes[0].primitives[3].indices, (std::vector<uint32_t>{3, 2, 0}));
+}
+
+TEST_F(GltfLoaderTest, InterleavedStridedAndSparseAccessorsAreRead) {
+  GltfBuilder b;
+  // Position and normal of three vertices interleaved in one view of stride 24.
+  const std::vector<float> interleaved = {0, 0, 0, 0, 0, 1, 2, 0, 0, 0, 0, 1, 0, 2, 0, 0, 0, 1};
+  const int view = b.add_view(interleaved, 24);
+  const int positions = b.add_accessor(view, kFloat, "VEC3", 3, 0);
+  const int normals = b.add_accessor(view, kFloat, "VEC3", 3, 12);
+  // Sparse: vertex 1 moves to (5, 6, 7).
+  const std::vector<uint16_t> sparse_index = {1};
+  const std::vector<float> sparse_value = {5, 6, 7};
+  b.doc()["accessors"][positions]["sparse"] = {
+      {"count", 1},
+      {"indices", {{"bufferView", b.add_view(sparse_index)}, {"componentType", kUnsignedShort}}},
+      {"values", {{"bufferView", b.add_view(sparse_value)}}}};
+  // UVs with no buffer view at all (zeros) and one sparse value.
+  const int uvs = b.add_accessor(-1, kFloat, "VEC2", 3);
+  const std::vector<uint8_t> uv_index = {2};
+  const std::vector<float> uv_value = {0.5f, 0.25f};
+  b.doc()["accessors"][uvs]["sparse"] = {
+      {"count", 1},
+      {"indices", {{"bufferView", b.add_view(uv_index)}, {"componentType", kUnsignedByte}}},
+      {"values", {{"bufferView", b.add_view(uv_value)}}}};
+  b.doc()["meshes"].push_back(
+      {{"primitives",
+        json::array({{{"attributes",
+                       {{"POSITION", positions}, {"NORMAL", normals}, {"TEXCOORD_0", uvs}}}}})}});
+  b.doc()["nodes"].push_back({{"mesh", 0}});
+  b.doc()["scenes"] = json::array({{{"nodes", {0}}}});
+  const fs::path path = dir_ / "interleaved.gltf";
+  b.write_embedded(path);
+
+  const Scene scene = load_gltf(path);
+  const Primitive& p = scene.meshes.at(0).primitives.at(0);
+  EXPECT_EQ(p.positions, (std::vector<glm::vec3>{{0, 0, 0}, {5, 6, 7}, {0, 2, 0}}));
+  EXPECT_EQ(p.normals, (std::vector<glm::vec3>(3, glm::vec3(0, 0, 1))));
+  EXPECT_EQ(p.uvs, (std::vector<glm::vec2>{{0, 0}, {0, 0}, {0.5f, 0.25f}}));
+  EXPECT_EQ(p.indices, (std::vector<uint32_t>{0, 1, 2}));
+}
+
+TEST_F(GltfLoaderTest, TriangleStripsAndFansBecomeListsWithTheirWinding) {
+  GltfBuilder b;
+  const int positions = b.add_floats({0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0}, 3);
+  b.doc()["meshes"].push_back(
+      {{"primitives", json::array({{{"attributes", {{"POSITION", positions}}}, {"mode", 5}},
+                                   {{"attributes", {{"POSITION", positions}}},
+                                    {"mode", 6},
+                                    {"indices", b.add_indices16({0, 1, 3, 2})}}})}});
+  b.doc()["nodes"].push_back({{"mesh", 0}});
+  b.doc()["scenes"] = json::array({{{"nodes", {0}}}});
+  const fs::path path = dir_ / "strips.gltf";
+  b.write_embedded(path);
+
+  const Scene scene = load_gltf(path);
+  ASSERT_EQ(scene.meshes.at(0).primitives.size(), 2u);
+  // glTF 2.0, 3.7.2.1: strip triangle i is (i, i + 1 + i % 2, i + 2 - i % 2).
+  EXPECT_EQ(scene.meshes[0].primitives[0].indices, (std::vector<uint32_t>{0, 1, 2, 1, 3, 2}));
+  // Fan triangle i is (i + 1, i + 2, 0), through the index list {0, 1, 3, 2}.
+  EXPECT_EQ(scene.meshes[0].primitives[1].indices, (std::vector<uint32_t>{1, 3, 0, 3, 2, 0}));
+  for (const Primitive& p : scene.meshes[0].primitives) {
+    for (const glm::vec3& n : p.normals) EXPECT_EQ(n, glm::vec3(0, 0, 1));
+  }
+}
+
+// ---- Materials and textures ----
+
+TEST_F(GltfLoaderTest, MaterialsAndEmbeddedPngTexturesDecodeToLinearTexels) {
+  // A 2 x 2 texture, row 0 at the top.
+  const DecodedImage png{2, 2, 3, {255, 0, 0, 0, 128, 255, 10, 20, 30, 255, 255, 255}};
+  const fs::path png_path = dir_ / "texture.png";
+  write_image8(png, png_path);
+  const std::vector<uint8_t> png_bytes = read_bytes(png_path);
+
+  auto build = [&](GltfBuilder* b) {
+    add_quad(b);
+    b->doc()["meshes"][0]["primitives"][0]["material"] = 0;
+    b->doc()["extensionsUsed"] = {"KHR_materials_emissive_strength"};
+    b->doc()["textures"] = json::array({{{"source", 0}}});
+    b->doc()["materials"] = json::array(
+        {{{"name", "painted"},
+          {"pbrMetallicRoughness",
+           {{"baseColorFactor", {0.5, 0.25, 1.0, 1.0}},
+            {"baseColorTexture", {{"index", 0}}},
+            {"metallicFactor", 0.25},
+            {"roughnessFactor", 0.75}}},
+          {"emissiveFactor", {1.0, 0.5, 0.25}},
+          {"extensions", {{"KHR_materials_emissive_strength", {{"emissiveStrength", 4.0}}}}},
+          {"doubleSided", true},
+          {"extras", {{"afr_ambient", {0.1, 0.2, 0.3}}}}},
+         // A second material on the same texture, and a plain one.
+         {{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}},
+         {{"name", "plain"}}});
+  };
+  // The same image three ways: a data URI, a file beside the .gltf, a buffer view of a .glb.
+  GltfBuilder data_uri;
+  build(&data_uri);
+  data_uri.doc()["images"] = json::array({{{"uri", "data:image/png;base64," + base64(png_bytes)}}});
+  data_uri.write_embedded(dir_ / "data_uri.gltf");
+  GltfBuilder file;
+  build(&file);
+  file.doc()["images"] = json::array({{{"uri", "texture.png"}}});
+  file.write_embedded(dir_ / "file.gltf");
+  GltfBuilder glb;
+  build(&glb);
+  glb.doc()["images"] =
+      json::array({{{"bufferView", glb.add_view(png_bytes)}, {"mimeType", "image/png"}}});
+  glb.write_glb(dir_ / "binary.glb");
+
+  for (const char* name : {"data_uri.gltf", "file.gltf", "binary.glb"}) {
+    SCOPED_TRACE(name);
+    GltfLoadReport report;
+    const Scene scene = load_gltf(dir_ / name, &report);
+    EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+    ASSERT_EQ(scene.materials.size(), 3u);
+    const Material& m = scene.materials[0];
+    EXPECT_EQ(m.name, "painted");
+    EXPECT_EQ(m.base_color_factor, glm::vec4(0.5f, 0.25f, 1.0f, 1.0f));
+    EXPECT_EQ(m.metallic, 0.25f);
+    EXPECT_EQ(m.roughness, 0.75f);
+    EXPECT_EQ(m.emissive, glm::vec3(4.0f, 2.0f, 1.0f));
+    EXPECT_TRUE(m.double_sided);
+    ASSERT_TRUE(m.ambient.has_value());
+    EXPECT_EQ(*m.ambient, glm::vec3(0.1f, 0.2f, 0.3f));
+    EXPECT_EQ(scene.meshes[0].primitives[0].material, 0);
+
+    // One decoded texture, shared by both materials that use it.
+    ASSERT_EQ(scene.textures.size(), 1u);
+    EXPECT_EQ(m.base_color_texture, 0);
+    EXPECT_EQ(scene.materials[1].base_color_texture, 0);
+    EXPECT_EQ(scene.materials[2].base_color_texture, -1);
+    EXPECT_FALSE(scene.materials[2].ambient.has_value());
+    EXPECT_EQ(scene.materials[2].base_color_factor, glm::vec4(1.0f));
+    EXPECT_FALSE(scene.materials[2].double_sided);
+
+    const Texture& t = scene.textures[0];
+    ASSERT_EQ(t.width, 2);
+    ASSERT_EQ(t.height, 2);
+    ASSERT_EQ(t.texels.size(), 4u);
+    for (size_t i = 0; i < 4; ++i) {
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(t.texels[i][c], reference_srgb_to_linear(png.data[3 * i + size_t(c)] / 255.0),
+                    1e-6)
+            << "texel " << i << " channel " << c;
+      }
+    }
+  }
+}
+
+TEST_F(GltfLoaderTest, UndecodableTextureFailsNamingTheImage) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  b.doc()["materials"] =
+      json::array({{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}}});
+  b.doc()["textures"] = json::array({{{"source", 0}}});
+  const std::vector<uint8_t> not_png = {0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A, 1, 2, 3};
+  b.doc()["images"] = json::array({{{"uri", "data:image/png;base64," + base64(not_png)}}});
+  const fs::path path = dir_ / "bad_texture.gltf";
+  b.write_embedded(path);
+  expect_error(path, "image 0");
+}
+
+// ---- Nodes, animations, cameras, lights ----
+
+TEST_F(GltfLoaderTest, NodeHierarchyWorldTransformsMatchHandComputedMatrices) {
+  GltfBuilder b;
+  add_quad(&b);
+  const double h = std::sqrt(0.5);
+  b.doc()["nodes"] = json::array({// Translation (1, 2, 3), 90 degrees about +z, uniform scale 2.
+                                  {{"name", "parent"},
+                                   {"children", {1}},
+                                   {"translation", {1, 2, 3}},
+                                   {"rotation", {0, 0, h, h}},
+                                   {"scale", {2, 2, 2}}},
+                                  // A translation by (0, 1, 0) given as a column-major matrix.
+                                  {{"name", "child"},
+                                   {"children", {2}},
+                                   {"matrix", {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 1, 0, 1}}},
+                                  {{"name", "grandchild"}, {"translation", {0, 0, 5}}, {"mesh", 0}},
+                                  {{"name", "other root"}}});
+  b.doc()["scenes"] = json::array({{{"nodes", {0, 3}}}});
+  const fs::path path = dir_ / "hierarchy.gltf";
+  b.write_embedded(path);
+
+  const Scene scene = load_gltf(path);
+  ASSERT_EQ(scene.nodes.size(), 4u);
+  EXPECT_EQ(scene.roots, (std::vector<int>{0, 3}));
+  EXPECT_EQ(scene.nodes[1].parent, 0);
+  EXPECT_EQ(scene.nodes[2].parent, 1);
+  EXPECT_EQ(scene.nodes[2].mesh, 0);
+  EXPECT_TRUE(scene.nodes[1].matrix.has_value());
+  EXPECT_FALSE(scene.is_animated());
+
+  // By hand: R S maps x to (0, 2, 0), y to (-2, 0, 0), z to (0, 0, 2). The child's origin
+  // (0, 1, 0) goes to (-2, 0, 0) + (1, 2, 3) = (-1, 2, 3); the grandchild's (0, 0, 5) on top of
+  // that adds (0, 0, 10).
+  const glm::dmat4 parent(0, 2, 0, 0, -2, 0, 0, 0, 0, 0, 2, 0, 1, 2, 3, 1);
+  const glm::dmat4 child(0, 2, 0, 0, -2, 0, 0, 0, 0, 0, 2, 0, -1, 2, 3, 1);
+  const glm::dmat4 grandchild(0, 2, 0, 0, -2, 0, 0, 0, 0, 0, 2, 0, -1, 2, 13, 1);
+  const SceneState state = scene.evaluate(0.0);
+  ASSERT_EQ(state.world.size(), 4u);
+  for (int c = 0; c < 4; ++c) {
+    for (int r = 0; r < 4; ++r) {
+      EXPECT_NEAR(state.world[0][c][r], parent[c][r], 1e-12) << c << "," << r;
+      EXPECT_NEAR(state.world[1][c][r], child[c][r], 1e-12) << c << "," << r;
+      EXPECT_NEAR(state.world[2][c][r], grandchild[c][r], 1e-12) << c << "," << r;
+      EXPECT_EQ(state.world[3][c][r], c == r ? 1.0 : 0.0);
+    }
+  }
+}
+
+TEST_F(GltfLoaderTest, AnimationChannelsLoadWithTheirInterpolationAndValues) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["nodes"] =
+      json::array({{{"mesh", 0}, {"children", {1, 2}}}, json::object(), json::object()});
+  const int linear_times = b.add_floats({0.0f, 0.5f, 1.25f}, 1);
+  const int translations = b.add_floats({0, 0, 0, 1, 2, 3, 4, 5, 6}, 3);
+  const int step_times = b.add_floats({0.0f, 1.0f}, 1);
+  // Rotations as normalized shorts: (0, 0, 0, 1) and (0, 0, 1, 0).
+  const std::vector<int16_t> rotation_shorts = {0, 0, 0, 32767, 0, 0, 32767, 0};
+  const int rotations =
+      b.add_accessor(b.add_view(rotation_shorts), kShort, "VEC4", 2, 0, /*normalized=*/true);
+  const int cubic_times = b.add_floats({0.0f, 2.0f}, 1);
+  // In-tangent, value, out-tangent per key.
+  const int cubic_scales = b.add_floats({0, 0, 0, 1, 1, 1, 1, 0, 0,  //
+                                         0, 1, 0, 2, 3, 4, 0, 0, 0},
+                                        3);
+  b.doc()["animations"] = json::array(
+      {{{"channels",
+         {{{"sampler", 0}, {"target", {{"node", 0}, {"path", "translation"}}}},
+          {{"sampler", 1}, {"target", {{"node", 1}, {"path", "rotation"}}}}}},
+        {"samplers",
+         {{{"input", linear_times}, {"output", translations}},  // LINEAR is the default
+          {{"input", step_times}, {"output", rotations}, {"interpolation", "STEP"}}}}},
+       {{"channels", {{{"sampler", 0}, {"target", {{"node", 2}, {"path", "scale"}}}}}},
+        {"samplers",
+         {{{"input", cubic_times}, {"output", cubic_scales}, {"interpolation", "CUBICSPLINE"}}}}}});
+  const fs::path path = dir_ / "animated.gltf";
+  b.write_embedded(path);
+
+  GltfLoadReport report;
+  const Scene scene = load_gltf(path, &report);
+  EXPECT_TRUE(report.warnings.empty());
+  EXPECT_TRUE(scene.is_animated());
+  EXPECT_DOUBLE_EQ(scene.duration(), 2.0);
+  ASSERT_EQ(scene.channels.size(), 3u);
+
+  const AnimationChannel& t = scene.channels[0];
+  EXPECT_EQ(t.node, 0);
+  EXPECT_EQ(t.path, AnimatedPath::kTranslation);
+  EXPECT_EQ(t.interpolation, Interpolation::kLinear);
+  EXPECT_EQ(t.times, (std::vector<double>{0.0, 0.5, 1.25}));
+  ASSERT_EQ(t.values.size(), 3u);
+  EXPECT_EQ(glm::dvec3(t.values[1]), glm::dvec3(1, 2, 3));
+  EXPECT_EQ(glm::dvec3(t.values[2]), glm::dvec3(4, 5, 6));
+
+  const AnimationChannel& r = scene.channels[1];
+  EXPECT_EQ(r.node, 1);
+  EXPECT_EQ(r.path, AnimatedPath::kRotation);
+  EXPECT_EQ(r.interpolation, Interpolation::kStep);
+  EXPECT_EQ(r.times, (std::vector<double>{0.0, 1.0}));
+  ASSERT_EQ(r.values.size(), 2u);
+  EXPECT_EQ(r.values[0], glm::dvec4(0, 0, 0, 1));  // (x, y, z, w)
+  EXPECT_EQ(r.values[1], glm::dvec4(0, 0, 1, 0));
+
+  const AnimationChannel& s = scene.channels[2];
+  EXPECT_EQ(s.node, 2);
+  EXPECT_EQ(s.path, AnimatedPath::kScale);
+  EXPECT_EQ(s.interpolation, Interpolation::kCubicSpline);
+  EXPECT_EQ(s.times, (std::vector<double>{0.0, 2.0}));
+  ASSERT_EQ(s.values.size(), 6u);
+  EXPECT_EQ(glm::dvec3(s.values[1]), glm::dvec3(1, 1, 1));
+  EXPECT_EQ(glm::dvec3(s.values[2]), glm::dvec3(1, 0, 0));
+  EXPECT_EQ(glm::dvec3(s.values[3]), glm::dvec3(0, 1, 0));
+  EXPECT_EQ(glm::dvec3(s.values[4]), glm::dvec3(2, 3, 4));
+}
+
+TEST_F(GltfLoaderTest, CameraAndAllThreeLightTypesLoadWithExtras) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["extensionsUsed"] = {"KHR_lights_punctual"};
+  b.doc()["cameras"] = json::array(
+      {{{"name", "eye"},
+        {"type", "perspective"},
+        {"perspective", {{"yfov", 0.6}, {"znear", 0.05}, {"zfar", 100}, {"aspectRatio", 1.5}}}}});
+  b.doc()["extensions"]["KHR_lights_punctual"]["lights"] = json::array(
+      {{{"name", "bulb"},
+        {"type", "point"},
+        {"color", {1.0, 0.5, 0.25}},
+        {"intensity", 3.0},
+        {"range", 10.0},
+        {"extras", {{"afr_falloff", "none"}}}},
+       {{"type", "directional"}, {"intensity", 2.0}},
+       {{"type", "spot"}, {"spot", {{"innerConeAngle", 0.25}, {"outerConeAngle", 0.5}}}}});
+  b.doc()["nodes"] = json::array({{{"mesh", 0}},
+                                  {{"name", "camera"}, {"camera", 0}, {"translation", {0, 1, 5}}},
+                                  {{"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}},
+                                  {{"extensions", {{"KHR_lights_punctual", {{"light", 1}}}}}},
+                                  {{"extensions", {{"KHR_lights_punctual", {{"light", 2}}}}}}});
+  b.doc()["scenes"] = json::array(
+      {{{"nodes", {0, 1, 2, 3, 4}},
+        {"extras", {{"afr_background", {0.1, 0.2, 0.3}}, {"afr_ambient", {0.05, 0.04, 0.03}}}}}});
+  const fs::path path = dir_ / "lit.gltf";
+  b.write_embedded(path);
+
+  GltfLoadReport report;
+  const Scene scene = load_gltf(path, &report);
+  EXPECT_TRUE(report.warnings.empty());
+  ASSERT_EQ(scene.cameras.size(), 1u);
+  EXPECT_EQ(scene.cameras[0].name, "eye");
+  EXPECT_DOUBLE_EQ(scene.cameras[0].yfov, 0.6);
+  EXPECT_DOUBLE_EQ(scene.cameras[0].znear, 0.05);
+  EXPECT_EQ(scene.nodes[1].camera, 0);
+  EXPECT_EQ(scene.camera_node(), 1);
+  const Camera camera = scene.camera_at(scene.evaluate(0.0));
+  EXPECT_NEAR(glm::length(camera.eye - glm::dvec3(0, 1, 5)), 0.0, 1e-12);
+  EXPECT_DOUBLE_EQ(camera.yfov, 0.6);
+
+  ASSERT_EQ(scene.lights.size(), 3u);
+  const Light& point = scene.lights[0];
+  EXPECT_EQ(point.name, "bulb");
+  EXPECT_EQ(point.type, Light::Type::kPoint);
+  EXPECT_EQ(point.color, glm::vec3(1.0f, 0.5f, 0.25f));
+  EXPECT_EQ(point.intensity, 3.0f);
+  EXPECT_EQ(point.range, 10.0f);
+  EXPECT_FALSE(point.inverse_square_falloff);
+  const Light& directional = scene.lights[1];
+  EXPECT_EQ(directional.type, Light::Type::kDirectional);
+  EXPECT_EQ(directional.intensity, 2.0f);
+  EXPECT_EQ(directional.color, glm::vec3(1.0f));
+  EXPECT_EQ(directional.range, 0.0f);
+  EXPECT_TRUE(directional.inverse_square_falloff);
+  const Light& spot = scene.lights[2];
+  EXPECT_EQ(spot.type, Light::Type::kSpot);
+  EXPECT_EQ(spot.inner_cone_angle, 0.25f);
+  EXPECT_EQ(spot.outer_cone_angle, 0.5f);
+  EXPECT_TRUE(spot.inverse_square_falloff);
+  EXPECT_EQ(scene.nodes[2].light, 0);
+  EXPECT_EQ(scene.nodes[3].light, 1);
+  EXPECT_EQ(scene.nodes[4].light, 2);
+  EXPECT_EQ(scene.nodes[0].light, -1);
+
+  EXPECT_EQ(scene.background, glm::vec3(0.1f, 0.2f, 0.3f));
+  EXPECT_EQ(scene.ambient, glm::vec3(0.05f, 0.04f, 0.03f));
+}
+
+// ---- Unsupported features ----
+
+TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {
+  GltfBuilder b;
+  const int positions = add_quad(&b);
+  // Two skinned nodes, an unknown extension in two places, two line primitives, an
+  // orthographic camera, a weights animation and an unknown interpolation used twice.
+  b.doc()["skins"] = json::array({{{"joints", {1}}}});
+  b.doc()["nodes"] = json::array(
+      {{{"mesh", 0}, {"skin", 0}, {"children", {1}}}, {{"mesh", 0}, {"skin", 0}, {"camera", 0}}});
+  b.doc()["extensionsUsed"] = {"EXT_made_up"};
+  b.doc()["materials"] = json::array({{{"extensions", {{"EXT_made_up", {{"x", 1}}}}}}});
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  b.doc()["meshes"][0]["primitives"][0]["extensions"] = {{"EXT_made_up", json::object()}};
+  b.doc()["meshes"][0]["primitives"].push_back(
+      {{"attributes", {{"POSITION", positions}}}, {"mode", 1}});
+  b.doc()["meshes"][0]["primitives"].push_back(
+      {{"attributes", {{"POSITION", positions}}}, {"mode", 1}});
+  b.doc()["cameras"] =
+      json::array({{{"type", "orthographic"},
+                    {"orthographic", {{"xmag", 1}, {"ymag", 1}, {"znear", 0.1}, {"zfar", 10}}}}});
+  const int times = b.add_floats({0, 1}, 1);
+  const int values = b.add_floats({0, 0, 0, 1, 1, 1}, 3);
+  b.doc()["animations"] =
+      json::array({{{"channels",
+                     {{{"sampler", 0}, {"target", {{"node", 0}, {"path", "translation"}}}},
+                      {{"sampler", 0}, {"target", {{"node", 1}, {"path", "translation"}}}},
+                      {{"sampler", 1}, {"target", {{"node", 0}, {"path", "weights"}}}},
+                      {{"sampler", 2}, {"target", {{"node", 1}, {"path", "scale"}}}}}},
+                    {"samplers",
+                     {{{"input", times}, {"output", values}, {"interpolation", "SMOOTHSTEP"}},
+                      {{"input", times}, {"output", times}},
+                      {{"input", times}, {"output", values}}}}}});
+  const fs::path path = dir_ / "unsupported.gltf";
+  b.write_embedded(path);
+
+  GltfLoadReport report;
+  const Scene scene = load_gltf(path, &report);
+  for (const std::string& w : report.warnings) {
+    EXPECT_NE(w.find(path.string()), std::string::npos) << w;
+  }
+  EXPECT_EQ(count_containing(report.warnings, "skin"), 1u);
+  EXPECT_EQ(count_containing(report.warnings, "EXT_made_up"), 1u);
+  EXPECT_EQ(count_containing(report.warnings, "mode 1"), 1u);
+  EXPECT_EQ(count_containing(report.warnings, "orthographic"), 1u);
+  EXPECT_EQ(count_containing(report.warnings, "weights"), 1u);
+  EXPECT_EQ(count_containing(report.warnings, "SMOOTHSTEP"), 1u);
+  EXPECT_EQ(report.warnings.size(), 6u);
+
+  ASSERT_EQ(scene.meshes.size(), 1u);
+  ASSERT_EQ(scene.meshes[0].primitives.size(), 1u);
+  EXPECT_EQ(scene.meshes[0].primitives[0].triangle_count(), 2u);
+  EXPECT_EQ(scene.nodes[1].camera, -1);
+  EXPECT_TRUE(scene.cameras.empty());
+  ASSERT_EQ(scene.channels.size(), 1u);
+  EXPECT_EQ(scene.channels[0].path, AnimatedPath::kScale);
+}
+
+// ---- Broken files ----
+
+TEST_F(GltfLoaderTest, MissingFileFails) { expect_error(dir_ / "absent.gltf", "no such file"); }
+
+TEST_F(GltfLoaderTest, TruncatedGlbFails) {
+  GltfBuilder b;
+  add_quad(&b);
+  const fs::path path = dir_ / "cut.glb";
+  b.write_glb(path);
+  EXPECT_EQ(load_gltf(path).meshes.at(0).primitives.at(0).positions.size(), 4u);
+  std::vector<uint8_t> bytes = read_bytes(path);
+  bytes.resize(bytes.size() / 2);
+  write_bytes(path, bytes.data(), bytes.size());
+  expect_error(path, "truncated");
+}
+
+TEST_F(GltfLoaderTest, TruncatedBinFails) {
+  GltfBuilder b;
+  add_quad(&b);
+  const fs::path path = dir_ / "external.gltf";
+  b.write_external(path, "external.bin");
+  EXPECT_EQ(load_gltf(path).meshes.at(0).primitives.at(0).positions.size(), 4u);
+  fs::resize_file(dir_ / "external.bin", b.bin().size() - 8);
+  expect_error(path, "external.bin");
+  expect_error(path, "size");
+}
+
+TEST_F(GltfLoaderTest, MalformedJsonFails) {
+  const fs::path path = dir_ / "malformed.gltf";
+  write_text(path, R"({"asset": {"version": "2.0"}, "nodes": [{"mesh": 0}, }])");
+  expect_error(path, "parse error");
+}
+
+TEST_F(GltfLoaderTest, AccessorOutOfBoundsOfItsBufferViewFails) {
+  GltfBuilder b;
+  const int positions = add_quad(&b);
+  b.doc()["accessors"][positions]["count"] = 5;
+  const fs::path path = dir_ / "overrun.gltf";
+  b.write_embedded(path);
+  expect_error(path, "out of bounds");
+}
+
+TEST_F(GltfLoaderTest, BufferViewOutOfBoundsOfItsBufferFails) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["bufferViews"][1]["byteLength"] = 400;
+  const fs::path path = dir_ / "long_view.gltf";
+  b.write_embedded(path);
+  expect_error(path, "out of bounds");
+}
+
+TEST_F(GltfLoaderTest, IndexOutOfRangeOfTheVerticesFails) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.bin()[48 + 2] = 9;  // the second index (u16 after 48 bytes of positions) becomes 9
+  const fs::path path = dir_ / "bad_index.gltf";
+  b.write_embedded(path);
+  expect_error(path, "out of range");
+}
+
+TEST_F(GltfLoaderTest, BadReferencesFail) {
+  {
+    GltfBuilder b;
+    add_quad(&b);
+    b.doc()["nodes"][0]["mesh"] = 7;
+    b.write_embedded(dir_ / "bad_mesh.gltf");
+  }
+  expect_error(dir_ / "bad_mesh.gltf", "mesh 7");
+  {
+    GltfBuilder b;
+    add_quad(&b);
+    b.doc()["meshes"][0]["primitives"][0]["material"] = 3;
+    b.write_embedded(dir_ / "bad_material.gltf");
+  }
+  expect_error(dir_ / "bad_material.gltf", "material 3");
+  {
+    GltfBuilder b;
+    add_quad(&b);
+    b.doc()["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = 42;
+    b.write_embedded(dir_ / "bad_accessor.gltf");
+  }
+  expect_error(dir_ / "bad_accessor.gltf", "accessor 42");
+  {
+    GltfBuilder b;
+    add_quad(&b);
+    b.doc()["scenes"][0]["nodes"] = {0, 5};
+    b.write_embedded(dir_ / "bad_root.gltf");
+  }
+  expect_error(dir_ / "bad_root.gltf", "node 5");
+}
+
+TEST_F(GltfLoaderTest, CycleInTheNodeGraphFails) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["nodes"] = json::array({{{"mesh", 0}}, {{"children", {2}}}, {{"children", {1}}}});
+  const fs::path path = dir_ / "cycle.gltf";
+  b.write_embedded(path);
+  expect_error(path, "cycle");
+}
+
+TEST_F(GltfLoaderTest, NanPositionFails) {
+  GltfBuilder b;
+  add_quad(&b);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::memcpy(&b.bin()[16], &nan, 4);  // y of vertex 1
+  const fs::path path = dir_ / "nan.gltf";
+  b.write_embedded(path);
+  expect_error(path, "NaN");
+}
+
+TEST_F(GltfLoaderTest, BuffersOutsideTheSceneFolderAreRefused) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.write_external(dir_ / "inside.gltf", "data.bin");
+  fs::rename(dir_ / "data.bin", root_ / "secret.bin");
+  json doc = json::parse(read_bytes(dir_ / "inside.gltf"));
+  doc["buffers"][0]["uri"] = "../secret.bin";
+  write_text(dir_ / "escape.gltf", doc.dump());
+  expect_error(dir_ / "escape.gltf", "outside the folder");
+}
+
+TEST(LoadSceneTest, EmptyPathGivesTheBuiltinScene) {
+  const Scene scene = load_scene({});
+  EXPECT_EQ(scene.source, "builtin");
+  EXPECT_FALSE(scene.meshes.empty());
+}
+
+}  // namespace
+}  // namespace afr

@@ -1,1 +1,179 @@
+#include <afr/common/scene.h>
+
+#include <afr/common/error.h>
+
 #include <gtest/gtest.h>
+
+namespace afr {
+namespace {
+
+Primitive triangle() {
+  Primitive p;
+  p.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  p.indices = {0, 1, 2};
+  return p;
+}
+
+Scene one_mesh_scene() {
+  Scene s;
+  s.source = "test scene";
+  s.meshes.push_back(Mesh{"tri", {triangle()}});
+  s.nodes.push_back(Node{});
+  s.nodes[0].mesh = 0;
+  return s;
+}
+
+TEST(SceneTest, FinalizeGeneratesNormalsWhenAbsent) {
+  Scene s = one_mesh_scene();
+  s.finalize();
+  const Primitive& p = s.meshes[0].primitives[0];
+  ASSERT_EQ(p.normals.size(), 3u);
+  for (const glm::vec3& n : p.normals) EXPECT_EQ(n, glm::vec3(0, 0, 1));
+}
+
+TEST(SceneTest, GeneratedNormalsAreAreaWeighted) {
+  // Two triangles share vertex 0: a large one facing +Z and a small one facing +X.
+  Primitive p;
+  p.positions = {{0, 0, 0}, {2, 0, 0}, {0, 2, 0}, {0, 0.1f, 0}, {0, 0, 0.1f}};
+  p.indices = {0, 1, 2, 0, 3, 4};
+  generate_normals(&p);
+  // Area 2 toward +Z, area 0.005 toward +X: normalize((0.01, 0, 4)).
+  const glm::vec3 expected = glm::normalize(glm::vec3(0.01f, 0.0f, 4.0f));
+  EXPECT_NEAR(p.normals[0].x, expected.x, 1e-6f);
+  EXPECT_NEAR(p.normals[0].z, expected.z, 1e-6f);
+}
+
+TEST(SceneTest, DegenerateTrianglesGiveAFiniteDefaultNormal) {
+  Primitive p;
+  p.positions = {{1, 1, 1}, {1, 1, 1}, {1, 1, 1}};
+  p.indices = {0, 1, 2};
+  generate_normals(&p);
+  for (const glm::vec3& n : p.normals) EXPECT_EQ(n, glm::vec3(0, 0, 1));
+}
+
+TEST(SceneTest, FinalizeRejectsOutOfRangeReferencesNamingTheSource) {
+  {
+    Scene s = one_mesh_scene();
+    s.meshes[0].primitives[0].indices[2] = 3;
+    try {
+      s.finalize();
+      FAIL();
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("test scene"), std::string::npos);
+      EXPECT_NE(std::string(e.what()).find("index 3"), std::string::npos);
+    }
+  }
+  {
+    Scene s = one_mesh_scene();
+    s.nodes[0].mesh = 4;
+    EXPECT_THROW(s.finalize(), Error);
+  }
+  {
+    Scene s = one_mesh_scene();
+    s.meshes[0].primitives[0].material = 0;  // no materials
+    EXPECT_THROW(s.finalize(), Error);
+  }
+  {
+    Scene s = one_mesh_scene();
+    s.meshes[0].primitives[0].positions[1].x = NAN;
+    EXPECT_THROW(s.finalize(), Error);
+  }
+}
+
+TEST(SceneTest, FinalizeRejectsCyclesAndSharedChildren) {
+  Scene cycle = one_mesh_scene();
+  cycle.nodes.resize(2);
+  cycle.nodes[0].children = {1};
+  cycle.nodes[1].children = {0};
+  EXPECT_THROW(cycle.finalize(), Error);
+
+  Scene shared = one_mesh_scene();
+  shared.nodes.resize(3);
+  shared.nodes[0].children = {2};
+  shared.nodes[1].children = {2};
+  EXPECT_THROW(shared.finalize(), Error);
+}
+
+TEST(SceneTest, WorldTransformsComposeParentTimesChild) {
+  Scene s = one_mesh_scene();
+  s.nodes.resize(2);
+  s.nodes[0].translation = {1, 0, 0};
+  s.nodes[0].rotation = glm::angleAxis(glm::radians(90.0), glm::dvec3(0, 0, 1));
+  s.nodes[0].children = {1};
+  s.nodes[1].translation = {2, 0, 0};
+  s.nodes[1].scale = {3, 3, 3};
+  s.finalize();
+  const SceneState st = s.evaluate(0.0);
+  // Child origin: parent maps (2,0,0) by a 90 degree turn about Z to (0,2,0), then + (1,0,0).
+  const glm::dvec3 origin(st.world[1] * glm::dvec4(0, 0, 0, 1));
+  EXPECT_NEAR(origin.x, 1.0, 1e-12);
+  EXPECT_NEAR(origin.y, 2.0, 1e-12);
+  // Child's local (1,0,0): scaled to 3, rotated to (0,3,0).
+  const glm::dvec3 p(st.world[1] * glm::dvec4(1, 0, 0, 1));
+  EXPECT_NEAR(p.x, 1.0, 1e-12);
+  EXPECT_NEAR(p.y, 5.0, 1e-12);
+}
+
+TEST(SceneTest, AnimatedParentMovesChildAndDurationCoversKeys) {
+  Scene s = one_mesh_scene();
+  s.nodes.resize(3);
+  s.nodes[1].children = {0};  // the mesh node hangs under an animated parent
+  AnimationChannel ch;
+  ch.node = 1;
+  ch.path = AnimatedPath::kTranslation;
+  ch.interpolation = Interpolation::kLinear;
+  ch.times = {0.0, 4.0};
+  ch.values = {{0, 0, 0, 0}, {8, 0, 0, 0}};
+  s.channels.push_back(ch);
+  s.finalize();
+  EXPECT_TRUE(s.node_moves(0));
+  EXPECT_TRUE(s.node_moves(1));
+  EXPECT_FALSE(s.node_moves(2));
+  EXPECT_TRUE(s.has_moving_geometry());
+  EXPECT_DOUBLE_EQ(s.duration(), 4.0);
+  EXPECT_DOUBLE_EQ(s.evaluate(1.0).world[0][3].x, 2.0);
+}
+
+TEST(SceneTest, MatrixNodesCannotBeAnimated) {
+  Scene s = one_mesh_scene();
+  s.nodes[0].matrix = glm::dmat4(1.0);
+  AnimationChannel ch;
+  ch.node = 0;
+  ch.times = {0.0};
+  ch.values = {{0, 0, 0, 0}};
+  s.channels.push_back(ch);
+  EXPECT_THROW(s.finalize(), Error);
+}
+
+TEST(SceneTest, DefaultCameraSeesTheWholeScene) {
+  Scene s = one_mesh_scene();
+  s.finalize();
+  const SceneState st = s.evaluate(0.0);
+  const Camera cam = s.camera_at(st);
+  for (const glm::vec3& v : s.meshes[0].primitives[0].positions) {
+    glm::dvec2 xy;
+    ASSERT_TRUE(cam.project(glm::dvec3(v), 100, 100, &xy, nullptr));
+    EXPECT_GE(xy.x, 0.0);
+    EXPECT_LE(xy.x, 100.0);
+    EXPECT_GE(xy.y, 0.0);
+    EXPECT_LE(xy.y, 100.0);
+  }
+}
+
+TEST(SceneTest, TextureSamplingIsBilinearAndRepeats) {
+  Texture t;
+  t.width = 2;
+  t.height = 1;
+  t.texels = {glm::vec3(0.0f), glm::vec3(1.0f)};
+  // Texel centers at u = 0.25 and 0.75.
+  EXPECT_NEAR(t.sample_bilinear({0.25f, 0.5f}).x, 0.0f, 1e-6f);
+  EXPECT_NEAR(t.sample_bilinear({0.75f, 0.5f}).x, 1.0f, 1e-6f);
+  EXPECT_NEAR(t.sample_bilinear({0.5f, 0.5f}).x, 0.5f, 1e-6f);
+  // u = 0 lies halfway between the last texel (wrapped) and the first.
+  EXPECT_NEAR(t.sample_bilinear({0.0f, 0.5f}).x, 0.5f, 1e-6f);
+  EXPECT_NEAR(t.sample_bilinear({7.75f, -3.5f}).x, 1.0f, 1e-5f);
+  EXPECT_TRUE(std::isfinite(t.sample_bilinear({NAN, INFINITY}).x));
+}
+
+}  // namespace
+}  // namespace afr

@@ -2,7 +2,8 @@
 // geometry, one instance per moving mesh node, so a new time only updates instance transforms
 // and re-commits the top level) and the shading model the scene's materials ask for.
 //
-// Order of calls: construct, set_time(t), then any number of trace/trace_crosshair/occluded
+// Order of calls: construct (the tracer keeps its own copy of the scene and starts at time 0),
+// optionally set_time(t), then any number of trace/trace_crosshair/occluded
 // calls from any number of threads (each thread with its own TraceStats), then set_time again.
 // set_time must not overlap with tracing.
 #pragma once
@@ -21,6 +22,10 @@ struct TracerOptions {
   bool shadows = true;
   // Roughness at or below which a metallic material reflects as a mirror.
   float mirror_roughness = 0.1f;
+  // How trace_crosshair casts its five primary rays: one rtcIntersect8 with five active lanes
+  // (true) or five rtcIntersect1. Both give the same samples; afr-bench-tracer measures which
+  // is faster.
+  bool packet_crosshair = true;
 };
 
 // Counters of one tracing thread; add them up across threads.
@@ -36,9 +41,9 @@ struct TraceStats {
 
 // The result of one primary ray.
 struct ShadedSample {
-  glm::vec3 color{0.0f};     // linear RGB, finite, >= 0
-  glm::vec3 position{0.0f};  // world hit point; the ray direction when nothing was hit
-  glm::vec3 velocity{0.0f};  // world velocity of the hit point (m/s); 0 for static objects
+  glm::vec3 color{0.0f};           // linear RGB, finite, >= 0
+  glm::vec3 position{0.0f};        // world hit point; the ray direction when nothing was hit
+  glm::vec3 velocity{0.0f};        // world velocity of the hit point (m/s); 0 for static objects
   uint32_t object_id = kNoObject;  // scene node of the hit, kNoObject on a miss
   bool hit = false;
 
@@ -47,6 +52,7 @@ struct ShadedSample {
 
 class Tracer {
  public:
+  // Builds the BVH of a finalized scene. Throws afr::Error if Embree fails.
   Tracer(const Scene& scene, const TracerOptions& options = {});
   ~Tracer();
   Tracer(const Tracer&) = delete;
@@ -58,12 +64,16 @@ class Tracer {
   // The scene's active camera at the current time.
   const Camera& camera() const;
 
+  const TracerOptions& options() const;
+
   ShadedSample trace(const Ray& ray, TraceStats* stats) const;
   // The crosshair of section 4.1: the center sample at image position (x, y) and its four
   // neighbours one pixel away, in the order center, x-1, x+1, y-1, y+1.
   void trace_crosshair(const Camera& camera, double x, double y, int width, int height,
                        std::array<ShadedSample, 5>* out, TraceStats* stats) const;
   // True if anything blocks the segment from `from` to `to` (the sampler's occlusion ray).
+  // Hits within a small distance of either end do not count, so a surface point does not
+  // occlude itself.
   bool occluded(const glm::vec3& from, const glm::vec3& to, TraceStats* stats) const;
 
  private:

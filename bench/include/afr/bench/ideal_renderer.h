@@ -1,0 +1,36 @@
+// The ideal renderer of the evaluation (paper section 7, the gold standard): every pixel of
+// the image at exactly time t, with no delay, antialiased by S x S stratified jittered
+// samples per pixel and a Gaussian pixel filter. Seeded: the same arguments give the same
+// image bit for bit, whatever the thread count.
+#pragma once
+
+#include <afr/common/image.h>
+#include <afr/common/scene.h>
+#include <afr/sampler/tracer.h>
+
+#include <cstdint>
+
+namespace afr {
+
+struct IdealRenderOptions {
+  int width = 256;
+  int height = 256;
+  int strata = 4;     // S: S x S samples per pixel
+  double time = 0.0;  // seconds
+  int threads = 0;    // 0 = all cores
+  uint64_t seed = 1;
+  // Gaussian pixel filter exp(-alpha r^2) - exp(-alpha radius^2), separable, in pixels.
+  double filter_radius = 1.0;  // >= 0.5, so every pixel weighs its own samples
+  double filter_alpha = 2.0;
+};
+
+struct IdealRenderStats {
+  TraceStats trace;
+  double seconds = 0.0;
+};
+
+// Moves `tracer` to options.time and renders. `tracer` must be built from `scene`.
+Image render_ideal(Tracer& tracer, const IdealRenderOptions& options,
+                   IdealRenderStats* stats = nullptr);
+
+}  // namespace afr

@@ -1,0 +1,59 @@
+// Clocks. The whole system runs on one clock, the display node's (DESIGN.md, "Time"): absolute
+// times are double seconds from the session start. The sampler reads time only through a
+// Clock, so the same code runs live (WallClock) and in evaluations (VirtualClock), where time
+// advances by 1/R seconds per traced primary ray at a simulated rate R and results do not
+// depend on the speed of the machine.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+
+namespace afr {
+
+class Clock {
+ public:
+  virtual ~Clock() = default;
+  // Seconds since the session start on the display's clock.
+  virtual double now() const = 0;
+  // Told after every traced primary ray (in counts); a virtual clock advances with them.
+  virtual void primary_rays_traced(uint64_t count) {}
+};
+
+// Real time from a steady clock, plus an offset that ties it to the display's clock (the
+// display time at this process's start, learned from view messages).
+class WallClock final : public Clock {
+ public:
+  WallClock() : start_(std::chrono::steady_clock::now()) {}
+  double now() const override {
+    return offset_ +
+           std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+  // Makes now() return `display_time` at this instant.
+  void sync_to(double display_time) {
+    offset_ = 0.0;
+    offset_ = display_time - now();
+  }
+
+ private:
+  std::chrono::steady_clock::time_point start_;
+  double offset_ = 0.0;
+};
+
+// Time that advances 1/rate seconds per traced primary ray. It counts rays in an integer and
+// computes now() = start + rays / rate, so it does not accumulate rounding error.
+class VirtualClock final : public Clock {
+ public:
+  VirtualClock(double rays_per_second, double start_seconds = 0.0)
+      : rate_(rays_per_second), start_(start_seconds) {}
+  double now() const override { return start_ + double(rays_) / rate_; }
+  void primary_rays_traced(uint64_t count) override { rays_ += count; }
+  double rate() const { return rate_; }
+  uint64_t rays() const { return rays_; }
+
+ private:
+  double rate_;
+  double start_;
+  uint64_t rays_ = 0;
+};
+
+}  // namespace afr

@@ -1,0 +1,80 @@
+// What the sampler emits: frameless samples in batches, tiling snapshots at the refresh rate,
+// and counters; and the sink interface that receives them (the network in sampler_node, the
+// reconstructor directly in evaluations and tests).
+#pragma once
+
+#include <afr/common/math.h>
+#include <afr/sampler/tiling.h>
+
+#include <cstdint>
+#include <vector>
+
+namespace afr {
+
+// Which optional fields a batch's samples carry (DESIGN.md, "Samples and what they carry").
+enum SampleField : uint32_t {
+  kFieldPosition = 1u << 0,  // world hit point, or the ray direction for a miss
+  kFieldVelocity = 1u << 1,  // world velocity of the hit point (scenes with moving objects)
+};
+
+// One primary ray's result. Fields not named in the batch's `fields` are left zero.
+struct Sample {
+  double time = 0.0;  // display-clock seconds at which the ray was traced
+  float x = 0.0f;     // image position in pixels (sub-pixel), y down
+  float y = 0.0f;
+  glm::vec3 color{0.0f};  // linear RGB
+  glm::vec3 position{0.0f};
+  glm::vec3 velocity{0.0f};
+  bool miss = false;  // position is a direction (the ray hit nothing)
+};
+
+struct SampleBatch {
+  uint32_t sampler_id = 0;
+  uint64_t sequence = 0;  // per sampler, +1 per batch
+  uint32_t fields = 0;    // SampleField bits
+  std::vector<Sample> samples;
+};
+
+// One tile of a tiling snapshot: what the reconstructor's tile field reads (section 4.2).
+struct TileInfo {
+  PixelRect rect;
+  float G_x = 0.0f;  // luminance per pixel
+  float G_y = 0.0f;
+  float G_t = 0.0f;  // luminance per second
+  float v = 0.0f;    // age-weighted luminance variance
+  float E = 0.0f;    // error that drives split and merge
+  uint32_t count = 0;  // crosshairs in the tile's block
+  float rate = 0.0f;   // local sampling rate, samples per pixel per second
+};
+
+struct TilingSnapshot {
+  uint32_t sampler_id = 0;
+  double time = 0.0;  // display-clock seconds
+  PixelRect region;   // the part of the image this sampler owns
+  std::vector<TileInfo> tiles;
+};
+
+struct SamplerCounters {
+  uint64_t samples = 0;      // primary rays traced and emitted
+  uint64_t crosshairs = 0;   // crosshairs completed
+  uint64_t reprojections = 0;
+  uint64_t reprojections_dropped = 0;  // left the region or went behind the camera
+  uint64_t occlusion_rays = 0;
+  uint64_t occlusion_hits = 0;
+  uint64_t splits = 0;
+  uint64_t merges = 0;
+  uint64_t sanitized = 0;  // non-finite shading values replaced by the tracer
+  uint64_t snapshots = 0;
+  uint64_t batches = 0;
+};
+
+// Receives the sampler's output, on the sampler's thread. Batches are handed over by value
+// and may be kept.
+class SampleSink {
+ public:
+  virtual ~SampleSink() = default;
+  virtual void on_batch(SampleBatch&& batch) = 0;
+  virtual void on_tiling(TilingSnapshot&& snapshot) = 0;
+};
+
+}  // namespace afr

@@ -1,0 +1,149 @@
+// The adaptive frameless sampler (sections 4 and 6.1): the closed loop of the paper's
+// Figure 5 over the region a sampler owns. Library code with no I/O: it reads time from a
+// Clock, traces with a Tracer, draws random numbers from its own seeded generator and hands
+// samples and tiling snapshots to a SampleSink.
+//
+// Order of calls: construct, fill() once, then step() as often as wanted (each step is one
+// iteration of Figure 5, or one sample of a baseline mode), flush() to emit the last partial
+// batch. Not thread-safe: one sampler per thread, each with its own Tracer.
+#pragma once
+
+#include <afr/common/clock.h>
+#include <afr/common/random.h>
+#include <afr/common/scene.h>
+#include <afr/sampler/deep_buffer.h>
+#include <afr/sampler/sample.h>
+#include <afr/sampler/sampler_config.h>
+#include <afr/sampler/tiling.h>
+#include <afr/sampler/tracer.h>
+
+#include <array>
+#include <vector>
+
+namespace afr {
+
+// Sample weights decline with age a as exp(-kAgeDecay * a) (section 4).
+inline constexpr double kAgeDecay = 3.47;
+
+// Statistics of one tile's block, kept as age-weighted running sums. Weights are
+// exp(kAgeDecay * (t - t_ref)) relative to a per-tile reference time, so the sums never need
+// to decay: every weight shrinks by the same factor as time passes, which ratios ignore.
+struct TileSums {
+  double t_ref = 0.0;  // reference time of the weights
+  double shift = 0.0;  // luminance subtracted before summing (numerically stable variance)
+  double w = 0.0;      // sum of weights
+  double wl = 0.0;     // sum of w * (L - shift)
+  double wll = 0.0;    // sum of w * (L - shift)^2
+  double wgx = 0.0, wgy = 0.0;  // sums of w * G_x, w * G_y
+  double wt = 0.0, wgt = 0.0;   // over crosshairs with a temporal gradient: w, w * G_t
+  double t_sum = 0.0;           // sum of (t - t_ref), for the mean age
+  int32_t count = 0;            // crosshairs in the block
+  int32_t occluded = 0;         // of them, made to replace an occluded crosshair
+  int32_t updates = 0;          // adds and removes since the sums were last re-derived
+};
+
+// What the sums say about a block.
+struct TileStats {
+  double v = 0.0;    // age-weighted luminance variance, >= 0
+  double G_x = 0.0, G_y = 0.0, G_t = 0.0;
+  double mean_age = 0.0;  // seconds
+  int32_t count = 0;
+  int32_t occluded = 0;
+};
+
+class Sampler {
+ public:
+  Sampler(const Scene& scene, Tracer& tracer, Clock& clock, const SamplerConfig& config,
+          SampleSink& sink);
+
+  // Section 4.2: fills the deep buffer with a gridded, cotemporal pattern of crosshairs (all
+  // traced at the clock's current time) and builds the first tiling.
+  void fill();
+  // One iteration of the loop.
+  void step();
+  // Emits the samples of the current, partial batch.
+  void flush();
+
+  const SamplerConfig& config() const { return config_; }
+  const SamplerCounters& counters() const { return counters_; }
+  const KdTiling& tiling() const { return tiling_; }
+  const DeepBuffer& buffer() const { return buffer_; }
+  // The statistics of a tile (a leaf of tiling()) at the clock's current time.
+  TileStats tile_stats(int tile) const;
+  // The error E_tile of the last tiling adjustment.
+  double tile_error(int tile) const { return error_[tile]; }
+  // Gain control's current target tile count (section 4.1).
+  int target_tiles() const { return target_tiles_; }
+  TilingSnapshot snapshot() const;
+  // Samples per second emitted, as measured over recent refresh intervals.
+  double sample_rate() const { return sample_rate_; }
+
+ private:
+  struct TileRecord {
+    TileSums sums;
+    int64_t pending = -1;  // pixel (in pending_) of the tile's initiated crosshair, or -1
+  };
+  struct Pending {
+    double time = 0.0;
+    float x = 0.0f, y = 0.0f;
+    float luminance = 0.0f;
+    bool valid = false;
+  };
+
+  // Loop steps.
+  void step_adaptive();
+  void step_uniform();
+  void step_framed();
+  void advance_scene_time();
+  void reproject_one(int tile);
+  void adjust_tiling();
+  void maybe_snapshot();
+
+  // Tracing, with emission to the sink.
+  void trace_crosshair(double x, double y, std::array<ShadedSample, 5>* out);
+  ShadedSample trace_one(double x, double y);
+  void emit(double x, double y, const ShadedSample& s);
+  Crosshair make_crosshair(double x, double y, const std::array<ShadedSample, 5>& s) const;
+
+  // Deep buffer and statistics.
+  void insert_front(const Crosshair& c);
+  void insert_back(const Crosshair& c);
+  void add_to_tile(int tile, const Crosshair& c, double sign);
+  void settle(int tile);
+  void rederive(int tile);
+  TileRecord& record(int tile);
+  void on_split(int parent, int a, int b);
+  void on_merge(int parent, int a, int b);
+  int64_t pending_index(int32_t x, int32_t y) const;
+  double gain_target() const;
+  void compute_errors();
+
+  const Scene& scene_;
+  Tracer& tracer_;
+  Clock& clock_;
+  SamplerConfig config_;
+  SampleSink& sink_;
+  PixelRect region_;
+  Pcg32 rng_;
+  KdTiling tiling_;
+  DeepBuffer buffer_;
+  std::vector<TileRecord> records_;  // by tiling node id
+  std::vector<double> error_;        // by tiling node id
+  std::vector<Pending> pending_;     // by region pixel
+  Camera camera_;
+  double scene_time_ = 0.0;
+  bool scene_time_set_ = false;
+  uint32_t fields_ = 0;
+  SampleBatch batch_;
+  uint64_t sequence_ = 0;
+  SamplerCounters counters_;
+  TraceStats trace_stats_;
+  int chunk_progress_ = 0;
+  int target_tiles_ = 1;
+  int64_t sweep_next_ = 0;
+  double last_snapshot_time_ = 0.0;
+  uint64_t samples_at_snapshot_ = 0;
+  double sample_rate_ = 0.0;
+};
+
+}  // namespace afr

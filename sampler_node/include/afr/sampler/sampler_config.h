@@ -1,0 +1,51 @@
+// Every knob of the sampler, with the defaults afr uses and the ranges it accepts.
+#pragma once
+
+#include <afr/sampler/tiling.h>
+
+#include <cstdint>
+#include <string>
+
+namespace afr {
+
+enum class SamplerMode {
+  kAdaptive,       // afr: the closed loop of Figure 5
+  kUniformRandom,  // traditional frameless [BFMS94]: uniformly random pixels
+  kFramedSweep,    // every pixel center of the region in scanline order, over and over
+};
+
+struct SamplerConfig {
+  SamplerMode mode = SamplerMode::kAdaptive;
+  int width = 256;  // the whole image
+  int height = 256;
+  PixelRect region;  // the part this sampler owns; empty = the whole image
+  uint32_t sampler_id = 0;
+  uint64_t seed = 1;
+
+  int b = 4;      // deep buffer depth (section 4)
+  int r = 5;      // reprojections per tile visit (section 6.1); 0 = no reprojection
+  int chunk = 25;  // crosshairs between tiling adjustments (section 4.2)
+  // Error weights of section 6.1: kappa (variance), lambda (undersampling), the rest occlusion.
+  double kappa = 0.6;
+  double lambda = 0.2;
+  double m = 2.0;  // undersampling threshold (section 6.1)
+  double i = 1.0;  // importance of temporal against spatial change in gain control (4.1)
+  int min_tiles = 8;
+  int max_tiles = 4096;  // also at most the region's pixel count
+  int max_tiling_ops = 4;  // splits plus merges per adjustment
+  bool occlusion_rays = true;
+  // The scene's animation repeats over its keyframe range while the clock runs on.
+  bool loop_animation = true;
+
+  double refresh_interval = 1.0 / 60.0;  // seconds between tiling snapshots
+  double animation_step = 1e-3;  // the tracer's scene time follows the clock in these steps
+  int fill_step = 2;    // initial fill: one crosshair every fill_step pixels in x and y
+  int batch_size = 128;  // samples per emitted batch
+
+  // The region actually owned (`region`, or the whole image when it is empty).
+  PixelRect owned_region() const;
+  // Throws afr::Error naming the first field out of range.
+  void validate() const;
+};
+
+}  // namespace afr

@@ -1,0 +1,663 @@
+#include <afr/sampler/sampler.h>
+
+#include <afr/common/check.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace afr {
+
+namespace {
+
+// Re-derive a tile's sums from the buffer when a new weight would exceed exp(kAgeDecay * this)
+// relative to the tile's reference time (about 1e30 at 20 s): keeps the sums far from
+// overflow, and old weights are re-based instead of underflowing one by one.
+constexpr double kMaxReferenceAge = 20.0;
+// The smallest time difference a temporal gradient divides by (guards t - t0 near zero).
+constexpr double kMinTemporalSeconds = 1e-4;
+// The smallest pixel distance a reprojected spatial gradient divides by.
+constexpr double kMinPixelDistance = 0.25;
+
+float sample_luminance(const ShadedSample& s) { return luminance(s.color); }
+
+}  // namespace
+
+Sampler::Sampler(const Scene& scene, Tracer& tracer, Clock& clock, const SamplerConfig& config,
+                 SampleSink& sink)
+    : scene_(scene),
+      tracer_(tracer),
+      clock_(clock),
+      config_((config.validate(), config)),
+      sink_(sink),
+      region_(config.owned_region()),
+      rng_(mix_seed(config.seed), mix_seed(uint64_t(config.sampler_id) + 1)),
+      tiling_(region_),
+      buffer_(region_, config.b),
+      pending_(size_t(region_.area())) {
+  if (config_.r > 0) fields_ |= kFieldPosition;
+  if (config_.r > 0 && scene.has_moving_geometry()) fields_ |= kFieldVelocity;
+  batch_.sampler_id = config_.sampler_id;
+  batch_.fields = fields_;
+  batch_.samples.reserve(size_t(config_.batch_size));
+  const int64_t pixels = region_.area();
+  config_.max_tiles = int(std::min<int64_t>(config_.max_tiles, pixels));
+  config_.min_tiles = std::min(config_.min_tiles, config_.max_tiles);
+  target_tiles_ = config_.min_tiles;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The loop
+
+void Sampler::advance_scene_time() {
+  const double t = clock_.now();
+  if (!scene_time_set_ || std::abs(t - scene_time_) >= config_.animation_step) {
+    // The clock runs on for ever; with loop_animation the scene repeats its keyframe range.
+    const double duration = scene_.duration();
+    tracer_.set_time(config_.loop_animation && duration > 0.0 ? std::fmod(t, duration) : t);
+    camera_ = tracer_.camera();
+    scene_time_ = t;
+    scene_time_set_ = true;
+  }
+}
+
+void Sampler::fill() {
+  advance_scene_time();
+  const double t0 = clock_.now();
+  last_snapshot_time_ = t0;
+  if (config_.mode == SamplerMode::kAdaptive) {
+    // Section 4.2: a gridded, cotemporal pattern. Every crosshair is traced at scene time t0.
+    std::array<ShadedSample, 5> s;
+    for (int32_t y = region_.y0; y < region_.y1; y += config_.fill_step) {
+      for (int32_t x = region_.x0; x < region_.x1; x += config_.fill_step) {
+        trace_crosshair(x + 0.5, y + 0.5, &s);
+        Crosshair c = make_crosshair(x + 0.5, y + 0.5, s);
+        c.time = t0;
+        insert_front(c);
+      }
+    }
+    rederive(tiling_.root());
+    compute_errors();
+    while (tiling_.tile_count() < target_tiles_) {
+      int best = -1;
+      for (int t : tiling_.tiles()) {
+        if (tiling_.can_split(t) && (best == -1 || error_[t] > error_[best])) best = t;
+      }
+      if (best == -1) break;
+      int a, b;
+      tiling_.split(best, &a, &b);
+      on_split(best, a, b);
+    }
+  }
+  flush();
+}
+
+void Sampler::step() {
+  switch (config_.mode) {
+    case SamplerMode::kAdaptive:
+      step_adaptive();
+      break;
+    case SamplerMode::kUniformRandom:
+      step_uniform();
+      break;
+    case SamplerMode::kFramedSweep:
+      step_framed();
+      break;
+  }
+  maybe_snapshot();
+}
+
+// Figure 5, one iteration.
+void Sampler::step_adaptive() {
+  advance_scene_time();
+  const int tile = tiling_.tiles()[rng_.next_below(uint32_t(tiling_.tile_count()))];
+  const PixelRect rect = tiling_.node(tile).rect;
+
+  // Complete the crosshair initiated at the last visit of this tile (x, y, t0), or start
+  // one at a random position if there is none (a new tile, or the first visit).
+  double x, y;
+  Pending old;
+  TileRecord& rec = record(tile);
+  if (rec.pending != -1 && pending_[rec.pending].valid) {
+    old = pending_[rec.pending];
+    pending_[rec.pending].valid = false;
+    x = old.x;
+    y = old.y;
+  } else {
+    x = rect.x0 + rect.width() * rng_.next_double();
+    y = rect.y0 + rect.height() * rng_.next_double();
+  }
+  rec.pending = -1;
+  std::array<ShadedSample, 5> s;
+  trace_crosshair(x, y, &s);
+  Crosshair c = make_crosshair(x, y, s);
+  if (old.valid) {
+    c.old_time = old.time;
+    c.old_luminance = old.luminance;
+    c.G_t = float(std::abs(c.luminance - old.luminance) /
+                  std::max(c.time - old.time, kMinTemporalSeconds));
+    c.flags |= Crosshair::kHasTemporalGradient;
+  }
+  insert_front(c);
+  ++counters_.crosshairs;
+
+  // Section 6.1: reproject r crosshairs of this tile.
+  for (int k = 0; k < config_.r; ++k) reproject_one(tile);
+
+  // Initiate the next crosshair of this tile (the tiling may not have changed since).
+  const double nx = rect.x0 + rect.width() * rng_.next_double();
+  const double ny = rect.y0 + rect.height() * rng_.next_double();
+  const ShadedSample first = trace_one(nx, ny);
+  const int64_t p = pending_index(int32_t(nx), int32_t(ny));
+  pending_[p] = Pending{scene_time_, float(nx), float(ny), sample_luminance(first), true};
+  record(tiling_.tile_at(int32_t(nx), int32_t(ny))).pending = p;
+
+  if (++chunk_progress_ >= config_.chunk) {
+    chunk_progress_ = 0;
+    adjust_tiling();
+  }
+}
+
+void Sampler::step_uniform() {
+  advance_scene_time();
+  const double x = region_.x0 + region_.width() * rng_.next_double();
+  const double y = region_.y0 + region_.height() * rng_.next_double();
+  trace_one(x, y);
+}
+
+void Sampler::step_framed() {
+  advance_scene_time();
+  const int64_t p = sweep_next_;
+  sweep_next_ = (sweep_next_ + 1) % region_.area();
+  const int32_t x = region_.x0 + int32_t(p % region_.width());
+  const int32_t y = region_.y0 + int32_t(p / region_.width());
+  trace_one(x + 0.5, y + 0.5);
+}
+
+// Section 6.1: relocates the newest crosshair of a random pixel of the tile to where the
+// current view and its velocity put it, and tests that it is still visible.
+void Sampler::reproject_one(int tile) {
+  const PixelRect rect = tiling_.node(tile).rect;
+  const int32_t px = rect.x0 + int32_t(rng_.next_below(uint32_t(rect.width())));
+  const int32_t py = rect.y0 + int32_t(rng_.next_below(uint32_t(rect.height())));
+  if (buffer_.count(px, py) == 0) return;
+  ++counters_.reprojections;
+  Crosshair c = buffer_.pop_front(px, py);
+  add_to_tile(tile, c, -1.0);
+  settle(tile);
+
+  const double now = clock_.now();
+  const double dt = now - c.time;
+  const glm::dvec3 motion = glm::dvec3(c.velocity) * dt;
+  const auto project = [&](const glm::vec3& position, bool hit, glm::dvec2* xy) {
+    const glm::dvec3 p = hit ? glm::dvec3(position) + motion
+                             : camera_.eye + glm::dvec3(position) * (1e3 * (1.0 + camera_.znear));
+    return camera_.project(p, config_.width, config_.height, xy, nullptr);
+  };
+  glm::dvec2 xy;
+  const bool hit = c.has(Crosshair::kCenterHit);
+  if (!project(c.position, hit, &xy) || !region_.contains(int32_t(std::floor(xy.x)),
+                                                          int32_t(std::floor(xy.y)))) {
+    ++counters_.reprojections_dropped;  // left the region or went behind the camera
+    return;
+  }
+  c.x = float(xy.x);
+  c.y = float(xy.y);
+  if (hit) c.position = glm::vec3(glm::dvec3(c.position) + motion);
+
+  // Spatial gradients from the neighbours' new positions.
+  double g[4];
+  for (int k = 0; k < 4; ++k) {
+    glm::dvec2 nxy;
+    const double dl = std::abs(double(c.luminance) - c.neighbor_luminance[k]);
+    if (project(c.neighbor_position[k], c.neighbor_hit(k), &nxy)) {
+      g[k] = dl / std::max(glm::length(nxy - xy), kMinPixelDistance);
+    } else {
+      g[k] = dl;  // the neighbour went behind the camera: keep its one-pixel estimate
+    }
+    if (c.neighbor_hit(k)) c.neighbor_position[k] += glm::vec3(motion);
+  }
+  c.G_x = float(0.5 * (g[Crosshair::kLeft] + g[Crosshair::kRight]));
+  c.G_y = float(0.5 * (g[Crosshair::kUp] + g[Crosshair::kDown]));
+
+  // Temporal gradient against the newest sample at the new pixel. (The paper divides by that
+  // sample's age; the time between the two samples is what separates them, so afr uses it.)
+  const int32_t qx = int32_t(std::floor(xy.x)), qy = int32_t(std::floor(xy.y));
+  if (buffer_.count(qx, qy) > 0) {
+    const Crosshair& newest = buffer_.at(qx, qy, 0);
+    c.G_t = float(std::abs(c.luminance - newest.luminance) /
+                  std::max(std::abs(newest.time - c.time), kMinTemporalSeconds));
+    c.flags |= Crosshair::kHasTemporalGradient;
+  }
+
+  // Occlusion: is the center's surface point still visible from the eye?
+  if (hit && config_.occlusion_rays) {
+    ++counters_.occlusion_rays;
+    const glm::dvec3 to_eye = camera_.eye - glm::dvec3(c.position);
+    const double len = glm::length(to_eye);
+    if (len > 0.0) {
+      const glm::dvec3 dir = to_eye / len;
+      const double eps = 1e-4 * (1.0 + glm::length(glm::dvec3(c.position)));
+      const glm::vec3 from(glm::dvec3(c.position) + eps * dir);
+      if (tracer_.occluded(from, glm::vec3(camera_.eye), &trace_stats_)) {
+        // Replace it by a new crosshair at the same image location; the hidden sample is its
+        // old sample, so the occlusion shows as a temporal edge.
+        ++counters_.occlusion_hits;
+        std::array<ShadedSample, 5> s;
+        trace_crosshair(xy.x, xy.y, &s);
+        Crosshair fresh = make_crosshair(xy.x, xy.y, s);
+        fresh.old_time = c.time;
+        fresh.old_luminance = c.luminance;
+        fresh.G_t = float(std::abs(fresh.luminance - c.luminance) /
+                          std::max(fresh.time - c.time, kMinTemporalSeconds));
+        fresh.flags |= Crosshair::kHasTemporalGradient | Crosshair::kOccluded;
+        insert_front(fresh);
+        return;
+      }
+    }
+  }
+  insert_back(c);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tracing and output
+
+void Sampler::trace_crosshair(double x, double y, std::array<ShadedSample, 5>* out) {
+  const uint64_t sanitized = trace_stats_.sanitized;
+  tracer_.trace_crosshair(camera_, x, y, config_.width, config_.height, out, &trace_stats_);
+  counters_.sanitized += trace_stats_.sanitized - sanitized;
+  clock_.primary_rays_traced(5);
+  static constexpr double kOffsets[5][2] = {{0, 0}, {-1, 0}, {1, 0}, {0, -1}, {0, 1}};
+  for (int k = 0; k < 5; ++k) emit(x + kOffsets[k][0], y + kOffsets[k][1], (*out)[k]);
+}
+
+ShadedSample Sampler::trace_one(double x, double y) {
+  const uint64_t sanitized = trace_stats_.sanitized;
+  const ShadedSample s =
+      tracer_.trace(camera_.ray(x, y, config_.width, config_.height), &trace_stats_);
+  counters_.sanitized += trace_stats_.sanitized - sanitized;
+  clock_.primary_rays_traced(1);
+  emit(x, y, s);
+  return s;
+}
+
+void Sampler::emit(double x, double y, const ShadedSample& s) {
+  // Neighbours of a crosshair at the image border can fall outside it: they feed gradients
+  // but show nowhere.
+  if (x < 0.0 || y < 0.0 || x >= config_.width || y >= config_.height) return;
+  Sample out;
+  out.time = scene_time_;
+  out.x = float(x);
+  out.y = float(y);
+  out.color = s.color;
+  if (fields_ & kFieldPosition) {
+    out.position = s.position;
+    out.miss = !s.hit;
+  }
+  if (fields_ & kFieldVelocity) out.velocity = s.velocity;
+  batch_.samples.push_back(out);
+  ++counters_.samples;
+  if (int(batch_.samples.size()) >= config_.batch_size) flush();
+}
+
+void Sampler::flush() {
+  if (batch_.samples.empty()) return;
+  batch_.sequence = sequence_++;
+  ++counters_.batches;
+  SampleBatch out;
+  out.sampler_id = batch_.sampler_id;
+  out.fields = batch_.fields;
+  std::swap(out, batch_);
+  batch_.samples.reserve(size_t(config_.batch_size));
+  sink_.on_batch(std::move(out));
+}
+
+Crosshair Sampler::make_crosshair(double x, double y,
+                                  const std::array<ShadedSample, 5>& s) const {
+  Crosshair c;
+  c.time = scene_time_;
+  c.x = float(x);
+  c.y = float(y);
+  c.position = s[0].position;
+  c.velocity = s[0].velocity;
+  c.luminance = sample_luminance(s[0]);
+  if (s[0].hit) c.flags |= Crosshair::kCenterHit;
+  for (int k = 0; k < 4; ++k) {
+    c.neighbor_luminance[k] = sample_luminance(s[k + 1]);
+    c.neighbor_position[k] = s[k + 1].position;
+    if (s[k + 1].hit) c.flags |= uint8_t(Crosshair::kNeighborHit0 << k);
+  }
+  // Section 4.1: the average absolute differences to the neighbours one pixel away.
+  c.G_x = 0.5f * (std::abs(c.luminance - c.neighbor_luminance[Crosshair::kLeft]) +
+                  std::abs(c.luminance - c.neighbor_luminance[Crosshair::kRight]));
+  c.G_y = 0.5f * (std::abs(c.luminance - c.neighbor_luminance[Crosshair::kUp]) +
+                  std::abs(c.luminance - c.neighbor_luminance[Crosshair::kDown]));
+  return c;
+}
+
+void Sampler::maybe_snapshot() {
+  const double now = clock_.now();
+  if (now - last_snapshot_time_ < config_.refresh_interval) return;
+  const double elapsed = now - last_snapshot_time_;
+  const double rate = double(counters_.samples - samples_at_snapshot_) / elapsed;
+  sample_rate_ = sample_rate_ == 0.0 ? rate : 0.7 * sample_rate_ + 0.3 * rate;
+  samples_at_snapshot_ = counters_.samples;
+  last_snapshot_time_ = now;
+  flush();
+  ++counters_.snapshots;
+  sink_.on_tiling(snapshot());
+}
+
+TilingSnapshot Sampler::snapshot() const {
+  TilingSnapshot snap;
+  snap.sampler_id = config_.sampler_id;
+  snap.time = clock_.now();
+  snap.region = region_;
+  if (config_.mode != SamplerMode::kAdaptive) {
+    // Baselines sample uniformly: one tile, no gradients.
+    TileInfo info;
+    info.rect = region_;
+    info.rate = float(sample_rate_ / double(region_.area()));
+    snap.tiles.push_back(info);
+    return snap;
+  }
+  snap.tiles.reserve(size_t(tiling_.tile_count()));
+  // Every tile is chosen with the same probability, so its expected share of the samples is
+  // 1 / tiles; spread over its pixels, that is its local rate.
+  const double per_tile = sample_rate_ / double(tiling_.tile_count());
+  for (int t : tiling_.tiles()) {
+    const TileStats st = tile_stats(t);
+    TileInfo info;
+    info.rect = tiling_.node(t).rect;
+    info.G_x = float(st.G_x);
+    info.G_y = float(st.G_y);
+    info.G_t = float(st.G_t);
+    info.v = float(st.v);
+    info.E = float(error_[t]);
+    info.count = uint32_t(st.count);
+    info.rate = float(per_tile / double(info.rect.area()));
+    snap.tiles.push_back(info);
+  }
+  return snap;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Deep buffer and tile statistics
+
+Sampler::TileRecord& Sampler::record(int tile) {
+  if (size_t(tile) >= records_.size()) {
+    records_.resize(size_t(tiling_.node_capacity()));
+    error_.resize(size_t(tiling_.node_capacity()), 0.0);
+  }
+  return records_[size_t(tile)];
+}
+
+int64_t Sampler::pending_index(int32_t x, int32_t y) const {
+  return int64_t(y - region_.y0) * region_.width() + (x - region_.x0);
+}
+
+void Sampler::insert_front(const Crosshair& c) {
+  const int32_t x = int32_t(std::floor(c.x)), y = int32_t(std::floor(c.y));
+  const int tile = tiling_.tile_at(x, y);
+  Crosshair evicted;
+  if (buffer_.push_front(x, y, c, &evicted)) add_to_tile(tile, evicted, -1.0);
+  add_to_tile(tile, c, 1.0);
+  settle(tile);
+}
+
+void Sampler::insert_back(const Crosshair& c) {
+  const int32_t x = int32_t(std::floor(c.x)), y = int32_t(std::floor(c.y));
+  const int tile = tiling_.tile_at(x, y);
+  Crosshair evicted;
+  if (buffer_.push_back(x, y, c, &evicted)) add_to_tile(tile, evicted, -1.0);
+  add_to_tile(tile, c, 1.0);
+  settle(tile);
+}
+
+void Sampler::add_to_tile(int tile, const Crosshair& c, double sign) {
+  TileSums& s = record(tile).sums;
+  if (sign > 0.0 && s.count == 0) {
+    s = TileSums{};
+    s.t_ref = c.time;
+    s.shift = c.luminance;
+  }
+  const double w = std::exp(kAgeDecay * (c.time - s.t_ref));
+  const double d = double(c.luminance) - s.shift;
+  s.w += sign * w;
+  s.wl += sign * w * d;
+  s.wll += sign * w * d * d;
+  s.wgx += sign * w * c.G_x;
+  s.wgy += sign * w * c.G_y;
+  if (c.has(Crosshair::kHasTemporalGradient)) {
+    s.wt += sign * w;
+    s.wgt += sign * w * c.G_t;
+  }
+  s.t_sum += sign * (c.time - s.t_ref);
+  s.count += sign > 0.0 ? 1 : -1;
+  if (c.has(Crosshair::kOccluded)) s.occluded += sign > 0.0 ? 1 : -1;
+  ++s.updates;
+  if (c.time - s.t_ref > kMaxReferenceAge) s.updates = std::numeric_limits<int32_t>::max() / 2;
+}
+
+// Sums that add and subtract drift: re-derive them once the updates outnumber the block, or
+// when new weights grow too large against the reference time. Called after the buffer and
+// the sums agree again.
+void Sampler::settle(int tile) {
+  const TileSums& s = records_[size_t(tile)].sums;
+  if (s.count <= 0 || s.updates > 2 * s.count + 16) rederive(tile);
+}
+
+// Recomputes a tile's sums from the crosshairs in its block, with the newest as reference.
+void Sampler::rederive(int tile) {
+  TileSums s;
+  const PixelRect rect = tiling_.node(tile).rect;
+  double newest = -std::numeric_limits<double>::infinity();
+  for (int32_t y = rect.y0; y < rect.y1; ++y) {
+    for (int32_t x = rect.x0; x < rect.x1; ++x) {
+      // Not only the front: reprojected crosshairs go to the back of their queue.
+      for (int k = 0; k < buffer_.count(x, y); ++k) {
+        newest = std::max(newest, buffer_.at(x, y, k).time);
+      }
+    }
+  }
+  if (std::isfinite(newest)) {
+    s.t_ref = newest;
+    double w_sum = 0.0, wl_sum = 0.0;
+    for (int pass = 0; pass < 2; ++pass) {
+      for (int32_t y = rect.y0; y < rect.y1; ++y) {
+        for (int32_t x = rect.x0; x < rect.x1; ++x) {
+          for (int k = 0; k < buffer_.count(x, y); ++k) {
+            const Crosshair& c = buffer_.at(x, y, k);
+            const double w = std::exp(kAgeDecay * (c.time - s.t_ref));
+            if (pass == 0) {
+              w_sum += w;
+              wl_sum += w * c.luminance;
+              continue;
+            }
+            const double d = double(c.luminance) - s.shift;
+            s.w += w;
+            s.wl += w * d;
+            s.wll += w * d * d;
+            s.wgx += w * c.G_x;
+            s.wgy += w * c.G_y;
+            if (c.has(Crosshair::kHasTemporalGradient)) {
+              s.wt += w;
+              s.wgt += w * c.G_t;
+            }
+            s.t_sum += c.time - s.t_ref;
+            ++s.count;
+            if (c.has(Crosshair::kOccluded)) ++s.occluded;
+          }
+        }
+      }
+      // The weighted mean as shift makes the variance sums well conditioned.
+      if (pass == 0 && w_sum > 0.0) s.shift = wl_sum / w_sum;
+    }
+  }
+  record(tile).sums = s;
+}
+
+TileStats Sampler::tile_stats(int tile) const {
+  const TileSums& s = records_[size_t(tile)].sums;
+  TileStats st;
+  st.count = s.count;
+  st.occluded = std::max(0, s.occluded);
+  if (s.count <= 0 || !(s.w > 0.0)) return st;
+  const double mean = s.wl / s.w;
+  st.v = std::max(0.0, s.wll / s.w - mean * mean);
+  st.G_x = std::max(0.0, s.wgx / s.w);
+  st.G_y = std::max(0.0, s.wgy / s.w);
+  st.G_t = s.wt > 0.0 ? std::max(0.0, s.wgt / s.wt) : 0.0;
+  st.mean_age = std::max(0.0, clock_.now() - (s.t_ref + s.t_sum / s.count));
+  return st;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tiling: gain control, error, split and merge
+
+// Section 4.1: dC/ds S = i dC/dt T, solved for the mean tile width S.
+double Sampler::gain_target() const {
+  double area = 0.0, spatial = 0.0, temporal = 0.0, age = 0.0;
+  for (int t : tiling_.tiles()) {
+    const TileStats st = tile_stats(t);
+    const double a = double(tiling_.node(t).rect.area());
+    area += a;
+    spatial += a * 0.5 * (st.G_x + st.G_y);
+    temporal += a * st.G_t;
+    age += st.mean_age;
+  }
+  const double dC_ds = spatial / area;
+  const double dC_dt = temporal / area;
+  const double T = age / tiling_.tile_count();
+  const double lo = config_.min_tiles, hi = config_.max_tiles;
+  constexpr double kTiny = 1e-12;
+  if (dC_ds <= kTiny && dC_dt * T <= kTiny) return target_tiles_;  // a flat, still image
+  if (dC_ds <= kTiny) return lo;  // change only in time: least gain
+  const double S = config_.i * dC_dt * T / dC_ds;
+  if (!(S > 0.0)) return hi;  // a still image: most gain
+  const double tiles = double(region_.area()) / (S * S);
+  return std::isfinite(tiles) ? std::clamp(tiles, lo, hi) : hi;
+}
+
+// Section 6.1: E_tile = s (kappa v / sum v + lambda u / sum u + (1 - kappa - lambda) o / sum o).
+void Sampler::compute_errors() {
+  record(tiling_.node_capacity() - 1);  // sizes error_
+  const auto& tiles = tiling_.tiles();
+  const double b = config_.b;
+  const double empty_total = double(buffer_.capacity() - buffer_.size());
+  const double mean_empty = empty_total / tiles.size();
+  double sum_v = 0.0, sum_u = 0.0, sum_o = 0.0;
+  // First pass: store v, u and o in error_ to avoid a second statistics pass.
+  std::vector<std::array<double, 3>> terms(tiles.size());
+  for (size_t k = 0; k < tiles.size(); ++k) {
+    const TileStats st = tile_stats(tiles[k]);
+    const double s = double(tiling_.node(tiles[k]).rect.area());
+    const double empty = s * b - st.count;
+    const double u = empty > 0.0 ? 1.0 - std::min(1.0, config_.m * mean_empty / empty) : 0.0;
+    const double o = st.occluded / (s * b);
+    terms[k] = {st.v, u, o};
+    sum_v += st.v;
+    sum_u += u;
+    sum_o += o;
+  }
+  const double kv = config_.kappa, ku = config_.lambda, ko = 1.0 - kv - ku;
+  for (size_t k = 0; k < tiles.size(); ++k) {
+    const double s = double(tiling_.node(tiles[k]).rect.area());
+    double e = 0.0;
+    if (sum_v > 0.0) e += kv * terms[k][0] / sum_v;
+    if (sum_u > 0.0) e += ku * terms[k][1] / sum_u;
+    if (sum_o > 0.0) e += ko * terms[k][2] / sum_o;
+    error_[tiles[k]] = s * e;
+  }
+}
+
+void Sampler::adjust_tiling() {
+  target_tiles_ = int(std::lround(gain_target()));
+  compute_errors();
+  const auto max_leaf = [&] {
+    int best = -1;
+    for (int t : tiling_.tiles()) {
+      if (tiling_.can_split(t) && (best == -1 || error_[t] > error_[best])) best = t;
+    }
+    return best;
+  };
+  const auto min_pair = [&](int avoid) {
+    int best = -1;
+    double best_e = 0.0;
+    for (int p : tiling_.mergeable()) {
+      if (p == avoid) continue;
+      const auto& n = tiling_.node(p);
+      const double e = error_[n.child[0]] + error_[n.child[1]];
+      if (best == -1 || e < best_e) {
+        best = p;
+        best_e = e;
+      }
+    }
+    return best;
+  };
+  const auto do_split = [&](int t) {
+    int a, b;
+    tiling_.split(t, &a, &b);
+    on_split(t, a, b);
+    ++counters_.splits;
+    return t;
+  };
+  const auto do_merge = [&](int p) {
+    const auto& n = tiling_.node(p);
+    const int a = n.child[0], b = n.child[1];
+    error_[p] = error_[a] + error_[b];
+    tiling_.merge(p);
+    on_merge(p, a, b);
+    ++counters_.merges;
+  };
+  for (int ops = 0; ops < config_.max_tiling_ops; ++ops) {
+    const int count = tiling_.tile_count();
+    if (count < target_tiles_) {
+      const int t = max_leaf();
+      if (t == -1) break;
+      do_split(t);
+    } else if (count > target_tiles_) {
+      const int p = min_pair(-1);
+      if (p == -1) break;
+      do_merge(p);
+    } else {
+      // At the target count: trade the worst tile for the best pair while errors are
+      // clearly unequal (splitting halves an error, merging adds two).
+      const int t = max_leaf();
+      if (t == -1) break;
+      const int p = min_pair(-1);
+      if (p == -1) break;
+      const auto& n = tiling_.node(p);
+      const double pair_e = error_[n.child[0]] + error_[n.child[1]];
+      if (error_[t] <= 2.0 * pair_e || n.child[0] == t || n.child[1] == t) break;
+      do_merge(p);
+      do_split(t);
+    }
+  }
+}
+
+void Sampler::on_split(int parent, int a, int b) {
+  const int64_t pending = record(parent).pending;
+  record(parent).pending = -1;
+  for (int c : {a, b}) {
+    record(c).pending = -1;
+    rederive(c);
+    // Until the next adjustment, a child's error is its share of the parent's.
+    error_[c] = error_[parent] * double(tiling_.node(c).rect.area()) /
+                double(tiling_.node(parent).rect.area());
+  }
+  if (pending != -1) {
+    const int32_t x = region_.x0 + int32_t(pending % region_.width());
+    const int32_t y = region_.y0 + int32_t(pending / region_.width());
+    record(tiling_.node(a).rect.contains(x, y) ? a : b).pending = pending;
+  }
+}
+
+void Sampler::on_merge(int parent, int a, int b) {
+  TileRecord& rec = record(parent);
+  rec.pending = records_[a].pending != -1 ? records_[a].pending : records_[b].pending;
+  records_[a].pending = records_[b].pending = -1;
+  rederive(parent);
+}
+
+}  // namespace afr

@@ -1,0 +1,62 @@
+#include "shading.h"
+
+#include <algorithm>
+
+namespace afr::shading {
+
+namespace {
+
+bool is_black(const glm::vec3& c) { return !(c.r > 0.0f || c.g > 0.0f || c.b > 0.0f); }
+
+}  // namespace
+
+ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
+                                  float mirror_roughness) {
+  const Material defaults;  // glTF's default material: white, metallic 1, roughness 1
+  const Material& mat = material ? *material : defaults;
+  ShadeMaterial m;
+  m.base = glm::vec3(mat.base_color_factor);
+  m.ambient = mat.ambient ? *mat.ambient : m.base;
+  m.emissive = mat.emissive;
+  if (mat.base_color_texture >= 0 && size_t(mat.base_color_texture) < scene.textures.size()) {
+    const Texture& t = scene.textures[size_t(mat.base_color_texture)];
+    if (t.width > 0 && t.height > 0 && t.texels.size() == size_t(t.width) * size_t(t.height))
+      m.texture = &t;
+  }
+  m.metallic = glm::clamp(mat.metallic, 0.0f, 1.0f);
+  const float roughness = glm::clamp(mat.roughness, 0.0f, 1.0f);
+  const float r = std::max(roughness, kMinDirectRoughness);
+  m.alpha = r * r;
+  m.double_sided = mat.double_sided;
+  m.is_mirror = m.metallic > 0.0f && roughness <= mirror_roughness;
+  // The metallic part of a mirror sees its surroundings through the reflection ray, so only
+  // the rest of it takes ambient light.
+  if (m.is_mirror) m.ambient *= 1.0f - m.metallic;
+  m.has_emission = !is_black(m.emissive);
+  m.has_ambient = !is_black(scene.ambient * m.ambient);
+  m.has_diffuse = m.metallic < 1.0f && !is_black(m.base);
+  m.has_specular = !(roughness >= 1.0f && m.metallic <= 0.0f);
+  return m;
+}
+
+LightRecord make_light_record(const Light& light, const glm::dmat4& world) {
+  LightRecord r;
+  r.type = light.type;
+  r.radiance = light.color * light.intensity;
+  r.position = glm::vec3(world[3]);
+  const glm::dvec3 back(world[2]);  // the light shines along its node's -Z
+  const double len = glm::length(back);
+  r.direction = len > 0.0 ? glm::vec3(-back / len) : glm::vec3(0.0f, 0.0f, -1.0f);
+  r.range = light.range > 0.0f ? light.range : 0.0f;
+  r.inv_range4 = r.range > 0.0f ? 1.0f / (r.range * r.range * r.range * r.range) : 0.0f;
+  r.inverse_square = light.inverse_square_falloff;
+  if (light.type == Light::Type::kSpot) {
+    const float cos_outer = std::cos(light.outer_cone_angle);
+    const float cos_inner = std::cos(light.inner_cone_angle);
+    r.spot_scale = 1.0f / std::max(0.001f, cos_inner - cos_outer);
+    r.spot_offset = -cos_outer * r.spot_scale;
+  }
+  return r;
+}
+
+}  // namespace afr::shading

@@ -1,0 +1,127 @@
+// The shading model of afr's tracer, private to afr_sampler: material and light records
+// prepared once from a Scene (so the hot path branches on flags instead of re-deriving them),
+// and the local reflection model (emission, ambient, Lambert + GGX from punctual lights, the
+// Fresnel weight of mirror reflection). Ray casting itself is in tracer.cpp.
+//
+// Conventions (those of the glTF 2.0 specification and the Khronos sample viewer):
+// - a punctual light of intensity I and color c gives irradiance c I / d^2 (inverse-square; a
+//   light with inverse_square_falloff = false gives c I at every distance), times the smooth
+//   range window of KHR_lights_punctual and, for spots, the cone falloff;
+// - BRDF = diffuse / pi + GGX (Trowbridge-Reitz D, height-correlated Smith visibility, Schlick
+//   Fresnel), diffuse = base (1 - metallic), F0 = mix(0.04, base, metallic);
+// - base = base_color_factor x base-color texture; the ambient reflectance (Material::ambient,
+//   else the base color factor) is multiplied by the texture too, so textures show in ambient
+//   light.
+#pragma once
+
+#include <afr/common/math.h>
+#include <afr/common/scene.h>
+
+#include <cmath>
+
+namespace afr::shading {
+
+inline constexpr float kPi = 3.14159265358979323846f;
+// Below this roughness the GGX lobe of a point light would be a near-delta spike (fireflies);
+// mirror reflection carries the sharp part instead.
+inline constexpr float kMinDirectRoughness = 0.1f;
+
+// What the shader needs of one Material, with the work it implies decided once.
+struct ShadeMaterial {
+  glm::vec3 base{1.0f};     // base color factor (rgb)
+  glm::vec3 ambient{1.0f};  // Material::ambient, else the base color factor
+  glm::vec3 emissive{0.0f};
+  const Texture* texture = nullptr;  // base-color texture, or null
+  float metallic = 1.0f;
+  float alpha = 1.0f;  // GGX alpha = roughness^2 for direct light (roughness clamped)
+  bool double_sided = false;
+  bool has_emission = false;
+  bool has_ambient = false;   // scene ambient x ambient reflectance is not black
+  bool has_diffuse = false;   // metallic < 1
+  bool has_specular = false;  // not (roughness 1 and metallic 0)
+  bool is_mirror = false;     // metallic > 0 and roughness <= TracerOptions::mirror_roughness
+};
+
+// `material` may be null (the glTF default material). `textures` is the scene's list.
+ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
+                                  float mirror_roughness);
+
+// One punctual light placed in the world at the current time.
+struct LightRecord {
+  Light::Type type = Light::Type::kPoint;
+  glm::vec3 radiance{1.0f};   // color x intensity
+  glm::vec3 position{0.0f};   // world (point, spot)
+  glm::vec3 direction{0.0f};  // world, unit: where the light shines (its node's -Z)
+  float inv_range4 = 0.0f;    // 1 / range^4, 0 for an infinite range
+  float range = 0.0f;         // 0 = infinite
+  float spot_scale = 0.0f;    // KHR_lights_punctual cone: clamp(cos * scale + offset, 0, 1)^2
+  float spot_offset = 0.0f;
+  bool inverse_square = true;
+};
+
+LightRecord make_light_record(const Light& light, const glm::dmat4& world);
+
+// The light arriving at p from one light: direction to the light (unit), distance to it
+// (infinity for directional lights) and radiance scale. Returns false when the light cannot
+// reach p (beyond its range, outside its cone, or at p itself).
+inline bool light_incidence(const LightRecord& light, const glm::vec3& p, glm::vec3* to_light,
+                            float* distance, glm::vec3* incident) {
+  if (light.type == Light::Type::kDirectional) {
+    *to_light = -light.direction;
+    *distance = INFINITY;
+    *incident = light.radiance;
+    return true;
+  }
+  const glm::vec3 d = light.position - p;
+  const float d2 = glm::dot(d, d);
+  if (!(d2 > 1e-12f)) return false;
+  const float dist = std::sqrt(d2);
+  *to_light = d / dist;
+  *distance = dist;
+  float scale = light.inverse_square ? 1.0f / d2 : 1.0f;
+  if (light.range > 0.0f) {
+    if (dist >= light.range) return false;
+    // KHR_lights_punctual's recommended smooth window: clamp(1 - (d / range)^4, 0, 1)^2.
+    const float w = glm::clamp(1.0f - d2 * d2 * light.inv_range4, 0.0f, 1.0f);
+    scale *= w * w;
+  }
+  if (light.type == Light::Type::kSpot) {
+    const float cd = -glm::dot(*to_light, light.direction);
+    const float a = glm::clamp(cd * light.spot_scale + light.spot_offset, 0.0f, 1.0f);
+    if (a <= 0.0f) return false;
+    scale *= a * a;
+  }
+  *incident = light.radiance * scale;
+  return true;
+}
+
+inline glm::vec3 fresnel_schlick(const glm::vec3& f0, float cos_theta) {
+  const float m = 1.0f - glm::clamp(cos_theta, 0.0f, 1.0f);
+  const float m2 = m * m;
+  return f0 + (glm::vec3(1.0f) - f0) * (m2 * m2 * m);
+}
+
+// BRDF x cos(theta_l) for unit n, v (toward the viewer), l (toward the light); n.v and n.l > 0.
+inline glm::vec3 brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, const glm::vec3& f0,
+                          const glm::vec3& n, const glm::vec3& v, const glm::vec3& l, float n_dot_v,
+                          float n_dot_l) {
+  glm::vec3 f = diffuse * (1.0f / kPi);
+  if (m.has_specular) {
+    glm::vec3 h = v + l;
+    const float h_len2 = glm::dot(h, h);
+    if (h_len2 > 1e-12f) {
+      h *= 1.0f / std::sqrt(h_len2);
+      const float n_dot_h = glm::max(glm::dot(n, h), 0.0f);
+      const float v_dot_h = glm::max(glm::dot(v, h), 0.0f);
+      const float a2 = m.alpha * m.alpha;
+      const float dd = n_dot_h * n_dot_h * (a2 - 1.0f) + 1.0f;
+      const float D = a2 / (kPi * dd * dd);
+      const float vis = 0.5f / (n_dot_l * std::sqrt(n_dot_v * n_dot_v * (1.0f - a2) + a2) +
+                                n_dot_v * std::sqrt(n_dot_l * n_dot_l * (1.0f - a2) + a2));
+      f += fresnel_schlick(f0, v_dot_h) * (D * vis);
+    }
+  }
+  return f * n_dot_l;
+}
+
+}  // namespace afr::shading

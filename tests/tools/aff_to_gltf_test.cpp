@@ -1,0 +1,402 @@
+#include "aff_to_gltf.h"
+
+#include "gltf_eval.h"
+#include "hand_scene.h"
+#include "test_paths.h"
+
+#include <afr/common/image.h>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <numbers>
+
+namespace afr::aff {
+namespace {
+
+using test::evaluate_sampler;
+using test::find_node;
+using test::find_sampler;
+using test::node_property;
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+nlohmann::json read_json(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  return nlohmann::json::parse(in);
+}
+
+// Rotates v by the glTF quaternion q = (x, y, z, w).
+glm::dvec3 rotate(const std::vector<double>& q, const glm::dvec3& v) {
+  return glm::dquat(q[3], q[0], q[1], q[2]) * v;
+}
+
+// |dot| of a glTF quaternion with angle/axis: 1 when they are the same rotation.
+double same_rotation(const std::vector<double>& q, double degrees, glm::dvec3 axis) {
+  const glm::dquat r = glm::angleAxis(degrees * kDeg, glm::normalize(axis));
+  return std::abs(q[0] * r.x + q[1] * r.y + q[2] * r.z + q[3] * r.w);
+}
+
+void expect_near(const std::vector<double>& a, const glm::dvec3& b, double tolerance) {
+  ASSERT_EQ(a.size(), 3u);
+  EXPECT_NEAR(a[0], b.x, tolerance);
+  EXPECT_NEAR(a[1], b.y, tolerance);
+  EXPECT_NEAR(a[2], b.z, tolerance);
+}
+
+// A binary P6 file as RGB bytes, read independently of OpenImageIO.
+std::vector<uint8_t> read_p6(const std::filesystem::path& path, int* w, int* h) {
+  std::ifstream in(path, std::ios::binary);
+  std::string magic;
+  int maxval = 0;
+  in >> magic >> *w >> *h >> maxval;
+  in.get();  // the one whitespace byte after maxval
+  std::vector<uint8_t> rgb(size_t(*w) * size_t(*h) * 3);
+  in.read(reinterpret_cast<char*>(rgb.data()), std::streamsize(rgb.size()));
+  return magic == "P6" && maxval == 255 && in ? rgb : std::vector<uint8_t>();
+}
+
+// ---- The hand-written scene with every directive --------------------------------------------
+
+class HandSceneGltfTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new std::filesystem::path(test::fresh_temp_dir("aff-gltf"));
+    const auto aff = test::write_hand_scene(*dir_);
+    report_ = new ConvertReport(convert_aff_to_gltf(aff, *dir_ / "out" / "scene.gltf"));
+    model_ = new tinygltf::Model(test::load_gltf((*dir_ / "out" / "scene.gltf").string()));
+  }
+  static void TearDownTestSuite() {
+    std::filesystem::remove_all(*dir_);
+    delete model_;
+    delete report_;
+    delete dir_;
+  }
+  const tinygltf::Model& m() const { return *model_; }
+  int node(const std::string& name) const {
+    const int n = find_node(*model_, name);
+    EXPECT_GE(n, 0) << name;
+    return n;
+  }
+  static std::filesystem::path* dir_;
+  static ConvertReport* report_;
+  static tinygltf::Model* model_;
+};
+std::filesystem::path* HandSceneGltfTest::dir_ = nullptr;
+ConvertReport* HandSceneGltfTest::report_ = nullptr;
+tinygltf::Model* HandSceneGltfTest::model_ = nullptr;
+
+TEST_F(HandSceneGltfTest, KeepsEveryTriangle) {
+  EXPECT_TRUE(report_->warnings.empty()) << report_->warnings.front();
+  EXPECT_EQ(test::scene_triangles(m()), test::kHandSceneTriangles);
+  EXPECT_EQ(report_->triangles, test::kHandSceneTriangles);
+  for (const auto& a : m().accessors) {
+    if (a.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT) {
+      EXPECT_EQ(a.componentType, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT);  // 32-bit indices
+    }
+  }
+}
+
+TEST_F(HandSceneGltfTest, MapsMaterialsToMetallicRoughness) {
+  const tinygltf::Material* f = nullptr;
+  const tinygltf::Material* textured = nullptr;
+  for (const auto& mat : m().materials) {
+    EXPECT_TRUE(mat.doubleSided);
+    const auto& c = mat.pbrMetallicRoughness.baseColorFactor;
+    if (c == std::vector<double>{0.8, 0.4, 0.2, 1.0}) f = &mat;
+    if (c == std::vector<double>{0.6, 0.5, 0.4, 1.0} &&
+        mat.pbrMetallicRoughness.baseColorTexture.index >= 0) {
+      const auto& tex = m().textures[size_t(mat.pbrMetallicRoughness.baseColorTexture.index)];
+      if (m().images[size_t(tex.source)].uri == "checker.png") textured = &mat;
+    }
+  }
+  ASSERT_NE(f, nullptr);
+  EXPECT_DOUBLE_EQ(f->pbrMetallicRoughness.metallicFactor, 0.3);              // Ks
+  EXPECT_DOUBLE_EQ(f->pbrMetallicRoughness.roughnessFactor, std::sqrt(2.0 / 22.0));  // shine 20
+  EXPECT_EQ(f->extras.Get("afr_ambient").Get(0).GetNumberAsDouble(), 0.0);
+  ASSERT_NE(textured, nullptr);
+  EXPECT_NEAR(textured->pbrMetallicRoughness.metallicFactor, 0.2, 1e-15);  // mean specular
+  EXPECT_DOUBLE_EQ(textured->pbrMetallicRoughness.roughnessFactor, std::sqrt(2.0 / 10.0));
+  EXPECT_EQ(textured->extras.Get("afr_ambient").Get(1).GetNumberAsDouble(), 0.1);
+  EXPECT_EQ(textured->emissiveFactor, (std::vector<double>{0, 0, 0}));
+  EXPECT_EQ(m().samplers.at(0).wrapS, TINYGLTF_TEXTURE_WRAP_REPEAT);
+  EXPECT_EQ(m().samplers.at(0).wrapT, TINYGLTF_TEXTURE_WRAP_REPEAT);
+}
+
+TEST_F(HandSceneGltfTest, WritesPpmTexturesAsPngReferencedByUriOnly) {
+  const auto out = *dir_ / "out";
+  const DecodedImage checker = decode_image_file(out / "checker.png");
+  ASSERT_EQ(checker.width, 2);
+  ASSERT_EQ(checker.height, 2);
+  ASSERT_EQ(checker.channels, 3);
+  // P3, maxval 15: scaled by 255 / 15; rows top to bottom as in the file.
+  EXPECT_EQ(checker.data, (std::vector<uint8_t>{255, 0, 0, 0, 255, 0, 0, 0, 255, 119, 119, 119}));
+  const DecodedImage gray = decode_image_file(out / "gray.png");
+  EXPECT_EQ(gray.data, (std::vector<uint8_t>{10, 20, 30, 40, 50, 60}));
+  const nlohmann::json json = read_json(out / "scene.gltf");
+  ASSERT_EQ(json["images"].size(), 2u);
+  for (const auto& image : json["images"]) {
+    EXPECT_FALSE(image.contains("bufferView"));
+    EXPECT_EQ(image["uri"].get<std::string>().find("data:"), std::string::npos);
+  }
+  EXPECT_EQ(json["buffers"][0]["uri"], "scene.bin");
+}
+
+TEST_F(HandSceneGltfTest, WritesTheStaticTransformAsNodeTrs) {
+  // The root node (named after the file) has the xs, spinner and blinker as children.
+  const tinygltf::Node& root = m().nodes[size_t(node("scene.aff"))];
+  ASSERT_EQ(root.children.size(), 3u + 1u);  // and the node of the tpa triangle
+  const tinygltf::Node& xs = m().nodes[size_t(root.children[0])];
+  EXPECT_EQ(xs.name.rfind("xs ", 0), 0u);
+  EXPECT_EQ(xs.translation, (std::vector<double>{1, 0, 0}));
+  EXPECT_EQ(xs.scale, (std::vector<double>{2, 2, 2}));
+  ASSERT_EQ(xs.rotation.size(), 4u);
+  EXPECT_NEAR(same_rotation(xs.rotation, 90.0, {0, 1, 0}), 1.0, 1e-12);
+}
+
+TEST_F(HandSceneGltfTest, AnimatesTheAnimatedTransform) {
+  const int spinner = node("spinner");
+  // transl keys x = 0, 1, 2, 3 at t = 0, 0.5, 1.5, 2 (TCB 0): by hand from section 4.1,
+  // segment 1 has h = 1, D_o = D_i = 4/3, so x(u) = 1 + 4/3 u - u^2 + 2/3 u^3.
+  EXPECT_EQ(find_sampler(m(), spinner, "translation")->interpolation, "CUBICSPLINE");
+  expect_near(node_property(m(), spinner, "translation", 0.5), {1, 0, 0}, 1e-6);
+  expect_near(node_property(m(), spinner, "translation", 1.0), {1.5, 0, 0}, 1e-6);
+  expect_near(node_property(m(), spinner, "translation", 0.75),
+              {1 + 4.0 / 12 - 1.0 / 16 + 2.0 / 3 / 64, 0, 0}, 1e-6);
+  expect_near(node_property(m(), spinner, "translation", 5.0), {2, 0, 0}, 1e-6);
+  EXPECT_NEAR(same_rotation(node_property(m(), spinner, "rotation", 0.5), 90, {0, 1, 0}), 1.0,
+              1e-7);
+  EXPECT_NEAR(same_rotation(node_property(m(), spinner, "rotation", 1.5), 180, {0, 1, 0}), 1.0,
+              1e-7);
+  expect_near(node_property(m(), spinner, "scale", 1.5), {2, 2, 2}, 1e-6);
+}
+
+// Section 4.3: hidden is scale 0 with STEP, visible before the first key. The spinner's `k`
+// also animates scale, so its visibility sits on a child node; the blinker's on itself.
+TEST_F(HandSceneGltfTest, WritesVisibilityAsStepScale) {
+  const int holder = node("spinner.visibility");
+  const auto* s = find_sampler(m(), holder, "scale");
+  ASSERT_NE(s, nullptr);
+  EXPECT_EQ(s->interpolation, "STEP");
+  expect_near(node_property(m(), holder, "scale", 0.25), {1, 1, 1}, 0);
+  expect_near(node_property(m(), holder, "scale", 0.75), {0, 0, 0}, 0);
+  expect_near(node_property(m(), holder, "scale", 1.6), {1, 1, 1}, 0);
+  const auto& children = m().nodes[size_t(node("spinner"))].children;
+  EXPECT_EQ(children, std::vector<int>{holder});
+  EXPECT_GE(m().nodes[size_t(holder)].mesh, 0);
+  const int blinker = node("blinker");
+  expect_near(node_property(m(), blinker, "scale", 0.5), {1, 1, 1}, 0);
+  expect_near(node_property(m(), blinker, "scale", 1.2), {0, 0, 0}, 0);
+}
+
+TEST_F(HandSceneGltfTest, AnimatedTriangleMorphsLinearly) {
+  int tpa = -1;
+  for (size_t i = 0; i < m().nodes.size(); ++i) {
+    if (m().nodes[i].name.rfind("tpa ", 0) == 0) tpa = int(i);
+  }
+  ASSERT_GE(tpa, 0);
+  const auto& prim = m().meshes[size_t(m().nodes[size_t(tpa)].mesh)].primitives.at(0);
+  ASSERT_EQ(prim.targets.size(), 1u);
+  const auto base = test::read_accessor(m(), prim.attributes.at("POSITION"));
+  const auto delta = test::read_accessor(m(), prim.targets[0].at("POSITION"));
+  const auto w = evaluate_sampler(m(), *find_sampler(m(), tpa, "weights"), 1.0, false);
+  ASSERT_EQ(w.size(), 1u);
+  for (size_t i = 2; i < base.size(); i += 3) EXPECT_NEAR(base[i] + w[0] * delta[i], 0.5, 1e-6);
+}
+
+TEST_F(HandSceneGltfTest, WritesCameraLightsAndSceneExtras) {
+  ASSERT_EQ(m().cameras.size(), 1u);
+  const auto& p = m().cameras[0].perspective;
+  EXPECT_DOUBLE_EQ(p.yfov, 45 * kDeg);
+  EXPECT_DOUBLE_EQ(p.aspectRatio, 320.0 / 240.0);
+  EXPECT_EQ(p.znear, 1.0);
+  const nlohmann::json json = read_json(*dir_ / "out" / "scene.gltf");
+  EXPECT_FALSE(json["cameras"][0]["perspective"].contains("zfar"));  // infinite
+
+  const int camera = node("camera");
+  EXPECT_EQ(m().nodes[size_t(camera)].camera, 0);
+  expect_near(node_property(m(), camera, "translation", 0.0), {0, 1, 5}, 1e-6);
+  expect_near(node_property(m(), camera, "translation", 2.0), {0, 1, 3}, 1e-6);
+  EXPECT_NEAR(same_rotation(node_property(m(), camera, "rotation", 2.0), 30, {0, 1, 0}), 1.0,
+              1e-7);
+
+  ASSERT_EQ(m().lights.size(), 3u);
+  for (const auto& light : m().lights) {
+    EXPECT_EQ(light.type, "point");
+    EXPECT_EQ(light.intensity, 1.0);
+    EXPECT_EQ(light.extras.Get("afr_falloff").Get<std::string>(), "none");
+  }
+  EXPECT_EQ(m().lights[1].color, (std::vector<double>{0.5, 0.25, 1}));
+  const int lamp = node("lamp");
+  EXPECT_EQ(m().nodes[size_t(lamp)].extensions.at("KHR_lights_punctual").Get("light").Get<int>(),
+            2);
+  expect_near(node_property(m(), lamp, "translation", 2.0), {2, 3, 0}, 1e-6);
+  expect_near(node_property(m(), node("light1"), "translation", 0.0), {4, 5, 6}, 0);
+
+  const auto& extras = m().scenes[0].extras;
+  EXPECT_EQ(extras.Get("afr_background").Get(2).GetNumberAsDouble(), 0.3);
+  EXPECT_EQ(extras.Get("afr_ambient").Get(0).GetNumberAsDouble(), 0.5);
+}
+
+// ---- The BART kitchen -----------------------------------------------------------------------
+
+class KitchenGltfTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    const auto aff = test::kitchen_aff();
+    if (aff.empty()) return;
+    dir_ = new std::filesystem::path(test::fresh_temp_dir("aff-kitchen"));
+    report_ = new ConvertReport(convert_aff_to_gltf(aff, *dir_ / "kitchen.gltf"));
+    model_ = new tinygltf::Model(test::load_gltf((*dir_ / "kitchen.gltf").string()));
+  }
+  static void TearDownTestSuite() {
+    if (dir_) std::filesystem::remove_all(*dir_);
+    delete model_;
+    delete report_;
+    delete dir_;
+  }
+  void SetUp() override {
+    if (!model_) GTEST_SKIP() << "BART kitchen not found (AFR_SHARED_DIR)";
+  }
+  const tinygltf::Model& m() const { return *model_; }
+  static std::filesystem::path* dir_;
+  static ConvertReport* report_;
+  static tinygltf::Model* model_;
+};
+std::filesystem::path* KitchenGltfTest::dir_ = nullptr;
+ConvertReport* KitchenGltfTest::report_ = nullptr;
+tinygltf::Model* KitchenGltfTest::model_ = nullptr;
+
+TEST_F(KitchenGltfTest, HasTheTrianglesOfTheExpandedScene) {
+  EXPECT_TRUE(report_->warnings.empty()) << report_->warnings.front();
+  EXPECT_EQ(test::scene_triangles(m()), 110561u);  // aff-format.md section 2
+}
+
+// The reference values of aff-format.md section 7, read back from the glTF samplers.
+TEST_F(KitchenGltfTest, ToyCarMatchesTheReferenceValues) {
+  const int car = find_node(m(), "toycar");
+  ASSERT_GE(car, 0);
+  EXPECT_EQ(find_sampler(m(), car, "translation")->interpolation, "CUBICSPLINE");
+  expect_near(node_property(m(), car, "translation", 6.0), {3.511199, 0, 2.638651}, 1e-5);
+  expect_near(node_property(m(), car, "translation", 4.0), {4.152388, 0, 2.761433}, 1e-5);
+  expect_near(node_property(m(), car, "translation", 10.0), {2.678804, 0, 0.603692}, 1e-5);
+  expect_near(node_property(m(), car, "translation", 20.0), {2.75, 0, 3.40}, 1e-6);
+  EXPECT_NEAR(same_rotation(node_property(m(), car, "rotation", 6.0), 125.883545, {0, 1, 0}), 1.0,
+              1e-9);
+  auto q = node_property(m(), car, "rotation", 6.1);
+  if (q[3] < 0) {
+    for (double& x : q) x = -x;
+  }
+  EXPECT_NEAR(q[3], 0.492486, 1e-5);
+  EXPECT_NEAR(q[1], 0.870320, 1e-5);
+  EXPECT_NEAR(q[0], 0.0, 1e-6);
+  EXPECT_NEAR(q[2], 0.0, 1e-6);
+  expect_near(node_property(m(), car, "scale", 19.78), {0.755220, 1, 1}, 1e-5);
+  expect_near(node_property(m(), car, "scale", 20.0), {0.5, 1, 1}, 1e-6);
+}
+
+TEST_F(KitchenGltfTest, CameraMatchesTheReferenceAtSixSeconds) {
+  const int camera = find_node(m(), "camera");
+  ASSERT_GE(camera, 0);
+  EXPECT_EQ(m().nodes[size_t(camera)].camera, 0);
+  EXPECT_NE(std::find(m().scenes[0].nodes.begin(), m().scenes[0].nodes.end(), camera),
+            m().scenes[0].nodes.end());
+  const auto q = node_property(m(), camera, "rotation", 6.0);
+  expect_near(node_property(m(), camera, "translation", 6.0), {3.45734, 0.14686, 0.30611}, 2e-5);
+  const glm::dvec3 dir = rotate(q, {0, 0, -1}), up = rotate(q, {0, 1, 0});
+  EXPECT_NEAR(dir.x, 0.11773, 2e-5);
+  EXPECT_NEAR(dir.y, 0.00114, 2e-5);
+  EXPECT_NEAR(dir.z, 0.99305, 2e-5);
+  EXPECT_NEAR(up.x, 0.01519, 2e-5);
+  EXPECT_NEAR(up.y, 0.99988, 2e-5);
+  EXPECT_NEAR(up.z, -0.00295, 2e-5);
+}
+
+// Rotations are baked at every frame of `a` (0..20 s, 800 frames) and densely where they
+// turn fast: the rear wheels make up to 165 degrees per frame around 7.16 s. Where two wheel
+// keys share a time (7.16, 7.19, 7.21, 7.24 s) the spline jumps by 90 degrees; the bake puts
+// that jump between two samples a fraction of a millisecond apart.
+TEST_F(KitchenGltfTest, BakedRotationsSampleEveryFrameAndTurnLittleBetweenSamples) {
+  size_t wheels = 0;
+  for (const auto& anim : m().animations) {
+    for (const auto& c : anim.channels) {
+      if (c.target_path != "rotation") continue;
+      const std::string& name = m().nodes[size_t(c.target_node)].name;
+      const auto& s = anim.samplers[size_t(c.sampler)];
+      EXPECT_EQ(s.interpolation, "LINEAR");
+      const auto times = test::read_accessor(m(), s.input);
+      const auto q = test::read_accessor(m(), s.output);
+      for (int k = 0; k < 800; ++k) {
+        const float t = float(k * 20.0 / 799.0);
+        if (t <= times.front() || t >= times.back()) continue;
+        EXPECT_TRUE(std::find(times.begin(), times.end(), double(t)) != times.end())
+            << name << " frame " << k;
+      }
+      double largest = 0.0;
+      std::vector<double> jumps;
+      for (size_t i = 1; i < times.size(); ++i) {
+        double d = 0.0;
+        for (size_t j = 0; j < 4; ++j) d += q[4 * (i - 1) + j] * q[4 * i + j];
+        EXPECT_GE(d, 0.0);  // one hemisphere: LINEAR takes the short way
+        const double turn = 2.0 * std::acos(std::min(1.0, d));
+        if (times[i] - times[i - 1] < 1e-3 && turn > 10.01 * kDeg) {
+          jumps.push_back(times[i]);
+        } else {
+          largest = std::max(largest, turn);
+        }
+      }
+      EXPECT_LT(largest, 10.01 * kDeg) << name;
+      if (name.rfind("rotating_wheel", 0) == 0) {
+        ++wheels;
+        ASSERT_EQ(jumps.size(), 4u) << name;
+        const double expected[] = {7.16, 7.19, 7.21, 7.24};
+        for (size_t j = 0; j < 4; ++j) EXPECT_NEAR(jumps[j], expected[j], 1e-6);
+      } else {
+        EXPECT_TRUE(jumps.empty()) << name;
+      }
+    }
+  }
+  EXPECT_EQ(wheels, 4u);  // two wheels, each `x` included twice
+}
+
+TEST_F(KitchenGltfTest, TexturesArePngsWithThePpmPixels) {
+  const nlohmann::json json = read_json(*dir_ / "kitchen.gltf");
+  ASSERT_EQ(json["images"].size(), 8u);
+  const auto textures = test::kitchen_aff().parent_path().parent_path() / "TextureFiles";
+  for (const auto& image : json["images"]) {
+    ASSERT_FALSE(image.contains("bufferView"));
+    const std::string uri = image["uri"];
+    const DecodedImage png = decode_image_file(*dir_ / uri);
+    int w = 0, h = 0;
+    const auto ppm = read_p6(textures / (uri.substr(0, uri.size() - 4) + ".ppm"), &w, &h);
+    ASSERT_FALSE(ppm.empty()) << uri;
+    EXPECT_EQ(png.width, w);
+    EXPECT_EQ(png.height, h);
+    EXPECT_EQ(png.channels, 3);
+    EXPECT_TRUE(png.data == ppm) << uri;
+  }
+}
+
+// ---- The program --------------------------------------------------------------------------
+
+TEST(Aff2GltfProgramTest, PrintsFileAndLineAndExitsOneOnMalformedInput) {
+  const auto dir = test::fresh_temp_dir("aff-program");
+  test::write_file(dir / "bad.aff", "b 0 0 0\n\nxs 1 1 1 0 1 0 0 0 0 0\n");
+  const std::string command = std::string(AFF2GLTF_PATH) + " " + (dir / "bad.aff").string() +
+                              " -o " + (dir / "bad.gltf").string() + " 2> " +
+                              (dir / "err.txt").string();
+  const int status = std::system(command.c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 1);
+  std::ifstream err(dir / "err.txt");
+  const std::string message((std::istreambuf_iterator<char>(err)), {});
+  EXPECT_NE(message.find((dir / "bad.aff").string() + ":4: "), std::string::npos) << message;
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad.gltf"));
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace afr::aff

@@ -1,0 +1,708 @@
+#include "aff_parser.h"
+
+#include <afr/common/error.h>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <memory>
+#include <numbers>
+#include <set>
+#include <tuple>
+
+namespace afr::aff {
+namespace {
+
+constexpr int kMaxIncludeDepth = 64;
+
+bool is_space(char c) {
+  return c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == '\f' || c == '\v';
+}
+bool is_letter(char c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z'); }
+
+// Bytes of a file, exactly as stored (Latin-1 comments and CRLF line ends are fine).
+std::string read_bytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(path.string() + ": cannot open file");
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw Error(path.string() + ": read error");
+  return bytes;
+}
+
+// ---- Cursor: the lexer over one file's bytes ----------------------------------------------
+
+class Cursor {
+ public:
+  Cursor(std::string_view text, std::string file)
+      : p_(text.data()), end_(text.data() + text.size()), file_(std::move(file)) {}
+
+  const std::string& file() const { return file_; }
+  Location here() const { return {file_, line_}; }
+  bool at_end() const { return p_ == end_; }
+  char peek() const { return *p_; }
+  void advance() { ++p_; }
+
+  void skip_space() {
+    while (p_ != end_ && is_space(*p_)) {
+      if (*p_ == '\n') ++line_;
+      ++p_;
+    }
+  }
+  void skip_line() {
+    while (p_ != end_ && *p_ != '\n') ++p_;
+  }
+
+  [[noreturn]] void fail(const std::string& what) const {
+    throw Error(here().str() + ": " + what);
+  }
+
+  // The whitespace-delimited token at the cursor, shortened for messages.
+  std::string token_for_message() const {
+    const char* q = p_;
+    while (q != end_ && !is_space(*q)) ++q;
+    std::string s(p_, q);
+    if (s.size() > 40) s = s.substr(0, 40) + "...";
+    return s;
+  }
+
+  // A run of non-whitespace characters (names, file names, keywords).
+  std::string_view word(std::string_view what) {
+    skip_space();
+    if (at_end()) fail("unexpected end of file, expected " + std::string(what));
+    const char* start = p_;
+    while (p_ != end_ && !is_space(*p_)) ++p_;
+    return std::string_view(start, size_t(p_ - start));
+  }
+
+  void keyword(std::string_view expected, std::string_view directive) {
+    skip_space();
+    const Location at = here();
+    const std::string_view w = word("'" + std::string(expected) + "'");
+    if (w != expected) {
+      throw Error(at.str() + ": expected '" + std::string(expected) + "' in " +
+                  std::string(directive) + ", found '" + std::string(w) + "'");
+    }
+  }
+
+  double real(std::string_view what) { return number<double>(what); }
+  int integer(std::string_view what) { return number<int>(what); }
+  int count(std::string_view what) {
+    const Location at = (skip_space(), here());
+    const int n = integer(what);
+    if (n < 0) throw Error(at.str() + ": negative " + std::string(what) + " " + std::to_string(n));
+    return n;
+  }
+  glm::dvec3 vec3(std::string_view what) {
+    glm::dvec3 v;
+    v.x = real(what);
+    v.y = real(what);
+    v.z = real(what);
+    return v;
+  }
+
+  // True if the next token starts like a number (for the optional colour of `l` and `la`).
+  bool number_follows() {
+    skip_space();
+    if (at_end()) return false;
+    const char c = *p_;
+    return (c >= '0' && c <= '9') || c == '-' || c == '+' || c == '.';
+  }
+
+  void open_brace(std::string_view directive) {
+    skip_space();
+    if (at_end() || *p_ != '{') {
+      fail("expected '{' after the header of " + std::string(directive) + ", found '" +
+           (at_end() ? std::string("end of file") : token_for_message()) + "'");
+    }
+    ++p_;
+  }
+
+ private:
+  // C strtod-style reals (also a leading '+'), decimal integers. A number must end at
+  // whitespace, the end of the file or a brace.
+  template <typename T>
+  T number(std::string_view what) {
+    skip_space();
+    if (at_end()) fail("unexpected end of file, expected " + std::string(what));
+    const char* start = p_;
+    if (*start == '+' && start + 1 != end_ && start[1] != '-') ++start;
+    T value{};
+    const auto [ptr, ec] = std::from_chars(start, end_, value);
+    if (ec == std::errc::result_out_of_range) {
+      fail(std::string(what) + " out of range: '" + token_for_message() + "'");
+    }
+    if (ec != std::errc() || (ptr != end_ && !is_space(*ptr) && *ptr != '{' && *ptr != '}')) {
+      fail("expected " + std::string(what) + ", found '" + token_for_message() + "'");
+    }
+    p_ = ptr;
+    return value;
+  }
+
+  const char* p_;
+  const char* end_;
+  int line_ = 1;
+  std::string file_;
+};
+
+// ---- Parser: the directives and the parse state of section 1.2 ------------------------------
+
+class Parser {
+ public:
+  Parser(const std::filesystem::path& root_dir, const ParseOptions& options, Scene* scene)
+      : root_dir_(root_dir), options_(options), scene_(scene), detail_level_(options.detail_level) {
+    scene_->nodes.emplace_back();  // the root
+    merged_.emplace_back();
+    stack_.push_back({0, {}});
+  }
+
+  void parse_root(std::string_view text, const std::string& name) {
+    parse_file(text, name, root_dir_, 0);
+    if (stack_.size() > 1) {
+      throw Error(stack_.back().opened.str() + ": '{' is never closed");
+    }
+    check_references();
+  }
+
+ private:
+  struct OpenNode {
+    int node;
+    Location opened;
+  };
+  // Key of the per-node triangle set that collects small primitives (p, pp, s, c, tt, ttp):
+  // material, has normals, has uvs.
+  using MergeKey = std::tuple<int, bool, bool>;
+
+  void parse_file(std::string_view text, const std::string& name,
+                  const std::filesystem::path& dir, int depth) {
+    Cursor in(text, name);
+    for (;;) {
+      in.skip_space();
+      if (in.at_end()) return;
+      const char c = in.peek();
+      if (c == '#' || c == '%') {
+        in.skip_line();
+        continue;
+      }
+      if (c == '}') {
+        if (stack_.size() == 1) in.fail("'}' without a matching '{'");
+        in.advance();
+        stack_.pop_back();
+        continue;
+      }
+      if (c == '{') in.fail("'{' outside the header of x, xs or k");
+      directive(in, dir, depth);
+    }
+  }
+
+  void directive(Cursor& in, const std::filesystem::path& dir, int depth) {
+    const Location at = in.here();
+    std::string code;
+    while (!in.at_end() && is_letter(in.peek())) {
+      code += in.peek();
+      in.advance();
+    }
+    if (code.empty() || (!in.at_end() && !is_space(in.peek()))) {
+      throw Error(at.str() + ": unknown directive '" + code + in.token_for_message() + "'");
+    }
+    if (code == "v") return view(in);
+    if (code == "b") return void(scene_->background = in.vec3("a background colour component"));
+    if (code == "am") return void(scene_->ambient = in.vec3("an ambient colour component"));
+    if (code == "l") return light(in, at, false);
+    if (code == "la") return light(in, at, true);
+    if (code == "f") return fill_nff(in);
+    if (code == "fm") return fill_material(in);
+    if (code == "p") return polygon(in, false);
+    if (code == "pp") return polygon(in, true);
+    if (code == "s") return sphere(in);
+    if (code == "c") return cone(in);
+    if (code == "tt") return textured_triangle(in, false);
+    if (code == "ttp") return textured_triangle(in, true);
+    if (code == "tpa") return animated_triangle(in);
+    if (code == "m") return mesh(in);
+    if (code == "xs") return static_transform(in, at);
+    if (code == "x") return animated_transform(in, at);
+    if (code == "a") return animation_range(in);
+    if (code == "k") return keyframes(in, at);
+    if (code == "i") return include(in, at, dir, depth);
+    if (code == "d") return void(detail_level_ = in.integer("a detail level"));
+    throw Error(at.str() + ": unknown directive '" + code + "'");
+  }
+
+  // -- scene-level directives --
+
+  void view(Cursor& in) {
+    View v;
+    in.keyword("from", "v");
+    v.from = in.vec3("a 'from' coordinate");
+    in.keyword("at", "v");
+    v.at = in.vec3("an 'at' coordinate");
+    in.keyword("up", "v");
+    v.up = in.vec3("an 'up' coordinate");
+    in.keyword("angle", "v");
+    v.angle = in.real("the view angle");
+    in.keyword("hither", "v");
+    v.hither = in.real("the hither distance");
+    if (v.hither < 1e-4) v.hither = 1.0;
+    in.keyword("resolution", "v");
+    v.width = in.integer("the x resolution");
+    v.height = in.integer("the y resolution");
+    scene_->view = v;
+  }
+
+  void light(Cursor& in, const Location& at, bool animated) {
+    Light l;
+    l.where = at;
+    if (animated) l.name = std::string(in.word("a light name"));
+    l.position = in.vec3("a light position coordinate");
+    if (in.number_follows()) l.color = in.vec3("a light colour component");
+    scene_->lights.push_back(std::move(l));
+  }
+
+  void animation_range(Cursor& in) {
+    AnimationRange a;
+    a.start = in.real("the animation start time");
+    a.end = in.real("the animation end time");
+    a.frames = in.integer("the number of frames");
+    scene_->animation = a;
+  }
+
+  // -- materials --
+
+  void fill_nff(Cursor& in) {
+    const glm::dvec3 color = in.vec3("an f colour component");
+    const double kd = in.real("Kd");
+    const double ks = in.real("Ks");
+    Material m;
+    m.diffuse = kd * color;
+    m.specular = glm::dvec3(ks);
+    m.shine = in.real("the Phong exponent");
+    m.transmittance = in.real("the transmittance");
+    m.ior = in.real("the index of refraction");
+    set_material(m);
+  }
+
+  void fill_material(Cursor& in) {
+    Material m;
+    m.ambient = in.vec3("an fm ambient component");
+    m.diffuse = in.vec3("an fm diffuse component");
+    m.specular = in.vec3("an fm specular component");
+    m.shine = in.real("the Phong exponent");
+    m.transmittance = in.real("the transmittance");
+    m.ior = in.real("the index of refraction");
+    set_material(m);
+  }
+
+  void set_material(const Material& m) {
+    material_ = m;
+    material_defined_ = true;
+    material_cache_.clear();
+  }
+
+  // Index of the current material combined with `texture` (empty: none).
+  int material_index(const std::filesystem::path& texture, const Location& at) {
+    if (!material_defined_ && !warned_undefined_material_) {
+      warned_undefined_material_ = true;
+      scene_->warnings.push_back(at.str() +
+                                 ": geometry before any f/fm; using the reference's zeroed "
+                                 "(black) material");
+    }
+    const auto cached = material_cache_.find(texture);
+    if (cached != material_cache_.end()) return cached->second;
+    Material m = material_;
+    m.texture = texture;
+    auto& all = scene_->materials;
+    int index = int(std::find(all.begin(), all.end(), m) - all.begin());
+    if (index == int(all.size())) all.push_back(std::move(m));
+    material_cache_.emplace(texture, index);
+    return index;
+  }
+
+  // Section 1.1: <root>/../TextureFiles/NAME, then <root>/NAME.
+  std::filesystem::path texture_path(std::string_view name, const Location& at) {
+    const auto cached = texture_paths_.find(std::string(name));
+    if (cached != texture_paths_.end()) return cached->second;
+    const std::filesystem::path candidates[] = {root_dir_ / ".." / "TextureFiles" / name,
+                                                root_dir_ / name};
+    for (const auto& candidate : candidates) {
+      std::error_code ec;
+      if (std::filesystem::is_regular_file(candidate, ec)) {
+        const std::filesystem::path resolved = candidate.lexically_normal();
+        texture_paths_.emplace(std::string(name), resolved);
+        return resolved;
+      }
+    }
+    throw Error(at.str() + ": texture '" + std::string(name) + "' not found (looked for " +
+                candidates[0].lexically_normal().string() + " and " +
+                candidates[1].lexically_normal().string() + ")");
+  }
+
+  // -- geometry --
+
+  Node& current() { return scene_->nodes[size_t(stack_.back().node)]; }
+
+  // The triangle set of the current node that collects small primitives of one kind.
+  TriangleSet& merged_set(int material, bool normals, bool uvs) {
+    const int node = stack_.back().node;
+    auto& sets = merged_[size_t(node)];
+    const MergeKey key{material, normals, uvs};
+    const auto it = sets.find(key);
+    if (it != sets.end()) return scene_->nodes[size_t(node)].meshes[it->second];
+    Node& n = scene_->nodes[size_t(node)];
+    n.meshes.emplace_back();
+    n.meshes.back().material = material;
+    sets.emplace(key, n.meshes.size() - 1);
+    return n.meshes.back();
+  }
+
+  void polygon(Cursor& in, bool patch) {
+    const Location at = in.here();
+    const int n = in.count("a vertex count");
+    std::vector<glm::vec3> positions(static_cast<size_t>(n)), normals(patch ? positions.size() : 0);
+    for (int k = 0; k < n; ++k) {
+      positions[size_t(k)] = glm::vec3(in.vec3("a polygon vertex coordinate"));
+      if (patch) normals[size_t(k)] = glm::vec3(in.vec3("a polygon normal component"));
+    }
+    if (n < 3) {
+      scene_->warnings.push_back(at.str() + ": polygon with " + std::to_string(n) +
+                                 " vertices skipped");
+      return;
+    }
+    append_polygon(positions, normals, {}, &merged_set(material_index({}, at), patch, false));
+  }
+
+  void sphere(Cursor& in) {
+    const Location at = in.here();
+    const glm::dvec3 center = in.vec3("a sphere centre coordinate");
+    const double radius = in.real("the sphere radius");
+    append_sphere(center, radius, options_.tessellation,
+                  &merged_set(material_index({}, at), true, false));
+  }
+
+  void cone(Cursor& in) {
+    const Location at = in.here();
+    const glm::dvec3 base = in.vec3("a cone base coordinate");
+    const double r0 = in.real("the cone base radius");
+    const glm::dvec3 apex = in.vec3("a cone apex coordinate");
+    const double r1 = in.real("the cone apex radius");
+    append_cone(base, r0, apex, r1, options_.tessellation,
+                &merged_set(material_index({}, at), true, false));
+  }
+
+  void textured_triangle(Cursor& in, bool patch) {
+    const Location at = in.here();
+    const std::filesystem::path texture = texture_path(in.word("a texture name"), at);
+    glm::vec3 positions[3], normals[3];
+    glm::vec2 uvs[3];
+    for (int k = 0; k < 3; ++k) {
+      positions[k] = glm::vec3(in.vec3("a triangle vertex coordinate"));
+      if (patch) normals[k] = glm::vec3(in.vec3("a triangle normal component"));
+      uvs[k].x = float(in.real("a texture coordinate"));
+      uvs[k].y = float(in.real("a texture coordinate"));
+    }
+    const std::span<const glm::vec3> patch_normals =
+        patch ? std::span<const glm::vec3>(normals) : std::span<const glm::vec3>();
+    append_polygon(positions, patch_normals, uvs,
+                   &merged_set(material_index(texture, at), patch, true));
+  }
+
+  void animated_triangle(Cursor& in) {
+    const Location at = in.here();
+    const int n = in.count("a number of times");
+    if (n < 1) in.fail("tpa needs at least one time");
+    AnimatedTriangle tri;
+    tri.material = material_index({}, at);
+    tri.times.resize(size_t(n));
+    tri.positions.resize(size_t(n));
+    tri.normals.resize(size_t(n));
+    for (size_t j = 0; j < size_t(n); ++j) {
+      const Location time_at = (in.skip_space(), in.here());
+      tri.times[j] = in.real("a tpa time");
+      if (j > 0 && tri.times[j] < tri.times[j - 1]) {
+        throw Error(time_at.str() + ": tpa times must not decrease");
+      }
+      for (int k = 0; k < 3; ++k) {
+        tri.positions[j][size_t(k)] = glm::vec3(in.vec3("a tpa vertex coordinate"));
+        tri.normals[j][size_t(k)] = glm::vec3(in.vec3("a tpa normal component"));
+      }
+    }
+    current().animated_triangles.push_back(std::move(tri));
+  }
+
+  void mesh(Cursor& in) {
+    const Location at = in.here();
+    in.keyword("vertices", "m");
+    const int nv = in.count("a vertex count");
+    std::vector<glm::vec3> positions(static_cast<size_t>(nv));
+    for (auto& p : positions) p = glm::vec3(in.vec3("a vertex coordinate"));
+
+    std::vector<glm::vec3> normals;
+    std::vector<glm::vec2> uvs;
+    std::filesystem::path texture;
+    in.skip_space();
+    Location word_at = in.here();
+    std::string_view w = in.word("'normals', 'texturecoords' or 'triangles'");
+    if (w == "normals") {
+      normals.resize(size_t(in.count("a normal count")));
+      for (auto& n : normals) n = glm::vec3(in.vec3("a normal component"));
+      in.skip_space();
+      word_at = in.here();
+      w = in.word("'texturecoords' or 'triangles'");
+    }
+    if (w == "texturecoords") {
+      uvs.resize(size_t(in.count("a texture coordinate count")));
+      in.skip_space();
+      const Location name_at = in.here();
+      texture = texture_path(in.word("a texture name"), name_at);
+      for (auto& uv : uvs) {
+        uv.x = float(in.real("a texture coordinate"));
+        uv.y = float(in.real("a texture coordinate"));
+      }
+      in.skip_space();
+      word_at = in.here();
+      w = in.word("'triangles'");
+    }
+    if (w != "triangles") {
+      throw Error(word_at.str() + ": expected " +
+                  (uvs.empty() ? (normals.empty() ? "'normals', 'texturecoords' or 'triangles'"
+                                                  : "'texturecoords' or 'triangles'")
+                               : "'triangles'") +
+                  " in m, found '" + std::string(w) + "'");
+    }
+    const int ntri = in.count("a triangle count");
+
+    TriangleSet set;
+    set.material = material_index(texture, at);
+    set.indices.reserve(size_t(ntri) * 3);
+    set.positions.reserve(positions.size());
+    // De-index (v, n, t) tuples: for each position, a chain of the (n, t) pairs seen with it.
+    struct Corner {
+      int n, t;
+      uint32_t out;
+      uint32_t next;
+    };
+    constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+    std::vector<uint32_t> head(positions.size(), kNone);
+    std::vector<Corner> corners;
+    corners.reserve(positions.size());
+    auto index = [&](std::string_view what, size_t size) {
+      in.skip_space();
+      const Location index_at = in.here();
+      const int i = in.integer(what);
+      if (i < 0 || size_t(i) >= size) {
+        throw Error(index_at.str() + ": " + std::string(what) + " " + std::to_string(i) +
+                    " out of range (" + std::to_string(size) + " defined)");
+      }
+      return i;
+    };
+    for (int tri = 0; tri < ntri; ++tri) {
+      int v[3], n[3] = {0, 0, 0}, t[3] = {0, 0, 0};
+      for (int k = 0; k < 3; ++k) v[k] = index("vertex index", positions.size());
+      if (!normals.empty()) {
+        for (int k = 0; k < 3; ++k) n[k] = index("normal index", normals.size());
+      }
+      if (!uvs.empty()) {
+        for (int k = 0; k < 3; ++k) t[k] = index("texture coordinate index", uvs.size());
+      }
+      for (int k = 0; k < 3; ++k) {
+        uint32_t* link = &head[size_t(v[k])];
+        while (*link != kNone && (corners[*link].n != n[k] || corners[*link].t != t[k])) {
+          link = &corners[*link].next;
+        }
+        if (*link == kNone) {
+          *link = uint32_t(corners.size());
+          corners.push_back({n[k], t[k], uint32_t(set.positions.size()), kNone});
+          set.positions.push_back(positions[size_t(v[k])]);
+          if (!normals.empty()) set.normals.push_back(normals[size_t(n[k])]);
+          if (!uvs.empty()) set.uvs.push_back(uvs[size_t(t[k])]);
+        }
+        set.indices.push_back(corners[*link].out);
+      }
+    }
+    if (!set.indices.empty()) current().meshes.push_back(std::move(set));
+  }
+
+  // -- transforms and animation --
+
+  void push_node(Node node, const Location& at) {
+    const int index = int(scene_->nodes.size());
+    current().children.push_back(index);
+    scene_->nodes.push_back(std::move(node));
+    merged_.emplace_back();
+    stack_.push_back({index, at});
+  }
+
+  void static_transform(Cursor& in, const Location& at) {
+    Node node;
+    node.kind = Node::Kind::kStatic;
+    node.where = at;
+    node.scale = in.vec3("an xs scale component");
+    node.axis = in.vec3("an xs rotation axis component");
+    node.angle_deg = in.real("the xs rotation angle");
+    node.translation = in.vec3("an xs translation component");
+    in.open_brace("xs");
+    push_node(std::move(node), at);
+  }
+
+  void animated_transform(Cursor& in, const Location& at) {
+    Node node;
+    node.kind = Node::Kind::kAnimated;
+    node.where = at;
+    node.name = std::string(in.word("an animation name"));
+    if (node.name == "{") in.fail("x needs an animation name before '{'");
+    in.open_brace("x " + node.name);
+    used_names_.insert(node.name);
+    push_node(std::move(node), at);
+  }
+
+  void keyframes(Cursor& in, const Location& at) {
+    Keyframes k;
+    k.where = at;
+    k.name = std::string(in.word("an animation name"));
+    if (k.name == "{") in.fail("k needs an animation name before '{'");
+    in.open_brace("k " + k.name);
+    std::set<std::string> seen;
+    for (;;) {
+      in.skip_space();
+      if (in.at_end()) throw Error(at.str() + ": k " + k.name + " is never closed with '}'");
+      if (in.peek() == '}') {
+        in.advance();
+        break;
+      }
+      const Location type_at = in.here();
+      const std::string type(in.word("a keyframe type"));
+      if (!seen.insert(type).second) {
+        throw Error(type_at.str() + ": '" + type + "' given twice in k " + k.name);
+      }
+      const int n = in.count("a key count");
+      if (type == "transl" || type == "scale") {
+        if (n < 4) throw Error(type_at.str() + ": " + type + " needs at least 4 keys");
+        auto& keys = type == "transl" ? k.translation : k.scale;
+        keys.resize(size_t(n));
+        for (auto& key : keys) {
+          key.t = key_time(in, &keys.front(), &key);
+          key.value = in.vec3(type == "transl" ? "a translation component" : "a scale component");
+          key.tension = in.real("a tension");
+          key.continuity = in.real("a continuity");
+          key.bias = in.real("a bias");
+        }
+      } else if (type == "rot") {
+        if (n < 4) throw Error(type_at.str() + ": rot needs at least 4 keys");
+        k.rotation.resize(size_t(n));
+        for (auto& key : k.rotation) {
+          key.t = key_time(in, &k.rotation.front(), &key);
+          key.axis = in.vec3("a rotation axis component");
+          key.angle = in.real("a rotation angle") * std::numbers::pi / 180.0;
+          key.tension = in.real("a tension");
+          key.continuity = in.real("a continuity");
+          key.bias = in.real("a bias");
+        }
+      } else if (type == "visibility") {
+        if (n < 1) throw Error(type_at.str() + ": visibility needs at least 1 key");
+        k.visibility.resize(size_t(n));
+        for (auto& key : k.visibility) {
+          key.t = key_time(in, &k.visibility.front(), &key);
+          key.visible = in.integer("a visibility flag") != 0;
+        }
+      } else {
+        throw Error(type_at.str() + ": unknown keyframe type '" + type + "' in k " + k.name +
+                    " (expected transl, rot, scale or visibility)");
+      }
+    }
+    scene_->keyframes[k.name] = std::move(k);
+  }
+
+  // Reads the time of `key`, which must not be earlier than the key before it.
+  template <typename Key>
+  double key_time(Cursor& in, const Key* first, const Key* key) {
+    in.skip_space();
+    const Location at = in.here();
+    const double t = in.real("a key time");
+    if (key != first && t < key[-1].t) throw Error(at.str() + ": key times must not decrease");
+    return t;
+  }
+
+  void include(Cursor& in, const Location& at, const std::filesystem::path& dir, int depth) {
+    const int level = in.integer("an include detail level");
+    const std::string name(in.word("an include file name"));
+    if (level > detail_level_) return;
+    if (depth + 1 > kMaxIncludeDepth) {
+      throw Error(at.str() + ": includes nested more than " + std::to_string(kMaxIncludeDepth) +
+                  " deep (an include cycle?)");
+    }
+    // Section 1.1: against the root file's directory, then the including file's.
+    std::filesystem::path path;
+    for (const auto& base : {root_dir_, dir}) {
+      std::error_code ec;
+      if (std::filesystem::is_regular_file(base / name, ec)) {
+        path = base / name;
+        break;
+      }
+    }
+    if (path.empty()) {
+      throw Error(at.str() + ": cannot open include file '" + name + "' (looked in " +
+                  root_dir_.string() + ")");
+    }
+    const std::string key = path.lexically_normal().string();
+    auto it = files_.find(key);
+    if (it == files_.end()) {
+      it = files_.emplace(key, std::make_unique<std::string>(read_bytes(path))).first;
+    }
+    parse_file(*it->second, path.string(), path.parent_path(), depth + 1);
+  }
+
+  // Warnings for names that refer to nothing (the scene still converts: identity motion).
+  void check_references() {
+    for (const Light& l : scene_->lights) {
+      if (!l.name.empty()) used_names_.insert(l.name);
+    }
+    for (const std::string& name : used_names_) {
+      if (!scene_->keyframes.count(name)) {
+        scene_->warnings.push_back("no 'k " + name + "' block: '" + name + "' does not move");
+      }
+    }
+    for (const auto& [name, k] : scene_->keyframes) {
+      if (name != "camera" && !used_names_.count(name)) {
+        scene_->warnings.push_back(k.where.str() + ": k " + name + " animates nothing");
+      }
+    }
+  }
+
+  std::filesystem::path root_dir_;
+  ParseOptions options_;
+  Scene* scene_;
+  int detail_level_;
+  std::vector<OpenNode> stack_;
+  std::vector<std::map<MergeKey, size_t>> merged_;  // per node
+  Material material_;
+  bool material_defined_ = false;
+  bool warned_undefined_material_ = false;
+  std::map<std::filesystem::path, int> material_cache_;  // texture -> index, current material
+  std::map<std::string, std::filesystem::path> texture_paths_;
+  std::map<std::string, std::unique_ptr<std::string>> files_;  // include bytes, read once
+  std::set<std::string> used_names_;
+};
+
+}  // namespace
+
+Scene parse_aff_file(const std::filesystem::path& path, const ParseOptions& options) {
+  const std::string bytes = read_bytes(path);
+  std::filesystem::path dir = path.parent_path();
+  if (dir.empty()) dir = ".";
+  Scene scene = parse_aff_text(bytes, path.string(), dir, options);
+  scene.root_file = path;
+  return scene;
+}
+
+Scene parse_aff_text(std::string_view text, const std::string& name,
+                     const std::filesystem::path& root_dir, const ParseOptions& options) {
+  Scene scene;
+  scene.root_file = root_dir / name;
+  Parser parser(root_dir, options, &scene);
+  parser.parse_root(text, name);
+  return scene;
+}
+
+}  // namespace afr::aff
