@@ -19,6 +19,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <thread>
@@ -47,6 +48,7 @@ struct RunResult {
   double samples_per_cpu_s = 0.0;  // per second of the tracing threads' CPU time
   double rays_per_s = 0.0;         // primary + shadow + reflection
   double rays_per_sample = 0.0;
+  uint64_t sanitized = 0;
 };
 
 // CPU time of the calling thread: unlike wall time, it does not count time the thread waited
@@ -103,6 +105,7 @@ RunResult run_once(const afr::Tracer& tracer, Mode mode, int threads, int width,
   r.samples_per_cpu_s = double(total.primary_rays) / std::max(cpu, 1e-9);
   r.rays_per_s = rays / seconds;
   r.rays_per_sample = rays / double(std::max<uint64_t>(total.primary_rays, 1));
+  r.sanitized = total.sanitized;
   return r;
 }
 
@@ -171,6 +174,9 @@ int main(int argc, char** argv) {
     std::vector<afr::Scene> scenes;
     if (!skip_builtin) scenes.push_back(afr::make_builtin_scene());
     if (!scene_path.empty()) scenes.push_back(afr::load_gltf(scene_path));
+    std::vector<std::string> names;
+    for (const afr::Scene& s : scenes)
+      names.push_back(std::filesystem::path(s.source).filename().string());
 
     fmt::print(
         "## afr-bench-tracer\n\n{}x{} image, {} samples per run, median of {} runs, "
@@ -202,9 +208,10 @@ int main(int argc, char** argv) {
       fmt::print(
           "\n| scene | t (s) | mode | threads | samples/s | samples/CPU-s | rays/s | "
           "rays/sample |\n|---|---:|---|---:|---:|---:|---:|---:|\n");
-      // Per-CPU-second rates of the crosshair modes summed over times and thread counts: the
-      // packet vs single-ray comparison, robust to other processes on the machine.
-      double single_sum = 0.0, packet_sum = 0.0;
+      // Medians per configuration, summed over times: the summary below.
+      std::vector<double> wall_sum(modes.size() * size_t(max_threads), 0.0);
+      std::vector<double> cpu_sum(wall_sum.size(), 0.0);
+      uint64_t sanitized = 0;  // NaN or Inf values the tracer replaced: should stay 0
       for (double t : times) {
         for (auto& tr : tracers[sc]) tr->set_time(t);
         // Every repeat runs every configuration once, so that load from other processes
@@ -228,18 +235,35 @@ int main(int argc, char** argv) {
             for (const RunResult& res : results[c]) v.push_back(res.*field);
             return median(v);
           };
+          for (const RunResult& res : results[c]) sanitized += res.sanitized;
           const double per_cpu = med(&RunResult::samples_per_cpu_s);
-          if (mode == Mode::kCrosshairSingle) single_sum += per_cpu;
-          if (mode == Mode::kCrosshairPacket) packet_sum += per_cpu;
-          fmt::print("| {} | {:g} | {} | {} | {} | {} | {} | {:.2f} |\n", scenes[sc].source, t,
-                     mode_name(mode), threads, si(med(&RunResult::samples_per_s)), si(per_cpu),
+          const double per_s = med(&RunResult::samples_per_s);
+          wall_sum[c] += per_s;
+          cpu_sum[c] += per_cpu;
+          fmt::print("| {} | {:g} | {} | {} | {} | {} | {} | {:.2f} |\n", names[sc], t,
+                     mode_name(mode), threads, si(per_s), si(per_cpu),
                      si(med(&RunResult::rays_per_s)), med(&RunResult::rays_per_sample));
         }
         std::fflush(stdout);
       }
+      // Summary: mean over times, and the packet vs single-ray crosshair ratio (per CPU-second,
+      // which other processes on the machine disturb less than wall time).
       fmt::print(
-          "\n{}: crosshair samples per CPU-second, rtcIntersect8 / 5 x rtcIntersect1 = {:.3f}\n",
-          scenes[sc].source, packet_sum / std::max(single_sum, 1e-9));
+          "\n**{}**, mean over t = {}: samples/s (samples/CPU-s); {} sanitized values\n\n"
+          "| threads | random rays | crosshair, 5 x rtcIntersect1 | crosshair, rtcIntersect8 | "
+          "packet / single |\n|---:|---:|---:|---:|---:|\n",
+          names[sc], times_text, sanitized);
+      const double n = double(times.size());
+      for (int threads = 1; threads <= max_threads; ++threads) {
+        auto cell = [&](size_t m) {
+          const size_t c = m * size_t(max_threads) + size_t(threads - 1);
+          return fmt::format("{} ({})", si(wall_sum[c] / n), si(cpu_sum[c] / n));
+        };
+        const size_t single_c = 1 * size_t(max_threads) + size_t(threads - 1);
+        const size_t packet_c = 2 * size_t(max_threads) + size_t(threads - 1);
+        fmt::print("| {} | {} | {} | {} | {:.3f} |\n", threads, cell(0), cell(1), cell(2),
+                   cpu_sum[packet_c] / std::max(cpu_sum[single_c], 1e-9));
+      }
     }
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());

@@ -202,23 +202,35 @@ void Loader::parse(const std::vector<uint8_t>& bytes) {
   std::string warn;
   const std::string base_dir = access_.root.string();
   const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
-  bool ok = false;
   if (binary) {
     // tinygltf says only "Invalid glTF binary." for a cut-off file; say what is wrong.
-    uint32_t declared = 0;
-    if (bytes.size() >= 12) std::memcpy(&declared, bytes.data() + 8, 4);
+    uint32_t declared = 0;  // little-endian, at byte 8
+    for (size_t i = 0; i < 4 && 8 + i < bytes.size(); ++i) {
+      declared |= uint32_t(bytes[8 + i]) << (8 * i);
+    }
     if (bytes.size() < 20 || declared > bytes.size()) {
       fail(fmt::format("truncated .glb: the header declares {} bytes but the file has {}", declared,
                        bytes.size()));
     }
-    ok = gltf.LoadBinaryFromMemory(&model_, &err, &warn, bytes.data(),
-                                   static_cast<unsigned int>(bytes.size()), base_dir);
-  } else {
-    ok = gltf.LoadASCIIFromString(&model_, &err, &warn, reinterpret_cast<const char*>(bytes.data()),
-                                  static_cast<unsigned int>(bytes.size()), base_dir);
+  }
+  bool ok = false;
+  // tinygltf mostly reports through `err`, but some inputs (such as an empty data URI) make it
+  // throw a standard exception instead.
+  try {
+    if (binary) {
+      ok = gltf.LoadBinaryFromMemory(&model_, &err, &warn, bytes.data(),
+                                     static_cast<unsigned int>(bytes.size()), base_dir);
+    } else {
+      ok = gltf.LoadASCIIFromString(&model_, &err, &warn,
+                                    reinterpret_cast<const char*>(bytes.data()),
+                                    static_cast<unsigned int>(bytes.size()), base_dir);
+    }
+  } catch (const std::exception& e) {
+    fail(fmt::format("invalid glTF: {}", e.what()));
   }
   if (!ok) {
-    std::string problem = err;
+    // Some failures (an empty image file) are told only as a warning.
+    std::string problem = err.empty() ? warn : err;
     while (!problem.empty() && (problem.back() == '\n' || problem.back() == ' ')) {
       problem.pop_back();
     }
@@ -232,8 +244,10 @@ void Loader::parse(const std::vector<uint8_t>& bytes) {
   while (start < warn.size()) {
     size_t end = warn.find('\n', start);
     if (end == std::string::npos) end = warn.size();
-    if (end > start)
-      warn_once("tinygltf: " + warn.substr(start, end - start), warn.substr(start, end - start));
+    if (end > start) {
+      const std::string line = warn.substr(start, end - start);
+      warn_once("tinygltf: " + line, line);
+    }
     start = end + 1;
   }
 }

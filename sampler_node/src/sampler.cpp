@@ -41,7 +41,7 @@ Sampler::Sampler(const Scene& scene, Tracer& tracer, Clock& clock, const Sampler
   batch_.fields = fields_;
   batch_.samples.reserve(size_t(config_.batch_size));
   const int64_t pixels = region_.area();
-  config_.max_tiles = int(std::min<int64_t>(config_.max_tiles, pixels));
+  config_.max_tiles = int(std::max<int64_t>(1, std::min<int64_t>(config_.max_tiles, pixels / 4)));
   config_.min_tiles = std::min(config_.min_tiles, config_.max_tiles);
   target_tiles_ = config_.min_tiles;
 }
@@ -526,17 +526,23 @@ double Sampler::gain_target() const {
     temporal += a * st.G_t;
     age += st.mean_age;
   }
-  const double dC_ds = spatial / area;
-  const double dC_dt = temporal / area;
-  const double T = age / tiling_.tile_count();
-  const double lo = config_.min_tiles, hi = config_.max_tiles;
+  return gain_tile_count(spatial / area, temporal / area, age / tiling_.tile_count(), config_.i,
+                         double(region_.area()), config_.min_tiles, config_.max_tiles,
+                         target_tiles_);
+}
+
+double gain_tile_count(double dC_ds, double dC_dt, double T, double i, double pixels,
+                       double min_tiles, double max_tiles, double current) {
   constexpr double kTiny = 1e-12;
-  if (dC_ds <= kTiny && dC_dt * T <= kTiny) return target_tiles_;  // a flat, still image
-  if (dC_ds <= kTiny) return lo;  // change only in time: least gain
-  const double S = config_.i * dC_dt * T / dC_ds;
-  if (!(S > 0.0)) return hi;  // a still image: most gain
-  const double tiles = double(region_.area()) / (S * S);
-  return std::isfinite(tiles) ? std::clamp(tiles, lo, hi) : hi;
+  const auto finite_or = [](double v, double fallback) { return std::isfinite(v) ? v : fallback; };
+  dC_ds = finite_or(dC_ds, 0.0);
+  const double change_in_time = finite_or(dC_dt * T, 0.0);
+  if (dC_ds <= kTiny && change_in_time <= kTiny) return std::clamp(current, min_tiles, max_tiles);
+  if (dC_ds <= kTiny) return min_tiles;  // change only in time: least gain
+  const double S = i * change_in_time / dC_ds;
+  if (!(S > kTiny)) return max_tiles;  // a still image: most gain
+  const double tiles = pixels / (S * S);
+  return std::isfinite(tiles) ? std::clamp(tiles, min_tiles, max_tiles) : max_tiles;
 }
 
 // Section 6.1: E_tile = s (kappa v / sum v + lambda u / sum u + (1 - kappa - lambda) o / sum o).

@@ -8,7 +8,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <string>
 #include <vector>
 
@@ -58,6 +57,10 @@ struct GeomRecord {
   const uint32_t* indices = nullptr;
   uint32_t material = 0;  // index into Impl::materials_
   int node = -1;
+  // World-space static geometry of a node whose transform mirrors (negative determinant): glTF
+  // then takes clockwise triangles as front faces, so the cross product of the edges points
+  // to the back.
+  bool flip_winding = false;
 };
 
 // A bottom-level Embree scene: all static geometry, or one mesh shared by its moving nodes.
@@ -120,6 +123,23 @@ void init_ray(RTCRay* r, const glm::vec3& o, const glm::vec3& d, float tnear, fl
   r->mask = 0xffffffffu;
   r->id = 0;
   r->flags = 0;
+}
+
+// Every lane of a packet is set, the inactive ones too: Embree computes on all lanes, and
+// uninitialised floats (denormals) there made packets twice as slow as single rays.
+void set_lane(RTCRay8* r, int k, const glm::vec3& o, const glm::vec3& d, float tfar) {
+  r->org_x[k] = o.x;
+  r->org_y[k] = o.y;
+  r->org_z[k] = o.z;
+  r->tnear[k] = 0.0f;
+  r->dir_x[k] = d.x;
+  r->dir_y[k] = d.y;
+  r->dir_z[k] = d.z;
+  r->time[k] = 0.0f;
+  r->tfar[k] = tfar;
+  r->mask[k] = 0xffffffffu;
+  r->id[k] = unsigned(k);
+  r->flags[k] = 0;
 }
 
 void error_callback(void* /*user*/, RTCError code, const char* message) {
@@ -302,6 +322,7 @@ void Tracer::Impl::build() {
       r.indices = p.indices.data();
       r.material = material_of(p);
       r.node = n;
+      r.flip_winding = glm::determinant(glm::dmat3(world)) < 0.0;
       statics.geoms.push_back(r);
     }
   }
@@ -443,7 +464,9 @@ bool Tracer::Impl::blocked(const glm::vec3& o, const glm::vec3& d, float tnear, 
 
 void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm::vec3& d,
                                 Surface* s) const {
+  AFR_DCHECK(hit.inst < instances_.size());
   const Instance& inst = instances_[hit.inst];
+  AFR_DCHECK(hit.geom < blas_[size_t(inst.blas)].geoms.size());
   const GeomRecord& g = blas_[size_t(inst.blas)].geoms[hit.geom];
   const uint32_t* tri = g.indices + 3 * size_t(hit.prim);
   const float w = 1.0f - hit.u - hit.v;
@@ -454,6 +477,7 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
 
   const glm::vec3& p0 = g.positions[tri[0]];
   glm::vec3 ng = glm::cross(g.positions[tri[1]] - p0, g.positions[tri[2]] - p0);
+  if (g.flip_winding) ng = -ng;
   glm::vec3 ns(0.0f);
   if (g.normals) ns = w * g.normals[tri[0]] + hit.u * g.normals[tri[1]] + hit.v * g.normals[tri[2]];
   if (inst.moves) {
@@ -559,6 +583,7 @@ void Tracer::Impl::shade_local8(const Surface* s, const glm::vec3* wo, const glm
   for (const LightRecord& light : lights_) {
     alignas(32) int valid[8] = {0, 0, 0, 0, 0, 0, 0, 0};
     RTCRay8 rays;
+    for (int k = 0; k < 8; ++k) set_lane(&rays, k, glm::vec3(0.0f), glm::vec3(0, 0, 1), 0.0f);
     glm::vec3 contribution[8];
     bool any_ray = false;
     for (int k = 0; k < n; ++k) {
@@ -572,18 +597,7 @@ void Tracer::Impl::shade_local8(const Surface* s, const glm::vec3* wo, const glm
       }
       valid[k] = -1;
       any_ray = true;
-      rays.org_x[k] = terms[k].origin.x;
-      rays.org_y[k] = terms[k].origin.y;
-      rays.org_z[k] = terms[k].origin.z;
-      rays.tnear[k] = 0.0f;
-      rays.dir_x[k] = l.x;
-      rays.dir_y[k] = l.y;
-      rays.dir_z[k] = l.z;
-      rays.time[k] = 0.0f;
-      rays.tfar[k] = tfar;
-      rays.mask[k] = 0xffffffffu;
-      rays.id[k] = unsigned(k);
-      rays.flags[k] = 0;
+      set_lane(&rays, k, terms[k].origin, l, tfar);
       ++stats->shadow_rays;
     }
     if (!any_ray) continue;
@@ -721,20 +735,13 @@ void Tracer::trace_crosshair(const Camera& camera, double x, double y, int width
   alignas(32) int valid[8] = {0, 0, 0, 0, 0, 0, 0, 0};
   RTCRayHit8 rh;
   for (int k = 0; k < 8; ++k) {
-    const Ray& r = rays[std::min(k, 4)];
-    if (k < 5 && finite(r.origin) && finite(r.direction)) valid[k] = -1;
-    rh.ray.org_x[k] = r.origin.x;
-    rh.ray.org_y[k] = r.origin.y;
-    rh.ray.org_z[k] = r.origin.z;
-    rh.ray.tnear[k] = 0.0f;
-    rh.ray.dir_x[k] = r.direction.x;
-    rh.ray.dir_y[k] = r.direction.y;
-    rh.ray.dir_z[k] = r.direction.z;
-    rh.ray.time[k] = 0.0f;
-    rh.ray.tfar[k] = INFINITY;
-    rh.ray.mask[k] = 0xffffffffu;
-    rh.ray.id[k] = unsigned(k);
-    rh.ray.flags[k] = 0;
+    const bool ok = k < 5 && finite(rays[k].origin) && finite(rays[k].direction);
+    if (ok) {
+      valid[k] = -1;
+      set_lane(&rh.ray, k, rays[k].origin, rays[k].direction, INFINITY);
+    } else {
+      set_lane(&rh.ray, k, glm::vec3(0.0f), glm::vec3(0, 0, 1), 0.0f);
+    }
     rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
   }

@@ -422,6 +422,15 @@ TEST_F(GltfLoaderTest, UndecodableTextureFailsNamingTheImage) {
   expect_error(path, "image 0");
 }
 
+TEST_F(GltfLoaderTest, EmptyImageDataUriFails) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["images"] = json::array({{{"uri", "data:image/png;base64,"}}});
+  const fs::path path = dir_ / "empty_image.gltf";
+  b.write_embedded(path);
+  EXPECT_THROW(load_gltf(path), Error);
+}
+
 // ---- Nodes, animations, cameras, lights ----
 
 TEST_F(GltfLoaderTest, NodeHierarchyWorldTransformsMatchHandComputedMatrices) {

@@ -296,6 +296,27 @@ TEST(TracerTest, SpecularHighlightOnlyWhereTheMaterialHasOne) {
   }
 }
 
+TEST(TracerTest, MirroredNodeKeepsItsFrontFace) {
+  // glTF: under a transform with negative determinant, clockwise triangles face front. A
+  // single-sided square facing +Z, mirrored in x, still faces +Z and is lit from there.
+  glm::vec3 colors[2];
+  for (int mirrored = 0; mirrored < 2; ++mirrored) {
+    Scene s;
+    const int mat = add_material(&s, glm::vec3(0.6f), 0.0f, 1.0f);
+    const int node = add_mesh_node(&s, quad_mesh({-1, -1, -3}, {2, 0, 0}, {0, 2, 0}, mat));
+    if (mirrored) s.nodes[size_t(node)].scale = glm::dvec3(-1.0, 1.0, 1.0);
+    add_light_node(&s, Light{}, glm::dvec3(0.0, 0.0, 0.0));
+    s.finalize();
+    Tracer tracer(s);
+    TraceStats stats;
+    const ShadedSample r = tracer.trace(Ray{{0.2f, 0.1f, 0.0f}, {0, 0, -1}}, &stats);
+    ASSERT_TRUE(r.hit);
+    colors[mirrored] = r.color;
+  }
+  EXPECT_GT(colors[0].x, 0.0f);
+  expect_near3(colors[1], colors[0], 1e-3f, "mirrored");
+}
+
 // ---------------------------------------------------------------------------------------------
 // Robustness
 

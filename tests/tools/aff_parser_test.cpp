@@ -178,14 +178,13 @@ INSTANTIATE_TEST_SUITE_P(
         Malformed{"integer count with a fraction", "p 3.0\n", 1, "found '3.0'"},
         Malformed{"stray open brace", "b 0 0 0\n{\n", 2, "'{'"},
         Malformed{"stray close brace", "# c\n}\n", 2, "'}' without a matching '{'"},
-        Malformed{"unclosed transform", "\nxs 1 1 1 0 1 0 0 0 0 0\n{\np 3 0 0 0 1 0 0 0 1 0\n",
-                  2, "never closed"},
+        Malformed{"unclosed transform", "\nxs 1 1 1 0 1 0 0 0 0 0\n{\np 3 0 0 0 1 0 0 0 1 0\n", 2,
+                  "never closed"},
         Malformed{"xs without brace", "xs 1 1 1 0 1 0 0 0 0 0\np 3\n", 2, "expected '{'"},
         Malformed{"comment between xs and brace", "xs 1 1 1 0 1 0 0 0 0 0 # c\n{\n}\n", 1,
                   "expected '{'"},
         Malformed{"missing include", "\n\ni 0 nothere.aff\n", 3, "nothere.aff"},
-        Malformed{"include above D once d raises it", "d 1\ni 1 missing.aff\n", 2,
-                  "missing.aff"},
+        Malformed{"include above D once d raises it", "d 1\ni 1 missing.aff\n", 2, "missing.aff"},
         Malformed{"mesh index out of range",
                   "f 1 1 1 1 0 0 0 0\nm vertices 3 0 0 0 1 0 0 0 1 0\ntriangles 1\n0 1 3\n", 4,
                   "vertex index 3 out of range"},
@@ -199,8 +198,7 @@ INSTANTIATE_TEST_SUITE_P(
                   "k a { transl 4\n 0 0 0 0 0 0 0\n 2 0 0 0 0 0 0\n 1 0 0 0 0 0 0\n"
                   " 3 0 0 0 0 0 0 }\n",
                   4, "must not decrease"},
-        Malformed{"view keyword out of order", "v\nfrom 0 0 0\nup 0 1 0\n", 3,
-                  "expected 'at'"},
+        Malformed{"view keyword out of order", "v\nfrom 0 0 0\nup 0 1 0\n", 3, "expected 'at'"},
         Malformed{"missing texture", "m vertices 1 0 0 0\ntexturecoords 1 nope.ppm\n", 2,
                   "texture 'nope.ppm' not found"}));
 
@@ -221,9 +219,10 @@ TEST(AffParserTest, BracesMayOpenInOneFileAndCloseInAnother) {
   const auto dir = test::fresh_temp_dir("aff-braces");
   test::write_file(dir / "open.aff", "xs 1 1 1 0 1 0 0 0 0 0 {\n");
   test::write_file(dir / "close.aff", "}\n");
-  const Scene s = parse_aff_text("i 0 open.aff\np 3 0 0 0 1 0 0 0 1 0\ni 0 close.aff\n"
-                                 "p 3 0 0 0 1 0 0 0 1 0\n",
-                                 "main.aff", dir);
+  const Scene s = parse_aff_text(
+      "i 0 open.aff\np 3 0 0 0 1 0 0 0 1 0\ni 0 close.aff\n"
+      "p 3 0 0 0 1 0 0 0 1 0\n",
+      "main.aff", dir);
   ASSERT_EQ(s.nodes.size(), 2u);
   EXPECT_EQ(s.nodes[1].meshes.size(), 1u);
   EXPECT_EQ(s.nodes[0].meshes.size(), 1u);
@@ -232,8 +231,8 @@ TEST(AffParserTest, BracesMayOpenInOneFileAndCloseInAnother) {
 
 TEST(AffParserTest, TheLastDefinitionOfAKeyframeNameWins) {
   const auto dir = test::fresh_temp_dir("aff-k");
-  const Scene s = parse_aff_text(
-      "k a { visibility 1 0 0 }\nk a { visibility 1 0 1 }\nx a { }\n", "main.aff", dir);
+  const Scene s = parse_aff_text("k a { visibility 1 0 0 }\nk a { visibility 1 0 1 }\nx a { }\n",
+                                 "main.aff", dir);
   ASSERT_EQ(s.keyframes.at("a").visibility.size(), 1u);
   EXPECT_TRUE(s.keyframes.at("a").visibility[0].visible);
   std::filesystem::remove_all(dir);

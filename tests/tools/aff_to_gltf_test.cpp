@@ -114,7 +114,7 @@ TEST_F(HandSceneGltfTest, MapsMaterialsToMetallicRoughness) {
     }
   }
   ASSERT_NE(f, nullptr);
-  EXPECT_DOUBLE_EQ(f->pbrMetallicRoughness.metallicFactor, 0.3);              // Ks
+  EXPECT_DOUBLE_EQ(f->pbrMetallicRoughness.metallicFactor, 0.3);                     // Ks
   EXPECT_DOUBLE_EQ(f->pbrMetallicRoughness.roughnessFactor, std::sqrt(2.0 / 22.0));  // shine 20
   EXPECT_EQ(f->extras.Get("afr_ambient").Get(0).GetNumberAsDouble(), 0.0);
   ASSERT_NE(textured, nullptr);
@@ -220,8 +220,7 @@ TEST_F(HandSceneGltfTest, WritesCameraLightsAndSceneExtras) {
   EXPECT_EQ(m().nodes[size_t(camera)].camera, 0);
   expect_near(node_property(m(), camera, "translation", 0.0), {0, 1, 5}, 1e-6);
   expect_near(node_property(m(), camera, "translation", 2.0), {0, 1, 3}, 1e-6);
-  EXPECT_NEAR(same_rotation(node_property(m(), camera, "rotation", 2.0), 30, {0, 1, 0}), 1.0,
-              1e-7);
+  EXPECT_NEAR(same_rotation(node_property(m(), camera, "rotation", 2.0), 30, {0, 1, 0}), 1.0, 1e-7);
 
   ASSERT_EQ(m().lights.size(), 3u);
   for (const auto& light : m().lights) {
@@ -239,6 +238,68 @@ TEST_F(HandSceneGltfTest, WritesCameraLightsAndSceneExtras) {
   const auto& extras = m().scenes[0].extras;
   EXPECT_EQ(extras.Get("afr_background").Get(2).GetNumberAsDouble(), 0.3);
   EXPECT_EQ(extras.Get("afr_ambient").Get(0).GetNumberAsDouble(), 0.5);
+}
+
+// ---- Timelines glTF cannot hold as they are ------------------------------------------------
+
+GltfScene build_from_text(const std::string& text) {
+  const auto dir = test::fresh_temp_dir("aff-text");
+  const Scene scene = parse_aff_text(text, "t.aff", dir);
+  std::filesystem::remove_all(dir);
+  return build_gltf(scene);
+}
+
+// glTF times start at 0; a scene whose `a` starts at -1 (BART's museum) is shifted by +1 s.
+TEST(GltfTimelineTest, NegativeAnimationStartShiftsTheTimeline) {
+  const GltfScene g = build_from_text(
+      "a -1 5 7\nx obj { p 3 0 0 0 1 0 0 0 1 0 }\n"
+      "k obj { transl 4\n -2 0 0 0 0 0 0\n -1 1 0 0 0 0 0\n 3 5 0 0 0 0 0\n"
+      " 4 6 0 0 0 0 0 }\n");
+  EXPECT_EQ(g.time_offset, 1.0);
+  EXPECT_EQ(g.model.scenes[0].extras.Get("afr_time_offset").GetNumberAsDouble(), 1.0);
+  const int obj = find_node(g.model, "obj");
+  const auto* sampler = find_sampler(g.model, obj, "translation");
+  ASSERT_NE(sampler, nullptr);
+  EXPECT_GE(test::read_accessor(g.model, sampler->input).front(), 0.0);
+  // By hand (section 4.1): D_o = D_i = 4 on the segment from t = -1 to 3, so x = 1 + 4 u.
+  expect_near(node_property(g.model, obj, "translation", 0.0), {1, 0, 0}, 1e-6);
+  expect_near(node_property(g.model, obj, "translation", 2.0), {3, 0, 0}, 1e-6);
+  expect_near(node_property(g.model, obj, "translation", 4.0), {5, 0, 0}, 1e-6);
+}
+
+// Two keys at one time make the spline jump; glTF forbids equal times, so such a channel is
+// baked to LINEAR samples with the jump between two samples a fraction of a millisecond apart.
+TEST(GltfTimelineTest, RepeatedKeyTimesAreBakedWithTheJump) {
+  const GltfScene g = build_from_text(
+      "x obj { p 3 0 0 0 1 0 0 0 1 0 }\n"
+      "k obj { transl 6\n 0 0 0 0 0 0 0\n 1 1 0 0 0 0 0\n 2 2 0 0 0 0 0\n"
+      " 2 5 0 0 0 0 0\n 3 6 0 0 0 0 0\n 4 7 0 0 0 0 0 }\n");
+  const int obj = find_node(g.model, "obj");
+  const auto* sampler = find_sampler(g.model, obj, "translation");
+  ASSERT_NE(sampler, nullptr);
+  EXPECT_EQ(sampler->interpolation, "LINEAR");
+  const auto times = test::read_accessor(g.model, sampler->input);
+  for (size_t i = 1; i < times.size(); ++i) EXPECT_GT(times[i], times[i - 1]);
+  expect_near(node_property(g.model, obj, "translation", 1.0), {1, 0, 0}, 1e-6);
+  expect_near(node_property(g.model, obj, "translation", 2.0), {5, 0, 0}, 1e-6);
+  EXPECT_NEAR(node_property(g.model, obj, "translation", 2.0 - 1e-3)[0], 2.0, 0.01);
+  expect_near(node_property(g.model, obj, "translation", 3.0), {6, 0, 0}, 1e-6);
+}
+
+// Section 4.4: with only `transl`, the camera moves and keeps looking at v's `at`.
+TEST(GltfTimelineTest, CameraWithOnlyTranslationKeepsLookingAtTheTarget) {
+  const GltfScene g = build_from_text(
+      "v from 0 0 5 at 0 0 0 up 0 1 0 angle 40 hither 0.1 resolution 4 3\n"
+      "k camera { transl 4\n -1 5 0 0 0 0 0\n 0 5 0 0 0 0 0\n 1 0 0 5 0 0 0\n"
+      " 2 0 0 5 0 0 0 }\n");
+  const int camera = find_node(g.model, "camera");
+  for (double t = 0.0; t <= 1.0; t += 0.05) {
+    const auto eye = node_property(g.model, camera, "translation", t);
+    const glm::dvec3 expected = -glm::normalize(glm::dvec3(eye[0], eye[1], eye[2]));
+    const glm::dvec3 dir = rotate(node_property(g.model, camera, "rotation", t), {0, 0, -1});
+    EXPECT_NEAR(glm::length(dir - expected), 0.0, 1e-4) << "t " << t;
+    EXPECT_NEAR(rotate(node_property(g.model, camera, "rotation", t), {0, 1, 0}).y, 1.0, 1e-6);
+  }
 }
 
 // ---- The BART kitchen -----------------------------------------------------------------------

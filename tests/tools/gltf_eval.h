@@ -81,7 +81,7 @@ inline std::vector<double> evaluate_sampler(const tinygltf::Model& m,
   const bool cubic = s.interpolation == "CUBICSPLINE";
   const size_t per_key = cubic ? 3 : 1;
   const size_t n = values.size() / (keys * per_key);  // components per value
-  auto value = [&](size_t k, size_t part) {  // part: 0 in-tangent, 1 value, 2 out-tangent
+  auto value = [&](size_t k, size_t part) {           // part: 0 in-tangent, 1 value, 2 out-tangent
     const size_t element = cubic ? 3 * k + part : k;
     return std::vector<double>(values.begin() + long(element * n),
                                values.begin() + long((element + 1) * n));
@@ -138,8 +138,8 @@ inline std::vector<double> node_property(const tinygltf::Model& m, int node,
     return evaluate_sampler(m, *s, t, path == "rotation");
   }
   const tinygltf::Node& n = m.nodes[size_t(node)];
-  if (path == "translation") return n.translation.empty() ? std::vector<double>{0, 0, 0}
-                                                          : n.translation;
+  if (path == "translation")
+    return n.translation.empty() ? std::vector<double>{0, 0, 0} : n.translation;
   if (path == "rotation") return n.rotation.empty() ? std::vector<double>{0, 0, 0, 1} : n.rotation;
   return n.scale.empty() ? std::vector<double>{1, 1, 1} : n.scale;
 }
@@ -170,10 +170,9 @@ inline tinygltf::Model load_gltf(const std::string& path) {
   tinygltf::Model model;
   std::string err, warn;
   // Images are checked separately; tinygltf need not decode them.
-  loader.SetImageLoader(
-      [](tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*,
-         int, void*) { return true; },
-      nullptr);
+  loader.SetImageLoader([](tinygltf::Image*, const int, std::string*, std::string*, int, int,
+                           const unsigned char*, int, void*) { return true; },
+                        nullptr);
   if (!loader.LoadASCIIFromFile(&model, &err, &warn, path)) {
     throw std::runtime_error(path + ": " + err);
   }

@@ -161,9 +161,8 @@ inline std::filesystem::path write_hand_scene(const std::filesystem::path& dir) 
   write_file(dir / "TextureFiles" / "checker.ppm",
              "P3\n# a comment\n2 2\n# another\n15\n15 0 0   0 15 0\n0 0 15   7 7 7\n");
   // Binary P6 found next to the .aff (the fallback), with one extra trailing byte.
-  write_file(dir / "aff" / "gray.ppm",
-             std::string("P6\n# c\n2 1\n255\n") + std::string("\x0a\x14\x1e\x28\x32\x3c", 6) +
-                 "\n");
+  write_file(dir / "aff" / "gray.ppm", std::string("P6\n# c\n2 1\n255\n") +
+                                           std::string("\x0a\x14\x1e\x28\x32\x3c", 6) + "\n");
   return dir / "aff" / "scene.aff";
 }
 

@@ -83,8 +83,8 @@ TEST(TcbSplineTest, PassesThroughKeysAndClampsToTheInnerKeys) {
 // With T = C = B = 0 the spacing correction makes the velocity (per second) continuous at keys,
 // however unevenly they are spaced.
 TEST(TcbSplineTest, VelocityIsContinuousAtUnevenlySpacedKeys) {
-  const TcbSpline s({key(0, {0, 0, 0}), key(1, {1, 2, 0}), key(1.3, {2, 1, 1}),
-                     key(4, {0, 0, 3}), key(4.2, {1, 1, 1}), key(9, {0, 0, 0})});
+  const TcbSpline s({key(0, {0, 0, 0}), key(1, {1, 2, 0}), key(1.3, {2, 1, 1}), key(4, {0, 0, 3}),
+                     key(4.2, {1, 1, 1}), key(9, {0, 0, 0})});
   for (const double t : {1.3, 4.0}) {
     // Second-order one-sided differences from each side.
     const double h = 1e-5;

@@ -55,9 +55,7 @@ class Cursor {
     while (p_ != end_ && *p_ != '\n') ++p_;
   }
 
-  [[noreturn]] void fail(const std::string& what) const {
-    throw Error(here().str() + ": " + what);
-  }
+  [[noreturn]] void fail(const std::string& what) const { throw Error(here().str() + ": " + what); }
 
   // The whitespace-delimited token at the cursor, shortened for messages.
   std::string token_for_message() const {
@@ -175,8 +173,8 @@ class Parser {
   // material, has normals, has uvs.
   using MergeKey = std::tuple<int, bool, bool>;
 
-  void parse_file(std::string_view text, const std::string& name,
-                  const std::filesystem::path& dir, int depth) {
+  void parse_file(std::string_view text, const std::string& name, const std::filesystem::path& dir,
+                  int depth) {
     Cursor in(text, name);
     for (;;) {
       in.skip_space();

@@ -46,8 +46,8 @@ glm::dquat shortest_slerp(glm::dquat a, glm::dquat b, double s) {
 glm::dquat look_rotation(const glm::dvec3& dir, const glm::dvec3& up) {
   const glm::dvec3 d = glm::normalize(dir);
   glm::dvec3 x = glm::cross(d, up);
-  if (glm::length(x) < 1e-12) x = glm::cross(d, std::abs(d.y) < 0.9 ? glm::dvec3(0, 1, 0)
-                                                                     : glm::dvec3(1, 0, 0));
+  if (glm::length(x) < 1e-12)
+    x = glm::cross(d, std::abs(d.y) < 0.9 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0));
   x = glm::normalize(x);
   const glm::dvec3 y = glm::cross(x, d);
   return glm::normalize(glm::quat_cast(glm::dmat3(x, y, -d)));
@@ -188,7 +188,8 @@ class Builder {
       pbr.roughnessFactor = std::clamp(std::sqrt(2.0 / (std::max(m.shine, 0.0) + 2.0)), 0.02, 1.0);
       if (!m.texture.empty()) {
         auto it = textures.find(m.texture);
-        if (it == textures.end()) it = textures.emplace(m.texture, add_texture(m.texture, &uris)).first;
+        if (it == textures.end())
+          it = textures.emplace(m.texture, add_texture(m.texture, &uris)).first;
         pbr.baseColorTexture.index = it->second;
         g.name += " " + m.texture.filename().string();
       }
@@ -238,8 +239,7 @@ class Builder {
   // file parsed twice gives equal sets).
   PrimitiveAccessors geometry(const TriangleSet& set) {
     auto bytes = [](const auto& v) {
-      return std::string_view(reinterpret_cast<const char*>(v.data()),
-                              v.size() * sizeof(v[0]));
+      return std::string_view(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(v[0]));
     };
     const std::hash<std::string_view> h;
     size_t key = h(bytes(set.positions));
@@ -255,7 +255,8 @@ class Builder {
     }
     PrimitiveAccessors a;
     a.position = add_vec3s(set.positions, TINYGLTF_TARGET_ARRAY_BUFFER, true);
-    if (!set.normals.empty()) a.normal = add_vec3s(set.normals, TINYGLTF_TARGET_ARRAY_BUFFER, false);
+    if (!set.normals.empty())
+      a.normal = add_vec3s(set.normals, TINYGLTF_TARGET_ARRAY_BUFFER, false);
     if (!set.uvs.empty()) {
       a.uv = add_floats(&set.uvs[0].x, set.uvs.size(), 2, TINYGLTF_TARGET_ARRAY_BUFFER, false);
     }
@@ -471,8 +472,8 @@ class Builder {
     for (size_t j = 0; j + 1 < times.size(); ++j) {
       const double h = double(times[j + 1]) - double(times[j]);
       const TcbSpline::Tangents d = spline.segment_tangents(j + 1);
-      values[3 * j + 2] = glm::vec3(d.out_of_start / h);    // out-tangent of key j
-      values[3 * (j + 1)] = glm::vec3(d.into_end / h);      // in-tangent of key j + 1
+      values[3 * j + 2] = glm::vec3(d.out_of_start / h);  // out-tangent of key j
+      values[3 * (j + 1)] = glm::vec3(d.into_end / h);    // in-tangent of key j + 1
     }
     return {add_times(times), add_vec3s(values, 0, false), "CUBICSPLINE"};
   }
@@ -635,9 +636,9 @@ class Builder {
           if (j - 1 >= 1) mesh.weights[j - 2] = 1.0 - u;
           mesh.weights[j - 1] = u;
         }
-        add_channel(child, "weights",
-                    {add_times(gtimes),
-                     add_floats(weights.data(), weights.size(), 1, 0, false), "LINEAR"});
+        add_channel(
+            child, "weights",
+            {add_times(gtimes), add_floats(weights.data(), weights.size(), 1, 0, false), "LINEAR"});
       }
       model_.meshes.push_back(std::move(mesh));
       model_.nodes[size_t(child)].mesh = int(model_.meshes.size() - 1);
@@ -687,8 +688,7 @@ class Builder {
         if (keys->rotation.empty()) {
           // Only `transl`: the camera keeps looking at v's fixed `at` with v's `up`.
           rotation = look_rotation(view.at - eye, view.up);
-          add_channel(node, "rotation",
-                      rotation_channel(eye_spline.times(), [&](double t) {
+          add_channel(node, "rotation", rotation_channel(eye_spline.times(), [&](double t) {
                         return look_rotation(view.at - eye_spline.evaluate(t), view.up);
                       }));
         }
@@ -697,9 +697,8 @@ class Builder {
         // The rotation is absolute: identity looks down -Z with +Y up, like a glTF camera.
         const RotationSpline spline(keys->rotation);
         rotation = spline.evaluate(t0);
-        add_channel(node, "rotation", rotation_channel(spline.times(), [&](double t) {
-                      return spline.evaluate(t);
-                    }));
+        add_channel(node, "rotation",
+                    rotation_channel(spline.times(), [&](double t) { return spline.evaluate(t); }));
       }
     }
     set_trs(&model_.nodes[size_t(node)], eye, rotation, glm::dvec3(1.0));
@@ -737,8 +736,7 @@ class Builder {
         }
       }
     }
-    set_trs(&model_.nodes[size_t(node)], position, glm::dquat(1.0, 0.0, 0.0, 0.0),
-            glm::dvec3(1.0));
+    set_trs(&model_.nodes[size_t(node)], position, glm::dquat(1.0, 0.0, 0.0, 0.0), glm::dvec3(1.0));
     return node;
   }
 

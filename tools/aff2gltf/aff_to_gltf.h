@@ -34,11 +34,11 @@ struct GltfImage {
 };
 
 struct GltfScene {
-  tinygltf::Model model;           // buffers[0] holds all binary data; its uri is set on write
-  std::vector<GltfImage> images;   // parallel to model.images
+  tinygltf::Model model;          // buffers[0] holds all binary data; its uri is set on write
+  std::vector<GltfImage> images;  // parallel to model.images
   std::vector<std::string> warnings;
-  size_t triangle_count = 0;       // over all mesh instances in the node tree
-  double time_offset = 0.0;        // glTF time = AFF time + time_offset (see docs)
+  size_t triangle_count = 0;  // over all mesh instances in the node tree
+  double time_offset = 0.0;   // glTF time = AFF time + time_offset (see docs)
 };
 
 GltfScene build_gltf(const Scene& scene, const GltfOptions& options = {});

@@ -121,8 +121,8 @@ glm::dquat slerp(const glm::dquat& p, const glm::dquat& q, double s) {
   return glm::dquat(a * p.w + b * q.w, a * p.x + b * q.x, a * p.y + b * q.y, a * p.z + b * q.z);
 }
 
-glm::dquat squad(const glm::dquat& p, const glm::dquat& a, const glm::dquat& b,
-                 const glm::dquat& q, double s) {
+glm::dquat squad(const glm::dquat& p, const glm::dquat& a, const glm::dquat& b, const glm::dquat& q,
+                 double s) {
   return slerp(slerp(p, q, s), slerp(a, b, s), 2.0 * s * (1.0 - s));
 }
 

@@ -91,8 +91,8 @@ namespace quat {
 glm::dvec3 log(const glm::dquat& q);  // vector part of the pure quaternion log
 glm::dquat exp(const glm::dvec3& v);  // exp of the pure quaternion (0; v)
 glm::dquat slerp(const glm::dquat& p, const glm::dquat& q, double s);  // no shortest-path flip
-glm::dquat squad(const glm::dquat& p, const glm::dquat& a, const glm::dquat& b,
-                 const glm::dquat& q, double s);
+glm::dquat squad(const glm::dquat& p, const glm::dquat& a, const glm::dquat& b, const glm::dquat& q,
+                 double s);
 }  // namespace quat
 
 }  // namespace afr::aff

@@ -51,6 +51,14 @@ struct TileStats {
   int32_t occluded = 0;
 };
 
+// Section 4.1, gain control: dC/ds S = i dC/dt T solved for the mean tile width S, as a tile
+// count for a region of `pixels`, clamped to [min_tiles, max_tiles]. dC_ds is the image's
+// mean spatial gradient (luminance per pixel), dC_dt its mean temporal gradient (per second),
+// T the mean sample age (seconds). Finite for every input: with no spatial change the count
+// is min_tiles, with no temporal change max_tiles, with neither `current`.
+double gain_tile_count(double dC_ds, double dC_dt, double T, double i, double pixels,
+                       double min_tiles, double max_tiles, double current);
+
 class Sampler {
  public:
   Sampler(const Scene& scene, Tracer& tracer, Clock& clock, const SamplerConfig& config,

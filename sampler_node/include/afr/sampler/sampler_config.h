@@ -30,8 +30,9 @@ struct SamplerConfig {
   double lambda = 0.2;
   double m = 2.0;  // undersampling threshold (section 6.1)
   double i = 1.0;  // importance of temporal against spatial change in gain control (4.1)
-  int min_tiles = 8;
-  int max_tiles = 4096;  // also at most the region's pixel count
+  // Gain control's tile count bounds; the count never exceeds the region's pixels / 4.
+  int min_tiles = 16;
+  int max_tiles = 1024;
   int max_tiling_ops = 4;  // splits plus merges per adjustment
   bool occlusion_rays = true;
   // The scene's animation repeats over its keyframe range while the clock runs on.

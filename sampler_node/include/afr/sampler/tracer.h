@@ -1,6 +1,10 @@
 // The ray tracer of afr: an Embree 3 two-level BVH over a Scene (one instance of all static
 // geometry, one instance per moving mesh node, so a new time only updates instance transforms
 // and re-commits the top level) and the shading model the scene's materials ask for.
+// Shading follows glTF's conventions: BRDF = diffuse / pi + GGX, so a light of intensity I
+// (color 1) at distance d gives a white Lambertian surface facing it radiance I / (pi d^2)
+// (I / pi without falloff); ambient = Scene::ambient x (Material::ambient or base color) x
+// texture. The details are in sampler_node/src/shading.h.
 //
 // Order of calls: construct (the tracer keeps its own copy of the scene and starts at time 0),
 // optionally set_time(t), then any number of trace/trace_crosshair/occluded
@@ -22,9 +26,9 @@ struct TracerOptions {
   bool shadows = true;
   // Roughness at or below which a metallic material reflects as a mirror.
   float mirror_roughness = 0.1f;
-  // How trace_crosshair casts its five primary rays: one rtcIntersect8 with five active lanes
-  // (true) or five rtcIntersect1. Both give the same samples; afr-bench-tracer measures which
-  // is faster.
+  // How trace_crosshair casts its rays: as 8-wide packets (one rtcIntersect8 for the five
+  // primary rays, one rtcOccluded8 per light for their shadow rays) or as five trace() calls.
+  // Both give the same samples; afr-bench-tracer measures which is faster.
   bool packet_crosshair = true;
 };
 

@@ -1,0 +1,411 @@
+#include <afr/sampler/sampler.h>
+
+#include <afr/common/builtin_scene.h>
+#include <afr/common/error.h>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "test_scenes.h"
+
+namespace afr {
+namespace {
+
+using testing::CollectingSink;
+
+SamplerConfig small_config(int w, int h) {
+  SamplerConfig c;
+  c.width = w;
+  c.height = h;
+  c.seed = 7;
+  return c;
+}
+
+// Mean over a band of columns of 1 / (area of the tile covering each pixel): tiles per pixel.
+double tile_density(const Sampler& s, int32_t x0, int32_t x1) {
+  const PixelRect r = s.tiling().region();
+  double sum = 0.0;
+  int64_t n = 0;
+  for (int32_t y = r.y0; y < r.y1; ++y) {
+    for (int32_t x = x0; x < x1; ++x) {
+      sum += 1.0 / double(s.tiling().node(s.tiling().tile_at(x, y)).rect.area());
+      ++n;
+    }
+  }
+  return sum / double(n);
+}
+
+// The brute-force statistics of a tile, straight from the section 4 definitions.
+TileStats brute_force(const Sampler& s, int tile, double now) {
+  const PixelRect rect = s.tiling().node(tile).rect;
+  const DeepBuffer& b = s.buffer();
+  long double w = 0, wl = 0, wll = 0, wgx = 0, wgy = 0, wt = 0, wgt = 0, age = 0;
+  TileStats st;
+  // Weights relative to the newest crosshair: the same ratios as exp(-3.47 age), but finite
+  // even when every age is hours long.
+  double newest = -std::numeric_limits<double>::infinity();
+  for (int32_t y = rect.y0; y < rect.y1; ++y) {
+    for (int32_t x = rect.x0; x < rect.x1; ++x) {
+      for (int k = 0; k < b.count(x, y); ++k) newest = std::max(newest, b.at(x, y, k).time);
+    }
+  }
+  for (int32_t y = rect.y0; y < rect.y1; ++y) {
+    for (int32_t x = rect.x0; x < rect.x1; ++x) {
+      for (int k = 0; k < b.count(x, y); ++k) {
+        const Crosshair& c = b.at(x, y, k);
+        const long double wi = std::exp(-3.47L * (newest - c.time));
+        w += wi;
+        wl += wi * c.luminance;
+        wll += wi * c.luminance * c.luminance;
+        wgx += wi * c.G_x;
+        wgy += wi * c.G_y;
+        if (c.has(Crosshair::kHasTemporalGradient)) {
+          wt += wi;
+          wgt += wi * c.G_t;
+        }
+        age += now - c.time;
+        ++st.count;
+      }
+    }
+  }
+  if (st.count == 0) return st;
+  const long double mean = wl / w;
+  st.v = double(wll / w - mean * mean);
+  st.G_x = double(wgx / w);
+  st.G_y = double(wgy / w);
+  st.G_t = wt > 0 ? double(wgt / wt) : 0.0;
+  st.mean_age = double(age / st.count);
+  return st;
+}
+
+void expect_close(double incremental, double reference, double rel, const char* what) {
+  const double tol = rel * std::max(std::abs(reference), 1e-6);
+  EXPECT_NEAR(incremental, reference, tol) << what;
+}
+
+TEST(SamplerTest, FillCoversTheRegionAndEmitsEverySample) {
+  const Scene scene = testing::edge_scene();
+  Tracer tracer(scene);
+  VirtualClock clock(1e5);
+  CollectingSink sink;
+  SamplerConfig config = small_config(32, 16);
+  Sampler sampler(scene, tracer, clock, config, sink);
+  sampler.fill();
+  // One crosshair every 2 pixels in x and y.
+  EXPECT_EQ(sampler.buffer().size(), 16 * 8);
+  EXPECT_EQ(sampler.counters().samples, sink.samples.size());
+  EXPECT_EQ(clock.rays(), 16u * 8u * 5u);
+  EXPECT_GE(sampler.tiling().tile_count(), sampler.config().min_tiles);
+  EXPECT_TRUE(sampler.tiling().is_valid());
+}
+
+TEST(SamplerTest, TilesConcentrateAtAnEdge) {
+  const Scene scene = testing::edge_scene();
+  Tracer tracer(scene);
+  VirtualClock clock(1e5);
+  CollectingSink sink;
+  SamplerConfig config = small_config(64, 64);
+  config.max_tiles = 128;
+  Sampler sampler(scene, tracer, clock, config, sink);
+  sampler.fill();
+  for (int k = 0; k < 20000; ++k) sampler.step();
+  ASSERT_TRUE(sampler.tiling().is_valid());
+  const double near = tile_density(sampler, 28, 36);
+  const double far = 0.5 * (tile_density(sampler, 0, 8) + tile_density(sampler, 56, 64));
+  EXPECT_GE(near, 4.0 * far) << "near " << near << " far " << far << " tiles "
+                             << sampler.tiling().tile_count();
+}
+
+TEST(SamplerTest, SmallTilesFollowAMovingObject) {
+  const Scene scene = testing::moving_scene();
+  Tracer tracer(scene);
+  VirtualClock clock(4e5);
+  CollectingSink sink;
+  SamplerConfig config = small_config(64, 64);
+  config.max_tiles = 128;
+  Sampler sampler(scene, tracer, clock, config, sink);
+  sampler.fill();
+  // Stop at two times with the square on opposite sides; the smallest tiles go with it.
+  for (double stop : {1.25, 1.75}) {
+    while (clock.now() < stop) sampler.step();
+    tracer.set_time(clock.now());
+    const Camera cam = tracer.camera();
+    const glm::dvec3 center(scene.evaluate(clock.now()).world[2][3]);
+    glm::dvec2 xy;
+    ASSERT_TRUE(cam.project(glm::dvec3(center.x, center.y, -1.0), 64, 64, &xy, nullptr));
+    const int32_t cx = std::clamp(int32_t(xy.x), 8, 56);
+    const double at_object = tile_density(sampler, cx - 6, cx + 6);
+    const int32_t away = cx < 32 ? 50 : 8;
+    const double elsewhere = tile_density(sampler, away - 6, away + 6);
+    EXPECT_GT(at_object, 2.0 * elsewhere) << "t=" << stop << " object column " << cx;
+  }
+}
+
+TEST(SamplerTest, IncrementalStatisticsEqualBruteForceOverHoursOfVirtualTime) {
+  const Scene scene = testing::moving_scene();
+  Tracer tracer(scene);
+  // 200 rays per second: a million rays take well over an hour of virtual time, so old
+  // weights underflow many times over.
+  VirtualClock clock(200.0);
+  CollectingSink sink;
+  SamplerConfig config = small_config(24, 24);
+  config.max_tiles = 32;
+  Sampler sampler(scene, tracer, clock, config, sink);
+  sampler.fill();
+  uint64_t inserted = 0;
+  while (inserted < 1000000) {
+    sampler.step();
+    inserted = sampler.counters().crosshairs + sampler.counters().reprojections;
+    if (sink.samples.size() > 100000) sink.samples.clear();
+  }
+  EXPECT_GT(clock.now(), 3600.0);
+  for (int t : sampler.tiling().tiles()) {
+    const TileStats inc = sampler.tile_stats(t);
+    const TileStats ref = brute_force(sampler, t, clock.now());
+    ASSERT_EQ(inc.count, ref.count);
+    EXPECT_GE(inc.v, 0.0);
+    expect_close(inc.v, ref.v, 1e-6, "v");
+    expect_close(inc.G_x, ref.G_x, 1e-6, "G_x");
+    expect_close(inc.G_y, ref.G_y, 1e-6, "G_y");
+    expect_close(inc.G_t, ref.G_t, 1e-6, "G_t");
+    expect_close(inc.mean_age, ref.mean_age, 1e-6, "mean age");
+  }
+}
+
+TEST(SamplerTest, GainControlIsFiniteAndBoundedAtTheExtremes) {
+  const double inf = std::numeric_limits<double>::infinity();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double cases[][3] = {
+      {0, 0, 0},          {0, 1, 1},   {1, 0, 1},   {1, 1, 0},   {1e300, 1, 1}, {1, 1e300, 1e300},
+      {1e-300, 1e300, 1}, {inf, 1, 1}, {1, inf, 1}, {nan, 1, 1}, {1, nan, nan}, {1e-20, 1e-20, 1}};
+  for (const auto& c : cases) {
+    const double n = gain_tile_count(c[0], c[1], c[2], 1.0, 65536.0, 16.0, 1024.0, 100.0);
+    EXPECT_TRUE(std::isfinite(n)) << c[0] << " " << c[1] << " " << c[2];
+    EXPECT_GE(n, 16.0);
+    EXPECT_LE(n, 1024.0);
+  }
+  // No temporal change: the most tiles; no spatial change: the fewest.
+  EXPECT_EQ(gain_tile_count(0.1, 0.0, 1.0, 1.0, 65536.0, 16.0, 1024.0, 100.0), 1024.0);
+  EXPECT_EQ(gain_tile_count(0.0, 0.5, 1.0, 1.0, 65536.0, 16.0, 1024.0, 100.0), 16.0);
+  // In between: S = i dC/dt T / dC/ds = 2 * 0.5 * 0.4 / 0.1 = 4 pixels -> 65536 / 16 tiles.
+  EXPECT_NEAR(gain_tile_count(0.1, 0.5, 0.4, 2.0, 65536.0, 16.0, 8192.0, 100.0), 4096.0, 1e-6);
+}
+
+TEST(SamplerTest, SameSeedGivesTheSameSampleStream) {
+  const Scene scene = make_builtin_scene();
+  Tracer tracer_a(scene), tracer_b(scene);
+  VirtualClock clock_a(1e5), clock_b(1e5);
+  CollectingSink a, b;
+  SamplerConfig config = small_config(48, 32);
+  Sampler sa(scene, tracer_a, clock_a, config, a);
+  Sampler sb(scene, tracer_b, clock_b, config, b);
+  sa.fill();
+  sb.fill();
+  for (int k = 0; k < 3000; ++k) {
+    sa.step();
+    sb.step();
+  }
+  sa.flush();
+  sb.flush();
+  ASSERT_EQ(a.samples.size(), b.samples.size());
+  for (size_t i = 0; i < a.samples.size(); ++i) {
+    ASSERT_EQ(a.samples[i].time, b.samples[i].time) << i;
+    ASSERT_EQ(a.samples[i].x, b.samples[i].x) << i;
+    ASSERT_EQ(a.samples[i].color, b.samples[i].color) << i;
+  }
+  EXPECT_EQ(a.snapshots.size(), b.snapshots.size());
+}
+
+TEST(SamplerTest, ReprojectedCrosshairsLandWhereAFreshTraceSeesTheirPoint) {
+  // A static wall with a camera that slides sideways: every reprojection is pure camera motion.
+  Scene scene = testing::camera_scene();
+  testing::add_quad(&scene, glm::vec3(0.5f), {-20, -20}, {20, 20}, -3.0f);
+  testing::add_quad(&scene, glm::vec3(1.0f), {-0.5f, -0.5f}, {0.5f, 0.5f}, -2.0f);
+  AnimationChannel ch;
+  ch.node = 0;
+  ch.path = AnimatedPath::kTranslation;
+  ch.interpolation = Interpolation::kLinear;
+  ch.times = {0.0, 1.0};
+  ch.values = {{0, 0, 0, 0}, {1, 0, 0, 0}};
+  scene.channels.push_back(ch);
+  scene.finalize();
+  Tracer tracer(scene);
+  VirtualClock clock(2e5);
+  CollectingSink sink;
+  SamplerConfig config = small_config(64, 64);
+  config.animation_step = 0.0;  // the camera moves before every crosshair
+  config.loop_animation = false;
+  Sampler sampler(scene, tracer, clock, config, sink);
+  sampler.fill();
+  while (clock.now() < 0.5) sampler.step();
+  tracer.set_time(clock.now());
+  const Camera cam = tracer.camera();
+  int checked = 0;
+  TraceStats stats;
+  const PixelRect r = sampler.tiling().region();
+  for (int32_t y = r.y0; y < r.y1; ++y) {
+    for (int32_t x = r.x0; x < r.x1; ++x) {
+      for (int k = 0; k < sampler.buffer().count(x, y); ++k) {
+        const Crosshair& c = sampler.buffer().at(x, y, k);
+        glm::dvec2 xy;
+        // Crosshairs placed with the camera of this instant project onto their own position.
+        if (!cam.project(glm::dvec3(c.position), 64, 64, &xy, nullptr)) continue;
+        if (glm::length(xy - glm::dvec2(c.x, c.y)) > 1e-3) continue;
+        const ShadedSample fresh = tracer.trace(cam.ray(c.x, c.y, 64, 64), &stats);
+        glm::dvec2 fresh_xy;
+        ASSERT_TRUE(cam.project(glm::dvec3(fresh.position), 64, 64, &fresh_xy, nullptr));
+        // The same surface point (within half a pixel), unless the square now hides it.
+        if (std::abs(fresh.color.r - 1.0f) < 1e-6f && std::abs(c.luminance - 1.0f) > 1e-3f) {
+          continue;
+        }
+        EXPECT_LT(glm::length(fresh_xy - glm::dvec2(c.x, c.y)), 0.5);
+        EXPECT_LT(glm::length(glm::dvec3(fresh.position) - glm::dvec3(c.position)), 0.05);
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GT(sampler.counters().reprojections, 1000u);
+  EXPECT_GT(checked, 50);
+}
+
+TEST(SamplerTest, OcclusionRaysCatchAnObjectMovingInFront) {
+  const Scene scene = testing::moving_scene();
+  Tracer tracer(scene);
+  VirtualClock clock(2e5);
+  CollectingSink sink;
+  Sampler sampler(scene, tracer, clock, small_config(64, 64), sink);
+  sampler.fill();
+  while (clock.now() < 1.0) sampler.step();
+  EXPECT_GT(sampler.counters().occlusion_rays, 0u);
+  EXPECT_GT(sampler.counters().occlusion_hits, 0u);
+}
+
+TEST(SamplerTest, OnePixelRegionWorks) {
+  const Scene scene = testing::edge_scene();
+  Tracer tracer(scene);
+  VirtualClock clock(1e5);
+  CollectingSink sink;
+  SamplerConfig config = small_config(64, 64);
+  config.region = PixelRect{31, 40, 32, 41};
+  Sampler sampler(scene, tracer, clock, config, sink);
+  sampler.fill();
+  for (int k = 0; k < 2000; ++k) sampler.step();
+  EXPECT_EQ(sampler.tiling().tile_count(), 1);
+  EXPECT_LE(sampler.buffer().size(), 4);
+  sampler.flush();
+  for (const Sample& s : sink.samples) {
+    EXPECT_TRUE(std::isfinite(s.color.r));
+    EXPECT_GE(s.x, 29.0f);  // crosshair neighbours reach one pixel out
+    EXPECT_LE(s.x, 33.0f);
+  }
+}
+
+TEST(SamplerTest, HugeImageWithSmallRegionAllocatesForTheRegionOnly) {
+  const Scene scene = testing::edge_scene();
+  Tracer tracer(scene);
+  VirtualClock clock(1e5);
+  CollectingSink sink;
+  SamplerConfig config = small_config(32768, 32768);
+  config.region = PixelRect{16000, 16000, 16064, 16032};
+  Sampler sampler(scene, tracer, clock, config, sink);
+  sampler.fill();
+  for (int k = 0; k < 2000; ++k) sampler.step();
+  EXPECT_EQ(sampler.buffer().capacity(), 64 * 32 * 4);
+  sampler.flush();
+  for (const Sample& s : sink.samples) {
+    EXPECT_GE(s.x, 15999.0f);
+    EXPECT_LT(s.x, 16065.0f);
+  }
+}
+
+TEST(SamplerTest, AllBlackSceneStaysFinite) {
+  Scene scene = testing::camera_scene();
+  testing::add_quad(&scene, glm::vec3(0.0f), {-10, -10}, {10, 10});
+  scene.finalize();
+  Tracer tracer(scene);
+  VirtualClock clock(1e5);
+  CollectingSink sink;
+  Sampler sampler(scene, tracer, clock, small_config(32, 32), sink);
+  sampler.fill();
+  for (int k = 0; k < 5000; ++k) sampler.step();
+  for (int t : sampler.tiling().tiles()) {
+    const TileStats st = sampler.tile_stats(t);
+    EXPECT_EQ(st.v, 0.0);
+    EXPECT_TRUE(std::isfinite(sampler.tile_error(t)));
+  }
+  for (const TilingSnapshot& snap : sink.snapshots) {
+    for (const TileInfo& info : snap.tiles) {
+      EXPECT_TRUE(std::isfinite(info.rate) && std::isfinite(info.E) && std::isfinite(info.G_t));
+    }
+  }
+}
+
+TEST(SamplerTest, NonFiniteShadingIsSanitisedAndCounted) {
+  Scene scene = testing::camera_scene();
+  testing::add_quad(&scene, glm::vec3(std::numeric_limits<float>::quiet_NaN()), {-10, -10},
+                    {10, 10});
+  scene.finalize();
+  Tracer tracer(scene);
+  VirtualClock clock(1e5);
+  CollectingSink sink;
+  Sampler sampler(scene, tracer, clock, small_config(16, 16), sink);
+  sampler.fill();
+  for (int k = 0; k < 200; ++k) sampler.step();
+  sampler.flush();
+  EXPECT_GT(sampler.counters().sanitized, 0u);
+  for (const Sample& s : sink.samples) {
+    EXPECT_TRUE(std::isfinite(s.color.r) && std::isfinite(s.color.g) && std::isfinite(s.color.b));
+  }
+  for (int t : sampler.tiling().tiles()) EXPECT_TRUE(std::isfinite(sampler.tile_stats(t).v));
+}
+
+TEST(SamplerTest, BaselinesSampleUniformly) {
+  const Scene scene = testing::edge_scene();
+  Tracer tracer(scene);
+  VirtualClock clock(1e5);
+  CollectingSink sink;
+  SamplerConfig config = small_config(8, 4);
+  config.mode = SamplerMode::kFramedSweep;
+  Sampler sweep(scene, tracer, clock, config, sink);
+  sweep.fill();
+  for (int k = 0; k < 64; ++k) sweep.step();
+  sweep.flush();
+  ASSERT_EQ(sink.samples.size(), 64u);
+  for (int k = 0; k < 64; ++k) {
+    EXPECT_EQ(sink.samples[k].x, float(k % 8) + 0.5f);
+    EXPECT_EQ(sink.samples[k].y, float((k / 8) % 4) + 0.5f);
+  }
+  // Uniform random: every pixel of a small image is hit about equally often.
+  CollectingSink uniform_sink;
+  config.mode = SamplerMode::kUniformRandom;
+  Sampler uniform(scene, tracer, clock, config, uniform_sink);
+  uniform.fill();
+  for (int k = 0; k < 32000; ++k) uniform.step();
+  uniform.flush();
+  std::vector<int> hits(32, 0);
+  for (const Sample& s : uniform_sink.samples) ++hits[int(s.y) * 8 + int(s.x)];
+  for (int h : hits) EXPECT_NEAR(h, 1000, 150);
+}
+
+TEST(SamplerTest, ConfigOutOfRangeIsAClearError) {
+  SamplerConfig c;
+  c.kappa = 0.8;
+  c.lambda = 0.5;
+  try {
+    c.validate();
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("lambda"), std::string::npos);
+  }
+  SamplerConfig d;
+  d.region = PixelRect{0, 0, 300, 10};
+  EXPECT_THROW(d.validate(), Error);
+  SamplerConfig e;
+  e.b = 0;
+  EXPECT_THROW(e.validate(), Error);
+}
+
+}  // namespace
+}  // namespace afr

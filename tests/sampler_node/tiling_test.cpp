@@ -1,0 +1,123 @@
+#include <afr/sampler/tiling.h>
+
+#include <afr/common/random.h>
+
+#include <gtest/gtest.h>
+
+#include <vector>
+
+namespace afr {
+namespace {
+
+// Independent of KdTiling::is_valid: every pixel lies in exactly one listed tile.
+void expect_exact_partition(const KdTiling& t) {
+  const PixelRect r = t.region();
+  std::vector<int> cover(size_t(r.area()), 0);
+  for (int id : t.tiles()) {
+    const PixelRect q = t.node(id).rect;
+    for (int32_t y = q.y0; y < q.y1; ++y) {
+      for (int32_t x = q.x0; x < q.x1; ++x) ++cover[size_t(y - r.y0) * r.width() + (x - r.x0)];
+    }
+  }
+  for (int32_t y = r.y0; y < r.y1; ++y) {
+    for (int32_t x = r.x0; x < r.x1; ++x) {
+      ASSERT_EQ(cover[size_t(y - r.y0) * r.width() + (x - r.x0)], 1) << x << "," << y;
+      const int id = t.tile_at(x, y);
+      ASSERT_TRUE(t.node(id).rect.contains(x, y));
+    }
+  }
+}
+
+TEST(TilingTest, StartsAsOneTileCoveringTheRegion) {
+  KdTiling t(PixelRect{3, 5, 40, 29});
+  EXPECT_EQ(t.tile_count(), 1);
+  EXPECT_EQ(t.node(t.tiles()[0]).rect, (PixelRect{3, 5, 40, 29}));
+  EXPECT_TRUE(t.is_valid());
+}
+
+TEST(TilingTest, SplitHalvesTheLongerSide) {
+  KdTiling t(PixelRect{0, 0, 10, 4});
+  int a, b;
+  t.split(t.root(), &a, &b);
+  EXPECT_EQ(t.node(a).rect, (PixelRect{0, 0, 5, 4}));
+  EXPECT_EQ(t.node(b).rect, (PixelRect{5, 0, 10, 4}));
+  int c, d;
+  t.split(a, &c, &d);  // 5 x 4: still wider than tall
+  EXPECT_EQ(t.node(c).rect, (PixelRect{0, 0, 2, 4}));
+  EXPECT_EQ(t.node(d).rect, (PixelRect{2, 0, 5, 4}));
+}
+
+TEST(TilingTest, OnePixelTilesCannotSplit) {
+  KdTiling t(PixelRect{0, 0, 2, 1});
+  int a, b;
+  t.split(t.root(), &a, &b);
+  EXPECT_FALSE(t.can_split(a));
+  EXPECT_FALSE(t.can_split(b));
+  KdTiling single(PixelRect{7, 7, 8, 8});
+  EXPECT_FALSE(single.can_split(single.root()));
+}
+
+TEST(TilingTest, DepthIsBounded) {
+  KdTiling t(PixelRect{0, 0, 1024, 1024}, 3);
+  int leaf = t.root();
+  for (int depth = 0; depth < 3; ++depth) {
+    int a, b;
+    t.split(leaf, &a, &b);
+    leaf = a;
+  }
+  EXPECT_FALSE(t.can_split(leaf));
+}
+
+TEST(TilingTest, MergeKeepsTilesAPartitionOverRandomSequences) {
+  Pcg32 rng(42);
+  for (int run = 0; run < 20; ++run) {
+    const int32_t w = 1 + int32_t(rng.next_below(48)), h = 1 + int32_t(rng.next_below(48));
+    const int32_t x0 = int32_t(rng.next_below(100)), y0 = int32_t(rng.next_below(100));
+    KdTiling tiling(PixelRect{x0, y0, x0 + w, y0 + h});
+    for (int op = 0; op < 300; ++op) {
+      if (rng.next_below(2) == 0) {
+        const int leaf = tiling.tiles()[rng.next_below(uint32_t(tiling.tile_count()))];
+        if (tiling.can_split(leaf)) tiling.split(leaf, nullptr, nullptr);
+      } else if (!tiling.mergeable().empty()) {
+        const int p = tiling.mergeable()[rng.next_below(uint32_t(tiling.mergeable().size()))];
+        ASSERT_TRUE(tiling.can_merge(p));
+        tiling.merge(p);
+      }
+      ASSERT_TRUE(tiling.is_valid());
+      if (op % 50 == 0) expect_exact_partition(tiling);
+    }
+    expect_exact_partition(tiling);
+  }
+}
+
+TEST(TilingTest, MergeableListsExactlyTheParentsOfTwoLeaves) {
+  KdTiling t(PixelRect{0, 0, 16, 16});
+  int a, b, c, d;
+  t.split(t.root(), &a, &b);
+  EXPECT_EQ(t.mergeable(), std::vector<int>{t.root()});
+  t.split(a, &c, &d);
+  // The root now has a non-leaf child; only a can merge.
+  EXPECT_EQ(t.mergeable(), std::vector<int>{a});
+  t.merge(a);
+  EXPECT_EQ(t.mergeable(), std::vector<int>{t.root()});
+  t.merge(t.root());
+  EXPECT_TRUE(t.mergeable().empty());
+  EXPECT_EQ(t.tile_count(), 1);
+}
+
+TEST(TilingTest, HugeRegionNeedsNoPerPixelMemory) {
+  // 32768 x 32768: tile_at must work without anything proportional to the area.
+  KdTiling t(PixelRect{0, 0, 32768, 32768});
+  int leaf = t.root();
+  for (int k = 0; k < 30; ++k) {
+    int a, b;
+    t.split(leaf, &a, &b);
+    leaf = b;
+  }
+  EXPECT_EQ(t.tile_at(32767, 32767), leaf);
+  EXPECT_EQ(t.node(leaf).rect.area(), 1);
+  EXPECT_TRUE(t.is_valid());
+}
+
+}  // namespace
+}  // namespace afr
