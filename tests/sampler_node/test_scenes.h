@@ -3,7 +3,7 @@
 #pragma once
 
 #include <afr/common/scene.h>
-#include <afr/sampler/sample.h>
+#include <afr/common/samples.h>
 
 #include <vector>
 

@@ -509,14 +509,16 @@ class Parser {
         while (*link != kNone && (corners[*link].n != n[k] || corners[*link].t != t[k])) {
           link = &corners[*link].next;
         }
-        if (*link == kNone) {
-          *link = uint32_t(corners.size());
+        uint32_t corner = *link;
+        if (corner == kNone) {
+          corner = uint32_t(corners.size());
+          *link = corner;  // before push_back, which may move `corners` (and `link` into it)
           corners.push_back({n[k], t[k], uint32_t(set.positions.size()), kNone});
           set.positions.push_back(positions[size_t(v[k])]);
           if (!normals.empty()) set.normals.push_back(normals[size_t(n[k])]);
           if (!uvs.empty()) set.uvs.push_back(uvs[size_t(t[k])]);
         }
-        set.indices.push_back(corners[*link].out);
+        set.indices.push_back(corners[corner].out);
       }
     }
     if (!set.indices.empty()) current().meshes.push_back(std::move(set));

@@ -17,14 +17,14 @@ struct Crosshair {
   enum Flags : uint8_t {
     kCenterHit = 1u << 0,
     kHasTemporalGradient = 1u << 1,
-    kOccluded = 1u << 2,        // replaced a crosshair that an occlusion ray found hidden
-    kNeighborHit0 = 1u << 3,    // neighbour k hit something: bit kNeighborHit0 << k
+    kOccluded = 1u << 2,      // replaced a crosshair that an occlusion ray found hidden
+    kNeighborHit0 = 1u << 3,  // neighbour k hit something: bit kNeighborHit0 << k
   };
   // Neighbour order: x-1, x+1, y-1, y+1.
   static constexpr int kLeft = 0, kRight = 1, kUp = 2, kDown = 3;
 
-  double time = 0.0;      // when the center was traced
-  double old_time = 0.0;  // t0
+  double time = 0.0;         // when the center was traced
+  double old_time = 0.0;     // t0
   glm::vec3 position{0.0f};  // center world hit point (direction on a miss)
   glm::vec3 velocity{0.0f};
   glm::vec3 neighbor_position[4] = {};

@@ -10,9 +10,9 @@
 
 #include <afr/common/clock.h>
 #include <afr/common/random.h>
+#include <afr/common/samples.h>
 #include <afr/common/scene.h>
 #include <afr/sampler/deep_buffer.h>
-#include <afr/sampler/sample.h>
 #include <afr/sampler/sampler_config.h>
 #include <afr/sampler/tiling.h>
 #include <afr/sampler/tracer.h>
@@ -22,6 +22,21 @@
 
 namespace afr {
 
+// What the sampler counts.
+struct SamplerCounters {
+  uint64_t samples = 0;     // primary rays traced and emitted
+  uint64_t crosshairs = 0;  // crosshairs completed
+  uint64_t reprojections = 0;
+  uint64_t reprojections_dropped = 0;  // left the region or went behind the camera
+  uint64_t occlusion_rays = 0;
+  uint64_t occlusion_hits = 0;
+  uint64_t splits = 0;
+  uint64_t merges = 0;
+  uint64_t sanitized = 0;  // non-finite shading values replaced by the tracer
+  uint64_t snapshots = 0;
+  uint64_t batches = 0;
+};
+
 // Sample weights decline with age a as exp(-kAgeDecay * a) (section 4).
 inline constexpr double kAgeDecay = 3.47;
 
@@ -29,11 +44,11 @@ inline constexpr double kAgeDecay = 3.47;
 // exp(kAgeDecay * (t - t_ref)) relative to a per-tile reference time, so the sums never need
 // to decay: every weight shrinks by the same factor as time passes, which ratios ignore.
 struct TileSums {
-  double t_ref = 0.0;  // reference time of the weights
-  double shift = 0.0;  // luminance subtracted before summing (numerically stable variance)
-  double w = 0.0;      // sum of weights
-  double wl = 0.0;     // sum of w * (L - shift)
-  double wll = 0.0;    // sum of w * (L - shift)^2
+  double t_ref = 0.0;           // reference time of the weights
+  double shift = 0.0;           // luminance subtracted before summing (numerically stable variance)
+  double w = 0.0;               // sum of weights
+  double wl = 0.0;              // sum of w * (L - shift)
+  double wll = 0.0;             // sum of w * (L - shift)^2
   double wgx = 0.0, wgy = 0.0;  // sums of w * G_x, w * G_y
   double wt = 0.0, wgt = 0.0;   // over crosshairs with a temporal gradient: w, w * G_t
   double t_sum = 0.0;           // sum of (t - t_ref), for the mean age
@@ -44,7 +59,7 @@ struct TileSums {
 
 // What the sums say about a block.
 struct TileStats {
-  double v = 0.0;    // age-weighted luminance variance, >= 0
+  double v = 0.0;  // age-weighted luminance variance, >= 0
   double G_x = 0.0, G_y = 0.0, G_t = 0.0;
   double mean_age = 0.0;  // seconds
   int32_t count = 0;

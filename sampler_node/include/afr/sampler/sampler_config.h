@@ -22,8 +22,8 @@ struct SamplerConfig {
   uint32_t sampler_id = 0;
   uint64_t seed = 1;
 
-  int b = 4;      // deep buffer depth (section 4)
-  int r = 5;      // reprojections per tile visit (section 6.1); 0 = no reprojection
+  int b = 4;       // deep buffer depth (section 4)
+  int r = 5;       // reprojections per tile visit (section 6.1); 0 = no reprojection
   int chunk = 25;  // crosshairs between tiling adjustments (section 4.2)
   // Error weights of section 6.1: kappa (variance), lambda (undersampling), the rest occlusion.
   double kappa = 0.6;
@@ -39,8 +39,8 @@ struct SamplerConfig {
   bool loop_animation = true;
 
   double refresh_interval = 1.0 / 60.0;  // seconds between tiling snapshots
-  double animation_step = 1e-3;  // the tracer's scene time follows the clock in these steps
-  int fill_step = 2;    // initial fill: one crosshair every fill_step pixels in x and y
+  double animation_step = 1e-3;          // the tracer's scene time follows the clock in these steps
+  int fill_step = 2;     // initial fill: one crosshair every fill_step pixels in x and y
   int batch_size = 128;  // samples per emitted batch
 
   // The region actually owned (`region`, or the whole image when it is empty).

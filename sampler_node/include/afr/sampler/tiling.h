@@ -4,23 +4,12 @@
 // This class holds only the geometry; statistics live with the sampler.
 #pragma once
 
+#include <afr/common/rect.h>
+
 #include <cstdint>
 #include <vector>
 
 namespace afr {
-
-// A half-open pixel rectangle [x0, x1) x [y0, y1). 32-bit coordinates address images of up to
-// 2^31 pixels a side; areas are 64-bit.
-struct PixelRect {
-  int32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
-
-  int32_t width() const { return x1 - x0; }
-  int32_t height() const { return y1 - y0; }
-  int64_t area() const { return int64_t(width()) * int64_t(height()); }
-  bool empty() const { return x1 <= x0 || y1 <= y0; }
-  bool contains(int32_t x, int32_t y) const { return x >= x0 && x < x1 && y >= y0 && y < y1; }
-  bool operator==(const PixelRect&) const = default;
-};
 
 class KdTiling {
  public:

@@ -1,10 +1,10 @@
-// What the sampler emits: frameless samples in batches, tiling snapshots at the refresh rate,
-// and counters; and the sink interface that receives them (the network in sampler_node, the
-// reconstructor directly in evaluations and tests).
+// What samplers emit and reconstructors consume: frameless samples in batches and tiling
+// snapshots at the refresh rate, and the sink interface that receives them (the network in
+// sampler_node, the reconstructor directly in evaluations and tests).
 #pragma once
 
 #include <afr/common/math.h>
-#include <afr/sampler/tiling.h>
+#include <afr/common/rect.h>
 
 #include <cstdint>
 #include <vector>
@@ -40,9 +40,9 @@ struct TileInfo {
   PixelRect rect;
   float G_x = 0.0f;  // luminance per pixel
   float G_y = 0.0f;
-  float G_t = 0.0f;  // luminance per second
-  float v = 0.0f;    // age-weighted luminance variance
-  float E = 0.0f;    // error that drives split and merge
+  float G_t = 0.0f;    // luminance per second
+  float v = 0.0f;      // age-weighted luminance variance
+  float E = 0.0f;      // error that drives split and merge
   uint32_t count = 0;  // crosshairs in the tile's block
   float rate = 0.0f;   // local sampling rate, samples per pixel per second
 };
@@ -52,20 +52,6 @@ struct TilingSnapshot {
   double time = 0.0;  // display-clock seconds
   PixelRect region;   // the part of the image this sampler owns
   std::vector<TileInfo> tiles;
-};
-
-struct SamplerCounters {
-  uint64_t samples = 0;      // primary rays traced and emitted
-  uint64_t crosshairs = 0;   // crosshairs completed
-  uint64_t reprojections = 0;
-  uint64_t reprojections_dropped = 0;  // left the region or went behind the camera
-  uint64_t occlusion_rays = 0;
-  uint64_t occlusion_hits = 0;
-  uint64_t splits = 0;
-  uint64_t merges = 0;
-  uint64_t sanitized = 0;  // non-finite shading values replaced by the tracer
-  uint64_t snapshots = 0;
-  uint64_t batches = 0;
 };
 
 // Receives the sampler's output, on the sampler's thread. Batches are handed over by value
