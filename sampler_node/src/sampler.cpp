@@ -16,6 +16,8 @@ namespace {
 constexpr double kMaxReferenceAge = 20.0;
 // The smallest time difference a temporal gradient divides by (guards t - t0 near zero).
 constexpr double kMinTemporalSeconds = 1e-4;
+// Reprojections that move a crosshair less than this (pixels) leave its temporal gradient.
+constexpr double kMinMoveForTemporal = 1e-3;
 // The smallest pixel distance a reprojected spatial gradient divides by.
 constexpr double kMinPixelDistance = 0.25;
 
@@ -196,11 +198,12 @@ void Sampler::reproject_one(int tile) {
   };
   glm::dvec2 xy;
   const bool hit = c.has(Crosshair::kCenterHit);
-  if (!project(c.position, hit, &xy) || !region_.contains(int32_t(std::floor(xy.x)),
-                                                          int32_t(std::floor(xy.y)))) {
+  if (!project(c.position, hit, &xy) ||
+      !region_.contains(int32_t(std::floor(xy.x)), int32_t(std::floor(xy.y)))) {
     ++counters_.reprojections_dropped;  // left the region or went behind the camera
     return;
   }
+  const double moved = glm::length(xy - glm::dvec2(c.x, c.y));
   c.x = float(xy.x);
   c.y = float(xy.y);
   if (hit) c.position = glm::vec3(glm::dvec3(c.position) + motion);
@@ -220,13 +223,20 @@ void Sampler::reproject_one(int tile) {
   c.G_x = float(0.5 * (g[Crosshair::kLeft] + g[Crosshair::kRight]));
   c.G_y = float(0.5 * (g[Crosshair::kUp] + g[Crosshair::kDown]));
 
-  // Temporal gradient against the newest sample at the new pixel. (The paper divides by that
-  // sample's age; the time between the two samples is what separates them, so afr uses it.)
+  // Temporal gradient against the newest sample at the new pixel (section 6.1). Two changes
+  // from the paper: it divides by the time between the two samples (the paper divides by the
+  // newest sample's age, which is not what separates them), and it first takes away the
+  // difference that the crosshair's own spatial gradients explain for the sub-pixel offset
+  // between the two, so that an edge inside a pixel does not pass for change over time. A
+  // crosshair that did not move (a still view of a still object) keeps its gradient: its
+  // point is where it was, and any difference to its neighbour is spatial.
   const int32_t qx = int32_t(std::floor(xy.x)), qy = int32_t(std::floor(xy.y));
-  if (buffer_.count(qx, qy) > 0) {
+  if (moved > kMinMoveForTemporal && buffer_.count(qx, qy) > 0) {
     const Crosshair& newest = buffer_.at(qx, qy, 0);
-    c.G_t = float(std::abs(c.luminance - newest.luminance) /
-                  std::max(std::abs(newest.time - c.time), kMinTemporalSeconds));
+    const double explained = c.G_x * std::abs(newest.x - c.x) + c.G_y * std::abs(newest.y - c.y);
+    const double change =
+        std::max(0.0, std::abs(double(c.luminance) - newest.luminance) - explained);
+    c.G_t = float(change / std::max(std::abs(newest.time - c.time), kMinTemporalSeconds));
     c.flags |= Crosshair::kHasTemporalGradient;
   }
 
@@ -312,8 +322,7 @@ void Sampler::flush() {
   sink_.on_batch(std::move(out));
 }
 
-Crosshair Sampler::make_crosshair(double x, double y,
-                                  const std::array<ShadedSample, 5>& s) const {
+Crosshair Sampler::make_crosshair(double x, double y, const std::array<ShadedSample, 5>& s) const {
   Crosshair c;
   c.time = scene_time_;
   c.x = float(x);
@@ -526,6 +535,8 @@ double Sampler::gain_target() const {
     temporal += a * st.G_t;
     age += st.mean_age;
   }
+    fprintf(stderr, "gain ds=%g dt=%g T=%g tiles=%d\n", spatial / area, temporal / area,
+            age / tiling_.tile_count(), tiling_.tile_count());
   return gain_tile_count(spatial / area, temporal / area, age / tiling_.tile_count(), config_.i,
                          double(region_.area()), config_.min_tiles, config_.max_tiles,
                          target_tiles_);

@@ -6,7 +6,9 @@ namespace afr::shading {
 
 namespace {
 
-bool is_black(const glm::vec3& c) { return !(c.r > 0.0f || c.g > 0.0f || c.b > 0.0f); }
+// Exactly zero. NaN is not black: a broken value must reach the sanitiser and be counted
+// there, not vanish here.
+bool is_black(const glm::vec3& c) { return c.r == 0.0f && c.g == 0.0f && c.b == 0.0f; }
 
 }  // namespace
 

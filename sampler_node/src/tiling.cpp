@@ -2,6 +2,8 @@
 
 #include <afr/common/check.h>
 
+#include <cstddef>
+
 namespace afr {
 
 KdTiling::KdTiling(PixelRect region, int max_depth) : max_depth_(max_depth) {
@@ -115,7 +117,7 @@ void KdTiling::merge(int parent) {
 
 bool KdTiling::is_valid() const {
   int64_t area = 0;
-  for (size_t s = 0; s < tiles_.size(); ++s) {
+  for (std::size_t s = 0; s < tiles_.size(); ++s) {
     const Node& n = nodes_[tiles_[s]];
     if (!n.is_leaf() || n.leaf_slot != int(s) || n.rect.empty()) return false;
     if (!region().contains(n.rect.x0, n.rect.y0) ||
@@ -127,7 +129,7 @@ bool KdTiling::is_valid() const {
   if (area != region().area()) return false;
   // Walk the tree: children split their parent exactly, every reachable leaf is listed.
   std::vector<int> stack = {root_};
-  size_t leaves = 0;
+  std::size_t leaves = 0;
   while (!stack.empty()) {
     const int id = stack.back();
     stack.pop_back();

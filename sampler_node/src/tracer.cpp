@@ -375,6 +375,8 @@ void Tracer::Impl::build() {
     instances_.push_back(inst);
   }
 
+  lights_.reserve(light_nodes_.size());
+
   for (size_t i = 0; i < instances_.size(); ++i) {
     Instance& inst = instances_[i];
     inst.geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
@@ -426,9 +428,12 @@ void Tracer::Impl::set_time(double t) {
   check_device("committing the top-level scene");
 
   lights_.clear();  // capacity stays: no allocation after the first call
-  for (int n : light_nodes_)
-    lights_.push_back(shading::make_light_record(
-        scene_.lights[size_t(scene_.nodes[size_t(n)].light)], state_.world[size_t(n)]));
+  for (int n : light_nodes_) {
+    const LightRecord r = shading::make_light_record(
+        scene_.lights[size_t(scene_.nodes[size_t(n)].light)], state_.world[size_t(n)]);
+    // A black light would cost a shadow ray per shading point for nothing.
+    if (r.radiance != glm::vec3(0.0f)) lights_.push_back(r);
+  }
   camera_ = scene_.camera_at(state_);
 }
 
@@ -507,8 +512,9 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   }
   s->ng = ng;
   s->ns = ns;
-  if (g.uvs && s->material->texture)
-    s->uv = w * g.uvs[tri[0]] + hit.u * g.uvs[tri[1]] + hit.v * g.uvs[tri[2]];
+  s->uv = g.uvs && s->material->texture
+              ? w * g.uvs[tri[0]] + hit.u * g.uvs[tri[1]] + hit.v * g.uvs[tri[2]]
+              : glm::vec2(0.0f);
 }
 
 // Emission and ambient light, and whether the surface takes direct light (then `terms` is set).

@@ -38,10 +38,11 @@ inline Scene camera_scene() {
   return s;
 }
 
-// White on the left half of the view, black on the right: one vertical edge at x = W/2.
+// White on the left, black on the right: one vertical edge a little right of the center (not
+// on a pixel boundary of a 64-pixel image, so no tile boundary can line up with it).
 inline Scene edge_scene() {
   Scene s = camera_scene();
-  add_quad(&s, glm::vec3(1.0f), {-10, -10}, {0, 10});
+  add_quad(&s, glm::vec3(1.0f), {-10, -10}, {0.0123f, 10});
   s.finalize();
   return s;
 }

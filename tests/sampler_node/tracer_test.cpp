@@ -378,6 +378,13 @@ TEST(TracerTest, NonFiniteShadingIsSanitizedAndCounted) {
   EXPECT_TRUE(finite(r.color));
   EXPECT_EQ(stats.sanitized, 1u);
 
+  // NaN in a material is not taken for black: it is replaced and counted too.
+  s.materials[size_t(mat)].emissive = glm::vec3(std::numeric_limits<float>::quiet_NaN());
+  Tracer nan_tracer(s);
+  const ShadedSample n = nan_tracer.trace(Ray{{0, 0, 0}, {0, 0, -1}}, &stats);
+  EXPECT_TRUE(finite(n.color));
+  EXPECT_EQ(stats.sanitized, 2u);
+
   // A broken ray gives a finite miss.
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const ShadedSample m = tracer.trace(Ray{{0, 0, 0}, {nan, nan, nan}}, &stats);

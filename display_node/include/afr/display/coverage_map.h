@@ -1,0 +1,60 @@
+// Section 6.2: the coverage map. Every splat of an image adds to the pixels it reaches; the
+// next image sizes each splat from the count and mean splat radius at its pixel, so splats
+// grow fast where samples are sparse (disocclusions, leading edges) and shrink slowly where
+// they pile up.
+#pragma once
+
+#include <vector>
+
+namespace afr {
+
+// One pixel of the map, as accumulated during an image: how many splats reached it with a
+// non-zero weight and the sum of their radii (mean = radius_sum / count).
+struct CoverageCell {
+  float count = 0.0f;
+  float radius_sum = 0.0f;
+};
+
+// The resizing rule and its bounds (radii in output pixels).
+struct SplatSizeRule {
+  float grow_below = 4.0f;    // fewer samples than this reached the pixel: undersampled
+  float grow = 4.0f;          // ... and its splats are multiplied by this
+  float shrink_above = 32.0f;  // more than this: oversampled
+  float shrink = 0.7f;        // ... multiplied by this
+  float min_radius = 1.0f;    // a splat always reaches the pixel it falls in
+  float max_radius = 32.0f;   // bounds cost; GL point sprites are 2 r + 2 <= 66 pixels
+};
+
+// Section 6.2: the radius of a splat whose filter wants `filter_radius` (cutoff sigmas), given
+// the previous image's cell at its pixel (nullptr when there is no previous image):
+//   no previous image       -> filter_radius
+//   count 0 (a hole)        -> grow * filter_radius
+//   count < grow_below      -> grow * mean radius
+//   count > shrink_above    -> shrink * mean radius
+//   otherwise               -> mean radius
+// always clamped to [min_radius, max_radius]; NaN or non-positive input gives min_radius.
+float splat_radius(const CoverageCell* previous, float filter_radius, const SplatSizeRule& rule);
+
+// The previous image's map, held by the CPU backend (the GL backend keeps it in a texture).
+class CoverageMap {
+ public:
+  // Drops the map (no previous image) and sets the size of the next one.
+  void reset(int width, int height);
+  int width() const { return width_; }
+  int height() const { return height_; }
+  bool valid() const { return valid_; }
+  void set_valid(bool valid) { valid_ = valid; }
+  std::vector<CoverageCell>& cells() { return cells_; }
+  const std::vector<CoverageCell>& cells() const { return cells_; }
+  const CoverageCell* at(int x, int y) const {
+    return valid_ ? &cells_[size_t(y) * size_t(width_) + size_t(x)] : nullptr;
+  }
+
+ private:
+  int width_ = 0;
+  int height_ = 0;
+  bool valid_ = false;
+  std::vector<CoverageCell> cells_;
+};
+
+}  // namespace afr

@@ -1,0 +1,79 @@
+// Section 5.1: the adaptive space-time filter. From the local gradients G_x, G_y, G_t and the
+// local sampling rate R_l of the tile field, a Gaussian whose standard deviations e_x, e_y
+// (pixels) and e_t (seconds) span equal expected color change in each dimension while its
+// space-time volume is the volume V_s = 1 / R_l that one sample occupies.
+#pragma once
+
+#include <string_view>
+
+namespace afr {
+
+// The reconstruction methods of the evaluation (paper, Table 1 and Figure 6).
+enum class ReconstructionMode {
+  kAdaptive,                // space-time filter of this file, samples reprojected (6.2)
+  kTraditionalFrameless,    // the newest sample at each pixel [BFMS94], no filter
+  kAdaptiveNoReprojection,  // the adaptive filter at the samples' original image positions
+};
+const char* mode_name(ReconstructionMode mode);
+// "adaptive", "frameless", "adaptive-no-reprojection"; throws afr::Error naming the text.
+ReconstructionMode parse_mode(std::string_view text);
+
+// Every guard and clamp of the filter. Units: luminance per pixel, luminance per second,
+// samples per pixel per second, pixels and seconds (pixels of the sampling image).
+struct FilterLimits {
+  // Gradients below these (including zero, negative and NaN) are raised to them, so every
+  // ratio of gradients is finite: a dimension with no measured change gets a wide extent
+  // (up to its clamp) instead of an infinite one.
+  float min_spatial_gradient = 1e-4f;
+  float min_temporal_gradient = 1e-4f;
+  // R_l is clamped to this range (NaN, zero and negative rates to min_rate).
+  float min_rate = 1e-3f;
+  float max_rate = 1e7f;
+  // Spatial standard deviations, pixels. 0.3 keeps at least a few samples under a splat at
+  // the densest sampling the store holds; 16 bounds blur and splat cost.
+  float min_spatial_extent = 0.3f;
+  float max_spatial_extent = 16.0f;
+  // Temporal standard deviation, seconds.
+  float min_temporal_extent = 1e-3f;
+  float max_temporal_extent = 60.0f;
+  // A splat ends at `cutoff` standard deviations (before the coverage map resizes it).
+  float cutoff = 3.0f;
+  // No sample gets a temporal weight below this: a pixel that only old samples reach still
+  // shows them, but any recent sample that reaches it outweighs them by ~1e12.
+  float min_temporal_weight = 1e-12f;
+  // Samples stamped further than this in the future of the reconstruction time (a sampler
+  // with a broken clock) are skipped; nearer ones count as age 0.
+  float max_future = 1.0f;
+};
+
+// Standard deviations of the space-time Gaussian, in pixels of the sampling image and seconds.
+struct FilterExtents {
+  float e_x = 0.0f;
+  float e_y = 0.0f;
+  float e_t = 0.0f;
+};
+
+// Section 5.1: e_x G_x = e_y G_y = e_t G_t and e_x e_y e_t = V_s = 1 / R_l, that is
+//   e_x = cbrt(V_s G_y G_t / G_x^2),  e_y = cbrt(V_s G_x G_t / G_y^2),  e_t = V_s / (e_x e_y).
+// Guarded and clamped, in this order:
+//   1. gradients raised to their floors, R_l clamped, `depth` clamped to the temporal range;
+//   2. e_x, e_y from the cube roots, clamped to [min_spatial_extent, max_spatial_extent];
+//   3. e_t = V_s / (e_x e_y), so the volume survives the spatial clamp;
+//   4. if e_t exceeds `depth` (how far back the sample store reaches), e_t = depth and the
+//      volume goes back to space: e_x e_y = V_s / depth with e_x / e_y = G_y / G_x, clamped;
+//   5. e_t clamped to [min_temporal_extent, max_temporal_extent].
+// Without clamps this is exactly the paper's three cube roots. The result is always finite
+// and inside the documented ranges.
+FilterExtents filter_extents(float G_x, float G_y, float G_t, float R_l, float depth,
+                             const FilterLimits& limits);
+
+// What a splat needs from its tile, in output pixels (the extents times the output scale).
+struct TileFilter {
+  float sigma_x = 1.0f;  // output pixels
+  float sigma_y = 1.0f;
+  float k_t = 0.0f;  // 1 / (2 e_t^2): the temporal weight is exp(-age^2 k_t)
+  float e_t = 1.0f;  // seconds
+};
+TileFilter make_tile_filter(const FilterExtents& e, float scale_x, float scale_y);
+
+}  // namespace afr
