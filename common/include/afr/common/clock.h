@@ -5,6 +5,7 @@
 // depend on the speed of the machine.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 
@@ -24,25 +25,26 @@ class Clock {
 class WallClock final : public Clock {
  public:
   WallClock() : start_(std::chrono::steady_clock::now()) {}
-  double now() const override {
-    return offset_ +
-           std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  }
-  // Makes now() return `display_time` at this instant.
+  double now() const override { return offset_.load(std::memory_order_relaxed) + elapsed(); }
+  // Makes now() return `display_time` at this instant. Safe while other threads read now().
   void sync_to(double display_time) {
-    offset_ = 0.0;
-    offset_ = display_time - now();
+    offset_.store(display_time - elapsed(), std::memory_order_relaxed);
   }
 
  private:
+  double elapsed() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+
   std::chrono::steady_clock::time_point start_;
-  double offset_ = 0.0;
+  std::atomic<double> offset_{0.0};
 };
 
 // Time that advances 1/rate seconds per traced primary ray. It counts rays in an integer and
 // computes now() = start + rays / rate, so it does not accumulate rounding error.
 class VirtualClock final : public Clock {
  public:
+  // rays_per_second must be finite and > 0 (callers validate user input first).
   VirtualClock(double rays_per_second, double start_seconds = 0.0)
       : rate_(rays_per_second), start_(start_seconds) {}
   double now() const override { return start_ + double(rays_) / rate_; }

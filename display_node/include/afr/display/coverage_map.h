@@ -25,6 +25,10 @@ struct SplatSizeRule {
   float max_radius = 32.0f;   // bounds cost; GL point sprites are 2 r + 2 <= 66 pixels
 };
 
+// Reconstructors clamp SplatSizeRule::max_radius to this: llvmpipe's largest point sprite is
+// 255 pixels, and a splat of radius r is drawn as a 2 r + 2 pixel sprite.
+inline constexpr float kSplatRadiusLimit = 120.0f;
+
 // Section 6.2: the radius of a splat whose filter wants `filter_radius` (cutoff sigmas), given
 // the previous image's cell at its pixel (nullptr when there is no previous image):
 //   no previous image       -> filter_radius

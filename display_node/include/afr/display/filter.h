@@ -76,4 +76,11 @@ struct TileFilter {
 };
 TileFilter make_tile_filter(const FilterExtents& e, float scale_x, float scale_y);
 
+// A splat's contribution to a pixel at offset (dx, dy) from it, with weight w_t in time, is
+//   w = (exp(-dx^2 k_x) - exp(-r^2 k_x)) (exp(-dy^2 k_y) - exp(-r^2 k_y)) w_t
+// for |dx|, |dy| < r (the splat radius), k = 1 / (2 sigma^2): a Gaussian lowered by its value
+// at the splat's edge, so it falls to exactly 0 there and pixels on the edge matter nothing.
+// Contributions at or below this weight are dropped (they would be denormal in the sums).
+inline constexpr float kMinSplatWeight = 1e-30f;
+
 }  // namespace afr

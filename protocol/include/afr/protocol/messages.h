@@ -1,0 +1,202 @@
+// Every message that crosses a process in afr (DESIGN.md, "Network"), as plain structs, with
+// the limits the decoder enforces. The byte layouts are in codec.h and docs/protocol.md; sample
+// batches and tiling snapshots are the common types of afr/common/samples.h.
+#pragma once
+
+#include <afr/common/camera.h>
+#include <afr/common/rect.h>
+#include <afr/common/samples.h>
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <variant>
+#include <vector>
+
+namespace afr::protocol {
+
+// ---------------------------------------------------------------------------------------------
+// Versions and limits
+
+// Bumped on every change of a byte layout; a peer of another version is refused (a decoder
+// still reads the header of any version, so it can say why).
+inline constexpr uint16_t kProtocolVersion = 1;
+
+inline constexpr int32_t kMaxImageSize = 32768;          // pixels a side (DESIGN.md, "Samples")
+inline constexpr uint32_t kMaxSamplesPerBatch = 65536;   // the sampler's batch_size limit
+inline constexpr uint32_t kMaxTilesPerSnapshot = 65536;  // far above any gain-control bound
+inline constexpr uint32_t kMaxChunkBytes = 1u << 20;     // scene transfer chunk
+inline constexpr uint64_t kMaxSceneBytes = 1ull << 32;   // 4 GiB
+inline constexpr uint32_t kMaxNameBytes = 255;           // names, presets, leave texts
+inline constexpr uint16_t kMaxThreads = 4096;
+// Batch time offsets are 15-bit ticks of 2^tick_exp seconds, tick_exp in this range: from
+// about 1 ns ticks (a 30 us span) to 1 s ticks (a 9 h span).
+inline constexpr int kMinTickExp = -30;
+inline constexpr int kMaxTickExp = 0;
+// A view's basis must be orthonormal to this tolerance.
+inline constexpr double kBasisTolerance = 1e-3;
+// refresh_interval of a welcome, seconds.
+inline constexpr double kMaxRefreshInterval = 10.0;
+
+enum class MessageType : uint16_t {
+  kJoin = 1,
+  kWelcome = 2,
+  kSceneRequest = 3,
+  kSceneChunk = 4,
+  kRegionAssignment = 5,
+  kView = 6,
+  kSampleBatch = 7,
+  kTilingSnapshot = 8,
+  kStats = 9,
+  kHeartbeat = 10,
+  kLeave = 11,
+};
+inline constexpr uint16_t kFirstMessageType = 1;
+inline constexpr uint16_t kLastMessageType = 11;
+
+// "join", "sample_batch", ...; "unknown" for values outside the enum.
+const char* message_type_name(MessageType type);
+
+// What a sampler can do (Join::capabilities). Unknown bits are rejected.
+enum Capability : uint32_t {
+  kCapWorldPosition = 1u << 0,  // can send world positions (reprojection at the display)
+  kCapVelocity = 1u << 1,       // can send per-sample velocities
+  kCapTilings = 1u << 2,        // sends tiling snapshots (adaptive mode)
+  kCapSceneCache = 1u << 3,     // keeps received scenes by hash
+};
+inline constexpr uint32_t kKnownCapabilities =
+    kCapWorldPosition | kCapVelocity | kCapTilings | kCapSceneCache;
+inline constexpr uint32_t kKnownSampleFields = kFieldPosition | kFieldVelocity;
+
+// A content hash (BLAKE2b-256 of the scene file's bytes, scene_hash.h).
+using SceneHash = std::array<uint8_t, 32>;
+
+// ---------------------------------------------------------------------------------------------
+// Control channel (ROUTER/DEALER): membership, scene and region
+
+// sampler -> display, first message of a sampler.
+struct Join {
+  uint32_t sampler_id = 0;  // 0: assign one; else the id this sampler had before a reconnect
+  uint16_t protocol_version = kProtocolVersion;
+  uint16_t threads = 1;       // 1..kMaxThreads
+  uint32_t capabilities = 0;  // Capability bits
+  std::string name;           // host or user-chosen name, for logs and the HUD
+  bool operator==(const Join&) const = default;
+};
+
+// display -> sampler, the answer to a join.
+struct Welcome {
+  uint32_t sampler_id = 0;  // assigned, >= 1
+  uint64_t session = 0;     // random per display run, != 0; a new value means a restart
+  int32_t width = 0;        // image size, 1..kMaxImageSize
+  int32_t height = 0;
+  double display_time = 0.0;      // display clock, seconds, when the welcome was sent
+  double refresh_interval = 0.0;  // seconds between tiling snapshots, (0, kMaxRefreshInterval]
+  SceneHash scene_hash{};
+  uint64_t scene_size = 0;  // bytes, 1..kMaxSceneBytes
+  std::string scene_name;
+  std::string presets;  // name of the sampler presets to run
+  bool operator==(const Welcome&) const = default;
+};
+
+// sampler -> display: send me this scene, from chunk `first_chunk` on.
+struct SceneRequest {
+  uint32_t sampler_id = 0;
+  SceneHash scene_hash{};
+  uint32_t first_chunk = 0;
+  bool operator==(const SceneRequest&) const = default;
+};
+
+// display -> sampler: one piece of the scene file. Chunks may have any sizes up to
+// kMaxChunkBytes; `offset` places the bytes, so reassembly needs no other state.
+struct SceneChunk {
+  SceneHash scene_hash{};
+  uint64_t scene_size = 0;  // 1..kMaxSceneBytes
+  uint64_t offset = 0;      // offset + bytes.size() <= scene_size
+  uint32_t index = 0;       // < count
+  uint32_t count = 0;       // >= 1
+  std::vector<uint8_t> bytes;  // 1..kMaxChunkBytes
+  bool operator==(const SceneChunk&) const = default;
+};
+
+// display -> sampler: the part of the image the sampler owns from now on.
+struct RegionAssignment {
+  uint32_t sampler_id = 0;
+  uint64_t epoch = 0;  // +1 per recut; a sampler ignores an epoch older than its current one
+  int32_t width = 0;   // image size, 1..kMaxImageSize
+  int32_t height = 0;
+  PixelRect region;  // non-empty, inside the image
+  bool operator==(const RegionAssignment&) const = default;
+};
+
+// sampler -> display, about once a second.
+struct SamplerStats {
+  uint32_t sampler_id = 0;
+  double time = 0.0;  // display clock, seconds
+  uint64_t samples = 0;
+  uint64_t batches = 0;
+  uint64_t batches_dropped = 0;  // by the sender's queue (high-water mark)
+  uint64_t tilings = 0;
+  uint64_t bytes_sent = 0;
+  uint64_t crosshairs = 0;
+  uint64_t reprojections = 0;
+  uint64_t reprojections_dropped = 0;
+  uint64_t occlusion_rays = 0;
+  uint64_t sanitized = 0;
+  double samples_per_second = 0.0;  // finite, >= 0
+  double rays_per_second = 0.0;     // finite, >= 0
+  uint32_t tiles = 0;
+  uint16_t threads = 1;  // 1..kMaxThreads
+  bool operator==(const SamplerStats&) const = default;
+};
+
+// Both ways, a few times a second: proof of life, and (session) a way to notice a restart.
+struct Heartbeat {
+  uint32_t sampler_id = 0;
+  uint64_t session = 0;
+  uint64_t sequence = 0;
+  double time = 0.0;  // sender's estimate of the display clock, finite, >= 0
+  bool operator==(const Heartbeat&) const = default;
+};
+
+enum class LeaveReason : uint16_t {
+  kShutdown = 0,         // the sender is going away
+  kVersionMismatch = 1,  // display -> sampler: protocol versions differ
+  kRefused = 2,          // display -> sampler: not admitted (full, bad capabilities, ...)
+  kTimeout = 3,          // display -> sampler: heartbeats stopped; join again
+  kError = 4,            // anything else; the text says what
+};
+inline constexpr uint16_t kLastLeaveReason = 4;
+
+struct Leave {
+  uint32_t sampler_id = 0;
+  LeaveReason reason = LeaveReason::kShutdown;
+  std::string text;
+  bool operator==(const Leave&) const = default;
+};
+
+// ---------------------------------------------------------------------------------------------
+// View channel (PUB/SUB, conflated): display -> all samplers
+
+// The camera at display-clock time `time`. Samplers take the latest sequence.
+struct View {
+  uint64_t sequence = 0;
+  double time = 0.0;  // finite, >= 0
+  Camera camera;      // finite; orthonormal basis; 0 < yfov < pi; znear > 0
+  bool operator==(const View& o) const {
+    return sequence == o.sequence && time == o.time && camera.eye == o.camera.eye &&
+           camera.right == o.camera.right && camera.up == o.camera.up &&
+           camera.forward == o.camera.forward && camera.yfov == o.camera.yfov &&
+           camera.znear == o.camera.znear;
+  }
+};
+
+// Sample channel (PUSH/PULL): SampleBatch and TilingSnapshot of afr/common/samples.h.
+
+// Any message, for channels that carry several types.
+using Message = std::variant<Join, Welcome, SceneRequest, SceneChunk, RegionAssignment, View,
+                             SampleBatch, TilingSnapshot, SamplerStats, Heartbeat, Leave>;
+
+MessageType message_type(const Message& message);
+
+}  // namespace afr::protocol

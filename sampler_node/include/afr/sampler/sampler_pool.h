@@ -1,0 +1,55 @@
+// Runs several samplers on worker threads for live use: the owned region is cut into one
+// sub-region per thread (split_region, the same mechanism the service uses across nodes) and
+// each thread runs its own Sampler with its own Tracer on a shared wall clock.
+//
+// Order of calls: construct, start(), then stop() (or destroy). The sink is called from the
+// worker threads, so it must be thread-safe.
+#pragma once
+
+#include <afr/common/clock.h>
+#include <afr/common/samples.h>
+#include <afr/common/scene.h>
+#include <afr/sampler/sampler.h>
+
+#include <atomic>
+#include <memory>
+#include <thread>
+#include <vector>
+
+namespace afr {
+
+struct SamplerPoolOptions {
+  int threads = 1;
+  // Samples per second over all threads; 0 = as fast as the machine allows.
+  double max_samples_per_second = 0.0;
+};
+
+class SamplerPool {
+ public:
+  SamplerPool(const Scene& scene, const SamplerConfig& config, const SamplerPoolOptions& options,
+              const Clock& clock, SampleSink& sink);
+  ~SamplerPool();
+  SamplerPool(const SamplerPool&) = delete;
+  SamplerPool& operator=(const SamplerPool&) = delete;
+
+  void start();
+  void stop();
+  // Counters summed over the threads (read while running: approximate, never torn per field).
+  SamplerCounters counters() const;
+  const std::vector<PixelRect>& regions() const { return regions_; }
+
+ private:
+  struct Worker;
+  void run(Worker* w);
+
+  const Scene& scene_;
+  SamplerConfig config_;
+  SamplerPoolOptions options_;
+  const Clock& clock_;
+  SampleSink& sink_;
+  std::vector<PixelRect> regions_;
+  std::vector<std::unique_ptr<Worker>> workers_;
+  std::atomic<bool> running_{false};
+};
+
+}  // namespace afr

@@ -1,0 +1,99 @@
+#include <afr/sampler/sampler_pool.h>
+
+#include <afr/common/error.h>
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <mutex>
+#include <thread>
+
+#include "test_scenes.h"
+
+namespace afr {
+namespace {
+
+struct LockedSink : SampleSink {
+  std::mutex mutex;
+  uint64_t samples = 0;
+  uint64_t snapshots = 0;
+  std::vector<PixelRect> snapshot_regions;
+  void on_batch(SampleBatch&& b) override {
+    std::lock_guard<std::mutex> lock(mutex);
+    samples += b.samples.size();
+  }
+  void on_tiling(TilingSnapshot&& s) override {
+    std::lock_guard<std::mutex> lock(mutex);
+    ++snapshots;
+    snapshot_regions.push_back(s.region);
+  }
+};
+
+TEST(SamplerPoolTest, ThreadsOwnDisjointRegionsAndAllProduce) {
+  const Scene scene = testing::moving_scene();
+  WallClock clock;
+  LockedSink sink;
+  SamplerConfig config;
+  config.width = 64;
+  config.height = 32;
+  SamplerPoolOptions options;
+  options.threads = 2;
+  SamplerPool pool(scene, config, options, clock, sink);
+  ASSERT_EQ(pool.regions().size(), 2u);
+  EXPECT_EQ(pool.regions()[0], (PixelRect{0, 0, 32, 32}));
+  EXPECT_EQ(pool.regions()[1], (PixelRect{32, 0, 64, 32}));
+  pool.start();
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  pool.stop();
+  const SamplerCounters c = pool.counters();
+  EXPECT_GT(c.samples, 1000u);
+  EXPECT_EQ(c.samples, sink.samples);
+  bool saw[2] = {false, false};
+  for (const PixelRect& r : sink.snapshot_regions) {
+    for (int k = 0; k < 2; ++k) saw[k] |= r == pool.regions()[k];
+  }
+  EXPECT_TRUE(saw[0] && saw[1]);
+}
+
+TEST(SamplerPoolTest, RateCapHoldsSamplesBack) {
+  const Scene scene = testing::edge_scene();
+  WallClock clock;
+  LockedSink sink;
+  SamplerConfig config;
+  config.width = 32;
+  config.height = 32;
+  SamplerPoolOptions options;
+  options.threads = 2;
+  options.max_samples_per_second = 20000.0;
+  SamplerPool pool(scene, config, options, clock, sink);
+  const auto start = std::chrono::steady_clock::now();
+  pool.start();
+  std::this_thread::sleep_for(std::chrono::milliseconds(400));
+  pool.stop();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  // The initial fill (one crosshair every other pixel) comes before the cap applies; after it,
+  // no more than the cap allows (plus one loop iteration per thread).
+  const double fill = 16.0 * 16.0 * 5.0;
+  EXPECT_LE(double(pool.counters().samples), fill + 20000.0 * seconds + 2 * 16);
+}
+
+TEST(SamplerPoolTest, BadOptionsAreClearErrors) {
+  const Scene scene = testing::edge_scene();
+  WallClock clock;
+  LockedSink sink;
+  SamplerConfig config;
+  config.width = 4;
+  config.height = 1;
+  SamplerPoolOptions options;
+  options.threads = 8;  // more threads than pixels
+  EXPECT_THROW(SamplerPool(scene, config, options, clock, sink), Error);
+  options.threads = 0;
+  EXPECT_THROW(SamplerPool(scene, config, options, clock, sink), Error);
+  options.threads = 1;
+  options.max_samples_per_second = -1.0;
+  EXPECT_THROW(SamplerPool(scene, config, options, clock, sink), Error);
+}
+
+}  // namespace
+}  // namespace afr
