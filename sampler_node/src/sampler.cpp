@@ -535,8 +535,6 @@ double Sampler::gain_target() const {
     temporal += a * st.G_t;
     age += st.mean_age;
   }
-    fprintf(stderr, "gain ds=%g dt=%g T=%g tiles=%d\n", spatial / area, temporal / area,
-            age / tiling_.tile_count(), tiling_.tile_count());
   return gain_tile_count(spatial / area, temporal / area, age / tiling_.tile_count(), config_.i,
                          double(region_.area()), config_.min_tiles, config_.max_tiles,
                          target_tiles_);

@@ -4,6 +4,7 @@
 // they pile up.
 #pragma once
 
+#include <cstddef>
 #include <vector>
 
 namespace afr {
@@ -51,7 +52,7 @@ class CoverageMap {
   std::vector<CoverageCell>& cells() { return cells_; }
   const std::vector<CoverageCell>& cells() const { return cells_; }
   const CoverageCell* at(int x, int y) const {
-    return valid_ ? &cells_[size_t(y) * size_t(width_) + size_t(x)] : nullptr;
+    return valid_ ? &cells_[std::size_t(y) * std::size_t(width_) + std::size_t(x)] : nullptr;
   }
 
  private:

@@ -29,7 +29,9 @@ struct SamplerConfig {
   double kappa = 0.6;
   double lambda = 0.2;
   double m = 2.0;  // undersampling threshold (section 6.1)
-  double i = 1.0;  // importance of temporal against spatial change in gain control (4.1)
+  // Importance of temporal against spatial change in gain control (section 4.1). With i = 1
+  // the built-in scene's moving camera drives the count to min_tiles (afr-sample --i 1).
+  double i = 0.1;
   // Gain control's tile count bounds; the count never exceeds the region's pixels / 4.
   int min_tiles = 16;
   int max_tiles = 1024;

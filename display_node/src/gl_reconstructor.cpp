@@ -1,0 +1,451 @@
+#include <afr/display/gl_reconstructor.h>
+
+#include <afr/common/check.h>
+#include <afr/common/error.h>
+#include <afr/display/hole_fill.h>
+#include <afr/display/reprojection.h>
+
+#include "gl_shaders.h"
+
+#include <epoxy/gl.h>
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cstddef>
+
+namespace afr {
+
+namespace {
+
+static_assert(sizeof(TileFilter) == 4 * sizeof(float), "TileFilter is one RGBA32F texel");
+static_assert(offsetof(StoredSample, time) == 0 && offsetof(StoredSample, x) == 8 &&
+              offsetof(StoredSample, color) == 16 && offsetof(StoredSample, flags) == 28 &&
+              offsetof(StoredSample, position) == 32 && offsetof(StoredSample, velocity) == 44);
+
+constexpr int kGroup = 16;  // compute work group side
+
+void check_gl(const char* where) {
+  const GLenum e = glGetError();
+  if (e != GL_NO_ERROR) throw Error(fmt::format("OpenGL error 0x{:x} in {}", e, where));
+}
+
+GLuint compile(GLenum type, const char* source, const char* name) {
+  const GLuint s = glCreateShader(type);
+  glShaderSource(s, 1, &source, nullptr);
+  glCompileShader(s);
+  GLint ok = 0;
+  glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    std::array<char, 4096> log{};
+    glGetShaderInfoLog(s, GLsizei(log.size()), nullptr, log.data());
+    glDeleteShader(s);
+    throw Error(fmt::format("OpenGL: shader {} does not compile: {}", name, log.data()));
+  }
+  return s;
+}
+
+GLuint link(std::initializer_list<GLuint> shaders, const char* name) {
+  const GLuint p = glCreateProgram();
+  for (GLuint s : shaders) glAttachShader(p, s);
+  glLinkProgram(p);
+  for (GLuint s : shaders) glDeleteShader(s);
+  GLint ok = 0;
+  glGetProgramiv(p, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    std::array<char, 4096> log{};
+    glGetProgramInfoLog(p, GLsizei(log.size()), nullptr, log.data());
+    glDeleteProgram(p);
+    throw Error(fmt::format("OpenGL: program {} does not link: {}", name, log.data()));
+  }
+  return p;
+}
+
+GLuint graphics_program(const char* vs, const char* fs, const char* name) {
+  return link({compile(GL_VERTEX_SHADER, vs, name), compile(GL_FRAGMENT_SHADER, fs, name)}, name);
+}
+
+GLuint compute_program(const char* cs, const char* name) {
+  return link({compile(GL_COMPUTE_SHADER, cs, name)}, name);
+}
+
+GLuint make_texture(GLenum format, int width, int height) {
+  GLuint t = 0;
+  glGenTextures(1, &t);
+  glBindTexture(GL_TEXTURE_2D, t);
+  glTexStorage2D(GL_TEXTURE_2D, 1, format, width, height);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  return t;
+}
+
+// Uniform setters by name (a few dozen lookups per image: negligible next to the splats).
+struct Uniforms {
+  GLuint program;
+  GLint at(const char* name) const { return glGetUniformLocation(program, name); }
+  void set(const char* name, int v) const { glUniform1i(at(name), v); }
+  void set(const char* name, float v) const { glUniform1f(at(name), v); }
+  void set(const char* name, double v) const { glUniform1d(at(name), v); }
+  void set(const char* name, const glm::vec2& v) const { glUniform2f(at(name), v.x, v.y); }
+  void set(const char* name, const glm::vec3& v) const { glUniform3f(at(name), v.x, v.y, v.z); }
+  void set(const char* name, const glm::ivec2& v) const { glUniform2i(at(name), v.x, v.y); }
+};
+
+}  // namespace
+
+struct GlReconstructor::Impl {
+  // Samples: the store's ring, slot for slot.
+  GLuint vao = 0;
+  GLuint samples = 0;
+  GLuint empty_vao = 0;
+  uint64_t seen = 0;
+  size_t stored = 0;
+  std::vector<StoredSample> staging;
+
+  GLuint splat = 0, newest = 0, pyramid = 0, normalise = 0, blit = 0;
+
+  // Tile field.
+  GLuint tile_filters_buffer = 0, tile_filters = 0;
+  // Per output size.
+  int width = 0, height = 0;
+  std::vector<PyramidLevel> levels;
+  GLuint tile_index = 0, accum = 0, atlas = 0, output = 0, depth = 0;
+  std::array<GLuint, 2> coverage{};
+  std::array<GLuint, 2> fbo{};  // accum + coverage[i] + depth
+  int current = 0;              // coverage[current] is written by the next image
+  bool have_coverage = false;   // coverage[1 - current] holds the previous image's map
+  GLuint counts = 0;            // hole, empty, non-finite pixel counters
+
+  void release_sized() {
+    glDeleteFramebuffers(2, fbo.data());
+    glDeleteTextures(2, coverage.data());
+    for (GLuint* t : {&tile_index, &accum, &atlas, &output}) glDeleteTextures(1, t);
+    glDeleteRenderbuffers(1, &depth);
+    fbo = {};
+    coverage = {};
+    tile_index = accum = atlas = output = depth = 0;
+    width = height = 0;
+  }
+
+  void resize(int w, int h) {
+    if (w == width && h == height) return;
+    release_sized();
+    width = w;
+    height = h;
+    levels = pyramid_layout(w, h);
+    tile_index = make_texture(GL_R32UI, w, h);
+    accum = make_texture(GL_RGBA32F, w, h);
+    output = make_texture(GL_RGBA32F, w, h);
+    atlas = make_texture(GL_RGBA32F, std::max(1, (w + 1) / 2), pyramid_atlas_height(levels));
+    for (GLuint& c : coverage) c = make_texture(GL_RG32F, w, h);
+    glGenRenderbuffers(1, &depth);
+    glBindRenderbuffer(GL_RENDERBUFFER, depth);
+    glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, w, h);
+    glGenFramebuffers(2, fbo.data());
+    for (int i = 0; i < 2; ++i) {
+      glBindFramebuffer(GL_FRAMEBUFFER, fbo[size_t(i)]);
+      glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, accum, 0);
+      glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT1, GL_TEXTURE_2D,
+                             coverage[size_t(i)], 0);
+      glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth);
+      const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
+      if (status != GL_FRAMEBUFFER_COMPLETE) {
+        throw Error(fmt::format("OpenGL: accumulation framebuffer incomplete (0x{:x})", status));
+      }
+    }
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    current = 0;
+    have_coverage = false;
+    check_gl("resizing the reconstruction targets");
+  }
+};
+
+GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
+                                 std::shared_ptr<GlContext> context)
+    : Reconstructor(config), context_(std::move(context)), impl_(std::make_unique<Impl>()) {
+  AFR_CHECK(context_ != nullptr);
+  context_->make_current();
+  Impl& m = *impl_;
+  m.splat = graphics_program(gl_shaders::kSplatVertex, gl_shaders::kSplatFragment, "splat");
+  m.newest = graphics_program(gl_shaders::kNewestVertex, gl_shaders::kNewestFragment, "newest");
+  m.pyramid = compute_program(gl_shaders::kPyramidCompute, "pyramid");
+  m.normalise = compute_program(gl_shaders::kNormaliseCompute, "normalise");
+  m.blit = graphics_program(gl_shaders::kBlitVertex, gl_shaders::kBlitFragment, "blit");
+
+  glGenVertexArrays(1, &m.vao);
+  glGenVertexArrays(1, &m.empty_vao);
+  glGenBuffers(1, &m.samples);
+  glBindVertexArray(m.vao);
+  glBindBuffer(GL_ARRAY_BUFFER, m.samples);
+  glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(store_.capacity() * sizeof(StoredSample)), nullptr,
+               GL_DYNAMIC_DRAW);
+  const GLsizei stride = sizeof(StoredSample);
+  const auto at = [](size_t offset) { return reinterpret_cast<const void*>(offset); };
+  glVertexAttribLPointer(0, 1, GL_DOUBLE, stride, at(offsetof(StoredSample, time)));
+  glVertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, stride, at(offsetof(StoredSample, x)));
+  glVertexAttribPointer(2, 3, GL_FLOAT, GL_FALSE, stride, at(offsetof(StoredSample, color)));
+  glVertexAttribIPointer(3, 1, GL_UNSIGNED_INT, stride, at(offsetof(StoredSample, flags)));
+  glVertexAttribPointer(4, 3, GL_FLOAT, GL_FALSE, stride, at(offsetof(StoredSample, position)));
+  glVertexAttribPointer(5, 3, GL_FLOAT, GL_FALSE, stride, at(offsetof(StoredSample, velocity)));
+  for (GLuint i = 0; i < 6; ++i) glEnableVertexAttribArray(i);
+  glBindVertexArray(0);
+
+  glGenBuffers(1, &m.tile_filters_buffer);
+  glBindBuffer(GL_TEXTURE_BUFFER, m.tile_filters_buffer);
+  glBufferData(GL_TEXTURE_BUFFER, sizeof(TileFilter), nullptr, GL_STREAM_DRAW);
+  glGenTextures(1, &m.tile_filters);
+  glBindTexture(GL_TEXTURE_BUFFER, m.tile_filters);
+  glTexBuffer(GL_TEXTURE_BUFFER, GL_RGBA32F, m.tile_filters_buffer);
+
+  glGenBuffers(1, &m.counts);
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, m.counts);
+  glBufferData(GL_SHADER_STORAGE_BUFFER, 3 * sizeof(uint32_t), nullptr, GL_DYNAMIC_READ);
+  check_gl("creating the GL reconstructor");
+}
+
+GlReconstructor::~GlReconstructor() {
+  context_->make_current();
+  Impl& m = *impl_;
+  m.release_sized();
+  for (GLuint p : {m.splat, m.newest, m.pyramid, m.normalise, m.blit}) glDeleteProgram(p);
+  glDeleteVertexArrays(1, &m.vao);
+  glDeleteVertexArrays(1, &m.empty_vao);
+  glDeleteBuffers(1, &m.samples);
+  glDeleteBuffers(1, &m.tile_filters_buffer);
+  glDeleteTextures(1, &m.tile_filters);
+  glDeleteBuffers(1, &m.counts);
+}
+
+uint32_t GlReconstructor::output_texture() const { return impl_->output; }
+
+void GlReconstructor::do_reconstruct(const Camera& camera, double time, int width, int height,
+                                     Image* out) {
+  context_->make_current();
+  Impl& m = *impl_;
+
+  // ---- Only the new samples go to the GPU, into their ring slots.
+  const SampleStore::Delta delta = store_.copy_since(m.seen, &m.staging);
+  glBindBuffer(GL_ARRAY_BUFFER, m.samples);
+  RingRun runs[2];
+  const int k = ring_runs(delta.first, delta.end, store_.capacity(), runs);
+  for (int r = 0; r < k; ++r) {
+    glBufferSubData(GL_ARRAY_BUFFER, GLintptr(runs[r].slot * sizeof(StoredSample)),
+                    GLsizeiptr(runs[r].count * sizeof(StoredSample)),
+                    m.staging.data() + runs[r].offset);
+  }
+  m.seen = delta.end;
+  m.stored = delta.stored;
+
+  FrameSetup setup;
+  prepare_frame(time, width, height, delta, &setup);
+  const bool resized = width != m.width || height != m.height;
+  m.resize(width, height);
+  if (setup.field_changed || resized) {
+    glBindTexture(GL_TEXTURE_2D, m.tile_index);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, width, height, GL_RED_INTEGER, GL_UNSIGNED_INT,
+                    field_.index_map().data());
+  }
+  glBindBuffer(GL_TEXTURE_BUFFER, m.tile_filters_buffer);
+  glBufferData(GL_TEXTURE_BUFFER, GLsizeiptr(setup.filters.size() * sizeof(TileFilter)),
+               setup.filters.data(), GL_STREAM_DRAW);
+
+  const ReconstructionMode current_mode = mode();
+  const FilterLimits& limits = config_.filter;
+  const SplatSizeRule& rule = config_.splat;
+  const float guard = rule.max_radius + 1.0f;
+  const int g = int(guard);
+  const glm::vec2 scale(setup.scale_x, setup.scale_y);
+  const glm::ivec2 size(width, height);
+
+  // ---- Splats (or newest samples) into (sum w c, sum w) and coverage.
+  glBindFramebuffer(GL_FRAMEBUFFER, m.fbo[size_t(m.current)]);
+  const GLenum draw_buffers[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+  glDrawBuffers(2, draw_buffers);
+  const float zero[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+  glClearBufferfv(GL_COLOR, 0, zero);
+  glClearBufferfv(GL_COLOR, 1, zero);
+  const float far_depth = 1.0f;
+  glClearBufferfv(GL_DEPTH, 0, &far_depth);
+  // The viewport is the image grown by the guard band: samples just off the image still
+  // reach its edge pixels (GL culls points whose center is outside the viewport).
+  glViewport(-g, -g, width + 2 * g, height + 2 * g);
+  glEnable(GL_PROGRAM_POINT_SIZE);
+  glBindVertexArray(m.vao);
+  if (current_mode == ReconstructionMode::kTraditionalFrameless) {
+    glUseProgram(m.newest);
+    const Uniforms u{m.newest};
+    u.set("u_now", time);
+    u.set("u_max_future", limits.max_future);
+    u.set("u_scale", scale);
+    u.set("u_size", size);
+    u.set("u_guard", float(g));
+    glDisable(GL_BLEND);
+    glEnable(GL_DEPTH_TEST);
+    glDepthFunc(GL_LESS);
+    glDrawArrays(GL_POINTS, 0, GLsizei(m.stored));
+    glDisable(GL_DEPTH_TEST);
+  } else {
+    glUseProgram(m.splat);
+    const Uniforms u{m.splat};
+    const Projector proj(camera, width, height);
+    u.set("u_now", time);
+    u.set("u_reproject", current_mode == ReconstructionMode::kAdaptive ? 1 : 0);
+    u.set("u_eye", proj.eye);
+    u.set("u_forward", proj.forward);
+    u.set("u_axis_x", proj.axis_x);
+    u.set("u_axis_y", proj.axis_y);
+    u.set("u_znear", proj.znear);
+    u.set("u_half", glm::vec2(proj.half_width, proj.half_height));
+    u.set("u_min_direction_z", Projector::kMinDirectionZ);
+    u.set("u_max_coordinate", Projector::kMaxCoordinate);
+    u.set("u_scale", scale);
+    u.set("u_size", size);
+    u.set("u_guard", float(g));
+    u.set("u_max_future", limits.max_future);
+    u.set("u_cutoff", limits.cutoff);
+    u.set("u_min_wt", limits.min_temporal_weight);
+    u.set("u_have_coverage", m.have_coverage ? 1 : 0);
+    u.set("u_grow_below", rule.grow_below);
+    u.set("u_grow", rule.grow);
+    u.set("u_shrink_above", rule.shrink_above);
+    u.set("u_shrink", rule.shrink);
+    u.set("u_min_radius", rule.min_radius);
+    u.set("u_max_radius", rule.max_radius);
+    u.set("u_min_weight", kMinSplatWeight);
+    u.set("u_tile_index", 0);
+    u.set("u_tile_filters", 1);
+    u.set("u_coverage", 2);
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D, m.tile_index);
+    glActiveTexture(GL_TEXTURE1);
+    glBindTexture(GL_TEXTURE_BUFFER, m.tile_filters);
+    glActiveTexture(GL_TEXTURE2);
+    glBindTexture(GL_TEXTURE_2D, m.coverage[size_t(1 - m.current)]);
+    glEnable(GL_BLEND);
+    glBlendEquation(GL_FUNC_ADD);
+    glBlendFunc(GL_ONE, GL_ONE);
+    glDrawArrays(GL_POINTS, 0, GLsizei(m.stored));
+    glDisable(GL_BLEND);
+    glActiveTexture(GL_TEXTURE0);
+  }
+  glBindVertexArray(0);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
+
+  // ---- Hole pyramid (hole_fill.h), level by level.
+  glUseProgram(m.pyramid);
+  {
+    const Uniforms u{m.pyramid};
+    glm::ivec2 src_size(width, height);
+    int src_row = 0;
+    for (size_t level = 0; level < m.levels.size(); ++level) {
+      const PyramidLevel& L = m.levels[level];
+      glBindImageTexture(0, level == 0 ? m.accum : m.atlas, 0, GL_FALSE, 0, GL_READ_ONLY,
+                         GL_RGBA32F);
+      glBindImageTexture(1, m.atlas, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+      u.set("u_src_size", src_size);
+      u.set("u_src_row", src_row);
+      u.set("u_dst_size", glm::ivec2(L.width, L.height));
+      u.set("u_dst_row", L.row_offset);
+      glDispatchCompute(GLuint((L.width + kGroup - 1) / kGroup),
+                        GLuint((L.height + kGroup - 1) / kGroup), 1);
+      glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
+      src_size = glm::ivec2(L.width, L.height);
+      src_row = L.row_offset;
+    }
+  }
+
+  // ---- Normalise, fill holes.
+  glUseProgram(m.normalise);
+  {
+    const Uniforms u{m.normalise};
+    const uint32_t no_counts[3] = {0, 0, 0};
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, m.counts);
+    glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, sizeof no_counts, no_counts);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m.counts);
+    glBindImageTexture(0, m.accum, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
+    glBindImageTexture(1, m.atlas, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
+    glBindImageTexture(2, m.output, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+    std::vector<glm::ivec3> level_data;
+    for (const PyramidLevel& L : m.levels) level_data.emplace_back(L.width, L.height, L.row_offset);
+    AFR_CHECK(level_data.size() <= 32);
+    u.set("u_size", size);
+    u.set("u_levels", int(level_data.size()));
+    if (!level_data.empty()) {
+      glUniform3iv(u.at("u_level"), GLsizei(level_data.size()), &level_data[0].x);
+    }
+    glDispatchCompute(GLuint((width + kGroup - 1) / kGroup), GLuint((height + kGroup - 1) / kGroup),
+                      1);
+    glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_TEXTURE_UPDATE_BARRIER_BIT |
+                    GL_TEXTURE_FETCH_BARRIER_BIT);
+    uint32_t counts[3] = {0, 0, 0};
+    glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, sizeof counts, counts);
+    frame_.hole_pixels = counts[0];
+    frame_.empty_pixels = counts[1];
+    frame_.nonfinite_pixels = counts[2];
+  }
+  glUseProgram(0);
+
+  if (out != nullptr) {
+    glBindTexture(GL_TEXTURE_2D, m.output);
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    glGetTexImage(GL_TEXTURE_2D, 0, GL_RGB, GL_FLOAT, out->pixels.data());
+  }
+  if (current_mode == ReconstructionMode::kTraditionalFrameless) {
+    m.have_coverage = false;
+  } else {
+    m.have_coverage = true;
+    m.current = 1 - m.current;
+  }
+  check_gl("reconstruct");
+}
+
+void GlReconstructor::read_weights(std::vector<float>* out) {
+  context_->make_current();
+  Impl& m = *impl_;
+  std::vector<glm::vec4> rgba(size_t(m.width) * size_t(m.height));
+  out->resize(rgba.size());
+  if (rgba.empty()) return;
+  glBindTexture(GL_TEXTURE_2D, m.accum);
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  glGetTexImage(GL_TEXTURE_2D, 0, GL_RGBA, GL_FLOAT, rgba.data());
+  for (size_t i = 0; i < rgba.size(); ++i) (*out)[i] = rgba[i].w;
+  check_gl("read_weights");
+}
+
+void GlReconstructor::read_coverage(std::vector<CoverageCell>* out) {
+  context_->make_current();
+  Impl& m = *impl_;
+  out->assign(size_t(m.width) * size_t(m.height), CoverageCell{});
+  if (out->empty() || !m.have_coverage) return;
+  static_assert(sizeof(CoverageCell) == 2 * sizeof(float));
+  glBindTexture(GL_TEXTURE_2D, m.coverage[size_t(1 - m.current)]);
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  glGetTexImage(GL_TEXTURE_2D, 0, GL_RG, GL_FLOAT, out->data());
+  check_gl("read_coverage");
+}
+
+void GlReconstructor::draw_output(int fb_width, int fb_height) {
+  context_->make_current();
+  Impl& m = *impl_;
+  if (m.output == 0 || fb_width <= 0 || fb_height <= 0) return;
+  // Fit the image into the framebuffer, keeping its aspect.
+  const double s = std::min(double(fb_width) / m.width, double(fb_height) / m.height);
+  const int w = std::max(1, int(m.width * s)), h = std::max(1, int(m.height * s));
+  glViewport((fb_width - w) / 2, (fb_height - h) / 2, w, h);
+  glUseProgram(m.blit);
+  glActiveTexture(GL_TEXTURE0);
+  glBindTexture(GL_TEXTURE_2D, m.output);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  glUniform1i(glGetUniformLocation(m.blit, "u_image"), 0);
+  glBindVertexArray(m.empty_vao);
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  glBindVertexArray(0);
+  glUseProgram(0);
+  check_gl("draw_output");
+}
+
+}  // namespace afr

@@ -1,0 +1,284 @@
+#include "gl_shaders.h"
+
+namespace afr::gl_shaders {
+
+// Vertex attributes are StoredSample's fields (sample_store.h), 64 bytes a sample.
+const char* const kSplatVertex = R"(#version 430 core
+layout(location = 0) in double a_time;
+layout(location = 1) in vec2 a_xy;
+layout(location = 2) in vec3 a_color;
+layout(location = 3) in uint a_flags;
+layout(location = 4) in vec3 a_position;
+layout(location = 5) in vec3 a_velocity;
+
+uniform double u_now;
+uniform bool u_reproject;
+// Projector (reprojection.h)
+uniform vec3 u_eye;
+uniform vec3 u_forward;
+uniform vec3 u_axis_x;
+uniform vec3 u_axis_y;
+uniform float u_znear;
+uniform vec2 u_half;
+uniform float u_min_direction_z;
+uniform float u_max_coordinate;
+uniform vec2 u_scale;   // sampling image -> output pixels
+uniform ivec2 u_size;   // output pixels
+uniform float u_guard;  // samples are kept while inside the image grown by this
+// FilterLimits
+uniform float u_max_future;
+uniform float u_cutoff;
+uniform float u_min_wt;
+// SplatSizeRule
+uniform bool u_have_coverage;
+uniform float u_grow_below;
+uniform float u_grow;
+uniform float u_shrink_above;
+uniform float u_shrink;
+uniform float u_min_radius;
+uniform float u_max_radius;
+
+uniform usampler2D u_tile_index;       // per output pixel: index into u_tile_filters
+uniform samplerBuffer u_tile_filters;  // sigma_x, sigma_y, k_t, e_t
+uniform sampler2D u_coverage;          // previous image: count, radius sum
+
+flat out vec2 v_center;
+flat out vec4 v_kernel;  // k_x, k_y, off_x, off_y
+flat out vec3 v_color;
+flat out float v_wt;
+flat out float v_r;
+
+void skip() {
+  gl_Position = vec4(2.0, 2.0, 2.0, 1.0);  // outside the clip volume: culled
+  gl_PointSize = 1.0;
+}
+
+float splat_radius(vec2 cell, float filter_radius) {
+  float r = filter_radius;
+  if (u_have_coverage) {
+    if (!(cell.x > 0.0)) {
+      r = u_grow * filter_radius;
+    } else {
+      float mean = cell.y / cell.x;
+      if (cell.x < u_grow_below) r = u_grow * mean;
+      else if (cell.x > u_shrink_above) r = u_shrink * mean;
+      else r = mean;
+    }
+  }
+  if (!(r >= u_min_radius)) return u_min_radius;
+  return min(r, u_max_radius);
+}
+
+void main() {
+  double age_d = u_now - a_time;
+  if (age_d < double(-u_max_future)) { skip(); return; }
+  float age_signed = float(age_d);
+  float age = max(age_signed, 0.0);
+  vec2 p;
+  if (u_reproject && (a_flags & 1u) != 0u) {
+    vec3 d;
+    float z;
+    if ((a_flags & 2u) != 0u) {
+      d = a_position;
+      z = dot(d, u_forward);
+      if (!(z > u_min_direction_z)) { skip(); return; }
+    } else {
+      vec3 w = a_position;
+      if ((a_flags & 4u) != 0u) w += a_velocity * age_signed;
+      d = w - u_eye;
+      z = dot(d, u_forward);
+      if (!(z >= u_znear)) { skip(); return; }
+    }
+    p = vec2(u_half.x + dot(d, u_axis_x) / z, u_half.y - dot(d, u_axis_y) / z);
+    if (!(abs(p.x) < u_max_coordinate) || !(abs(p.y) < u_max_coordinate)) { skip(); return; }
+  } else {
+    p = a_xy * u_scale;
+  }
+  vec2 size = vec2(u_size);
+  if (!(p.x > -u_guard && p.x < size.x + u_guard && p.y > -u_guard && p.y < size.y + u_guard)) {
+    skip();
+    return;
+  }
+  ivec2 pix = clamp(ivec2(floor(p)), ivec2(0), u_size - 1);
+  vec4 f = texelFetch(u_tile_filters, int(texelFetch(u_tile_index, pix, 0).r));
+  float r = splat_radius(texelFetch(u_coverage, pix, 0).xy, u_cutoff * max(f.x, f.y));
+  float sigma_x = max(f.x, r / u_cutoff);
+  float sigma_y = max(f.y, r / u_cutoff);
+  float k_x = 0.5 / (sigma_x * sigma_x);
+  float k_y = 0.5 / (sigma_y * sigma_y);
+  v_kernel = vec4(k_x, k_y, exp(-r * r * k_x), exp(-r * r * k_y));
+  v_wt = max(exp(-age * age * f.z), u_min_wt);
+  v_center = p;
+  v_color = a_color;
+  v_r = r;
+  // The viewport is the image grown by u_guard on every side.
+  gl_Position = vec4((p + u_guard) / (size + 2.0 * u_guard) * 2.0 - 1.0, 0.0, 1.0);
+  // Covers every pixel center within r of p, with a pixel to spare for the rasteriser's
+  // snapping of point positions.
+  gl_PointSize = 2.0 * r + 2.0;
+}
+)";
+
+const char* const kSplatFragment = R"(#version 430 core
+flat in vec2 v_center;
+flat in vec4 v_kernel;
+flat in vec3 v_color;
+flat in float v_wt;
+flat in float v_r;
+uniform float u_min_weight;
+layout(location = 0) out vec4 o_accum;
+layout(location = 1) out vec2 o_coverage;
+void main() {
+  vec2 d = gl_FragCoord.xy - v_center;
+  if (abs(d.x) >= v_r || abs(d.y) >= v_r) discard;
+  float wx = exp(-d.x * d.x * v_kernel.x) - v_kernel.z;
+  float wy = exp(-d.y * d.y * v_kernel.y) - v_kernel.w;
+  if (!(wx > 0.0) || !(wy > 0.0)) discard;
+  float w = wx * (wy * v_wt);
+  if (!(w > u_min_weight)) discard;
+  o_accum = vec4(v_color * w, w);
+  o_coverage = vec2(1.0, v_r);
+}
+)";
+
+const char* const kNewestVertex = R"(#version 430 core
+layout(location = 0) in double a_time;
+layout(location = 1) in vec2 a_xy;
+layout(location = 2) in vec3 a_color;
+uniform double u_now;
+uniform float u_max_future;
+uniform vec2 u_scale;
+uniform ivec2 u_size;
+uniform float u_guard;
+flat out vec3 v_color;
+void main() {
+  double age_d = u_now - a_time;
+  vec2 p = a_xy * u_scale;
+  vec2 size = vec2(u_size);
+  if (age_d < double(-u_max_future) || !(p.x >= 0.0 && p.x < size.x && p.y >= 0.0 && p.y < size.y)) {
+    gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
+    gl_PointSize = 1.0;
+    return;
+  }
+  float age = float(max(age_d, 0.0LF));
+  // Newer samples are nearer: depth age / (age + 1) is increasing in age, in [0, 1).
+  float depth = age / (age + 1.0);
+  vec2 center = floor(p) + 0.5;
+  gl_Position = vec4((center + u_guard) / (size + 2.0 * u_guard) * 2.0 - 1.0, depth * 2.0 - 1.0, 1.0);
+  gl_PointSize = 1.0;
+  v_color = a_color;
+}
+)";
+
+const char* const kNewestFragment = R"(#version 430 core
+flat in vec3 v_color;
+layout(location = 0) out vec4 o_accum;
+layout(location = 1) out vec2 o_coverage;
+void main() {
+  o_accum = vec4(v_color, 1.0);
+  o_coverage = vec2(0.0);
+}
+)";
+
+const char* const kPyramidCompute = R"(#version 430 core
+layout(local_size_x = 16, local_size_y = 16) in;
+layout(rgba32f, binding = 0) uniform readonly image2D u_src;
+layout(rgba32f, binding = 1) uniform writeonly image2D u_dst;
+uniform ivec2 u_src_size;
+uniform int u_src_row;
+uniform ivec2 u_dst_size;
+uniform int u_dst_row;
+void main() {
+  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+  if (p.x >= u_dst_size.x || p.y >= u_dst_size.y) return;
+  vec4 s = vec4(0.0);
+  for (int b = 0; b < 2; ++b) {
+    for (int a = 0; a < 2; ++a) {
+      ivec2 q = 2 * p + ivec2(a, b);
+      if (q.x < u_src_size.x && q.y < u_src_size.y) s += imageLoad(u_src, q + ivec2(0, u_src_row));
+    }
+  }
+  imageStore(u_dst, p + ivec2(0, u_dst_row), s);
+}
+)";
+
+const char* const kNormaliseCompute = R"(#version 430 core
+layout(local_size_x = 16, local_size_y = 16) in;
+layout(rgba32f, binding = 0) uniform readonly image2D u_accum;
+layout(rgba32f, binding = 1) uniform readonly image2D u_atlas;
+layout(rgba32f, binding = 2) uniform writeonly image2D u_out;
+layout(std430, binding = 0) buffer Counts {
+  uint holes;
+  uint empty;
+  uint nonfinite;
+};
+uniform ivec2 u_size;
+uniform int u_levels;
+uniform ivec3 u_level[32];  // width, height, first atlas row of levels 1..u_levels
+
+vec4 texel(int k, int x, int y) {
+  ivec3 L = u_level[k - 1];
+  return imageLoad(u_atlas, ivec2(clamp(x, 0, L.x - 1), L.z + clamp(y, 0, L.y - 1)));
+}
+
+void main() {
+  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+  if (p.x >= u_size.x || p.y >= u_size.y) return;
+  vec4 a = imageLoad(u_accum, p);
+  vec3 c = vec3(0.0);
+  if (a.w > 0.0) {
+    c = a.rgb / a.w;
+  } else {
+    atomicAdd(holes, 1u);
+    bool found = false;
+    for (int k = 1; k <= u_levels; ++k) {
+      float inv = 1.0 / float(1 << k);
+      float px = (float(p.x) + 0.5) * inv - 0.5;
+      float py = (float(p.y) + 0.5) * inv - 0.5;
+      float fx0 = floor(px), fy0 = floor(py);
+      float fx = px - fx0, fy = py - fy0;
+      int ix = int(fx0), iy = int(fy0);
+      vec4 s = texel(k, ix, iy) * ((1.0 - fx) * (1.0 - fy)) + texel(k, ix + 1, iy) * (fx * (1.0 - fy)) +
+               texel(k, ix, iy + 1) * ((1.0 - fx) * fy) + texel(k, ix + 1, iy + 1) * (fx * fy);
+      if (s.w > 0.0) {
+        c = s.rgb / s.w;
+        found = true;
+        break;
+      }
+    }
+    if (!found) atomicAdd(empty, 1u);
+  }
+  if (any(isnan(c)) || any(isinf(c))) {
+    atomicAdd(nonfinite, 1u);
+    c = vec3(0.0);
+  }
+  imageStore(u_out, p, vec4(c, 1.0));
+}
+)";
+
+const char* const kBlitVertex = R"(#version 430 core
+out vec2 v_uv;
+void main() {
+  // One triangle covering the viewport.
+  vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
+  v_uv = vec2(p.x, 1.0 - p.y);
+  gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+}
+)";
+
+const char* const kBlitFragment = R"(#version 430 core
+in vec2 v_uv;
+uniform sampler2D u_image;
+out vec4 o_color;
+// linear_to_srgb of image.h: the window shows what write_image() would store.
+vec3 to_srgb(vec3 c) {
+  c = clamp(c, 0.0, 1.0);
+  return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, greaterThan(c, vec3(0.0031308)));
+}
+void main() {
+  // Texture row 0 is the image's top row; the window's top is v_uv.y = 0 after the flip.
+  o_color = vec4(to_srgb(texture(u_image, v_uv).rgb), 1.0);
+}
+)";
+
+}  // namespace afr::gl_shaders

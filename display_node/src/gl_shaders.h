@@ -1,0 +1,21 @@
+// GLSL sources of the OpenGL reconstructor. Each mirrors a piece of the CPU backend and names
+// it; keep the two in step (the backend agreement tests check they are).
+#pragma once
+
+namespace afr::gl_shaders {
+
+// Adaptive splats (cpu_reconstructor.cpp, phase 1 and 2): reprojection, tile filter, coverage
+// rule, Gaussian weight; accumulates (sum w c, sum w) and (count, radius sum).
+extern const char* const kSplatVertex;
+extern const char* const kSplatFragment;
+// Traditional frameless: one point per sample at its pixel, the newest wins the depth test.
+extern const char* const kNewestVertex;
+extern const char* const kNewestFragment;
+// hole_fill.cpp: one pyramid level from the one below, and normalise-with-fill.
+extern const char* const kPyramidCompute;
+extern const char* const kNormaliseCompute;
+// Shows the output texture in a window, image row 0 at the top.
+extern const char* const kBlitVertex;
+extern const char* const kBlitFragment;
+
+}  // namespace afr::gl_shaders

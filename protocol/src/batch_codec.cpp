@@ -1,0 +1,404 @@
+// Sample batches and tiling snapshots: the high-rate messages of the sample channel. The
+// per-sample loops are instantiated per field combination so that they branch on nothing but
+// the checks, and they allocate nothing.
+#include <afr/protocol/codec.h>
+#include <afr/protocol/packing.h>
+
+#include "validate.h"
+#include "wire.h"
+
+#include <cmath>
+#include <string>
+
+namespace afr::protocol {
+
+namespace detail {
+Result<Bytes> open_message(Bytes message, MessageType type);
+}  // namespace detail
+
+using detail::check_bounds;
+using detail::check_rect;
+using detail::check_time;
+using wire::field_error;
+using wire::Reader;
+using wire::Writer;
+
+namespace {
+
+constexpr uint32_t kMaxTicks = 0x7fff;   // 15 bits of time offset
+constexpr uint16_t kMissBit = 0x8000;    // the 16th bit
+constexpr const char* kBatch = "sample_batch";
+constexpr const char* kSnapshot = "tiling_snapshot";
+
+bool finite3(const glm::vec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+std::string sample_field(size_t i, const char* field) {
+  return "samples[" + std::to_string(i) + "]." + field;
+}
+
+// Checks every sample's values (not what packing clamps: colors, velocity magnitudes) and
+// finds the time range.
+Status check_samples(const SampleBatch& m, const ImageBounds& bounds, double* t_min,
+                     double* t_max) {
+  if (Status s = check_bounds(kBatch, bounds); !s) return s;
+  if (m.fields & ~kKnownSampleFields) {
+    return field_error(kBatch, "fields",
+                       "unknown bits " + std::to_string(m.fields & ~kKnownSampleFields));
+  }
+  if (m.samples.size() > kMaxSamplesPerBatch) {
+    return field_error(kBatch, "count",
+                       std::to_string(m.samples.size()) + " is over the limit of " +
+                           std::to_string(kMaxSamplesPerBatch));
+  }
+  const float w = float(bounds.width), h = float(bounds.height);
+  double lo = INFINITY, hi = -INFINITY;
+  for (size_t i = 0; i < m.samples.size(); ++i) {
+    const Sample& s = m.samples[i];
+    if (!std::isfinite(s.time) || s.time < 0.0) {
+      return field_error(kBatch, sample_field(i, "time"), "not finite and >= 0");
+    }
+    lo = std::min(lo, s.time);
+    hi = std::max(hi, s.time);
+    if (!(s.x >= 0.0f && s.x < w)) {  // also NaN
+      return field_error(kBatch, sample_field(i, "x"),
+                         std::to_string(s.x) + " is outside [0, " + std::to_string(bounds.width) +
+                             ")");
+    }
+    if (!(s.y >= 0.0f && s.y < h)) {
+      return field_error(kBatch, sample_field(i, "y"),
+                         std::to_string(s.y) + " is outside [0, " +
+                             std::to_string(bounds.height) + ")");
+    }
+    if ((m.fields & kFieldPosition) && !finite3(s.position)) {
+      return field_error(kBatch, sample_field(i, "position"), "not finite");
+    }
+    if ((m.fields & kFieldVelocity) && !finite3(s.velocity)) {
+      return field_error(kBatch, sample_field(i, "velocity"), "not finite");
+    }
+  }
+  if (m.samples.empty()) lo = hi = 0.0;
+  if (hi - lo > double(kMaxTicks) * std::ldexp(1.0, kMaxTickExp)) {
+    return field_error(kBatch, "samples", "times span " + std::to_string(hi - lo) +
+                                              " s, more than one batch may (32767 s)");
+  }
+  *t_min = lo;
+  *t_max = hi;
+  return {};
+}
+
+// The finest power-of-two tick that spans `span` seconds in kMaxTicks ticks.
+int choose_tick_exp(double span) {
+  int e = kMinTickExp;
+  while (e < kMaxTickExp && span > double(kMaxTicks) * std::ldexp(1.0, e)) ++e;
+  return e;
+}
+
+template <uint32_t kFields>
+void pack_samples(const SampleBatch& m, double base, double inv_tick, uint8_t* p) {
+  constexpr size_t kStride = packed_sample_bytes(kFields);
+  for (const Sample& s : m.samples) {
+    wire::store_u24(p, encode_position(s.x));
+    wire::store_u24(p + 3, encode_position(s.y));
+    const uint32_t ticks = std::min(uint32_t((s.time - base) * inv_tick + 0.5), kMaxTicks);
+    const bool miss = (kFields & kFieldPosition) && s.miss;
+    wire::store_u16(p + 6, uint16_t(ticks | (miss ? kMissBit : 0)));
+    wire::store_u32(p + 8, encode_rgb9e5(s.color.r, s.color.g, s.color.b));
+    uint8_t* q = p + 12;
+    if constexpr ((kFields & kFieldPosition) != 0) {
+      wire::store_f32(q, s.position.x);
+      wire::store_f32(q + 4, s.position.y);
+      wire::store_f32(q + 8, s.position.z);
+      q += 12;
+    }
+    if constexpr ((kFields & kFieldVelocity) != 0) {
+      wire::store_u16(q, encode_half(s.velocity.x));
+      wire::store_u16(q + 2, encode_half(s.velocity.y));
+      wire::store_u16(q + 4, encode_half(s.velocity.z));
+    }
+    p += kStride;
+  }
+}
+
+// Returns the index of the first bad sample and what is wrong with it, or -1.
+template <uint32_t kFields>
+int64_t unpack_samples(const uint8_t* p, double base, double tick, uint32_t max_x_code,
+                       uint32_t max_y_code, std::vector<Sample>& samples, const char** problem) {
+  constexpr size_t kStride = packed_sample_bytes(kFields);
+  const size_t n = samples.size();
+  for (size_t i = 0; i < n; ++i, p += kStride) {
+    Sample& s = samples[i];
+    const uint32_t xc = wire::load_u24(p), yc = wire::load_u24(p + 3);
+    const uint16_t t = wire::load_u16(p + 6);
+    if (xc > max_x_code || yc > max_y_code) [[unlikely]] {
+      *problem = xc > max_x_code ? "x: outside the image" : "y: outside the image";
+      return int64_t(i);
+    }
+    s.x = decode_position(xc);
+    s.y = decode_position(yc);
+    s.time = base + double(t & kMaxTicks) * tick;
+    const Rgb c = decode_rgb9e5(wire::load_u32(p + 8));
+    s.color = glm::vec3(c.r, c.g, c.b);
+    const uint8_t* q = p + 12;
+    if constexpr ((kFields & kFieldPosition) != 0) {
+      s.position = glm::vec3(wire::load_f32(q), wire::load_f32(q + 4), wire::load_f32(q + 8));
+      if (!finite3(s.position)) [[unlikely]] {
+        *problem = "position: not finite";
+        return int64_t(i);
+      }
+      s.miss = (t & kMissBit) != 0;
+      q += 12;
+    } else {
+      if (t & kMissBit) [[unlikely]] {
+        *problem = "miss: set without the position field";
+        return int64_t(i);
+      }
+      s.position = glm::vec3(0.0f);
+      s.miss = false;
+    }
+    if constexpr ((kFields & kFieldVelocity) != 0) {
+      const uint16_t vx = wire::load_u16(q), vy = wire::load_u16(q + 2), vz = wire::load_u16(q + 4);
+      if (half_is_special(vx) || half_is_special(vy) || half_is_special(vz)) [[unlikely]] {
+        *problem = "velocity: not finite";
+        return int64_t(i);
+      }
+      s.velocity = glm::vec3(decode_half(vx), decode_half(vy), decode_half(vz));
+    } else {
+      s.velocity = glm::vec3(0.0f);
+    }
+  }
+  return -1;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// SampleBatch: u32 sampler_id, u32 fields, u64 sequence, f64 base_time, u32 count,
+// i8 tick_exp, u8[3] reserved (0); then count packed samples (docs/protocol.md)
+
+Status validate(const SampleBatch& m, const ImageBounds& bounds) {
+  double lo, hi;
+  return check_samples(m, bounds, &lo, &hi);
+}
+
+Status encode(const SampleBatch& m, std::vector<uint8_t>* out, const ImageBounds& bounds) {
+  out->clear();
+  double t_min = 0.0, t_max = 0.0;
+  if (Status s = check_samples(m, bounds, &t_min, &t_max); !s) return s;
+  const int tick_exp = choose_tick_exp(t_max - t_min);
+  const size_t n = m.samples.size();
+  Writer w = wire::begin_message(MessageType::kSampleBatch,
+                                 kBatchHeaderBytes + n * packed_sample_bytes(m.fields), out);
+  w.u32(m.sampler_id);
+  w.u32(m.fields);
+  w.u64(m.sequence);
+  w.f64(t_min);
+  w.u32(uint32_t(n));
+  w.u8(uint8_t(int8_t(tick_exp)));
+  w.u8(0);
+  w.u8(0);
+  w.u8(0);
+  uint8_t* p = w.take(n * packed_sample_bytes(m.fields));
+  const double inv_tick = std::ldexp(1.0, -tick_exp);
+  switch (m.fields) {
+    case 0: pack_samples<0>(m, t_min, inv_tick, p); break;
+    case kFieldPosition: pack_samples<kFieldPosition>(m, t_min, inv_tick, p); break;
+    case kFieldVelocity: pack_samples<kFieldVelocity>(m, t_min, inv_tick, p); break;
+    default: pack_samples<kFieldPosition | kFieldVelocity>(m, t_min, inv_tick, p); break;
+  }
+  AFR_CHECK(w.done());
+  return {};
+}
+
+Status decode(Bytes message, SampleBatch* out, const ImageBounds& bounds) {
+  if (Status s = check_bounds(kBatch, bounds); !s) return s;
+  Result<Bytes> payload = detail::open_message(message, MessageType::kSampleBatch);
+  if (!payload) return payload.status();
+  Reader r(*payload, kBatch);
+  uint32_t count = 0;
+  double base = 0.0;
+  uint8_t tick_byte = 0;
+  const uint8_t* reserved = nullptr;
+  if (!(r.u32(&out->sampler_id, "sampler_id") && r.u32(&out->fields, "fields") &&
+        r.u64(&out->sequence, "sequence") && r.f64(&base, "base_time") &&
+        r.u32(&count, "count") && r.u8(&tick_byte, "tick_exp") &&
+        (reserved = r.take(3, "reserved")))) {
+    return r.status();
+  }
+  if (out->fields & ~kKnownSampleFields) {
+    return field_error(kBatch, "fields",
+                       "unknown bits " + std::to_string(out->fields & ~kKnownSampleFields));
+  }
+  if (Status s = check_time(kBatch, "base_time", base); !s) return s;
+  const int tick_exp = int(int8_t(tick_byte));
+  if (tick_exp < kMinTickExp || tick_exp > kMaxTickExp) {
+    return field_error(kBatch, "tick_exp",
+                       std::to_string(tick_exp) + " is outside " + std::to_string(kMinTickExp) +
+                           ".." + std::to_string(kMaxTickExp));
+  }
+  if (reserved[0] | reserved[1] | reserved[2]) return field_error(kBatch, "reserved", "not zero");
+  if (count > kMaxSamplesPerBatch) {
+    return field_error(kBatch, "count",
+                       std::to_string(count) + " is over the limit of " +
+                           std::to_string(kMaxSamplesPerBatch));
+  }
+  const uint64_t need = uint64_t(count) * packed_sample_bytes(out->fields);
+  if (r.remaining() != need) {
+    return field_error(kBatch, "count",
+                       std::to_string(count) + " samples need " + std::to_string(need) +
+                           " bytes, " + std::to_string(r.remaining()) + " are there");
+  }
+  const uint8_t* p = r.take(need, "samples");
+  AFR_CHECK(p != nullptr || need == 0);
+  out->samples.resize(count);  // bounded by the limit and by the bytes received
+  const double tick = std::ldexp(1.0, tick_exp);
+  // Codes of positions that floor into the image: code / 512 < width.
+  const uint32_t max_x = uint32_t(bounds.width) * kPositionScale - 1;
+  const uint32_t max_y = uint32_t(bounds.height) * kPositionScale - 1;
+  const char* problem = nullptr;
+  int64_t bad = -1;
+  switch (out->fields) {
+    case 0: bad = unpack_samples<0>(p, base, tick, max_x, max_y, out->samples, &problem); break;
+    case kFieldPosition:
+      bad = unpack_samples<kFieldPosition>(p, base, tick, max_x, max_y, out->samples, &problem);
+      break;
+    case kFieldVelocity:
+      bad = unpack_samples<kFieldVelocity>(p, base, tick, max_x, max_y, out->samples, &problem);
+      break;
+    default:
+      bad = unpack_samples<kFieldPosition | kFieldVelocity>(p, base, tick, max_x, max_y,
+                                                            out->samples, &problem);
+      break;
+  }
+  if (bad >= 0) {
+    return Status::error(std::string(kBatch) + ".samples[" + std::to_string(bad) + "]." + problem);
+  }
+  return {};
+}
+
+// ---------------------------------------------------------------------------------------------
+// TilingSnapshot: u32 sampler_id, f64 time, u16 region x0, y0, x1, y1, u32 tile_count; then
+// per tile u16 x0, y0, x1, y1, f32 G_x, G_y, G_t, v, E, u32 count, f32 rate
+
+namespace {
+
+Status check_tile(size_t i, const TileInfo& t, const PixelRect& region) {
+  // The field name is built only on failure: checking allocates nothing.
+  const auto fail = [&](const char* field, const char* problem) {
+    return field_error(kSnapshot, "tiles[" + std::to_string(i) + "]." + field, problem);
+  };
+  const PixelRect& r = t.rect;
+  if (r.empty() || r.x0 < region.x0 || r.y0 < region.y0 || r.x1 > region.x1 ||
+      r.y1 > region.y1) {
+    return fail("rect", "empty or not inside the region");
+  }
+  const struct {
+    const char* field;
+    float value;
+    bool non_negative;
+  } values[] = {{"G_x", t.G_x, false}, {"G_y", t.G_y, false}, {"G_t", t.G_t, false},
+                {"v", t.v, true},      {"E", t.E, true},      {"rate", t.rate, true}};
+  for (const auto& v : values) {
+    if (!std::isfinite(v.value)) return fail(v.field, "not finite");
+    if (v.non_negative && v.value < 0.0f) return fail(v.field, "negative");
+  }
+  return {};
+}
+
+}  // namespace
+
+Status validate(const TilingSnapshot& m, const ImageBounds& bounds) {
+  if (Status s = check_bounds(kSnapshot, bounds); !s) return s;
+  if (Status s = check_time(kSnapshot, "time", m.time); !s) return s;
+  if (Status s = check_rect(kSnapshot, "region", m.region, bounds.width, bounds.height); !s) {
+    return s;
+  }
+  if (m.tiles.size() > kMaxTilesPerSnapshot || int64_t(m.tiles.size()) > m.region.area()) {
+    return field_error(kSnapshot, "tile_count",
+                       std::to_string(m.tiles.size()) + " is over the limit of " +
+                           std::to_string(kMaxTilesPerSnapshot) + " or the region's pixels");
+  }
+  for (size_t i = 0; i < m.tiles.size(); ++i) {
+    if (Status s = check_tile(i, m.tiles[i], m.region); !s) return s;
+  }
+  return {};
+}
+
+Status encode(const TilingSnapshot& m, std::vector<uint8_t>* out, const ImageBounds& bounds) {
+  out->clear();
+  if (Status s = validate(m, bounds); !s) return s;
+  Writer w = wire::begin_message(MessageType::kTilingSnapshot,
+                                 kSnapshotHeaderBytes + m.tiles.size() * kTileBytes, out);
+  w.u32(m.sampler_id);
+  w.f64(m.time);
+  // Coordinates are in [0, 32768] after validation: u16 holds them.
+  w.u16(uint16_t(m.region.x0));
+  w.u16(uint16_t(m.region.y0));
+  w.u16(uint16_t(m.region.x1));
+  w.u16(uint16_t(m.region.y1));
+  w.u32(uint32_t(m.tiles.size()));
+  for (const TileInfo& t : m.tiles) {
+    w.u16(uint16_t(t.rect.x0));
+    w.u16(uint16_t(t.rect.y0));
+    w.u16(uint16_t(t.rect.x1));
+    w.u16(uint16_t(t.rect.y1));
+    w.f32(t.G_x);
+    w.f32(t.G_y);
+    w.f32(t.G_t);
+    w.f32(t.v);
+    w.f32(t.E);
+    w.u32(t.count);
+    w.f32(t.rate);
+  }
+  AFR_CHECK(w.done());
+  return {};
+}
+
+Status decode(Bytes message, TilingSnapshot* out, const ImageBounds& bounds) {
+  if (Status s = check_bounds(kSnapshot, bounds); !s) return s;
+  Result<Bytes> payload = detail::open_message(message, MessageType::kTilingSnapshot);
+  if (!payload) return payload.status();
+  Reader r(*payload, kSnapshot);
+  uint16_t rc[4] = {};
+  uint32_t count = 0;
+  if (!(r.u32(&out->sampler_id, "sampler_id") && r.f64(&out->time, "time") &&
+        r.u16(&rc[0], "region.x0") && r.u16(&rc[1], "region.y0") && r.u16(&rc[2], "region.x1") &&
+        r.u16(&rc[3], "region.y1") && r.u32(&count, "tile_count"))) {
+    return r.status();
+  }
+  out->region = PixelRect{rc[0], rc[1], rc[2], rc[3]};
+  if (Status s = check_time(kSnapshot, "time", out->time); !s) return s;
+  if (Status s = check_rect(kSnapshot, "region", out->region, bounds.width, bounds.height); !s) {
+    return s;
+  }
+  if (count > kMaxTilesPerSnapshot || int64_t(count) > out->region.area()) {
+    return field_error(kSnapshot, "tile_count",
+                       std::to_string(count) + " is over the limit of " +
+                           std::to_string(kMaxTilesPerSnapshot) + " or the region's pixels");
+  }
+  const uint64_t need = uint64_t(count) * kTileBytes;
+  if (r.remaining() != need) {
+    return field_error(kSnapshot, "tile_count",
+                       std::to_string(count) + " tiles need " + std::to_string(need) +
+                           " bytes, " + std::to_string(r.remaining()) + " are there");
+  }
+  const uint8_t* p = r.take(need, "tiles");
+  out->tiles.resize(count);
+  for (uint32_t i = 0; i < count; ++i, p += kTileBytes) {
+    TileInfo& t = out->tiles[i];
+    t.rect = PixelRect{wire::load_u16(p), wire::load_u16(p + 2), wire::load_u16(p + 4),
+                       wire::load_u16(p + 6)};
+    t.G_x = wire::load_f32(p + 8);
+    t.G_y = wire::load_f32(p + 12);
+    t.G_t = wire::load_f32(p + 16);
+    t.v = wire::load_f32(p + 20);
+    t.E = wire::load_f32(p + 24);
+    t.count = wire::load_u32(p + 28);
+    t.rate = wire::load_f32(p + 32);
+    if (Status s = check_tile(i, t, out->region); !s) return s;
+  }
+  return {};
+}
+
+}  // namespace afr::protocol
