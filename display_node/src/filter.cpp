@@ -32,9 +32,7 @@ ReconstructionMode parse_mode(std::string_view text) {
 
 namespace {
 
-// v raised to `floor` (NaN too).
-double at_least(float v, float floor) { return v >= floor ? double(v) : double(floor); }
-
+// v clamped to [lo, hi], NaN to lo.
 double clamp_nan_low(float v, float lo, float hi) {
   return v >= lo ? std::min(double(v), double(hi)) : double(lo);
 }
@@ -45,9 +43,12 @@ FilterExtents filter_extents(float G_x_in, float G_y_in, float G_t_in, float R_l
                              float depth_in, const FilterLimits& limits) {
   // Section 5.1: adaptive filter extents.
   // 1. Guards.
-  const double G_x = at_least(G_x_in, limits.min_spatial_gradient);
-  const double G_y = at_least(G_y_in, limits.min_spatial_gradient);
-  const double G_t = at_least(G_t_in, limits.min_temporal_gradient);
+  const double G_x =
+      clamp_nan_low(G_x_in, limits.min_spatial_gradient, limits.max_spatial_gradient);
+  const double G_y =
+      clamp_nan_low(G_y_in, limits.min_spatial_gradient, limits.max_spatial_gradient);
+  const double G_t =
+      clamp_nan_low(G_t_in, limits.min_temporal_gradient, limits.max_temporal_gradient);
   const double R_l = clamp_nan_low(R_l_in, limits.min_rate, limits.max_rate);
   const double depth = std::isnan(depth_in)
                            ? double(limits.max_temporal_extent)

@@ -46,7 +46,7 @@ flat out vec2 v_center;
 flat out vec4 v_kernel;  // k_x, k_y, off_x, off_y
 flat out vec3 v_color;
 flat out float v_wt;
-flat out float v_r;
+flat out vec3 v_extent;  // r_x, r_y, r
 
 void skip() {
   gl_Position = vec4(2.0, 2.0, 2.0, 1.0);  // outside the clip volume: culled
@@ -101,21 +101,26 @@ void main() {
   }
   ivec2 pix = clamp(ivec2(floor(p)), ivec2(0), u_size - 1);
   vec4 f = texelFetch(u_tile_filters, int(texelFetch(u_tile_index, pix, 0).r));
-  float r = splat_radius(texelFetch(u_coverage, pix, 0).xy, u_cutoff * max(f.x, f.y));
-  float sigma_x = max(f.x, r / u_cutoff);
-  float sigma_y = max(f.y, r / u_cutoff);
+  float r_filter = u_cutoff * max(f.x, f.y);
+  float r = splat_radius(texelFetch(u_coverage, pix, 0).xy, r_filter);
+  float grown = max(1.0, r / r_filter);
+  float sigma_x = f.x * grown;
+  float sigma_y = f.y * grown;
   float k_x = 0.5 / (sigma_x * sigma_x);
   float k_y = 0.5 / (sigma_y * sigma_y);
-  v_kernel = vec4(k_x, k_y, exp(-r * r * k_x), exp(-r * r * k_y));
+  // The square of radius r cut to the Gaussian's own cutoff box.
+  float r_x = min(r, u_cutoff * sigma_x);
+  float r_y = min(r, u_cutoff * sigma_y);
+  v_kernel = vec4(k_x, k_y, exp(-r_x * r_x * k_x), exp(-r_y * r_y * k_y));
   v_wt = max(exp(-age * age * f.z), u_min_wt);
   v_center = p;
   v_color = a_color;
-  v_r = r;
+  v_extent = vec3(r_x, r_y, r);
   // The viewport is the image grown by u_guard on every side.
   gl_Position = vec4((p + u_guard) / (size + 2.0 * u_guard) * 2.0 - 1.0, 0.0, 1.0);
   // Covers every pixel center within r of p, with a pixel to spare for the rasteriser's
   // snapping of point positions.
-  gl_PointSize = 2.0 * r + 2.0;
+  gl_PointSize = 2.0 * max(r_x, r_y) + 2.0;
 }
 )";
 
@@ -124,20 +129,20 @@ flat in vec2 v_center;
 flat in vec4 v_kernel;
 flat in vec3 v_color;
 flat in float v_wt;
-flat in float v_r;
+flat in vec3 v_extent;
 uniform float u_min_weight;
 layout(location = 0) out vec4 o_accum;
 layout(location = 1) out vec2 o_coverage;
 void main() {
   vec2 d = gl_FragCoord.xy - v_center;
-  if (abs(d.x) >= v_r || abs(d.y) >= v_r) discard;
+  if (abs(d.x) >= v_extent.x || abs(d.y) >= v_extent.y) discard;
   float wx = exp(-d.x * d.x * v_kernel.x) - v_kernel.z;
   float wy = exp(-d.y * d.y * v_kernel.y) - v_kernel.w;
   if (!(wx > 0.0) || !(wy > 0.0)) discard;
   float w = wx * (wy * v_wt);
   if (!(w > u_min_weight)) discard;
   o_accum = vec4(v_color * w, w);
-  o_coverage = vec2(1.0, v_r);
+  o_coverage = vec2(1.0, v_extent.z);
 }
 )";
 

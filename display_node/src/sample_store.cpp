@@ -88,24 +88,22 @@ size_t SampleStore::append(const SampleBatch& batch) {
   // it has grown), then hold the lock only for the copy.
   thread_local std::vector<StoredSample> staging;
   staging.clear();
+  staging.reserve(batch.samples.size());
   IngestStats counted;
-  const size_t n = batch.samples.size();
-  // Only the newest `capacity` samples of a huge batch can stay in the ring.
-  const size_t skip = n > capacity_ ? n - capacity_ : 0;
-  staging.reserve(n - skip);
-  for (size_t i = skip; i < n; ++i) {
+  for (const Sample& in : batch.samples) {
     StoredSample s;
-    if (sanitize_sample(batch.samples[i], batch.fields, batch.sampler_id, &s, &counted)) {
-      staging.push_back(s);
-    }
+    if (sanitize_sample(in, batch.fields, batch.sampler_id, &s, &counted)) staging.push_back(s);
   }
   counted.accepted = staging.size();
+  // Of a batch larger than the ring only the newest `capacity` samples are written; the
+  // others still take their sequence numbers (accepted, then overwritten at once).
+  const size_t skip = staging.size() > capacity_ ? staging.size() - capacity_ : 0;
 
   std::lock_guard<std::mutex> lock(mutex_);
   RingRun runs[2];
-  const int k = ring_runs(end_, end_ + staging.size(), capacity_, runs);
+  const int k = ring_runs(end_ + skip, end_ + staging.size(), capacity_, runs);
   for (int r = 0; r < k; ++r) {
-    std::memcpy(&ring_[runs[r].slot], &staging[runs[r].offset],
+    std::memcpy(&ring_[runs[r].slot], &staging[skip + runs[r].offset],
                 runs[r].count * sizeof(StoredSample));
   }
   end_ += staging.size();

@@ -23,9 +23,18 @@ bool recv_retry(zmq::socket_t& socket, zmq::message_t& message, zmq::recv_flags 
 
 bool send_retry(zmq::socket_t& socket, zmq::message_t& message, zmq::send_flags flags,
                 int* error) {
+  bool rechecked = false;
   for (;;) {
     try {
       if (socket.send(message, flags).has_value()) return true;
+      // A non-blocking send reads the socket's command mailbox at most about once a
+      // millisecond (libzmq throttles it), so a pipe that has room again can still look full:
+      // sends top out near one high-water mark per millisecond. Reading ZMQ_EVENTS processes
+      // the commands unthrottled; then one more try.
+      if (!rechecked && (socket.get(zmq::sockopt::events) & ZMQ_POLLOUT)) {
+        rechecked = true;
+        continue;
+      }
       if (error) *error = EAGAIN;
       return false;
     } catch (const zmq::error_t& e) {
@@ -39,10 +48,12 @@ bool send_retry(zmq::socket_t& socket, zmq::message_t& message, zmq::send_flags 
   }
 }
 
-bool wait_readable(zmq::socket_t& socket, int timeout_ms) {
+namespace {
+
+bool wait_for(zmq::socket_t& socket, short events, int timeout_ms) {
   using Clock = std::chrono::steady_clock;
   const Clock::time_point deadline = Clock::now() + std::chrono::milliseconds(timeout_ms);
-  zmq_pollitem_t item = {socket.handle(), 0, ZMQ_POLLIN, 0};
+  zmq_pollitem_t item = {socket.handle(), 0, events, 0};
   int wait = timeout_ms;
   for (;;) {
     const int rc = zmq_poll(&item, 1, wait);
@@ -56,6 +67,16 @@ bool wait_readable(zmq::socket_t& socket, int timeout_ms) {
       wait = int(left);
     }
   }
+}
+
+}  // namespace
+
+bool wait_readable(zmq::socket_t& socket, int timeout_ms) {
+  return wait_for(socket, ZMQ_POLLIN, timeout_ms);
+}
+
+bool wait_writable(zmq::socket_t& socket, int timeout_ms) {
+  return wait_for(socket, ZMQ_POLLOUT, timeout_ms);
 }
 
 void set_int(zmq::socket_t& socket, int option, int value) {

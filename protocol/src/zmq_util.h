@@ -18,6 +18,8 @@ bool send_retry(zmq::socket_t& socket, zmq::message_t& message, zmq::send_flags 
                 int* error = nullptr);
 // Waits until `socket` is readable or timeout_ms passes (-1: forever). True when readable.
 bool wait_readable(zmq::socket_t& socket, int timeout_ms);
+// Waits until `socket` takes a message without blocking, or timeout_ms passes.
+bool wait_writable(zmq::socket_t& socket, int timeout_ms);
 
 void set_int(zmq::socket_t& socket, int option, int value);
 void set_int64(zmq::socket_t& socket, int option, int64_t value);

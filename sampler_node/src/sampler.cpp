@@ -16,6 +16,10 @@ namespace {
 constexpr double kMaxReferenceAge = 20.0;
 // The smallest time difference a temporal gradient divides by (guards t - t0 near zero).
 constexpr double kMinTemporalSeconds = 1e-4;
+// At the target tile count, the worst tile is split and the best pair merged only while the
+// worst error exceeds the pair's by this factor: splitting halves an error and merging adds
+// two, so a factor of 2 would be the break-even; more damps churn.
+constexpr double kBalanceRatio = 3.0;
 // Reprojections that move a crosshair less than this (pixels) leave its temporal gradient.
 constexpr double kMinMoveForTemporal = 1e-3;
 // The smallest pixel distance a reprojected spatial gradient divides by.
@@ -80,6 +84,7 @@ void Sampler::fill() {
     }
     rederive(tiling_.root());
     compute_errors();
+    target_tiles_ = config_.min_tiles;  // no temporal gradients yet: start from the fewest
     while (tiling_.tile_count() < target_tiles_) {
       int best = -1;
       for (int t : tiling_.tiles()) {
@@ -453,12 +458,19 @@ void Sampler::add_to_tile(int tile, const Crosshair& c, double sign) {
 // the sums agree again.
 void Sampler::settle(int tile) {
   const TileSums& s = records_[size_t(tile)].sums;
-  if (s.count <= 0 || s.updates > 2 * s.count + 16) rederive(tile);
+  if (s.updates > 4 * s.count + 64) rederive(tile);
 }
 
-// Recomputes a tile's sums from the crosshairs in its block, with the newest as reference.
+// Recomputes a tile's sums from the crosshairs in its block, with the newest as reference
+// time and the block's previous weighted mean as shift (a split passes the parent's).
 void Sampler::rederive(int tile) {
+  const TileSums& old = record(tile).sums;
+  rederive(tile, old.count > 0 && old.w > 0.0 ? old.shift + old.wl / old.w : 0.0);
+}
+
+void Sampler::rederive(int tile, double shift) {
   TileSums s;
+  s.shift = std::isfinite(shift) ? shift : 0.0;
   const PixelRect rect = tiling_.node(tile).rect;
   double newest = -std::numeric_limits<double>::infinity();
   for (int32_t y = rect.y0; y < rect.y1; ++y) {
@@ -471,36 +483,26 @@ void Sampler::rederive(int tile) {
   }
   if (std::isfinite(newest)) {
     s.t_ref = newest;
-    double w_sum = 0.0, wl_sum = 0.0;
-    for (int pass = 0; pass < 2; ++pass) {
-      for (int32_t y = rect.y0; y < rect.y1; ++y) {
-        for (int32_t x = rect.x0; x < rect.x1; ++x) {
-          for (int k = 0; k < buffer_.count(x, y); ++k) {
-            const Crosshair& c = buffer_.at(x, y, k);
-            const double w = std::exp(kAgeDecay * (c.time - s.t_ref));
-            if (pass == 0) {
-              w_sum += w;
-              wl_sum += w * c.luminance;
-              continue;
-            }
-            const double d = double(c.luminance) - s.shift;
-            s.w += w;
-            s.wl += w * d;
-            s.wll += w * d * d;
-            s.wgx += w * c.G_x;
-            s.wgy += w * c.G_y;
-            if (c.has(Crosshair::kHasTemporalGradient)) {
-              s.wt += w;
-              s.wgt += w * c.G_t;
-            }
-            s.t_sum += c.time - s.t_ref;
-            ++s.count;
-            if (c.has(Crosshair::kOccluded)) ++s.occluded;
+    for (int32_t y = rect.y0; y < rect.y1; ++y) {
+      for (int32_t x = rect.x0; x < rect.x1; ++x) {
+        for (int k = 0; k < buffer_.count(x, y); ++k) {
+          const Crosshair& c = buffer_.at(x, y, k);
+          const double w = std::exp(kAgeDecay * (c.time - s.t_ref));
+          const double d = double(c.luminance) - s.shift;
+          s.w += w;
+          s.wl += w * d;
+          s.wll += w * d * d;
+          s.wgx += w * c.G_x;
+          s.wgy += w * c.G_y;
+          if (c.has(Crosshair::kHasTemporalGradient)) {
+            s.wt += w;
+            s.wgt += w * c.G_t;
           }
+          s.t_sum += c.time - s.t_ref;
+          ++s.count;
+          if (c.has(Crosshair::kOccluded)) ++s.occluded;
         }
       }
-      // The weighted mean as shift makes the variance sums well conditioned.
-      if (pass == 0 && w_sum > 0.0) s.shift = wl_sum / w_sum;
     }
   }
   record(tile).sums = s;
@@ -524,22 +526,6 @@ TileStats Sampler::tile_stats(int tile) const {
 // ---------------------------------------------------------------------------------------------
 // Tiling: gain control, error, split and merge
 
-// Section 4.1: dC/ds S = i dC/dt T, solved for the mean tile width S.
-double Sampler::gain_target() const {
-  double area = 0.0, spatial = 0.0, temporal = 0.0, age = 0.0;
-  for (int t : tiling_.tiles()) {
-    const TileStats st = tile_stats(t);
-    const double a = double(tiling_.node(t).rect.area());
-    area += a;
-    spatial += a * 0.5 * (st.G_x + st.G_y);
-    temporal += a * st.G_t;
-    age += st.mean_age;
-  }
-  return gain_tile_count(spatial / area, temporal / area, age / tiling_.tile_count(), config_.i,
-                         double(region_.area()), config_.min_tiles, config_.max_tiles,
-                         target_tiles_);
-}
-
 double gain_tile_count(double dC_ds, double dC_dt, double T, double i, double pixels,
                        double min_tiles, double max_tiles, double current) {
   constexpr double kTiny = 1e-12;
@@ -554,7 +540,10 @@ double gain_tile_count(double dC_ds, double dC_dt, double T, double i, double pi
   return std::isfinite(tiles) ? std::clamp(tiles, min_tiles, max_tiles) : max_tiles;
 }
 
-// Section 6.1: E_tile = s (kappa v / sum v + lambda u / sum u + (1 - kappa - lambda) o / sum o).
+// One pass over the tiles: section 6.1's error
+//   E_tile = s (kappa v / sum v + lambda u / sum u + (1 - kappa - lambda) o / sum o)
+// for every tile, and section 4.1's gain control, dC/ds S = i dC/dt T, from the image-wide
+// gradients and the mean sample age.
 void Sampler::compute_errors() {
   record(tiling_.node_capacity() - 1);  // sizes error_
   const auto& tiles = tiling_.tiles();
@@ -562,32 +551,38 @@ void Sampler::compute_errors() {
   const double empty_total = double(buffer_.capacity() - buffer_.size());
   const double mean_empty = empty_total / tiles.size();
   double sum_v = 0.0, sum_u = 0.0, sum_o = 0.0;
-  // First pass: store v, u and o in error_ to avoid a second statistics pass.
-  std::vector<std::array<double, 3>> terms(tiles.size());
+  double area = 0.0, spatial = 0.0, temporal = 0.0, age = 0.0;
+  terms_.resize(tiles.size());
   for (size_t k = 0; k < tiles.size(); ++k) {
     const TileStats st = tile_stats(tiles[k]);
     const double s = double(tiling_.node(tiles[k]).rect.area());
     const double empty = s * b - st.count;
     const double u = empty > 0.0 ? 1.0 - std::min(1.0, config_.m * mean_empty / empty) : 0.0;
     const double o = st.occluded / (s * b);
-    terms[k] = {st.v, u, o};
+    terms_[k] = {st.v, u, o};
     sum_v += st.v;
     sum_u += u;
     sum_o += o;
+    area += s;
+    spatial += s * 0.5 * (st.G_x + st.G_y);
+    temporal += s * st.G_t;
+    age += st.mean_age;
   }
   const double kv = config_.kappa, ku = config_.lambda, ko = 1.0 - kv - ku;
   for (size_t k = 0; k < tiles.size(); ++k) {
     const double s = double(tiling_.node(tiles[k]).rect.area());
     double e = 0.0;
-    if (sum_v > 0.0) e += kv * terms[k][0] / sum_v;
-    if (sum_u > 0.0) e += ku * terms[k][1] / sum_u;
-    if (sum_o > 0.0) e += ko * terms[k][2] / sum_o;
+    if (sum_v > 0.0) e += kv * terms_[k][0] / sum_v;
+    if (sum_u > 0.0) e += ku * terms_[k][1] / sum_u;
+    if (sum_o > 0.0) e += ko * terms_[k][2] / sum_o;
     error_[tiles[k]] = s * e;
   }
+  target_tiles_ = int(std::lround(gain_tile_count(
+      spatial / area, temporal / area, age / double(tiles.size()), config_.i,
+      double(region_.area()), config_.min_tiles, config_.max_tiles, target_tiles_)));
 }
 
 void Sampler::adjust_tiling() {
-  target_tiles_ = int(std::lround(gain_target()));
   compute_errors();
   const auto max_leaf = [&] {
     int best = -1;
@@ -644,7 +639,7 @@ void Sampler::adjust_tiling() {
       if (p == -1) break;
       const auto& n = tiling_.node(p);
       const double pair_e = error_[n.child[0]] + error_[n.child[1]];
-      if (error_[t] <= 2.0 * pair_e || n.child[0] == t || n.child[1] == t) break;
+      if (error_[t] <= kBalanceRatio * pair_e || n.child[0] == t || n.child[1] == t) break;
       do_merge(p);
       do_split(t);
     }
@@ -654,9 +649,11 @@ void Sampler::adjust_tiling() {
 void Sampler::on_split(int parent, int a, int b) {
   const int64_t pending = record(parent).pending;
   record(parent).pending = -1;
+  const TileSums& ps = records_[parent].sums;
+  const double parent_mean = ps.count > 0 && ps.w > 0.0 ? ps.shift + ps.wl / ps.w : 0.0;
   for (int c : {a, b}) {
     record(c).pending = -1;
-    rederive(c);
+    rederive(c, parent_mean);
     // Until the next adjustment, a child's error is its share of the parent's.
     error_[c] = error_[parent] * double(tiling_.node(c).rect.area()) /
                 double(tiling_.node(parent).rect.area());
@@ -672,7 +669,35 @@ void Sampler::on_merge(int parent, int a, int b) {
   TileRecord& rec = record(parent);
   rec.pending = records_[a].pending != -1 ? records_[a].pending : records_[b].pending;
   records_[a].pending = records_[b].pending = -1;
-  rederive(parent);
+  rec.sums = combine(records_[a].sums, records_[b].sums);
+}
+
+// The sums of the union of two blocks, without visiting their crosshairs: both are moved to
+// the later reference time and to a common shift, then added.
+TileSums combine(const TileSums& a, const TileSums& b) {
+  if (a.count <= 0) return b;
+  if (b.count <= 0) return a;
+  TileSums out;
+  out.t_ref = std::max(a.t_ref, b.t_ref);
+  const double mean_a = a.w > 0.0 ? a.shift + a.wl / a.w : a.shift;
+  const double mean_b = b.w > 0.0 ? b.shift + b.wl / b.w : b.shift;
+  out.shift = 0.5 * (mean_a + mean_b);
+  for (const TileSums* s : {&a, &b}) {
+    const double f = std::exp(kAgeDecay * (s->t_ref - out.t_ref));
+    const double d = s->shift - out.shift;
+    out.w += f * s->w;
+    out.wl += f * (s->wl + d * s->w);
+    out.wll += f * (s->wll + 2.0 * d * s->wl + d * d * s->w);
+    out.wgx += f * s->wgx;
+    out.wgy += f * s->wgy;
+    out.wt += f * s->wt;
+    out.wgt += f * s->wgt;
+    out.t_sum += s->t_sum + s->count * (s->t_ref - out.t_ref);
+    out.count += s->count;
+    out.occluded += s->occluded;
+    out.updates += s->updates;
+  }
+  return out;
 }
 
 }  // namespace afr

@@ -705,13 +705,15 @@ class Builder {
     return node;
   }
 
-  // KHR_lights_punctual point light; AFF lights do not fall off (extras.afr_falloff).
+  // KHR_lights_punctual point light; AFF lights do not fall off (extras.afr_falloff). NFF
+  // shades diffuse x light colour x cos; glTF's Lambertian BRDF divides by pi, so the
+  // intensity is pi to give the same brightness.
   int add_light(size_t index) {
     const Light& l = scene_.lights[index];
     tinygltf::Light light;
     light.name = l.name.empty() ? "light" + std::to_string(index) : l.name;
     light.type = "point";
-    light.intensity = 1.0;
+    light.intensity = std::numbers::pi;
     light.color = {l.color.r, l.color.g, l.color.b};
     light.extras = Value(Value::Object{{"afr_falloff", Value(std::string("none"))}});
     model_.lights.push_back(std::move(light));

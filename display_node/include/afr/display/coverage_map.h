@@ -38,7 +38,26 @@ inline constexpr float kSplatRadiusLimit = 120.0f;
 //   count > shrink_above    -> shrink * mean radius
 //   otherwise               -> mean radius
 // always clamped to [min_radius, max_radius]; NaN or non-positive input gives min_radius.
-float splat_radius(const CoverageCell* previous, float filter_radius, const SplatSizeRule& rule);
+inline float splat_radius(const CoverageCell* previous, float filter_radius,
+                          const SplatSizeRule& rule) {
+  float r = filter_radius;
+  if (previous != nullptr) {
+    if (!(previous->count > 0.0f)) {
+      r = rule.grow * filter_radius;
+    } else {
+      const float mean = previous->radius_sum / previous->count;
+      if (previous->count < rule.grow_below) {
+        r = rule.grow * mean;
+      } else if (previous->count > rule.shrink_above) {
+        r = rule.shrink * mean;
+      } else {
+        r = mean;
+      }
+    }
+  }
+  if (!(r >= rule.min_radius)) return rule.min_radius;  // NaN too
+  return r < rule.max_radius ? r : rule.max_radius;
+}
 
 // The previous image's map, held by the CPU backend (the GL backend keeps it in a texture).
 class CoverageMap {

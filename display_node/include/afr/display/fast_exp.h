@@ -13,11 +13,11 @@ namespace afr {
 inline float fast_exp(float x) {
   if (!(x > -87.0f)) return 0.0f;
   if (x > 0.0f) x = 0.0f;
-  // e^x = 2^t = 2^i * 2^f with i = round(t), f in [-0.5, 0.5]; 2^f = e^(f ln 2) by its Taylor
-  // series to degree 6 (remainder (0.5 ln 2)^7 / 7! < 1.3e-7).
-  const float t = x * 1.44269504088896341f;
-  const int32_t i = int32_t(t - 0.5f);  // t <= 0: rounds to nearest
-  const float u = (t - float(i)) * 0.693147180559945309f;
+  // e^x = 2^i e^u with i = round(x / ln 2) and u = x - i ln 2 in [-ln 2 / 2, ln 2 / 2], taken
+  // in two parts (Cody and Waite) so u keeps its precision; e^u by its Taylor series to
+  // degree 6 (remainder (ln 2 / 2)^7 / 7! < 1.3e-7).
+  const int32_t i = int32_t(x * 1.44269504088896341f - 0.5f);  // x <= 0: rounds to nearest
+  const float u = (x - float(i) * 0.693145751953125f) - float(i) * 1.42860682030941723e-6f;
   float p = 1.0f / 720.0f;
   p = p * u + 1.0f / 120.0f;
   p = p * u + 1.0f / 24.0f;

@@ -26,6 +26,9 @@ struct FilterLimits {
   // (up to its clamp) instead of an infinite one.
   float min_spatial_gradient = 1e-4f;
   float min_temporal_gradient = 1e-4f;
+  // ... and those above these (including infinity) lowered to them.
+  float max_spatial_gradient = 1e6f;
+  float max_temporal_gradient = 1e6f;
   // R_l is clamped to this range (NaN, zero and negative rates to min_rate).
   float min_rate = 1e-3f;
   float max_rate = 1e7f;
@@ -56,7 +59,8 @@ struct FilterExtents {
 // Section 5.1: e_x G_x = e_y G_y = e_t G_t and e_x e_y e_t = V_s = 1 / R_l, that is
 //   e_x = cbrt(V_s G_y G_t / G_x^2),  e_y = cbrt(V_s G_x G_t / G_y^2),  e_t = V_s / (e_x e_y).
 // Guarded and clamped, in this order:
-//   1. gradients raised to their floors, R_l clamped, `depth` clamped to the temporal range;
+//   1. gradients clamped to [min, max] (NaN to min), R_l clamped, `depth` clamped to the
+//      temporal range (NaN to its top);
 //   2. e_x, e_y from the cube roots, clamped to [min_spatial_extent, max_spatial_extent];
 //   3. e_t = V_s / (e_x e_y), so the volume survives the spatial clamp;
 //   4. if e_t exceeds `depth` (how far back the sample store reaches), e_t = depth and the
@@ -77,9 +81,14 @@ struct TileFilter {
 TileFilter make_tile_filter(const FilterExtents& e, float scale_x, float scale_y);
 
 // A splat's contribution to a pixel at offset (dx, dy) from it, with weight w_t in time, is
-//   w = (exp(-dx^2 k_x) - exp(-r^2 k_x)) (exp(-dy^2 k_y) - exp(-r^2 k_y)) w_t
-// for |dx|, |dy| < r (the splat radius), k = 1 / (2 sigma^2): a Gaussian lowered by its value
-// at the splat's edge, so it falls to exactly 0 there and pixels on the edge matter nothing.
+//   w = (exp(-dx^2 k_x) - exp(-r_x^2 k_x)) (exp(-dy^2 k_y) - exp(-r_y^2 k_y)) w_t
+// for |dx| < r_x and |dy| < r_y, with k = 1 / (2 sigma^2): a Gaussian lowered by its value at
+// the splat's edge, so it falls to exactly 0 there and pixels on the edge matter nothing.
+// The filter's radius is r_f = cutoff max(sigma_x, sigma_y); the coverage map sets the splat
+// size r (coverage_map.h); when r > r_f both sigmas are multiplied by r / r_f, so a grown
+// splat keeps its shape and still reaches its edge. The splat is the square of radius r cut
+// to the Gaussian's cutoff box: r_x = min(r, cutoff sigma_x), r_y likewise.
+// w_t = max(exp(-age^2 k_t), min_temporal_weight).
 // Contributions at or below this weight are dropped (they would be denormal in the sums).
 inline constexpr float kMinSplatWeight = 1e-30f;
 

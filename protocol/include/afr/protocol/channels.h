@@ -113,6 +113,10 @@ class SampleSender {
   Status send(const TilingSnapshot& snapshot, const ImageBounds& bounds = {});
   // Hands queued messages to ZeroMQ; call when idle. Returns the number still queued.
   size_t pump();
+  // Waits (up to timeout_ms; -1: forever) until ZeroMQ has taken the whole queue: for a last
+  // batch before leaving, or to send without loss where waiting is acceptable (benchmarks).
+  // Returns whether the queue is empty.
+  bool flush(int timeout_ms);
 
   const Counters& counters() const { return counters_; }
   zmq::socket_t& socket() { return socket_; }

@@ -60,16 +60,17 @@ inline uint32_t encode_rgb9e5(float r, float g, float b) {
   // floor(log2(max_c)) from the float's exponent field; zero and denormals give -127.
   const int floor_log2 = int((std::bit_cast<uint32_t>(max_c) >> 23) & 0xff) - 127;
   int exp_shared = std::max(-16, floor_log2) + 1 + 15;  // in [0, 31]
-  // Step of the mantissas: 2^(exp_shared - 15 - 9).
-  float inv_step = detail::exp2i(24 - exp_shared);
-  const uint32_t max_m = uint32_t(max_c * inv_step + 0.5f);
+  // Step of the mantissas: 2^(exp_shared - 15 - 9). Rounding in double is exact (a float
+  // times a power of two plus 0.5 fits 53 bits), so this is the specification's floor(x + 0.5).
+  double inv_step = double(detail::exp2i(24 - exp_shared));
+  const uint32_t max_m = uint32_t(double(max_c) * inv_step + 0.5);
   if (max_m == 512) {  // rounding carried into a tenth bit
     ++exp_shared;
-    inv_step *= 0.5f;
+    inv_step *= 0.5;
   }
-  const uint32_t rm = uint32_t(r * inv_step + 0.5f);
-  const uint32_t gm = uint32_t(g * inv_step + 0.5f);
-  const uint32_t bm = uint32_t(b * inv_step + 0.5f);
+  const uint32_t rm = uint32_t(double(r) * inv_step + 0.5);
+  const uint32_t gm = uint32_t(double(g) * inv_step + 0.5);
+  const uint32_t bm = uint32_t(double(b) * inv_step + 0.5);
   return rm | (gm << 9) | (bm << 18) | (uint32_t(exp_shared) << 27);
 }
 

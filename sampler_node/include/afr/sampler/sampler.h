@@ -57,6 +57,9 @@ struct TileSums {
   int32_t updates = 0;          // adds and removes since the sums were last re-derived
 };
 
+// The sums of two disjoint blocks together (a merge of two tiles).
+TileSums combine(const TileSums& a, const TileSums& b);
+
 // What the sums say about a block.
 struct TileStats {
   double v = 0.0;  // age-weighted luminance variance, >= 0
@@ -134,11 +137,11 @@ class Sampler {
   void add_to_tile(int tile, const Crosshair& c, double sign);
   void settle(int tile);
   void rederive(int tile);
+  void rederive(int tile, double shift);
   TileRecord& record(int tile);
   void on_split(int parent, int a, int b);
   void on_merge(int parent, int a, int b);
   int64_t pending_index(int32_t x, int32_t y) const;
-  double gain_target() const;
   void compute_errors();
 
   const Scene& scene_;
@@ -150,9 +153,10 @@ class Sampler {
   Pcg32 rng_;
   KdTiling tiling_;
   DeepBuffer buffer_;
-  std::vector<TileRecord> records_;  // by tiling node id
-  std::vector<double> error_;        // by tiling node id
-  std::vector<Pending> pending_;     // by region pixel
+  std::vector<TileRecord> records_;           // by tiling node id
+  std::vector<double> error_;                 // by tiling node id
+  std::vector<std::array<double, 3>> terms_;  // v, u, o per tile, scratch of compute_errors
+  std::vector<Pending> pending_;              // by region pixel
   Camera camera_;
   double scene_time_ = 0.0;
   bool scene_time_set_ = false;

@@ -35,7 +35,7 @@ struct SamplerConfig {
   // Gain control's tile count bounds; the count never exceeds the region's pixels / 4.
   int min_tiles = 16;
   int max_tiles = 1024;
-  int max_tiling_ops = 4;  // splits plus merges per adjustment
+  int max_tiling_ops = 2;  // splits plus merges per adjustment
   bool occlusion_rays = true;
   // The scene's animation repeats over its keyframe range while the clock runs on.
   bool loop_animation = true;

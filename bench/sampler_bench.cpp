@@ -1,0 +1,159 @@
+// afr-bench-sampler: what the sampler's control costs, measured side by side in one run.
+//   afr-bench-sampler [--scene kitchen.gltf] [--seconds 1.5] [--repeats 5]
+// Prints a Markdown table per scene:
+//  - control overhead: adaptive samples/s over uniform-random samples/s (same tracer,
+//    shading, thread); the paper reports the control costs under 15%;
+//  - reprojection bookkeeping (without its occlusion ray) over the cost of a new crosshair,
+//    and the occlusion ray's cost apart (the paper: a reprojection costs ~1/35 of a sample);
+//  - samples/s of the threaded pool with 1 and 2 threads.
+#include <afr/common/builtin_scene.h>
+#include <afr/common/gltf_loader.h>
+#include <afr/common/log.h>
+#include <afr/sampler/sampler.h>
+#include <afr/sampler/sampler_pool.h>
+
+#include <fmt/format.h>
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <thread>
+#include <vector>
+
+namespace {
+
+struct CountingSink final : afr::SampleSink {
+  std::atomic<uint64_t> samples{0};
+  void on_batch(afr::SampleBatch&& b) override { samples += b.samples.size(); }
+  void on_tiling(afr::TilingSnapshot&&) override {}
+};
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+struct Run {
+  double seconds_per_step = 0.0;
+  double samples_per_second = 0.0;
+  afr::SamplerCounters counters;
+};
+
+// Runs one sampler on one thread for `seconds` of wall time (under a virtual clock at 400K
+// rays/s, so the scene animates as it would live) and reports its throughput.
+Run run_single(const afr::Scene& scene, afr::Tracer& tracer, afr::SamplerConfig config,
+               double seconds) {
+  afr::VirtualClock clock(4e5, 1.0);
+  CountingSink sink;
+  afr::Sampler sampler(scene, tracer, clock, config, sink);
+  sampler.fill();
+  const uint64_t start_samples = sampler.counters().samples;
+  const auto start = std::chrono::steady_clock::now();
+  uint64_t steps = 0;
+  double elapsed = 0.0;
+  while (elapsed < seconds) {
+    for (int k = 0; k < 256; ++k) sampler.step();
+    steps += 256;
+    elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  Run r;
+  r.seconds_per_step = elapsed / double(steps);
+  r.samples_per_second = double(sampler.counters().samples - start_samples) / elapsed;
+  r.counters = sampler.counters();
+  return r;
+}
+
+double run_pool(const afr::Scene& scene, const afr::SamplerConfig& config, int threads,
+                double seconds) {
+  afr::WallClock clock;
+  CountingSink sink;
+  afr::SamplerPoolOptions options;
+  options.threads = threads;
+  afr::SamplerPool pool(scene, config, options, clock, sink);
+  pool.start();
+  std::this_thread::sleep_for(std::chrono::duration<double>(0.2));  // past the initial fill
+  const uint64_t s0 = sink.samples;
+  const auto t0 = std::chrono::steady_clock::now();
+  std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+  const uint64_t s1 = sink.samples;
+  const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  pool.stop();
+  return double(s1 - s0) / dt;
+}
+
+void bench_scene(const afr::Scene& scene, const std::string& name, int size, double seconds,
+                 int repeats) {
+  afr::Tracer tracer(scene);
+  afr::SamplerConfig base;
+  base.width = base.height = size;
+  std::vector<double> adaptive, uniform, ratio, repro_ratio, occl_ratio;
+  for (int rep = 0; rep < repeats; ++rep) {
+    afr::SamplerConfig a = base;
+    afr::SamplerConfig u = base;
+    u.mode = afr::SamplerMode::kUniformRandom;
+    afr::SamplerConfig r0 = base;
+    r0.r = 0;
+    afr::SamplerConfig r5 = base;
+    r5.occlusion_rays = false;
+    // Interleaved, so machine noise hits every variant alike.
+    const Run ra = run_single(scene, tracer, a, seconds);
+    const Run ru = run_single(scene, tracer, u, seconds);
+    const Run rr0 = run_single(scene, tracer, r0, seconds);
+    const Run rr5 = run_single(scene, tracer, r5, seconds);
+    adaptive.push_back(ra.samples_per_second);
+    uniform.push_back(ru.samples_per_second);
+    ratio.push_back(ra.samples_per_second / ru.samples_per_second);
+    // A step without reprojection is one new crosshair (plus the next one's first sample).
+    const double crosshair = rr0.seconds_per_step;
+    const double per_reprojection =
+        (rr5.seconds_per_step - rr0.seconds_per_step) /
+        (double(rr5.counters.reprojections) / double(rr5.counters.crosshairs));
+    repro_ratio.push_back(per_reprojection / crosshair);
+    const double per_occlusion_ray =
+        (ra.seconds_per_step - rr5.seconds_per_step) /
+        std::max(1e-9, double(ra.counters.occlusion_rays) / double(ra.counters.crosshairs));
+    occl_ratio.push_back(per_occlusion_ray / crosshair);
+  }
+  const double one = run_pool(scene, base, 1, seconds);
+  const double two = run_pool(scene, base, 2, seconds);
+  fmt::print("\n### {} ({}x{}, {} triangles), median of {}\n\n", name, size, size,
+             scene.triangle_count(), repeats);
+  fmt::print("| measure | value |\n|---|---|\n");
+  fmt::print("| adaptive samples/s (1 thread) | {:.0f} |\n", median(adaptive));
+  fmt::print("| uniform random samples/s (1 thread) | {:.0f} |\n", median(uniform));
+  fmt::print("| control overhead ratio adaptive/uniform (goal >= 0.90) | {:.3f} |\n",
+             median(ratio));
+  fmt::print("| reprojection bookkeeping / new crosshair (goal <= 1/50) | 1/{:.0f} |\n",
+             1.0 / std::max(1e-9, median(repro_ratio)));
+  fmt::print("| occlusion ray / new crosshair | 1/{:.1f} |\n",
+             1.0 / std::max(1e-9, median(occl_ratio)));
+  fmt::print("| pool samples/s, 1 thread (wall clock) | {:.0f} |\n", one);
+  fmt::print("| pool samples/s, 2 threads (wall clock) | {:.0f} ({:.2f}x) |\n", two, two / one);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"afr-bench-sampler: the cost of adaptive control, side by side"};
+  std::string scene_path;
+  double seconds = 1.5;
+  int repeats = 5, size = 256;
+  app.add_option("--scene", scene_path, "also measure this glTF scene")->check(CLI::ExistingFile);
+  app.add_option("--seconds", seconds, "wall seconds per measurement")
+      ->check(CLI::Range(0.1, 60.0));
+  app.add_option("--repeats", repeats, "repeats (median reported)")->check(CLI::Range(1, 101));
+  app.add_option("--size", size, "square image size")->check(CLI::Range(16, 4096));
+  CLI11_PARSE(app, argc, argv);
+  try {
+    afr::init_logging("warn");
+    bench_scene(afr::make_builtin_scene(), "built-in scene", size, seconds, repeats);
+    if (!scene_path.empty()) {
+      bench_scene(afr::load_gltf(scene_path), scene_path, size, seconds, repeats);
+    }
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "error: {}\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,478 @@
+#include <afr/protocol/channels.h>
+
+#include <afr/common/check.h>
+#include <afr/common/error.h>
+
+#include "zmq_util.h"
+
+#include <zmq.h>
+
+#include <charconv>
+#include <chrono>
+
+namespace afr::protocol {
+
+using detail::recv_retry;
+using detail::send_retry;
+using detail::set_int;
+using detail::set_int64;
+using detail::set_string;
+using detail::wait_readable;
+
+// ---------------------------------------------------------------------------------------------
+// Endpoints
+
+namespace {
+
+// MAXMSGSIZE bounds every frame libzmq decodes, which includes the CurveZMQ handshake commands
+// (WELCOME is 168 bytes, INITIATE about 300 with metadata) and encrypted messages (33 bytes
+// more than the plaintext): a limit of exactly the largest message breaks CurveZMQ on the view
+// channel, whose messages are 140 bytes. Every limit gets this headroom.
+constexpr int64_t kFrameHeadroom = 4096;
+
+bool starts_with(const std::string& s, const char* prefix) { return s.rfind(prefix, 0) == 0; }
+
+}  // namespace
+
+ServiceEndpoints service_endpoints(const std::string& base) {
+  if (starts_with(base, "inproc://") || starts_with(base, "ipc://")) {
+    if (base.size() <= std::string(starts_with(base, "ipc://") ? "ipc://" : "inproc://").size()) {
+      throw Error("endpoint '" + base + "': no name");
+    }
+    return {base + "-control", base + "-views", base + "-samples"};
+  }
+  if (!starts_with(base, "tcp://")) {
+    throw Error("endpoint '" + base + "': expected tcp://HOST:PORT, inproc://NAME or ipc://PATH");
+  }
+  const size_t colon = base.rfind(':');
+  if (colon == std::string::npos || colon < 6) {
+    throw Error("endpoint '" + base + "': no port (tcp://HOST:PORT)");
+  }
+  const std::string host = base.substr(0, colon);
+  const std::string port_text = base.substr(colon + 1);
+  int port = 0;
+  const auto [end, ec] =
+      std::from_chars(port_text.data(), port_text.data() + port_text.size(), port);
+  if (ec != std::errc() || end != port_text.data() + port_text.size() || port < 1 ||
+      port > 65533) {
+    throw Error("endpoint '" + base + "': port must be a number in 1..65533 (three ports are used)");
+  }
+  return {host + ":" + std::to_string(port), host + ":" + std::to_string(port + 1),
+          host + ":" + std::to_string(port + 2)};
+}
+
+bool is_local_endpoint(const std::string& endpoint) {
+  if (starts_with(endpoint, "inproc://") || starts_with(endpoint, "ipc://")) return true;
+  if (!starts_with(endpoint, "tcp://")) return false;
+  std::string host = endpoint.substr(6);
+  // A connect endpoint may name a source address first ("tcp://SRC;HOST:PORT").
+  if (const size_t semi = host.find(';'); semi != std::string::npos) host = host.substr(semi + 1);
+  if (const size_t colon = host.rfind(':'); colon != std::string::npos) host.resize(colon);
+  return starts_with(host, "127.") || host == "localhost" || host == "[::1]" || host == "::1";
+}
+
+// ---------------------------------------------------------------------------------------------
+// Socket set-up
+
+ChannelOptions ChannelOptions::samples() {
+  ChannelOptions o;
+  o.linger_ms = 0;  // unsent samples are stale by the time anyone would get them
+  // About 3 kB per batch of 128 samples with world positions: a handful of milliseconds of
+  // samples in each queue instead of the defaults' seconds.
+  o.send_hwm = 16;
+  o.receive_hwm = 64;
+  o.send_buffer = 256 << 10;
+  o.receive_buffer = 256 << 10;
+  o.max_message_bytes = int64_t(kMaxSampleChannelMessage) + kFrameHeadroom;
+  o.heartbeat_ms = 1000;
+  o.heartbeat_timeout_ms = 3000;
+  o.sender_queue = 16;
+  return o;
+}
+
+ChannelOptions ChannelOptions::control() {
+  ChannelOptions o;
+  o.linger_ms = 500;  // a leave or a last chunk gets out; a dead peer cannot hold close()
+  o.send_hwm = 64;    // scene chunks are up to 1 MiB: at most 64 MiB queued per peer
+  o.receive_hwm = 256;
+  o.max_message_bytes = int64_t(kMaxControlChannelMessage) + kFrameHeadroom;
+  o.heartbeat_ms = 500;
+  o.heartbeat_timeout_ms = 2000;
+  return o;
+}
+
+ChannelOptions ChannelOptions::views() {
+  ChannelOptions o;
+  o.linger_ms = 0;
+  o.send_hwm = 16;
+  o.receive_hwm = 16;
+  o.max_message_bytes = int64_t(kMaxViewChannelMessage) + kFrameHeadroom;
+  return o;
+}
+
+namespace {
+
+constexpr const char* kZapDomain = "afr";
+
+void apply_options(zmq::socket_t& s, const ChannelOptions& o) {
+  set_int(s, ZMQ_LINGER, o.linger_ms);
+  set_int(s, ZMQ_SNDHWM, o.send_hwm);
+  set_int(s, ZMQ_RCVHWM, o.receive_hwm);
+  if (o.send_buffer > 0) set_int(s, ZMQ_SNDBUF, o.send_buffer);
+  if (o.receive_buffer > 0) set_int(s, ZMQ_RCVBUF, o.receive_buffer);
+  set_int64(s, ZMQ_MAXMSGSIZE, o.max_message_bytes);
+  set_int(s, ZMQ_RECONNECT_IVL, o.reconnect_ms);
+  set_int(s, ZMQ_RECONNECT_IVL_MAX, o.reconnect_max_ms);
+  if (o.heartbeat_ms > 0) {
+    set_int(s, ZMQ_HEARTBEAT_IVL, o.heartbeat_ms);
+    set_int(s, ZMQ_HEARTBEAT_TIMEOUT, o.heartbeat_timeout_ms);
+    set_int(s, ZMQ_HEARTBEAT_TTL, o.heartbeat_timeout_ms);
+  }
+}
+
+void apply_security(zmq::socket_t& s, const Security& security, const Context& context,
+                    const std::string& endpoint) {
+  if (!security.enabled()) return;
+  if (!is_curve_key(security.own.secret_key) || !is_curve_key(security.own.public_key)) {
+    throw Error(endpoint + ": malformed CurveZMQ key pair");
+  }
+  if (security.is_server()) {
+    // Without a ZAP handler libzmq admits every client key: refuse to run like that.
+    if (!context.zap()) {
+      throw Error(endpoint +
+                  ": a CurveZMQ server needs an allow-list of client keys "
+                  "(Context::allow_curve_clients)");
+    }
+    set_int(s, ZMQ_CURVE_SERVER, 1);
+    set_string(s, ZMQ_CURVE_SECRETKEY, security.own.secret_key);
+    set_string(s, ZMQ_ZAP_DOMAIN, kZapDomain);
+    return;
+  }
+  if (!is_curve_key(security.server_public_key)) {
+    throw Error(endpoint + ": malformed CurveZMQ server public key");
+  }
+  set_string(s, ZMQ_CURVE_SERVERKEY, security.server_public_key);
+  set_string(s, ZMQ_CURVE_PUBLICKEY, security.own.public_key);
+  set_string(s, ZMQ_CURVE_SECRETKEY, security.own.secret_key);
+}
+
+void bind(zmq::socket_t& s, const std::string& endpoint) {
+  try {
+    s.bind(endpoint);
+  } catch (const zmq::error_t& e) {
+    throw Error("cannot bind " + endpoint + ": " + e.what());
+  }
+}
+
+void connect(zmq::socket_t& s, const std::string& endpoint) {
+  try {
+    s.connect(endpoint);
+  } catch (const zmq::error_t& e) {
+    throw Error("cannot connect to " + endpoint + ": " + e.what());
+  }
+}
+
+std::string last_endpoint(const zmq::socket_t& s) { return s.get(zmq::sockopt::last_endpoint); }
+
+// Receives one single-frame message; a multi-frame one is drained and reported as such.
+enum class Frame { kNone, kOne, kMultipart };
+Frame receive_one(zmq::socket_t& s, zmq::message_t& m) {
+  if (!recv_retry(s, m, zmq::recv_flags::dontwait)) return Frame::kNone;
+  if (!m.more()) return Frame::kOne;
+  zmq::message_t rest;
+  while (recv_retry(s, rest, zmq::recv_flags::dontwait) && rest.more()) {
+  }
+  return Frame::kMultipart;
+}
+
+Bytes bytes_of(const zmq::message_t& m) {
+  return Bytes(static_cast<const uint8_t*>(m.data()), m.size());
+}
+
+Status type_error(MessageType type, const char* channel) {
+  return Status::error(std::string(message_type_name(type)) + ": not allowed on the " + channel +
+                       " channel");
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// SampleSender
+
+SampleSender::SampleSender(Context& context, const std::string& endpoint,
+                           const Security& security, const ChannelOptions& options)
+    : socket_(context.zmq(), zmq::socket_type::push),
+      slots_(size_t(std::max(1, options.sender_queue)) + 1) {
+  apply_options(socket_, options);
+  // Queue only to completed connections: with no display, messages wait in our queue (which
+  // drops the oldest) instead of in a pipe that would deliver them stale after a reconnect.
+  set_int(socket_, ZMQ_IMMEDIATE, 1);
+  apply_security(socket_, security, context, endpoint);
+  connect(socket_, endpoint);
+}
+
+SampleSender::Slot& SampleSender::push_slot() {
+  // One physical slot more than the queue holds: the tail is always free to encode into.
+  return slots_[(head_ + size_) % slots_.size()];
+}
+
+void SampleSender::pop_slot() {
+  head_ = (head_ + 1) % slots_.size();
+  --size_;
+}
+
+Status SampleSender::send(const SampleBatch& batch, const ImageBounds& bounds) {
+  Slot& slot = push_slot();
+  if (Status s = encode(batch, &slot.bytes, bounds); !s) return s;
+  slot.is_batch = true;
+  if (size_ == slots_.size() - 1) {
+    (slots_[head_].is_batch ? counters_.batches_dropped : counters_.tilings_dropped)++;
+    pop_slot();
+  }
+  ++size_;
+  pump();
+  return {};
+}
+
+Status SampleSender::send(const TilingSnapshot& snapshot, const ImageBounds& bounds) {
+  Slot& slot = push_slot();
+  if (Status s = encode(snapshot, &slot.bytes, bounds); !s) return s;
+  slot.is_batch = false;
+  if (size_ == slots_.size() - 1) {
+    (slots_[head_].is_batch ? counters_.batches_dropped : counters_.tilings_dropped)++;
+    pop_slot();
+  }
+  ++size_;
+  pump();
+  return {};
+}
+
+size_t SampleSender::pump() {
+  while (size_ > 0) {
+    Slot& slot = slots_[head_];
+    zmq::message_t m(slot.bytes.data(), slot.bytes.size());
+    if (!send_retry(socket_, m, zmq::send_flags::dontwait)) break;
+    (slot.is_batch ? counters_.batches_sent : counters_.tilings_sent)++;
+    counters_.bytes_sent += slot.bytes.size();
+    pop_slot();
+  }
+  return size_;
+}
+
+bool SampleSender::flush(int timeout_ms) {
+  using Clock = std::chrono::steady_clock;
+  const Clock::time_point deadline = Clock::now() + std::chrono::milliseconds(timeout_ms);
+  while (pump() > 0) {
+    int wait = -1;
+    if (timeout_ms >= 0) {
+      wait = int(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now())
+                     .count());
+      if (wait <= 0) return false;
+    }
+    detail::wait_writable(socket_, wait);
+  }
+  return true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// SampleReceiver
+
+SampleReceiver::SampleReceiver(Context& context, const std::string& endpoint,
+                               const Security& security, const ChannelOptions& options)
+    : socket_(context.zmq(), zmq::socket_type::pull) {
+  apply_options(socket_, options);
+  apply_security(socket_, security, context, endpoint);
+  bind(socket_, endpoint);
+}
+
+std::string SampleReceiver::endpoint() const { return last_endpoint(socket_); }
+
+SampleReceiver::Got SampleReceiver::receive(int timeout_ms) {
+  if (timeout_ms != 0 && !wait_readable(socket_, timeout_ms)) return Got::kNothing;
+  const Frame frame = receive_one(socket_, message_);
+  if (frame == Frame::kNone) return Got::kNothing;
+  counters_.bytes += message_.size();
+  const auto reject = [&](Status s) {
+    rejection_ = std::move(s);
+    ++counters_.rejected;
+    return Got::kRejected;
+  };
+  if (frame == Frame::kMultipart) {
+    return reject(Status::error("message: multipart messages are not part of the protocol"));
+  }
+  const Bytes bytes = bytes_of(message_);
+  Result<Header> header = peek_header(bytes);
+  if (!header) return reject(header.status());
+  if (header->type == MessageType::kSampleBatch) {
+    if (Status s = decode(bytes, &batch_, bounds_); !s) return reject(std::move(s));
+    ++counters_.batches;
+    counters_.samples += batch_.samples.size();
+    return Got::kBatch;
+  }
+  if (header->type == MessageType::kTilingSnapshot) {
+    if (Status s = decode(bytes, &tiling_, bounds_); !s) return reject(std::move(s));
+    ++counters_.tilings;
+    return Got::kTiling;
+  }
+  return reject(type_error(header->type, "sample"));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Views
+
+ViewPublisher::ViewPublisher(Context& context, const std::string& endpoint,
+                             const Security& security, const ChannelOptions& options)
+    : socket_(context.zmq(), zmq::socket_type::pub) {
+  apply_options(socket_, options);
+  // A PUB socket drops the NEWEST message when a subscriber's queue is full; conflating keeps
+  // one message per subscriber instead, and it is always the latest view.
+  set_int(socket_, ZMQ_CONFLATE, 1);
+  apply_security(socket_, security, context, endpoint);
+  bind(socket_, endpoint);
+}
+
+std::string ViewPublisher::endpoint() const { return last_endpoint(socket_); }
+
+Status ViewPublisher::publish(const View& view) {
+  if (Status s = encode(view, &buffer_); !s) return s;
+  zmq::message_t m(buffer_.data(), buffer_.size());
+  send_retry(socket_, m, zmq::send_flags::dontwait);  // PUB never blocks; it drops
+  return {};
+}
+
+ViewSubscriber::ViewSubscriber(Context& context, const std::string& endpoint,
+                               const Security& security, const ChannelOptions& options)
+    : socket_(context.zmq(), zmq::socket_type::sub) {
+  apply_options(socket_, options);
+  set_int(socket_, ZMQ_CONFLATE, 1);  // keep only the latest view
+  set_string(socket_, ZMQ_SUBSCRIBE, "");
+  apply_security(socket_, security, context, endpoint);
+  connect(socket_, endpoint);
+}
+
+std::optional<View> ViewSubscriber::receive(int timeout_ms) {
+  if (timeout_ms != 0 && !wait_readable(socket_, timeout_ms)) return std::nullopt;
+  zmq::message_t m;
+  const Frame frame = receive_one(socket_, m);
+  if (frame == Frame::kNone) return std::nullopt;
+  View view;
+  Status s = frame == Frame::kMultipart
+                 ? Status::error("message: multipart messages are not part of the protocol")
+                 : decode(bytes_of(m), &view);
+  if (!s) {
+    rejection_ = std::move(s);
+    ++rejected_;
+    return std::nullopt;
+  }
+  return view;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Control
+
+bool allowed_to_display(MessageType type) {
+  return type == MessageType::kJoin || type == MessageType::kSceneRequest ||
+         type == MessageType::kStats || type == MessageType::kHeartbeat ||
+         type == MessageType::kLeave;
+}
+
+bool allowed_to_sampler(MessageType type) {
+  return type == MessageType::kWelcome || type == MessageType::kSceneChunk ||
+         type == MessageType::kRegionAssignment || type == MessageType::kHeartbeat ||
+         type == MessageType::kLeave;
+}
+
+namespace {
+
+// The decoded message if it is allowed in this direction.
+Result<Message> decode_control(Bytes bytes, bool (*allowed)(MessageType)) {
+  Result<Header> header = peek_header(bytes);
+  if (!header) return header.status();
+  if (!allowed(header->type)) return type_error(header->type, "control");
+  return decode_message(bytes);
+}
+
+}  // namespace
+
+ControlServer::ControlServer(Context& context, const std::string& endpoint,
+                             const Security& security, const ChannelOptions& options)
+    : socket_(context.zmq(), zmq::socket_type::router) {
+  apply_options(socket_, options);
+  // Sending to an unknown peer fails instead of vanishing.
+  set_int(socket_, ZMQ_ROUTER_MANDATORY, 1);
+  apply_security(socket_, security, context, endpoint);
+  bind(socket_, endpoint);
+}
+
+std::string ControlServer::endpoint() const { return last_endpoint(socket_); }
+
+std::optional<ControlServer::Incoming> ControlServer::receive(int timeout_ms) {
+  if (timeout_ms != 0 && !wait_readable(socket_, timeout_ms)) return std::nullopt;
+  zmq::message_t id;
+  if (!recv_retry(socket_, id, zmq::recv_flags::dontwait)) return std::nullopt;
+  std::string peer(static_cast<const char*>(id.data()), id.size());
+  if (!id.more()) {  // a ROUTER always prefixes the routing id; nothing follows: malformed
+    return Incoming{peer, "", Status::error("message: empty")};
+  }
+  zmq::message_t m;
+  const Frame frame = receive_one(socket_, m);
+  if (frame == Frame::kNone) return std::nullopt;
+  const char* user = zmq_msg_gets(m.handle(), "User-Id");
+  std::string key = user ? user : "";
+  if (frame == Frame::kMultipart) {
+    return Incoming{std::move(peer), std::move(key),
+                    Status::error("message: multipart messages are not part of the protocol")};
+  }
+  return Incoming{std::move(peer), std::move(key), decode_control(bytes_of(m), allowed_to_display)};
+}
+
+Status ControlServer::send(const std::string& peer, const Message& message) {
+  if (!allowed_to_sampler(message_type(message))) {
+    return type_error(message_type(message), "control (display -> sampler)");
+  }
+  if (Status s = encode(message, &buffer_); !s) return s;
+  zmq::message_t id(peer.data(), peer.size());
+  zmq::message_t m(buffer_.data(), buffer_.size());
+  int error = 0;
+  if (!send_retry(socket_, id, zmq::send_flags::sndmore | zmq::send_flags::dontwait, &error) ||
+      !send_retry(socket_, m, zmq::send_flags::dontwait, &error)) {
+    return Status::error(std::string(message_type_name(message_type(message))) + ": " +
+                         (error == EHOSTUNREACH ? "peer is not connected" : "peer's queue is full"));
+  }
+  return {};
+}
+
+ControlClient::ControlClient(Context& context, const std::string& endpoint,
+                             const Security& security, const ChannelOptions& options)
+    : socket_(context.zmq(), zmq::socket_type::dealer) {
+  apply_options(socket_, options);
+  apply_security(socket_, security, context, endpoint);
+  connect(socket_, endpoint);
+}
+
+std::optional<Result<Message>> ControlClient::receive(int timeout_ms) {
+  if (timeout_ms != 0 && !wait_readable(socket_, timeout_ms)) return std::nullopt;
+  zmq::message_t m;
+  const Frame frame = receive_one(socket_, m);
+  if (frame == Frame::kNone) return std::nullopt;
+  if (frame == Frame::kMultipart) {
+    return Result<Message>(
+        Status::error("message: multipart messages are not part of the protocol"));
+  }
+  return decode_control(bytes_of(m), allowed_to_sampler);
+}
+
+Status ControlClient::send(const Message& message) {
+  if (!allowed_to_display(message_type(message))) {
+    return type_error(message_type(message), "control (sampler -> display)");
+  }
+  if (Status s = encode(message, &buffer_); !s) return s;
+  zmq::message_t m(buffer_.data(), buffer_.size());
+  if (!send_retry(socket_, m, zmq::send_flags::dontwait)) {
+    return Status::error(std::string(message_type_name(message_type(message))) +
+                         ": queue is full");
+  }
+  return {};
+}
+
+}  // namespace afr::protocol

@@ -1,0 +1,53 @@
+#include <afr/display/coverage_map.h>
+
+#include <gtest/gtest.h>
+
+#include <limits>
+
+namespace afr {
+namespace {
+
+TEST(CoverageMapTest, SplatRadiusFollowsSection62) {
+  const SplatSizeRule rule;
+  EXPECT_FLOAT_EQ(splat_radius(nullptr, 2.5f, rule), 2.5f);  // no previous image
+  CoverageCell hole{0.0f, 0.0f};
+  EXPECT_FLOAT_EQ(splat_radius(&hole, 2.5f, rule), 10.0f);
+  CoverageCell sparse{2.0f, 3.0f};  // mean 1.5
+  EXPECT_FLOAT_EQ(splat_radius(&sparse, 9.0f, rule), 6.0f);
+  CoverageCell dense{40.0f, 80.0f};  // mean 2
+  EXPECT_FLOAT_EQ(splat_radius(&dense, 9.0f, rule), 1.4f);
+  CoverageCell fine{10.0f, 25.0f};  // mean 2.5
+  EXPECT_FLOAT_EQ(splat_radius(&fine, 9.0f, rule), 2.5f);
+  // The thresholds themselves are not under- or oversampled.
+  CoverageCell four{4.0f, 8.0f}, thirty_two{32.0f, 64.0f};
+  EXPECT_FLOAT_EQ(splat_radius(&four, 9.0f, rule), 2.0f);
+  EXPECT_FLOAT_EQ(splat_radius(&thirty_two, 9.0f, rule), 2.0f);
+}
+
+TEST(CoverageMapTest, SplatRadiusIsBounded) {
+  const SplatSizeRule rule;
+  CoverageCell sparse{1.0f, 20.0f};
+  EXPECT_FLOAT_EQ(splat_radius(&sparse, 1.0f, rule), rule.max_radius);
+  CoverageCell dense{1000.0f, 100.0f};
+  EXPECT_FLOAT_EQ(splat_radius(&dense, 1.0f, rule), rule.min_radius);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_FLOAT_EQ(splat_radius(nullptr, nan, rule), rule.min_radius);
+  EXPECT_FLOAT_EQ(splat_radius(nullptr, std::numeric_limits<float>::infinity(), rule),
+                  rule.max_radius);
+}
+
+TEST(CoverageMapTest, ResetDropsThePreviousImage) {
+  CoverageMap map;
+  map.reset(3, 2);
+  EXPECT_EQ(map.at(1, 1), nullptr);
+  map.cells()[4] = CoverageCell{5.0f, 7.0f};
+  map.set_valid(true);
+  ASSERT_NE(map.at(1, 1), nullptr);
+  EXPECT_FLOAT_EQ(map.at(1, 1)->count, 5.0f);
+  map.reset(3, 2);
+  EXPECT_EQ(map.at(1, 1), nullptr);
+  EXPECT_EQ(map.cells()[4].count, 0.0f);
+}
+
+}  // namespace
+}  // namespace afr

@@ -1,0 +1,159 @@
+#include <afr/display/gl_reconstructor.h>
+
+#include <afr/common/random.h>
+#include <afr/display/cpu_reconstructor.h>
+
+#include "test_support.h"
+
+#include <gtest/gtest.h>
+
+#include <limits>
+
+namespace afr {
+namespace {
+
+using test::diff8;
+
+// Skips the test (with the reason) where no headless OpenGL 4.3 context can be made.
+#define AFR_REQUIRE_GL(context)                                                \
+  std::string why_no_gl;                                                       \
+  std::shared_ptr<GlContext> context = test::shared_gl_context(&why_no_gl);    \
+  if (context == nullptr) GTEST_SKIP() << "no EGL/OpenGL context: " << why_no_gl
+
+ReconstructorConfig config(int w, int h, ReconstructionMode mode) {
+  ReconstructorConfig c;
+  c.image_width = w;
+  c.image_height = h;
+  c.mode = mode;
+  c.threads = 2;
+  return c;
+}
+
+TEST(GlReconstructorTest, AgreesWithTheCpuBackendOnRandomSampleSets) {
+  AFR_REQUIRE_GL(context);
+  test::FloorScene scene;
+  scene.velocity = glm::dvec3(0.7, 0.0, 0.2);
+  for (ReconstructionMode mode :
+       {ReconstructionMode::kAdaptive, ReconstructionMode::kAdaptiveNoReprojection,
+        ReconstructionMode::kTraditionalFrameless}) {
+    for (const glm::ivec2 size : {glm::ivec2(96, 64), glm::ivec2(77, 53)}) {
+      const int W = size.x, H = size.y;
+      SCOPED_TRACE(std::string(mode_name(mode)) + " " + std::to_string(W) + "x" +
+                   std::to_string(H));
+      const ReconstructorConfig cfg = config(W, H, mode);
+      CpuReconstructor cpu(cfg);
+      GlReconstructor gl(cfg, context);
+      Pcg32 rng(uint64_t(W) * 7 + uint64_t(mode));
+      double t = 0.0;
+      // Frames with new samples and tilings in between; the ring wraps after a few.
+      for (int frame = 0; frame < 6; ++frame) {
+        const double t1 = t + 0.25;
+        const Camera sampled = Camera::look_at({0.1 * frame, 0.5, 0.0}, {0.0, 0.1, -5.0},
+                                               {0, 1, 0}, 1.0, 0.01);
+        const SampleBatch b = frame % 2 == 0
+                                  ? test::scene_batch(scene, sampled, rng, size_t(W * H), W, H,
+                                                      t, t1, frame % 4 == 0)
+                                  : test::random_batch(rng, size_t(W * H), W, H, t, t1);
+        const TilingSnapshot tiling = test::random_tiling(rng, W, H, 8 + 4 * frame, t1);
+        for (Reconstructor* r : {static_cast<Reconstructor*>(&cpu), static_cast<Reconstructor*>(&gl)}) {
+          r->add_batch(b);
+          r->set_tiling(tiling);
+        }
+        t = t1;
+        const Camera view =
+            Camera::look_at({0.1 * frame + 0.2, 0.55, -0.1}, {0.0, 0.1, -5.0}, {0, 1, 0}, 1.0,
+                            0.01);
+        const Image a = cpu.reconstruct(view, t, W, H);
+        const Image g = gl.reconstruct(view, t, W, H);
+        const test::Diff8 d = diff8(a, g);
+        EXPECT_LE(d.rms, 1.0) << "frame " << frame;
+        EXPECT_LE(d.max, 4) << "frame " << frame;
+        EXPECT_EQ(gl.frame_stats().hole_pixels, cpu.frame_stats().hole_pixels);
+        EXPECT_TRUE(test::all_finite(g));
+      }
+    }
+  }
+}
+
+TEST(GlReconstructorTest, WeightsAndCoverageMatchTheCpuBackend) {
+  AFR_REQUIRE_GL(context);
+  const int W = 64, H = 48;
+  const ReconstructorConfig cfg = config(W, H, ReconstructionMode::kAdaptive);
+  CpuReconstructor cpu(cfg);
+  GlReconstructor gl(cfg, context);
+  Pcg32 rng(21);
+  const SampleBatch b = test::random_batch(rng, 2000, W, H, 0.0, 1.0);
+  const TilingSnapshot tiling = test::random_tiling(rng, W, H, 16, 1.0);
+  for (Reconstructor* r : {static_cast<Reconstructor*>(&cpu), static_cast<Reconstructor*>(&gl)}) {
+    r->add_batch(b);
+    r->set_tiling(tiling);
+  }
+  const Camera cam;
+  for (int frame = 0; frame < 2; ++frame) {
+    cpu.reconstruct(cam, 1.0, W, H);
+    gl.reconstruct(cam, 1.0, W, H);
+    std::vector<float> wc, wg;
+    cpu.read_weights(&wc);
+    gl.read_weights(&wg);
+    ASSERT_EQ(wc.size(), wg.size());
+    for (size_t p = 0; p < wc.size(); ++p) {
+      ASSERT_NEAR(wg[p], wc[p], 1e-3 * wc[p] + 1e-12) << "frame " << frame << " pixel " << p;
+    }
+    std::vector<CoverageCell> cc, cg;
+    cpu.read_coverage(&cc);
+    gl.read_coverage(&cg);
+    int same = 0;
+    for (size_t p = 0; p < cc.size(); ++p) same += cc[p].count == cg[p].count;
+    EXPECT_GE(same, int(cc.size()) * 99 / 100);
+  }
+}
+
+TEST(GlReconstructorTest, UniformColorReconstructsToExactlyThatColor) {
+  AFR_REQUIRE_GL(context);
+  GlReconstructor gl(config(40, 30, ReconstructionMode::kAdaptive), context);
+  Pcg32 rng(22);
+  gl.set_tiling(test::random_tiling(rng, 40, 30, 8, 1.0));
+  SampleBatch b = test::random_batch(rng, 600, 40, 30, 0.0, 1.0);  // sparse: holes to fill
+  for (Sample& s : b.samples) s.color = glm::vec3(0.25f, 0.5f, 1.0f);
+  gl.add_batch(b);
+  for (int frame = 0; frame < 2; ++frame) {
+    const Image image = gl.reconstruct(Camera{}, 1.0, 40, 30);
+    for (const glm::vec3& c : image.pixels) ASSERT_EQ(c, glm::vec3(0.25f, 0.5f, 1.0f));
+  }
+}
+
+TEST(GlReconstructorTest, BadInputsNeverReachTheImage) {
+  AFR_REQUIRE_GL(context);
+  const float inf = std::numeric_limits<float>::infinity();
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  GlReconstructor gl(config(32, 32, ReconstructionMode::kAdaptive), context);
+  Pcg32 rng(23);
+  gl.set_tiling(test::uniform_tiling(32, 32, nan, 0.0f, inf, 0.0f, 1e6));
+  SampleBatch b = test::random_batch(rng, 4000, 32, 32, 1e6 - 1e4, 1e6 + 1e4);
+  b.samples[0].color.r = nan;
+  b.samples[1].color.g = inf;
+  b.samples[2].time = nan;
+  gl.add_batch(b);
+  const Image image = gl.reconstruct(Camera{}, 1e6, 32, 32);
+  EXPECT_TRUE(test::all_finite(image));
+  EXPECT_EQ(gl.frame_stats().nonfinite_pixels, 0u);
+  EXPECT_EQ(gl.ingest_stats().rejected(), 3u);
+}
+
+TEST(GlReconstructorTest, AnEmptyStoreGivesBlackAndResizingWorks) {
+  AFR_REQUIRE_GL(context);
+  GlReconstructor gl(config(16, 16, ReconstructionMode::kAdaptive), context);
+  Image image = gl.reconstruct(Camera{}, 0.0, 16, 16);
+  for (const glm::vec3& c : image.pixels) ASSERT_EQ(c, glm::vec3(0.0f));
+  EXPECT_EQ(gl.frame_stats().empty_pixels, 256u);
+  Pcg32 rng(24);
+  SampleBatch b = test::random_batch(rng, 2000, 16, 16, 0.0, 1.0);
+  for (Sample& s : b.samples) s.color = glm::vec3(0.5f);
+  gl.add_batch(b);
+  image = gl.reconstruct(Camera{}, 1.0, 33, 20);
+  ASSERT_EQ(image.width, 33);
+  for (const glm::vec3& c : image.pixels) ASSERT_EQ(c, glm::vec3(0.5f));
+}
+
+}  // namespace
+}  // namespace afr

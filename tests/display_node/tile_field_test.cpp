@@ -1,0 +1,104 @@
+#include <afr/display/tile_field.h>
+
+#include <gtest/gtest.h>
+
+#include <limits>
+
+namespace afr {
+namespace {
+
+TileInfo tile(int x0, int y0, int x1, int y1, float g, float rate = 5.0f) {
+  TileInfo t;
+  t.rect = PixelRect{x0, y0, x1, y1};
+  t.G_x = g;
+  t.G_y = 2 * g;
+  t.G_t = 3 * g;
+  t.rate = rate;
+  return t;
+}
+
+TilingSnapshot snapshot(uint32_t id, double time, PixelRect region, std::vector<TileInfo> tiles) {
+  TilingSnapshot s;
+  s.sampler_id = id;
+  s.time = time;
+  s.region = region;
+  s.tiles = std::move(tiles);
+  return s;
+}
+
+TEST(TileFieldTest, EveryPixelReadsTheTileThatCoversIt) {
+  TileField field(8, 6);
+  field.set_tiling(snapshot(0, 1.0, {0, 0, 8, 6},
+                            {tile(0, 0, 4, 3, 0.1f), tile(4, 0, 8, 3, 0.2f), tile(0, 3, 8, 5, 0.3f)}));
+  EXPECT_TRUE(field.update(8, 6));
+  for (int y = 0; y < 6; ++y) {
+    for (int x = 0; x < 8; ++x) {
+      const float want = y < 3 ? (x < 4 ? 0.1f : 0.2f) : (y < 5 ? 0.3f : 0.0f);
+      EXPECT_FLOAT_EQ(field.at(x, y).G_x, want) << x << "," << y;
+      EXPECT_FLOAT_EQ(field.at(x, y).G_y, 2 * want);
+      EXPECT_FLOAT_EQ(field.at(x, y).G_t, 3 * want);
+    }
+  }
+  EXPECT_EQ(field.at(0, 5).rate, 0.0f);  // uncovered: unknown rate
+  EXPECT_FALSE(field.update(8, 6));      // nothing new
+}
+
+TEST(TileFieldTest, NewerSnapshotsReplaceOlderOnesOfTheSameSampler) {
+  TileField field(4, 4);
+  field.set_tiling(snapshot(0, 2.0, {0, 0, 4, 4}, {tile(0, 0, 4, 4, 0.5f)}));
+  field.set_tiling(snapshot(0, 1.0, {0, 0, 4, 4}, {tile(0, 0, 4, 4, 0.9f)}));  // stale
+  field.update(4, 4);
+  EXPECT_FLOAT_EQ(field.at(1, 1).G_x, 0.5f);
+  EXPECT_EQ(field.stats().stale_snapshots, 1u);
+  field.set_tiling(snapshot(0, 3.0, {0, 0, 4, 4}, {tile(0, 0, 2, 4, 0.7f)}));
+  EXPECT_TRUE(field.update(4, 4));
+  EXPECT_FLOAT_EQ(field.at(1, 1).G_x, 0.7f);
+  EXPECT_FLOAT_EQ(field.at(3, 1).G_x, 0.0f);  // the old snapshot is gone entirely
+}
+
+TEST(TileFieldTest, SamplersShareTheImageAndTheNewestWinsWhereRegionsOverlap) {
+  TileField field(8, 4);
+  field.set_tiling(snapshot(1, 5.0, {0, 0, 5, 4}, {tile(0, 0, 5, 4, 0.1f)}));
+  field.set_tiling(snapshot(2, 4.0, {3, 0, 8, 4}, {tile(3, 0, 8, 4, 0.2f)}));
+  field.update(8, 4);
+  EXPECT_FLOAT_EQ(field.at(0, 0).G_x, 0.1f);
+  EXPECT_FLOAT_EQ(field.at(4, 0).G_x, 0.1f);  // both cover it; sampler 1's is newer
+  EXPECT_FLOAT_EQ(field.at(7, 3).G_x, 0.2f);
+  EXPECT_EQ(field.at(7, 3).sampler_id, 2u);
+}
+
+TEST(TileFieldTest, TilesAreClippedToTheirRegionAndBadValuesZeroed) {
+  TileField field(6, 6);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  TileInfo bad = tile(0, 3, 3, 6, 0.1f);
+  bad.G_x = nan;
+  bad.G_t = -1.0f;
+  bad.rate = std::numeric_limits<float>::infinity();
+  field.set_tiling(snapshot(0, 1.0, {0, 0, 3, 6},
+                            {tile(-5, -5, 100, 3, 0.4f), bad, tile(4, 4, 6, 6, 0.8f)}));
+  field.update(6, 6);
+  EXPECT_FLOAT_EQ(field.at(2, 2).G_x, 0.4f);
+  EXPECT_FLOAT_EQ(field.at(3, 2).G_x, 0.0f);  // outside the region
+  EXPECT_FLOAT_EQ(field.at(1, 4).G_x, 0.0f);
+  EXPECT_FLOAT_EQ(field.at(1, 4).G_y, 0.2f);
+  EXPECT_FLOAT_EQ(field.at(1, 4).G_t, 0.0f);
+  EXPECT_FLOAT_EQ(field.at(1, 4).rate, 0.0f);
+  EXPECT_FLOAT_EQ(field.at(5, 5).G_x, 0.0f);
+  const TileFieldStats st = field.stats();
+  EXPECT_EQ(st.bad_values, 3u);
+  EXPECT_EQ(st.dropped_tiles, 1u);
+}
+
+TEST(TileFieldTest, ScaledOutputsMapPixelCentersIntoTiles) {
+  TileField field(4, 4);
+  field.set_tiling(snapshot(0, 1.0, {0, 0, 4, 4}, {tile(0, 0, 1, 4, 0.1f), tile(1, 0, 4, 4, 0.2f)}));
+  EXPECT_TRUE(field.update(8, 2));  // a new size rebuilds the map
+  // Output pixel i has its center at (i + 0.5) / 2 in the sampling image.
+  EXPECT_FLOAT_EQ(field.at(0, 0).G_x, 0.1f);
+  EXPECT_FLOAT_EQ(field.at(1, 1).G_x, 0.1f);
+  EXPECT_FLOAT_EQ(field.at(2, 0).G_x, 0.2f);
+  EXPECT_FLOAT_EQ(field.at(7, 1).G_x, 0.2f);
+}
+
+}  // namespace
+}  // namespace afr

@@ -1,0 +1,448 @@
+// Every malformed variant is rejected with a reason that names the field, without reading out
+// of bounds (run under ASan in the sanitizer build) and without allocating for counts that the
+// bytes do not back.
+#include <afr/protocol/codec.h>
+
+#include "test_messages.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+namespace afr::protocol {
+namespace {
+
+using namespace testing;
+
+// Little-endian patches at payload offsets (after the 12-byte header).
+void put_u8(std::vector<uint8_t>& b, size_t off, uint8_t v) { b.at(kHeaderBytes + off) = v; }
+void put_u16(std::vector<uint8_t>& b, size_t off, uint16_t v) {
+  for (int i = 0; i < 2; ++i) b.at(kHeaderBytes + off + i) = uint8_t(v >> (8 * i));
+}
+void put_u32(std::vector<uint8_t>& b, size_t off, uint32_t v) {
+  for (int i = 0; i < 4; ++i) b.at(kHeaderBytes + off + i) = uint8_t(v >> (8 * i));
+}
+void put_u64(std::vector<uint8_t>& b, size_t off, uint64_t v) {
+  for (int i = 0; i < 8; ++i) b.at(kHeaderBytes + off + i) = uint8_t(v >> (8 * i));
+}
+void put_f32(std::vector<uint8_t>& b, size_t off, float v) {
+  uint32_t u;
+  std::memcpy(&u, &v, 4);
+  put_u32(b, off, u);
+}
+void put_f64(std::vector<uint8_t>& b, size_t off, double v) {
+  uint64_t u;
+  std::memcpy(&u, &v, 8);
+  put_u64(b, off, u);
+}
+// Makes the header's payload length agree with the bytes, so checks past the header run.
+void fix_length(std::vector<uint8_t>& b) {
+  const uint32_t n = uint32_t(b.size() - kHeaderBytes);
+  for (int i = 0; i < 4; ++i) b[8 + i] = uint8_t(n >> (8 * i));
+}
+
+// Decodes as the type in the header and returns the error ("" when accepted).
+std::string error_of(const std::vector<uint8_t>& b, const ImageBounds& bounds = {}) {
+  Result<Message> m = decode_message(b, bounds);
+  return m.ok() ? "" : m.error();
+}
+
+#define EXPECT_REJECTED(bytes, text)                                                    \
+  do {                                                                                  \
+    const std::string error_ = error_of(bytes);                                         \
+    EXPECT_FALSE(error_.empty()) << "accepted; expected an error about '" << text << "'"; \
+    EXPECT_NE(error_.find(text), std::string::npos) << error_;                           \
+  } while (false)
+
+// ---------------------------------------------------------------------------------------------
+// Framing
+
+TEST(CodecRejectTest, EveryTruncationOfEveryMessageIsRejected) {
+  Pcg32 rng(1);
+  for (int round = 0; round < 5; ++round) {
+    for (const Message& m : random_messages(rng)) {
+      const std::vector<uint8_t> full = encoded(m);
+      for (size_t n = 0; n < full.size(); ++n) {
+        std::vector<uint8_t> cut(full.begin(), full.begin() + n);
+        ASSERT_FALSE(error_of(cut).empty()) << message_type_name(message_type(m)) << " at " << n;
+        // And with a header that agrees, so the payload's own checks must catch it.
+        if (n >= kHeaderBytes) {
+          fix_length(cut);
+          ASSERT_FALSE(error_of(cut).empty())
+              << message_type_name(message_type(m)) << " at " << n << " (length fixed)";
+        }
+      }
+    }
+  }
+}
+
+TEST(CodecRejectTest, TrailingBytesAreRejected) {
+  Pcg32 rng(2);
+  for (const Message& m : random_messages(rng)) {
+    std::vector<uint8_t> b = encoded(m);
+    b.push_back(0);
+    EXPECT_FALSE(error_of(b).empty()) << message_type_name(message_type(m));  // length mismatch
+    fix_length(b);
+    EXPECT_FALSE(error_of(b).empty()) << message_type_name(message_type(m));  // extra byte
+  }
+}
+
+TEST(CodecRejectTest, WrongMagicVersionAndTypeAreRejected) {
+  Pcg32 rng(3);
+  const std::vector<uint8_t> good = encoded(random_heartbeat(rng));
+  ASSERT_EQ(error_of(good), "");
+  std::vector<uint8_t> b = good;
+  b[0] = 'X';
+  EXPECT_REJECTED(b, "magic");
+  for (uint16_t version : {uint16_t(0), uint16_t(2), uint16_t(0xffff)}) {
+    b = good;
+    b[4] = uint8_t(version);
+    b[5] = uint8_t(version >> 8);
+    EXPECT_REJECTED(b, "version");
+    // The header alone still reads, so the peer can be told why.
+    Result<Header> h = peek_header(b);
+    ASSERT_TRUE(h.ok()) << h.error();
+    EXPECT_EQ(h->version, version);
+  }
+  for (uint16_t type : {uint16_t(0), uint16_t(12), uint16_t(0xffff)}) {
+    b = good;
+    b[6] = uint8_t(type);
+    b[7] = uint8_t(type >> 8);
+    EXPECT_REJECTED(b, "unknown type");
+  }
+  // A decoder of one type refuses another.
+  Join join;
+  EXPECT_FALSE(decode(Bytes(good), &join).ok());
+}
+
+TEST(CodecRejectTest, HeaderLengthMustMatchTheBytes) {
+  Pcg32 rng(4);
+  std::vector<uint8_t> b = encoded(random_view(rng));
+  for (uint32_t len : {0u, 127u, 129u, 0xffffffffu}) {
+    for (int i = 0; i < 4; ++i) b[8 + i] = uint8_t(len >> (8 * i));
+    EXPECT_REJECTED(b, "payload bytes");
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Counts and lengths
+
+TEST(CodecRejectTest, BatchCountsBeyondTheLimitOrTheBytesAreRejectedBeforeAllocating) {
+  Pcg32 rng(5);
+  const std::vector<uint8_t> good = encoded(random_batch(rng, kFieldPosition, 10));
+  for (uint32_t count : {11u, 9u, kMaxSamplesPerBatch + 1, 0x80000000u, 0xffffffffu,
+                         uint32_t(0x100000000ull / 24)}) {  // count * 24 wraps 32 bits
+    std::vector<uint8_t> b = good;
+    put_u32(b, 24, count);
+    SampleBatch out;
+    const Status s = decode(Bytes(b), &out);
+    EXPECT_FALSE(s.ok()) << count;
+    EXPECT_NE(s.message().find("sample_batch.count"), std::string::npos) << s.message();
+    EXPECT_EQ(out.samples.capacity(), 0u) << count;  // nothing allocated for the claim
+  }
+  // A count at the limit with the bytes missing.
+  std::vector<uint8_t> b = good;
+  put_u32(b, 24, kMaxSamplesPerBatch);
+  EXPECT_REJECTED(b, "count");
+}
+
+TEST(CodecRejectTest, TileCountsBeyondTheLimitTheRegionOrTheBytesAreRejected) {
+  Pcg32 rng(6);
+  TilingSnapshot t = random_tiling(rng, 3);
+  t.region = PixelRect{0, 0, 4, 4};
+  for (TileInfo& tile : t.tiles) tile.rect = PixelRect{0, 0, 2, 2};
+  const std::vector<uint8_t> good = encoded(t);
+  for (uint32_t count : {4u, 2u, 17u, kMaxTilesPerSnapshot + 1, 0xffffffffu}) {
+    std::vector<uint8_t> b = good;
+    put_u32(b, 20, count);
+    TilingSnapshot out;
+    EXPECT_FALSE(decode(Bytes(b), &out).ok()) << count;
+    EXPECT_EQ(out.tiles.capacity(), 0u);
+    EXPECT_REJECTED(b, "tile_count");
+  }
+}
+
+TEST(CodecRejectTest, OversizedChunksAndStringsAreRejected) {
+  Pcg32 rng(7);
+  SceneChunk chunk = random_scene_chunk(rng, 16);
+  const std::vector<uint8_t> good = encoded(chunk);
+  std::vector<uint8_t> b = good;
+  put_u32(b, 56, kMaxChunkBytes + 1);  // byte_count over the limit
+  EXPECT_REJECTED(b, "byte_count");
+  b = good;
+  put_u32(b, 56, uint32_t(chunk.bytes.size() + 1));  // more than is there
+  EXPECT_REJECTED(b, "truncated");
+  b = good;
+  put_u32(b, 56, 0);
+  EXPECT_REJECTED(b, "byte_count");
+
+  Join join = random_join(rng);
+  join.name = "abc";
+  const std::vector<uint8_t> j = encoded(join);
+  b = j;
+  put_u16(b, 12, uint16_t(kMaxNameBytes + 1));
+  EXPECT_REJECTED(b, "join.name");
+  b = j;
+  put_u16(b, 12, 4);  // longer than the bytes
+  EXPECT_REJECTED(b, "join.name: truncated");
+  b = j;
+  put_u8(b, 15, 0x07);  // a control character (BEL) in the name
+  EXPECT_REJECTED(b, "join.name: control character");
+
+  // Strings too long for encoding are refused too.
+  join.name.assign(kMaxNameBytes + 1, 'x');
+  std::vector<uint8_t> out;
+  EXPECT_FALSE(encode(join, &out).ok());
+}
+
+TEST(CodecRejectTest, ChunkPlacementIsChecked) {
+  Pcg32 rng(8);
+  SceneChunk chunk = random_scene_chunk(rng, 16);
+  const auto error = [&](SceneChunk c) {
+    std::vector<uint8_t> out;
+    return encode(c, &out).message();
+  };
+  SceneChunk c = chunk;
+  c.offset = c.scene_size - c.bytes.size() + 1;  // runs past the end
+  EXPECT_NE(error(c).find("scene_chunk.offset"), std::string::npos);
+  c = chunk;
+  c.offset = std::numeric_limits<uint64_t>::max();  // would wrap a naive offset + size
+  EXPECT_NE(error(c).find("scene_chunk.offset"), std::string::npos);
+  c = chunk;
+  c.index = c.count;
+  EXPECT_NE(error(c).find("scene_chunk.index"), std::string::npos);
+  c = chunk;
+  c.scene_size = kMaxSceneBytes + 1;
+  EXPECT_NE(error(c).find("scene_chunk.scene_size"), std::string::npos);
+
+  // The same, arriving as bytes.
+  std::vector<uint8_t> b = encoded(chunk);
+  put_u64(b, 40, std::numeric_limits<uint64_t>::max());
+  EXPECT_REJECTED(b, "scene_chunk.offset");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Enums and reserved bits
+
+TEST(CodecRejectTest, UnknownEnumValuesAndBitsAreRejected) {
+  Pcg32 rng(9);
+  std::vector<uint8_t> b = encoded(random_leave(rng));
+  put_u16(b, 4, kLastLeaveReason + 1);
+  EXPECT_REJECTED(b, "leave.reason");
+
+  b = encoded(random_join(rng));
+  put_u32(b, 8, kKnownCapabilities + 1);
+  EXPECT_REJECTED(b, "join.capabilities");
+  b = encoded(random_join(rng));
+  put_u16(b, 4, kProtocolVersion + 1);
+  EXPECT_REJECTED(b, "join.protocol_version");
+  b = encoded(random_join(rng));
+  put_u16(b, 6, 0);
+  EXPECT_REJECTED(b, "join.threads");
+
+  const std::vector<uint8_t> batch = encoded(random_batch(rng, 0, 4));
+  b = batch;
+  put_u32(b, 4, 4);  // field bit 2: unknown
+  EXPECT_REJECTED(b, "sample_batch.fields");
+  for (int tick : {kMinTickExp - 1, kMaxTickExp + 1, -128, 127}) {
+    b = batch;
+    put_u8(b, 28, uint8_t(int8_t(tick)));
+    EXPECT_REJECTED(b, "sample_batch.tick_exp");
+  }
+  b = batch;
+  put_u8(b, 30, 1);
+  EXPECT_REJECTED(b, "sample_batch.reserved");
+  // The miss bit without positions.
+  b = batch;
+  put_u8(b, 32 + 12 + 7, 0x80);
+  EXPECT_REJECTED(b, "miss");
+
+  b = encoded(random_stats(rng));
+  put_u16(b, 114, 1);
+  EXPECT_REJECTED(b, "stats.reserved");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Floats and ranges
+
+TEST(CodecRejectTest, NonFiniteValuesAreRejectedWhereForbidden) {
+  Pcg32 rng(10);
+  const double bad[] = {NAN, INFINITY, -INFINITY};
+  for (double x : bad) {
+    std::vector<uint8_t> b = encoded(random_view(rng));
+    put_f64(b, 8, x);
+    EXPECT_REJECTED(b, "view.time");
+    for (size_t off = 16; off < 112; off += 8) {  // every component of eye, right, up, forward
+      b = encoded(random_view(rng));
+      put_f64(b, off, x);
+      EXPECT_REJECTED(b, "view.camera");
+    }
+    b = encoded(random_view(rng));
+    put_f64(b, 112, x);
+    EXPECT_REJECTED(b, "view.camera.yfov");
+    b = encoded(random_view(rng));
+    put_f64(b, 120, x);
+    EXPECT_REJECTED(b, "view.camera.znear");
+
+    b = encoded(random_welcome(rng));
+    put_f64(b, 20, x);
+    EXPECT_REJECTED(b, "welcome.display_time");
+    b = encoded(random_welcome(rng));
+    put_f64(b, 28, x);
+    EXPECT_REJECTED(b, "welcome.refresh_interval");
+
+    b = encoded(random_heartbeat(rng));
+    put_f64(b, 20, x);
+    EXPECT_REJECTED(b, "heartbeat.time");
+
+    b = encoded(random_stats(rng));
+    put_f64(b, 92, x);
+    EXPECT_REJECTED(b, "stats.samples_per_second");
+
+    b = encoded(random_batch(rng, kFieldPosition, 3));
+    put_f64(b, 16, x);
+    EXPECT_REJECTED(b, "sample_batch.base_time");
+    for (size_t c = 0; c < 3; ++c) {
+      b = encoded(random_batch(rng, kFieldPosition, 3));
+      put_f32(b, 32 + 24 * 2 + 12 + 4 * c, float(x));  // sample 2's world position
+      EXPECT_REJECTED(b, "sample_batch.samples[2].position");
+    }
+
+    b = encoded(random_tiling(rng, 2));
+    for (size_t field = 0; field < 6; ++field) {
+      std::vector<uint8_t> t = b;
+      const size_t off = field < 5 ? 8 + 4 * field : 32;  // G_x, G_y, G_t, v, E; rate
+      put_f32(t, 24 + kTileBytes + off, float(x));
+      EXPECT_REJECTED(t, "tiling_snapshot.tiles[1]");
+    }
+  }
+  // Half-float Inf and NaN in velocities.
+  for (uint16_t h : {uint16_t(0x7c00), uint16_t(0xfc00), uint16_t(0x7e00), uint16_t(0x7c01)}) {
+    std::vector<uint8_t> b = encoded(random_batch(rng, kFieldVelocity, 3));
+    put_u16(b, 32 + 18 + 12 + 2, h);
+    EXPECT_REJECTED(b, "sample_batch.samples[1].velocity");
+  }
+}
+
+TEST(CodecRejectTest, NegativeValuesAreRejectedWhereForbidden) {
+  Pcg32 rng(11);
+  std::vector<uint8_t> b = encoded(random_view(rng));
+  put_f64(b, 8, -1.0);
+  EXPECT_REJECTED(b, "view.time");
+  b = encoded(random_view(rng));
+  put_f64(b, 120, 0.0);
+  EXPECT_REJECTED(b, "znear");
+  b = encoded(random_view(rng));
+  put_f64(b, 112, 3.2);
+  EXPECT_REJECTED(b, "yfov");
+  b = encoded(random_tiling(rng, 1));
+  put_f32(b, 24 + 20, -0.5f);  // v
+  EXPECT_REJECTED(b, "tiles[0].v: negative");
+  b = encoded(random_welcome(rng));
+  put_f64(b, 28, 0.0);
+  EXPECT_REJECTED(b, "refresh_interval");
+}
+
+TEST(CodecRejectTest, ViewsWithoutAnOrthonormalBasisAreRejected) {
+  Pcg32 rng(12);
+  View v = random_view(rng);
+  std::vector<uint8_t> out;
+  v.camera.forward *= 2.0;
+  EXPECT_NE(encode(v, &out).message().find("camera.forward"), std::string::npos);
+  v = random_view(rng);
+  v.camera.up = v.camera.forward;
+  EXPECT_NE(encode(v, &out).message().find("orthogonal"), std::string::npos);
+}
+
+TEST(CodecRejectTest, SizesAndRectanglesOutsideTheImageAreRejected) {
+  Pcg32 rng(13);
+  std::vector<uint8_t> b = encoded(random_welcome(rng));
+  put_u32(b, 12, kMaxImageSize + 1);
+  EXPECT_REJECTED(b, "welcome.width");
+  b = encoded(random_welcome(rng));
+  put_u32(b, 16, 0);
+  EXPECT_REJECTED(b, "welcome.height");
+  b = encoded(random_welcome(rng));
+  put_u32(b, 12, 0xffffffffu);
+  EXPECT_REJECTED(b, "welcome.width");
+
+  RegionAssignment r;
+  r.width = 100;
+  r.height = 50;
+  r.region = PixelRect{10, 10, 20, 20};
+  const std::vector<uint8_t> good = encoded(r);
+  for (PixelRect bad : {PixelRect{10, 10, 10, 20}, PixelRect{-1, 0, 5, 5}, PixelRect{0, 0, 101, 5},
+                        PixelRect{0, 0, 5, 51}, PixelRect{20, 10, 10, 20}}) {
+    b = good;
+    put_u32(b, 20, uint32_t(bad.x0));
+    put_u32(b, 24, uint32_t(bad.y0));
+    put_u32(b, 28, uint32_t(bad.x1));
+    put_u32(b, 32, uint32_t(bad.y1));
+    EXPECT_REJECTED(b, "region_assignment.region");
+  }
+
+  // Sample positions beyond the image.
+  SampleBatch batch = random_batch(rng, 0, 4, 0.01, ImageBounds{100, 100});
+  b = encoded(batch);
+  EXPECT_EQ(error_of(b, ImageBounds{100, 100}), "");
+  b[kHeaderBytes + 32 + 12 * 3 + 2] = 0x01;  // sample 3: x code + 65536 (x + 128 px)
+  EXPECT_NE(error_of(b, ImageBounds{100, 100}).find("samples[3].x: outside"), std::string::npos);
+  EXPECT_EQ(error_of(b), "");  // inside the protocol's 32768 x 32768 still
+
+  // A tile outside its region, and a region outside the bounds.
+  TilingSnapshot t = random_tiling(rng, 2);
+  b = encoded(t);
+  put_u16(b, 24 + kTileBytes + 4, uint16_t(t.region.x1 + 1));  // tile 1's x1
+  EXPECT_REJECTED(b, "tiles[1].rect");
+  b = encoded(t);
+  EXPECT_NE(error_of(b, ImageBounds{t.region.x1 - 1, 32768}).find("tiling_snapshot.region"),
+            std::string::npos);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Encoding refuses what decoding would refuse
+
+TEST(CodecRejectTest, EncoderRefusesInvalidSamplesAndWritesNothing) {
+  Pcg32 rng(14);
+  std::vector<uint8_t> out = {1, 2, 3};
+  const auto refused = [&](SampleBatch b, const char* text) {
+    const Status s = encode(b, &out);
+    EXPECT_FALSE(s.ok()) << text;
+    EXPECT_NE(s.message().find(text), std::string::npos) << s.message();
+    EXPECT_TRUE(out.empty());
+  };
+  SampleBatch b = random_batch(rng, kFieldPosition | kFieldVelocity, 5);
+  b.samples[3].time = NAN;
+  refused(b, "samples[3].time");
+  b = random_batch(rng, kFieldPosition, 5);
+  b.samples[1].time = -0.5;
+  refused(b, "samples[1].time");
+  b = random_batch(rng, kFieldPosition, 5);
+  b.samples[0].time = 0.0;
+  b.samples[1].time = 40000.0;  // a span of more than 32767 s
+  refused(b, "span");
+  b = random_batch(rng, kFieldPosition, 5);
+  b.samples[2].x = 32768.0f;
+  refused(b, "samples[2].x");
+  b = random_batch(rng, kFieldPosition, 5);
+  b.samples[2].y = -0.001f;
+  refused(b, "samples[2].y");
+  b = random_batch(rng, kFieldPosition, 5);
+  b.samples[4].position.z = INFINITY;
+  refused(b, "samples[4].position");
+  b = random_batch(rng, kFieldVelocity, 5);
+  b.samples[0].velocity.x = NAN;
+  refused(b, "samples[0].velocity");
+  b = random_batch(rng, 0, 5);
+  b.fields = 8;
+  refused(b, "fields");
+  // Fields that are not sent are not checked: a NaN velocity without kFieldVelocity is fine.
+  b = random_batch(rng, kFieldPosition, 5);
+  b.samples[0].velocity.x = NAN;
+  EXPECT_TRUE(encode(b, &out).ok());
+}
+
+}  // namespace
+}  // namespace afr::protocol

@@ -1,0 +1,353 @@
+#include <afr/protocol/codec.h>
+
+#include <afr/protocol/packing.h>
+
+#include "test_messages.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+
+namespace afr::protocol {
+namespace {
+
+using namespace testing;
+
+// Decodes what was encoded and returns it (failing the test on any error).
+template <class T, class... Bounds>
+T round_trip(const T& in, std::vector<uint8_t>* bytes, const Bounds&... bounds) {
+  const Status e = encode(in, bytes, bounds...);
+  EXPECT_TRUE(e.ok()) << e.message();
+  T out;
+  const Status d = decode(Bytes(*bytes), &out, bounds...);
+  EXPECT_TRUE(d.ok()) << d.message();
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Control and view messages travel exactly
+
+TEST(CodecTest, ControlMessagesRoundTripExactly) {
+  Pcg32 rng(1);
+  std::vector<uint8_t> bytes;
+  for (int i = 0; i < 300; ++i) {
+    const Join join = random_join(rng);
+    EXPECT_EQ(round_trip(join, &bytes), join);
+    EXPECT_EQ(bytes.size(), kHeaderBytes + 14 + join.name.size());
+    const Welcome welcome = random_welcome(rng);
+    EXPECT_EQ(round_trip(welcome, &bytes), welcome);
+    const SceneRequest request = random_scene_request(rng);
+    EXPECT_EQ(round_trip(request, &bytes), request);
+    const SceneChunk chunk = random_scene_chunk(rng);
+    EXPECT_EQ(round_trip(chunk, &bytes), chunk);
+    EXPECT_EQ(bytes.size(), kHeaderBytes + 60 + chunk.bytes.size());
+    const RegionAssignment region = random_region(rng);
+    EXPECT_EQ(round_trip(region, &bytes), region);
+    const SamplerStats stats = random_stats(rng);
+    EXPECT_EQ(round_trip(stats, &bytes), stats);
+    const Heartbeat heartbeat = random_heartbeat(rng);
+    EXPECT_EQ(round_trip(heartbeat, &bytes), heartbeat);
+    const Leave leave = random_leave(rng);
+    EXPECT_EQ(round_trip(leave, &bytes), leave);
+    const View view = random_view(rng);
+    EXPECT_EQ(round_trip(view, &bytes), view);
+    EXPECT_EQ(bytes.size(), kMaxViewChannelMessage);
+  }
+}
+
+TEST(CodecTest, LargestChunkFitsTheControlChannelLimit) {
+  SceneChunk chunk;
+  chunk.bytes.assign(kMaxChunkBytes, 0xab);
+  chunk.scene_size = kMaxSceneBytes;
+  chunk.offset = kMaxSceneBytes - kMaxChunkBytes;
+  chunk.count = 4096;
+  chunk.index = 4095;
+  std::vector<uint8_t> bytes;
+  EXPECT_EQ(round_trip(chunk, &bytes), chunk);
+  EXPECT_LE(bytes.size(), kMaxControlChannelMessage);
+}
+
+TEST(CodecTest, AnyMessageDecodesToItsType) {
+  Pcg32 rng(2);
+  for (int round = 0; round < 20; ++round) {
+    for (const Message& m : random_messages(rng)) {
+      const std::vector<uint8_t> bytes = encoded(m);
+      Result<Header> h = peek_header(bytes);
+      ASSERT_TRUE(h.ok()) << h.error();
+      EXPECT_EQ(h->type, message_type(m));
+      EXPECT_EQ(h->version, kProtocolVersion);
+      EXPECT_EQ(h->payload_bytes, bytes.size() - kHeaderBytes);
+      Result<Message> d = decode_message(bytes);
+      ASSERT_TRUE(d.ok()) << d.error();
+      EXPECT_EQ(d->index(), m.index());
+      EXPECT_EQ(encoded(*d), bytes) << message_type_name(message_type(m));  // a fixed point
+    }
+  }
+}
+
+// The header and a join, byte by byte as docs/protocol.md writes them.
+TEST(CodecTest, JoinBytesAreTheDocumentedLayout) {
+  Join join;
+  join.sampler_id = 0x01020304;
+  join.threads = 8;
+  join.capabilities = kCapWorldPosition | kCapTilings;
+  join.name = "ab";
+  std::vector<uint8_t> bytes;
+  ASSERT_TRUE(encode(join, &bytes).ok());
+  const std::vector<uint8_t> expected = {
+      'A',  'F',  'R',  'P',   // magic
+      1,    0,                 // version
+      1,    0,                 // type: join
+      16,   0,    0,    0,     // payload bytes
+      0x04, 0x03, 0x02, 0x01,  // sampler_id
+      1,    0,                 // protocol_version
+      8,    0,                 // threads
+      5,    0,    0,    0,     // capabilities
+      2,    0,    'a',  'b'};  // name
+  EXPECT_EQ(bytes, expected);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Sample batches: sizes and quantisation
+
+TEST(CodecTest, BytesPerSampleAreTheDocumentedFigures) {
+  EXPECT_EQ(packed_sample_bytes(0), 12u);
+  EXPECT_EQ(packed_sample_bytes(kFieldPosition), 24u);  // the goal: <= 24 with world position
+  EXPECT_EQ(packed_sample_bytes(kFieldVelocity), 18u);
+  EXPECT_EQ(packed_sample_bytes(kFieldPosition | kFieldVelocity), 30u);
+  Pcg32 rng(3);
+  std::vector<uint8_t> bytes;
+  for (uint32_t fields = 0; fields < 4; ++fields) {
+    for (size_t n : {size_t(0), size_t(1), size_t(128), size_t(4096)}) {
+      ASSERT_TRUE(encode(random_batch(rng, fields, n), &bytes).ok());
+      EXPECT_EQ(bytes.size(), 44 + n * packed_sample_bytes(fields));
+      EXPECT_EQ(bytes.size(), batch_message_bytes(fields, n));
+    }
+  }
+  // The default batch of the sampler (128 samples) with world positions, per sample, with
+  // the headers shared out: 24 + 44 / 128.
+  EXPECT_NEAR(double(batch_message_bytes(kFieldPosition, 128)) / 128, 24.34375, 1e-12);
+}
+
+// The tick of a batch: the finest power of two that spans it in 32767 ticks (from the
+// definition, by search from fine to coarse).
+double expected_tick(double span) {
+  for (int e = kMinTickExp; e <= kMaxTickExp; ++e) {
+    if (span <= 32767.0 * std::ldexp(1.0, e)) return std::ldexp(1.0, e);
+  }
+  return NAN;
+}
+
+void expect_batch_close(const SampleBatch& in, const SampleBatch& out, double tick) {
+  ASSERT_EQ(out.samples.size(), in.samples.size());
+  EXPECT_EQ(out.sampler_id, in.sampler_id);
+  EXPECT_EQ(out.sequence, in.sequence);
+  EXPECT_EQ(out.fields, in.fields);
+  for (size_t i = 0; i < in.samples.size(); ++i) {
+    const Sample& a = in.samples[i];
+    const Sample& b = out.samples[i];
+    // Time: half a tick, plus the rounding of base + ticks * tick in double.
+    ASSERT_LE(std::abs(b.time - a.time), tick / 2 + 1e-15 * std::abs(a.time)) << i;
+    // Position in the image: same 1/512 bin.
+    ASSERT_EQ(std::floor(double(b.x) * 512), std::floor(double(a.x) * 512)) << i;
+    ASSERT_EQ(std::floor(double(b.y) * 512), std::floor(double(a.y) * 512)) << i;
+    // Color: RGB9E5, half a step of the largest channel.
+    const double max_c = std::max({a.color.r, a.color.g, a.color.b});
+    const double step = max_c > 0 ? std::ldexp(1.0, int(std::floor(std::log2(max_c))) - 8) : 0;
+    for (int c = 0; c < 3; ++c) ASSERT_LE(std::abs(double(b.color[c]) - a.color[c]), step) << i;
+    if (in.fields & kFieldPosition) {
+      ASSERT_EQ(b.position, a.position) << i;  // floats, exactly
+      ASSERT_EQ(b.miss, a.miss) << i;
+    } else {
+      ASSERT_EQ(b.position, glm::vec3(0.0f));
+      ASSERT_FALSE(b.miss);
+    }
+    if (in.fields & kFieldVelocity) {
+      for (int c = 0; c < 3; ++c) {
+        // Half precision: 2^-11 relative, 2^-25 absolute near zero.
+        ASSERT_LE(std::abs(double(b.velocity[c]) - a.velocity[c]),
+                  std::abs(double(a.velocity[c])) * std::ldexp(1.0, -11) + std::ldexp(1.0, -25))
+            << i;
+      }
+    } else {
+      ASSERT_EQ(b.velocity, glm::vec3(0.0f));
+    }
+  }
+}
+
+TEST(CodecTest, BatchesRoundTripWithinTheDocumentedQuantisation) {
+  Pcg32 rng(4);
+  std::vector<uint8_t> bytes;
+  SampleBatch out;  // reused, as a receiver does
+  for (int i = 0; i < 400; ++i) {
+    const uint32_t fields = uint32_t(i % 4);
+    const double span = std::ldexp(rng.next_double(), int(rng.next_below(40)) - 30);  // to 512 s
+    const SampleBatch in = random_batch(rng, fields, 1 + rng.next_below(300), span);
+    ASSERT_TRUE(encode(in, &bytes).ok());
+    ASSERT_TRUE(decode(Bytes(bytes), &out).ok());
+    double t_min = INFINITY, t_max = -INFINITY;
+    for (const Sample& s : in.samples) t_min = std::min(t_min, s.time), t_max = std::max(t_max, s.time);
+    expect_batch_close(in, out, expected_tick(t_max - t_min));
+  }
+}
+
+TEST(CodecTest, BatchTimesAreExactWhenTheyFallOnTicks) {
+  SampleBatch in;
+  in.fields = kFieldPosition;
+  const double base = 604800.0;  // a week into the session: absolute times stay exact
+  for (int k = 0; k < 100; ++k) {
+    Sample s;
+    s.time = base + k * std::ldexp(1.0, -20);
+    s.x = float(k);
+    s.y = 1.5f;
+    in.samples.push_back(s);
+  }
+  std::vector<uint8_t> bytes;
+  SampleBatch out = round_trip(in, &bytes);
+  for (int k = 0; k < 100; ++k) EXPECT_EQ(out.samples[k].time, in.samples[k].time) << k;
+  // The tick byte: 99 * 2^-20 s needs 2^-28 s ticks (32767 * 2^-29 < 99 * 2^-20).
+  EXPECT_EQ(int8_t(bytes[12 + 28]), -28);
+}
+
+TEST(CodecTest, OneSampleBatchIsTheDocumentedLayout) {
+  SampleBatch in;
+  in.sampler_id = 7;
+  in.sequence = 9;
+  in.fields = kFieldPosition | kFieldVelocity;
+  Sample s;
+  s.time = 2.0;
+  s.x = 3.25f;        // 3.25 * 512 = 1664 = 0x000680
+  s.y = 32767.5f;     // 16776960 = 0xffff00
+  s.color = {1.0f, 0.5f, 0.0f};  // exponent 16, step 2^-8: mantissas 256, 128, 0
+  s.position = {1.0f, -2.0f, 0.5f};
+  s.velocity = {1.0f, -2.0f, 0.0f};  // halves 0x3c00, 0xc000, 0x0000
+  s.miss = true;
+  in.samples.push_back(s);
+  std::vector<uint8_t> bytes;
+  ASSERT_TRUE(encode(in, &bytes).ok());
+  ASSERT_EQ(bytes.size(), 12u + 32 + 30);
+  const uint8_t* p = bytes.data() + 12;
+  uint32_t u32;
+  double f64;
+  std::memcpy(&u32, p, 4);
+  EXPECT_EQ(u32, 7u);  // sampler_id
+  std::memcpy(&u32, p + 4, 4);
+  EXPECT_EQ(u32, 3u);  // fields
+  std::memcpy(&f64, p + 16, 8);
+  EXPECT_EQ(f64, 2.0);  // base_time
+  std::memcpy(&u32, p + 24, 4);
+  EXPECT_EQ(u32, 1u);                    // count
+  EXPECT_EQ(int8_t(p[28]), kMinTickExp);  // a zero span takes the finest tick
+  const uint8_t* q = p + 32;
+  const std::vector<uint8_t> sample(q, q + 12);
+  const uint32_t color = 256u | (128u << 9) | (0u << 18) | (16u << 27);
+  const std::vector<uint8_t> expected = {0x80,
+                                         0x06,
+                                         0x00,  // x
+                                         0x00,
+                                         0xff,
+                                         0xff,  // y
+                                         0x00,
+                                         0x80,  // time 0, miss
+                                         uint8_t(color),
+                                         uint8_t(color >> 8),
+                                         uint8_t(color >> 16),
+                                         uint8_t(color >> 24)};
+  EXPECT_EQ(sample, expected);
+  float pos[3];
+  std::memcpy(pos, q + 12, 12);
+  EXPECT_EQ(pos[0], 1.0f);
+  EXPECT_EQ(pos[1], -2.0f);
+  EXPECT_EQ(pos[2], 0.5f);
+  EXPECT_EQ(std::vector<uint8_t>(q + 24, q + 30),
+            (std::vector<uint8_t>{0x00, 0x3c, 0x00, 0xc0, 0x00, 0x00}));
+}
+
+TEST(CodecTest, DecodingReusesTheBatchWithoutReallocating) {
+  Pcg32 rng(5);
+  std::vector<uint8_t> big, small;
+  ASSERT_TRUE(encode(random_batch(rng, kFieldPosition, 512), &big).ok());
+  ASSERT_TRUE(encode(random_batch(rng, kFieldPosition, 100), &small).ok());
+  SampleBatch out;
+  ASSERT_TRUE(decode(Bytes(big), &out).ok());
+  const Sample* data = out.samples.data();
+  for (int i = 0; i < 10; ++i) {
+    ASSERT_TRUE(decode(Bytes(i % 2 ? big : small), &out).ok());
+    EXPECT_EQ(out.samples.data(), data);
+  }
+  // Encoding reuses the output's capacity too.
+  const uint8_t* before = big.data();
+  ASSERT_TRUE(encode(random_batch(rng, kFieldPosition, 400), &big).ok());
+  EXPECT_EQ(big.data(), before);
+}
+
+TEST(CodecTest, MissTravelsOnlyWithPositions) {
+  SampleBatch in;
+  in.fields = 0;
+  Sample s;
+  s.miss = true;  // meaningless without a position: not sent
+  in.samples.push_back(s);
+  std::vector<uint8_t> bytes;
+  const SampleBatch out = round_trip(in, &bytes);
+  EXPECT_FALSE(out.samples[0].miss);
+}
+
+TEST(CodecTest, SamplesAreCheckedAgainstTheImageBounds) {
+  Pcg32 rng(6);
+  const ImageBounds bounds{640, 480};
+  SampleBatch in = random_batch(rng, kFieldPosition, 200, 0.01, bounds);
+  std::vector<uint8_t> bytes;
+  const SampleBatch out = round_trip(in, &bytes, bounds);
+  for (const Sample& s : out.samples) {
+    EXPECT_LT(s.x, 640.0f);
+    EXPECT_LT(s.y, 480.0f);
+  }
+  SampleBatch decoded;
+  EXPECT_FALSE(decode(Bytes(bytes), &decoded, ImageBounds{64, 48}).ok());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tiling snapshots
+
+TEST(CodecTest, TilingsRoundTripExactly) {
+  Pcg32 rng(7);
+  std::vector<uint8_t> bytes;
+  for (int i = 0; i < 100; ++i) {
+    const TilingSnapshot in = random_tiling(rng, rng.next_below(200));
+    const TilingSnapshot out = round_trip(in, &bytes);
+    EXPECT_EQ(bytes.size(), snapshot_message_bytes(in.tiles.size()));
+    EXPECT_EQ(out.sampler_id, in.sampler_id);
+    EXPECT_EQ(out.time, in.time);
+    EXPECT_EQ(out.region, in.region);
+    ASSERT_EQ(out.tiles.size(), in.tiles.size());
+    for (size_t t = 0; t < in.tiles.size(); ++t) {
+      const TileInfo& a = in.tiles[t];
+      const TileInfo& b = out.tiles[t];
+      EXPECT_EQ(b.rect, a.rect);
+      EXPECT_EQ(b.G_x, a.G_x);
+      EXPECT_EQ(b.G_y, a.G_y);
+      EXPECT_EQ(b.G_t, a.G_t);
+      EXPECT_EQ(b.v, a.v);
+      EXPECT_EQ(b.E, a.E);
+      EXPECT_EQ(b.count, a.count);
+      EXPECT_EQ(b.rate, a.rate);
+    }
+  }
+}
+
+TEST(CodecTest, ChannelLimitsHoldTheLargestMessages) {
+  EXPECT_EQ(kMaxSampleChannelMessage, snapshot_message_bytes(kMaxTilesPerSnapshot));
+  EXPECT_GE(kMaxSampleChannelMessage,
+            batch_message_bytes(kFieldPosition | kFieldVelocity, kMaxSamplesPerBatch));
+  Pcg32 rng(8);
+  std::vector<uint8_t> bytes;
+  ASSERT_TRUE(encode(random_batch(rng, 3, kMaxSamplesPerBatch), &bytes).ok());
+  EXPECT_LE(bytes.size(), kMaxSampleChannelMessage);
+  SampleBatch too_big = random_batch(rng, 0, kMaxSamplesPerBatch + 1);
+  EXPECT_FALSE(encode(too_big, &bytes).ok());
+  EXPECT_TRUE(bytes.empty());
+}
+
+}  // namespace
+}  // namespace afr::protocol

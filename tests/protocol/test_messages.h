@@ -1,0 +1,210 @@
+// Random, valid messages of every type for the protocol tests, the fuzz corpus and the
+// benchmarks: built from a seeded generator, so every run sees the same ones.
+#pragma once
+
+#include <afr/common/random.h>
+#include <afr/protocol/codec.h>
+#include <afr/protocol/messages.h>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace afr::protocol::testing {
+
+inline std::string random_name(Pcg32& rng, size_t max_len = kMaxNameBytes) {
+  std::string s(rng.next_below(uint32_t(max_len) + 1), ' ');
+  for (char& c : s) c = char(0x20 + rng.next_below(0x7f - 0x20));  // printable ASCII
+  return s;
+}
+
+inline SceneHash random_hash(Pcg32& rng) {
+  SceneHash h;
+  for (uint8_t& b : h) b = uint8_t(rng.next_u32());
+  return h;
+}
+
+inline uint64_t random_u64(Pcg32& rng) { return (uint64_t(rng.next_u32()) << 32) | rng.next_u32(); }
+
+inline double random_time(Pcg32& rng) { return rng.next_double() * 1e6; }
+
+inline Join random_join(Pcg32& rng) {
+  Join m;
+  m.sampler_id = rng.next_u32();
+  m.threads = uint16_t(1 + rng.next_below(kMaxThreads));
+  m.capabilities = rng.next_u32() & kKnownCapabilities;
+  m.name = random_name(rng);
+  return m;
+}
+
+inline Welcome random_welcome(Pcg32& rng) {
+  Welcome m;
+  m.sampler_id = 1 + rng.next_below(1000);
+  m.session = random_u64(rng) | 1;
+  m.width = int32_t(1 + rng.next_below(kMaxImageSize));
+  m.height = int32_t(1 + rng.next_below(kMaxImageSize));
+  m.display_time = random_time(rng);
+  m.refresh_interval = 1e-3 + rng.next_double() * 0.1;
+  m.scene_hash = random_hash(rng);
+  m.scene_size = 1 + random_u64(rng) % kMaxSceneBytes;
+  m.scene_name = random_name(rng);
+  m.presets = random_name(rng, 16);
+  return m;
+}
+
+inline SceneRequest random_scene_request(Pcg32& rng) {
+  return SceneRequest{rng.next_u32(), random_hash(rng), rng.next_u32()};
+}
+
+inline SceneChunk random_scene_chunk(Pcg32& rng, uint32_t max_bytes = 4096) {
+  SceneChunk m;
+  m.scene_hash = random_hash(rng);
+  m.bytes.resize(1 + rng.next_below(max_bytes));
+  for (uint8_t& b : m.bytes) b = uint8_t(rng.next_u32());
+  m.scene_size = m.bytes.size() + rng.next_below(1u << 30);
+  m.offset = rng.next_below(uint32_t(m.scene_size - m.bytes.size() + 1));
+  m.count = 1 + rng.next_below(uint32_t(std::min<uint64_t>(m.scene_size, 1u << 20)));
+  m.index = rng.next_below(m.count);
+  return m;
+}
+
+inline PixelRect random_rect_in(Pcg32& rng, const PixelRect& outer) {
+  const int32_t x0 = outer.x0 + int32_t(rng.next_below(uint32_t(outer.width())));
+  const int32_t y0 = outer.y0 + int32_t(rng.next_below(uint32_t(outer.height())));
+  const int32_t x1 = x0 + 1 + int32_t(rng.next_below(uint32_t(outer.x1 - x0)));
+  const int32_t y1 = y0 + 1 + int32_t(rng.next_below(uint32_t(outer.y1 - y0)));
+  return {x0, y0, x1, y1};
+}
+
+inline RegionAssignment random_region(Pcg32& rng) {
+  RegionAssignment m;
+  m.sampler_id = rng.next_u32();
+  m.epoch = random_u64(rng);
+  m.width = int32_t(1 + rng.next_below(kMaxImageSize));
+  m.height = int32_t(1 + rng.next_below(kMaxImageSize));
+  m.region = random_rect_in(rng, PixelRect{0, 0, m.width, m.height});
+  return m;
+}
+
+inline glm::dvec3 random_unit(Pcg32& rng) {
+  for (;;) {
+    const glm::dvec3 v(2 * rng.next_double() - 1, 2 * rng.next_double() - 1,
+                       2 * rng.next_double() - 1);
+    const double l = glm::length(v);
+    if (l > 0.1 && l <= 1.0) return v / l;
+  }
+}
+
+inline View random_view(Pcg32& rng) {
+  View m;
+  m.sequence = random_u64(rng);
+  m.time = random_time(rng);
+  const glm::dvec3 eye(rng.next_double() * 100 - 50, rng.next_double() * 100 - 50,
+                       rng.next_double() * 100 - 50);
+  m.camera = Camera::look_at(eye, eye + random_unit(rng), glm::dvec3(0, 1, 0),
+                             0.1 + rng.next_double() * 2.5, 1e-3 + rng.next_double());
+  return m;
+}
+
+// Samples within bounds, times within `span` seconds of a random base.
+inline SampleBatch random_batch(Pcg32& rng, uint32_t fields, size_t n, double span = 0.01,
+                                const ImageBounds& bounds = {}) {
+  SampleBatch m;
+  m.sampler_id = rng.next_u32();
+  m.sequence = random_u64(rng);
+  m.fields = fields;
+  const double base = random_time(rng);
+  m.samples.resize(n);
+  for (Sample& s : m.samples) {
+    s.time = base + rng.next_double() * span;
+    s.x = std::min(rng.next_float() * float(bounds.width), std::nextafter(float(bounds.width), 0.f));
+    s.y =
+        std::min(rng.next_float() * float(bounds.height), std::nextafter(float(bounds.height), 0.f));
+    s.color = glm::vec3(rng.next_float() * 4, rng.next_float(), rng.next_float() * 0.25f);
+    if (fields & kFieldPosition) {
+      s.position = glm::vec3(rng.next_float() * 200 - 100, rng.next_float() * 200 - 100,
+                             rng.next_float() * 200 - 100);
+      s.miss = rng.next_below(8) == 0;
+    }
+    if (fields & kFieldVelocity) {
+      s.velocity = glm::vec3(rng.next_float() * 20 - 10, rng.next_float() * 2 - 1, 0.0f);
+    }
+  }
+  return m;
+}
+
+inline TilingSnapshot random_tiling(Pcg32& rng, size_t n) {
+  TilingSnapshot m;
+  m.sampler_id = rng.next_u32();
+  m.time = random_time(rng);
+  const int32_t w = 64 + int32_t(rng.next_below(4000)), h = 64 + int32_t(rng.next_below(4000));
+  m.region = random_rect_in(rng, PixelRect{0, 0, w, h});
+  while (m.region.area() < int64_t(n)) m.region = random_rect_in(rng, PixelRect{0, 0, w, h});
+  m.tiles.resize(n);
+  for (TileInfo& t : m.tiles) {
+    t.rect = random_rect_in(rng, m.region);
+    t.G_x = rng.next_float() * 2 - 1;
+    t.G_y = rng.next_float() * 2 - 1;
+    t.G_t = rng.next_float() * 10 - 5;
+    t.v = rng.next_float();
+    t.E = rng.next_float() * 100;
+    t.count = rng.next_u32();
+    t.rate = rng.next_float() * 1000;
+  }
+  return m;
+}
+
+inline SamplerStats random_stats(Pcg32& rng) {
+  SamplerStats m;
+  m.sampler_id = rng.next_u32();
+  m.time = random_time(rng);
+  for (uint64_t* v : {&m.samples, &m.batches, &m.batches_dropped, &m.tilings, &m.bytes_sent,
+                      &m.crosshairs, &m.reprojections, &m.reprojections_dropped,
+                      &m.occlusion_rays, &m.sanitized}) {
+    *v = random_u64(rng);
+  }
+  m.samples_per_second = rng.next_double() * 1e8;
+  m.rays_per_second = rng.next_double() * 1e8;
+  m.tiles = rng.next_u32();
+  m.threads = uint16_t(1 + rng.next_below(kMaxThreads));
+  return m;
+}
+
+inline Heartbeat random_heartbeat(Pcg32& rng) {
+  return Heartbeat{rng.next_u32(), random_u64(rng), random_u64(rng), random_time(rng)};
+}
+
+inline Leave random_leave(Pcg32& rng) {
+  return Leave{rng.next_u32(), LeaveReason(rng.next_below(kLastLeaveReason + 1)),
+               random_name(rng)};
+}
+
+// One random message of every type (batches in every field combination).
+inline std::vector<Message> random_messages(Pcg32& rng) {
+  std::vector<Message> all;
+  all.push_back(random_join(rng));
+  all.push_back(random_welcome(rng));
+  all.push_back(random_scene_request(rng));
+  all.push_back(random_scene_chunk(rng, 300));
+  all.push_back(random_region(rng));
+  all.push_back(random_view(rng));
+  for (uint32_t fields = 0; fields < 4; ++fields) {
+    all.push_back(random_batch(rng, fields, 1 + rng.next_below(20)));
+  }
+  all.push_back(random_tiling(rng, 1 + rng.next_below(10)));
+  all.push_back(random_stats(rng));
+  all.push_back(random_heartbeat(rng));
+  all.push_back(random_leave(rng));
+  return all;
+}
+
+inline std::vector<uint8_t> encoded(const Message& m) {
+  std::vector<uint8_t> bytes;
+  const Status s = encode(m, &bytes);
+  if (!s) throw std::runtime_error(s.message());
+  return bytes;
+}
+
+}  // namespace afr::protocol::testing

@@ -1,0 +1,431 @@
+// The ZeroMQ channels, each checked for the behaviour docs/protocol.md promises, against raw
+// libzmq sockets and raw TCP where the point is what a foreign peer can do.
+#include <afr/protocol/channels.h>
+
+#include <afr/common/error.h>
+
+#include "test_messages.h"
+
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <pthread.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstring>
+#include <thread>
+
+namespace afr::protocol {
+namespace {
+
+using namespace testing;
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+// Polls `f` until it returns true or `ms` pass.
+template <class F>
+bool eventually(F f, int ms = 3000) {
+  const auto start = Clock::now();
+  while (seconds_since(start) * 1000 < ms) {
+    if (f()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return f();
+}
+
+int port_of(const std::string& endpoint) { return std::stoi(endpoint.substr(endpoint.rfind(':') + 1)); }
+
+// A TCP port that was free a moment ago.
+int free_port() {
+  zmq::context_t ctx;
+  zmq::socket_t s(ctx, zmq::socket_type::pull);
+  s.set(zmq::sockopt::linger, 0);
+  s.bind("tcp://127.0.0.1:*");
+  return port_of(s.get(zmq::sockopt::last_endpoint));
+}
+
+std::string tcp(int port) { return "tcp://127.0.0.1:" + std::to_string(port); }
+
+// ---------------------------------------------------------------------------------------------
+// Endpoints
+
+TEST(TransportTest, ServiceEndpointsFollowTheBase) {
+  const ServiceEndpoints t = service_endpoints("tcp://10.0.0.5:7000");
+  EXPECT_EQ(t.control, "tcp://10.0.0.5:7000");
+  EXPECT_EQ(t.views, "tcp://10.0.0.5:7001");
+  EXPECT_EQ(t.samples, "tcp://10.0.0.5:7002");
+  EXPECT_EQ(service_endpoints("tcp://[::1]:9").samples, "tcp://[::1]:11");
+  EXPECT_EQ(service_endpoints("inproc://afr").views, "inproc://afr-views");
+  EXPECT_THROW(service_endpoints("tcp://host"), Error);
+  EXPECT_THROW(service_endpoints("tcp://host:65534"), Error);
+  EXPECT_THROW(service_endpoints("tcp://host:x1"), Error);
+  EXPECT_THROW(service_endpoints("udp://host:1"), Error);
+}
+
+TEST(TransportTest, LocalEndpointsAreRecognised) {
+  for (const char* e : {"tcp://127.0.0.1:5000", "tcp://127.3.2.1:1", "tcp://localhost:5",
+                        "tcp://[::1]:5", "inproc://x", "ipc:///tmp/x"}) {
+    EXPECT_TRUE(is_local_endpoint(e)) << e;
+  }
+  for (const char* e : {"tcp://*:5000", "tcp://0.0.0.0:5000", "tcp://192.168.1.2:5",
+                        "tcp://eth0:5", "tcp://1270.0.0.1:5"}) {
+    EXPECT_FALSE(is_local_endpoint(e)) << e;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Samples
+
+TEST(TransportTest, PushPullCarriesBatchesAndTilings) {
+  for (const char* where : {"inproc://samples-test", "tcp://127.0.0.1:*"}) {
+    Context context;
+    SampleReceiver receiver(context, where);
+    SampleSender sender(context, receiver.endpoint());
+    Pcg32 rng(1);
+    const SampleBatch batch = random_batch(rng, kFieldPosition, 128);
+    const TilingSnapshot tiling = random_tiling(rng, 20);
+    ASSERT_TRUE(eventually([&] {
+      // Until connected the sender queues; pump() hands the queue over once it is.
+      return sender.send(batch).ok() && sender.counters().batches_sent > 0;
+    }));
+    ASSERT_TRUE(sender.send(tiling).ok());
+    EXPECT_EQ(sender.pump(), 0u);
+
+    SampleReceiver::Got got = receiver.receive(2000);
+    ASSERT_EQ(got, SampleReceiver::Got::kBatch) << where << " " << receiver.rejection().message();
+    EXPECT_EQ(receiver.batch().sampler_id, batch.sampler_id);
+    EXPECT_EQ(receiver.batch().samples.size(), 128u);
+    EXPECT_EQ(receiver.batch().samples[5].position, batch.samples[5].position);
+    // Any further batches the retry loop sent, then the tiling.
+    while ((got = receiver.receive(2000)) == SampleReceiver::Got::kBatch) {
+    }
+    ASSERT_EQ(got, SampleReceiver::Got::kTiling);
+    EXPECT_EQ(receiver.tiling().tiles.size(), 20u);
+    EXPECT_EQ(receiver.tiling().region, tiling.region);
+    EXPECT_EQ(receiver.receive(0), SampleReceiver::Got::kNothing);
+    EXPECT_EQ(receiver.counters().rejected, 0u);
+  }
+}
+
+TEST(TransportTest, SampleIdsTellSendersApartOnOnePullSocket) {
+  Context context;
+  SampleReceiver receiver(context, "tcp://127.0.0.1:*");
+  SampleSender a(context, receiver.endpoint()), b(context, receiver.endpoint());
+  Pcg32 rng(2);
+  SampleBatch ba = random_batch(rng, 0, 10), bb = random_batch(rng, 0, 10);
+  ba.sampler_id = 1;
+  bb.sampler_id = 2;
+  int seen[3] = {0, 0, 0};
+  ASSERT_TRUE(eventually([&] {
+    (void)a.send(ba);
+    (void)b.send(bb);
+    while (receiver.receive(0) == SampleReceiver::Got::kBatch) ++seen[receiver.batch().sampler_id];
+    return seen[1] > 0 && seen[2] > 0;
+  }));
+}
+
+TEST(TransportTest, SenderKeepsTheFreshestWhenTheDisplayIsAway) {
+  const int port = free_port();
+  Context context;
+  SampleSender sender(context, tcp(port));
+  const int queue = ChannelOptions::samples().sender_queue;
+  Pcg32 rng(3);
+  SampleBatch batch = random_batch(rng, kFieldPosition, 16);
+  for (uint64_t i = 0; i < 100; ++i) {
+    batch.sequence = i;
+    ASSERT_TRUE(sender.send(batch).ok());
+  }
+  EXPECT_EQ(sender.counters().batches_sent, 0u);  // nothing queued into an absent connection
+  EXPECT_EQ(sender.counters().batches_dropped, uint64_t(100 - queue));
+
+  // The display comes up: the queue (the last `queue` batches) goes out, oldest first.
+  SampleReceiver receiver(context, tcp(port));
+  ASSERT_TRUE(eventually([&] { return sender.pump() == 0; }));
+  for (int i = 0; i < queue; ++i) {
+    ASSERT_EQ(receiver.receive(2000), SampleReceiver::Got::kBatch);
+    EXPECT_EQ(receiver.batch().sequence, uint64_t(100 - queue + i));
+  }
+  EXPECT_EQ(receiver.receive(100), SampleReceiver::Got::kNothing);
+}
+
+TEST(TransportTest, SenderMemoryStaysBoundedWhenTheDisplayStalls) {
+  Context context;
+  SampleReceiver receiver(context, "tcp://127.0.0.1:*");  // never reads
+  SampleSender sender(context, receiver.endpoint());
+  Pcg32 rng(4);
+  const SampleBatch batch = random_batch(rng, kFieldPosition, 128);
+  uint64_t total = 0;
+  ASSERT_TRUE(eventually([&] {
+    ++total;
+    return sender.send(batch).ok() && sender.counters().batches_sent > 0;
+  }));
+  for (int i = 0; i < 20000; ++i, ++total) ASSERT_TRUE(sender.send(batch).ok());
+  const size_t queued = sender.pump();
+  const auto& c = sender.counters();
+  // What got out is bounded by the high-water marks and socket buffers (a few hundred kB of
+  // 3 kB batches); the rest was dropped and counted.
+  EXPECT_EQ(c.batches_sent + c.batches_dropped + queued, total);
+  EXPECT_LE(queued, size_t(ChannelOptions::samples().sender_queue));
+  EXPECT_GT(c.batches_dropped, 15000u);
+  EXPECT_LT(c.batches_sent * batch_message_bytes(kFieldPosition, 128), 2u << 20);
+}
+
+TEST(TransportTest, ReceiverRejectsWhatIsNotASampleMessage) {
+  Context context;
+  SampleReceiver receiver(context, "inproc://reject-test");
+  zmq::socket_t raw(context.zmq(), zmq::socket_type::push);
+  raw.set(zmq::sockopt::linger, 0);
+  raw.connect("inproc://reject-test");
+  raw.send(zmq::str_buffer("garbage"), zmq::send_flags::none);
+  Pcg32 rng(5);
+  const std::vector<uint8_t> view = encoded(random_view(rng));
+  raw.send(zmq::buffer(view), zmq::send_flags::none);
+  raw.send(zmq::str_buffer("a"), zmq::send_flags::sndmore);
+  raw.send(zmq::str_buffer("b"), zmq::send_flags::none);
+  const std::vector<uint8_t> batch = encoded(random_batch(rng, 0, 3));
+  raw.send(zmq::buffer(batch), zmq::send_flags::none);
+
+  ASSERT_EQ(receiver.receive(1000), SampleReceiver::Got::kRejected);
+  EXPECT_NE(receiver.rejection().message().find("header"), std::string::npos);
+  ASSERT_EQ(receiver.receive(1000), SampleReceiver::Got::kRejected);
+  EXPECT_NE(receiver.rejection().message().find("view: not allowed"), std::string::npos);
+  ASSERT_EQ(receiver.receive(1000), SampleReceiver::Got::kRejected);
+  EXPECT_NE(receiver.rejection().message().find("multipart"), std::string::npos);
+  ASSERT_EQ(receiver.receive(1000), SampleReceiver::Got::kBatch);
+  EXPECT_EQ(receiver.counters().rejected, 3u);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Views
+
+TEST(TransportTest, ViewSubscriberKeepsOnlyTheLatestView) {
+  Context context;
+  ViewPublisher publisher(context, "tcp://127.0.0.1:*");
+  ViewSubscriber subscriber(context, publisher.endpoint());
+  Pcg32 rng(6);
+  View view = random_view(rng);
+  // Subscriptions travel asynchronously: publish until one arrives.
+  ASSERT_TRUE(eventually([&] {
+    EXPECT_TRUE(publisher.publish(view).ok());
+    return subscriber.receive(10).has_value();
+  }));
+  while (subscriber.receive(50)) {
+  }
+  for (uint64_t s = 1; s <= 200; ++s) {
+    view.sequence = s;
+    ASSERT_TRUE(publisher.publish(view).ok());
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  std::optional<View> got = subscriber.receive(1000);
+  ASSERT_TRUE(got.has_value());
+  EXPECT_EQ(got->sequence, 200u);
+  EXPECT_EQ(got->camera.forward, view.camera.forward);
+  EXPECT_FALSE(subscriber.receive(100).has_value());  // nothing older was kept
+}
+
+// ---------------------------------------------------------------------------------------------
+// Control
+
+TEST(TransportTest, ControlChannelAddressesPeers) {
+  Context context;
+  ControlServer server(context, "tcp://127.0.0.1:*");
+  ControlClient client(context, server.endpoint());
+  Pcg32 rng(7);
+  const Join join = random_join(rng);
+  ASSERT_TRUE(client.send(join).ok());  // queued until connected
+  std::optional<ControlServer::Incoming> in = server.receive(2000);
+  ASSERT_TRUE(in.has_value());
+  ASSERT_TRUE(in->message.ok()) << in->message.error();
+  EXPECT_EQ(std::get<Join>(*in->message), join);
+  EXPECT_TRUE(in->public_key.empty());  // no CurveZMQ here
+
+  const Welcome welcome = random_welcome(rng);
+  ASSERT_TRUE(server.send(in->peer, welcome).ok());
+  std::optional<Result<Message>> back = client.receive(2000);
+  ASSERT_TRUE(back.has_value() && back->ok());
+  EXPECT_EQ(std::get<Welcome>(**back), welcome);
+
+  // Directions are enforced on both ends, and unknown peers are an error, not a silent loss.
+  EXPECT_FALSE(client.send(welcome).ok());
+  EXPECT_FALSE(server.send(in->peer, join).ok());
+  EXPECT_NE(server.send("nobody", welcome).message().find("not connected"), std::string::npos);
+}
+
+TEST(TransportTest, ControlServerRejectsMessagesMeantForSamplers) {
+  Context context;
+  ControlServer server(context, "inproc://control-test");
+  zmq::socket_t raw(context.zmq(), zmq::socket_type::dealer);
+  raw.set(zmq::sockopt::linger, 0);
+  raw.connect("inproc://control-test");
+  Pcg32 rng(8);
+  const std::vector<uint8_t> welcome = encoded(random_welcome(rng));
+  raw.send(zmq::buffer(welcome), zmq::send_flags::none);
+  std::optional<ControlServer::Incoming> in = server.receive(1000);
+  ASSERT_TRUE(in.has_value());
+  ASSERT_FALSE(in->message.ok());
+  EXPECT_NE(in->message.error().find("welcome: not allowed"), std::string::npos);
+  EXPECT_FALSE(in->peer.empty());
+}
+
+// ---------------------------------------------------------------------------------------------
+// LINGER, MAXMSGSIZE, EINTR
+
+// A PUSH socket with messages it cannot deliver (the PULL peer does not read), then closed.
+double close_seconds(int linger_ms) {
+  zmq::context_t sink_ctx;
+  zmq::socket_t sink(sink_ctx, zmq::socket_type::pull);
+  sink.set(zmq::sockopt::linger, 0);
+  sink.set(zmq::sockopt::rcvhwm, 1);
+  sink.set(zmq::sockopt::rcvbuf, 4096);
+  sink.bind("tcp://127.0.0.1:*");
+  const std::string endpoint = sink.get(zmq::sockopt::last_endpoint);
+
+  auto* ctx = new Context;
+  ChannelOptions options = ChannelOptions::samples();
+  options.linger_ms = linger_ms;
+  options.send_buffer = 4096;
+  auto* sender = new SampleSender(*ctx, endpoint, {}, options);
+  Pcg32 rng(9);
+  const SampleBatch batch = random_batch(rng, kFieldPosition, 4000);  // ~96 kB each
+  eventually([&] { return sender->send(batch).ok() && sender->counters().batches_sent > 3; });
+  const auto start = Clock::now();
+  delete sender;
+  delete ctx;  // zmq_ctx_term waits for unsent messages up to LINGER
+  return seconds_since(start);
+}
+
+TEST(TransportTest, LingerBoundsHowLongClosingWaits) {
+  EXPECT_LT(close_seconds(0), 0.2);  // the sample channel's setting
+  const double t = close_seconds(400);
+  EXPECT_GE(t, 0.35);  // unsent messages really do hold close() for LINGER
+  EXPECT_LT(t, 1.5);
+}
+
+TEST(TransportTest, MaxMessageSizeDropsOversizedMessages) {
+  Context context;
+  ChannelOptions options = ChannelOptions::samples();
+  options.max_message_bytes = 1000;
+  SampleReceiver receiver(context, "tcp://127.0.0.1:*", {}, options);
+  zmq::context_t peer_ctx;  // a peer without the limit
+  zmq::socket_t raw(peer_ctx, zmq::socket_type::push);
+  raw.set(zmq::sockopt::linger, 0);
+  raw.set(zmq::sockopt::reconnect_ivl, 20);
+  raw.connect(receiver.endpoint());
+  Pcg32 rng(10);
+  const std::vector<uint8_t> big = encoded(random_batch(rng, kFieldPosition, 100));  // 2444 B
+  const std::vector<uint8_t> small = encoded(random_batch(rng, kFieldPosition, 10));  // 284 B
+  ASSERT_GT(big.size(), 1000u);
+  raw.send(zmq::buffer(big), zmq::send_flags::none);
+  // The connection that carried it is dropped; the peer reconnects by itself and later
+  // messages arrive. The big one never reaches the decoder.
+  ASSERT_TRUE(eventually([&] {
+    raw.send(zmq::buffer(small), zmq::send_flags::dontwait);
+    return receiver.receive(20) == SampleReceiver::Got::kBatch;
+  }));
+  EXPECT_EQ(receiver.batch().samples.size(), 10u);
+  EXPECT_EQ(receiver.counters().rejected, 0u);
+  EXPECT_EQ(receiver.counters().batches * small.size(), receiver.counters().bytes);
+}
+
+// Speaks ZMTP 3.0 by hand: greeting (NULL mechanism), READY as a PUSH socket, then the header
+// of a 1 GiB frame. Returns the seconds until the peer closes the connection, or -1 if it is
+// still open after `wait_s`.
+double seconds_until_closed_after_huge_frame(int port, double wait_s) {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(uint16_t(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0) return -2;
+  std::vector<uint8_t> out(64, 0);
+  out[0] = 0xff;
+  out[8] = 0x01;
+  out[9] = 0x7f;
+  out[10] = 3;  // ZMTP 3.0
+  out[11] = 0;
+  std::memcpy(&out[12], "NULL", 4);
+  const uint8_t ready[] = {0x04, 26,  5,   'R', 'E', 'A', 'D', 'Y', 11,  'S', 'o', 'c', 'k', 'e',
+                           't',  '-', 'T', 'y', 'p', 'e', 0,   0,   0,   4,   'P', 'U', 'S', 'H'};
+  out.insert(out.end(), ready, ready + sizeof(ready));
+  const uint8_t huge[] = {0x02, 0, 0, 0, 0, 0x40, 0, 0, 0};  // long frame of 2^30 bytes
+  out.insert(out.end(), huge, huge + sizeof(huge));
+  out.insert(out.end(), 1000, 0xaa);  // the start of the "payload"
+  if (send(fd, out.data(), out.size(), 0) != ssize_t(out.size())) return -3;
+  const auto start = Clock::now();
+  uint8_t buf[4096];
+  for (;;) {
+    pollfd p = {fd, POLLIN, 0};
+    const double left = wait_s - seconds_since(start);
+    if (left <= 0) break;
+    if (poll(&p, 1, int(left * 1000) + 1) > 0) {
+      const ssize_t n = recv(fd, buf, sizeof(buf), 0);
+      if (n <= 0) {  // EOF or reset: the peer dropped us
+        close(fd);
+        return seconds_since(start);
+      }
+    }
+  }
+  close(fd);
+  return -1;
+}
+
+TEST(TransportTest, APeerAnnouncingAHugeFrameIsDisconnected) {
+  Context context;
+  SampleReceiver receiver(context, "tcp://127.0.0.1:*");
+  const double t = seconds_until_closed_after_huge_frame(port_of(receiver.endpoint()), 2.0);
+  EXPECT_GE(t, 0.0);
+  EXPECT_LT(t, 1.0);
+
+  // The fact behind the option: without MAXMSGSIZE, libzmq waits for the gigabyte.
+  zmq::context_t raw_ctx;
+  zmq::socket_t raw(raw_ctx, zmq::socket_type::pull);
+  raw.set(zmq::sockopt::linger, 0);
+  raw.bind("tcp://127.0.0.1:*");
+  EXPECT_EQ(seconds_until_closed_after_huge_frame(port_of(raw.get(zmq::sockopt::last_endpoint)),
+                                                  0.5),
+            -1.0);
+}
+
+std::atomic<int> g_signals{0};
+void on_signal(int) { g_signals.fetch_add(1); }
+
+TEST(TransportTest, ReceivingSurvivesSignals) {
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sa.sa_flags = 0;  // no SA_RESTART: blocking calls return EINTR
+  sigemptyset(&sa.sa_mask);
+  struct sigaction old {};
+  ASSERT_EQ(sigaction(SIGUSR1, &sa, &old), 0);
+
+  Context context;
+  SampleReceiver receiver(context, "inproc://eintr-test");
+  SampleSender sender(context, "inproc://eintr-test");
+  std::atomic<bool> started{false};
+  SampleReceiver::Got got = SampleReceiver::Got::kNothing;
+  std::thread t([&] {
+    started = true;
+    got = receiver.receive(3000);  // interrupted, then retried
+  });
+  while (!started) std::this_thread::yield();
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  const int before = g_signals.load();
+  pthread_kill(t.native_handle(), SIGUSR1);
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_GT(g_signals.load(), before);
+  Pcg32 rng(11);
+  ASSERT_TRUE(sender.send(random_batch(rng, 0, 5)).ok());
+  t.join();
+  EXPECT_EQ(got, SampleReceiver::Got::kBatch);
+  sigaction(SIGUSR1, &old, nullptr);
+}
+
+}  // namespace
+}  // namespace afr::protocol
