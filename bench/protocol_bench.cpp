@@ -47,8 +47,7 @@ void set_counters(benchmark::State& state, size_t samples, size_t bytes) {
   state.SetBytesProcessed(int64_t(state.iterations() * bytes));
   // Seconds per sample, printed with an SI prefix ("7.9ns").
   state.counters["time/sample"] = benchmark::Counter(
-      double(samples),
-      benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+      double(samples), benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
   state.counters["bytes/sample"] = double(bytes) / double(samples);
 }
 

@@ -7,8 +7,6 @@
 #include "thread_pool.h"
 
 #include <algorithm>
-#include <chrono>
-#include <cstdio>
 #include <array>
 #include <cmath>
 #include <limits>
@@ -18,33 +16,31 @@ namespace afr {
 
 namespace {
 
-// One sample ready to splat, in output pixels. x0 > x1 marks a sample that reaches nothing.
-struct Splat {
-  float x = 0.0f, y = 0.0f;
-  float k_x = 0.0f, k_y = 0.0f;      // 1 / (2 sigma^2)
-  float off_x = 0.0f, off_y = 0.0f;  // the Gaussian's value at the splat's edge
-  float r = 0.0f;                    // splat size (coverage map), >= the extents below
-  float w_t = 0.0f;                  // temporal weight
+// A stored sample after reprojection: where it lands in the output image and what it carries.
+struct Projected {
+  float x = 0.0f, y = 0.0f;  // output pixels
+  float age = 0.0f;          // seconds, >= 0
   glm::vec3 color{0.0f};
-  int16_t x0 = 1, x1 = 0, y0 = 1, y1 = 0;  // inclusive pixel ranges (sides <= 16384)
-};
-static_assert(sizeof(Splat) == 52);
-
-// Per-chunk counts of what happened to samples (summed after the phase).
-struct SampleCounts {
-  uint64_t splatted = 0, behind = 0, off_screen = 0, future = 0;
 };
 
-// The splat of a sample landing in a pixel: its Gaussian (grown by the coverage map) and size.
+// The splat of a sample landing in a pixel (filter.h): its Gaussian, grown by the coverage map,
+// and its extent, in output pixels.
 struct PixelShape {
-  float sigma_x = 1.0f, sigma_y = 1.0f;  // output pixels
-  float k_t = 0.0f;                      // 1 / (2 e_t^2)
-  float r = 1.0f;                        // splat size
+  float k_x = 0.0f, k_y = 0.0f;      // 1 / (2 sigma^2)
+  float off_x = 0.0f, off_y = 0.0f;  // the Gaussian at the splat's edge: exp(-r_x^2 k_x), ...
+  float r_x = 0.0f, r_y = 0.0f;      // the splat: the square of radius r cut to cutoff sigma
+  float k_t = 0.0f;                  // 1 / (2 e_t^2)
+  float r = 1.0f;                    // splat size (what the coverage map records)
 };
 
-struct PixelCounts {
+// Per-task counts of what happened to samples and pixels (summed after each phase).
+struct Counts {
+  uint64_t splatted = 0, behind = 0, off_screen = 0, future = 0;
   uint64_t holes = 0, empty = 0, nonfinite = 0;
+  float max_radius = 0.0f;
 };
+
+constexpr uint16_t kNoBand = 0xffff;
 
 // floor and ceil to int without a libm call (the baseline x86-64 target has no roundss);
 // |v| < 2^31.
@@ -57,6 +53,24 @@ inline int ceil_int(float v) {
   return i + (v > float(i));
 }
 
+// w[k] = exp(-d^2 k_) - offset with d = (i + 0.5) - center, for pixels i = i0 + k in [i0, i1]
+// (fills up to 3 entries past i1 - i0).
+inline void gaussian_row(int i0, int i1, float center, float k_, float offset, float* w) {
+#if defined(__SSE2__)
+  const __m128 c = _mm_set1_ps(center), k = _mm_set1_ps(-k_), off = _mm_set1_ps(offset);
+  for (int i = i0; i <= i1; i += 4, w += 4) {
+    const __m128 d = _mm_sub_ps(
+        _mm_add_ps(_mm_set1_ps(float(i) + 0.5f), _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f)), c);
+    _mm_storeu_ps(w, _mm_sub_ps(fast_exp4(_mm_mul_ps(_mm_mul_ps(d, d), k)), off));
+  }
+#else
+  for (int i = i0; i <= i1; ++i, ++w) {
+    const float d = (float(i) + 0.5f) - center;
+    *w = fast_exp(d * d * -k_) - offset;
+  }
+#endif
+}
+
 int default_threads(int requested) {
   if (requested > 0) return std::min(requested, 256);
   return std::clamp(int(std::thread::hardware_concurrency()), 1, 256);
@@ -64,6 +78,17 @@ int default_threads(int requested) {
 
 }  // namespace
 
+// The adaptive modes run in four passes, each touching memory in order where it can:
+//   A. (chunks of the ring) reproject each sample, note its home band (the band of horizontal
+//      rows its center falls in) and count samples per chunk and home band;
+//   B. (chunks) copy the projected samples into home-band order (stable: sample order within
+//      a band, whatever the thread count);
+//   C. (per pixel) the splat shape every pixel would give a sample: tile filter and coverage;
+//   D. (home bands) look up each sample's shape and splat it. Bands are at least as tall as
+//      the largest splat radius, so a splat reaches only its home band and the two next to it;
+//      bands are done in three rounds (home band index mod 3), and within a round no two bands
+//      reach the same row: no two threads ever write the same pixel. The shape table and the
+//      accumulation rows a band touches stay in cache, which random sample order would not.
 struct CpuReconstructor::Impl {
   explicit Impl(int threads, size_t capacity) : pool(threads) { mirror.resize(capacity); }
 
@@ -74,21 +99,18 @@ struct CpuReconstructor::Impl {
   uint64_t seen = 0;
   size_t stored = 0;
 
-  // Splatting.
-  std::vector<PixelShape> shapes;           // per pixel
-  std::vector<Splat> splats;                // one per stored sample
-  std::vector<uint32_t> counts;             // [chunk * bands + band]
-  std::vector<size_t> cursor;               // [chunk * bands + band], then write positions
-  std::vector<size_t> band_start;           // bands + 1
-  // Splats copied band by band (one reaching two bands is in both), so each band's thread
-  // reads its splats in one sequential sweep instead of gathering them from all over.
-  std::vector<Splat> binned;
-  std::vector<SampleCounts> chunk_counts;   // per chunk
+  std::vector<Projected> projected;  // per stored sample (pass A)
+  std::vector<uint16_t> home;        // per stored sample: home band or kNoBand
+  std::vector<uint32_t> counts;      // [chunk * bands + band]
+  std::vector<size_t> cursor;        // [chunk * bands + band]: write positions of pass B
+  std::vector<size_t> band_start;    // bands + 1
+  std::vector<Projected> sorted;     // in home-band order (pass B)
+  std::vector<PixelShape> shapes;    // per pixel (pass C)
+  std::vector<Counts> task_counts;
   std::vector<glm::vec4> accum;             // (sum w c, sum w) per pixel
   std::vector<CoverageCell> coverage_next;  // this image's coverage
   CoverageMap previous;                     // the previous image's
   HolePyramid pyramid;
-  std::vector<PixelCounts> row_counts;  // per normalise task
   // Traditional frameless.
   std::vector<double> newest_age;
 
@@ -102,6 +124,21 @@ struct CpuReconstructor::Impl {
     }
     seen = delta->end;
     stored = delta->stored;
+  }
+
+  Counts sum_counts() const {
+    Counts total;
+    for (const Counts& c : task_counts) {
+      total.splatted += c.splatted;
+      total.behind += c.behind;
+      total.off_screen += c.off_screen;
+      total.future += c.future;
+      total.holes += c.holes;
+      total.empty += c.empty;
+      total.nonfinite += c.nonfinite;
+      total.max_radius = std::max(total.max_radius, c.max_radius);
+    }
+    return total;
   }
 };
 
@@ -125,11 +162,8 @@ void CpuReconstructor::read_coverage(std::vector<CoverageCell>* out) {
 void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int width, int height,
                                       Image* out) {
   Impl& m = *impl_;
-  auto T0 = std::chrono::steady_clock::now();
-  auto lap = [&](const char* what) { auto t = std::chrono::steady_clock::now(); fprintf(stderr, "%s %.2f  ", what, std::chrono::duration<double, std::milli>(t - T0).count()); T0 = t; };
   SampleStore::Delta delta;
   m.sync(store_, &delta);
-  lap("sync");
   FrameSetup setup;
   prepare_frame(time, width, height, delta, &setup);
 
@@ -144,61 +178,56 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
   const SplatSizeRule& rule = config_.splat;
   const int threads = m.pool.size();
   const size_t n = m.stored;
+  const double max_future = double(limits.max_future);
+  // Tasks over rows of pixels.
+  const int row_tasks = std::min(height, threads * 4);
+  const auto rows_of = [&](int task, size_t* p0, size_t* p1) {
+    *p0 = size_t(height * task / row_tasks) * size_t(width);
+    *p1 = size_t(height * (task + 1) / row_tasks) * size_t(width);
+  };
 
   if (current_mode == ReconstructionMode::kTraditionalFrameless) {
     // [BFMS94]: the newest sample at each pixel, at its original position.
     m.newest_age.assign(pixels, std::numeric_limits<double>::infinity());
     std::fill(m.accum.begin(), m.accum.end(), glm::vec4(0.0f));
-    SampleCounts c;
     for (size_t i = 0; i < n; ++i) {
       const StoredSample& s = m.mirror[i];
       const double age = time - s.time;
-      if (age < -double(limits.max_future)) {
-        ++c.future;
+      if (age < -max_future) {
+        ++frame_.future;
         continue;
       }
       const float x = s.x * setup.scale_x, y = s.y * setup.scale_y;
       if (!(x >= 0.0f && x < float(width) && y >= 0.0f && y < float(height))) {
-        ++c.off_screen;
+        ++frame_.off_screen;
         continue;
       }
       const size_t p = size_t(int(y)) * size_t(width) + size_t(int(x));
-      ++c.splatted;
+      ++frame_.splatted;
       const double a = std::max(age, 0.0);
       if (a < m.newest_age[p]) {
         m.newest_age[p] = a;
         m.accum[p] = glm::vec4(s.color, 1.0f);
       }
     }
-    frame_.splatted = c.splatted;
-    frame_.off_screen = c.off_screen;
-    frame_.future = c.future;
     m.previous.reset(width, height);  // no splat sizes to remember
     std::fill(m.coverage_next.begin(), m.coverage_next.end(), CoverageCell{});
   } else {
-    lap("prep");
-    // ---- Phase 1: samples to splats (parallel over chunks of the ring), counted per band.
     const bool reproject = current_mode == ReconstructionMode::kAdaptive;
     const Projector projector(camera, width, height);
-    const int band_height = std::max(8, (height + threads * 8 - 1) / (threads * 8));
-    const int bands = (height + band_height - 1) / band_height;
-    const int chunks = int(std::clamp<size_t>(n / 4096, 1, size_t(threads) * 4));
-    m.splats.resize(std::max<size_t>(n, 1));
-    m.counts.assign(size_t(chunks) * size_t(bands), 0u);
-    m.cursor.resize(m.counts.size());
-    m.chunk_counts.assign(size_t(chunks), SampleCounts{});
     const float guard = rule.max_radius + 1.0f;
     const float min_wt = limits.min_temporal_weight, cutoff = limits.cutoff;
 
-    // ---- Per pixel, what a splat landing there gets: its tile's filter and (section 6.2)
-    // the splat size from the previous image's coverage there. One lookup per sample then.
+    // ---- C (first: it gives the band height). Per pixel, what a splat landing there gets:
+    // its tile's filter and, section 6.2, the size from the previous image's coverage there.
     m.shapes.resize(pixels);
+    m.task_counts.assign(size_t(row_tasks), Counts{});
     const std::vector<uint32_t>& index_map = field_.index_map();
-    const int shape_tasks = std::min(height, threads * 4);
-    m.pool.run(shape_tasks, [&](int task) {
-      const size_t p0 = pixels * size_t(task) / size_t(shape_tasks);
-      const size_t p1 = pixels * size_t(task + 1) / size_t(shape_tasks);
+    m.pool.run(row_tasks, [&](int task) {
+      size_t p0, p1;
+      rows_of(task, &p0, &p1);
       const CoverageCell* previous = m.previous.valid() ? m.previous.cells().data() : nullptr;
+      float max_radius = 0.0f;
       for (size_t p = p0; p < p1; ++p) {
         const TileFilter& f = setup.filters[index_map[p]];
         const float r_filter = cutoff * std::max(f.sigma_x, f.sigma_y);
@@ -206,28 +235,53 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
         // A splat the coverage map grew beyond the filter's radius widens its Gaussian by the
         // same factor (keeping its shape); a shrunk one cuts the Gaussian short.
         const float grown = std::max(1.0f, r / r_filter);
-        m.shapes[p] = PixelShape{f.sigma_x * grown, f.sigma_y * grown, f.k_t, r};
+        const float sigma_x = f.sigma_x * grown, sigma_y = f.sigma_y * grown;
+        PixelShape& shape = m.shapes[p];
+        shape.k_x = 0.5f / (sigma_x * sigma_x);
+        shape.k_y = 0.5f / (sigma_y * sigma_y);
+        // The splat is the square of radius r cut to the Gaussian's own cutoff box.
+        shape.r_x = std::min(r, cutoff * sigma_x);
+        shape.r_y = std::min(r, cutoff * sigma_y);
+        shape.off_x = fast_exp(-shape.r_x * shape.r_x * shape.k_x);
+        shape.off_y = fast_exp(-shape.r_y * shape.r_y * shape.k_y);
+        shape.k_t = f.k_t;
+        shape.r = r;
+        max_radius = std::max(max_radius, r);
       }
+      m.task_counts[size_t(task)].max_radius = max_radius;
+      // Clear this image's sums while here.
+      std::fill(m.accum.begin() + ptrdiff_t(p0), m.accum.begin() + ptrdiff_t(p1),
+                glm::vec4(0.0f));
+      std::fill(m.coverage_next.begin() + ptrdiff_t(p0), m.coverage_next.begin() + ptrdiff_t(p1),
+                CoverageCell{});
     });
+    const float max_radius = m.sum_counts().max_radius;
+    // Bands taller than any splat reaches, and at least 16 rows.
+    const int band_height =
+        std::max({16, ceil_int(max_radius) + 1, (height + kNoBand - 1) / (kNoBand - 1)});
+    const int bands = (height + band_height - 1) / band_height;
 
-    lap("shapes");
+    // ---- A. Reproject; count per chunk and home band.
+    const int chunks = int(std::clamp<size_t>(n / 8192, 1, size_t(threads) * 4));
+    m.projected.resize(std::max<size_t>(n, 1));
+    m.home.resize(std::max<size_t>(n, 1));
+    m.counts.assign(size_t(chunks) * size_t(bands), 0u);
+    m.cursor.resize(m.counts.size());
+    m.task_counts.assign(size_t(std::max(chunks, bands)), Counts{});
     m.pool.run(chunks, [&](int chunk) {
       const size_t begin = n * size_t(chunk) / size_t(chunks);
       const size_t end = n * size_t(chunk + 1) / size_t(chunks);
-      SampleCounts c;
+      Counts& c = m.task_counts[size_t(chunk)];
       uint32_t* counts = m.counts.data() + size_t(chunk) * size_t(bands);
       for (size_t i = begin; i < end; ++i) {
-        Splat& sp = m.splats[i];
-        sp.x0 = 1;
-        sp.x1 = 0;
+        m.home[i] = kNoBand;
         const StoredSample& s = m.mirror[i];
         const double age_d = time - s.time;
-        if (age_d < -double(limits.max_future)) {
+        if (age_d < -max_future) {
           ++c.future;
           continue;
         }
         const float age_signed = float(age_d);
-        const float age = std::max(age_signed, 0.0f);
         float x, y;
         if (reproject && (s.flags & kStoredHasPosition)) {
           if (!projector.project(s, age_signed, &x, &y)) {
@@ -242,43 +296,14 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
           ++c.off_screen;
           continue;
         }
-        const int px = std::clamp(floor_int(x), 0, width - 1);
-        const int py = std::clamp(floor_int(y), 0, height - 1);
-        const PixelShape& shape = m.shapes[size_t(py) * size_t(width) + size_t(px)];
-        const float r = shape.r, sigma_x = shape.sigma_x, sigma_y = shape.sigma_y;
-        // The splat is the square of radius r cut to the Gaussian's own cutoff box.
-        const float r_x = std::min(r, cutoff * sigma_x);
-        const float r_y = std::min(r, cutoff * sigma_y);
-        sp.x = x;
-        sp.y = y;
-        sp.r = r;
-        sp.k_x = 0.5f / (sigma_x * sigma_x);
-        sp.k_y = 0.5f / (sigma_y * sigma_y);
-        sp.off_x = fast_exp(-r_x * r_x * sp.k_x);
-        sp.off_y = fast_exp(-r_y * r_y * sp.k_y);
-        sp.w_t = std::max(fast_exp(-age * age * shape.k_t), min_wt);
-        sp.color = s.color;
-        // Pixels i with |i + 0.5 - x| < r_x, rows likewise.
-        const int x0 = std::max(0, floor_int(x - r_x - 0.5f) + 1);
-        const int x1 = std::min(width - 1, ceil_int(x + r_x - 0.5f) - 1);
-        const int y0 = std::max(0, floor_int(y - r_y - 0.5f) + 1);
-        const int y1 = std::min(height - 1, ceil_int(y + r_y - 0.5f) - 1);
-        if (x0 > x1 || y0 > y1) {
-          ++c.off_screen;
-          continue;
-        }
-        sp.x0 = int16_t(x0);
-        sp.x1 = int16_t(x1);
-        sp.y0 = int16_t(y0);
-        sp.y1 = int16_t(y1);
-        ++c.splatted;
-        for (int b = y0 / band_height; b <= y1 / band_height; ++b) ++counts[b];
+        m.projected[i] = Projected{x, y, std::max(age_signed, 0.0f), s.color};
+        const int band = std::clamp(floor_int(y), 0, height - 1) / band_height;
+        m.home[i] = uint16_t(band);
+        ++counts[band];
       }
-      m.chunk_counts[size_t(chunk)] = c;
     });
 
-    lap("phase1");
-    // ---- Band lists: band-major, and inside a band chunk by chunk, so in sample order.
+    // ---- B. Home-band order: band-major, chunk by chunk inside a band (so sample order).
     m.band_start.resize(size_t(bands) + 1);
     size_t total = 0;
     for (int b = 0; b < bands; ++b) {
@@ -290,100 +315,94 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
       }
     }
     m.band_start[size_t(bands)] = total;
-    if (m.binned.size() < total) m.binned.resize(total);
+    m.sorted.resize(std::max<size_t>(total, 1));
     m.pool.run(chunks, [&](int chunk) {
       const size_t begin = n * size_t(chunk) / size_t(chunks);
       const size_t end = n * size_t(chunk + 1) / size_t(chunks);
       size_t* cursor = m.cursor.data() + size_t(chunk) * size_t(bands);
       for (size_t i = begin; i < end; ++i) {
-        const Splat& sp = m.splats[i];
-        if (sp.x0 > sp.x1) continue;
-        for (int b = sp.y0 / band_height; b <= sp.y1 / band_height; ++b) {
-          m.binned[cursor[b]++] = sp;
-        }
+        if (m.home[i] != kNoBand) m.sorted[cursor[m.home[i]]++] = m.projected[i];
       }
     });
 
-    lap("bin");
-    // ---- Phase 2: each band accumulated by one thread.
-    m.pool.run(bands, [&](int band) {
-      const int row0 = band * band_height;
-      const int row1 = std::min(height, row0 + band_height);
-      const size_t first = size_t(row0) * size_t(width), last = size_t(row1) * size_t(width);
-      std::fill(m.accum.begin() + ptrdiff_t(first), m.accum.begin() + ptrdiff_t(last),
-                glm::vec4(0.0f));
-      std::fill(m.coverage_next.begin() + ptrdiff_t(first),
-                m.coverage_next.begin() + ptrdiff_t(last), CoverageCell{});
-      std::array<float, 2 * int(kSplatRadiusLimit) + 4> wx;
-      for (size_t k = m.band_start[size_t(band)]; k < m.band_start[size_t(band) + 1]; ++k) {
-        const Splat& sp = m.binned[k];
-        for (int i = sp.x0; i <= sp.x1; ++i) {
-          const float dx = (float(i) + 0.5f) - sp.x;
-          wx[size_t(i - sp.x0)] = fast_exp(-dx * dx * sp.k_x) - sp.off_x;
-        }
-        const int j0 = std::max(int(sp.y0), row0), j1 = std::min(int(sp.y1), row1 - 1);
-        for (int j = j0; j <= j1; ++j) {
-          const float dy = (float(j) + 0.5f) - sp.y;
-          const float wy = fast_exp(-dy * dy * sp.k_y) - sp.off_y;
-          if (!(wy > 0.0f)) continue;
-          const float wyt = wy * sp.w_t;
-          glm::vec4* acc = m.accum.data() + size_t(j) * size_t(width);
-          CoverageCell* cov = m.coverage_next.data() + size_t(j) * size_t(width);
-          for (int i = sp.x0; i <= sp.x1; ++i) {
-            const float w = wx[size_t(i - sp.x0)] * wyt;
-            if (!(w > kMinSplatWeight)) continue;
-            acc[i] += glm::vec4(sp.color * w, w);
-            cov[i].count += 1.0f;
-            cov[i].radius_sum += sp.r;
+    // ---- D. Splat, three rounds of bands.
+    for (int round = 0; round < 3; ++round) {
+      const int in_round = (bands - round + 2) / 3;
+      m.pool.run(in_round, [&](int k) {
+        const int band = round + 3 * k;
+        Counts& c = m.task_counts[size_t(band)];
+        std::array<float, 2 * int(kSplatRadiusLimit) + 4> wx, wy;
+        for (size_t q = m.band_start[size_t(band)]; q < m.band_start[size_t(band) + 1]; ++q) {
+          const Projected& s = m.sorted[q];
+          const int px = std::clamp(floor_int(s.x), 0, width - 1);
+          const int py = std::clamp(floor_int(s.y), 0, height - 1);
+          const PixelShape& shape = m.shapes[size_t(py) * size_t(width) + size_t(px)];
+          const float r = shape.r, r_x = shape.r_x, r_y = shape.r_y;
+          // Pixels i with |i + 0.5 - x| < r_x, rows likewise.
+          const int x0 = std::max(0, floor_int(s.x - r_x - 0.5f) + 1);
+          const int x1 = std::min(width - 1, ceil_int(s.x + r_x - 0.5f) - 1);
+          const int y0 = std::max(0, floor_int(s.y - r_y - 0.5f) + 1);
+          const int y1 = std::min(height - 1, ceil_int(s.y + r_y - 0.5f) - 1);
+          if (x0 > x1 || y0 > y1) {
+            ++c.off_screen;
+            continue;
+          }
+          ++c.splatted;
+          const float w_t = std::max(fast_exp(-s.age * s.age * shape.k_t), min_wt);
+          // The Gaussian of every column and row of the splat.
+          gaussian_row(x0, x1, s.x, shape.k_x, shape.off_x, wx.data());
+          gaussian_row(y0, y1, s.y, shape.k_y, shape.off_y, wy.data());
+          for (int j = y0; j <= y1; ++j) {
+            const float wyj = wy[size_t(j - y0)];
+            if (!(wyj > 0.0f)) continue;
+            const float wyt = wyj * w_t;
+            glm::vec4* acc = m.accum.data() + size_t(j) * size_t(width);
+            CoverageCell* cov = m.coverage_next.data() + size_t(j) * size_t(width);
+            for (int i = x0; i <= x1; ++i) {
+              const float w = wx[size_t(i - x0)] * wyt;
+              if (!(w > kMinSplatWeight)) continue;
+              acc[i] += glm::vec4(s.color * w, w);
+              cov[i].count += 1.0f;
+              cov[i].radius_sum += r;
+            }
           }
         }
-      }
-    });
-    { double ops = 0, rs = 0; for (size_t i = 0; i < n; ++i) { const Splat& sp = m.splats[i]; if (sp.x0 > sp.x1) continue; ops += double(sp.x1 - sp.x0 + 1) * (sp.y1 - sp.y0 + 1); rs += sp.r; }
-      fprintf(stderr, "DBG ops %.0f mean r %.3f bands %d total %zu\n", ops, rs / n, bands, total); }
-    for (const SampleCounts& c : m.chunk_counts) {
-      frame_.splatted += c.splatted;
-      frame_.behind_camera += c.behind;
-      frame_.off_screen += c.off_screen;
-      frame_.future += c.future;
+      });
     }
+    const Counts c = m.sum_counts();
+    frame_.splatted = c.splatted;
+    frame_.behind_camera = c.behind;
+    frame_.off_screen = c.off_screen;
+    frame_.future = c.future;
   }
 
-  lap("phase2");
   // ---- Normalise; holes from wider support (hole_fill.h).
   m.pyramid.build(m.accum, width, height);
-  lap("pyramid");
-  const int tasks = std::min(height, threads * 4);
-  m.row_counts.assign(size_t(tasks), PixelCounts{});
-  m.pool.run(tasks, [&](int task) {
-    const int row0 = height * task / tasks, row1 = height * (task + 1) / tasks;
-    PixelCounts c;
-    for (int y = row0; y < row1; ++y) {
-      for (int x = 0; x < width; ++x) {
-        const size_t p = size_t(y) * size_t(width) + size_t(x);
-        const glm::vec4 a = m.accum[p];
-        glm::vec3 color;
-        if (a.w > 0.0f) {
-          color = glm::vec3(a) / a.w;
-        } else {
-          ++c.holes;
-          if (!m.pyramid.fill(x, y, &color)) ++c.empty;
-        }
-        if (!std::isfinite(color.x) || !std::isfinite(color.y) || !std::isfinite(color.z)) {
-          ++c.nonfinite;
-          color = glm::vec3(0.0f);
-        }
-        if (out != nullptr) out->pixels[p] = color;
+  m.task_counts.assign(size_t(row_tasks), Counts{});
+  m.pool.run(row_tasks, [&](int task) {
+    size_t p0, p1;
+    rows_of(task, &p0, &p1);
+    Counts& c = m.task_counts[size_t(task)];
+    for (size_t p = p0; p < p1; ++p) {
+      const glm::vec4 a = m.accum[p];
+      glm::vec3 color;
+      if (a.w > 0.0f) {
+        color = glm::vec3(a) / a.w;
+      } else {
+        ++c.holes;
+        if (!m.pyramid.fill(int(p % size_t(width)), int(p / size_t(width)), &color)) ++c.empty;
       }
+      if (!std::isfinite(color.x) || !std::isfinite(color.y) || !std::isfinite(color.z)) {
+        ++c.nonfinite;
+        color = glm::vec3(0.0f);
+      }
+      if (out != nullptr) out->pixels[p] = color;
     }
-    m.row_counts[size_t(task)] = c;
   });
-  for (const PixelCounts& c : m.row_counts) {
-    frame_.hole_pixels += c.holes;
-    frame_.empty_pixels += c.empty;
-    frame_.nonfinite_pixels += c.nonfinite;
-  }
-  lap("norm"); fprintf(stderr, "\n");
+  const Counts c = m.sum_counts();
+  frame_.hole_pixels = c.holes;
+  frame_.empty_pixels = c.empty;
+  frame_.nonfinite_pixels = c.nonfinite;
   if (current_mode != ReconstructionMode::kTraditionalFrameless) {
     m.previous.cells().swap(m.coverage_next);
     m.previous.set_valid(true);

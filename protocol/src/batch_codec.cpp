@@ -25,8 +25,8 @@ using wire::Writer;
 
 namespace {
 
-constexpr uint32_t kMaxTicks = 0x7fff;   // 15 bits of time offset
-constexpr uint16_t kMissBit = 0x8000;    // the 16th bit
+constexpr uint32_t kMaxTicks = 0x7fff;  // 15 bits of time offset
+constexpr uint16_t kMissBit = 0x8000;   // the 16th bit
 constexpr const char* kBatch = "sample_batch";
 constexpr const char* kSnapshot = "tiling_snapshot";
 
@@ -62,14 +62,14 @@ Status check_samples(const SampleBatch& m, const ImageBounds& bounds, double* t_
     lo = std::min(lo, s.time);
     hi = std::max(hi, s.time);
     if (!(s.x >= 0.0f && s.x < w)) {  // also NaN
-      return field_error(kBatch, sample_field(i, "x"),
-                         std::to_string(s.x) + " is outside [0, " + std::to_string(bounds.width) +
-                             ")");
+      return field_error(
+          kBatch, sample_field(i, "x"),
+          std::to_string(s.x) + " is outside [0, " + std::to_string(bounds.width) + ")");
     }
     if (!(s.y >= 0.0f && s.y < h)) {
-      return field_error(kBatch, sample_field(i, "y"),
-                         std::to_string(s.y) + " is outside [0, " +
-                             std::to_string(bounds.height) + ")");
+      return field_error(
+          kBatch, sample_field(i, "y"),
+          std::to_string(s.y) + " is outside [0, " + std::to_string(bounds.height) + ")");
     }
     if ((m.fields & kFieldPosition) && !finite3(s.position)) {
       return field_error(kBatch, sample_field(i, "position"), "not finite");
@@ -80,8 +80,9 @@ Status check_samples(const SampleBatch& m, const ImageBounds& bounds, double* t_
   }
   if (m.samples.empty()) lo = hi = 0.0;
   if (hi - lo > double(kMaxTicks) * std::ldexp(1.0, kMaxTickExp)) {
-    return field_error(kBatch, "samples", "times span " + std::to_string(hi - lo) +
-                                              " s, more than one batch may (32767 s)");
+    return field_error(
+        kBatch, "samples",
+        "times span " + std::to_string(hi - lo) + " s, more than one batch may (32767 s)");
   }
   *t_min = lo;
   *t_max = hi;
@@ -202,10 +203,18 @@ Status encode(const SampleBatch& m, std::vector<uint8_t>* out, const ImageBounds
   uint8_t* p = w.take(n * packed_sample_bytes(m.fields));
   const double inv_tick = std::ldexp(1.0, -tick_exp);
   switch (m.fields) {
-    case 0: pack_samples<0>(m, t_min, inv_tick, p); break;
-    case kFieldPosition: pack_samples<kFieldPosition>(m, t_min, inv_tick, p); break;
-    case kFieldVelocity: pack_samples<kFieldVelocity>(m, t_min, inv_tick, p); break;
-    default: pack_samples<kFieldPosition | kFieldVelocity>(m, t_min, inv_tick, p); break;
+    case 0:
+      pack_samples<0>(m, t_min, inv_tick, p);
+      break;
+    case kFieldPosition:
+      pack_samples<kFieldPosition>(m, t_min, inv_tick, p);
+      break;
+    case kFieldVelocity:
+      pack_samples<kFieldVelocity>(m, t_min, inv_tick, p);
+      break;
+    default:
+      pack_samples<kFieldPosition | kFieldVelocity>(m, t_min, inv_tick, p);
+      break;
   }
   AFR_CHECK(w.done());
   return {};
@@ -221,9 +230,8 @@ Status decode(Bytes message, SampleBatch* out, const ImageBounds& bounds) {
   uint8_t tick_byte = 0;
   const uint8_t* reserved = nullptr;
   if (!(r.u32(&out->sampler_id, "sampler_id") && r.u32(&out->fields, "fields") &&
-        r.u64(&out->sequence, "sequence") && r.f64(&base, "base_time") &&
-        r.u32(&count, "count") && r.u8(&tick_byte, "tick_exp") &&
-        (reserved = r.take(3, "reserved")))) {
+        r.u64(&out->sequence, "sequence") && r.f64(&base, "base_time") && r.u32(&count, "count") &&
+        r.u8(&tick_byte, "tick_exp") && (reserved = r.take(3, "reserved")))) {
     return r.status();
   }
   if (out->fields & ~kKnownSampleFields) {
@@ -239,9 +247,9 @@ Status decode(Bytes message, SampleBatch* out, const ImageBounds& bounds) {
   }
   if (reserved[0] | reserved[1] | reserved[2]) return field_error(kBatch, "reserved", "not zero");
   if (count > kMaxSamplesPerBatch) {
-    return field_error(kBatch, "count",
-                       std::to_string(count) + " is over the limit of " +
-                           std::to_string(kMaxSamplesPerBatch));
+    return field_error(
+        kBatch, "count",
+        std::to_string(count) + " is over the limit of " + std::to_string(kMaxSamplesPerBatch));
   }
   const uint64_t need = uint64_t(count) * packed_sample_bytes(out->fields);
   if (r.remaining() != need) {
@@ -259,7 +267,9 @@ Status decode(Bytes message, SampleBatch* out, const ImageBounds& bounds) {
   const char* problem = nullptr;
   int64_t bad = -1;
   switch (out->fields) {
-    case 0: bad = unpack_samples<0>(p, base, tick, max_x, max_y, out->samples, &problem); break;
+    case 0:
+      bad = unpack_samples<0>(p, base, tick, max_x, max_y, out->samples, &problem);
+      break;
     case kFieldPosition:
       bad = unpack_samples<kFieldPosition>(p, base, tick, max_x, max_y, out->samples, &problem);
       break;
@@ -289,8 +299,7 @@ Status check_tile(size_t i, const TileInfo& t, const PixelRect& region) {
     return field_error(kSnapshot, "tiles[" + std::to_string(i) + "]." + field, problem);
   };
   const PixelRect& r = t.rect;
-  if (r.empty() || r.x0 < region.x0 || r.y0 < region.y0 || r.x1 > region.x1 ||
-      r.y1 > region.y1) {
+  if (r.empty() || r.x0 < region.x0 || r.y0 < region.y0 || r.x1 > region.x1 || r.y1 > region.y1) {
     return fail("rect", "empty or not inside the region");
   }
   const struct {
@@ -380,8 +389,8 @@ Status decode(Bytes message, TilingSnapshot* out, const ImageBounds& bounds) {
   const uint64_t need = uint64_t(count) * kTileBytes;
   if (r.remaining() != need) {
     return field_error(kSnapshot, "tile_count",
-                       std::to_string(count) + " tiles need " + std::to_string(need) +
-                           " bytes, " + std::to_string(r.remaining()) + " are there");
+                       std::to_string(count) + " tiles need " + std::to_string(need) + " bytes, " +
+                           std::to_string(r.remaining()) + " are there");
   }
   const uint8_t* p = r.take(need, "tiles");
   out->tiles.resize(count);

@@ -53,9 +53,9 @@ ServiceEndpoints service_endpoints(const std::string& base) {
   int port = 0;
   const auto [end, ec] =
       std::from_chars(port_text.data(), port_text.data() + port_text.size(), port);
-  if (ec != std::errc() || end != port_text.data() + port_text.size() || port < 1 ||
-      port > 65533) {
-    throw Error("endpoint '" + base + "': port must be a number in 1..65533 (three ports are used)");
+  if (ec != std::errc() || end != port_text.data() + port_text.size() || port < 1 || port > 65533) {
+    throw Error("endpoint '" + base +
+                "': port must be a number in 1..65533 (three ports are used)");
   }
   return {host + ":" + std::to_string(port), host + ":" + std::to_string(port + 1),
           host + ":" + std::to_string(port + 2)};
@@ -199,8 +199,8 @@ Status type_error(MessageType type, const char* channel) {
 // ---------------------------------------------------------------------------------------------
 // SampleSender
 
-SampleSender::SampleSender(Context& context, const std::string& endpoint,
-                           const Security& security, const ChannelOptions& options)
+SampleSender::SampleSender(Context& context, const std::string& endpoint, const Security& security,
+                           const ChannelOptions& options)
     : socket_(context.zmq(), zmq::socket_type::push),
       slots_(size_t(std::max(1, options.sender_queue)) + 1) {
   apply_options(socket_, options);
@@ -265,8 +265,8 @@ bool SampleSender::flush(int timeout_ms) {
   while (pump() > 0) {
     int wait = -1;
     if (timeout_ms >= 0) {
-      wait = int(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now())
-                     .count());
+      wait = int(
+          std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count());
       if (wait <= 0) return false;
     }
     detail::wait_writable(socket_, wait);
@@ -436,8 +436,9 @@ Status ControlServer::send(const std::string& peer, const Message& message) {
   int error = 0;
   if (!send_retry(socket_, id, zmq::send_flags::sndmore | zmq::send_flags::dontwait, &error) ||
       !send_retry(socket_, m, zmq::send_flags::dontwait, &error)) {
-    return Status::error(std::string(message_type_name(message_type(message))) + ": " +
-                         (error == EHOSTUNREACH ? "peer is not connected" : "peer's queue is full"));
+    return Status::error(
+        std::string(message_type_name(message_type(message))) + ": " +
+        (error == EHOSTUNREACH ? "peer is not connected" : "peer's queue is full"));
   }
   return {};
 }
@@ -469,8 +470,7 @@ Status ControlClient::send(const Message& message) {
   if (Status s = encode(message, &buffer_); !s) return s;
   zmq::message_t m(buffer_.data(), buffer_.size());
   if (!send_retry(socket_, m, zmq::send_flags::dontwait)) {
-    return Status::error(std::string(message_type_name(message_type(message))) +
-                         ": queue is full");
+    return Status::error(std::string(message_type_name(message_type(message))) + ": queue is full");
   }
   return {};
 }

@@ -17,17 +17,28 @@ using wire::Writer;
 
 const char* message_type_name(MessageType type) {
   switch (type) {
-    case MessageType::kJoin: return "join";
-    case MessageType::kWelcome: return "welcome";
-    case MessageType::kSceneRequest: return "scene_request";
-    case MessageType::kSceneChunk: return "scene_chunk";
-    case MessageType::kRegionAssignment: return "region_assignment";
-    case MessageType::kView: return "view";
-    case MessageType::kSampleBatch: return "sample_batch";
-    case MessageType::kTilingSnapshot: return "tiling_snapshot";
-    case MessageType::kStats: return "stats";
-    case MessageType::kHeartbeat: return "heartbeat";
-    case MessageType::kLeave: return "leave";
+    case MessageType::kJoin:
+      return "join";
+    case MessageType::kWelcome:
+      return "welcome";
+    case MessageType::kSceneRequest:
+      return "scene_request";
+    case MessageType::kSceneChunk:
+      return "scene_chunk";
+    case MessageType::kRegionAssignment:
+      return "region_assignment";
+    case MessageType::kView:
+      return "view";
+    case MessageType::kSampleBatch:
+      return "sample_batch";
+    case MessageType::kTilingSnapshot:
+      return "tiling_snapshot";
+    case MessageType::kStats:
+      return "stats";
+    case MessageType::kHeartbeat:
+      return "heartbeat";
+    case MessageType::kLeave:
+      return "leave";
   }
   return "unknown";
 }
@@ -114,9 +125,9 @@ Result<Bytes> open_message(Bytes message, MessageType type) {
   Result<Header> h = peek_header(message);
   if (!h) return h.status();
   if (h->version != kProtocolVersion) {
-    return Status::error(std::string(message_type_name(h->type)) + ": unsupported protocol version " +
-                         std::to_string(h->version) + " (this build speaks " +
-                         std::to_string(kProtocolVersion) + ")");
+    return Status::error(std::string(message_type_name(h->type)) +
+                         ": unsupported protocol version " + std::to_string(h->version) +
+                         " (this build speaks " + std::to_string(kProtocolVersion) + ")");
   }
   if (h->type != type) {
     return Status::error(std::string("message: expected ") + message_type_name(type) + ", got " +
@@ -193,8 +204,8 @@ Status encode(const Welcome& m, std::vector<uint8_t>* out) {
   out->clear();
   if (Status s = validate(m); !s) return s;
   Writer w = wire::begin_message(
-      MessageType::kWelcome,
-      76 + wire::string_bytes(m.scene_name) + wire::string_bytes(m.presets), out);
+      MessageType::kWelcome, 76 + wire::string_bytes(m.scene_name) + wire::string_bytes(m.presets),
+      out);
   w.u32(m.sampler_id);
   w.u64(m.session);
   w.u32(uint32_t(m.width));
@@ -348,9 +359,8 @@ Status encode(const SamplerStats& m, std::vector<uint8_t>* out) {
   Writer w = wire::begin_message(MessageType::kStats, 116, out);
   w.u32(m.sampler_id);
   w.f64(m.time);
-  for (uint64_t v : {m.samples, m.batches, m.batches_dropped, m.tilings, m.bytes_sent,
-                     m.crosshairs, m.reprojections, m.reprojections_dropped, m.occlusion_rays,
-                     m.sanitized}) {
+  for (uint64_t v : {m.samples, m.batches, m.batches_dropped, m.tilings, m.bytes_sent, m.crosshairs,
+                     m.reprojections, m.reprojections_dropped, m.occlusion_rays, m.sanitized}) {
     w.u64(v);
   }
   w.f64(m.samples_per_second);
@@ -439,17 +449,39 @@ Result<Message> decode_message(Bytes message, const ImageBounds& bounds) {
   Message m;
   // Construct the alternative of the header's type, then decode into it.
   switch (h->type) {
-    case MessageType::kJoin: m.emplace<Join>(); break;
-    case MessageType::kWelcome: m.emplace<Welcome>(); break;
-    case MessageType::kSceneRequest: m.emplace<SceneRequest>(); break;
-    case MessageType::kSceneChunk: m.emplace<SceneChunk>(); break;
-    case MessageType::kRegionAssignment: m.emplace<RegionAssignment>(); break;
-    case MessageType::kView: m.emplace<View>(); break;
-    case MessageType::kSampleBatch: m.emplace<SampleBatch>(); break;
-    case MessageType::kTilingSnapshot: m.emplace<TilingSnapshot>(); break;
-    case MessageType::kStats: m.emplace<SamplerStats>(); break;
-    case MessageType::kHeartbeat: m.emplace<Heartbeat>(); break;
-    case MessageType::kLeave: m.emplace<Leave>(); break;
+    case MessageType::kJoin:
+      m.emplace<Join>();
+      break;
+    case MessageType::kWelcome:
+      m.emplace<Welcome>();
+      break;
+    case MessageType::kSceneRequest:
+      m.emplace<SceneRequest>();
+      break;
+    case MessageType::kSceneChunk:
+      m.emplace<SceneChunk>();
+      break;
+    case MessageType::kRegionAssignment:
+      m.emplace<RegionAssignment>();
+      break;
+    case MessageType::kView:
+      m.emplace<View>();
+      break;
+    case MessageType::kSampleBatch:
+      m.emplace<SampleBatch>();
+      break;
+    case MessageType::kTilingSnapshot:
+      m.emplace<TilingSnapshot>();
+      break;
+    case MessageType::kStats:
+      m.emplace<SamplerStats>();
+      break;
+    case MessageType::kHeartbeat:
+      m.emplace<Heartbeat>();
+      break;
+    case MessageType::kLeave:
+      m.emplace<Leave>();
+      break;
   }
   AFR_CHECK(message_type(m) == h->type);
   Status s = std::visit(

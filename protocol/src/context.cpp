@@ -115,8 +115,7 @@ void ZapHandler::handle_request() {
   if (on_decision_) on_decision_(d);
 
   const std::string request_id = frames.size() > 1 ? frame_text(frames[1]) : "";
-  const std::string reply[] = {"1.0", request_id, status, text, d.accepted ? d.public_key : "",
-                               ""};
+  const std::string reply[] = {"1.0", request_id, status, text, d.accepted ? d.public_key : "", ""};
   for (size_t i = 0; i < 6; ++i) {
     zmq::message_t m(reply[i].data(), reply[i].size());
     detail::send_retry(handler_, m, i < 5 ? zmq::send_flags::sndmore : zmq::send_flags::none);

@@ -111,17 +111,18 @@ void save_curve_keypair(const std::string& path, const CurveKeyPair& pair) {
   }
   write_file(path,
              "# afr CurveZMQ key pair. Keep this file secret; give out the .pub file.\n" +
-                 std::string(kPublicField) + " = " + pair.public_key + "\n" + kSecretField +
-                 " = " + pair.secret_key + "\n",
+                 std::string(kPublicField) + " = " + pair.public_key + "\n" + kSecretField + " = " +
+                 pair.secret_key + "\n",
              0600);
 }
 
 void save_curve_public_key(const std::string& path, const std::string& public_key) {
   if (!is_curve_key(public_key)) throw Error(path + ": refusing to save a malformed public key");
-  write_file(path,
-             "# afr CurveZMQ public key. Add it to a display's allow-list to admit this sampler.\n" +
-                 std::string(kPublicField) + " = " + public_key + "\n",
-             0644);
+  write_file(
+      path,
+      "# afr CurveZMQ public key. Add it to a display's allow-list to admit this sampler.\n" +
+          std::string(kPublicField) + " = " + public_key + "\n",
+      0644);
 }
 
 CurveKeyPair load_curve_keypair(const std::string& path) {
@@ -131,8 +132,8 @@ CurveKeyPair load_curve_keypair(const std::string& path) {
     KeyLine kl;
     if (!parse_line(lines[i], &kl)) continue;
     std::string* target = kl.field == kPublicField   ? &pair.public_key
-                           : kl.field == kSecretField ? &pair.secret_key
-                                                      : nullptr;
+                          : kl.field == kSecretField ? &pair.secret_key
+                                                     : nullptr;
     if (!target) throw Error(where(path, i) + ": expected public-key = or secret-key =");
     if (!is_curve_key(kl.key)) throw Error(where(path, i) + ": malformed key (40 Z85 characters)");
     if (!target->empty()) throw Error(where(path, i) + ": " + kl.field + " given twice");

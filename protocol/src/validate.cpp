@@ -14,16 +14,16 @@ namespace detail {
 
 Status check_text(const char* message, const char* field, const std::string& s) {
   if (s.size() > kMaxNameBytes) {
-    return field_error(message, field,
-                       std::to_string(s.size()) + " bytes, over the limit of " +
-                           std::to_string(kMaxNameBytes));
+    return field_error(
+        message, field,
+        std::to_string(s.size()) + " bytes, over the limit of " + std::to_string(kMaxNameBytes));
   }
   for (size_t i = 0; i < s.size(); ++i) {
     const unsigned char c = static_cast<unsigned char>(s[i]);
     if (c < 0x20 || c == 0x7f) {
-      return field_error(message, field,
-                         "control character " + std::to_string(int(c)) + " at byte " +
-                             std::to_string(i));
+      return field_error(
+          message, field,
+          "control character " + std::to_string(int(c)) + " at byte " + std::to_string(i));
     }
   }
   return {};
@@ -37,12 +37,12 @@ Status check_time(const char* message, const char* field, double t) {
 
 Status check_image_size(const char* message, int32_t width, int32_t height) {
   if (width < 1 || width > kMaxImageSize) {
-    return field_error(message, "width", std::to_string(width) + " is outside 1.." +
-                                             std::to_string(kMaxImageSize));
+    return field_error(message, "width",
+                       std::to_string(width) + " is outside 1.." + std::to_string(kMaxImageSize));
   }
   if (height < 1 || height > kMaxImageSize) {
-    return field_error(message, "height", std::to_string(height) + " is outside 1.." +
-                                              std::to_string(kMaxImageSize));
+    return field_error(message, "height",
+                       std::to_string(height) + " is outside 1.." + std::to_string(kMaxImageSize));
   }
   return {};
 }
@@ -55,9 +55,9 @@ Status check_rect(const char* message, const char* field, const PixelRect& r, in
   };
   if (r.empty()) return field_error(message, field, text() + " is empty");
   if (r.x0 < 0 || r.y0 < 0 || r.x1 > width || r.y1 > height) {
-    return field_error(message, field,
-                       text() + " is not inside " + std::to_string(width) + " x " +
-                           std::to_string(height));
+    return field_error(
+        message, field,
+        text() + " is not inside " + std::to_string(width) + " x " + std::to_string(height));
   }
   return {};
 }
@@ -108,9 +108,9 @@ Status validate(const Welcome& m) {
                            std::to_string(kMaxRefreshInterval) + "]");
   }
   if (m.scene_size < 1 || m.scene_size > kMaxSceneBytes) {
-    return field_error("welcome", "scene_size",
-                       std::to_string(m.scene_size) + " is outside 1.." +
-                           std::to_string(kMaxSceneBytes));
+    return field_error(
+        "welcome", "scene_size",
+        std::to_string(m.scene_size) + " is outside 1.." + std::to_string(kMaxSceneBytes));
   }
   if (Status s = check_text("welcome", "scene_name", m.scene_name); !s) return s;
   return check_text("welcome", "presets", m.presets);
@@ -120,9 +120,9 @@ Status validate(const SceneRequest& m) { return {}; }
 
 Status validate(const SceneChunk& m) {
   if (m.scene_size < 1 || m.scene_size > kMaxSceneBytes) {
-    return field_error("scene_chunk", "scene_size",
-                       std::to_string(m.scene_size) + " is outside 1.." +
-                           std::to_string(kMaxSceneBytes));
+    return field_error(
+        "scene_chunk", "scene_size",
+        std::to_string(m.scene_size) + " is outside 1.." + std::to_string(kMaxSceneBytes));
   }
   if (m.count < 1 || m.count > m.scene_size) {
     return field_error("scene_chunk", "count",
@@ -134,9 +134,9 @@ Status validate(const SceneChunk& m) {
                        std::to_string(m.index) + " is not below count " + std::to_string(m.count));
   }
   if (m.bytes.empty() || m.bytes.size() > kMaxChunkBytes) {
-    return field_error("scene_chunk", "bytes",
-                       std::to_string(m.bytes.size()) + " bytes, outside 1.." +
-                           std::to_string(kMaxChunkBytes));
+    return field_error(
+        "scene_chunk", "bytes",
+        std::to_string(m.bytes.size()) + " bytes, outside 1.." + std::to_string(kMaxChunkBytes));
   }
   if (m.offset > m.scene_size || m.bytes.size() > m.scene_size - m.offset) {
     return field_error("scene_chunk", "offset",

@@ -161,8 +161,8 @@ class Reader {
   const uint8_t* take(size_t n, const char* field) {
     if (!status_.ok()) return nullptr;
     if (size_t(end_ - p_) < n) {
-      fail(field, "truncated: needs " + std::to_string(n) + " bytes, " +
-                      std::to_string(end_ - p_) + " left");
+      fail(field, "truncated: needs " + std::to_string(n) + " bytes, " + std::to_string(end_ - p_) +
+                      " left");
       return nullptr;
     }
     const uint8_t* p = p_;

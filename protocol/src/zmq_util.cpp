@@ -21,8 +21,7 @@ bool recv_retry(zmq::socket_t& socket, zmq::message_t& message, zmq::recv_flags 
   }
 }
 
-bool send_retry(zmq::socket_t& socket, zmq::message_t& message, zmq::send_flags flags,
-                int* error) {
+bool send_retry(zmq::socket_t& socket, zmq::message_t& message, zmq::send_flags flags, int* error) {
   bool rechecked = false;
   for (;;) {
     try {

@@ -156,7 +156,7 @@ void Sampler::step_adaptive() {
   const double ny = rect.y0 + rect.height() * rng_.next_double();
   const ShadedSample first = trace_one(nx, ny);
   const int64_t p = pending_index(int32_t(nx), int32_t(ny));
-  pending_[p] = Pending{scene_time_, float(nx), float(ny), sample_luminance(first), true};
+  pending_[p] = Pending{scene_time_, nx, ny, sample_luminance(first), true};
   record(tiling_.tile_at(int32_t(nx), int32_t(ny))).pending = p;
 
   if (++chunk_progress_ >= config_.chunk) {
@@ -410,8 +410,16 @@ int64_t Sampler::pending_index(int32_t x, int32_t y) const {
   return int64_t(y - region_.y0) * region_.width() + (x - region_.x0);
 }
 
+// The region pixel holding a crosshair. Positions are floats: one that rounded up onto the
+// region's far edge still belongs to the last pixel.
+void Sampler::pixel_of(const Crosshair& c, int32_t* x, int32_t* y) const {
+  *x = std::clamp(int32_t(std::floor(c.x)), region_.x0, region_.x1 - 1);
+  *y = std::clamp(int32_t(std::floor(c.y)), region_.y0, region_.y1 - 1);
+}
+
 void Sampler::insert_front(const Crosshair& c) {
-  const int32_t x = int32_t(std::floor(c.x)), y = int32_t(std::floor(c.y));
+  int32_t x, y;
+  pixel_of(c, &x, &y);
   const int tile = tiling_.tile_at(x, y);
   Crosshair evicted;
   if (buffer_.push_front(x, y, c, &evicted)) add_to_tile(tile, evicted, -1.0);
@@ -420,7 +428,8 @@ void Sampler::insert_front(const Crosshair& c) {
 }
 
 void Sampler::insert_back(const Crosshair& c) {
-  const int32_t x = int32_t(std::floor(c.x)), y = int32_t(std::floor(c.y));
+  int32_t x, y;
+  pixel_of(c, &x, &y);
   const int tile = tiling_.tile_at(x, y);
   Crosshair evicted;
   if (buffer_.push_back(x, y, c, &evicted)) add_to_tile(tile, evicted, -1.0);

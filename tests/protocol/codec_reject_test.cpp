@@ -49,11 +49,11 @@ std::string error_of(const std::vector<uint8_t>& b, const ImageBounds& bounds = 
   return m.ok() ? "" : m.error();
 }
 
-#define EXPECT_REJECTED(bytes, text)                                                    \
-  do {                                                                                  \
-    const std::string error_ = error_of(bytes);                                         \
+#define EXPECT_REJECTED(bytes, text)                                                      \
+  do {                                                                                    \
+    const std::string error_ = error_of(bytes);                                           \
     EXPECT_FALSE(error_.empty()) << "accepted; expected an error about '" << text << "'"; \
-    EXPECT_NE(error_.find(text), std::string::npos) << error_;                           \
+    EXPECT_NE(error_.find(text), std::string::npos) << error_;                            \
   } while (false)
 
 // ---------------------------------------------------------------------------------------------

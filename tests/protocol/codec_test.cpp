@@ -95,16 +95,15 @@ TEST(CodecTest, JoinBytesAreTheDocumentedLayout) {
   join.name = "ab";
   std::vector<uint8_t> bytes;
   ASSERT_TRUE(encode(join, &bytes).ok());
-  const std::vector<uint8_t> expected = {
-      'A',  'F',  'R',  'P',   // magic
-      1,    0,                 // version
-      1,    0,                 // type: join
-      16,   0,    0,    0,     // payload bytes
-      0x04, 0x03, 0x02, 0x01,  // sampler_id
-      1,    0,                 // protocol_version
-      8,    0,                 // threads
-      5,    0,    0,    0,     // capabilities
-      2,    0,    'a',  'b'};  // name
+  const std::vector<uint8_t> expected = {'A',  'F',  'R',  'P',   // magic
+                                         1,    0,                 // version
+                                         1,    0,                 // type: join
+                                         16,   0,    0,    0,     // payload bytes
+                                         0x04, 0x03, 0x02, 0x01,  // sampler_id
+                                         1,    0,                 // protocol_version
+                                         8,    0,                 // threads
+                                         5,    0,    0,    0,     // capabilities
+                                         2,    0,    'a',  'b'};  // name
   EXPECT_EQ(bytes, expected);
 }
 
@@ -187,7 +186,8 @@ TEST(CodecTest, BatchesRoundTripWithinTheDocumentedQuantisation) {
     ASSERT_TRUE(encode(in, &bytes).ok());
     ASSERT_TRUE(decode(Bytes(bytes), &out).ok());
     double t_min = INFINITY, t_max = -INFINITY;
-    for (const Sample& s : in.samples) t_min = std::min(t_min, s.time), t_max = std::max(t_max, s.time);
+    for (const Sample& s : in.samples)
+      t_min = std::min(t_min, s.time), t_max = std::max(t_max, s.time);
     expect_batch_close(in, out, expected_tick(t_max - t_min));
   }
 }
@@ -217,8 +217,8 @@ TEST(CodecTest, OneSampleBatchIsTheDocumentedLayout) {
   in.fields = kFieldPosition | kFieldVelocity;
   Sample s;
   s.time = 2.0;
-  s.x = 3.25f;        // 3.25 * 512 = 1664 = 0x000680
-  s.y = 32767.5f;     // 16776960 = 0xffff00
+  s.x = 3.25f;                   // 3.25 * 512 = 1664 = 0x000680
+  s.y = 32767.5f;                // 16776960 = 0xffff00
   s.color = {1.0f, 0.5f, 0.0f};  // exponent 16, step 2^-8: mantissas 256, 128, 0
   s.position = {1.0f, -2.0f, 0.5f};
   s.velocity = {1.0f, -2.0f, 0.0f};  // halves 0x3c00, 0xc000, 0x0000
@@ -237,7 +237,7 @@ TEST(CodecTest, OneSampleBatchIsTheDocumentedLayout) {
   std::memcpy(&f64, p + 16, 8);
   EXPECT_EQ(f64, 2.0);  // base_time
   std::memcpy(&u32, p + 24, 4);
-  EXPECT_EQ(u32, 1u);                    // count
+  EXPECT_EQ(u32, 1u);                     // count
   EXPECT_EQ(int8_t(p[28]), kMinTickExp);  // a zero span takes the finest tick
   const uint8_t* q = p + 32;
   const std::vector<uint8_t> sample(q, q + 12);

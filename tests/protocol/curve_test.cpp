@@ -145,8 +145,9 @@ TEST_F(CurveTest, SampleAndViewChannelsWorkWithCurve) {
 
 TEST(CurveSetupTest, CurveServerWithoutAnAllowListIsRefused) {
   Context context;  // no allow_curve_clients: libzmq would admit any client key
-  EXPECT_THROW(ControlServer(context, "tcp://127.0.0.1:*", Security::server(generate_curve_keypair())),
-               Error);
+  EXPECT_THROW(
+      ControlServer(context, "tcp://127.0.0.1:*", Security::server(generate_curve_keypair())),
+      Error);
   EXPECT_THROW(context.allow_curve_clients({"not a key"}), Error);
 }
 

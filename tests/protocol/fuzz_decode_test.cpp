@@ -81,8 +81,8 @@ TEST(FuzzDecodeTest, RandomBytesKeepTheInvariants) {
     if (i % 2 && bytes.size() >= kHeaderBytes) {
       const uint32_t n = uint32_t(bytes.size() - kHeaderBytes);
       const uint16_t type = uint16_t(1 + rng.next_below(kLastMessageType));
-      const uint8_t header[12] = {'A', 'F', 'R', 'P', 1, 0, uint8_t(type), 0,
-                                  uint8_t(n), uint8_t(n >> 8), 0, 0};
+      const uint8_t header[12] = {
+          'A', 'F', 'R', 'P', 1, 0, uint8_t(type), 0, uint8_t(n), uint8_t(n >> 8), 0, 0};
       std::copy(header, header + 12, bytes.begin());
     }
     fuzz::check_one(bytes.data(), bytes.size());

@@ -81,8 +81,8 @@ TEST_F(KeysTest, AllowListsAcceptTheDocumentedForms) {
                        "   sampler-2 # the fast one\npublic-key = \"" + c.public_key +
                        "\"\npublic-key=" + d.public_key + "\n");
   const std::vector<std::string> keys = load_allowed_keys(path("allowed"));
-  EXPECT_EQ(keys, (std::vector<std::string>{a.public_key, b.public_key, c.public_key,
-                                            d.public_key}));
+  EXPECT_EQ(keys,
+            (std::vector<std::string>{a.public_key, b.public_key, c.public_key, d.public_key}));
   save_curve_keypair(path("one.key"), a);
   EXPECT_EQ(load_allowed_keys(path("one.key")), std::vector<std::string>{a.public_key});
   write("empty", "# nobody yet\n");
@@ -100,14 +100,12 @@ TEST_F(KeysTest, MalformedFilesAreRefusedWithFileAndLine) {
     return std::string("no error");
   };
   write("short", a.public_key + "\n" + a.public_key.substr(0, 39) + "\n");
-  EXPECT_NE(message([&] { load_allowed_keys(path("short")); }).find("short:2"),
-            std::string::npos);
+  EXPECT_NE(message([&] { load_allowed_keys(path("short")); }).find("short:2"), std::string::npos);
   write("mixed", "public-key = " + a.public_key + "\nsecret-key = " + b.secret_key + "\n");
   EXPECT_NE(message([&] { load_curve_keypair(path("mixed")); }).find("does not belong"),
             std::string::npos);
   write("field", "private = " + a.secret_key + "\n");
-  EXPECT_NE(message([&] { load_curve_keypair(path("field")); }).find("field:1"),
-            std::string::npos);
+  EXPECT_NE(message([&] { load_curve_keypair(path("field")); }).find("field:1"), std::string::npos);
   EXPECT_NE(message([&] { load_allowed_keys(path("missing")); }).find("cannot open"),
             std::string::npos);
   write("two", a.public_key + "\n" + b.public_key + "\n");

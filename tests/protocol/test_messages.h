@@ -119,9 +119,10 @@ inline SampleBatch random_batch(Pcg32& rng, uint32_t fields, size_t n, double sp
   m.samples.resize(n);
   for (Sample& s : m.samples) {
     s.time = base + rng.next_double() * span;
-    s.x = std::min(rng.next_float() * float(bounds.width), std::nextafter(float(bounds.width), 0.f));
-    s.y =
-        std::min(rng.next_float() * float(bounds.height), std::nextafter(float(bounds.height), 0.f));
+    s.x =
+        std::min(rng.next_float() * float(bounds.width), std::nextafter(float(bounds.width), 0.f));
+    s.y = std::min(rng.next_float() * float(bounds.height),
+                   std::nextafter(float(bounds.height), 0.f));
     s.color = glm::vec3(rng.next_float() * 4, rng.next_float(), rng.next_float() * 0.25f);
     if (fields & kFieldPosition) {
       s.position = glm::vec3(rng.next_float() * 200 - 100, rng.next_float() * 200 - 100,
@@ -160,9 +161,9 @@ inline SamplerStats random_stats(Pcg32& rng) {
   SamplerStats m;
   m.sampler_id = rng.next_u32();
   m.time = random_time(rng);
-  for (uint64_t* v : {&m.samples, &m.batches, &m.batches_dropped, &m.tilings, &m.bytes_sent,
-                      &m.crosshairs, &m.reprojections, &m.reprojections_dropped,
-                      &m.occlusion_rays, &m.sanitized}) {
+  for (uint64_t* v :
+       {&m.samples, &m.batches, &m.batches_dropped, &m.tilings, &m.bytes_sent, &m.crosshairs,
+        &m.reprojections, &m.reprojections_dropped, &m.occlusion_rays, &m.sanitized}) {
     *v = random_u64(rng);
   }
   m.samples_per_second = rng.next_double() * 1e8;
@@ -177,8 +178,7 @@ inline Heartbeat random_heartbeat(Pcg32& rng) {
 }
 
 inline Leave random_leave(Pcg32& rng) {
-  return Leave{rng.next_u32(), LeaveReason(rng.next_below(kLastLeaveReason + 1)),
-               random_name(rng)};
+  return Leave{rng.next_u32(), LeaveReason(rng.next_below(kLastLeaveReason + 1)), random_name(rng)};
 }
 
 // One random message of every type (batches in every field combination).

@@ -41,7 +41,9 @@ bool eventually(F f, int ms = 3000) {
   return f();
 }
 
-int port_of(const std::string& endpoint) { return std::stoi(endpoint.substr(endpoint.rfind(':') + 1)); }
+int port_of(const std::string& endpoint) {
+  return std::stoi(endpoint.substr(endpoint.rfind(':') + 1));
+}
 
 // A TCP port that was free a moment ago.
 int free_port() {
@@ -75,8 +77,8 @@ TEST(TransportTest, LocalEndpointsAreRecognised) {
                         "tcp://[::1]:5", "inproc://x", "ipc:///tmp/x"}) {
     EXPECT_TRUE(is_local_endpoint(e)) << e;
   }
-  for (const char* e : {"tcp://*:5000", "tcp://0.0.0.0:5000", "tcp://192.168.1.2:5",
-                        "tcp://eth0:5", "tcp://1270.0.0.1:5"}) {
+  for (const char* e : {"tcp://*:5000", "tcp://0.0.0.0:5000", "tcp://192.168.1.2:5", "tcp://eth0:5",
+                        "tcp://1270.0.0.1:5"}) {
     EXPECT_FALSE(is_local_endpoint(e)) << e;
   }
 }
@@ -320,7 +322,7 @@ TEST(TransportTest, MaxMessageSizeDropsOversizedMessages) {
   raw.set(zmq::sockopt::reconnect_ivl, 20);
   raw.connect(receiver.endpoint());
   Pcg32 rng(10);
-  const std::vector<uint8_t> big = encoded(random_batch(rng, kFieldPosition, 100));  // 2444 B
+  const std::vector<uint8_t> big = encoded(random_batch(rng, kFieldPosition, 100));   // 2444 B
   const std::vector<uint8_t> small = encoded(random_batch(rng, kFieldPosition, 10));  // 284 B
   ASSERT_GT(big.size(), 1000u);
   raw.send(zmq::buffer(big), zmq::send_flags::none);
@@ -352,8 +354,8 @@ double seconds_until_closed_after_huge_frame(int port, double wait_s) {
   out[10] = 3;  // ZMTP 3.0
   out[11] = 0;
   std::memcpy(&out[12], "NULL", 4);
-  const uint8_t ready[] = {0x04, 26,  5,   'R', 'E', 'A', 'D', 'Y', 11,  'S', 'o', 'c', 'k', 'e',
-                           't',  '-', 'T', 'y', 'p', 'e', 0,   0,   0,   4,   'P', 'U', 'S', 'H'};
+  const uint8_t ready[] = {0x04, 26,  5,   'R', 'E', 'A', 'D', 'Y', 11, 'S', 'o', 'c', 'k', 'e',
+                           't',  '-', 'T', 'y', 'p', 'e', 0,   0,   0,  4,   'P', 'U', 'S', 'H'};
   out.insert(out.end(), ready, ready + sizeof(ready));
   const uint8_t huge[] = {0x02, 0, 0, 0, 0, 0x40, 0, 0, 0};  // long frame of 2^30 bytes
   out.insert(out.end(), huge, huge + sizeof(huge));
@@ -389,9 +391,9 @@ TEST(TransportTest, APeerAnnouncingAHugeFrameIsDisconnected) {
   zmq::socket_t raw(raw_ctx, zmq::socket_type::pull);
   raw.set(zmq::sockopt::linger, 0);
   raw.bind("tcp://127.0.0.1:*");
-  EXPECT_EQ(seconds_until_closed_after_huge_frame(port_of(raw.get(zmq::sockopt::last_endpoint)),
-                                                  0.5),
-            -1.0);
+  EXPECT_EQ(
+      seconds_until_closed_after_huge_frame(port_of(raw.get(zmq::sockopt::last_endpoint)), 0.5),
+      -1.0);
 }
 
 std::atomic<int> g_signals{0};

@@ -6,6 +6,10 @@
 #include <cstdint>
 #include <cstring>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace afr {
 
 // e^x for x <= 0 (positive x is taken as 0). Returns 0 below -87, where e^x would no longer be
@@ -30,5 +34,29 @@ inline float fast_exp(float x) {
   std::memcpy(&scale, &bits, sizeof scale);
   return p * scale;
 }
+
+#if defined(__SSE2__)
+// fast_exp on four lanes, with the same operations in the same order: each lane is bit for bit
+// fast_exp of that lane.
+inline __m128 fast_exp4(__m128 x) {
+  const __m128 lowest = _mm_set1_ps(-87.0f);
+  const __m128 valid = _mm_cmpgt_ps(x, lowest);  // false for NaN and x <= -87: result 0
+  x = _mm_max_ps(_mm_min_ps(x, _mm_setzero_ps()), lowest);
+  const __m128i i = _mm_cvttps_epi32(
+      _mm_sub_ps(_mm_mul_ps(x, _mm_set1_ps(1.44269504088896341f)), _mm_set1_ps(0.5f)));
+  const __m128 fi = _mm_cvtepi32_ps(i);
+  const __m128 u = _mm_sub_ps(_mm_sub_ps(x, _mm_mul_ps(fi, _mm_set1_ps(0.693145751953125f))),
+                              _mm_mul_ps(fi, _mm_set1_ps(1.42860682030941723e-6f)));
+  __m128 p = _mm_set1_ps(1.0f / 720.0f);
+  p = _mm_add_ps(_mm_mul_ps(p, u), _mm_set1_ps(1.0f / 120.0f));
+  p = _mm_add_ps(_mm_mul_ps(p, u), _mm_set1_ps(1.0f / 24.0f));
+  p = _mm_add_ps(_mm_mul_ps(p, u), _mm_set1_ps(1.0f / 6.0f));
+  p = _mm_add_ps(_mm_mul_ps(p, u), _mm_set1_ps(0.5f));
+  p = _mm_add_ps(_mm_mul_ps(p, u), _mm_set1_ps(1.0f));
+  p = _mm_add_ps(_mm_mul_ps(p, u), _mm_set1_ps(1.0f));
+  const __m128i bits = _mm_slli_epi32(_mm_add_epi32(i, _mm_set1_epi32(127)), 23);
+  return _mm_and_ps(_mm_mul_ps(p, _mm_castsi128_ps(bits)), valid);
+}
+#endif
 
 }  // namespace afr

@@ -67,10 +67,10 @@ struct Security {
 
 // Socket options of one channel. The defaults of each channel are its named constructor.
 struct ChannelOptions {
-  int linger_ms = 0;          // how long close() may wait for unsent messages
-  int send_hwm = 1000;        // messages (not bytes) queued per peer
+  int linger_ms = 0;    // how long close() may wait for unsent messages
+  int send_hwm = 1000;  // messages (not bytes) queued per peer
   int receive_hwm = 1000;
-  int send_buffer = 0;        // kernel socket buffers in bytes; 0: the OS default
+  int send_buffer = 0;  // kernel socket buffers in bytes; 0: the OS default
   int receive_buffer = 0;
   int64_t max_message_bytes = -1;  // larger incoming messages drop the connection
   int reconnect_ms = 100;          // first reconnection attempt after a lost connection
@@ -227,8 +227,8 @@ bool allowed_to_sampler(MessageType type);  // welcome, scene_chunk, region, hea
 class ControlServer {
  public:
   struct Incoming {
-    std::string peer;        // routing id: the address for send()
-    std::string public_key;  // Z85 CurveZMQ key of the peer; empty without CurveZMQ
+    std::string peer;         // routing id: the address for send()
+    std::string public_key;   // Z85 CurveZMQ key of the peer; empty without CurveZMQ
     Result<Message> message;  // or why it was rejected
   };
 

@@ -90,8 +90,7 @@ Status encode(const View& m, std::vector<uint8_t>* out);
 // over 32767 s, positions outside the image, non-finite world positions or velocities, and
 // unknown field bits.
 Status encode(const SampleBatch& m, std::vector<uint8_t>* out, const ImageBounds& bounds = {});
-Status encode(const TilingSnapshot& m, std::vector<uint8_t>* out,
-              const ImageBounds& bounds = {});
+Status encode(const TilingSnapshot& m, std::vector<uint8_t>* out, const ImageBounds& bounds = {});
 Status encode(const SamplerStats& m, std::vector<uint8_t>* out);
 Status encode(const Heartbeat& m, std::vector<uint8_t>* out);
 Status encode(const Leave& m, std::vector<uint8_t>* out);

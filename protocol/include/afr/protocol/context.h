@@ -52,10 +52,10 @@ class ZapHandler {
   bool allowed(const std::string& key) const;
   void handle_request();
 
-  zmq::socket_t handler_;      // REP on the ZAP endpoint; used by the thread only
-  zmq::socket_t stop_rx_;      // PAIR: the destructor's wake-up, thread side
-  zmq::socket_t stop_tx_;      // PAIR: destructor side
-  mutable std::mutex mutex_;   // guards allowed_
+  zmq::socket_t handler_;     // REP on the ZAP endpoint; used by the thread only
+  zmq::socket_t stop_rx_;     // PAIR: the destructor's wake-up, thread side
+  zmq::socket_t stop_tx_;     // PAIR: destructor side
+  mutable std::mutex mutex_;  // guards allowed_
   std::vector<std::string> allowed_;
   Callback on_decision_;
   std::atomic<uint64_t> accepted_{0};

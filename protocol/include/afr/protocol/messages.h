@@ -111,10 +111,10 @@ struct SceneRequest {
 // kMaxChunkBytes; `offset` places the bytes, so reassembly needs no other state.
 struct SceneChunk {
   SceneHash scene_hash{};
-  uint64_t scene_size = 0;  // 1..kMaxSceneBytes
-  uint64_t offset = 0;      // offset + bytes.size() <= scene_size
-  uint32_t index = 0;       // < count
-  uint32_t count = 0;       // >= 1
+  uint64_t scene_size = 0;     // 1..kMaxSceneBytes
+  uint64_t offset = 0;         // offset + bytes.size() <= scene_size
+  uint32_t index = 0;          // < count
+  uint32_t count = 0;          // >= 1
   std::vector<uint8_t> bytes;  // 1..kMaxChunkBytes
   bool operator==(const SceneChunk&) const = default;
 };

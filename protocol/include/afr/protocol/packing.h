@@ -24,7 +24,7 @@ inline constexpr uint32_t kMaxPositionCode = (1u << 24) - 1;
 
 // x must be finite and in [0, 32768); anything else is clamped into the range.
 inline uint32_t encode_position(float x) {
-  if (!(x > 0.0f)) return 0;  // also NaN
+  if (!(x > 0.0f)) return 0;                       // also NaN
   const float scaled = x * float(kPositionScale);  // exact: a power-of-two scale
   if (!(scaled < float(kMaxPositionCode + 1))) return kMaxPositionCode;
   return uint32_t(scaled);  // truncation is floor for x >= 0
@@ -80,8 +80,7 @@ struct Rgb {
 
 inline Rgb decode_rgb9e5(uint32_t v) {
   const float step = detail::exp2i(int(v >> 27) - 24);
-  return {float(v & 0x1ff) * step, float((v >> 9) & 0x1ff) * step,
-          float((v >> 18) & 0x1ff) * step};
+  return {float(v & 0x1ff) * step, float((v >> 9) & 0x1ff) * step, float((v >> 18) & 0x1ff) * step};
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -111,7 +111,7 @@ class Sampler {
   };
   struct Pending {
     double time = 0.0;
-    float x = 0.0f, y = 0.0f;
+    double x = 0.0, y = 0.0;
     float luminance = 0.0f;
     bool valid = false;
   };
@@ -132,6 +132,7 @@ class Sampler {
   Crosshair make_crosshair(double x, double y, const std::array<ShadedSample, 5>& s) const;
 
   // Deep buffer and statistics.
+  void pixel_of(const Crosshair& c, int32_t* x, int32_t* y) const;
   void insert_front(const Crosshair& c);
   void insert_back(const Crosshair& c);
   void add_to_tile(int tile, const Crosshair& c, double sign);
