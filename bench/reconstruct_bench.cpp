@@ -3,7 +3,8 @@
 // OpenGL backend (whatever driver EGL gives: llvmpipe here). Like a live display, every timed
 // refresh first receives 1/60 s worth of new samples (the store turning over once a second)
 // and a new tiling, and reprojects everything for a slightly moved camera. Prints a Markdown
-// table of medians over repeats.
+// table of medians over repeats, wall time and process CPU time, with a naive 3 x 3 splat as
+// a yardstick of the machine's speed.
 //   afr-bench-reconstruct --sizes 256,512,1024 --repeats 15
 #include <afr/common/cli.h>
 #include <afr/common/error.h>
@@ -16,7 +17,10 @@
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>
 
+#include <time.h>
+
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <memory>
 #include <string>
@@ -77,17 +81,67 @@ afr::TilingSnapshot make_tiling(afr::Pcg32& rng, int size, double time, double r
 
 struct Timing {
   double median = 0.0, p10 = 0.0, p90 = 0.0;
+  double cpu = 0.0;  // median CPU time of the whole process (all its threads) per refresh
 };
 
-Timing summarize(std::vector<double> ms) {
+double median_of(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+Timing summarize(std::vector<double> ms, const std::vector<double>& cpu_ms) {
   std::sort(ms.begin(), ms.end());
   const auto at = [&](double q) { return ms[size_t(std::lround(q * double(ms.size() - 1)))]; };
-  const size_t n = ms.size();
   Timing t;
-  t.median = n % 2 ? ms[n / 2] : 0.5 * (ms[n / 2 - 1] + ms[n / 2]);
+  t.median = median_of(ms);
   t.p10 = at(0.1);
   t.p90 = at(0.9);
+  t.cpu = median_of(cpu_ms);
   return t;
+}
+
+// CPU time of this process, all threads (the reconstructor's workers, a GL driver's threads):
+// unlike wall time it does not grow while the process waits for a core another process holds.
+double process_cpu_ms() {
+  timespec ts;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return 1e3 * double(ts.tv_sec) + 1e-6 * double(ts.tv_nsec);
+}
+
+// The yardstick of the issue: a naive single-threaded splat of every sample into its 3 x 3
+// pixels with std::exp weights, no filter adaptation, reprojection or coverage.
+Timing naive_splat(int size, int repeats) {
+  afr::Pcg32 rng(5);
+  const size_t n = 4 * size_t(size) * size_t(size);
+  std::vector<glm::vec2> xy(n);
+  std::vector<glm::vec3> color(n);
+  for (size_t i = 0; i < n; ++i) {
+    xy[i] = glm::vec2(rng.next_float(), rng.next_float()) * float(size);
+    color[i] = glm::vec3(rng.next_float(), rng.next_float(), rng.next_float());
+  }
+  std::vector<glm::vec4> acc(size_t(size) * size_t(size));
+  std::vector<double> ms, cpu;
+  for (int r = 0; r < repeats; ++r) {
+    const double c0 = process_cpu_ms();
+    const auto t0 = std::chrono::steady_clock::now();
+    std::fill(acc.begin(), acc.end(), glm::vec4(0.0f));
+    for (size_t i = 0; i < n; ++i) {
+      const int cx = int(xy[i].x), cy = int(xy[i].y);
+      for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, size - 1); ++y) {
+        for (int x = std::max(cx - 1, 0); x <= std::min(cx + 1, size - 1); ++x) {
+          const glm::vec2 d = glm::vec2(float(x) + 0.5f, float(y) + 0.5f) - xy[i];
+          const float w = std::exp(-2.0f * glm::dot(d, d));
+          acc[size_t(y) * size_t(size) + size_t(x)] += glm::vec4(color[i] * w, w);
+        }
+      }
+    }
+    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                     .count());
+    cpu.push_back(process_cpu_ms() - c0);
+  }
+  if (acc[0].w < 0.0f) fmt::print("");  // keeps the sums alive
+  return summarize(ms, cpu);
 }
 
 // Fills the store, then times `repeats` refreshes after `warmup` untimed ones.
@@ -101,7 +155,7 @@ Timing run(afr::Reconstructor& rec, int size, int repeats, int warmup, bool read
   rec.add_batch(make_batch(start, rng, size, n, 0.0, 1.0));  // one second of samples
   double t = 1.0;
   const size_t per_frame = n / 60;
-  std::vector<double> ms;
+  std::vector<double> ms, cpu;
   afr::Image image;
   for (int frame = 0; frame < warmup + repeats; ++frame) {
     const afr::Camera cam = afr::Camera::look_at({0.01 * frame, 0.5, -0.01 * frame},
@@ -109,10 +163,14 @@ Timing run(afr::Reconstructor& rec, int size, int repeats, int warmup, bool read
     rec.add_batch(make_batch(cam, rng, size, per_frame, t, t + 1.0 / 60.0));
     t += 1.0 / 60.0;
     rec.set_tiling(make_tiling(rng, size, t, rate));
+    const double c0 = process_cpu_ms();
     rec.reconstruct(cam, t, size, size, readback ? &image : nullptr);
-    if (frame >= warmup) ms.push_back(rec.frame_stats().milliseconds);
+    if (frame >= warmup) {
+      ms.push_back(rec.frame_stats().milliseconds);
+      cpu.push_back(process_cpu_ms() - c0);
+    }
   }
-  return summarize(ms);
+  return summarize(ms, cpu);
 }
 
 std::vector<int> parse_ints(const std::string& text) {
@@ -135,7 +193,7 @@ int main(int argc, char** argv) {
   std::string sizes_text = "256,512,1024", threads_text = "1,2", backends = "cpu,gl";
   std::string mode_text = "adaptive", log_level = "warn";
   int repeats = 15, warmup = 3, gl_repeats = 7;
-  bool readback = true;
+  bool readback = true, naive = true;
   app.add_option("--sizes", sizes_text, "square output sides, comma separated");
   app.add_option("--threads", threads_text, "CPU backend thread counts, comma separated");
   app.add_option("--backends", backends, "cpu, gl or cpu,gl");
@@ -144,6 +202,7 @@ int main(int argc, char** argv) {
   app.add_option("--gl-repeats", gl_repeats, "timed refreshes per GL row");
   app.add_option("--warmup", warmup, "untimed refreshes first");
   app.add_option("--readback", readback, "read the image back to memory (GL) / fill it (CPU)");
+  app.add_option("--naive", naive, "also time the naive 3x3 splat yardstick");
   app.add_option("--log", log_level, "log level");
   CLI11_PARSE(app, argc, argv);
   try {
@@ -160,8 +219,10 @@ int main(int argc, char** argv) {
     fmt::print("Reconstruction, mode {}, N = 4 x pixels, 1/60 of N new samples per refresh, "
                "median of {} (CPU) / {} (GL) refreshes\n\n",
                afr::mode_name(mode), repeats, gl_repeats);
-    fmt::print("| backend | threads | resolution | N | median ms | p10 ms | p90 ms | refreshes/s |\n");
-    fmt::print("|---|---|---|---|---|---|---|---|\n");
+    fmt::print(
+        "| backend | threads | resolution | N | median ms | p10 ms | p90 ms | refreshes/s | "
+        "CPU ms |\n");
+    fmt::print("|---|---|---|---|---|---|---|---|---|\n");
     for (int size : sizes) {
       afr::ReconstructorConfig cfg;
       cfg.image_width = size;
@@ -169,10 +230,12 @@ int main(int argc, char** argv) {
       cfg.mode = mode;
       const size_t n = 4 * size_t(size) * size_t(size);
       const auto row = [&](const std::string& backend, const std::string& threads, Timing t) {
-        fmt::print("| {} | {} | {}x{} | {} | {:.2f} | {:.2f} | {:.2f} | {:.0f} |\n", backend,
-                   threads, size, size, n, t.median, t.p10, t.p90, 1000.0 / t.median);
+        fmt::print("| {} | {} | {}x{} | {} | {:.2f} | {:.2f} | {:.2f} | {:.0f} | {:.2f} |\n",
+                   backend, threads, size, size, n, t.median, t.p10, t.p90, 1000.0 / t.median,
+                   t.cpu);
         std::fflush(stdout);
       };
+      if (naive) row("naive 3x3 splat (yardstick)", "1", naive_splat(size, repeats));
       if (backends.find("cpu") != std::string::npos) {
         for (int threads : thread_counts) {
           cfg.threads = threads;

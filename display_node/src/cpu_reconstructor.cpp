@@ -349,6 +349,9 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
           }
           ++c.splatted;
           const float w_t = std::max(fast_exp(-s.age * s.age * shape.k_t), min_wt);
+#if defined(__SSE2__)
+          const __m128 color1 = _mm_setr_ps(s.color.r, s.color.g, s.color.b, 1.0f);
+#endif
           // The Gaussian of every column and row of the splat.
           gaussian_row(x0, x1, s.x, shape.k_x, shape.off_x, wx.data());
           gaussian_row(y0, y1, s.y, shape.k_y, shape.off_y, wy.data());
@@ -361,7 +364,12 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
             for (int i = x0; i <= x1; ++i) {
               const float w = wx[size_t(i - x0)] * wyt;
               if (!(w > kMinSplatWeight)) continue;
+#if defined(__SSE2__)
+              float* a = &acc[i].x;
+              _mm_storeu_ps(a, _mm_add_ps(_mm_loadu_ps(a), _mm_mul_ps(color1, _mm_set1_ps(w))));
+#else
               acc[i] += glm::vec4(s.color * w, w);
+#endif
               cov[i].count += 1.0f;
               cov[i].radius_sum += r;
             }

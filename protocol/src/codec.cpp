@@ -5,6 +5,7 @@
 
 #include <string>
 #include <type_traits>
+#include <variant>
 
 namespace afr::protocol {
 
@@ -43,8 +44,24 @@ const char* message_type_name(MessageType type) {
   return "unknown";
 }
 
+// The variant lists the types in the order of their numbers.
+template <MessageType kType, class T>
+constexpr bool kAlternativeIs =
+    std::is_same_v<std::variant_alternative_t<size_t(kType) - kFirstMessageType, Message>, T>;
+static_assert(kAlternativeIs<MessageType::kJoin, Join> &&
+              kAlternativeIs<MessageType::kWelcome, Welcome> &&
+              kAlternativeIs<MessageType::kSceneRequest, SceneRequest> &&
+              kAlternativeIs<MessageType::kSceneChunk, SceneChunk> &&
+              kAlternativeIs<MessageType::kRegionAssignment, RegionAssignment> &&
+              kAlternativeIs<MessageType::kView, View> &&
+              kAlternativeIs<MessageType::kSampleBatch, SampleBatch> &&
+              kAlternativeIs<MessageType::kTilingSnapshot, TilingSnapshot> &&
+              kAlternativeIs<MessageType::kStats, SamplerStats> &&
+              kAlternativeIs<MessageType::kHeartbeat, Heartbeat> &&
+              kAlternativeIs<MessageType::kLeave, Leave> &&
+              std::variant_size_v<Message> == kLastMessageType);
+
 MessageType message_type(const Message& message) {
-  // The variant lists the types in the order of their numbers.
   return MessageType(uint16_t(message.index() + kFirstMessageType));
 }
 

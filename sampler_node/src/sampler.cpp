@@ -149,7 +149,7 @@ void Sampler::step_adaptive() {
   ++counters_.crosshairs;
 
   // Section 6.1: reproject r crosshairs of this tile.
-  for (int k = 0; k < config_.r; ++k) reproject_one(tile);
+  for (int k = 0; k < config_.r; ++k) reproject(tile);
 
   // Initiate the next crosshair of this tile (the tiling may not have changed since).
   const double nx = rect.x0 + rect.width() * rng_.next_double();
@@ -183,7 +183,7 @@ void Sampler::step_framed() {
 
 // Section 6.1: relocates the newest crosshair of a random pixel of the tile to where the
 // current view and its velocity put it, and tests that it is still visible.
-void Sampler::reproject_one(int tile) {
+void Sampler::reproject(int tile) {
   const PixelRect rect = tiling_.node(tile).rect;
   const int32_t px = rect.x0 + int32_t(rng_.next_below(uint32_t(rect.width())));
   const int32_t py = rect.y0 + int32_t(rng_.next_below(uint32_t(rect.height())));

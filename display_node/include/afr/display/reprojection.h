@@ -7,6 +7,8 @@
 #include <afr/common/camera.h>
 #include <afr/display/sample_store.h>
 
+#include <cmath>
+
 namespace afr {
 
 class Projector {
@@ -16,11 +18,25 @@ class Projector {
   // The image position of a world point (hit) or of a direction (miss). False when the point
   // is behind the camera or nearer than znear, the direction points away from the view, or
   // the result is not finite.
-  bool project_point(const glm::vec3& p, float* x, float* y) const;
-  bool project_direction(const glm::vec3& d, float* x, float* y) const;
+  bool project_point(const glm::vec3& p, float* x, float* y) const {
+    const glm::vec3 d = p - eye;
+    const float z = glm::dot(d, forward);
+    if (!(z >= znear)) return false;
+    return finish(d, z, x, y);
+  }
+  bool project_direction(const glm::vec3& d, float* x, float* y) const {
+    const float z = glm::dot(d, forward);
+    if (!(z > kMinDirectionZ)) return false;
+    return finish(d, z, x, y);
+  }
   // A stored sample at `age` seconds (signed: now - sample time); uses velocity when present.
   // The caller checks kStoredHasPosition.
-  bool project(const StoredSample& s, float age, float* x, float* y) const;
+  bool project(const StoredSample& s, float age, float* x, float* y) const {
+    if (s.flags & kStoredMiss) return project_direction(s.position, x, y);
+    glm::vec3 p = s.position;
+    if (s.flags & kStoredHasVelocity) p += s.velocity * age;
+    return project_point(p, x, y);
+  }
 
   // The projection, as uniforms for a shader: with d = p - eye (or the direction),
   //   z = dot(d, forward), x = half_width + dot(d, axis_x) / z, y = half_height - dot(d, axis_y) / z.
@@ -38,7 +54,14 @@ class Projector {
   static constexpr float kMaxCoordinate = 1e7f;
 
  private:
-  bool finish(const glm::vec3& d, float z, float* x, float* y) const;
+  bool finish(const glm::vec3& d, float z, float* x, float* y) const {
+    const float px = half_width + glm::dot(d, axis_x) / z;
+    const float py = half_height - glm::dot(d, axis_y) / z;
+    if (!(std::abs(px) < kMaxCoordinate) || !(std::abs(py) < kMaxCoordinate)) return false;
+    *x = px;
+    *y = py;
+    return true;
+  }
 };
 
 }  // namespace afr

@@ -89,6 +89,9 @@ class Sampler {
   void step();
   // Emits the samples of the current, partial batch.
   void flush();
+  // One reprojection of section 6.1 in `tile` (a leaf of tiling()): what step() does r times.
+  // Public so that benchmarks can time it alone.
+  void reproject(int tile);
 
   const SamplerConfig& config() const { return config_; }
   const SamplerCounters& counters() const { return counters_; }
@@ -121,7 +124,6 @@ class Sampler {
   void step_uniform();
   void step_framed();
   void advance_scene_time();
-  void reproject_one(int tile);
   void adjust_tiling();
   void maybe_snapshot();
 
