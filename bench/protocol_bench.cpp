@@ -1,7 +1,8 @@
 // afr-bench-protocol: what the wire costs. Encode and decode time per sample for each field
 // combination (ns/sample), the size per sample, and the throughput of sample batches through
 // the sample channel (SampleSender -> SampleReceiver over TCP loopback, with and without
-// CurveZMQ), decoded on the receiving side as the display does. Sender and receiver use
+// CurveZMQ), decoded on the receiving side as the display does; and, on raw sockets, why a
+// non-blocking sender must read ZMQ_EVENTS after a refused send. Sender and receiver use
 // separate ZeroMQ contexts, as separate processes would.
 //   afr-bench-protocol --benchmark_min_time=1
 #include <afr/common/random.h>
@@ -184,6 +185,58 @@ BENCHMARK(BM_PushPullLoopback)
     ->Args({1, 1024})
     ->UseRealTime()
     ->Unit(benchmark::kMicrosecond);
+
+// ---------------------------------------------------------------------------------------------
+// The fact behind send_retry's ZMQ_EVENTS check, on raw sockets with the sample channel's marks
+// and buffers: a sender that never blocks (send with dontwait; when refused, yield and try
+// again). libzmq reads a socket's commands at most every 3 million TSC ticks on a non-blocking
+// send, so without the check the sender learns that the pipe has room only that often.
+
+void BM_NonBlockingSendRaw(benchmark::State& state) {
+  const bool recheck = state.range(0) != 0;
+  zmq::context_t display_context, sampler_context;
+  zmq::socket_t pull(display_context, zmq::socket_type::pull);
+  zmq::socket_t push(sampler_context, zmq::socket_type::push);
+  const ChannelOptions o = ChannelOptions::samples();
+  pull.set(zmq::sockopt::rcvhwm, o.receive_hwm);
+  pull.set(zmq::sockopt::rcvbuf, o.receive_buffer);
+  pull.set(zmq::sockopt::linger, 0);
+  push.set(zmq::sockopt::sndhwm, o.send_hwm);
+  push.set(zmq::sockopt::sndbuf, o.send_buffer);
+  push.set(zmq::sockopt::linger, 0);
+  pull.bind("tcp://127.0.0.1:*");
+  push.connect(pull.get(zmq::sockopt::last_endpoint));
+  std::atomic<bool> stop{false};
+  std::atomic<uint64_t> received{0};
+  std::thread display([&] {
+    zmq::pollitem_t item = {pull.handle(), 0, ZMQ_POLLIN, 0};
+    while (!stop.load(std::memory_order_relaxed)) {
+      if (zmq::poll(&item, 1, std::chrono::milliseconds(50)) <= 0) continue;
+      zmq::message_t m;
+      while (pull.recv(m, zmq::recv_flags::dontwait)) received.fetch_add(1);
+    }
+  });
+  std::vector<uint8_t> bytes(batch_message_bytes(kFieldPosition, 128));
+  while (received.load() == 0) {
+    zmq::message_t m(bytes.data(), bytes.size());
+    (void)push.send(m, zmq::send_flags::dontwait);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  const uint64_t start_received = received.load();
+  const auto start = std::chrono::steady_clock::now();
+  for (auto _ : state) {
+    zmq::message_t m(bytes.data(), bytes.size());
+    if (push.send(m, zmq::send_flags::dontwait)) continue;
+    if (recheck && (push.get(zmq::sockopt::events) & ZMQ_POLLOUT)) continue;
+    std::this_thread::yield();
+  }
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  stop = true;
+  display.join();
+  state.counters["delivered msg/s"] = double(received.load() - start_received) / seconds;
+}
+BENCHMARK(BM_NonBlockingSendRaw)->ArgName("recheck")->Arg(0)->Arg(1)->UseRealTime();
 
 }  // namespace
 

@@ -361,15 +361,38 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
             const float wyt = wyj * w_t;
             glm::vec4* acc = m.accum.data() + size_t(j) * size_t(width);
             CoverageCell* cov = m.coverage_next.data() + size_t(j) * size_t(width);
-            for (int i = x0; i <= x1; ++i) {
+            int i = x0;
+#if defined(__SSE2__)
+            // Four pixels at a time without a branch per pixel: lanes past x1 or with a weight
+            // at or below kMinSplatWeight add exactly 0 (and nothing to the coverage).
+            const __m128 wyt4 = _mm_set1_ps(wyt);
+            const __m128 one_r = _mm_setr_ps(1.0f, r, 1.0f, r);
+            for (; i + 3 < width && i <= x1; i += 4) {
+              const __m128 lane = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
+              const __m128 inside = _mm_cmplt_ps(lane, _mm_set1_ps(float(x1 - i + 1)));
+              const __m128 w4 = _mm_mul_ps(_mm_loadu_ps(&wx[size_t(i - x0)]), wyt4);
+              const __m128 ok = _mm_and_ps(inside, _mm_cmpgt_ps(w4, _mm_set1_ps(kMinSplatWeight)));
+              const __m128 w = _mm_and_ps(w4, ok);
+              float* a = &acc[i].x;
+              _mm_storeu_ps(a, _mm_add_ps(_mm_loadu_ps(a),
+                                          _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0x00))));
+              _mm_storeu_ps(a + 4, _mm_add_ps(_mm_loadu_ps(a + 4),
+                                              _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0x55))));
+              _mm_storeu_ps(a + 8, _mm_add_ps(_mm_loadu_ps(a + 8),
+                                              _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0xaa))));
+              _mm_storeu_ps(a + 12, _mm_add_ps(_mm_loadu_ps(a + 12),
+                                               _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0xff))));
+              float* cv = &cov[i].count;
+              _mm_storeu_ps(cv, _mm_add_ps(_mm_loadu_ps(cv),
+                                           _mm_and_ps(one_r, _mm_unpacklo_ps(ok, ok))));
+              _mm_storeu_ps(cv + 4, _mm_add_ps(_mm_loadu_ps(cv + 4),
+                                               _mm_and_ps(one_r, _mm_unpackhi_ps(ok, ok))));
+            }
+#endif
+            for (; i <= x1; ++i) {  // the image's last columns (and builds without SSE2)
               const float w = wx[size_t(i - x0)] * wyt;
               if (!(w > kMinSplatWeight)) continue;
-#if defined(__SSE2__)
-              float* a = &acc[i].x;
-              _mm_storeu_ps(a, _mm_add_ps(_mm_loadu_ps(a), _mm_mul_ps(color1, _mm_set1_ps(w))));
-#else
               acc[i] += glm::vec4(s.color * w, w);
-#endif
               cov[i].count += 1.0f;
               cov[i].radius_sum += r;
             }
