@@ -136,8 +136,8 @@ Timing naive_splat(int size, int repeats) {
         }
       }
     }
-    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
-                     .count());
+    ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     cpu.push_back(process_cpu_ms() - c0);
   }
   if (acc[0].w < 0.0f) fmt::print("");  // keeps the sums alive
@@ -216,9 +216,10 @@ int main(int argc, char** argv) {
       gl = afr::EglContext::create_headless(&gl_error);
       if (!gl) fmt::print(stderr, "OpenGL backend skipped: {}\n", gl_error);
     }
-    fmt::print("Reconstruction, mode {}, N = 4 x pixels, 1/60 of N new samples per refresh, "
-               "median of {} (CPU) / {} (GL) refreshes\n\n",
-               afr::mode_name(mode), repeats, gl_repeats);
+    fmt::print(
+        "Reconstruction, mode {}, N = 4 x pixels, 1/60 of N new samples per refresh, "
+        "median of {} (CPU) / {} (GL) refreshes\n\n",
+        afr::mode_name(mode), repeats, gl_repeats);
     fmt::print(
         "| backend | threads | resolution | N | median ms | p10 ms | p90 ms | refreshes/s | "
         "CPU ms |\n");

@@ -161,8 +161,9 @@ void bench_scene(const afr::Scene& scene, const std::string& name, int size, dou
              median(ratio));
   fmt::print("| reprojection bookkeeping / new crosshair (goal <= 1/50) | 1/{:.1f} |\n",
              1.0 / std::max(1e-9, median(repro_ratio)));
-  fmt::print("| occlusion ray / new crosshair | 1/{:.1f} |\n",
-             1.0 / std::max(1e-9, median(occl_ratio)));
+  const double occl = median(occl_ratio);
+  fmt::print("| occlusion ray / new crosshair | {} |\n",
+             occl > 0.0 ? fmt::format("1/{:.1f}", 1.0 / occl) : "below the noise");
   fmt::print("| pool samples/s, 1 thread (wall clock) | {:.0f} |\n", one);
   fmt::print("| pool samples/s, 2 threads (wall clock) | {:.0f} ({:.2f}x) |\n", two, two / one);
 }

@@ -250,8 +250,7 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
       }
       m.task_counts[size_t(task)].max_radius = max_radius;
       // Clear this image's sums while here.
-      std::fill(m.accum.begin() + ptrdiff_t(p0), m.accum.begin() + ptrdiff_t(p1),
-                glm::vec4(0.0f));
+      std::fill(m.accum.begin() + ptrdiff_t(p0), m.accum.begin() + ptrdiff_t(p1), glm::vec4(0.0f));
       std::fill(m.coverage_next.begin() + ptrdiff_t(p0), m.coverage_next.begin() + ptrdiff_t(p1),
                 CoverageCell{});
     });
@@ -332,8 +331,15 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
         const int band = round + 3 * k;
         Counts& c = m.task_counts[size_t(band)];
         std::array<float, 2 * int(kSplatRadiusLimit) + 4> wx, wy;
-        for (size_t q = m.band_start[size_t(band)]; q < m.band_start[size_t(band) + 1]; ++q) {
+        const size_t q_end = m.band_start[size_t(band) + 1];
+        for (size_t q = m.band_start[size_t(band)]; q < q_end; ++q) {
           const Projected& s = m.sorted[q];
+          if (q + 8 < q_end) {  // the shape table is read in random order: fetch ahead
+            const Projected& ahead = m.sorted[q + 8];
+            const int ax = std::clamp(int(ahead.x), 0, width - 1);
+            const int ay = std::clamp(int(ahead.y), 0, height - 1);
+            __builtin_prefetch(&m.shapes[size_t(ay) * size_t(width) + size_t(ax)]);
+          }
           const int px = std::clamp(floor_int(s.x), 0, width - 1);
           const int py = std::clamp(floor_int(s.y), 0, height - 1);
           const PixelShape& shape = m.shapes[size_t(py) * size_t(width) + size_t(px)];
@@ -374,8 +380,8 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
               const __m128 ok = _mm_and_ps(inside, _mm_cmpgt_ps(w4, _mm_set1_ps(kMinSplatWeight)));
               const __m128 w = _mm_and_ps(w4, ok);
               float* a = &acc[i].x;
-              _mm_storeu_ps(a, _mm_add_ps(_mm_loadu_ps(a),
-                                          _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0x00))));
+              _mm_storeu_ps(
+                  a, _mm_add_ps(_mm_loadu_ps(a), _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0x00))));
               _mm_storeu_ps(a + 4, _mm_add_ps(_mm_loadu_ps(a + 4),
                                               _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0x55))));
               _mm_storeu_ps(a + 8, _mm_add_ps(_mm_loadu_ps(a + 8),
@@ -383,8 +389,8 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
               _mm_storeu_ps(a + 12, _mm_add_ps(_mm_loadu_ps(a + 12),
                                                _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0xff))));
               float* cv = &cov[i].count;
-              _mm_storeu_ps(cv, _mm_add_ps(_mm_loadu_ps(cv),
-                                           _mm_and_ps(one_r, _mm_unpacklo_ps(ok, ok))));
+              _mm_storeu_ps(
+                  cv, _mm_add_ps(_mm_loadu_ps(cv), _mm_and_ps(one_r, _mm_unpacklo_ps(ok, ok))));
               _mm_storeu_ps(cv + 4, _mm_add_ps(_mm_loadu_ps(cv + 4),
                                                _mm_and_ps(one_r, _mm_unpackhi_ps(ok, ok))));
             }

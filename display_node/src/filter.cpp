@@ -39,8 +39,8 @@ double clamp_nan_low(float v, float lo, float hi) {
 
 }  // namespace
 
-FilterExtents filter_extents(float G_x_in, float G_y_in, float G_t_in, float R_l_in,
-                             float depth_in, const FilterLimits& limits) {
+FilterExtents filter_extents(float G_x_in, float G_y_in, float G_t_in, float R_l_in, float depth_in,
+                             const FilterLimits& limits) {
   // Section 5.1: adaptive filter extents.
   // 1. Guards.
   const double G_x =
@@ -50,10 +50,9 @@ FilterExtents filter_extents(float G_x_in, float G_y_in, float G_t_in, float R_l
   const double G_t =
       clamp_nan_low(G_t_in, limits.min_temporal_gradient, limits.max_temporal_gradient);
   const double R_l = clamp_nan_low(R_l_in, limits.min_rate, limits.max_rate);
-  const double depth = std::isnan(depth_in)
-                           ? double(limits.max_temporal_extent)
-                           : clamp_nan_low(depth_in, limits.min_temporal_extent,
-                                           limits.max_temporal_extent);
+  const double depth = std::isnan(depth_in) ? double(limits.max_temporal_extent)
+                                            : clamp_nan_low(depth_in, limits.min_temporal_extent,
+                                                            limits.max_temporal_extent);
   const double lo_s = limits.min_spatial_extent, hi_s = limits.max_spatial_extent;
   const double V_s = 1.0 / R_l;
 

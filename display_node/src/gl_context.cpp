@@ -14,8 +14,8 @@ bool is_software_renderer(std::string_view renderer) {
   std::string lower(renderer);
   std::transform(lower.begin(), lower.end(), lower.begin(),
                  [](unsigned char c) { return char(std::tolower(c)); });
-  for (const char* name : {"llvmpipe", "softpipe", "swrast", "software rasterizer",
-                           "swiftshader", "lavapipe", "microsoft basic render"}) {
+  for (const char* name : {"llvmpipe", "softpipe", "swrast", "software rasterizer", "swiftshader",
+                           "lavapipe", "microsoft basic render"}) {
     if (lower.find(name) != std::string::npos) return true;
   }
   return false;

@@ -66,10 +66,9 @@ bool HolePyramid::fill(int x, int y, glm::vec3* color) const {
     const float fx0 = std::floor(px), fy0 = std::floor(py);
     const float fx = px - fx0, fy = py - fy0;
     const int ix = int(fx0), iy = int(fy0);
-    const glm::vec4 s = texel(k, ix, iy) * ((1.0f - fx) * (1.0f - fy)) +
-                        texel(k, ix + 1, iy) * (fx * (1.0f - fy)) +
-                        texel(k, ix, iy + 1) * ((1.0f - fx) * fy) +
-                        texel(k, ix + 1, iy + 1) * (fx * fy);
+    const glm::vec4 s =
+        texel(k, ix, iy) * ((1.0f - fx) * (1.0f - fy)) + texel(k, ix + 1, iy) * (fx * (1.0f - fy)) +
+        texel(k, ix, iy + 1) * ((1.0f - fx) * fy) + texel(k, ix + 1, iy + 1) * (fx * fy);
     if (s.w > 0.0f) {
       *color = glm::vec3(s) / s.w;
       return true;

@@ -13,8 +13,7 @@ namespace afr {
 namespace {
 
 size_t checked_capacity(const ReconstructorConfig& c) {
-  if (c.image_width < 1 || c.image_height < 1 || c.image_width > 32768 ||
-      c.image_height > 32768) {
+  if (c.image_width < 1 || c.image_height < 1 || c.image_width > 32768 || c.image_height > 32768) {
     throw Error(fmt::format("reconstructor: sampling image {}x{} is outside 1..32768 a side",
                             c.image_width, c.image_height));
   }
@@ -80,9 +79,9 @@ void Reconstructor::prepare_frame(double time, int width, int height,
   // How far back the store reaches, and the mean rate it was filled at: the cap of e_t and the
   // rate of pixels no tile with a known rate covers.
   const double reach = delta.stored > 0 ? time - delta.oldest_time : 0.0;
-  const double depth = std::clamp(std::isfinite(reach) ? reach : 0.0,
-                                  double(limits.min_temporal_extent),
-                                  double(limits.max_temporal_extent));
+  const double depth =
+      std::clamp(std::isfinite(reach) ? reach : 0.0, double(limits.min_temporal_extent),
+                 double(limits.max_temporal_extent));
   const double pixels = double(config_.image_width) * double(config_.image_height);
   const double rate = double(delta.stored) / (pixels * depth);
   frame_.stored = delta.stored;
@@ -94,9 +93,9 @@ void Reconstructor::prepare_frame(double time, int width, int height,
   for (size_t i = 0; i < tiles.size(); ++i) {
     const FieldTile& t = tiles[i];
     const float R_l = t.rate > 0.0f ? t.rate : float(rate);
-    setup->filters[i] = make_tile_filter(
-        filter_extents(t.G_x, t.G_y, t.G_t, R_l, float(depth), limits), setup->scale_x,
-        setup->scale_y);
+    setup->filters[i] =
+        make_tile_filter(filter_extents(t.G_x, t.G_y, t.G_t, R_l, float(depth), limits),
+                         setup->scale_x, setup->scale_y);
   }
 }
 

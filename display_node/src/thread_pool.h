@@ -25,7 +25,8 @@ class ThreadPool {
   // Calls fn(task) once for every task in [0, tasks), spread over the threads.
   template <typename Fn>
   void run(int tasks, Fn&& fn) {
-    run_erased(tasks, [](void* f, int task) { (*static_cast<Fn*>(f))(task); }, &fn);
+    run_erased(
+        tasks, [](void* f, int task) { (*static_cast<Fn*>(f))(task); }, &fn);
   }
 
  private:

@@ -67,8 +67,8 @@ void TileField::set_tiling(const TilingSnapshot& snapshot) {
   stats_.dropped_tiles += counted.dropped_tiles;
   auto it = latest_.find(clean.sampler_id);
   // A NaN time never replaces anything and is never replaced by ordering mistakes.
-  const bool stale = !std::isfinite(clean.time) ||
-                     (it != latest_.end() && clean.time < it->second.time);
+  const bool stale =
+      !std::isfinite(clean.time) || (it != latest_.end() && clean.time < it->second.time);
   if (stale) {
     ++stats_.stale_snapshots;
     return;
@@ -95,8 +95,9 @@ bool TileField::update(int width, int height) {
   }
   for (const TilingSnapshot& s : copies) order.push_back(&s);
   // Older snapshots first, so the newest wins where regions overlap.
-  std::stable_sort(order.begin(), order.end(),
-                   [](const TilingSnapshot* a, const TilingSnapshot* b) { return a->time < b->time; });
+  std::stable_sort(
+      order.begin(), order.end(),
+      [](const TilingSnapshot* a, const TilingSnapshot* b) { return a->time < b->time; });
 
   width_ = width;
   height_ = height;

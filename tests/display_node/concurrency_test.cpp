@@ -39,6 +39,7 @@ TEST(ConcurrencyTest, IngestWhileReconstructingLosesNothing) {
   std::thread ingest([&] {
     for (size_t i = 0; i < batches.size(); ++i) {
       live.add_batch(batches[i]);
+      std::this_thread::yield();  // interleave with the reconstructions
       if (i % 10 == 0) {
         live.set_tiling(test::uniform_tiling(W, H, 0.05f, 0.05f, 0.2f, 50.0f, 0.01 * double(i)));
       }

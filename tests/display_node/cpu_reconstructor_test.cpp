@@ -59,8 +59,8 @@ Reference gather(const SampleBatch& batch, const TilingSnapshot* tiling,
     glm::dvec2 p(s.x * sx, s.y * sy);
     sp.ok = true;
     if (reproject && (batch.fields & kFieldPosition)) {
-      glm::dvec3 world = s.miss ? camera.eye + glm::dvec3(glm::normalize(s.position))
-                                : glm::dvec3(s.position);
+      glm::dvec3 world =
+          s.miss ? camera.eye + glm::dvec3(glm::normalize(s.position)) : glm::dvec3(s.position);
       if (!s.miss && (batch.fields & kFieldVelocity)) {
         world += glm::dvec3(s.velocity) * (now - s.time);
       }
@@ -84,15 +84,15 @@ Reference gather(const SampleBatch& batch, const TilingSnapshot* tiling,
       const FilterExtents e =
           filter_extents(G_x, G_y, G_t, R_l > 0 ? R_l : float(rate), float(depth), lim);
       const double r_filter = lim.cutoff * std::max(e.e_x * sx, e.e_y * sy);
-      sp.r = splat_radius(previous ? &(*previous)[size_t(py) * W + px] : nullptr,
-                          float(r_filter), rule);
+      sp.r = splat_radius(previous ? &(*previous)[size_t(py) * W + px] : nullptr, float(r_filter),
+                          rule);
       const double grown = std::max(1.0, sp.r / r_filter);
       sp.sigma_x = e.e_x * sx * grown;
       sp.sigma_y = e.e_y * sy * grown;
       sp.r_x = std::min(sp.r, lim.cutoff * sp.sigma_x);
       sp.r_y = std::min(sp.r, lim.cutoff * sp.sigma_y);
-      sp.w_t = std::max(std::exp(-age * age / (2.0 * e.e_t * e.e_t)),
-                        double(lim.min_temporal_weight));
+      sp.w_t =
+          std::max(std::exp(-age * age / (2.0 * e.e_t * e.e_t)), double(lim.min_temporal_weight));
       sp.x = p.x;
       sp.y = p.y;
       sp.color = glm::dvec3(s.color);
@@ -112,7 +112,9 @@ Reference gather(const SampleBatch& batch, const TilingSnapshot* tiling,
         if (!sp.ok) continue;
         const double dx = i + 0.5 - sp.x, dy = j + 0.5 - sp.y;
         if (std::abs(dx) >= sp.r_x || std::abs(dy) >= sp.r_y) continue;
-        const auto g = [](double d, double sigma) { return std::exp(-d * d / (2 * sigma * sigma)); };
+        const auto g = [](double d, double sigma) {
+          return std::exp(-d * d / (2 * sigma * sigma));
+        };
         const double w = (g(dx, sp.sigma_x) - g(sp.r_x, sp.sigma_x)) *
                          (g(dy, sp.sigma_y) - g(sp.r_y, sp.sigma_y)) * sp.w_t;
         if (!(w > kMinSplatWeight)) continue;
@@ -453,8 +455,8 @@ TEST(CpuReconstructorTest, WithoutReprojectionTheCameraDoesNotMatter) {
 
 // Pixels of view `b` whose floor point view `a` saw well inside its image (sky pixels are
 // always seen: directions do not move with the eye).
-std::vector<bool> seen_from(const test::FloorScene& scene, const Camera& a, const Camera& b,
-                            int W, int H, double margin) {
+std::vector<bool> seen_from(const test::FloorScene& scene, const Camera& a, const Camera& b, int W,
+                            int H, double margin) {
   std::vector<bool> mask(size_t(W) * H, false);
   for (int y = 0; y < H; ++y) {
     for (int x = 0; x < W; ++x) {

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <limits>
+#include <thread>
 
 namespace afr {
 namespace {
@@ -15,9 +16,9 @@ namespace {
 using test::diff8;
 
 // Skips the test (with the reason) where no headless OpenGL 4.3 context can be made.
-#define AFR_REQUIRE_GL(context)                                                \
-  std::string why_no_gl;                                                       \
-  std::shared_ptr<GlContext> context = test::shared_gl_context(&why_no_gl);    \
+#define AFR_REQUIRE_GL(context)                                             \
+  std::string why_no_gl;                                                    \
+  std::shared_ptr<GlContext> context = test::shared_gl_context(&why_no_gl); \
   if (context == nullptr) GTEST_SKIP() << "no EGL/OpenGL context: " << why_no_gl
 
 ReconstructorConfig config(int w, int h, ReconstructionMode mode) {
@@ -48,21 +49,20 @@ TEST(GlReconstructorTest, AgreesWithTheCpuBackendOnRandomSampleSets) {
       // Frames with new samples and tilings in between; the ring wraps after a few.
       for (int frame = 0; frame < 6; ++frame) {
         const double t1 = t + 0.25;
-        const Camera sampled = Camera::look_at({0.1 * frame, 0.5, 0.0}, {0.0, 0.1, -5.0},
-                                               {0, 1, 0}, 1.0, 0.01);
-        const SampleBatch b = frame % 2 == 0
-                                  ? test::scene_batch(scene, sampled, rng, size_t(W * H), W, H,
-                                                      t, t1, frame % 4 == 0)
-                                  : test::random_batch(rng, size_t(W * H), W, H, t, t1);
+        const Camera sampled =
+            Camera::look_at({0.1 * frame, 0.5, 0.0}, {0.0, 0.1, -5.0}, {0, 1, 0}, 1.0, 0.01);
+        const SampleBatch b = frame % 2 == 0 ? test::scene_batch(scene, sampled, rng, size_t(W * H),
+                                                                 W, H, t, t1, frame % 4 == 0)
+                                             : test::random_batch(rng, size_t(W * H), W, H, t, t1);
         const TilingSnapshot tiling = test::random_tiling(rng, W, H, 8 + 4 * frame, t1);
-        for (Reconstructor* r : {static_cast<Reconstructor*>(&cpu), static_cast<Reconstructor*>(&gl)}) {
+        for (Reconstructor* r :
+             {static_cast<Reconstructor*>(&cpu), static_cast<Reconstructor*>(&gl)}) {
           r->add_batch(b);
           r->set_tiling(tiling);
         }
         t = t1;
-        const Camera view =
-            Camera::look_at({0.1 * frame + 0.2, 0.55, -0.1}, {0.0, 0.1, -5.0}, {0, 1, 0}, 1.0,
-                            0.01);
+        const Camera view = Camera::look_at({0.1 * frame + 0.2, 0.55, -0.1}, {0.0, 0.1, -5.0},
+                                            {0, 1, 0}, 1.0, 0.01);
         const Image a = cpu.reconstruct(view, t, W, H);
         const Image g = gl.reconstruct(view, t, W, H);
         const test::Diff8 d = diff8(a, g);
@@ -153,6 +153,41 @@ TEST(GlReconstructorTest, AnEmptyStoreGivesBlackAndResizingWorks) {
   image = gl.reconstruct(Camera{}, 1.0, 33, 20);
   ASSERT_EQ(image.width, 33);
   for (const glm::vec3& c : image.pixels) ASSERT_EQ(c, glm::vec3(0.5f));
+}
+
+TEST(GlReconstructorTest, IngestOnAnotherThreadWhileReconstructing) {
+  AFR_REQUIRE_GL(context);
+  const int W = 48, H = 32;
+  ReconstructorConfig cfg = config(W, H, ReconstructionMode::kAdaptive);
+  cfg.capacity = 6000;
+  // A neutral coverage rule and one tile: the image depends on the store only, not on history.
+  cfg.splat.grow = 1.0f;
+  cfg.splat.shrink = 1.0f;
+  GlReconstructor gl(cfg, context);
+  CpuReconstructor cpu(cfg);
+  std::vector<SampleBatch> batches;
+  Pcg32 rng(25);
+  for (int i = 0; i < 40; ++i)
+    batches.push_back(test::random_batch(rng, 400, W, H, 0.02 * i, 0.02 * (i + 1)));
+  const TilingSnapshot tiling = test::uniform_tiling(W, H, 0.05f, 0.05f, 0.2f, 100.0f, 0.8);
+  gl.set_tiling(tiling);
+  cpu.set_tiling(tiling);
+  std::thread ingest([&] {
+    for (const SampleBatch& b : batches) {
+      gl.add_batch(b);
+      std::this_thread::yield();
+    }
+  });
+  for (int i = 0; i < 5; ++i) EXPECT_TRUE(test::all_finite(gl.reconstruct(Camera{}, 0.8, W, H)));
+  ingest.join();
+  for (const SampleBatch& b : batches) cpu.add_batch(b);
+  // Once everything is in, both hold the same ring.
+  const Image g = gl.reconstruct(Camera{}, 0.8, W, H);
+  const Image c = cpu.reconstruct(Camera{}, 0.8, W, H);
+  EXPECT_EQ(gl.frame_stats().stored, 6000u);
+  const test::Diff8 d = diff8(g, c);
+  EXPECT_LE(d.rms, 1.0);
+  EXPECT_LE(d.max, 4);
 }
 
 }  // namespace

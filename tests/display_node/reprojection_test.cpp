@@ -61,8 +61,8 @@ TEST(ReprojectionTest, VelocityMovesTheHitPointOverTheSamplesAge) {
   ASSERT_TRUE(proj.project_point(glm::vec3(0.4f, 0.2f, -5.0f), &wx, &wy));
   EXPECT_FLOAT_EQ(x, wx);
   EXPECT_FLOAT_EQ(y, wy);
-  EXPECT_GT(x, 50.0f);  // moved right
-  EXPECT_LT(y, 50.0f);  // and up (y down)
+  EXPECT_GT(x, 50.0f);           // moved right
+  EXPECT_LT(y, 50.0f);           // and up (y down)
   s.flags = kStoredHasPosition;  // without the velocity field it stays
   ASSERT_TRUE(proj.project(s, 0.4f, &x, &y));
   EXPECT_FLOAT_EQ(x, 50.0f);

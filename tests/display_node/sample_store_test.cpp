@@ -127,15 +127,15 @@ TEST(SampleStoreTest, BadSamplesAreDroppedAndCountedByReason) {
     edit(s);
     b.samples.push_back(s);
   };
-  add([](Sample&) {});                                           // good
-  add([](Sample& s) { s.time = kNaN; });                         // bad time
-  add([](Sample& s) { s.time = -double(kInf); });                // bad time
-  add([](Sample& s) { s.x = kInf; });                            // bad image position
-  add([](Sample& s) { s.y = 2e9f; });                            // bad image position
-  add([](Sample& s) { s.color.g = kNaN; });                      // bad color
-  add([](Sample& s) { s.color.b = kInf; });                      // bad color
-  add([](Sample& s) { s.position.x = kNaN; });                   // bad world
-  add([](Sample& s) { s.velocity.z = kInf; });                   // bad world
+  add([](Sample&) {});                                                  // good
+  add([](Sample& s) { s.time = kNaN; });                                // bad time
+  add([](Sample& s) { s.time = -double(kInf); });                       // bad time
+  add([](Sample& s) { s.x = kInf; });                                   // bad image position
+  add([](Sample& s) { s.y = 2e9f; });                                   // bad image position
+  add([](Sample& s) { s.color.g = kNaN; });                             // bad color
+  add([](Sample& s) { s.color.b = kInf; });                             // bad color
+  add([](Sample& s) { s.position.x = kNaN; });                          // bad world
+  add([](Sample& s) { s.velocity.z = kInf; });                          // bad world
   add([](Sample& s) { s.miss = true, s.position = glm::vec3(0.0f); });  // bad world
   add([](Sample& s) { s.color = glm::vec3(-1.0f, 1e6f, 0.5f); });       // clamped, kept
   add([](Sample& s) {                                                   // miss: normalised

@@ -106,9 +106,8 @@ struct FloorScene {
 };
 
 // n samples of the scene seen by `camera` at random image positions and times in [t0, t1].
-inline SampleBatch scene_batch(const FloorScene& scene, const Camera& camera, Pcg32& rng,
-                               size_t n, int width, int height, double t0, double t1,
-                               bool with_velocity) {
+inline SampleBatch scene_batch(const FloorScene& scene, const Camera& camera, Pcg32& rng, size_t n,
+                               int width, int height, double t0, double t1, bool with_velocity) {
   SampleBatch b;
   b.fields = kFieldPosition | (with_velocity ? kFieldVelocity : 0u);
   b.samples.resize(n);
@@ -160,8 +159,8 @@ inline Diff8 diff8(const Image& a, const Image& b, const std::vector<bool>* mask
   for (size_t p = 0; p < a.pixels.size(); ++p) {
     if (mask != nullptr && !(*mask)[p]) continue;
     for (int c = 0; c < 3; ++c) {
-      const int e = std::abs(int(linear_to_srgb8(a.pixels[p][c])) -
-                             int(linear_to_srgb8(b.pixels[p][c])));
+      const int e =
+          std::abs(int(linear_to_srgb8(a.pixels[p][c])) - int(linear_to_srgb8(b.pixels[p][c])));
       sum += double(e) * e;
       d.max = std::max(d.max, e);
     }

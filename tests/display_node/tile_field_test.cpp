@@ -28,8 +28,9 @@ TilingSnapshot snapshot(uint32_t id, double time, PixelRect region, std::vector<
 
 TEST(TileFieldTest, EveryPixelReadsTheTileThatCoversIt) {
   TileField field(8, 6);
-  field.set_tiling(snapshot(0, 1.0, {0, 0, 8, 6},
-                            {tile(0, 0, 4, 3, 0.1f), tile(4, 0, 8, 3, 0.2f), tile(0, 3, 8, 5, 0.3f)}));
+  field.set_tiling(
+      snapshot(0, 1.0, {0, 0, 8, 6},
+               {tile(0, 0, 4, 3, 0.1f), tile(4, 0, 8, 3, 0.2f), tile(0, 3, 8, 5, 0.3f)}));
   EXPECT_TRUE(field.update(8, 6));
   for (int y = 0; y < 6; ++y) {
     for (int x = 0; x < 8; ++x) {
@@ -74,8 +75,8 @@ TEST(TileFieldTest, TilesAreClippedToTheirRegionAndBadValuesZeroed) {
   bad.G_x = nan;
   bad.G_t = -1.0f;
   bad.rate = std::numeric_limits<float>::infinity();
-  field.set_tiling(snapshot(0, 1.0, {0, 0, 3, 6},
-                            {tile(-5, -5, 100, 3, 0.4f), bad, tile(4, 4, 6, 6, 0.8f)}));
+  field.set_tiling(
+      snapshot(0, 1.0, {0, 0, 3, 6}, {tile(-5, -5, 100, 3, 0.4f), bad, tile(4, 4, 6, 6, 0.8f)}));
   field.update(6, 6);
   EXPECT_FLOAT_EQ(field.at(2, 2).G_x, 0.4f);
   EXPECT_FLOAT_EQ(field.at(3, 2).G_x, 0.0f);  // outside the region
@@ -91,7 +92,8 @@ TEST(TileFieldTest, TilesAreClippedToTheirRegionAndBadValuesZeroed) {
 
 TEST(TileFieldTest, ScaledOutputsMapPixelCentersIntoTiles) {
   TileField field(4, 4);
-  field.set_tiling(snapshot(0, 1.0, {0, 0, 4, 4}, {tile(0, 0, 1, 4, 0.1f), tile(1, 0, 4, 4, 0.2f)}));
+  field.set_tiling(
+      snapshot(0, 1.0, {0, 0, 4, 4}, {tile(0, 0, 1, 4, 0.1f), tile(1, 0, 4, 4, 0.2f)}));
   EXPECT_TRUE(field.update(8, 2));  // a new size rebuilds the map
   // Output pixel i has its center at (i + 0.5) / 2 in the sampling image.
   EXPECT_FLOAT_EQ(field.at(0, 0).G_x, 0.1f);

@@ -18,12 +18,12 @@ struct CoverageCell {
 
 // The resizing rule and its bounds (radii in output pixels).
 struct SplatSizeRule {
-  float grow_below = 4.0f;    // fewer samples than this reached the pixel: undersampled
-  float grow = 4.0f;          // ... and its splats are multiplied by this
+  float grow_below = 4.0f;     // fewer samples than this reached the pixel: undersampled
+  float grow = 4.0f;           // ... and its splats are multiplied by this
   float shrink_above = 32.0f;  // more than this: oversampled
-  float shrink = 0.7f;        // ... multiplied by this
-  float min_radius = 1.0f;    // a splat always reaches the pixel it falls in
-  float max_radius = 32.0f;   // bounds cost; GL point sprites are 2 r + 2 <= 66 pixels
+  float shrink = 0.7f;         // ... multiplied by this
+  float min_radius = 1.0f;     // a splat always reaches the pixel it falls in
+  float max_radius = 32.0f;    // bounds cost; GL point sprites are 2 r + 2 <= 66 pixels
 };
 
 // Reconstructors clamp SplatSizeRule::max_radius to this: llvmpipe's largest point sprite is

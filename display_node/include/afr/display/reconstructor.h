@@ -43,13 +43,13 @@ struct ReconstructorConfig {
 
 // What the last reconstruct() did.
 struct FrameStats {
-  uint64_t stored = 0;         // samples in the store
-  uint64_t splatted = 0;       // samples that reached the image (CPU backend only)
-  uint64_t behind_camera = 0;  // reprojected behind the camera (CPU backend only)
-  uint64_t off_screen = 0;     // reprojected where their splat reaches no pixel (CPU only)
-  uint64_t future = 0;         // stamped more than max_future ahead: skipped (CPU only)
-  uint64_t hole_pixels = 0;    // no splat reached them: filled from wider support
-  uint64_t empty_pixels = 0;   // no weight anywhere in the image: black
+  uint64_t stored = 0;            // samples in the store
+  uint64_t splatted = 0;          // samples that reached the image (CPU backend only)
+  uint64_t behind_camera = 0;     // reprojected behind the camera (CPU backend only)
+  uint64_t off_screen = 0;        // reprojected where their splat reaches no pixel (CPU only)
+  uint64_t future = 0;            // stamped more than max_future ahead: skipped (CPU only)
+  uint64_t hole_pixels = 0;       // no splat reached them: filled from wider support
+  uint64_t empty_pixels = 0;      // no weight anywhere in the image: black
   uint64_t nonfinite_pixels = 0;  // NaN or infinite before the final guard (set to 0); 0
   float depth = 0.0f;             // seconds the store reaches back (the cap of e_t)
   float default_rate = 0.0f;      // measured samples per pixel per second, for unknown tiles
@@ -106,7 +106,7 @@ class Reconstructor : public SampleSink {
     int height = 0;
     float scale_x = 1.0f;  // output pixels per sampling-image pixel
     float scale_y = 1.0f;
-    bool field_changed = false;      // the tile index map was rebuilt
+    bool field_changed = false;       // the tile index map was rebuilt
     std::vector<TileFilter> filters;  // one per field_.tiles() entry
   };
 

@@ -39,7 +39,8 @@ class Projector {
   }
 
   // The projection, as uniforms for a shader: with d = p - eye (or the direction),
-  //   z = dot(d, forward), x = half_width + dot(d, axis_x) / z, y = half_height - dot(d, axis_y) / z.
+  //   z = dot(d, forward), x = half_width + dot(d, axis_x) / z, y = half_height - dot(d, axis_y) /
+  //   z.
   glm::vec3 eye{0.0f};
   glm::vec3 forward{0.0f, 0.0f, -1.0f};
   glm::vec3 axis_x{1.0f, 0.0f, 0.0f};

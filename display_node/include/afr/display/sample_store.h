@@ -82,9 +82,9 @@ class SampleStore {
 
   // What copy_since() copied.
   struct Delta {
-    uint64_t first = 0;   // sequence number of the first copied sample
-    uint64_t end = 0;     // sequence number after the last one: every sample ever accepted
-    size_t stored = 0;    // samples in the ring now: min(end, capacity)
+    uint64_t first = 0;        // sequence number of the first copied sample
+    uint64_t end = 0;          // sequence number after the last one: every sample ever accepted
+    size_t stored = 0;         // samples in the ring now: min(end, capacity)
     double oldest_time = 0.0;  // time of the oldest-appended sample in the ring (if stored)
     double newest_time = 0.0;  // time of the newest-appended one
   };

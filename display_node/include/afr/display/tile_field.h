@@ -15,7 +15,7 @@ namespace afr {
 
 // One tile as the filter reads it, sanitised.
 struct FieldTile {
-  float G_x = 0.0f;   // luminance per pixel, finite, >= 0
+  float G_x = 0.0f;  // luminance per pixel, finite, >= 0
   float G_y = 0.0f;
   float G_t = 0.0f;   // luminance per second, finite, >= 0
   float rate = 0.0f;  // samples per pixel per second; 0 = unknown (the store's rate is used)
