@@ -2,43 +2,16 @@
 
 #include <gtest/gtest.h>
 
+#include "support/test_scenes.h"
+
 namespace afr {
 namespace {
 
-// A camera at the origin looking down -Z, with optional geometry in front of it.
-Scene empty_scene(glm::vec3 background) {
-  Scene s;
-  s.source = "test";
-  s.background = background;
-  CameraModel lens;
-  lens.yfov = glm::radians(60.0);
-  s.cameras.push_back(lens);
-  Node cam;
-  cam.camera = 0;
-  s.nodes.push_back(cam);
-  return s;
-}
-
-void add_emissive_quad(Scene* s, glm::vec3 emission, float x0, float x1) {
-  Material m;
-  m.base_color_factor = glm::vec4(0, 0, 0, 1);
-  m.metallic = 0.0f;
-  m.emissive = emission;
-  s->materials.push_back(m);
-  Primitive p;
-  p.positions = {{x0, -100, -1}, {x1, -100, -1}, {x1, 100, -1}, {x0, 100, -1}};
-  p.indices = {0, 1, 2, 0, 2, 3};
-  p.material = int(s->materials.size()) - 1;
-  s->meshes.push_back(Mesh{"quad", {p}});
-  Node n;
-  n.mesh = int(s->meshes.size()) - 1;
-  s->nodes.push_back(n);
-}
-
 TEST(IdealRendererTest, UniformSceneRendersExactlyItsColor) {
   // Emission only, no lights, no ambient: every sample has the same radiance.
-  Scene s = empty_scene(glm::vec3(0.3f, 0.5f, 0.7f));
-  add_emissive_quad(&s, glm::vec3(0.3f, 0.5f, 0.7f), -100, 100);
+  Scene s = testing::camera_scene();
+  s.background = glm::vec3(0.3f, 0.5f, 0.7f);
+  testing::add_quad(&s, glm::vec3(0.3f, 0.5f, 0.7f), {-100, -100}, {100, 100});
   s.finalize();
   Tracer tracer(s);
   IdealRenderOptions o;
@@ -55,8 +28,8 @@ TEST(IdealRendererTest, UniformSceneRendersExactlyItsColor) {
 
 TEST(IdealRendererTest, EdgesAreAntialiased) {
   // A white half plane (x < 0 in view) on black: the column at the edge is a blend.
-  Scene s = empty_scene(glm::vec3(0.0f));
-  add_emissive_quad(&s, glm::vec3(1.0f), -100, 0.0f);
+  Scene s = testing::camera_scene();
+  testing::add_quad(&s, glm::vec3(1.0f), {-100, -100}, {0.0f, 100});
   s.finalize();
   Tracer tracer(s);
   IdealRenderOptions o;
@@ -76,8 +49,9 @@ TEST(IdealRendererTest, EdgesAreAntialiased) {
 }
 
 TEST(IdealRendererTest, SameSeedGivesTheSameImageWithAnyThreadCount) {
-  Scene s = empty_scene(glm::vec3(0.1f));
-  add_emissive_quad(&s, glm::vec3(0.9f, 0.2f, 0.1f), -0.3f, 0.4f);
+  Scene s = testing::camera_scene();
+  s.background = glm::vec3(0.1f);
+  testing::add_quad(&s, glm::vec3(0.9f, 0.2f, 0.1f), {-0.3f, -100}, {0.4f, 100});
   s.finalize();
   Tracer tracer(s);
   IdealRenderOptions o;

@@ -160,9 +160,9 @@ TEST(GlReconstructorTest, IngestOnAnotherThreadWhileReconstructing) {
   const int W = 48, H = 32;
   ReconstructorConfig cfg = config(W, H, ReconstructionMode::kAdaptive);
   cfg.capacity = 6000;
-  // A neutral coverage rule and one tile: the image depends on the store only, not on history.
-  cfg.splat.grow = 1.0f;
-  cfg.splat.shrink = 1.0f;
+  // One splat size whatever the coverage map says: the image depends on the store only.
+  cfg.splat.min_radius = 3.0f;
+  cfg.splat.max_radius = 3.0f;
   GlReconstructor gl(cfg, context);
   CpuReconstructor cpu(cfg);
   std::vector<SampleBatch> batches;

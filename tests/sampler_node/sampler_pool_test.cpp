@@ -8,7 +8,7 @@
 #include <mutex>
 #include <thread>
 
-#include "test_scenes.h"
+#include "support/test_scenes.h"
 
 namespace afr {
 namespace {

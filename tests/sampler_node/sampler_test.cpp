@@ -8,7 +8,7 @@
 #include <cmath>
 #include <limits>
 
-#include "test_scenes.h"
+#include "support/test_scenes.h"
 
 namespace afr {
 namespace {

@@ -1,4 +1,4 @@
-// Small scenes built in code for the sampler tests: a camera at the origin looking down -Z at
+// Small scenes built in code for tests of the sampler and the renderers: a camera at the origin looking down -Z at
 // emissive quads one unit away (no lights, so every color is exact).
 #pragma once
 
