@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -404,6 +406,67 @@ TEST(SamplerTest, ConfigOutOfRangeIsAClearError) {
   SamplerConfig e;
   e.b = 0;
   EXPECT_THROW(e.validate(), Error);
+}
+
+}  // namespace
+}  // namespace afr
+
+namespace afr {
+namespace {
+
+TEST(SamplerTest, AdjustmentSplitsTheLargestErrorAndMergesTheSmallestPair) {
+  const Scene scene = testing::edge_scene();
+  Tracer tracer(scene);
+  VirtualClock clock(1e5);
+  testing::CollectingSink sink;
+  SamplerConfig config = small_config(64, 64);
+  config.min_tiles = config.max_tiles = 64;  // the count stays: every adjustment balances
+  config.chunk = 1000000;                    // adjust only when the test says so
+  config.max_tiling_ops = 1;
+  Sampler sampler(scene, tracer, clock, config, sink);
+  sampler.fill();
+  int checked = 0;
+  for (int round = 0; round < 40; ++round) {
+    for (int k = 0; k < 300; ++k) sampler.step();
+    const KdTiling& t = sampler.tiling();
+    const std::vector<int> before = t.tiles();
+    std::vector<std::array<int, 3>> pairs;  // parent and children that could merge
+    for (int p : t.mergeable()) pairs.push_back({p, t.node(p).child[0], t.node(p).child[1]});
+    sampler.adjust_tiling();
+    const std::vector<int>& after = t.tiles();
+    const auto in = [](const std::vector<int>& v, int x) {
+      return std::find(v.begin(), v.end(), x) != v.end();
+    };
+    // The split tile left the cut and now has two leaf children; the merged parent joined
+    // the cut. (Node ids are reused, so compare by role, not only by id.)
+    int split = -1;
+    for (int x : before) {
+      if (!in(after, x) && !t.node(x).is_leaf()) split = x;
+    }
+    if (split == -1) continue;  // errors were already balanced: nothing to check
+    const int sa = t.node(split).child[0], sb = t.node(split).child[1];
+    int merged = -1;
+    for (int x : after) {
+      if (!in(before, x) && x != sa && x != sb) merged = x;
+    }
+    ASSERT_TRUE(t.is_valid());
+    // The errors of this adjustment stay stored for the tiles it did not touch.
+    for (int x : before) {
+      if (x == sa || x == sb || !in(after, x) || !t.can_split(x)) continue;
+      if (merged != -1 && t.node(x).parent == merged) continue;
+      EXPECT_GE(sampler.tile_error(split), sampler.tile_error(x));
+    }
+    ASSERT_NE(merged, -1);
+    // A merge stores the pair's summed error on the parent.
+    const double merged_sum = sampler.tile_error(merged);
+    for (const auto& p : pairs) {
+      if (p[0] == merged || p[1] == sa || p[1] == sb || p[2] == sa || p[2] == sb) continue;
+      if (!in(after, p[1]) || !in(after, p[2]) || t.node(p[1]).parent != p[0]) continue;
+      EXPECT_LE(merged_sum, sampler.tile_error(p[1]) + sampler.tile_error(p[2]) + 1e-12);
+    }
+    ++checked;
+  }
+  EXPECT_GT(checked, 5);
 }
 
 }  // namespace

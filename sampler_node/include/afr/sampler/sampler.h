@@ -92,6 +92,10 @@ class Sampler {
   // One reprojection of section 6.1 in `tile` (a leaf of tiling()): what step() does r times.
   // Public so that benchmarks can time it alone.
   void reproject(int tile);
+  // What step() does after every chunk of crosshairs: recompute every tile's error and the
+  // gain's target count, then split the tile of largest error and merge the sibling pair of
+  // smallest summed error (at most max_tiling_ops times). Public for tests.
+  void adjust_tiling();
 
   const SamplerConfig& config() const { return config_; }
   const SamplerCounters& counters() const { return counters_; }
@@ -124,7 +128,6 @@ class Sampler {
   void step_uniform();
   void step_framed();
   void advance_scene_time();
-  void adjust_tiling();
   void maybe_snapshot();
 
   // Tracing, with emission to the sink.

@@ -1,0 +1,71 @@
+// Named speed/accuracy presets: fast, balanced, accurate. Each sets the sampler's knobs and the
+// reconstructor's settings that the evaluation's sweeps found on or next to the Pareto front of
+// RMS error against wall-clock cost (docs/tradeoffs.md says how, with the commands). sampler_node
+// applies `apply(SamplerConfig*)`; display_node copies `reconstruction` into its
+// ReconstructorConfig (capacity = samples_per_pixel x width x height, and the FilterLimits
+// fields of the same names). A preset leaves everything it does not name at its default.
+#pragma once
+
+#include <afr/common/error.h>
+#include <afr/sampler/sampler_config.h>
+
+#include <array>
+#include <span>
+#include <string>
+#include <string_view>
+
+namespace afr {
+
+// The reconstructor's side of a preset, in plain numbers (sampler_node does not know
+// display_node's types).
+struct ReconstructionPreset {
+  double samples_per_pixel = 4.0;  // N = this x width x height (section 5.2: at least 4)
+  float min_spatial_extent = 0.3f;  // FilterLimits, pixels
+  float max_spatial_extent = 16.0f;
+  float max_temporal_extent = 60.0f;  // FilterLimits, seconds
+};
+
+struct Preset {
+  std::string_view name;
+  std::string_view summary;
+  // Sampler knobs (sampler_config.h).
+  int b = 4;
+  int r = 5;
+  int chunk = 25;
+  int min_tiles = 16;
+  int max_tiles = 1024;
+  ReconstructionPreset reconstruction;
+
+  void apply(SamplerConfig* config) const {
+    config->b = b;
+    config->r = r;
+    config->chunk = chunk;
+    config->min_tiles = min_tiles;
+    config->max_tiles = max_tiles;
+  }
+};
+
+inline constexpr std::array<Preset, 3> kPresets = {{
+    {"fast", "least wall time per second: shallow deep buffer, fewer reprojections, N = 2 WH",
+     /*b=*/2, /*r=*/2, /*chunk=*/25, /*min_tiles=*/16, /*max_tiles=*/1024,
+     ReconstructionPreset{2.0, 0.3f, 8.0f, 60.0f}},
+    {"balanced", "the paper's settings (b = 4, r = 5, chunk 25, N = 4 WH): afr's defaults", 4, 5,
+     25, 16, 1024, ReconstructionPreset{4.0, 0.3f, 16.0f, 60.0f}},
+    {"accurate", "lowest error: more reprojections and a deeper sample store (N = 8 WH)", 4, 10,
+     25, 16, 4096, ReconstructionPreset{8.0, 0.3f, 16.0f, 60.0f}},
+}};
+
+inline std::span<const Preset> presets() { return kPresets; }
+
+// The preset called `name`; throws afr::Error naming it and the known presets.
+inline const Preset& find_preset(std::string_view name) {
+  std::string names;
+  for (const Preset& p : kPresets) {
+    if (p.name == name) return p;
+    names += names.empty() ? "" : ", ";
+    names += p.name;
+  }
+  throw Error("unknown preset '" + std::string(name) + "' (expected " + names + ")");
+}
+
+}  // namespace afr

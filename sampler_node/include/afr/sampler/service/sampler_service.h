@@ -1,0 +1,66 @@
+// The sampler node as a network service (DESIGN.md, "Network"; docs/service.md): it joins a
+// display, receives the scene (chunked, hash-checked, cached on disk) and its region, follows
+// the display's clock from view messages, runs a SamplerPool on its region and streams sample
+// batches and tiling snapshots back, with heartbeats and stats on the control channel. It
+// follows region changes (restarting its pool on the new region) and, when the display goes
+// away or restarts, joins again by itself.
+//
+// Threads: run() is the control loop (one thread); the pool's workers call the network sink,
+// which serialises them on the sample socket. Stop by setting the flag run() watches.
+#pragma once
+
+#include <afr/protocol/channels.h>
+#include <afr/sampler/sampler_config.h>
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+namespace afr::service {
+
+struct SamplerServiceOptions {
+  std::string display;  // base endpoint of the display, "tcp://HOST:PORT"
+  int threads = 1;
+  double max_samples_per_second = 0.0;  // over all threads; 0 = no cap
+  std::string preset;                   // empty: the preset the display names in its welcome
+  SamplerConfig config;                 // knobs from flags; size and region come from the display
+  std::string name;                     // for the display's logs; default: host name + pid
+  std::filesystem::path cache_dir;      // received scenes
+  protocol::Security security;          // CurveZMQ client keys, or none
+  // Seconds without a word from the display (heartbeat, view, anything) before the sampler
+  // drops its connections and joins again.
+  double display_timeout = 1.5;
+  double heartbeat_interval = 0.2;
+  double stats_interval = 1.0;
+};
+
+// Counters over the life of the process (all sessions).
+struct SamplerServiceCounters {
+  uint64_t sessions = 0;
+  uint64_t joins_sent = 0;
+  uint64_t regions = 0;
+  uint64_t scenes_received = 0;
+  uint64_t scene_cache_hits = 0;
+  uint64_t rejected_messages = 0;
+};
+
+class SamplerService {
+ public:
+  explicit SamplerService(SamplerServiceOptions options);
+  ~SamplerService();
+  SamplerService(const SamplerService&) = delete;
+  SamplerService& operator=(const SamplerService&) = delete;
+
+  // Runs until `stop` becomes true; then leaves the display politely. Returns the process exit
+  // code: 0 after a stop, 2 when the display refused this sampler for good (version mismatch).
+  int run(const std::atomic<bool>& stop);
+
+  SamplerServiceCounters counters() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace afr::service
