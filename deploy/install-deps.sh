@@ -11,7 +11,7 @@ packages=(
   # display
   libglfw3-dev libegl-dev libepoxy-dev libgl1-mesa-dri xvfb xauth
   # messaging
-  libzmq3-dev cppzmq-dev libsodium-dev
+  libzmq3-dev cppzmq-dev libsodium-dev libcpp-httplib-dev iproute2 nftables
   # flags, logging
   libcli11-dev libspdlog-dev libfmt-dev
   # tests and benchmarks

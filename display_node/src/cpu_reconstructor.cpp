@@ -215,7 +215,9 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
   } else {
     const bool reproject = current_mode == ReconstructionMode::kAdaptive;
     const Projector projector(camera, width, height);
-    const float guard = rule.max_radius + 1.0f;
+    // Samples are kept while their center is inside the image grown by this (a whole number
+    // of pixels, as the GL backend's viewport): their splats may still reach it.
+    const float guard = float(splat_guard_band(rule));
     const float min_wt = limits.min_temporal_weight, cutoff = limits.cutoff;
 
     // ---- C (first: it gives the band height). Per pixel, what a splat landing there gets:

@@ -255,8 +255,7 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
   const ReconstructionMode current_mode = mode();
   const FilterLimits& limits = config_.filter;
   const SplatSizeRule& rule = config_.splat;
-  const float guard = rule.max_radius + 1.0f;
-  const int g = int(guard);
+  const int g = splat_guard_band(rule);
   const glm::vec2 scale(setup.scale_x, setup.scale_y);
   const glm::ivec2 size(width, height);
 

@@ -118,9 +118,9 @@ void main() {
   v_extent = vec3(r_x, r_y, r);
   // The viewport is the image grown by u_guard on every side.
   gl_Position = vec4((p + u_guard) / (size + 2.0 * u_guard) * 2.0 - 1.0, 0.0, 1.0);
-  // Covers every pixel center within r of p, with a pixel to spare for the rasteriser's
-  // snapping of point positions.
-  gl_PointSize = 2.0 * max(r_x, r_y) + 2.0;
+  // Covers every pixel center within r of p, with half a pixel to spare on each side for the
+  // rasteriser's snapping of point positions (1/256 pixel on llvmpipe) and size rounding.
+  gl_PointSize = 2.0 * max(r_x, r_y) + 1.0;
 }
 )";
 

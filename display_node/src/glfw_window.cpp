@@ -3,6 +3,7 @@
 #include <afr/display/gl_reconstructor.h>
 
 // epoxy before GLFW, and GLFW without its own GL header.
+#include <epoxy/egl.h>
 #include <epoxy/gl.h>
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
@@ -10,6 +11,21 @@
 #include <fmt/format.h>
 
 namespace afr {
+
+namespace {
+
+// A thread has one current context across EGL and GLX (libglvnd refuses a GLX context with
+// BadAccess while an EGL one is current), so a headless context made current on this thread
+// earlier is released before the window's is made current.
+void release_current_egl() {
+  if (!epoxy_has_egl()) return;
+  const EGLContext current = eglGetCurrentContext();
+  if (current != EGL_NO_CONTEXT) {
+    eglMakeCurrent(eglGetCurrentDisplay(), EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+  }
+}
+
+}  // namespace
 
 std::unique_ptr<GlfwWindow> GlfwWindow::create(int width, int height, const std::string& title,
                                                std::string* error) {
@@ -24,6 +40,7 @@ std::unique_ptr<GlfwWindow> GlfwWindow::create(int width, int height, const std:
   glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
   glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
   glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
+  release_current_egl();  // GLFW makes the new context current while it creates it
   GLFWwindow* window = glfwCreateWindow(width, height, title.c_str(), nullptr, nullptr);
   if (window == nullptr) {
     const char* description = nullptr;
@@ -47,7 +64,10 @@ GlfwWindow::~GlfwWindow() {
 }
 
 void GlfwWindow::make_current() {
-  if (glfwGetCurrentContext() != window_) glfwMakeContextCurrent(window_);
+  if (glfwGetCurrentContext() != window_) {
+    release_current_egl();
+    glfwMakeContextCurrent(window_);
+  }
 }
 
 bool GlfwWindow::should_close() const { return glfwWindowShouldClose(window_); }

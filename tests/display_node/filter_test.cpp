@@ -129,5 +129,18 @@ TEST(FastExpTest, MatchesStdExpToTwoTenthsOfAMillionth) {
   EXPECT_EQ(fast_exp(kNaN), 0.0f);
 }
 
+#if defined(__SSE2__)
+TEST(FastExpTest, FourLanesAreBitForBitTheScalarOne) {
+  Pcg32 rng(8);
+  for (int i = 0; i < 100000; ++i) {
+    alignas(16) float x[4], y[4];
+    for (float& v : x) v = -100.0f * rng.next_float() + (rng.next_below(50) == 0 ? 120.0f : 0.0f);
+    if (i == 0) x[1] = kNaN, x[2] = -kInf, x[3] = -87.0f;
+    _mm_store_ps(y, fast_exp4(_mm_load_ps(x)));
+    for (int k = 0; k < 4; ++k) ASSERT_EQ(y[k], fast_exp(x[k])) << x[k];
+  }
+}
+#endif
+
 }  // namespace
 }  // namespace afr

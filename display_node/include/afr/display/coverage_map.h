@@ -4,6 +4,7 @@
 // they pile up.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <vector>
 
@@ -23,12 +24,18 @@ struct SplatSizeRule {
   float shrink_above = 32.0f;  // more than this: oversampled
   float shrink = 0.7f;         // ... multiplied by this
   float min_radius = 1.0f;     // a splat always reaches the pixel it falls in
-  float max_radius = 32.0f;    // bounds cost; GL point sprites are 2 r + 2 <= 66 pixels
+  float max_radius = 32.0f;    // bounds cost; GL point sprites are 2 r + 1 <= 65 pixels
 };
 
 // Reconstructors clamp SplatSizeRule::max_radius to this: llvmpipe's largest point sprite is
-// 255 pixels, and a splat of radius r is drawn as a 2 r + 2 pixel sprite.
+// 255 pixels, and a splat of radius r is drawn as a 2 r + 1 pixel sprite.
 inline constexpr float kSplatRadiusLimit = 120.0f;
+
+// Samples whose center is within this many pixels outside the image are splatted (their
+// splat may reach it); others are off-screen.
+inline int splat_guard_band(const SplatSizeRule& rule) {
+  return int(std::ceil(rule.max_radius)) + 1;
+}
 
 // Section 6.2: the radius of a splat whose filter wants `filter_radius` (cutoff sigmas), given
 // the previous image's cell at its pixel (nullptr when there is no previous image):

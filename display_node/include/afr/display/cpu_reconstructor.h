@@ -1,8 +1,9 @@
 // The CPU reconstructor: the reference backend, and the fast one where the only OpenGL is a
-// software rasteriser. A multithreaded scatter: samples are turned into splats in parallel
-// chunks, binned by horizontal band of the image, and each band is accumulated by one thread,
-// so no two threads write the same pixel. The per-pixel sums come out in sample order
-// whatever the thread count, so images are identical for 1 or 64 threads.
+// software rasteriser. A multithreaded scatter: samples are reprojected in parallel chunks,
+// sorted by the horizontal band of rows they land in, and splatted band by band in three
+// rounds so that no two threads ever write the same pixel (no locks, no atomics). The order of
+// the per-pixel sums does not depend on the thread count, so images are identical for 1 or 64
+// threads. Nothing is allocated per sample.
 #pragma once
 
 #include <afr/display/reconstructor.h>

@@ -1,0 +1,81 @@
+// The gold-standard evaluation of section 7: for each animation, ideal frames at 60 Hz (cached,
+// ideal_cache.h), then every method at every rate (run.h), each frame compared with the ideal
+// frame of the same display time by RMS error on the 0-255 scale. Results feed the tables,
+// plots and image strips of report.h.
+#pragma once
+
+#include <afr/eval/methods.h>
+#include <afr/eval/progress.h>
+#include <afr/eval/run.h>
+
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace afr::eval {
+
+// One animation: a scene, optionally a camera path in place of its camera, and the display
+// time of the first evaluated frame.
+struct AnimationSpec {
+  std::string name;
+  std::filesystem::path scene;        // empty: the built-in scene
+  std::filesystem::path camera_path;  // empty: the scene's own camera
+  double start = 0.0;                 // seconds
+};
+
+struct EvalConfig {
+  std::vector<AnimationSpec> animations;
+  std::vector<double> rates{1e5, 4e5, 8e5};
+  std::vector<Method> methods;  // empty: all
+  double seconds = 2.0;         // of animation evaluated per run (frames = seconds x fps)
+  int ideal_spp = 16;           // a square
+  std::filesystem::path cache;  // ideal frames; empty: no cache
+  // Frame indices kept for the image strips (clamped to the run's frames).
+  std::vector<int> strip_frames;
+  // Everything else of a run: size, fps, warm-up, knobs, seed, threads (method, rate,
+  // first_time and frames are set per run).
+  RunSettings base;
+  bool progress = true;
+};
+
+struct RunResult {
+  std::string animation;
+  Method method = Method::kAdaptive;
+  double rate = 0.0;  // the R of the run (W x H x fps for full-res 60 Hz)
+  RunStats stats;
+  std::vector<double> frame_times;
+  std::vector<double> rms;  // per frame
+  double mean_rms = 0.0;
+  std::map<int, Image> strip_images;  // frame index -> image, for strip_frames
+};
+
+struct AnimationResult {
+  AnimationSpec spec;
+  std::vector<double> frame_times;
+  std::map<int, Image> ideal_strip_images;
+  std::vector<RunResult> runs;
+  double ideal_seconds = 0.0;  // wall time rendering ideal frames (0 when all were cached)
+  uint64_t ideal_cached = 0, ideal_rendered = 0;
+};
+
+// Loads an animation's scene and applies its camera path. Throws afr::Error naming the file.
+Scene load_animation_scene(const AnimationSpec& spec);
+
+// The ideal frames of an animation: frames x (first_time + j / fps), from the cache or
+// rendered (and cached) with ideal_spp samples per pixel.
+std::vector<Image> ideal_frames(const Scene& scene, Tracer& tracer, const EvalConfig& config,
+                                double first_time, int frames, Progress* progress,
+                                AnimationResult* result);
+
+// Runs every (method, rate) of `config` on every animation. The full-res 60 Hz reference runs
+// once per animation (its rate is fixed).
+std::vector<AnimationResult> evaluate(const EvalConfig& config);
+
+// One run, compared with ideal frames (the frames of `settings`). Keeps the images of
+// `strip_frames`.
+RunResult run_and_compare(const Scene& scene, Tracer& tracer, const RunSettings& settings,
+                          const std::vector<Image>& ideal, const std::vector<int>& strip_frames,
+                          Progress* progress);
+
+}  // namespace afr::eval

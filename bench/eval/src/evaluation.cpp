@@ -1,0 +1,137 @@
+#include <afr/eval/evaluation.h>
+
+#include <afr/common/camera_path.h>
+#include <afr/common/check.h>
+#include <afr/common/error.h>
+#include <afr/common/gltf_loader.h>
+#include <afr/common/log.h>
+#include <afr/eval/ideal_cache.h>
+#include <afr/eval/scene_setup.h>
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <numeric>
+#include <optional>
+
+namespace afr::eval {
+
+Scene load_animation_scene(const AnimationSpec& spec) {
+  Scene scene = load_scene(spec.scene);
+  if (!spec.camera_path.empty()) apply_camera_path(read_camera_path(spec.camera_path), &scene);
+  return scene;
+}
+
+std::vector<Image> ideal_frames(const Scene& scene, Tracer& tracer, const EvalConfig& config,
+                                double first_time, int frames, Progress* progress,
+                                AnimationResult* result) {
+  const int strata = int(std::lround(std::sqrt(double(config.ideal_spp))));
+  if (strata < 1 || strata * strata != config.ideal_spp) {
+    throw Error(fmt::format("ideal spp {} is not a square (1, 4, 9, 16, ...)", config.ideal_spp));
+  }
+  std::optional<IdealCache> cache;
+  if (!config.cache.empty()) cache.emplace(config.cache, scene_hash(scene));
+  IdealRenderOptions o;
+  o.width = config.base.width;
+  o.height = config.base.height;
+  o.strata = strata;
+  o.threads = config.base.threads;
+  std::vector<Image> out;
+  out.reserve(size_t(frames));
+  double seconds = 0.0;
+  uint64_t rendered = 0;
+  for (int j = 0; j < frames; ++j) {
+    o.time = first_time + double(j) / config.base.fps;
+    if (cache) {
+      out.push_back(cache->frame(tracer, o));
+    } else {
+      IdealRenderStats stats;
+      out.push_back(render_ideal(tracer, o, &stats));
+      seconds += stats.seconds;
+      ++rendered;
+    }
+    if (progress) progress->advance();
+  }
+  if (result) {
+    result->ideal_seconds = cache ? cache->stats().render_seconds : seconds;
+    result->ideal_rendered = cache ? cache->stats().misses : rendered;
+    result->ideal_cached = cache ? cache->stats().hits : 0;
+  }
+  return out;
+}
+
+RunResult run_and_compare(const Scene& scene, Tracer& tracer, const RunSettings& settings,
+                          const std::vector<Image>& ideal, const std::vector<int>& strip_frames,
+                          Progress* progress) {
+  AFR_CHECK(ideal.size() == size_t(settings.frames));
+  RunResult r;
+  r.method = settings.method;
+  r.rate = method_uses_rate(settings.method)
+               ? settings.rate
+               : double(settings.width) * settings.height * settings.fps;
+  r.rms.resize(size_t(settings.frames));
+  r.frame_times.resize(size_t(settings.frames));
+  r.stats = run_method(scene, tracer, settings, [&](int j, const Image& image) {
+    r.rms[size_t(j)] = rms_error_255(image, ideal[size_t(j)]);
+    r.frame_times[size_t(j)] = frame_time(settings, j);
+    for (int f : strip_frames) {
+      if (f == j) r.strip_images[j] = image;
+    }
+    if (progress) progress->advance();
+  });
+  r.mean_rms = std::accumulate(r.rms.begin(), r.rms.end(), 0.0) / double(r.rms.size());
+  return r;
+}
+
+std::vector<AnimationResult> evaluate(const EvalConfig& config) {
+  const std::vector<Method> methods =
+      config.methods.empty() ? std::vector<Method>(all_methods().begin(), all_methods().end())
+                             : config.methods;
+  const int frames = std::max(1, int(std::lround(config.seconds * config.base.fps)));
+  std::vector<int> strips;
+  for (int f : config.strip_frames) strips.push_back(std::clamp(f, 0, frames - 1));
+
+  // Units: ideal frames, then every compared frame of every run.
+  uint64_t runs_per_animation = 0;
+  for (Method m : methods) runs_per_animation += method_uses_rate(m) ? config.rates.size() : 1;
+  Progress progress(config.animations.size() * uint64_t(frames) * (1 + runs_per_animation),
+                    config.progress);
+
+  std::vector<AnimationResult> results;
+  for (const AnimationSpec& spec : config.animations) {
+    AnimationResult ar;
+    ar.spec = spec;
+    progress.set_task(fmt::format("{}: loading", spec.name));
+    const Scene scene = load_animation_scene(spec);
+    Tracer tracer(scene);
+    progress.set_task(fmt::format("{}: ideal frames ({} spp)", spec.name, config.ideal_spp));
+    const std::vector<Image> ideal =
+        ideal_frames(scene, tracer, config, spec.start, frames, &progress, &ar);
+    for (int j = 0; j < frames; ++j) ar.frame_times.push_back(spec.start + j / config.base.fps);
+    for (int f : strips) ar.ideal_strip_images[f] = ideal[size_t(f)];
+    for (Method m : methods) {
+      const std::vector<double> rates =
+          method_uses_rate(m) ? config.rates : std::vector<double>{0.0};
+      for (double rate : rates) {
+        RunSettings s = config.base;
+        s.method = m;
+        s.rate = method_uses_rate(m) ? rate : double(s.width) * s.height * s.fps;
+        s.first_time = spec.start;
+        s.frames = frames;
+        progress.set_task(fmt::format("{}: {} at {:.0f}K", spec.name, method_name(m),
+                                      s.rate / 1000.0));
+        RunResult r = run_and_compare(scene, tracer, s, ideal, strips, &progress);
+        r.animation = spec.name;
+        spdlog::debug("{} {} {:.0f}: mean RMS {:.2f}, {:.1f} s sampling, {:.1f} s reconstruction",
+                      spec.name, method_name(m), r.rate, r.mean_rms, r.stats.sample_seconds,
+                      r.stats.reconstruct_seconds);
+        ar.runs.push_back(std::move(r));
+      }
+    }
+    results.push_back(std::move(ar));
+  }
+  progress.finish();
+  return results;
+}
+
+}  // namespace afr::eval

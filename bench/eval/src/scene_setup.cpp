@@ -1,0 +1,153 @@
+#include <afr/eval/scene_setup.h>
+
+#include <afr/common/error.h>
+
+#include <fmt/format.h>
+
+#include <cstring>
+#include <type_traits>
+
+namespace afr::eval {
+
+void apply_camera_path(const CameraPath& path, Scene* scene) {
+  const std::vector<CameraKey>& keys = path.keys();
+  for (const CameraKey& k : keys) {
+    if (k.yfov != keys.front().yfov) {
+      throw Error(fmt::format(
+          "camera path: yfov changes from {} to {} at t = {} s; the scene model has one field "
+          "of view per camera",
+          keys.front().yfov, k.yfov, k.time));
+    }
+  }
+  CameraModel lens;
+  lens.name = "camera path";
+  lens.yfov = keys.front().yfov;
+  scene->cameras.push_back(lens);
+  Node node;
+  node.name = "camera path";
+  node.camera = int(scene->cameras.size()) - 1;
+  node.translation = keys.front().eye;
+  node.rotation = keys.front().rotation;
+  const int index = int(scene->nodes.size());
+  scene->nodes.push_back(node);
+  // First among the roots, so it is the first camera node in scene order: the active one.
+  scene->roots.insert(scene->roots.begin(), index);
+
+  AnimationChannel translation, rotation;
+  translation.node = rotation.node = index;
+  translation.path = AnimatedPath::kTranslation;
+  rotation.path = AnimatedPath::kRotation;
+  translation.interpolation = rotation.interpolation = Interpolation::kLinear;
+  for (const CameraKey& k : keys) {
+    translation.times.push_back(k.time);
+    rotation.times.push_back(k.time);
+    translation.values.push_back(glm::dvec4(k.eye, 0.0));
+    rotation.values.push_back(glm::dvec4(k.rotation.x, k.rotation.y, k.rotation.z, k.rotation.w));
+  }
+  scene->channels.push_back(std::move(translation));
+  scene->channels.push_back(std::move(rotation));
+  scene->finalize();
+}
+
+namespace {
+
+class Fnv1a {
+ public:
+  void bytes(const void* data, size_t n) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (size_t i = 0; i < n; ++i) {
+      h_ ^= p[i];
+      h_ *= 0x100000001b3ULL;
+    }
+  }
+  template <typename T>
+  void value(const T& v) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    bytes(&v, sizeof(T));
+  }
+  template <typename T>
+  void array(const std::vector<T>& v) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    value(uint64_t(v.size()));
+    if (!v.empty()) bytes(v.data(), v.size() * sizeof(T));
+  }
+  uint64_t digest() const { return h_; }
+
+ private:
+  uint64_t h_ = 0xcbf29ce484222325ULL;
+};
+
+}  // namespace
+
+uint64_t scene_hash(const Scene& scene) {
+  Fnv1a h;
+  h.value(uint64_t(scene.meshes.size()));
+  for (const Mesh& m : scene.meshes) {
+    h.value(uint64_t(m.primitives.size()));
+    for (const Primitive& p : m.primitives) {
+      h.array(p.positions);
+      h.array(p.normals);
+      h.array(p.uvs);
+      h.array(p.indices);
+      h.value(p.material);
+    }
+  }
+  h.value(uint64_t(scene.materials.size()));
+  for (const Material& m : scene.materials) {
+    h.value(m.base_color_factor);
+    h.value(m.base_color_texture);
+    h.value(m.metallic);
+    h.value(m.roughness);
+    h.value(m.emissive);
+    h.value(m.ambient.has_value());
+    h.value(m.ambient.value_or(glm::vec3(0.0f)));
+    h.value(m.double_sided);
+  }
+  h.value(uint64_t(scene.textures.size()));
+  for (const Texture& t : scene.textures) {
+    h.value(t.width);
+    h.value(t.height);
+    h.array(t.texels);
+  }
+  h.value(uint64_t(scene.lights.size()));
+  for (const Light& l : scene.lights) {
+    h.value(l.type);
+    h.value(l.color);
+    h.value(l.intensity);
+    h.value(l.range);
+    h.value(l.inner_cone_angle);
+    h.value(l.outer_cone_angle);
+    h.value(l.inverse_square_falloff);
+  }
+  h.value(uint64_t(scene.cameras.size()));
+  for (const CameraModel& c : scene.cameras) {
+    h.value(c.yfov);
+    h.value(c.znear);
+  }
+  h.value(uint64_t(scene.nodes.size()));
+  for (const Node& n : scene.nodes) {
+    h.array(n.children);
+    h.value(n.translation);
+    h.value(n.rotation);
+    h.value(n.scale);
+    h.value(n.matrix.has_value());
+    h.value(n.matrix.value_or(glm::dmat4(0.0)));
+    h.value(n.mesh);
+    h.value(n.camera);
+    h.value(n.light);
+  }
+  h.array(scene.roots);
+  h.value(uint64_t(scene.channels.size()));
+  for (const AnimationChannel& c : scene.channels) {
+    h.value(c.node);
+    h.value(c.path);
+    h.value(c.interpolation);
+    h.array(c.times);
+    h.array(c.values);
+  }
+  h.value(scene.background);
+  h.value(scene.ambient);
+  return h.digest();
+}
+
+}  // namespace afr::eval

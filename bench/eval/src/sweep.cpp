@@ -1,0 +1,211 @@
+#include <afr/eval/sweep.h>
+
+#include <afr/common/log.h>
+#include <afr/eval/report.h>
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <set>
+
+namespace afr::eval {
+
+std::vector<SweepPoint> default_sweep() {
+  std::vector<SweepPoint> p;
+  const auto add = [&](std::string knob, std::string value, Method m, double rate,
+                       std::function<void(RunSettings*)> apply) {
+    p.push_back(SweepPoint{std::move(knob), std::move(value), m, rate, std::move(apply)});
+  };
+  const Method A = Method::kAdaptive;
+  add("default", "defaults", A, 4e5, nullptr);
+  for (double r : {1e5, 2e5, 8e5, 1.6e6}) add("R", rate_label(r), A, r, nullptr);
+  for (int b : {1, 2, 8}) {
+    add("b", fmt::format("b={}", b), A, 4e5, [b](RunSettings* s) { s->sampler.b = b; });
+  }
+  for (int r : {0, 1, 2, 10}) {
+    add("r", fmt::format("r={}", r), A, 4e5, [r](RunSettings* s) { s->sampler.r = r; });
+  }
+  for (int c : {5, 100}) {
+    add("chunk", fmt::format("chunk={}", c), A, 4e5,
+        [c](RunSettings* s) { s->sampler.chunk = c; });
+  }
+  for (int n : {1, 2, 8}) {
+    add("N", fmt::format("N={}WH", n), A, 4e5, [n](RunSettings* s) {
+      s->reconstructor.capacity = size_t(n) * size_t(s->width) * size_t(s->height);
+    });
+  }
+  for (auto [lo, hi] : {std::pair{4, 256}, std::pair{64, 4096}, std::pair{16, 4096}}) {
+    add("tiles", fmt::format("tiles {}..{}", lo, hi), A, 4e5, [lo, hi](RunSettings* s) {
+      s->sampler.min_tiles = lo;
+      s->sampler.max_tiles = hi;
+    });
+  }
+  add("filter", "max e_xy 4", A, 4e5,
+      [](RunSettings* s) { s->reconstructor.filter.max_spatial_extent = 4.0f; });
+  add("filter", "max e_xy 8", A, 4e5,
+      [](RunSettings* s) { s->reconstructor.filter.max_spatial_extent = 8.0f; });
+  add("filter", "min e_xy 0.6", A, 4e5,
+      [](RunSettings* s) { s->reconstructor.filter.min_spatial_extent = 0.6f; });
+  add("filter", "max e_t 0.25", A, 4e5,
+      [](RunSettings* s) { s->reconstructor.filter.max_temporal_extent = 0.25f; });
+  for (Method m : {Method::kFramed60, Method::kFrameless, Method::kFramedTaa}) {
+    for (double r : {1e5, 2e5, 4e5, 8e5, 1.6e6}) add(method_name(m), rate_label(r), m, r, nullptr);
+  }
+  return p;
+}
+
+void mark_pareto(std::vector<SweepResult>* results) {
+  for (SweepResult& a : *results) {
+    a.pareto = true;
+    for (const SweepResult& b : *results) {
+      if (&a == &b || a.animation != b.animation) continue;
+      const bool no_worse = b.cost <= a.cost && b.mean_rms <= a.mean_rms;
+      const bool better = b.cost < a.cost || b.mean_rms < a.mean_rms;
+      if (no_worse && better) {
+        a.pareto = false;
+        break;
+      }
+    }
+  }
+}
+
+std::vector<SweepResult> run_sweep(const EvalConfig& config,
+                                   const std::vector<SweepPoint>& points) {
+  const int frames = std::max(1, int(std::lround(config.seconds * config.base.fps)));
+  Progress progress(config.animations.size() * uint64_t(frames) * (1 + points.size()),
+                    config.progress);
+  std::vector<SweepResult> out;
+  for (const AnimationSpec& spec : config.animations) {
+    progress.set_task(fmt::format("{}: loading", spec.name));
+    const Scene scene = load_animation_scene(spec);
+    Tracer tracer(scene);
+    progress.set_task(fmt::format("{}: ideal frames", spec.name));
+    const std::vector<Image> ideal =
+        ideal_frames(scene, tracer, config, spec.start, frames, &progress, nullptr);
+    for (const SweepPoint& point : points) {
+      RunSettings s = config.base;
+      s.method = point.method;
+      s.rate = point.rate;
+      s.first_time = spec.start;
+      s.frames = frames;
+      if (point.apply) point.apply(&s);
+      progress.set_task(fmt::format("{}: {} {}", spec.name, point.knob, point.value));
+      const RunResult r = run_and_compare(scene, tracer, s, ideal, {}, &progress);
+      SweepResult sr;
+      sr.animation = spec.name;
+      sr.point = point;
+      sr.mean_rms = r.mean_rms;
+      sr.sample_seconds = r.stats.sample_seconds;
+      sr.reconstruct_seconds = r.stats.reconstruct_seconds;
+      const double shown = double(frames) / s.fps;
+      sr.cost = (r.stats.virtual_seconds > 0.0 ? r.stats.sample_seconds / r.stats.virtual_seconds
+                                               : 0.0) +
+                r.stats.reconstruct_seconds / shown;
+      out.push_back(std::move(sr));
+    }
+  }
+  progress.finish();
+  mark_pareto(&out);
+  return out;
+}
+
+void write_sweep_csv(const std::vector<SweepResult>& results, const std::filesystem::path& file) {
+  if (file.has_parent_path()) std::filesystem::create_directories(file.parent_path());
+  std::ofstream out(file);
+  out << "animation,knob,value,method,rate,mean_rms,cost,sample_wall_s,reconstruct_wall_s,"
+         "pareto\n";
+  for (const SweepResult& r : results) {
+    out << fmt::format("{},{},{},{},{},{:.4f},{:.4f},{:.3f},{:.3f},{}\n", r.animation,
+                       r.point.knob, r.point.value, method_name(r.point.method), r.point.rate,
+                       r.mean_rms, r.cost, r.sample_seconds, r.reconstruct_seconds,
+                       r.pareto ? 1 : 0);
+  }
+}
+
+std::string sweep_markdown(const std::vector<SweepResult>& results) {
+  std::string out;
+  std::set<std::string> done;
+  for (const SweepResult& first : results) {
+    if (!done.insert(first.animation).second) continue;
+    out += fmt::format("\n**{}**\n\n| knob | value | method | R | mean RMS | cost (wall s per s) | "
+                       "Pareto |\n|---|---|---|---:|---:|---:|:-:|\n",
+                       first.animation);
+    for (const SweepResult& r : results) {
+      if (r.animation != first.animation) continue;
+      out += fmt::format("| {} | {} | {} | {} | {:.1f} | {:.2f} | {} |\n", r.point.knob,
+                         r.point.value, method_name(r.point.method), rate_label(r.point.rate),
+                         r.mean_rms, r.cost, r.pareto ? "*" : "");
+    }
+  }
+  return out;
+}
+
+std::vector<std::filesystem::path> write_sweep_plots(const std::vector<SweepResult>& results,
+                                                     const std::filesystem::path& folder) {
+  std::filesystem::create_directories(folder);
+  std::vector<std::filesystem::path> pngs;
+  std::set<std::string> animations;
+  for (const SweepResult& r : results) animations.insert(r.animation);
+  for (const std::string& anim : animations) {
+    // One data block per knob (gnuplot's index), then the Pareto front sorted by cost.
+    std::vector<std::string> knobs;
+    for (const SweepResult& r : results) {
+      if (r.animation == anim &&
+          std::find(knobs.begin(), knobs.end(), r.point.knob) == knobs.end()) {
+        knobs.push_back(r.point.knob);
+      }
+    }
+    const std::filesystem::path dat = folder / fmt::format("tradeoff-{}.dat", anim);
+    const std::filesystem::path png = folder / fmt::format("tradeoff-{}.png", anim);
+    const std::filesystem::path gp = folder / fmt::format("tradeoff-{}.gp", anim);
+    {
+      std::ofstream out(dat);
+      for (const std::string& knob : knobs) {
+        out << "# " << knob << "\n";
+        for (const SweepResult& r : results) {
+          if (r.animation == anim && r.point.knob == knob) {
+            out << fmt::format("{:.5f} {:.4f} \"{}\"\n", r.cost, r.mean_rms, r.point.value);
+          }
+        }
+        out << "\n\n";
+      }
+      std::vector<const SweepResult*> front;
+      for (const SweepResult& r : results) {
+        if (r.animation == anim && r.pareto) front.push_back(&r);
+      }
+      std::sort(front.begin(), front.end(),
+                [](const SweepResult* a, const SweepResult* b) { return a->cost < b->cost; });
+      out << "# pareto\n";
+      for (const SweepResult* r : front) {
+        out << fmt::format("{:.5f} {:.4f} \"{} {}\"\n", r->cost, r->mean_rms, r->point.knob,
+                           r->point.value);
+      }
+      out << "\n\n";
+    }
+    {
+      std::ofstream out(gp);
+      out << "set terminal pngcairo size 1000,560 font 'DejaVu Sans,10'\n"
+          << fmt::format("set output '{}'\n", png.string())
+          << fmt::format("set title '{}: mean RMS error against wall-clock cost'\n", anim)
+          << "set xlabel 'wall seconds per second of animation (this machine)'\n"
+          << "set ylabel 'mean RMS error (0-255)'\nset logscale x\nset grid\n"
+          << "set key outside right top\nplot";
+      for (size_t k = 0; k < knobs.size(); ++k) {
+        out << fmt::format(
+            "{} '{}' index {} using 1:2 with points pt {} ps 1.3 title '{}'", k ? "," : "",
+            dat.string(), k, int(k % 12) + 1, knobs[k]);
+      }
+      out << fmt::format(
+          ", '{}' index {} using 1:2 with lines lw 2 lc rgb 'black' title 'Pareto front', "
+          "'{}' index {} using 1:2:3 with labels font ',8' offset 0.5,0.6 left notitle\n",
+          dat.string(), knobs.size(), dat.string(), knobs.size());
+    }
+    if (run_gnuplot(gp)) pngs.push_back(png);
+  }
+  return pngs;
+}
+
+}  // namespace afr::eval

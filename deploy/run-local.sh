@@ -1,0 +1,75 @@
+#!/usr/bin/env bash
+# Runs the afr service on this machine: N sampler nodes and one display node on loopback.
+# Headless by default (images and stats to out/); with a window when $DISPLAY is set and
+# --window is given. Stops everything cleanly after SECONDS (or on Ctrl-C).
+#
+#   deploy/run-local.sh 2                          2 samplers, 20 s, built-in scene, out/
+#   deploy/run-local.sh 3 --seconds 60 --window    a window (needs $DISPLAY)
+#   deploy/run-local.sh 2 --scene kitchen.glb --size 512x512 --threads 2 --port 7300
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+usage() {
+  sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//'
+  echo "options: --seconds S --size WxH --scene FILE --threads T --port P --metrics-port P"
+  echo "         --preset fast|balanced|accurate --window --output DIR --build DIR --every K"
+  exit "${1:-0}"
+}
+
+[ $# -ge 1 ] || usage 1
+case "$1" in -h|--help) usage 0 ;; esac
+n=$1; shift
+[[ "$n" =~ ^[0-9]+$ ]] && [ "$n" -ge 1 ] && [ "$n" -le 64 ] || { echo "run-local: N must be 1..64, got '$n'" >&2; exit 1; }
+seconds=20 size=256x256 scene="" threads=1 port=7100 metrics_port=9100 preset=balanced
+window=0 output=out build=build every=0
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --seconds) seconds=$2; shift 2 ;;
+    --size) size=$2; shift 2 ;;
+    --scene) scene=$2; shift 2 ;;
+    --threads) threads=$2; shift 2 ;;
+    --port) port=$2; shift 2 ;;
+    --metrics-port) metrics_port=$2; shift 2 ;;
+    --preset) preset=$2; shift 2 ;;
+    --window) window=1; shift ;;
+    --output) output=$2; shift 2 ;;
+    --build) build=$2; shift 2 ;;
+    --every) every=$2; shift 2 ;;
+    -h|--help) usage 0 ;;
+    *) echo "run-local: unknown option '$1'" >&2; usage 1 ;;
+  esac
+done
+
+if [ ! -x "$build/display_node/display_node" ] || [ ! -x "$build/sampler_node/sampler_node" ]; then
+  echo "run-local: building display_node and sampler_node in $build/"
+  cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+  cmake --build "$build" --target display_node sampler_node
+fi
+
+mkdir -p "$output" "$output/logs"
+headless=--headless
+if [ "$window" = 1 ]; then
+  if [ -n "${DISPLAY:-}" ]; then headless=""; else echo "run-local: no \$DISPLAY: headless"; fi
+fi
+
+pids=()
+cleanup() {
+  for p in "${pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done
+  for p in "${pids[@]}"; do wait "$p" 2>/dev/null || true; done
+}
+trap cleanup EXIT INT TERM
+
+echo "run-local: display on tcp://127.0.0.1:$port (metrics http://127.0.0.1:$metrics_port/stats), $n sampler(s), $seconds s"
+# shellcheck disable=SC2086
+"$build/display_node/display_node" $scene $headless --bind "tcp://127.0.0.1:$port" \
+  --size "$size" --preset "$preset" --seconds "$seconds" --output "$output" \
+  --screenshot-every "$every" --metrics-port "$metrics_port" > >(tee "$output/logs/display.log") 2>&1 &
+display_pid=$!
+pids+=("$display_pid")
+for i in $(seq 1 "$n"); do
+  "$build/sampler_node/sampler_node" --display "tcp://127.0.0.1:$port" --threads "$threads" \
+    --name "local-$i" --cache "$output/scene-cache" >"$output/logs/sampler-$i.log" 2>&1 &
+  pids+=("$!")
+done
+wait "$display_pid" || true
+echo "run-local: images in $output/ (final.png, final_tiling.png, final_density.png), logs in $output/logs/"

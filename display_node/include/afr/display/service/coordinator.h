@@ -1,0 +1,83 @@
+// The display's coordinator (DESIGN.md, "The closed loop", "Network"): who the samplers are
+// (membership by join, heartbeats and leave), and which part of the image each one samples.
+// The image is cut into one region per sampler with split_region, each region's area
+// proportional to that sampler's measured throughput; the cut is redone at once when a
+// sampler joins, leaves or dies, and at most once per recut_interval when throughputs drift
+// further than the hysteresis from the areas. Plain logic, no I/O: the display service feeds it
+// and sends what it decides.
+#pragma once
+
+#include <afr/common/rect.h>
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace afr::service {
+
+struct CoordinatorOptions {
+  double member_timeout = 0.7;  // seconds without a message before a sampler is dead
+  double recut_interval = 1.0;  // seconds between throughput-driven recuts
+  double hysteresis = 0.25;     // relative mismatch of share and area that triggers one
+  // Throughput reports this soon after a region change are ignored (the pool restarts).
+  double settle_seconds = 2.0;
+};
+
+struct Member {
+  uint32_t id = 0;
+  std::string peer;        // control channel routing id
+  std::string name;        // the sampler's name
+  std::string public_key;  // CurveZMQ key, or empty
+  int threads = 1;
+  double joined_at = 0.0;   // coordinator time (seconds)
+  double last_heard = 0.0;  // coordinator time
+  double throughput = 0.0;  // samples per second, 0 until measured
+  PixelRect region;
+  double region_since = 0.0;
+};
+
+class Coordinator {
+ public:
+  Coordinator(int width, int height, const CoordinatorOptions& options = {});
+
+  // A join from `peer`. A peer that is already a member keeps its id (a repeated join); a
+  // requested id (a sampler that had one before a display restart) is honoured when free.
+  // *is_new says whether membership changed.
+  Member& join(const std::string& peer, uint32_t requested_id, const std::string& name,
+               const std::string& public_key, int threads, double now, bool* is_new);
+  Member* find(uint32_t id);
+  Member* find_peer(const std::string& peer);
+  // Any message from a member.
+  void heard(uint32_t id, double now);
+  void report_throughput(uint32_t id, double samples_per_second, double now);
+  // A leave. Returns whether it was a member.
+  bool remove(uint32_t id);
+  // Removes and returns members not heard from for member_timeout.
+  std::vector<Member> expire(double now);
+
+  // Recomputes the regions when membership changed since the last cut, or when throughput
+  // drifted (see above). Returns true when regions changed: send them (epoch() is new).
+  bool maybe_recut(double now);
+  uint64_t epoch() const { return epoch_; }
+  uint64_t recuts() const { return recuts_; }
+
+  const std::map<uint32_t, Member>& members() const { return members_; }
+  int width() const { return width_; }
+  int height() const { return height_; }
+
+ private:
+  std::vector<double> shares() const;
+  void cut(double now);
+
+  int width_, height_;
+  CoordinatorOptions options_;
+  std::map<uint32_t, Member> members_;  // by id: the order of the cut
+  uint32_t next_id_ = 1;
+  bool dirty_ = false;
+  double last_cut_ = -1e9;
+  uint64_t epoch_ = 0;
+  uint64_t recuts_ = 0;
+};
+
+}  // namespace afr::service

@@ -1,0 +1,102 @@
+// The display node's network side (DESIGN.md, "Network"; docs/service.md): it binds the three
+// channels, runs the coordinator (membership, regions), owns the display clock (seconds since
+// the session start), broadcasts views at the refresh rate, serves the scene to samplers in
+// chunks, and feeds every received batch and tiling to a SampleSink (the reconstructor) on an
+// ingest thread, asynchronous from reconstruction. Optionally serves /metrics and /stats.
+//
+// Threads: start() launches the control thread, the ingest thread and the HTTP thread; stop()
+// (or the destructor) joins them. now(), metrics() and the accessors are safe from any thread.
+#pragma once
+
+#include <afr/common/camera.h>
+#include <afr/common/samples.h>
+#include <afr/display/service/coordinator.h>
+#include <afr/display/service/metrics.h>
+#include <afr/protocol/channels.h>
+
+#include <atomic>
+#include <chrono>
+#include <functional>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace afr::service {
+
+// The built-in scene's payload: the same text as sampler_node's kBuiltinScenePayload
+// (scene_cache.h; a test checks that they agree).
+inline constexpr std::string_view kBuiltinSceneBytes = "afr builtin scene v1\n";
+
+// The scene as the display serves it: the file's bytes and their hash.
+struct ScenePayload {
+  std::string name;  // file name (without folders), or "builtin"
+  std::vector<uint8_t> bytes;
+  protocol::SceneHash hash{};
+};
+// Reads a scene file (empty path: the built-in scene). A .gltf must embed its buffers and
+// images (data URIs), since only this one file travels; throws afr::Error naming the file.
+ScenePayload read_scene_payload(const std::string& path);
+
+struct DisplayServiceOptions {
+  std::string bind = "tcp://127.0.0.1:7100";  // base endpoint; ports P, P+1, P+2
+  int width = 256;
+  int height = 256;
+  double refresh_interval = 1.0 / 60.0;  // views and samplers' tiling snapshots
+  std::string preset = "balanced";       // named to samplers in the welcome
+  ScenePayload scene;
+  // CurveZMQ: the display's key pair and the samplers allowed; empty own key = no CurveZMQ.
+  protocol::CurveKeyPair keys;
+  std::vector<std::string> allowed_keys;
+  CoordinatorOptions coordinator;
+  size_t chunk_bytes = 256 << 10;
+  // The camera of the views at a display time (the scene's animation, or a replayed path).
+  std::function<Camera(double)> camera_at;
+  // HTTP /metrics and /stats; port 0: off.
+  std::string metrics_address = "127.0.0.1";
+  int metrics_port = 0;
+};
+
+class DisplayService {
+ public:
+  // Binds everything (throws afr::Error naming the endpoint on failure, e.g. a port in use).
+  DisplayService(DisplayServiceOptions options, SampleSink& sink);
+  ~DisplayService();
+  DisplayService(const DisplayService&) = delete;
+  DisplayService& operator=(const DisplayService&) = delete;
+
+  void start();
+  // Tells the samplers (leave: shutdown) and joins the threads.
+  void stop();
+
+  // The display clock: seconds since the session started.
+  double now() const;
+  uint64_t session() const { return session_; }
+  ServiceMetrics& metrics() { return metrics_; }
+  // The current regions by sampler id (for overlays).
+  std::vector<std::pair<uint32_t, PixelRect>> regions() const;
+
+ private:
+  void control_loop();
+  void ingest_loop();
+  void http_loop();
+
+  struct Control;
+  DisplayServiceOptions options_;
+  SampleSink& sink_;
+  ServiceMetrics metrics_;
+  uint64_t session_ = 0;
+  std::chrono::steady_clock::time_point start_;
+  protocol::Context context_;
+  protocol::ServiceEndpoints endpoints_;
+  std::unique_ptr<Control> control_;  // the control thread's sockets and coordinator
+  std::unique_ptr<protocol::SampleReceiver> samples_;
+  mutable std::mutex regions_mutex_;
+  std::vector<std::pair<uint32_t, PixelRect>> regions_;
+  std::atomic<bool> running_{false};
+  std::thread control_thread_, ingest_thread_, http_thread_;
+  struct Http;
+  std::unique_ptr<Http> http_;
+};
+
+}  // namespace afr::service

@@ -1,0 +1,140 @@
+// What the display node measures, shared by its threads: per sampler (samples, bytes, batches,
+// sequence gaps, what the sampler reports about itself, its region) and for the display
+// (reconstruction time, refresh rate, store fill, sample-to-display latency). Rendered as the
+// Prometheus text format (/metrics), as JSON (/stats) and as one log line.
+//
+// Thread-safety: every method may be called from any thread (one mutex; the ingest thread
+// takes it once per batch).
+#pragma once
+
+#include <afr/common/rect.h>
+#include <afr/common/samples.h>
+#include <afr/protocol/messages.h>
+
+#include <cstdint>
+#include <map>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace afr::service {
+
+// Sample-to-display latency in 0.1 ms bins up to 2 s (and one bin beyond).
+class LatencyHistogram {
+ public:
+  static constexpr double kBin = 1e-4;
+  static constexpr size_t kBins = 20000;
+  void add(double seconds, uint64_t weight);
+  // The q-quantile (0..1) in seconds; 0 when empty.
+  double quantile(double q) const;
+  uint64_t count() const { return count_; }
+  double sum() const { return sum_; }
+  // Samples at or below `seconds`.
+  uint64_t count_at_most(double seconds) const;
+  void clear();
+
+ private:
+  std::vector<uint64_t> bins_ = std::vector<uint64_t>(kBins + 1, 0);
+  uint64_t count_ = 0;
+  double sum_ = 0.0;
+};
+
+struct SamplerMetrics {
+  uint32_t id = 0;
+  std::string name;
+  std::string public_key;
+  bool member = false;  // currently a member (false: left or dead; kept for the record)
+  PixelRect region;
+  int threads = 1;
+  // Received by the display (sample channel).
+  uint64_t samples = 0;
+  uint64_t bytes = 0;
+  uint64_t batches = 0;
+  uint64_t tilings = 0;
+  uint64_t sequence_gaps = 0;  // batches missing between consecutive sequence numbers
+  uint64_t last_sequence = 0;
+  bool have_sequence = false;
+  double samples_per_second = 0.0;  // received, over the last stats period
+  double bytes_per_second = 0.0;
+  // Reported by the sampler (stats messages).
+  protocol::SamplerStats reported;
+  // For the rates.
+  uint64_t period_samples = 0;
+  uint64_t period_bytes = 0;
+};
+
+struct DisplayMetrics {
+  uint64_t session = 0;
+  double uptime = 0.0;  // display clock, seconds
+  int width = 0, height = 0;
+  std::string backend;
+  std::string mode;
+  uint64_t frames = 0;
+  double reconstruct_ms = 0.0;  // last frame
+  double reconstruct_ms_mean = 0.0;
+  double refresh_hz = 0.0;  // frames per second over the last stats period
+  uint64_t store_stored = 0;
+  uint64_t store_capacity = 0;
+  uint64_t members = 0;
+  uint64_t recuts = 0;
+  uint64_t region_epoch = 0;
+  uint64_t joins = 0;
+  uint64_t deaths = 0;  // members declared dead (no heartbeat)
+  uint64_t leaves = 0;
+  uint64_t rejected_samples_channel = 0;
+  uint64_t rejected_control = 0;
+  uint64_t unknown_sampler_batches = 0;  // batches from ids that are not members
+  uint64_t zap_accepted = 0;
+  uint64_t zap_refused = 0;
+  uint64_t views = 0;
+  uint64_t scene_chunks_sent = 0;
+  double latency_p50 = 0.0, latency_p99 = 0.0;  // seconds, since the start
+  double window_latency_p50 = 0.0, window_latency_p99 = 0.0;
+};
+
+class ServiceMetrics {
+ public:
+  // Ingest thread.
+  void on_batch(const SampleBatch& batch, size_t bytes, bool member);
+  void on_tiling(uint32_t sampler_id, size_t bytes);
+  void on_rejected_sample_message();
+  // Control thread.
+  void on_member(const std::string& name, uint32_t id, const std::string& public_key,
+                 int threads);
+  void on_member_gone(uint32_t id, bool dead);
+  void on_region(uint32_t id, const PixelRect& region, uint64_t epoch, uint64_t recuts);
+  void on_reported(const protocol::SamplerStats& stats);
+  void on_rejected_control();
+  void on_view();
+  void on_chunks_sent(uint64_t n);
+  void set_zap(uint64_t accepted, uint64_t refused);
+  // Display thread: a frame finished at display time `time` (samples received before it are
+  // now on screen).
+  void on_frame(double time, double reconstruct_ms, uint64_t stored, uint64_t capacity);
+  void set_display(uint64_t session, int width, int height, const std::string& backend,
+                   const std::string& mode);
+  void set_uptime(double seconds);
+
+  // Rates and windowed latencies: call once per stats period (the log line's).
+  void end_period(double seconds);
+
+  DisplayMetrics display() const;
+  std::vector<SamplerMetrics> samplers() const;
+  LatencyHistogram latency() const;
+
+  std::string prometheus() const;
+  std::string json() const;
+  std::string log_line() const;
+
+ private:
+  mutable std::mutex mutex_;
+  DisplayMetrics display_;
+  std::map<uint32_t, SamplerMetrics> samplers_;
+  // Batches received since the last frame: (mean sample time, count).
+  std::vector<std::pair<double, uint64_t>> pending_;
+  LatencyHistogram latency_, window_latency_;
+  uint64_t period_frames_ = 0;
+  double reconstruct_ms_sum_ = 0.0;
+};
+
+}  // namespace afr::service

@@ -1,0 +1,319 @@
+// display_node: the display of the afr service. It binds the channels, coordinates the
+// samplers that join, and reconstructs images from their samples at its refresh rate.
+//   display_node --headless --size 256x256 --seconds 10 --output out     (built-in scene)
+//   display_node kitchen.glb --bind tcp://0.0.0.0:7100 --keys keys/ --metrics-port 9100
+//   display_node keygen keys/ --samplers 4     (CurveZMQ keys for a LAN; docs/service.md)
+#include <afr/common/builtin_scene.h>
+#include <afr/common/camera_path.h>
+#include <afr/common/cli.h>
+#include <afr/common/error.h>
+#include <afr/common/gltf_loader.h>
+#include <afr/common/image.h>
+#include <afr/common/log.h>
+#include <afr/display/backend.h>
+#include <afr/display/gl_reconstructor.h>
+#include <afr/display/glfw_window.h>
+#include <afr/display/service/display_service.h>
+#include <afr/display/service/overlays.h>
+#include <afr/protocol/keys.h>
+#include <afr/sampler/presets.h>
+
+#include <GLFW/glfw3.h>
+#include <fmt/format.h>
+#include <CLI/CLI.hpp>
+
+#include <atomic>
+#include <cmath>
+#include <csignal>
+#include <filesystem>
+#include <thread>
+
+namespace {
+
+std::atomic<bool> g_stop{false};  // set by SIGINT / SIGTERM
+extern "C" void on_signal(int) { g_stop.store(true); }
+
+namespace fs = std::filesystem;
+using afr::service::DisplayServiceOptions;
+
+int keygen(const std::string& dir, int samplers) {
+  fs::create_directories(dir);
+  const afr::protocol::CurveKeyPair display = afr::protocol::generate_curve_keypair();
+  afr::protocol::save_curve_keypair((fs::path(dir) / "display.key").string(), display);
+  afr::protocol::save_curve_public_key((fs::path(dir) / "display.pub").string(),
+                                       display.public_key);
+  std::string allow = "# afr: sampler public keys the display admits (one per line)\n";
+  for (int i = 1; i <= samplers; ++i) {
+    const afr::protocol::CurveKeyPair s = afr::protocol::generate_curve_keypair();
+    const std::string name = fmt::format("sampler-{}", i);
+    afr::protocol::save_curve_keypair((fs::path(dir) / (name + ".key")).string(), s);
+    afr::protocol::save_curve_public_key((fs::path(dir) / (name + ".pub")).string(), s.public_key);
+    allow += fmt::format("{} {}\n", s.public_key, name);
+  }
+  const fs::path allow_file = fs::path(dir) / "samplers.allow";
+  FILE* f = std::fopen(allow_file.c_str(), "w");
+  if (!f || std::fputs(allow.c_str(), f) < 0 || std::fclose(f) != 0) {
+    throw afr::Error(fmt::format("{}: cannot write", allow_file.string()));
+  }
+  fmt::print(
+      "wrote {0}/display.key, {0}/display.pub, {1} sampler key pair(s) and {0}/samplers.allow\n"
+      "display: display_node --keys {0} ...   sampler i: sampler_node --key {0}/sampler-i.key "
+      "--server-key {0}/display.pub ...\n",
+      dir, samplers);
+  return 0;
+}
+
+// The view camera at display time t: a replayed path (looping), or the scene's animation
+// (looping over its keyframe range, as the samplers' tracers do).
+std::function<afr::Camera(double)> camera_function(const afr::Scene& scene,
+                                                   const afr::CameraPath* path) {
+  if (path) {
+    return [path](double t) {
+      const double span = path->end_time() - path->start_time();
+      const double u = span > 0.0 ? path->start_time() + std::fmod(t, span) : path->start_time();
+      return path->camera(u);
+    };
+  }
+  return [&scene](double t) {
+    const double d = scene.duration();
+    return scene.camera_at(scene.evaluate(d > 0.0 ? std::fmod(t, d) : t));
+  };
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"display_node: the afr display: coordinates sampler nodes and reconstructs"};
+  std::string scene_path, size_text = "256x256", backend_text = "auto", preset = "balanced",
+                          mode_text = "adaptive", keys_dir, key_file, allow_file, record, replay,
+                          output = "out", log_level = "info";
+  DisplayServiceOptions o;
+  bool headless = false, insecure = false;
+  double fps = 30.0, seconds = 0.0, stats_interval = 2.0;
+  int screenshot_every = 0;
+  app.add_option("scene", scene_path, "glTF scene (.glb, or .gltf with embedded buffers); "
+                                      "the built-in scene if omitted")
+      ->check(CLI::ExistingFile);
+  app.add_option("--bind", o.bind, "base endpoint tcp://HOST:PORT (uses PORT..PORT+2)")
+      ->capture_default_str();
+  app.add_option("-s,--size", size_text, "image size WxH")->capture_default_str();
+  app.add_flag("--headless", headless, "no window: reconstruct at --fps and write images");
+  app.add_option("--backend", backend_text, "reconstruction backend gl, cpu or auto")
+      ->capture_default_str();
+  app.add_option("--preset", preset, "fast, balanced or accurate (samplers follow it)")
+      ->capture_default_str();
+  app.add_option("--mode", mode_text, "adaptive, frameless or adaptive-no-reprojection")
+      ->capture_default_str();
+  app.add_option("--fps", fps, "refresh rate: views, tiling snapshots and (headless) images")
+      ->capture_default_str()
+      ->check(CLI::Range(0.2, 1000.0));
+  app.add_option("--metrics-port", o.metrics_port, "HTTP port of /metrics and /stats (0 = off)")
+      ->check(CLI::Range(0, 65535));
+  app.add_option("--metrics-address", o.metrics_address, "address the metrics server binds")
+      ->capture_default_str();
+  app.add_option("--keys", keys_dir, "folder with display.key and samplers.allow (CurveZMQ)");
+  app.add_option("--key", key_file, "the display's CurveZMQ key pair file");
+  app.add_option("--allow", allow_file, "allow-list of sampler public keys");
+  app.add_flag("--insecure", insecure, "allow a non-loopback bind without CurveZMQ");
+  app.add_option("--record", record, "write the views' camera path to this file at exit");
+  app.add_option("--replay", replay, "views follow this camera path (looping)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--screenshot-every", screenshot_every,
+                 "write an image every K frames to --output (0 = only at exit)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("-o,--output", output, "folder for images")->capture_default_str();
+  app.add_option("--seconds", seconds, "stop after this many seconds (0 = run until a signal)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--stats-interval", stats_interval, "seconds between stats log lines")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 3600.0));
+  app.add_option("--member-timeout", o.coordinator.member_timeout,
+                 "seconds without a word before a sampler is dead")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 60.0));
+  app.add_option("--log", log_level, "log level")->capture_default_str();
+  std::string keygen_dir;
+  int keygen_samplers = 1;
+  CLI::App* kg = app.add_subcommand("keygen", "write CurveZMQ keys for a display and samplers");
+  kg->add_option("dir", keygen_dir, "folder to write the keys to")->required();
+  kg->add_option("--samplers", keygen_samplers, "sampler key pairs to make")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 10000));
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    afr::init_logging(log_level);
+    if (*kg) return keygen(keygen_dir, keygen_samplers);
+
+    const afr::ImageSize size = afr::parse_image_size(size_text);
+    o.width = size.width;
+    o.height = size.height;
+    o.refresh_interval = 1.0 / fps;
+    o.preset = preset;
+    const afr::Preset& p = afr::find_preset(preset);
+    const afr::Backend backend = afr::parse_backend(backend_text);
+
+    // Security: loopback may go plain; anything else needs CurveZMQ or --insecure.
+    const afr::protocol::ServiceEndpoints ep = afr::protocol::service_endpoints(o.bind);
+    if (!keys_dir.empty()) {
+      if (key_file.empty()) key_file = (fs::path(keys_dir) / "display.key").string();
+      if (allow_file.empty()) allow_file = (fs::path(keys_dir) / "samplers.allow").string();
+    }
+    if (key_file.empty() != allow_file.empty()) {
+      throw afr::Error("CurveZMQ needs both the display's key pair (--key) and the samplers' "
+                       "allow-list (--allow), or --keys DIR with both");
+    }
+    if (!key_file.empty()) {
+      o.keys = afr::protocol::load_curve_keypair(key_file);
+      o.allowed_keys = afr::protocol::load_allowed_keys(allow_file);
+      spdlog::info("CurveZMQ on: display key {}, {} sampler key(s) allowed from {}",
+                   o.keys.public_key, o.allowed_keys.size(), allow_file);
+    } else if (!afr::protocol::is_local_endpoint(ep.control)) {
+      if (!insecure) {
+        throw afr::Error(fmt::format(
+            "--bind {} is reachable from other machines: give CurveZMQ keys (--keys DIR, made "
+            "by `display_node keygen DIR --samplers N`) or pass --insecure",
+            o.bind));
+      }
+      spdlog::warn("--insecure: {} accepts any sampler, unencrypted", o.bind);
+    }
+
+    const afr::Scene scene = afr::load_scene(scene_path);
+    o.scene = afr::service::read_scene_payload(scene_path);
+    std::unique_ptr<afr::CameraPath> path;
+    if (!replay.empty()) {
+      path = std::make_unique<afr::CameraPath>(afr::read_camera_path(replay));
+      spdlog::warn("--replay {}: the display reprojects with the path's camera; samplers "
+                   "trace the scene's own camera (docs/service.md, \"Camera paths\")",
+                   replay);
+    }
+    o.camera_at = camera_function(scene, path.get());
+    spdlog::info("scene {}: {} triangles, {:.2f} s of animation, {} bytes to serve",
+                 o.scene.name, scene.triangle_count(), scene.duration(), o.scene.bytes.size());
+
+    afr::ReconstructorConfig rc;
+    rc.image_width = size.width;
+    rc.image_height = size.height;
+    rc.capacity = size_t(std::max(1.0, p.reconstruction.samples_per_pixel * size.width *
+                                           double(size.height)));
+    rc.capacity = std::min(rc.capacity, afr::kMaxCapacity);
+    rc.filter.min_spatial_extent = p.reconstruction.min_spatial_extent;
+    rc.filter.max_spatial_extent = p.reconstruction.max_spatial_extent;
+    rc.filter.max_temporal_extent = p.reconstruction.max_temporal_extent;
+    rc.mode = afr::parse_mode(mode_text);
+
+    // Window (GL in the window's context) or headless (make_reconstructor picks).
+    std::shared_ptr<afr::GlfwWindow> window;
+    std::unique_ptr<afr::Reconstructor> recon;
+    afr::GlReconstructor* gl = nullptr;
+    if (!headless) {
+      std::string error;
+      window = afr::GlfwWindow::create(size.width, size.height, "afr display", &error);
+      if (window) {
+        auto g = std::make_unique<afr::GlReconstructor>(rc, window);
+        gl = g.get();
+        recon = std::move(g);
+      } else {
+        spdlog::warn("no window ({}): running headless", error);
+        headless = true;
+      }
+    }
+    if (!recon) recon = afr::make_reconstructor(backend, rc).reconstructor;
+
+    afr::service::OverlaySink tee(*recon);
+    afr::service::DisplayService service(o, tee);
+    service.metrics().set_display(service.session(), size.width, size.height,
+                                  recon->backend_name(), afr::mode_name(recon->mode()));
+    std::signal(SIGINT, on_signal);
+    std::signal(SIGTERM, on_signal);
+    std::signal(SIGPIPE, SIG_IGN);
+    service.start();
+    if (!output.empty()) fs::create_directories(output);
+
+    std::vector<afr::CameraKey> recorded;
+    afr::Image image;
+    uint64_t frame = 0;
+    double next_frame = service.now(), next_stats = service.now() + stats_interval,
+           last_stats = service.now();
+    bool key_down[3] = {false, false, false};
+    auto save = [&](const std::string& stem, double t) {
+      afr::service::write_images(*recon, image, tee, service.regions(),
+                                 fs::path(output) / stem);
+      spdlog::info("wrote {}/{}.png (t={:.2f}s) with _tiling and _density overlays", output, stem,
+                   t);
+    };
+    while (!g_stop.load()) {
+      const double t = service.now();
+      if (seconds > 0.0 && t >= seconds) break;
+      if (window && window->should_close()) break;
+      if (headless && t < next_frame) {
+        std::this_thread::sleep_for(std::chrono::duration<double>(std::min(next_frame - t, 0.05)));
+        continue;
+      }
+      next_frame += 1.0 / fps;
+      if (next_frame < t) next_frame = t + 1.0 / fps;
+      const afr::Camera camera = o.camera_at(t);
+      if (!record.empty()) recorded.push_back(afr::camera_key(t, camera));
+      const bool write =
+          headless && screenshot_every > 0 && frame > 0 && frame % uint64_t(screenshot_every) == 0;
+      if (window) {
+        int fw = 0, fh = 0;
+        window->framebuffer_size(&fw, &fh);
+        recon->reconstruct(camera, t, std::max(1, fw), std::max(1, fh), nullptr);
+        window->draw(*gl);
+        window->swap();
+        window->poll_events();
+        // Keys: M cycles the reconstruction mode, S writes a screenshot, Q/Esc quits.
+        GLFWwindow* w = glfwGetCurrentContext();
+        const int keys[3] = {GLFW_KEY_M, GLFW_KEY_S, GLFW_KEY_Q};
+        for (int k = 0; k < 3 && w; ++k) {
+          const bool down = glfwGetKey(w, keys[k]) == GLFW_PRESS;
+          if (down && !key_down[k]) {
+            if (k == 0) {
+              const afr::ReconstructionMode next =
+                  afr::ReconstructionMode((int(recon->mode()) + 1) % 3);
+              recon->set_mode(next);
+              spdlog::info("reconstruction mode: {}", afr::mode_name(next));
+            } else if (k == 1) {
+              recon->reconstruct(camera, t, size.width, size.height, &image);
+              save(fmt::format("screenshot_{:06d}", frame), t);
+            } else {
+              g_stop.store(true);
+            }
+          }
+          key_down[k] = down;
+        }
+        if (w && glfwGetKey(w, GLFW_KEY_ESCAPE) == GLFW_PRESS) g_stop.store(true);
+      } else {
+        recon->reconstruct(camera, t, size.width, size.height, &image);
+      }
+      const double done = service.now();
+      service.metrics().on_frame(done, recon->frame_stats().milliseconds,
+                                 recon->frame_stats().stored, recon->capacity());
+      if (write) save(fmt::format("frame_{:06d}", frame), t);
+      ++frame;
+      if (done >= next_stats) {
+        service.metrics().set_uptime(done);
+        service.metrics().end_period(done - last_stats);
+        last_stats = done;
+        next_stats = done + stats_interval;
+        spdlog::info("{}", service.metrics().log_line());
+      }
+    }
+
+    const double t = service.now();
+    recon->reconstruct(o.camera_at(t), t, size.width, size.height, &image);
+    service.metrics().set_uptime(t);
+    if (!output.empty()) save("final", t);
+    if (!record.empty() && !recorded.empty()) {
+      afr::write_camera_path(afr::CameraPath(std::move(recorded)), record);
+      spdlog::info("recorded the camera path to {}", record);
+    }
+    spdlog::info("stopping: {}", service.metrics().log_line());
+    service.stop();
+    return 0;
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return 1;
+  }
+}

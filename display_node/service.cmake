@@ -1,0 +1,21 @@
+# The display_node program and its service parts: coordinator (membership, regions), display
+# clock and views, ingest, metrics over HTTP, overlays. docs/service.md.
+find_package(PkgConfig REQUIRED)
+pkg_check_modules(AFR_HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
+
+add_library(afr_display_service
+  ${CMAKE_CURRENT_LIST_DIR}/src/service/coordinator.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/service/display_service.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/service/metrics.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/service/overlays.cpp
+)
+target_include_directories(afr_display_service PUBLIC ${CMAKE_CURRENT_LIST_DIR}/include)
+target_link_libraries(afr_display_service
+  PUBLIC afr_display afr_protocol Threads::Threads
+  PRIVATE PkgConfig::AFR_HTTPLIB nlohmann_json::nlohmann_json)
+
+add_executable(display_node ${CMAKE_CURRENT_LIST_DIR}/main.cpp)
+# The presets are a header of the sampler's part (presets.h: "display_node copies
+# `reconstruction`"); only the header, no link to the sampler (and Embree).
+target_include_directories(display_node PRIVATE ${PROJECT_SOURCE_DIR}/sampler_node/include)
+target_link_libraries(display_node PRIVATE afr_display_service glfw CLI11::CLI11)

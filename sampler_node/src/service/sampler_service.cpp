@@ -1,0 +1,600 @@
+#include <afr/sampler/service/sampler_service.h>
+
+#include <afr/common/error.h>
+#include <afr/protocol/scene_hash.h>
+#include <afr/sampler/presets.h>
+#include <afr/sampler/sampler_pool.h>
+#include <afr/sampler/service/scene_cache.h>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <future>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+namespace afr::service {
+
+using namespace afr::protocol;
+
+namespace {
+
+double steady_seconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+// ---------------------------------------------------------------------------------------------
+// The display's clock, as learned from views (DESIGN.md, "Time")
+
+// now() = local steady time + offset. Each view gives a candidate offset (its display time
+// minus the local time it arrived); the largest candidate is the one that travelled fastest,
+// so the clock follows the largest seen, re-anchored every few seconds so that it can also
+// follow a slow drift between machines. Read from any thread; observe() from one.
+class DisplayClock final : public Clock {
+ public:
+  double now() const override { return offset_.load(std::memory_order_relaxed) + local(); }
+
+  void observe(double display_time) {
+    const double e = local();
+    const double c = display_time - e;
+    if (!set_) {
+      reset_to(display_time);
+      return;
+    }
+    if (c > offset_.load()) offset_.store(c);
+    window_max_ = std::max(window_max_, c);
+    if (e - window_start_ > kWindowSeconds) {
+      offset_.store(window_max_);
+      window_max_ = c;
+      window_start_ = e;
+    }
+  }
+  // A new session: the display's clock starts over.
+  void reset_to(double display_time) {
+    const double e = local();
+    offset_.store(display_time - e);
+    window_max_ = display_time - e;
+    window_start_ = e;
+    set_ = true;
+  }
+
+ private:
+  static constexpr double kWindowSeconds = 2.0;
+  static double local() { return steady_seconds(); }
+
+  std::atomic<double> offset_{-steady_seconds()};
+  double window_max_ = 0.0;
+  double window_start_ = 0.0;
+  bool set_ = false;
+};
+
+// ---------------------------------------------------------------------------------------------
+// The pool's sink: the sample channel, shared by the pool's worker threads
+
+class NetworkSink final : public SampleSink {
+ public:
+  void attach(SampleSender* sender, uint32_t sampler_id, ImageBounds bounds) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    retire_locked();
+    sender_ = sender;
+    sampler_id_ = sampler_id;
+    bounds_ = bounds;
+  }
+  void detach() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    retire_locked();
+  }
+
+  void on_batch(SampleBatch&& batch) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!sender_) {
+      ++unsent_;
+      return;
+    }
+    // One sequence per node: the pool's threads each count their own batches.
+    batch.sampler_id = sampler_id_;
+    batch.sequence = sequence_++;
+    if (Status s = sender_->send(batch, bounds_); !s.ok()) report(s);
+  }
+  void on_tiling(TilingSnapshot&& snapshot) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!sender_) return;
+    snapshot.sampler_id = sampler_id_;
+    if (Status s = sender_->send(snapshot, bounds_); !s.ok()) report(s);
+  }
+  void pump() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (sender_) sender_->pump();
+  }
+  // Over every sender this sink has had.
+  SampleSender::Counters counters() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    SampleSender::Counters c = retired_;
+    if (sender_) add(&c, sender_->counters());
+    c.batches_dropped += unsent_;
+    return c;
+  }
+
+ private:
+  static void add(SampleSender::Counters* a, const SampleSender::Counters& b) {
+    a->batches_sent += b.batches_sent;
+    a->tilings_sent += b.tilings_sent;
+    a->bytes_sent += b.bytes_sent;
+    a->batches_dropped += b.batches_dropped;
+    a->tilings_dropped += b.tilings_dropped;
+  }
+  void retire_locked() {
+    if (sender_) add(&retired_, sender_->counters());
+    sender_ = nullptr;
+  }
+  void report(const Status& s) {
+    // Only a bug upstream makes a batch the codec refuses; say it once in a while.
+    if (encode_errors_++ % 1000 == 0) {
+      spdlog::error("sample channel: could not encode ({} so far): {}", encode_errors_,
+                    s.message());
+    }
+  }
+
+  mutable std::mutex mutex_;
+  SampleSender* sender_ = nullptr;
+  uint32_t sampler_id_ = 0;
+  ImageBounds bounds_;
+  uint64_t sequence_ = 0;
+  uint64_t unsent_ = 0;
+  uint64_t encode_errors_ = 0;
+  SampleSender::Counters retired_;
+};
+
+enum class SessionEnd { kStopped, kRetry, kFatal };
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+
+struct SamplerService::Impl {
+  explicit Impl(SamplerServiceOptions o) : options(std::move(o)), cache(options.cache_dir) {}
+
+  SessionEnd run_session(const std::atomic<bool>& stop);
+  void handle(const Message& m, ControlClient& control, SampleSender& sender, double now,
+              SessionEnd* end);
+  void on_welcome(const Welcome& w, ControlClient& control, SampleSender& sender);
+  void on_chunk(const SceneChunk& c, ControlClient& control);
+  void on_region(const RegionAssignment& r);
+  void use_scene(const std::filesystem::path& file, const SceneHash& hash);
+  void update_pool();
+  void stop_pool();
+  void send_stats(ControlClient& control);
+  SamplerCounters pool_counters() const;
+
+  SamplerServiceOptions options;
+  Context context;
+  DisplayClock clock;
+  NetworkSink sink;
+  SceneCache cache;
+  SceneAssembler assembler;
+
+  // Session state.
+  bool joined = false;
+  bool session_over = false;  // a leave or a restarted display ended the session
+  uint32_t sampler_id = 0;  // kept across sessions: asked for again on a rejoin
+  uint64_t session = 0;
+  Welcome welcome;
+  bool fetching = false;
+  double last_chunk_time = 0.0;
+  std::optional<RegionAssignment> region;
+  uint64_t epoch = 0;
+
+  // Scene and pool.
+  std::unique_ptr<Scene> scene;
+  SceneHash scene_hash{};
+  std::unique_ptr<SamplerPool> pool;
+  PixelRect pool_region;
+  std::future<std::unique_ptr<SamplerPool>> building;  // a pool being constructed
+  PixelRect building_region;
+  SamplerCounters retired;  // counters of pools already stopped
+
+  // Stats.
+  uint64_t last_stats_samples = 0;
+  double last_stats_time = 0.0;
+  double samples_per_second = 0.0;
+  uint64_t heartbeat_sequence = 0;
+
+  mutable std::mutex counters_mutex;
+  SamplerServiceCounters counters;
+};
+
+SamplerService::SamplerService(SamplerServiceOptions options)
+    : impl_(std::make_unique<Impl>(std::move(options))) {
+  const SamplerServiceOptions& o = impl_->options;
+  (void)service_endpoints(o.display);  // throws for a malformed endpoint, before any socket
+  if (o.threads < 1 || o.threads > 256) {
+    throw Error(fmt::format("--threads {}: must be in 1..256", o.threads));
+  }
+  if (!(o.max_samples_per_second >= 0.0)) {
+    throw Error(fmt::format("--max-samples-per-second {}: must be >= 0", o.max_samples_per_second));
+  }
+  if (!o.preset.empty()) (void)find_preset(o.preset);
+}
+
+SamplerService::~SamplerService() { impl_->stop_pool(); }
+
+SamplerServiceCounters SamplerService::counters() const {
+  std::lock_guard<std::mutex> lock(impl_->counters_mutex);
+  return impl_->counters;
+}
+
+int SamplerService::run(const std::atomic<bool>& stop) {
+  while (!stop.load()) {
+    const SessionEnd end = impl_->run_session(stop);
+    if (end == SessionEnd::kFatal) return 2;
+    if (end == SessionEnd::kStopped) break;
+    // A short pause, so a display that refuses at once is not hammered.
+    for (int i = 0; i < 5 && !stop.load(); ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  }
+  impl_->stop_pool();
+  return 0;
+}
+
+// ---------------------------------------------------------------------------------------------
+// One session: from fresh sockets to the loss of the display (or a stop)
+
+SessionEnd SamplerService::Impl::run_session(const std::atomic<bool>& stop) {
+  const ServiceEndpoints ep = service_endpoints(options.display);
+  ControlClient control(context, ep.control, options.security);
+  ViewSubscriber views(context, ep.views, options.security);
+  SampleSender sender(context, ep.samples, options.security);
+
+  joined = false;
+  session_over = false;
+  fetching = false;
+  const double started = steady_seconds();
+  double last_join = -1e9, last_heard = started, last_heartbeat = 0.0;
+  bool warned_silence = false;
+  SessionEnd end = SessionEnd::kRetry;
+  bool done = false;
+
+  while (!done) {
+    const double now = steady_seconds();
+    if (stop.load()) {
+      end = SessionEnd::kStopped;
+      break;
+    }
+    if (!joined) {
+      if (now - last_join >= 0.5) {
+        Join j;
+        j.sampler_id = sampler_id;
+        j.threads = uint16_t(options.threads);
+        j.capabilities = kCapWorldPosition | kCapVelocity | kCapTilings | kCapSceneCache;
+        j.name = options.name;
+        (void)control.send(j);  // queued until connected; resent until welcomed
+        last_join = now;
+        std::lock_guard<std::mutex> lock(counters_mutex);
+        ++counters.joins_sent;
+      }
+      if (!warned_silence && now - started > 5.0) {
+        warned_silence = true;
+        spdlog::warn(
+            "no answer from the display at {} after 5 s (is it running? with CurveZMQ: is this "
+            "sampler's public key on its allow-list, and --server-key its public key?)",
+            options.display);
+      }
+      // libzmq does not retry a handshake that ZAP refused: fresh sockets now and then.
+      if (now - started > 10.0) return SessionEnd::kRetry;
+    } else if (now - last_heard > options.display_timeout) {
+      spdlog::warn("display silent for {:.1f} s: reconnecting", now - last_heard);
+      break;
+    }
+
+    zmq::pollitem_t items[] = {{control.socket().handle(), 0, ZMQ_POLLIN, 0},
+                               {views.socket().handle(), 0, ZMQ_POLLIN, 0}};
+    try {
+      zmq::poll(items, 2, std::chrono::milliseconds(5));
+    } catch (const zmq::error_t& e) {
+      if (e.num() != EINTR) throw;
+    }
+
+    while (std::optional<Result<Message>> m = control.receive(0)) {
+      if (!m->ok()) {
+        std::lock_guard<std::mutex> lock(counters_mutex);
+        ++counters.rejected_messages;
+        spdlog::warn("control channel: rejected a message from the display: {}", m->error());
+        continue;
+      }
+      last_heard = steady_seconds();
+      handle(m->value(), control, sender, last_heard, &end);
+      if (session_over) {
+        done = true;
+        break;
+      }
+    }
+    if (done) break;
+    while (std::optional<View> v = views.receive(0)) {
+      if (!joined) continue;
+      clock.observe(v->time);
+      last_heard = steady_seconds();
+    }
+    if (views.rejected() > 0 && views.rejection().message().size() && views.rejected() == 1) {
+      spdlog::warn("view channel: rejected a view: {}", views.rejection().message());
+    }
+
+    if (joined) {
+      if (now - last_heartbeat >= options.heartbeat_interval) {
+        last_heartbeat = now;
+        Heartbeat hb{sampler_id, session, heartbeat_sequence++, clock.now()};
+        (void)control.send(hb);
+      }
+      if (now - last_stats_time >= options.stats_interval) send_stats(control);
+      if (fetching && now - last_chunk_time > 3.0) {
+        spdlog::warn("scene transfer stalled: asking again from chunk {}", assembler.next_chunk());
+        (void)control.send(SceneRequest{sampler_id, assembler.hash(), assembler.next_chunk()});
+        last_chunk_time = now;
+      }
+    }
+    update_pool();
+    sink.pump();
+  }
+
+  if (end == SessionEnd::kStopped && joined) {
+    (void)control.send(Leave{sampler_id, LeaveReason::kShutdown, "sampler stopped"});
+    sender.flush(200);
+  }
+  stop_pool();
+  sink.detach();
+  joined = false;
+  return end;
+}
+
+void SamplerService::Impl::handle(const Message& m, ControlClient& control, SampleSender& sender,
+                                  double now, SessionEnd* end) {
+  if (const auto* w = std::get_if<Welcome>(&m)) {
+    on_welcome(*w, control, sender);
+  } else if (const auto* c = std::get_if<SceneChunk>(&m)) {
+    last_chunk_time = now;
+    on_chunk(*c, control);
+  } else if (const auto* r = std::get_if<RegionAssignment>(&m)) {
+    on_region(*r);
+  } else if (const auto* hb = std::get_if<Heartbeat>(&m)) {
+    if (joined && hb->session != session) {
+      spdlog::info("the display restarted (session {:x} -> {:x}): joining again", session,
+                   hb->session);
+      session_over = true;
+    }
+  } else if (const auto* l = std::get_if<Leave>(&m)) {
+    switch (l->reason) {
+      case LeaveReason::kVersionMismatch:
+        spdlog::error("the display refused this sampler: {} (protocol version {})", l->text,
+                      kProtocolVersion);
+        *end = SessionEnd::kFatal;
+        break;
+      case LeaveReason::kShutdown:
+        spdlog::info("the display is shutting down: {}", l->text);
+        break;
+      default:
+        spdlog::warn("the display asked this sampler to leave ({}): joining again", l->text);
+        break;
+    }
+    session_over = true;
+  }
+}
+
+void SamplerService::Impl::on_welcome(const Welcome& w, ControlClient& control,
+                                      SampleSender& sender) {
+  const bool same_session = joined && w.session == session && w.sampler_id == sampler_id;
+  clock.reset_to(w.display_time);
+  if (same_session) return;  // an answer to a repeated join
+  if (w.session != session) {
+    stop_pool();
+    region.reset();
+    epoch = 0;
+  }
+  joined = true;
+  session = w.session;
+  sampler_id = w.sampler_id;
+  welcome = w;
+  sink.attach(&sender, sampler_id, ImageBounds{w.width, w.height});
+  {
+    std::lock_guard<std::mutex> lock(counters_mutex);
+    ++counters.sessions;
+  }
+  spdlog::info("joined the display as sampler {} (session {:x}): {}x{}, scene {} ({} bytes)",
+               sampler_id, session, w.width, w.height, w.scene_name, w.scene_size);
+  if (scene && scene_hash == w.scene_hash) return;
+  if (std::optional<std::filesystem::path> file = cache.find(w.scene_hash)) {
+    spdlog::info("scene {} found in the cache: {}", to_hex(w.scene_hash).substr(0, 16),
+                 file->string());
+    {
+      std::lock_guard<std::mutex> lock(counters_mutex);
+      ++counters.scene_cache_hits;
+    }
+    use_scene(*file, w.scene_hash);
+    return;
+  }
+  assembler.reset(w.scene_hash, w.scene_size);
+  fetching = true;
+  last_chunk_time = steady_seconds();
+  (void)control.send(SceneRequest{sampler_id, w.scene_hash, 0});
+}
+
+void SamplerService::Impl::on_chunk(const SceneChunk& c, ControlClient& control) {
+  if (!fetching) return;  // a late chunk of a transfer already done
+  if (std::string err = assembler.add(c); !err.empty()) {
+    spdlog::warn("scene transfer: {}", err);
+    return;
+  }
+  if (!assembler.complete()) return;
+  fetching = false;
+  const SceneHash got = protocol::scene_hash(assembler.bytes());
+  if (got != assembler.hash()) {
+    spdlog::error("scene transfer: the bytes hash to {}, not {}: asking again", to_hex(got),
+                  to_hex(assembler.hash()));
+    assembler.reset(welcome.scene_hash, welcome.scene_size);
+    fetching = true;
+    (void)control.send(SceneRequest{sampler_id, welcome.scene_hash, 0});
+    return;
+  }
+  {
+    std::lock_guard<std::mutex> lock(counters_mutex);
+    ++counters.scenes_received;
+  }
+  try {
+    const std::filesystem::path file =
+        cache.store(assembler.hash(), welcome.scene_name, assembler.bytes());
+    spdlog::info("scene received: {} bytes, cached as {}", assembler.bytes().size(),
+                 file.string());
+    use_scene(file, assembler.hash());
+  } catch (const std::exception& e) {
+    spdlog::error("scene {}: {}", welcome.scene_name, e.what());
+  }
+}
+
+void SamplerService::Impl::use_scene(const std::filesystem::path& file, const SceneHash& hash) {
+  try {
+    stop_pool();
+    scene = std::make_unique<Scene>(load_scene_payload(file));
+    scene_hash = hash;
+    spdlog::info("scene {}: {} triangles, {:.2f} s of animation", welcome.scene_name,
+                 scene->triangle_count(), scene->duration());
+  } catch (const std::exception& e) {
+    scene.reset();
+    spdlog::error("cannot load the display's scene {}: {}", welcome.scene_name, e.what());
+  }
+}
+
+void SamplerService::Impl::on_region(const RegionAssignment& r) {
+  if (r.sampler_id != sampler_id) {
+    spdlog::warn("region assignment for sampler {} reached sampler {}: ignored", r.sampler_id,
+                 sampler_id);
+    return;
+  }
+  if (r.epoch < epoch) return;
+  epoch = r.epoch;
+  region = r;
+  std::lock_guard<std::mutex> lock(counters_mutex);
+  ++counters.regions;
+}
+
+// Starts, replaces or keeps the pool so that it runs on the current region. Pools are built on
+// a helper thread (a Tracer per worker thread builds its BVH), so heartbeats go on meanwhile.
+void SamplerService::Impl::update_pool() {
+  if (building.valid()) {
+    if (building.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return;
+    std::unique_ptr<SamplerPool> built;
+    try {
+      built = building.get();
+    } catch (const std::exception& e) {
+      spdlog::error("cannot start the sampler on region [{}, {}) x [{}, {}): {}",
+                    building_region.x0, building_region.x1, building_region.y0, building_region.y1,
+                    e.what());
+      region.reset();
+      return;
+    }
+    if (joined && region && region->region == building_region) {
+      pool = std::move(built);
+      pool_region = building_region;
+      pool->start();
+      spdlog::info("sampling region [{}, {}) x [{}, {}) with {} thread(s)", pool_region.x0,
+                   pool_region.x1, pool_region.y0, pool_region.y1, pool->regions().size());
+    }
+  }
+  if (!joined || !scene || !region) return;
+  if (pool && pool_region == region->region) return;
+  stop_pool();
+
+  SamplerConfig config = options.config;
+  const std::string preset_name = options.preset.empty() ? welcome.presets : options.preset;
+  if (!preset_name.empty()) {
+    try {
+      find_preset(preset_name).apply(&config);
+    } catch (const Error& e) {
+      spdlog::warn("display's preset: {}; using the sampler's flags", e.what());
+    }
+  }
+  config.width = region->width;
+  config.height = region->height;
+  config.region = region->region;
+  config.sampler_id = sampler_id;
+  config.seed = options.config.seed + uint64_t(sampler_id) * 0x9e3779b97f4a7c15ULL;
+  config.refresh_interval = welcome.refresh_interval;
+  SamplerPoolOptions po;
+  po.threads = int(std::min<int64_t>(options.threads, region->region.area()));
+  po.max_samples_per_second = options.max_samples_per_second;
+  building_region = region->region;
+  const Scene* s = scene.get();
+  building = std::async(std::launch::async, [this, s, config, po] {
+    return std::make_unique<SamplerPool>(*s, config, po, clock, sink);
+  });
+}
+
+void SamplerService::Impl::stop_pool() {
+  if (building.valid()) {
+    try {
+      building.get();  // discard a pool under construction
+    } catch (const std::exception&) {
+    }
+  }
+  if (!pool) return;
+  pool->stop();
+  const SamplerCounters c = pool->counters();
+  retired.samples += c.samples;
+  retired.crosshairs += c.crosshairs;
+  retired.reprojections += c.reprojections;
+  retired.reprojections_dropped += c.reprojections_dropped;
+  retired.occlusion_rays += c.occlusion_rays;
+  retired.sanitized += c.sanitized;
+  retired.batches += c.batches;
+  retired.snapshots += c.snapshots;
+  pool.reset();
+}
+
+SamplerCounters SamplerService::Impl::pool_counters() const {
+  SamplerCounters c = retired;
+  if (pool) {
+    const SamplerCounters p = pool->counters();
+    c.samples += p.samples;
+    c.crosshairs += p.crosshairs;
+    c.reprojections += p.reprojections;
+    c.reprojections_dropped += p.reprojections_dropped;
+    c.occlusion_rays += p.occlusion_rays;
+    c.sanitized += p.sanitized;
+    c.batches += p.batches;
+    c.snapshots += p.snapshots;
+  }
+  return c;
+}
+
+void SamplerService::Impl::send_stats(ControlClient& control) {
+  const double now = steady_seconds();
+  const SamplerCounters c = pool_counters();
+  const SampleSender::Counters net = sink.counters();
+  if (last_stats_time > 0.0 && now > last_stats_time) {
+    samples_per_second = double(c.samples - last_stats_samples) / (now - last_stats_time);
+  }
+  last_stats_samples = c.samples;
+  last_stats_time = now;
+  SamplerStats s;
+  s.sampler_id = sampler_id;
+  s.time = std::max(0.0, clock.now());
+  s.samples = c.samples;
+  s.batches = net.batches_sent;
+  s.batches_dropped = net.batches_dropped;
+  s.tilings = net.tilings_sent;
+  s.bytes_sent = net.bytes_sent;
+  s.crosshairs = c.crosshairs;
+  s.reprojections = c.reprojections;
+  s.reprojections_dropped = c.reprojections_dropped;
+  s.occlusion_rays = c.occlusion_rays;
+  s.sanitized = c.sanitized;
+  s.samples_per_second = std::max(0.0, samples_per_second);
+  s.rays_per_second = s.samples_per_second;
+  s.tiles = 0;
+  s.threads = uint16_t(pool ? pool->regions().size() : size_t(options.threads));
+  (void)control.send(s);
+}
+
+}  // namespace afr::service

@@ -1,0 +1,124 @@
+// The ideal-frame cache: its key changes with everything that changes an ideal frame and with
+// nothing else, and a cached frame is the rendered frame, bit for bit.
+#include <afr/common/builtin_scene.h>
+#include <afr/eval/ideal_cache.h>
+#include <afr/eval/scene_setup.h>
+
+#include "eval_test_scenes.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <set>
+
+namespace afr::eval {
+namespace {
+
+TEST(IdealCacheTest, KeyChangesWithSceneTimeSizeSppAndOptionsOnly) {
+  IdealRenderOptions o;
+  o.width = 256;
+  o.height = 128;
+  o.strata = 4;
+  o.time = 8.5 + 7.0 / 60.0;
+  const TracerOptions t;
+  const std::string key = ideal_cache_key(0x1234, o, t);
+  EXPECT_EQ(key.rfind("0000000000001234-256x128-spp16-t8.616666666666667-o", 0), 0u) << key;
+
+  std::set<std::string> keys{key};
+  const auto differs = [&](IdealRenderOptions changed, TracerOptions tracer, uint64_t scene) {
+    return keys.insert(ideal_cache_key(scene, changed, tracer)).second;
+  };
+  IdealRenderOptions c = o;
+  c.time = std::nextafter(o.time, 100.0);  // one ulp later is another frame
+  EXPECT_TRUE(differs(c, t, 0x1234));
+  EXPECT_TRUE(differs(o, t, 0x1235));
+  c = o;
+  c.width = 128;
+  EXPECT_TRUE(differs(c, t, 0x1234));
+  c = o;
+  c.height = 256;
+  EXPECT_TRUE(differs(c, t, 0x1234));
+  c = o;
+  c.strata = 3;
+  EXPECT_TRUE(differs(c, t, 0x1234));
+  c = o;
+  c.seed = 2;
+  EXPECT_TRUE(differs(c, t, 0x1234));
+  c = o;
+  c.filter_alpha = 3.0;
+  EXPECT_TRUE(differs(c, t, 0x1234));
+  TracerOptions tc;
+  tc.max_mirror_depth = 1;
+  EXPECT_TRUE(differs(o, tc, 0x1234));
+  // Threads and the packet path change nothing in the picture, so not the key either.
+  c = o;
+  c.threads = 7;
+  EXPECT_FALSE(differs(c, t, 0x1234));
+  tc = t;
+  tc.packet_crosshair = !t.packet_crosshair;
+  EXPECT_FALSE(differs(o, tc, 0x1234));
+}
+
+TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
+  const Scene a = make_builtin_scene(), b = make_builtin_scene();
+  const uint64_t h = scene_hash(a);
+  EXPECT_EQ(h, scene_hash(b));
+  Scene renamed = make_builtin_scene();
+  for (Node& n : renamed.nodes) n.name += " (renamed)";
+  renamed.source = "elsewhere.gltf";
+  EXPECT_EQ(scene_hash(renamed), h);
+
+  Scene moved = make_builtin_scene();
+  moved.meshes[0].primitives[0].positions[0].x += 1e-3f;
+  EXPECT_NE(scene_hash(moved), h);
+  Scene recolored = make_builtin_scene();
+  recolored.materials[0].base_color_factor.g *= 0.5f;
+  EXPECT_NE(scene_hash(recolored), h);
+  Scene retimed = make_builtin_scene();
+  retimed.channels[0].times.back() += 0.5;
+  EXPECT_NE(scene_hash(retimed), h);
+  Scene relit = make_builtin_scene();
+  relit.lights[0].intensity *= 2.0f;
+  EXPECT_NE(scene_hash(relit), h);
+  Scene with_path = make_builtin_scene();
+  CameraKey k;
+  k.eye = glm::dvec3(0, 1, 5);
+  apply_camera_path(CameraPath({k}), &with_path);
+  EXPECT_NE(scene_hash(with_path), h);
+}
+
+TEST(IdealCacheTest, CachedFrameIsTheRenderedFrameAndIsRenderedOnce) {
+  const Scene scene = testing::sliding_quad_scene(1.0);
+  Tracer tracer(scene);
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / "afr_ideal_cache_test";
+  std::filesystem::remove_all(dir);
+  IdealCache cache(dir, scene_hash(scene));
+  IdealRenderOptions o;
+  o.width = 24;
+  o.height = 16;
+  o.strata = 2;
+  o.time = 0.75;
+  const Image first = cache.frame(tracer, o);
+  EXPECT_EQ(cache.stats().misses, 1u);
+  EXPECT_TRUE(std::filesystem::is_regular_file(cache.path_of(o, tracer.options())));
+  const Image again = cache.frame(tracer, o);
+  EXPECT_EQ(cache.stats().hits, 1u);
+  EXPECT_EQ(cache.stats().misses, 1u);
+  EXPECT_EQ(first.pixels, again.pixels);
+  EXPECT_EQ(first.pixels, render_ideal(tracer, o).pixels);
+  // Another time is another frame.
+  o.time = 0.8;
+  cache.frame(tracer, o);
+  EXPECT_EQ(cache.stats().misses, 2u);
+  // A file of the wrong size under the key is rendered again.
+  write_image(Image(3, 3), cache.path_of(o, tracer.options()));
+  const Image fixed = cache.frame(tracer, o);
+  EXPECT_EQ(fixed.width, 24);
+  EXPECT_EQ(cache.stats().misses, 3u);
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace afr::eval

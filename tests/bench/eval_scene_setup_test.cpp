@@ -1,0 +1,81 @@
+// Camera paths in place of a scene's camera, and the presets that sampler_node and
+// display_node accept.
+#include <afr/common/builtin_scene.h>
+#include <afr/common/error.h>
+#include <afr/eval/scene_setup.h>
+#include <afr/sampler/presets.h>
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+namespace afr::eval {
+namespace {
+
+TEST(SceneSetupTest, SceneCameraFollowsTheCameraPath) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<CameraKey> keys;
+  for (int i = 0; i < 20; ++i) {
+    CameraKey k;
+    k.time = 0.3 * i;
+    k.eye = glm::dvec3(u(rng), 1.0 + u(rng), 4.0 + u(rng));
+    k.rotation = glm::normalize(glm::dquat(2.0 + u(rng), u(rng), u(rng), u(rng)));
+    k.yfov = 0.9;
+    keys.push_back(k);
+  }
+  const CameraPath path(keys);
+  Scene scene = make_builtin_scene();
+  apply_camera_path(path, &scene);
+  for (int i = 0; i < 200; ++i) {
+    const double t = -0.5 + 7.0 * (i / 200.0);
+    const Camera a = scene.camera_at(scene.evaluate(t));
+    const Camera b = path.camera(t);
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_NEAR(a.eye[c], b.eye[c], 1e-9) << t;
+      EXPECT_NEAR(a.forward[c], b.forward[c], 1e-9) << t;
+      EXPECT_NEAR(a.up[c], b.up[c], 1e-9) << t;
+    }
+    EXPECT_DOUBLE_EQ(a.yfov, 0.9);
+  }
+}
+
+TEST(SceneSetupTest, PathWithChangingFieldOfViewIsRefused) {
+  CameraKey a, b;
+  b.time = 1.0;
+  b.yfov = a.yfov * 1.5;
+  Scene scene = make_builtin_scene();
+  EXPECT_THROW(apply_camera_path(CameraPath({a, b}), &scene), Error);
+}
+
+TEST(PresetsTest, NamedPresetsSetTheirKnobsAndValidate) {
+  ASSERT_EQ(presets().size(), 3u);
+  for (const char* name : {"fast", "balanced", "accurate"}) {
+    const Preset& p = find_preset(name);
+    SamplerConfig c;
+    p.apply(&c);
+    EXPECT_EQ(c.b, p.b);
+    EXPECT_EQ(c.r, p.r);
+    EXPECT_EQ(c.chunk, p.chunk);
+    EXPECT_EQ(c.min_tiles, p.min_tiles);
+    EXPECT_EQ(c.max_tiles, p.max_tiles);
+    EXPECT_NO_THROW(c.validate()) << name;
+    EXPECT_GE(p.reconstruction.samples_per_pixel, 1.0);
+    EXPECT_LT(p.reconstruction.min_spatial_extent, p.reconstruction.max_spatial_extent);
+  }
+  // Balanced is afr's defaults.
+  SamplerConfig defaults, balanced;
+  find_preset("balanced").apply(&balanced);
+  EXPECT_EQ(balanced.b, defaults.b);
+  EXPECT_EQ(balanced.r, defaults.r);
+  EXPECT_EQ(balanced.chunk, defaults.chunk);
+  try {
+    find_preset("fastest");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "unknown preset 'fastest' (expected fast, balanced, accurate)");
+  }
+}
+
+}  // namespace
+}  // namespace afr::eval

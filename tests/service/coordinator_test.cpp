@@ -1,0 +1,89 @@
+#include <afr/display/service/coordinator.h>
+
+#include <gtest/gtest.h>
+
+namespace afr::service {
+namespace {
+
+int64_t total_area(const Coordinator& c) {
+  int64_t a = 0;
+  for (const auto& [id, m] : c.members()) a += m.region.area();
+  return a;
+}
+
+// The regions partition the image: areas add up and no pixel is owned twice.
+bool partitions(const Coordinator& c) {
+  std::vector<int> owner(size_t(c.width()) * c.height(), 0);
+  for (const auto& [id, m] : c.members()) {
+    for (int y = m.region.y0; y < m.region.y1; ++y) {
+      for (int x = m.region.x0; x < m.region.x1; ++x) {
+        if (owner[size_t(y) * c.width() + x]++) return false;
+      }
+    }
+  }
+  for (int o : owner) {
+    if (o != 1) return false;
+  }
+  return true;
+}
+
+TEST(CoordinatorTest, JoinsGetIdsAndTheRegionsPartitionTheImage) {
+  Coordinator c(100, 60);
+  bool is_new = false;
+  EXPECT_EQ(c.join("a", 0, "a", "", 1, 0.0, &is_new).id, 1u);
+  EXPECT_TRUE(is_new);
+  EXPECT_EQ(c.join("b", 0, "b", "", 1, 0.0, &is_new).id, 2u);
+  EXPECT_EQ(c.join("a", 0, "a", "", 1, 0.1, &is_new).id, 1u);  // a repeated join
+  EXPECT_FALSE(is_new);
+  EXPECT_TRUE(c.maybe_recut(0.1));
+  EXPECT_EQ(total_area(c), 6000);
+  EXPECT_TRUE(partitions(c));
+  EXPECT_FALSE(c.maybe_recut(0.2));  // nothing changed
+}
+
+TEST(CoordinatorTest, RequestedIdIsHonouredWhenFree) {
+  Coordinator c(10, 10);
+  bool is_new = false;
+  EXPECT_EQ(c.join("a", 7, "a", "", 1, 0.0, &is_new).id, 7u);
+  EXPECT_EQ(c.join("b", 7, "b", "", 1, 0.0, &is_new).id, 8u);  // taken: a fresh one
+}
+
+TEST(CoordinatorTest, SilentMemberExpiresAndItsRegionGoesToTheOthers) {
+  CoordinatorOptions o;
+  o.member_timeout = 0.5;
+  Coordinator c(64, 64, o);
+  bool is_new = false;
+  c.join("a", 0, "a", "", 1, 0.0, &is_new);
+  c.join("b", 0, "b", "", 1, 0.0, &is_new);
+  c.maybe_recut(0.0);
+  c.heard(1, 0.4);
+  EXPECT_TRUE(c.expire(0.45).empty());
+  const std::vector<Member> dead = c.expire(0.6);
+  ASSERT_EQ(dead.size(), 1u);
+  EXPECT_EQ(dead[0].id, 2u);
+  EXPECT_TRUE(c.maybe_recut(0.6));
+  EXPECT_EQ(c.members().at(1).region, (PixelRect{0, 0, 64, 64}));
+}
+
+TEST(CoordinatorTest, AreasFollowThroughputWithHysteresis) {
+  CoordinatorOptions o;
+  o.settle_seconds = 0.0;
+  Coordinator c(200, 100, o);
+  bool is_new = false;
+  c.join("a", 0, "a", "", 1, 0.0, &is_new);
+  c.join("b", 0, "b", "", 1, 0.0, &is_new);
+  c.maybe_recut(0.0);
+  EXPECT_EQ(c.members().at(1).region.area(), 10000);
+  c.report_throughput(1, 300000.0, 0.5);
+  c.report_throughput(2, 100000.0, 0.5);
+  EXPECT_FALSE(c.maybe_recut(0.5));  // at most once per recut_interval
+  EXPECT_TRUE(c.maybe_recut(1.1));
+  EXPECT_NEAR(double(c.members().at(1).region.area()) / 20000.0, 0.75, 0.02);
+  EXPECT_TRUE(partitions(c));
+  // A 10% change is inside the hysteresis: no recut.
+  c.report_throughput(1, 330000.0, 2.0);
+  EXPECT_FALSE(c.maybe_recut(2.5));
+}
+
+}  // namespace
+}  // namespace afr::service

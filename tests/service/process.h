@@ -1,0 +1,154 @@
+// Helpers of the multi-process service tests: child processes (fork/exec, logs to files, kill
+// on scope exit), waiting for conditions, free ports, and HTTP GETs of the display's /stats.
+#pragma once
+
+#include <httplib.h>
+#include <nlohmann/json.hpp>
+#include <netinet/in.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <fcntl.h>
+#include <fstream>
+#include <functional>
+#include <random>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace afr::testing {
+
+inline double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+class Process {
+ public:
+  Process(std::vector<std::string> argv, const std::string& log) : log_(log) {
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      if (fd >= 0) {
+        ::dup2(fd, 1);
+        ::dup2(fd, 2);
+      }
+      std::vector<char*> args;
+      for (std::string& a : argv) args.push_back(a.data());
+      args.push_back(nullptr);
+      ::execv(args[0], args.data());
+      std::perror("execv");
+      ::_exit(127);
+    }
+  }
+  ~Process() {
+    if (alive()) {
+      signal(SIGKILL);
+      wait(5.0);
+    }
+  }
+  Process(const Process&) = delete;
+  Process& operator=(const Process&) = delete;
+
+  pid_t pid() const { return pid_; }
+  void signal(int sig) {
+    if (pid_ > 0) ::kill(pid_, sig);
+  }
+  bool alive() {
+    if (pid_ <= 0 || exited_) return false;
+    int status = 0;
+    if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+      exited_ = true;
+      status_ = status;
+      return false;
+    }
+    return true;
+  }
+  // Waits for the exit; returns the exit code, or -1 on timeout or death by a signal.
+  int wait(double timeout) {
+    const auto t0 = std::chrono::steady_clock::now();
+    while (alive() && seconds_since(t0) < timeout) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    if (!exited_) return -1;
+    return WIFEXITED(status_) ? WEXITSTATUS(status_) : -1;
+  }
+  std::string log() const {
+    std::ifstream in(log_);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  }
+  // Resident memory in kB (VmRSS), 0 when unknown.
+  long rss_kb() const {
+    std::ifstream in("/proc/" + std::to_string(pid_) + "/status");
+    std::string line;
+    while (std::getline(in, line)) {
+      if (line.rfind("VmRSS:", 0) == 0) return std::stol(line.substr(6));
+    }
+    return 0;
+  }
+
+ private:
+  pid_t pid_ = -1;
+  bool exited_ = false;
+  int status_ = 0;
+  std::string log_;
+};
+
+inline bool wait_until(const std::function<bool()>& done, double timeout, double poll = 0.02) {
+  const auto t0 = std::chrono::steady_clock::now();
+  while (seconds_since(t0) < timeout) {
+    if (done()) return true;
+    std::this_thread::sleep_for(std::chrono::duration<double>(poll));
+  }
+  return done();
+}
+
+inline bool port_free(int port) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(uint16_t(port));
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  const bool ok = ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)) == 0;
+  ::close(fd);
+  return ok;
+}
+
+// A base port P with P..P+3 free (the display's three channels and its metrics port).
+inline int free_base_port() {
+  std::mt19937 rng(std::random_device{}());
+  for (int attempt = 0; attempt < 200; ++attempt) {
+    const int p = 20000 + int(rng() % 20000) * 1;
+    if (port_free(p) && port_free(p + 1) && port_free(p + 2) && port_free(p + 3)) return p;
+  }
+  return 0;
+}
+
+// The display's /stats, or null when it does not answer.
+inline nlohmann::json get_stats(int port) {
+  httplib::Client client("127.0.0.1", port);
+  client.set_connection_timeout(0, 300000);
+  client.set_read_timeout(1, 0);
+  auto res = client.Get("/stats");
+  if (!res || res->status != 200) return nullptr;
+  return nlohmann::json::parse(res->body, nullptr, false);
+}
+
+inline std::string get_text(int port, const std::string& path) {
+  httplib::Client client("127.0.0.1", port);
+  auto res = client.Get(path.c_str());
+  return res && res->status == 200 ? res->body : std::string();
+}
+
+inline int members(const nlohmann::json& stats) {
+  if (stats.is_null() || stats.is_discarded()) return -1;
+  return stats["display"]["members"].get<int>();
+}
+
+}  // namespace afr::testing
