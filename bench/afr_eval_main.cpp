@@ -173,7 +173,8 @@ int main(int argc, char** argv) {
     for (const std::string& s : starts) {
       const size_t eq = s.find('=');
       if (eq == std::string::npos || !known.count(s.substr(0, eq))) {
-        throw afr::Error(fmt::format("--start '{}': expected NAME=SECONDS with a known animation", s));
+        throw afr::Error(
+            fmt::format("--start '{}': expected NAME=SECONDS with a known animation", s));
       }
       known[s.substr(0, eq)].start = std::stod(s.substr(eq + 1));
     }
@@ -202,7 +203,8 @@ int main(int argc, char** argv) {
       std::ofstream md(out / "sweep.md");
       md << fmt::format("# afr-eval sweep\n\n    {}\n\n{}; {:.1f} minutes.\n{}\n", command, setup,
                         minutes, sweep_markdown(results));
-      for (const fs::path& p : plots) md << fmt::format("\n![{}]({})\n", p.stem().string(), p.filename().string());
+      for (const fs::path& p : plots)
+        md << fmt::format("\n![{}]({})\n", p.stem().string(), p.filename().string());
       fmt::print("{}\n", sweep_markdown(results));
       fmt::print("written to {} in {:.1f} minutes\n", out.string(), minutes);
       return 0;
@@ -225,8 +227,10 @@ int main(int argc, char** argv) {
       md << fmt::format("- {}: {} rendered ({:.0f} s), {} from the cache\n", a.spec.name,
                         a.ideal_rendered, a.ideal_seconds, a.ideal_cached);
     }
-    for (const fs::path& p : plots) md << fmt::format("\n![{}]({})\n", p.stem().string(), p.filename().string());
-    for (const fs::path& p : strips) md << fmt::format("\n![{}]({})\n", p.stem().string(), p.filename().string());
+    for (const fs::path& p : plots)
+      md << fmt::format("\n![{}]({})\n", p.stem().string(), p.filename().string());
+    for (const fs::path& p : strips)
+      md << fmt::format("\n![{}]({})\n", p.stem().string(), p.filename().string());
     fmt::print("Mean RMS error (0-255), {}\n\n{}\nWall seconds per run\n\n{}\n", setup, rms, wall);
     fmt::print("written to {} in {:.1f} minutes\n", out.string(), minutes);
   } catch (const std::exception& e) {

@@ -15,7 +15,7 @@ packages=(
   # flags, logging
   libcli11-dev libspdlog-dev libfmt-dev
   # tests and benchmarks
-  libgtest-dev libgmock-dev libbenchmark-dev
+  libgtest-dev libgmock-dev libbenchmark-dev gnuplot-nox
 )
 
 missing=()

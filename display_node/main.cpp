@@ -91,8 +91,9 @@ int main(int argc, char** argv) {
   bool headless = false, insecure = false;
   double fps = 30.0, seconds = 0.0, stats_interval = 2.0;
   int screenshot_every = 0;
-  app.add_option("scene", scene_path, "glTF scene (.glb, or .gltf with embedded buffers); "
-                                      "the built-in scene if omitted")
+  app.add_option("scene", scene_path,
+                 "glTF scene (.glb, or .gltf with embedded buffers); "
+                 "the built-in scene if omitted")
       ->check(CLI::ExistingFile);
   app.add_option("--bind", o.bind, "base endpoint tcp://HOST:PORT (uses PORT..PORT+2)")
       ->capture_default_str();
@@ -160,8 +161,9 @@ int main(int argc, char** argv) {
       if (allow_file.empty()) allow_file = (fs::path(keys_dir) / "samplers.allow").string();
     }
     if (key_file.empty() != allow_file.empty()) {
-      throw afr::Error("CurveZMQ needs both the display's key pair (--key) and the samplers' "
-                       "allow-list (--allow), or --keys DIR with both");
+      throw afr::Error(
+          "CurveZMQ needs both the display's key pair (--key) and the samplers' "
+          "allow-list (--allow), or --keys DIR with both");
     }
     if (!key_file.empty()) {
       o.keys = afr::protocol::load_curve_keypair(key_file);
@@ -183,19 +185,20 @@ int main(int argc, char** argv) {
     std::unique_ptr<afr::CameraPath> path;
     if (!replay.empty()) {
       path = std::make_unique<afr::CameraPath>(afr::read_camera_path(replay));
-      spdlog::warn("--replay {}: the display reprojects with the path's camera; samplers "
-                   "trace the scene's own camera (docs/service.md, \"Camera paths\")",
-                   replay);
+      spdlog::warn(
+          "--replay {}: the display reprojects with the path's camera; samplers "
+          "trace the scene's own camera (docs/service.md, \"Camera paths\")",
+          replay);
     }
     o.camera_at = camera_function(scene, path.get());
-    spdlog::info("scene {}: {} triangles, {:.2f} s of animation, {} bytes to serve",
-                 o.scene.name, scene.triangle_count(), scene.duration(), o.scene.bytes.size());
+    spdlog::info("scene {}: {} triangles, {:.2f} s of animation, {} bytes to serve", o.scene.name,
+                 scene.triangle_count(), scene.duration(), o.scene.bytes.size());
 
     afr::ReconstructorConfig rc;
     rc.image_width = size.width;
     rc.image_height = size.height;
-    rc.capacity = size_t(std::max(1.0, p.reconstruction.samples_per_pixel * size.width *
-                                           double(size.height)));
+    rc.capacity = size_t(
+        std::max(1.0, p.reconstruction.samples_per_pixel * size.width * double(size.height)));
     rc.capacity = std::min(rc.capacity, afr::kMaxCapacity);
     rc.filter.min_spatial_extent = p.reconstruction.min_spatial_extent;
     rc.filter.max_spatial_extent = p.reconstruction.max_spatial_extent;
@@ -222,8 +225,8 @@ int main(int argc, char** argv) {
 
     afr::service::OverlaySink tee(*recon);
     afr::service::DisplayService service(o, tee);
-    service.metrics().set_display(service.session(), size.width, size.height,
-                                  recon->backend_name(), afr::mode_name(recon->mode()));
+    service.metrics().set_display(service.session(), size.width, size.height, recon->backend_name(),
+                                  afr::mode_name(recon->mode()));
     std::signal(SIGINT, on_signal);
     std::signal(SIGTERM, on_signal);
     std::signal(SIGPIPE, SIG_IGN);
@@ -237,8 +240,7 @@ int main(int argc, char** argv) {
            last_stats = service.now();
     bool key_down[3] = {false, false, false};
     auto save = [&](const std::string& stem, double t) {
-      afr::service::write_images(*recon, image, tee, service.regions(),
-                                 fs::path(output) / stem);
+      afr::service::write_images(*recon, image, tee, service.regions(), fs::path(output) / stem);
       spdlog::info("wrote {}/{}.png (t={:.2f}s) with _tiling and _density overlays", output, stem,
                    t);
     };

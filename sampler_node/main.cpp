@@ -60,7 +60,8 @@ int main(int argc, char** argv) {
   afr::add_sampler_flags(app, &o.config);
 
   std::string keygen_path;
-  CLI::App* keygen = app.add_subcommand("keygen", "write a new CurveZMQ key pair FILE and FILE.pub");
+  CLI::App* keygen =
+      app.add_subcommand("keygen", "write a new CurveZMQ key pair FILE and FILE.pub");
   keygen->add_option("file", keygen_path, "key pair file to write (mode 0600)")->required();
   CLI11_PARSE(app, argc, argv);
 
@@ -83,13 +84,14 @@ int main(int argc, char** argv) {
       }
     }
     if (key_file.empty() != server_key_file.empty()) {
-      throw afr::Error("CurveZMQ needs both --key (this sampler's pair) and --server-key (the "
-                       "display's public key)");
+      throw afr::Error(
+          "CurveZMQ needs both --key (this sampler's pair) and --server-key (the "
+          "display's public key)");
     }
     if (!key_file.empty()) {
-      o.security = afr::protocol::Security::client(afr::protocol::load_curve_keypair(key_file),
-                                                   afr::protocol::load_curve_public_key(
-                                                       server_key_file));
+      o.security =
+          afr::protocol::Security::client(afr::protocol::load_curve_keypair(key_file),
+                                          afr::protocol::load_curve_public_key(server_key_file));
       spdlog::info("CurveZMQ on: this sampler's public key is {}", o.security.own.public_key);
     }
     if (o.name.empty()) o.name = fmt::format("{}:{}", host_name(), ::getpid());

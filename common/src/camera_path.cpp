@@ -55,7 +55,8 @@ std::vector<std::string_view> fields_of(std::string_view line) {
 }
 
 std::string_view trim(std::string_view s) {
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r'))
+    s.remove_suffix(1);
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
   return s;
 }
@@ -65,8 +66,8 @@ std::string_view trim(std::string_view s) {
 CameraPath::CameraPath(std::vector<CameraKey> keys) : keys_(std::move(keys)) {
   if (keys_.empty()) throw Error("camera path: no keys");
   if (keys_.size() > kMaxCameraPathKeys) {
-    throw Error(fmt::format("camera path: {} keys exceed the limit {}", keys_.size(),
-                            kMaxCameraPathKeys));
+    throw Error(
+        fmt::format("camera path: {} keys exceed the limit {}", keys_.size(), kMaxCameraPathKeys));
   }
   for (size_t i = 0; i < keys_.size(); ++i) {
     const std::string problem = key_problem(keys_[i], i > 0 ? &keys_[i - 1] : nullptr);
@@ -138,9 +139,9 @@ CameraPath parse_camera_path(std::string_view text, std::string_view name) {
     if (line.empty() || line.front() == '#') continue;
     const std::vector<std::string_view> fields = fields_of(line);
     if (fields.size() != 9) {
-      throw error(line_number,
-                  fmt::format("expected 9 numbers (t ex ey ez qx qy qz qw yfov), found {}",
-                              fields.size()));
+      throw error(
+          line_number,
+          fmt::format("expected 9 numbers (t ex ey ez qx qy qz qw yfov), found {}", fields.size()));
     }
     double v[9];
     for (int i = 0; i < 9; ++i) {

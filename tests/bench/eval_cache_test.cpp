@@ -91,8 +91,7 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
 TEST(IdealCacheTest, CachedFrameIsTheRenderedFrameAndIsRenderedOnce) {
   const Scene scene = testing::sliding_quad_scene(1.0);
   Tracer tracer(scene);
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() / "afr_ideal_cache_test";
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "afr_ideal_cache_test";
   std::filesystem::remove_all(dir);
   IdealCache cache(dir, scene_hash(scene));
   IdealRenderOptions o;

@@ -19,7 +19,8 @@ TEST(EvalCiTest, AdaptiveBeatsFramelessAndFramed60AtTheSameRate) {
   config.base.height = 128;
   config.base.first_time = 2.0;
   const int frames = 120;
-  const std::vector<Image> ideal = ideal_frames(scene, tracer, config, 2.0, frames, nullptr, nullptr);
+  const std::vector<Image> ideal =
+      ideal_frames(scene, tracer, config, 2.0, frames, nullptr, nullptr);
   double rms[3];
   const Method methods[3] = {Method::kAdaptive, Method::kFrameless, Method::kFramed60};
   for (int m = 0; m < 3; ++m) {

@@ -21,7 +21,8 @@ Image reference_frame(Tracer& tracer, double t, int w, int h) {
   TraceStats stats;
   Image image(w, h);
   for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) image.at(x, y) = tracer.trace(cam.ray(x + 0.5, y + 0.5, w, h), &stats).color;
+    for (int x = 0; x < w; ++x)
+      image.at(x, y) = tracer.trace(cam.ray(x + 0.5, y + 0.5, w, h), &stats).color;
   }
   return image;
 }
@@ -59,9 +60,8 @@ TEST(FramedTest, FrameShownAtTjWasTracedWithTheInputOfTjMinus1) {
     s.method = method;
     s.rate = 60.0 * s.width * s.height;  // framed 60 Hz at full resolution: no upsampling
     std::vector<Image> shown;
-    const RunStats stats = run_method(scene, tracer, s, [&](int, const Image& image) {
-      shown.push_back(image);
-    });
+    const RunStats stats =
+        run_method(scene, tracer, s, [&](int, const Image& image) { shown.push_back(image); });
     EXPECT_EQ(stats.frame_width, s.width);
     EXPECT_EQ(stats.frames_traced, uint64_t(s.frames));
     EXPECT_EQ(stats.primary_rays, uint64_t(s.frames) * s.width * s.height);

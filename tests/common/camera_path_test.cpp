@@ -112,8 +112,7 @@ TEST(CameraPathTest, PoseInterpolatesEyeLinearlyAndRotationAlongTheShortArc) {
 }
 
 TEST(CameraPathTest, KeyOfACameraGivesTheSameCameraBack) {
-  const Camera cam =
-      Camera::look_at({1, 2, 3}, {-4, 0.5, -2}, {0, 1, 0}, glm::radians(50.0), 0.01);
+  const Camera cam = Camera::look_at({1, 2, 3}, {-4, 0.5, -2}, {0, 1, 0}, glm::radians(50.0), 0.01);
   const CameraPath path({camera_key(0.0, cam)});
   const Camera back = path.camera(0.0);
   for (int i = 0; i < 3; ++i) {

@@ -118,8 +118,8 @@ std::vector<AnimationResult> evaluate(const EvalConfig& config) {
         s.rate = method_uses_rate(m) ? rate : double(s.width) * s.height * s.fps;
         s.first_time = spec.start;
         s.frames = frames;
-        progress.set_task(fmt::format("{}: {} at {:.0f}K", spec.name, method_name(m),
-                                      s.rate / 1000.0));
+        progress.set_task(
+            fmt::format("{}: {} at {:.0f}K", spec.name, method_name(m), s.rate / 1000.0));
         RunResult r = run_and_compare(scene, tracer, s, ideal, strips, &progress);
         r.animation = spec.name;
         spdlog::debug("{} {} {:.0f}: mean RMS {:.2f}, {:.1f} s sampling, {:.1f} s reconstruction",

@@ -62,8 +62,8 @@ Image IdealCache::frame(Tracer& tracer, const IdealRenderOptions& options) {
         ++stats_.hits;
         return image;
       }
-      spdlog::warn("{}: cached ideal frame is {}x{}, not {}x{}: rendering it again",
-                   path.string(), image.width, image.height, options.width, options.height);
+      spdlog::warn("{}: cached ideal frame is {}x{}, not {}x{}: rendering it again", path.string(),
+                   image.width, image.height, options.width, options.height);
     } catch (const Error& e) {
       spdlog::warn("{}: unreadable cached ideal frame ({}): rendering it again", path.string(),
                    e.what());

@@ -12,8 +12,8 @@ namespace afr::eval {
 namespace {
 
 constexpr std::array<Method, 7> kMethods = {
-    Method::kFramed60,    Method::kFramedFullRes,          Method::kFrameless,
-    Method::kFramedTaa,   Method::kAdaptiveNoReprojection, Method::kAdaptive,
+    Method::kFramed60,  Method::kFramedFullRes,          Method::kFrameless,
+    Method::kFramedTaa, Method::kAdaptiveNoReprojection, Method::kAdaptive,
     Method::kFullRes60,
 };
 

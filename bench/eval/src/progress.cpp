@@ -55,7 +55,8 @@ void Progress::draw(bool force) {
   const double left = fraction > 0.0 ? elapsed * (1.0 - fraction) / fraction : 0.0;
   constexpr int kWidth = 30;
   const int filled = int(fraction * kWidth);
-  const std::string bar = std::string(size_t(filled), '#') + std::string(size_t(kWidth - filled), '.');
+  const std::string bar =
+      std::string(size_t(filled), '#') + std::string(size_t(kWidth - filled), '.');
   const std::string line =
       fmt::format("[{}] {:5.1f}% {} elapsed, {} left  {}", bar, 100.0 * fraction,
                   clock_text(elapsed), fraction > 0.0 ? clock_text(left) : "?:??", task_);

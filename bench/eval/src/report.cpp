@@ -55,8 +55,8 @@ const RunResult* find_run(const AnimationResult& a, Method method, double rate) 
   return nullptr;
 }
 
-std::string table(const std::vector<AnimationResult>& results,
-                  double (*value)(const RunResult&), const char* format) {
+std::string table(const std::vector<AnimationResult>& results, double (*value)(const RunResult&),
+                  const char* format) {
   std::string header = "| Method |", rule = "|---|";
   for (const AnimationResult& a : results) {
     for (double rate : rates_of(a)) {
@@ -107,7 +107,8 @@ std::string rate_label(double rate) {
 }
 
 std::string rms_table_markdown(const std::vector<AnimationResult>& results) {
-  return table(results, [](const RunResult& r) { return r.mean_rms; }, "{:.1f}");
+  return table(
+      results, [](const RunResult& r) { return r.mean_rms; }, "{:.1f}");
 }
 
 std::string wall_table_markdown(const std::vector<AnimationResult>& results) {
@@ -232,8 +233,7 @@ std::vector<std::filesystem::path> write_strips(const std::vector<AnimationResul
       const Image& first = a.ideal_strip_images.begin()->second;
       const int w = first.width, h = first.height;
       const int columns = 1 + int(runs.size()), rows = int(a.ideal_strip_images.size());
-      Image strip(columns * (w + kGap) - kGap, kBand + rows * (h + kGap) - kGap,
-                  glm::vec3(0.02f));
+      Image strip(columns * (w + kGap) - kGap, kBand + rows * (h + kGap) - kGap, glm::vec3(0.02f));
       int row = 0;
       for (const auto& [frame, ideal] : a.ideal_strip_images) {
         for (int c = 0; c < columns; ++c) {
@@ -258,9 +258,10 @@ std::vector<std::filesystem::path> write_strips(const std::vector<AnimationResul
         ++row;
       }
       for (int c = 0; c < columns; ++c) {
-        draw_label(&strip, c * (w + kGap) + 4, kBand - 6,
-                   c == 0 ? std::string("Ideal") : std::string(method_label(runs[size_t(c - 1)]->method)),
-                   12);
+        draw_label(
+            &strip, c * (w + kGap) + 4, kBand - 6,
+            c == 0 ? std::string("Ideal") : std::string(method_label(runs[size_t(c - 1)]->method)),
+            12);
       }
       const std::filesystem::path file =
           folder / fmt::format("strip-{}-{}.png", safe(a.spec.name), rate_label(rate));

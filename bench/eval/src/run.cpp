@@ -170,8 +170,7 @@ RunStats run_framed(const Scene& scene, Tracer& tracer, const RunSettings& s,
 
 // Framed 60 Hz with temporal accumulation (taa.h), double buffered like framed 60 Hz: the
 // frame shown at t_j is frame j - 1, traced with the input of t_(j-1).
-RunStats run_taa(const Scene& scene, Tracer& tracer, const RunSettings& s,
-                 const FrameSink& sink) {
+RunStats run_taa(const Scene& scene, Tracer& tracer, const RunSettings& s, const FrameSink& sink) {
   RunStats stats;
   int w, h;
   framed_resolution(s.rate / s.fps, s.width, s.height, &w, &h);

@@ -29,8 +29,7 @@ std::vector<SweepPoint> default_sweep() {
     add("r", fmt::format("r={}", r), A, 4e5, [r](RunSettings* s) { s->sampler.r = r; });
   }
   for (int c : {5, 100}) {
-    add("chunk", fmt::format("chunk={}", c), A, 4e5,
-        [c](RunSettings* s) { s->sampler.chunk = c; });
+    add("chunk", fmt::format("chunk={}", c), A, 4e5, [c](RunSettings* s) { s->sampler.chunk = c; });
   }
   for (int n : {1, 2, 8}) {
     add("N", fmt::format("N={}WH", n), A, 4e5, [n](RunSettings* s) {
@@ -101,9 +100,9 @@ std::vector<SweepResult> run_sweep(const EvalConfig& config,
       sr.sample_seconds = r.stats.sample_seconds;
       sr.reconstruct_seconds = r.stats.reconstruct_seconds;
       const double shown = double(frames) / s.fps;
-      sr.cost = (r.stats.virtual_seconds > 0.0 ? r.stats.sample_seconds / r.stats.virtual_seconds
-                                               : 0.0) +
-                r.stats.reconstruct_seconds / shown;
+      sr.cost =
+          (r.stats.virtual_seconds > 0.0 ? r.stats.sample_seconds / r.stats.virtual_seconds : 0.0) +
+          r.stats.reconstruct_seconds / shown;
       out.push_back(std::move(sr));
     }
   }
@@ -118,10 +117,9 @@ void write_sweep_csv(const std::vector<SweepResult>& results, const std::filesys
   out << "animation,knob,value,method,rate,mean_rms,cost,sample_wall_s,reconstruct_wall_s,"
          "pareto\n";
   for (const SweepResult& r : results) {
-    out << fmt::format("{},{},{},{},{},{:.4f},{:.4f},{:.3f},{:.3f},{}\n", r.animation,
-                       r.point.knob, r.point.value, method_name(r.point.method), r.point.rate,
-                       r.mean_rms, r.cost, r.sample_seconds, r.reconstruct_seconds,
-                       r.pareto ? 1 : 0);
+    out << fmt::format("{},{},{},{},{},{:.4f},{:.4f},{:.3f},{:.3f},{}\n", r.animation, r.point.knob,
+                       r.point.value, method_name(r.point.method), r.point.rate, r.mean_rms, r.cost,
+                       r.sample_seconds, r.reconstruct_seconds, r.pareto ? 1 : 0);
   }
 }
 
@@ -130,9 +128,10 @@ std::string sweep_markdown(const std::vector<SweepResult>& results) {
   std::set<std::string> done;
   for (const SweepResult& first : results) {
     if (!done.insert(first.animation).second) continue;
-    out += fmt::format("\n**{}**\n\n| knob | value | method | R | mean RMS | cost (wall s per s) | "
-                       "Pareto |\n|---|---|---|---:|---:|---:|:-:|\n",
-                       first.animation);
+    out += fmt::format(
+        "\n**{}**\n\n| knob | value | method | R | mean RMS | cost (wall s per s) | "
+        "Pareto |\n|---|---|---|---:|---:|---:|:-:|\n",
+        first.animation);
     for (const SweepResult& r : results) {
       if (r.animation != first.animation) continue;
       out += fmt::format("| {} | {} | {} | {} | {:.1f} | {:.2f} | {} |\n", r.point.knob,
@@ -194,9 +193,8 @@ std::vector<std::filesystem::path> write_sweep_plots(const std::vector<SweepResu
           << "set ylabel 'mean RMS error (0-255)'\nset logscale x\nset grid\n"
           << "set key outside right top\nplot";
       for (size_t k = 0; k < knobs.size(); ++k) {
-        out << fmt::format(
-            "{} '{}' index {} using 1:2 with points pt {} ps 1.3 title '{}'", k ? "," : "",
-            dat.string(), k, int(k % 12) + 1, knobs[k]);
+        out << fmt::format("{} '{}' index {} using 1:2 with points pt {} ps 1.3 title '{}'",
+                           k ? "," : "", dat.string(), k, int(k % 12) + 1, knobs[k]);
       }
       out << fmt::format(
           ", '{}' index {} using 1:2 with lines lw 2 lc rgb 'black' title 'Pareto front', "

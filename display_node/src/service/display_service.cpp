@@ -32,8 +32,8 @@ ScenePayload read_scene_payload(const std::string& path) {
     p.bytes.assign(std::istreambuf_iterator<char>(in), {});
     if (p.bytes.empty()) throw Error(fmt::format("{}: the scene file is empty", path));
     if (p.bytes.size() > kMaxSceneBytes) {
-      throw Error(fmt::format("{}: {} bytes is over the protocol's limit of 4 GiB", path,
-                              p.bytes.size()));
+      throw Error(
+          fmt::format("{}: {} bytes is over the protocol's limit of 4 GiB", path, p.bytes.size()));
     }
     p.name = std::filesystem::path(path).filename().string();
     if (p.name.size() > kMaxNameBytes) p.name = p.name.substr(p.name.size() - kMaxNameBytes);
@@ -73,7 +73,7 @@ struct DisplayService::Control {
   struct Transfer {
     uint32_t next_chunk = 0;
   };
-  std::map<std::string, Transfer> transfers;  // by peer
+  std::map<std::string, Transfer> transfers;   // by peer
   std::map<std::string, double> told_unknown;  // peers told to join again, when
   uint64_t view_sequence = 0;
   uint64_t heartbeat_sequence = 0;
@@ -116,8 +116,8 @@ DisplayService::DisplayService(DisplayServiceOptions options, SampleSink& sink)
   }
   const Security sec = server_security(options_);
   try {
-    control_ = std::make_unique<Control>(context_, endpoints_, sec, options_.width,
-                                         options_.height, options_.coordinator);
+    control_ = std::make_unique<Control>(context_, endpoints_, sec, options_.width, options_.height,
+                                         options_.coordinator);
     samples_ = std::make_unique<SampleReceiver>(context_, endpoints_.samples, sec);
   } catch (const zmq::error_t& e) {
     throw Error(fmt::format("cannot bind {} (ports {}, +1, +2): {}", options_.bind,
@@ -154,9 +154,9 @@ void DisplayService::start() {
   if (running_.exchange(true)) return;
   spdlog::info("display session {:x}: control {}, views {}, samples {}{}", session_,
                endpoints_.control, endpoints_.views, endpoints_.samples,
-               options_.keys.secret_key.empty()
-                   ? ""
-                   : fmt::format(", CurveZMQ with {} allowed key(s)", options_.allowed_keys.size()));
+               options_.keys.secret_key.empty() ? ""
+                                                : fmt::format(", CurveZMQ with {} allowed key(s)",
+                                                              options_.allowed_keys.size()));
   control_thread_ = std::thread([this] { control_loop(); });
   ingest_thread_ = std::thread([this] { ingest_loop(); });
   if (http_) {
@@ -225,8 +225,8 @@ void DisplayService::control_loop() {
 
   auto send = [&](const std::string& peer, const Message& m) {
     Status s = c.server.send(peer, m);
-    if (!s.ok()) spdlog::debug("control: cannot send {}: {}", message_type_name(message_type(m)),
-                               s.message());
+    if (!s.ok())
+      spdlog::debug("control: cannot send {}: {}", message_type_name(message_type(m)), s.message());
     return s.ok();
   };
   auto send_regions = [&](double t) {
@@ -267,17 +267,17 @@ void DisplayService::control_loop() {
         spdlog::warn("control: rejected a message from peer {}{}: {}", to_hex_peer(in->peer),
                      in->public_key.empty() ? "" : " key " + in->public_key, in->message.error());
         if (in->message.error().find("version") != std::string::npos) {
-          send(in->peer, Leave{0, LeaveReason::kVersionMismatch,
-                               fmt::format("this display speaks protocol version {}",
-                                           kProtocolVersion)});
+          send(in->peer,
+               Leave{0, LeaveReason::kVersionMismatch,
+                     fmt::format("this display speaks protocol version {}", kProtocolVersion)});
         }
       } else {
         const Message& msg = in->message.value();
         Member* m = co.find_peer(in->peer);
         if (const auto* j = std::get_if<Join>(&msg)) {
           bool is_new = false;
-          Member& mm = co.join(in->peer, j->sampler_id, j->name, in->public_key, j->threads, t,
-                               &is_new);
+          Member& mm =
+              co.join(in->peer, j->sampler_id, j->name, in->public_key, j->threads, t, &is_new);
           if (is_new) {
             spdlog::info("sampler {} joined: {} ({} thread(s){})", mm.id, j->name, j->threads,
                          in->public_key.empty() ? "" : ", key " + in->public_key);
@@ -285,8 +285,8 @@ void DisplayService::control_loop() {
           }
           welcome(mm, t);
           if (!is_new) {  // a repeated join: the region it may have missed
-            send(mm.peer, RegionAssignment{mm.id, co.epoch(), options_.width, options_.height,
-                                           mm.region});
+            send(mm.peer,
+                 RegionAssignment{mm.id, co.epoch(), options_.width, options_.height, mm.region});
           }
         } else if (!m) {
           // Not a member: a sampler of a previous session (this display restarted) or one

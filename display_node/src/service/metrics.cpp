@@ -56,6 +56,7 @@ void ServiceMetrics::on_batch(const SampleBatch& batch, size_t bytes, bool membe
   m.samples += batch.samples.size();
   m.period_samples += batch.samples.size();
   m.bytes += bytes;
+  m.batch_bytes += bytes;
   m.period_bytes += bytes;
   ++m.batches;
   // A sequence that goes back is a restarted sampler, not a gap.
@@ -255,8 +256,9 @@ std::string ServiceMetrics::prometheus() const {
               [](const SamplerMetrics& s) { return s.region.area(); });
   metric("afr_sampler_region", "gauge", "the sampler's region, labels x0 y0 x1 y1");
   for (const SamplerMetrics& s : ss) {
-    o += fmt::format("afr_sampler_region{{sampler=\"{}\",x0=\"{}\",y0=\"{}\",x1=\"{}\",y1=\"{}\"}} 1\n",
-                     s.id, s.region.x0, s.region.y0, s.region.x1, s.region.y1);
+    o += fmt::format(
+        "afr_sampler_region{{sampler=\"{}\",x0=\"{}\",y0=\"{}\",x1=\"{}\",y1=\"{}\"}} 1\n", s.id,
+        s.region.x0, s.region.y0, s.region.x1, s.region.y1);
   }
   auto scalar = [&](const char* name, const char* type, const char* help, auto value) {
     metric(name, type, help);
@@ -329,6 +331,7 @@ std::string ServiceMetrics::json() const {
                              {"region", {s.region.x0, s.region.y0, s.region.x1, s.region.y1}},
                              {"samples", s.samples},
                              {"bytes", s.bytes},
+                             {"batch_bytes", s.batch_bytes},
                              {"batches", s.batches},
                              {"tilings", s.tilings},
                              {"sequence_gaps", s.sequence_gaps},

@@ -17,10 +17,9 @@ std::map<uint32_t, TilingSnapshot> OverlaySink::tilings() const {
 }
 
 glm::vec3 sampler_color(uint32_t id) {
-  static constexpr glm::vec3 kColors[] = {{0.9f, 0.2f, 0.2f}, {0.2f, 0.8f, 0.2f},
-                                          {0.25f, 0.4f, 1.0f}, {0.95f, 0.8f, 0.1f},
-                                          {0.8f, 0.3f, 0.9f},  {0.1f, 0.85f, 0.85f},
-                                          {1.0f, 0.55f, 0.1f}, {0.6f, 0.6f, 0.6f}};
+  static constexpr glm::vec3 kColors[] = {
+      {0.9f, 0.2f, 0.2f}, {0.2f, 0.8f, 0.2f},   {0.25f, 0.4f, 1.0f}, {0.95f, 0.8f, 0.1f},
+      {0.8f, 0.3f, 0.9f}, {0.1f, 0.85f, 0.85f}, {1.0f, 0.55f, 0.1f}, {0.6f, 0.6f, 0.6f}};
   return kColors[id % (sizeof(kColors) / sizeof(kColors[0]))];
 }
 
@@ -82,8 +81,7 @@ void write_images(Reconstructor& reconstructor, const Image& image, const Overla
   write_image(tiling_overlay(image, sink.tilings(), regions), stem.string() + "_tiling.png");
   std::vector<float> weights;
   reconstructor.read_weights(&weights);
-  write_image(density_overlay(weights, image.width, image.height),
-              stem.string() + "_density.png");
+  write_image(density_overlay(weights, image.width, image.height), stem.string() + "_density.png");
 }
 
 }  // namespace afr::service

@@ -23,8 +23,7 @@ using namespace afr::protocol;
 namespace {
 
 double steady_seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -180,7 +179,7 @@ struct SamplerService::Impl {
   // Session state.
   bool joined = false;
   bool session_over = false;  // a leave or a restarted display ended the session
-  uint32_t sampler_id = 0;  // kept across sessions: asked for again on a rejoin
+  uint32_t sampler_id = 0;    // kept across sessions: asked for again on a rejoin
   uint64_t session = 0;
   Welcome welcome;
   bool fetching = false;
@@ -445,8 +444,7 @@ void SamplerService::Impl::on_chunk(const SceneChunk& c, ControlClient& control)
   try {
     const std::filesystem::path file =
         cache.store(assembler.hash(), welcome.scene_name, assembler.bytes());
-    spdlog::info("scene received: {} bytes, cached as {}", assembler.bytes().size(),
-                 file.string());
+    spdlog::info("scene received: {} bytes, cached as {}", assembler.bytes().size(), file.string());
     use_scene(file, assembler.hash());
   } catch (const std::exception& e) {
     spdlog::error("scene {}: {}", welcome.scene_name, e.what());

@@ -19,7 +19,7 @@ namespace afr {
 // The reconstructor's side of a preset, in plain numbers (sampler_node does not know
 // display_node's types).
 struct ReconstructionPreset {
-  double samples_per_pixel = 4.0;  // N = this x width x height (section 5.2: at least 4)
+  double samples_per_pixel = 4.0;   // N = this x width x height (section 5.2: at least 4)
   float min_spatial_extent = 0.3f;  // FilterLimits, pixels
   float max_spatial_extent = 16.0f;
   float max_temporal_extent = 60.0f;  // FilterLimits, seconds
@@ -51,8 +51,8 @@ inline constexpr std::array<Preset, 3> kPresets = {{
      ReconstructionPreset{2.0, 0.3f, 8.0f, 60.0f}},
     {"balanced", "the paper's settings (b = 4, r = 5, chunk 25, N = 4 WH): afr's defaults", 4, 5,
      25, 16, 1024, ReconstructionPreset{4.0, 0.3f, 16.0f, 60.0f}},
-    {"accurate", "lowest error: more reprojections and a deeper sample store (N = 8 WH)", 4, 10,
-     25, 16, 4096, ReconstructionPreset{8.0, 0.3f, 16.0f, 60.0f}},
+    {"accurate", "lowest error: more reprojections and a deeper sample store (N = 8 WH)", 4, 10, 25,
+     16, 4096, ReconstructionPreset{8.0, 0.3f, 16.0f, 60.0f}},
 }};
 
 inline std::span<const Preset> presets() { return kPresets; }

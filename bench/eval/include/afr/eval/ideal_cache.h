@@ -24,8 +24,8 @@ std::string ideal_cache_key(uint64_t scene_hash, const IdealRenderOptions& optio
 
 struct IdealCacheStats {
   uint64_t hits = 0;
-  uint64_t misses = 0;           // rendered (and stored)
-  double render_seconds = 0.0;   // wall time spent rendering
+  uint64_t misses = 0;          // rendered (and stored)
+  double render_seconds = 0.0;  // wall time spent rendering
 };
 
 class IdealCache {

@@ -41,15 +41,15 @@ struct RunSettings {
 };
 
 struct RunStats {
-  uint64_t primary_rays = 0;    // what the rate counts
-  uint64_t occlusion_rays = 0;  // sampler reprojection's visibility tests, apart
-  uint64_t shadow_rays = 0;     // shading's rays, for the record
-  double virtual_seconds = 0.0;  // of sampling: primary_rays / R for frameless methods
-  double sample_seconds = 0.0;   // wall time tracing and controlling (sampler or frames)
+  uint64_t primary_rays = 0;         // what the rate counts
+  uint64_t occlusion_rays = 0;       // sampler reprojection's visibility tests, apart
+  uint64_t shadow_rays = 0;          // shading's rays, for the record
+  double virtual_seconds = 0.0;      // of sampling: primary_rays / R for frameless methods
+  double sample_seconds = 0.0;       // wall time tracing and controlling (sampler or frames)
   double reconstruct_seconds = 0.0;  // wall time making images (reconstructor, upsampling, TAA)
-  int frame_width = 0;   // framed methods: the resolution of a frame
+  int frame_width = 0;               // framed methods: the resolution of a frame
   int frame_height = 0;
-  double frame_period = 0.0;  // framed methods: seconds per frame
+  double frame_period = 0.0;   // framed methods: seconds per frame
   uint64_t frames_traced = 0;  // framed methods: frames traced
 };
 

@@ -48,7 +48,8 @@ struct SamplerMetrics {
   int threads = 1;
   // Received by the display (sample channel).
   uint64_t samples = 0;
-  uint64_t bytes = 0;
+  uint64_t bytes = 0;        // batches and tilings
+  uint64_t batch_bytes = 0;  // batches only: bytes per sample = batch_bytes / samples
   uint64_t batches = 0;
   uint64_t tilings = 0;
   uint64_t sequence_gaps = 0;  // batches missing between consecutive sequence numbers
@@ -99,8 +100,7 @@ class ServiceMetrics {
   void on_tiling(uint32_t sampler_id, size_t bytes);
   void on_rejected_sample_message();
   // Control thread.
-  void on_member(const std::string& name, uint32_t id, const std::string& public_key,
-                 int threads);
+  void on_member(const std::string& name, uint32_t id, const std::string& public_key, int threads);
   void on_member_gone(uint32_t id, bool dead);
   void on_region(uint32_t id, const PixelRect& region, uint64_t epoch, uint64_t recuts);
   void on_reported(const protocol::SamplerStats& stats);

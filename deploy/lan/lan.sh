@@ -1,0 +1,125 @@
+#!/usr/bin/env bash
+# A LAN in network namespaces: one display host and N sampler hosts on a bridge with private
+# addresses (10.77.0.0/24), optionally a tbf rate limit on every link and random packet drops
+# with nft; runs the afr service across them for SECONDS, prints the display's stats, and tears
+# everything down (also on Ctrl-C or failure). Needs root and `ip netns`; exits 77 (skipped)
+# without them. `tc netem` is not needed (nor available here).
+#
+#   sudo deploy/lan/lan.sh --samplers 3 --seconds 10
+#   sudo deploy/lan/lan.sh --samplers 2 --rate 1gbit --drop 0.5 --curve --seconds 20
+# Options: --samplers N, --seconds S, --rate RATE (tc syntax: 100mbit, 1gbit), --drop PERCENT
+# (per packet sent by each host), --threads T, --cap SAMPLES_PER_S, --size WxH, --scene FILE,
+# --curve (CurveZMQ with generated keys, else --insecure), --build DIR, --output DIR,
+# --check (exit 1 unless every sampler joined and an image was written).
+set -euo pipefail
+root=$(cd "$(dirname "$0")/../.." && pwd)
+samplers=3 seconds=10 rate="" drop="" threads=1 cap=0 size=128x96 scene="" curve=0
+build="$root/build" output="$root/out/lan" check=0 port=7100
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --samplers) samplers=$2; shift 2 ;;
+    --seconds) seconds=$2; shift 2 ;;
+    --rate) rate=$2; shift 2 ;;
+    --drop) drop=$2; shift 2 ;;
+    --threads) threads=$2; shift 2 ;;
+    --cap) cap=$2; shift 2 ;;
+    --size) size=$2; shift 2 ;;
+    --scene) scene=$2; shift 2 ;;
+    --curve) curve=1; shift ;;
+    --build) build=$2; shift 2 ;;
+    --output) output=$2; shift 2 ;;
+    --check) check=1; shift ;;
+    -h|--help) sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    *) echo "lan.sh: unknown option '$1'" >&2; exit 1 ;;
+  esac
+done
+
+if [ "$(id -u)" -ne 0 ]; then echo "lan.sh: needs root (network namespaces): skipped"; exit 77; fi
+if ! ip netns list >/dev/null 2>&1; then echo "lan.sh: 'ip netns' unavailable: skipped"; exit 77; fi
+if [ -n "$drop" ] && ! command -v nft >/dev/null; then
+  echo "lan.sh: --drop needs nft (apt-get install nftables)" >&2; exit 1
+fi
+display_bin="$build/display_node/display_node"
+sampler_bin="$build/sampler_node/sampler_node"
+for b in "$display_bin" "$sampler_bin"; do
+  [ -x "$b" ] || { echo "lan.sh: $b not built (cmake --build $build --target display_node sampler_node)" >&2; exit 1; }
+done
+
+p="afr$$"            # prefix of every name made here, so teardown removes exactly these
+sw="${p}sw"
+hosts=("${p}d")
+for i in $(seq 1 "$samplers"); do hosts+=("${p}s$i"); done
+pids=()
+teardown() {
+  for pid in "${pids[@]}"; do kill -TERM "$pid" 2>/dev/null || true; done
+  sleep 0.3
+  for pid in "${pids[@]}"; do kill -KILL "$pid" 2>/dev/null || true; done
+  for h in "${hosts[@]}" "$sw"; do ip netns del "$h" 2>/dev/null || true; done
+}
+trap teardown EXIT INT TERM
+
+# The switch: a namespace holding the bridge, so the host's own network is never touched.
+ip netns add "$sw"
+ip -n "$sw" link add br0 type bridge
+ip -n "$sw" link set br0 up
+ip -n "$sw" link set lo up
+n=0
+for h in "${hosts[@]}"; do
+  n=$((n + 1))
+  ip netns add "$h"
+  ip link add "v$n$p" type veth peer name "eth0$p"
+  ip link set "v$n$p" netns "$sw"
+  ip link set "eth0$p" netns "$h"
+  ip -n "$h" link set "eth0$p" name eth0
+  ip -n "$sw" link set "v$n$p" master br0 up
+  ip -n "$h" addr add "10.77.0.$n/24" dev eth0
+  ip -n "$h" link set eth0 up
+  ip -n "$h" link set lo up
+  if [ -n "$rate" ]; then
+    # Each host's uplink and the switch's port towards it.
+    ip netns exec "$h" tc qdisc add dev eth0 root tbf rate "$rate" burst 256kb latency 20ms
+    ip netns exec "$sw" tc qdisc add dev "v$n$p" root tbf rate "$rate" burst 256kb latency 20ms
+  fi
+  if [ -n "$drop" ]; then
+    permille=$(awk -v d="$drop" 'BEGIN { printf "%d", d * 10 }')
+    ip netns exec "$h" nft add table inet afr
+    ip netns exec "$h" nft add chain inet afr out '{ type filter hook output priority 0; }'
+    ip netns exec "$h" nft add rule inet afr out oifname eth0 numgen random mod 1000 lt "$permille" drop
+  fi
+done
+
+mkdir -p "$output/logs"
+display_ip=10.77.0.1
+security=(--insecure)
+sampler_security=()
+if [ "$curve" = 1 ]; then
+  "$display_bin" keygen "$output/keys" --samplers "$samplers" >/dev/null
+  security=(--keys "$output/keys")
+fi
+# shellcheck disable=SC2086
+ip netns exec "${p}d" "$display_bin" $scene --headless --bind "tcp://$display_ip:$port" \
+  --size "$size" --seconds "$seconds" --output "$output" --metrics-port 9100 \
+  --backend cpu "${security[@]}" >"$output/logs/display.log" 2>&1 &
+display_pid=$!
+pids+=("$display_pid")
+for i in $(seq 1 "$samplers"); do
+  [ "$curve" = 1 ] && sampler_security=(--key "$output/keys/sampler-$i.key" --server-key "$output/keys/display.pub")
+  ip netns exec "${p}s$i" "$sampler_bin" --display "tcp://$display_ip:$port" --threads "$threads" \
+    --max-samples-per-second "$cap" --name "host-$i" --cache "$output/cache-$i" \
+    "${sampler_security[@]}" >"$output/logs/sampler-$i.log" 2>&1 &
+  pids+=("$!")
+done
+echo "lan.sh: display 10.77.0.1, samplers 10.77.0.2..$((samplers + 1))${rate:+, links $rate}${drop:+, ${drop}% drops}; ${seconds} s"
+sleep "$(awk -v s="$seconds" 'BEGIN { print (s > 1.5 ? s - 1.0 : s / 2) }')"
+ip netns exec "${p}d" curl -s "http://127.0.0.1:9100/stats" >"$output/stats.json" 2>/dev/null || true
+status=0
+wait "$display_pid" || status=$?
+grep -E "joined|t=|lost|REFUSED" "$output/logs/display.log" | tail -n 12 || true
+if [ "$check" = 1 ]; then
+  joined=$(grep -c "joined:" "$output/logs/display.log" || true)
+  if [ "$status" -ne 0 ] || [ ! -s "$output/final.png" ] || [ "$joined" -lt "$samplers" ]; then
+    echo "lan.sh: CHECK FAILED (display exit $status, $joined of $samplers samplers joined)"
+    exit 1
+  fi
+  echo "lan.sh: check passed: $joined samplers joined across namespaces, image $output/final.png"
+fi
