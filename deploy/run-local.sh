@@ -40,11 +40,12 @@ while [ $# -gt 0 ]; do
   esac
 done
 
-if [ ! -x "$build/display_node/display_node" ] || [ ! -x "$build/sampler_node/sampler_node" ]; then
-  echo "run-local: building display_node and sampler_node in $build/"
+# Always brings the two programs up to date (a no-op when they are).
+if [ ! -f "$build/build.ninja" ]; then
+  echo "run-local: configuring $build/"
   cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-  cmake --build "$build" --target display_node sampler_node
 fi
+cmake --build "$build" --target display_node sampler_node
 
 mkdir -p "$output" "$output/logs"
 headless=--headless

@@ -117,6 +117,7 @@ struct GlReconstructor::Impl {
   int current = 0;              // coverage[current] is written by the next image
   bool have_coverage = false;   // coverage[1 - current] holds the previous image's map
   GLuint counts = 0;            // hole, empty, non-finite pixel counters
+  GLint max_viewport[2] = {0, 0};
 
   void release_sized() {
     glDeleteFramebuffers(2, fbo.data());
@@ -199,6 +200,7 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
   glBindTexture(GL_TEXTURE_BUFFER, m.tile_filters);
   glTexBuffer(GL_TEXTURE_BUFFER, GL_RGBA32F, m.tile_filters_buffer);
 
+  glGetIntegerv(GL_MAX_VIEWPORT_DIMS, m.max_viewport);
   glGenBuffers(1, &m.counts);
   glBindBuffer(GL_SHADER_STORAGE_BUFFER, m.counts);
   glBufferData(GL_SHADER_STORAGE_BUFFER, 3 * sizeof(uint32_t), nullptr, GL_DYNAMIC_READ);
@@ -224,6 +226,14 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
                                      Image* out) {
   context_->make_current();
   Impl& m = *impl_;
+  // The splat pass draws into the image grown by a guard band on every side.
+  const int g = splat_guard_band(config_.splat);
+  if (width + 2 * g > m.max_viewport[0] || height + 2 * g > m.max_viewport[1]) {
+    throw Error(
+        fmt::format("GL reconstructor: output {}x{} plus the {} pixel guard band exceeds "
+                    "this driver's largest viewport {}x{}",
+                    width, height, g, m.max_viewport[0], m.max_viewport[1]));
+  }
 
   // ---- Only the new samples go to the GPU, into their ring slots.
   const SampleStore::Delta delta = store_.copy_since(m.seen, &m.staging);
@@ -255,7 +265,6 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
   const ReconstructionMode current_mode = mode();
   const FilterLimits& limits = config_.filter;
   const SplatSizeRule& rule = config_.splat;
-  const int g = splat_guard_band(rule);
   const glm::vec2 scale(setup.scale_x, setup.scale_y);
   const glm::ivec2 size(width, height);
 
