@@ -62,6 +62,9 @@ void Sampler::advance_scene_time() {
     const double duration = scene_.duration();
     tracer_.set_time(config_.loop_animation && duration > 0.0 ? std::fmod(t, duration) : t);
     camera_ = tracer_.camera();
+    if (camera_source_) {
+      if (std::optional<Camera> c = camera_source_->camera_at(t)) camera_ = *c;
+    }
     scene_time_ = t;
     scene_time_set_ = true;
   }

@@ -19,8 +19,8 @@ void SamplerConfig::validate() const {
   }
   const PixelRect o = owned_region();
   if (o.empty() || o.x0 < 0 || o.y0 < 0 || o.x1 > width || o.y1 > height) {
-    fail(fmt::format("region [{},{})x[{},{}) is empty or outside the {}x{} image", o.x0, o.x1,
-                     o.y0, o.y1, width, height));
+    fail(fmt::format("region [{},{})x[{},{}) is empty or outside the {}x{} image", o.x0, o.x1, o.y0,
+                     o.y1, width, height));
   }
   if (b < 1 || b > 64) fail(fmt::format("b = {} is outside 1..64", b));
   if (r < 0 || r > 64) fail(fmt::format("r = {} is outside 0..64", r));

@@ -65,6 +65,10 @@ SamplerPool::SamplerPool(const Scene& scene, const SamplerConfig& config,
 
 SamplerPool::~SamplerPool() { stop(); }
 
+void SamplerPool::set_camera_source(const CameraSource* source) {
+  for (auto& w : workers_) w->sampler->set_camera_source(source);
+}
+
 void SamplerPool::start() {
   if (running_.exchange(true)) return;
   for (auto& w : workers_) w->thread = std::thread([this, p = w.get()] { run(p); });

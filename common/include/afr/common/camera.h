@@ -5,6 +5,8 @@
 
 #include <afr/common/math.h>
 
+#include <optional>
+
 namespace afr {
 
 struct Ray {
@@ -32,6 +34,15 @@ struct Camera {
   // Projects a world point to image position (x, y). Returns false when the point is behind
   // the camera or closer than znear; depth is the distance along `forward`.
   bool project(const glm::dvec3& p, int width, int height, glm::dvec2* xy, double* depth) const;
+};
+
+// Where a sampler's camera comes from when it is not the scene's own: a live view from the
+// display (interaction, a replayed camera path). Called from sampler threads.
+class CameraSource {
+ public:
+  virtual ~CameraSource() = default;
+  // The camera at display time t, or nothing to use the scene's animated camera.
+  virtual std::optional<Camera> camera_at(double t) const = 0;
 };
 
 }  // namespace afr

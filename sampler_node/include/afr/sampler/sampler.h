@@ -89,6 +89,9 @@ class Sampler {
   void step();
   // Emits the samples of the current, partial batch.
   void flush();
+  // Takes the camera from `source` (when it gives one) instead of the scene's. The source
+  // must outlive the sampler; nullptr restores the scene's camera.
+  void set_camera_source(const CameraSource* source) { camera_source_ = source; }
   // One reprojection of section 6.1 in `tile` (a leaf of tiling()): what step() does r times.
   // Public so that benchmarks can time it alone.
   void reproject(int tile);
@@ -164,6 +167,7 @@ class Sampler {
   std::vector<std::array<double, 3>> terms_;  // v, u, o per tile, scratch of compute_errors
   std::vector<Pending> pending_;              // by region pixel
   Camera camera_;
+  const CameraSource* camera_source_ = nullptr;
   double scene_time_ = 0.0;
   bool scene_time_set_ = false;
   uint32_t fields_ = 0;

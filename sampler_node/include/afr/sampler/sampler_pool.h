@@ -32,6 +32,9 @@ class SamplerPool {
   SamplerPool(const SamplerPool&) = delete;
   SamplerPool& operator=(const SamplerPool&) = delete;
 
+  // Every worker takes its camera from `source` (see Sampler::set_camera_source). Call before
+  // start(); the source must outlive the pool.
+  void set_camera_source(const CameraSource* source);
   void start();
   void stop();
   // Counters summed over the threads (read while running: approximate, never torn per field).
