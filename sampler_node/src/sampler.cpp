@@ -661,11 +661,18 @@ void Sampler::adjust_tiling() {
 void Sampler::on_split(int parent, int a, int b) {
   const int64_t pending = record(parent).pending;
   record(parent).pending = -1;
-  const TileSums& ps = records_[parent].sums;
+  record(a).pending = record(b).pending = -1;
+  // Re-derive the smaller child from the buffer and take the other as the parent's sums minus
+  // it: half the pass over the buffer. The difference carries the parent's updates, so it is
+  // re-derived as soon as the parent would have been.
+  const bool a_smaller = tiling_.node(a).rect.area() <= tiling_.node(b).rect.area();
+  const int scanned = a_smaller ? a : b, derived = a_smaller ? b : a;
+  const TileSums ps = records_[parent].sums;
   const double parent_mean = ps.count > 0 && ps.w > 0.0 ? ps.shift + ps.wl / ps.w : 0.0;
+  rederive(scanned, parent_mean);
+  records_[derived].sums = combine(ps, records_[scanned].sums, -1.0);
+  settle(derived);
   for (int c : {a, b}) {
-    record(c).pending = -1;
-    rederive(c, parent_mean);
     // Until the next adjustment, a child's error is its share of the parent's.
     error_[c] = error_[parent] * double(tiling_.node(c).rect.area()) /
                 double(tiling_.node(parent).rect.area());
@@ -684,18 +691,23 @@ void Sampler::on_merge(int parent, int a, int b) {
   rec.sums = combine(records_[a].sums, records_[b].sums);
 }
 
-// The sums of the union of two blocks, without visiting their crosshairs: both are moved to
-// the later reference time and to a common shift, then added.
-TileSums combine(const TileSums& a, const TileSums& b) {
-  if (a.count <= 0) return b;
+// The sums of the union of two disjoint blocks (sign +1), or of a block without a block it
+// contains (sign -1), without visiting their crosshairs: both are moved to a common reference
+// time and shift, then added or subtracted.
+TileSums combine(const TileSums& a, const TileSums& b, double sign) {
   if (b.count <= 0) return a;
+  if (a.count <= 0 && sign > 0.0) return b;
+  if (sign < 0.0 && a.count <= b.count) return TileSums{};  // nothing is left
   TileSums out;
-  out.t_ref = std::max(a.t_ref, b.t_ref);
+  out.t_ref = sign > 0.0 ? std::max(a.t_ref, b.t_ref) : a.t_ref;
   const double mean_a = a.w > 0.0 ? a.shift + a.wl / a.w : a.shift;
   const double mean_b = b.w > 0.0 ? b.shift + b.wl / b.w : b.shift;
-  out.shift = 0.5 * (mean_a + mean_b);
-  for (const TileSums* s : {&a, &b}) {
-    const double f = std::exp(kAgeDecay * (s->t_ref - out.t_ref));
+  out.shift = sign > 0.0 ? 0.5 * (mean_a + mean_b) : a.shift;
+  const double signs[2] = {1.0, sign};
+  const TileSums* parts[2] = {&a, &b};
+  for (int k = 0; k < 2; ++k) {
+    const TileSums* s = parts[k];
+    const double f = signs[k] * std::exp(kAgeDecay * (s->t_ref - out.t_ref));
     const double d = s->shift - out.shift;
     out.w += f * s->w;
     out.wl += f * (s->wl + d * s->w);
@@ -704,11 +716,11 @@ TileSums combine(const TileSums& a, const TileSums& b) {
     out.wgy += f * s->wgy;
     out.wt += f * s->wt;
     out.wgt += f * s->wgt;
-    out.t_sum += s->t_sum + s->count * (s->t_ref - out.t_ref);
-    out.count += s->count;
-    out.occluded += s->occluded;
-    out.updates += s->updates;
+    out.t_sum += signs[k] * (s->t_sum + s->count * (s->t_ref - out.t_ref));
+    out.count += int32_t(signs[k]) * s->count;
+    out.occluded += int32_t(signs[k]) * s->occluded;
   }
+  out.updates = a.updates + b.updates;
   return out;
 }
 

@@ -57,8 +57,9 @@ struct TileSums {
   int32_t updates = 0;          // adds and removes since the sums were last re-derived
 };
 
-// The sums of two disjoint blocks together (a merge of two tiles).
-TileSums combine(const TileSums& a, const TileSums& b);
+// The sums of two disjoint blocks together (sign +1: a merge of two tiles), or of block a
+// without block b that it contains (sign -1: one child of a split, from the other).
+TileSums combine(const TileSums& a, const TileSums& b, double sign = 1.0);
 
 // What the sums say about a block.
 struct TileStats {
