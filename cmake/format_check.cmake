@@ -1,5 +1,6 @@
 # Fails, listing the files, when any C++ source differs from what clang-format would write.
 # Run: cmake -DCLANG_FORMAT=clang-format -DROOT=. -P cmake/format_check.cmake
+get_filename_component(ROOT "${ROOT}" ABSOLUTE)
 file(GLOB_RECURSE files RELATIVE ${ROOT}
   ${ROOT}/common/*.h ${ROOT}/common/*.cpp ${ROOT}/protocol/*.h ${ROOT}/protocol/*.cpp
   ${ROOT}/sampler_node/*.h ${ROOT}/sampler_node/*.cpp ${ROOT}/display_node/*.h

@@ -1,9 +1,9 @@
-// Small scenes built in code for tests of the sampler and the renderers: a camera at the origin looking down -Z at
-// emissive quads one unit away (no lights, so every color is exact).
+// Small scenes built in code for tests of the sampler and the renderers: a camera at the origin
+// looking down -Z at emissive quads one unit away (no lights, so every color is exact).
 #pragma once
 
-#include <afr/common/scene.h>
 #include <afr/common/samples.h>
+#include <afr/common/scene.h>
 
 #include <vector>
 
