@@ -164,7 +164,9 @@ bool run_gnuplot(const std::filesystem::path& script) {
 }
 
 std::vector<std::filesystem::path> write_frame_plots(const std::vector<AnimationResult>& results,
-                                                     const std::filesystem::path& folder) {
+                                                     const std::filesystem::path& out_folder) {
+  // Scripts name their files absolutely, so they run from anywhere.
+  const std::filesystem::path folder = std::filesystem::absolute(out_folder);
   std::vector<std::filesystem::path> pngs;
   std::filesystem::create_directories(folder);
   for (const AnimationResult& a : results) {
@@ -191,7 +193,7 @@ std::vector<std::filesystem::path> write_frame_plots(const std::vector<Animation
       const std::filesystem::path gp = folder / ("rms-" + stem + ".gp");
       {
         std::ofstream out = open_out(gp);
-        out << "set terminal pngcairo size 900,420 font 'DejaVu Sans,10'\n"
+        out << "set terminal pngcairo noenhanced size 900,420 font 'DejaVu Sans,10'\n"
             << fmt::format("set output '{}'\n", png.string())
             << fmt::format("set title '{}, {} primary rays/s, {} frames at 60 Hz'\n", a.spec.name,
                            rate_label(rate), a.frame_times.size())

@@ -143,7 +143,9 @@ std::string sweep_markdown(const std::vector<SweepResult>& results) {
 }
 
 std::vector<std::filesystem::path> write_sweep_plots(const std::vector<SweepResult>& results,
-                                                     const std::filesystem::path& folder) {
+                                                     const std::filesystem::path& out_folder) {
+  // Scripts name their files absolutely, so they run from anywhere.
+  const std::filesystem::path folder = std::filesystem::absolute(out_folder);
   std::filesystem::create_directories(folder);
   std::vector<std::filesystem::path> pngs;
   std::set<std::string> animations;
@@ -186,7 +188,7 @@ std::vector<std::filesystem::path> write_sweep_plots(const std::vector<SweepResu
     }
     {
       std::ofstream out(gp);
-      out << "set terminal pngcairo size 1000,560 font 'DejaVu Sans,10'\n"
+      out << "set terminal pngcairo noenhanced size 1000,560 font 'DejaVu Sans,10'\n"
           << fmt::format("set output '{}'\n", png.string())
           << fmt::format("set title '{}: mean RMS error against wall-clock cost'\n", anim)
           << "set xlabel 'wall seconds per second of animation (this machine)'\n"

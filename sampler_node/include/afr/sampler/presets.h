@@ -45,13 +45,17 @@ struct Preset {
   }
 };
 
+// From the 256 x 256 sweeps of docs/tradeoffs.md: R is the knob that matters; r = 0 is the
+// one bad setting; a smaller store (N) and fewer reprojections and tiling adjustments cost
+// less for a few percent of error; a larger store and more reprojections and tiles lower the
+// error where it is high (fast motion).
 inline constexpr std::array<Preset, 3> kPresets = {{
-    {"fast", "least wall time per second: shallow deep buffer, fewer reprojections, N = 2 WH",
-     /*b=*/2, /*r=*/2, /*chunk=*/25, /*min_tiles=*/16, /*max_tiles=*/1024,
+    {"fast", "less work per sample: r = 2, chunk 100, N = 2 W H, splats at most 8 px", /*b=*/4,
+     /*r=*/2, /*chunk=*/100, /*min_tiles=*/16, /*max_tiles=*/1024,
      ReconstructionPreset{2.0, 0.3f, 8.0f, 60.0f}},
-    {"balanced", "the paper's settings (b = 4, r = 5, chunk 25, N = 4 WH): afr's defaults", 4, 5,
+    {"balanced", "the paper's settings, afr's defaults: b = 4, r = 5, chunk 25, N = 4 W H", 4, 5,
      25, 16, 1024, ReconstructionPreset{4.0, 0.3f, 16.0f, 60.0f}},
-    {"accurate", "lowest error: more reprojections and a deeper sample store (N = 8 WH)", 4, 10, 25,
+    {"accurate", "lower error under fast motion: r = 10, up to 4096 tiles, N = 8 W H", 4, 10, 25,
      16, 4096, ReconstructionPreset{8.0, 0.3f, 16.0f, 60.0f}},
 }};
 
