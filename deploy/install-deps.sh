@@ -6,6 +6,8 @@ set -euo pipefail
 packages=(
   # toolchain
   build-essential cmake ninja-build pkg-config git clang-format
+  # sanitizer and fuzzing builds (clang with its ASan/UBSan/TSan and libFuzzer runtimes)
+  clang libclang-rt-dev
   # rendering
   libembree-dev libglm-dev libtinygltf-dev nlohmann-json3-dev libopenimageio-dev openimageio-tools
   # display
