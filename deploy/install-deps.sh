@@ -8,6 +8,8 @@ packages=(
   build-essential cmake ninja-build pkg-config git clang-format
   # sanitizer and fuzzing builds (clang with its ASan/UBSan/TSan and libFuzzer runtimes)
   clang libclang-rt-dev
+  # deploy/soak.py and the scene generators
+  python3
   # rendering
   libembree-dev libglm-dev libtinygltf-dev nlohmann-json3-dev libopenimageio-dev openimageio-tools
   # display

@@ -305,8 +305,9 @@ void Sampler::emit(double x, double y, const ShadedSample& s) {
   if (x < 0.0 || y < 0.0 || x >= config_.width || y >= config_.height) return;
   Sample out;
   out.time = scene_time_;
-  out.x = float(x);
-  out.y = float(y);
+  // Rounding to float can carry 255.99999999 to 256: keep the sample inside its pixel row.
+  out.x = std::min(float(x), std::nextafter(float(config_.width), 0.0f));
+  out.y = std::min(float(y), std::nextafter(float(config_.height), 0.0f));
   out.color = s.color;
   if (fields_ & kFieldPosition) {
     out.position = s.position;

@@ -321,6 +321,26 @@ TEST(SamplerTest, HugeImageWithSmallRegionAllocatesForTheRegionOnly) {
   }
 }
 
+TEST(SamplerTest, SamplesInTheLastPixelOfAHugeImageStayInsideIt) {
+  // Near x = 32768 a float's spacing is 1/256 px: a position just short of the image edge
+  // rounds up to it unless the sampler keeps it inside (the codec rejects x = width).
+  const Scene scene = testing::edge_scene();
+  Tracer tracer(scene);
+  VirtualClock clock(1e5);
+  CollectingSink sink;
+  SamplerConfig config = small_config(32768, 32768);
+  config.region = PixelRect{32766, 32766, 32768, 32768};
+  Sampler sampler(scene, tracer, clock, config, sink);
+  sampler.fill();
+  for (int k = 0; k < 4000; ++k) sampler.step();
+  sampler.flush();
+  ASSERT_GT(sink.samples.size(), 4000u);
+  for (const Sample& s : sink.samples) {
+    ASSERT_LT(s.x, 32768.0f);
+    ASSERT_LT(s.y, 32768.0f);
+  }
+}
+
 TEST(SamplerTest, AllBlackSceneStaysFinite) {
   Scene scene = testing::camera_scene();
   testing::add_quad(&scene, glm::vec3(0.0f), {-10, -10}, {10, 10});
