@@ -36,7 +36,8 @@ std::vector<SweepPoint> default_sweep() {
       s->reconstructor.capacity = size_t(n) * size_t(s->width) * size_t(s->height);
     });
   }
-  for (auto [lo, hi] : {std::pair{4, 256}, std::pair{64, 4096}, std::pair{16, 4096}}) {
+  for (const auto& range : {std::pair{4, 256}, std::pair{64, 4096}, std::pair{16, 4096}}) {
+    const int lo = range.first, hi = range.second;  // named for the capture (clang 14)
     add("tiles", fmt::format("tiles {}..{}", lo, hi), A, 4e5, [lo, hi](RunSettings* s) {
       s->sampler.min_tiles = lo;
       s->sampler.max_tiles = hi;
