@@ -121,10 +121,10 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   app.add_option("--screenshot-every", screenshot_every,
                  "write an image every K frames to --output (0 = only at exit)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(0, 1000000000));
   app.add_option("-o,--output", output, "folder for images")->capture_default_str();
   app.add_option("--seconds", seconds, "stop after this many seconds (0 = run until a signal)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(0.0, 1e9));
   app.add_option("--stats-interval", stats_interval, "seconds between stats log lines")
       ->capture_default_str()
       ->check(CLI::Range(0.1, 3600.0));

@@ -45,7 +45,7 @@ int main(int argc, char** argv) {
   app.add_option("--max-samples-per-second", o.max_samples_per_second,
                  "cap on samples per second over all threads (0 = none)")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(0.0, 1e12));
   app.add_option("--key", key_file, "this sampler's CurveZMQ key pair file (enables CurveZMQ)");
   app.add_option("--server-key", server_key_file, "the display's public key file");
   app.add_option("--keys", keys_dir,

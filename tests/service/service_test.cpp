@@ -13,6 +13,7 @@
 #include <zmq.hpp>
 
 #include <filesystem>
+#include <fstream>
 
 namespace afr::testing {
 namespace {
@@ -285,6 +286,78 @@ TEST_F(ServiceTest, MalformedMessagesAreRejectedAndTheOthersKeepServing) {
   EXPECT_GT(get_stats(metrics_port())["samplers"][0]["samples"].get<uint64_t>(), samples);
   EXPECT_NE(get_text(metrics_port(), "/metrics").find("afr_display_frames_total"),
             std::string::npos);
+}
+
+TEST_F(ServiceTest, SamplerOfAnotherProtocolVersionIsToldWhyAndTheOthersKeepServing) {
+  auto d = display({"--size", "64x64", "--fps", "20"}, "display.log");
+  auto s = sampler({"--max-samples-per-second", "50000"}, "s1.log");
+  ASSERT_TRUE(wait_members(1, 5.0)) << d->log();
+
+  // A join of this build, its header's version changed to one the display does not speak.
+  protocol::Join join;
+  join.name = "from-the-future";
+  std::vector<uint8_t> bytes;
+  ASSERT_TRUE(protocol::encode(join, &bytes).ok());
+  const uint16_t other = protocol::kProtocolVersion + 1;
+  bytes[4] = uint8_t(other);
+  bytes[5] = uint8_t(other >> 8);
+  zmq::context_t ctx;
+  zmq::socket_t dealer(ctx, zmq::socket_type::dealer);
+  dealer.set(zmq::sockopt::linger, 0);
+  dealer.set(zmq::sockopt::rcvtimeo, 3000);
+  dealer.connect(endpoint());
+  dealer.send(zmq::buffer(bytes), zmq::send_flags::none);
+  zmq::message_t reply;
+  ASSERT_TRUE(dealer.recv(reply, zmq::recv_flags::none)) << d->log();
+  const auto m = protocol::decode_message(
+      protocol::Bytes(static_cast<const uint8_t*>(reply.data()), reply.size()));
+  ASSERT_TRUE(m.ok()) << m.error();
+  const auto* leave = std::get_if<protocol::Leave>(&m.value());
+  ASSERT_NE(leave, nullptr);
+  EXPECT_EQ(leave->reason, protocol::LeaveReason::kVersionMismatch);
+  EXPECT_NE(leave->text.find("version " + std::to_string(protocol::kProtocolVersion)),
+            std::string::npos);
+  EXPECT_NE(d->log().find("unsupported protocol version " + std::to_string(other)),
+            std::string::npos)
+      << d->log();
+  // The sampler of this version keeps streaming.
+  const uint64_t samples = get_stats(metrics_port())["samplers"][0]["samples"].get<uint64_t>();
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  EXPECT_EQ(members(get_stats(metrics_port())), 1);
+  EXPECT_GT(get_stats(metrics_port())["samplers"][0]["samples"].get<uint64_t>(), samples);
+}
+
+TEST_F(ServiceTest, SamplerFlagOutOfRangeIsNamedAndTheDisplayKeepsServing) {
+  auto d = display({"--size", "64x64", "--fps", "20"}, "display.log");
+  auto s = sampler({"--max-samples-per-second", "50000"}, "s1.log");
+  ASSERT_TRUE(wait_members(1, 5.0)) << d->log();
+  auto bad = sampler({"--kappa", "2"}, "bad.log");
+  EXPECT_NE(bad->wait(10.0), 0);
+  EXPECT_NE(bad->log().find("kappa = 2 is outside [0, 1]"), std::string::npos) << bad->log();
+  EXPECT_EQ(members(get_stats(metrics_port())), 1);
+}
+
+TEST_F(ServiceTest, MissingAndBrokenSceneFilesAreNamed) {
+  const std::string broken = path("broken.gltf");
+  std::ofstream(broken) << R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":64)";
+  auto missing = display({path("no-such-scene.gltf"), "--seconds", "1"}, "missing.log");
+  EXPECT_NE(missing->wait(10.0), 0);
+  EXPECT_NE(missing->log().find("no-such-scene.gltf"), std::string::npos) << missing->log();
+  auto truncated = display({broken, "--seconds", "1"}, "broken.log");
+  EXPECT_NE(truncated->wait(10.0), 0);
+  EXPECT_NE(truncated->log().find("broken.gltf: invalid glTF"), std::string::npos)
+      << truncated->log();
+}
+
+TEST_F(ServiceTest, UnreachableDisplayIsReportedAndTheSamplerKeepsTrying) {
+  auto s = sampler({"--max-samples-per-second", "50000"}, "s1.log");
+  ASSERT_TRUE(wait_until(
+      [&] { return s->log().find("no answer from the display") != std::string::npos; }, 10.0))
+      << s->log();
+  EXPECT_TRUE(s->alive());
+  // The display comes up late: the sampler joins it.
+  auto d = display({"--size", "64x64", "--fps", "20"}, "display.log");
+  EXPECT_TRUE(wait_members(1, 15.0)) << d->log() << s->log();
 }
 
 TEST_F(ServiceTest, NonLoopbackBindWithoutKeysIsRefused) {

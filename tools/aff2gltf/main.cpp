@@ -36,7 +36,7 @@ int main(int argc, char** argv) {
   app.add_option("--max-rotation-step", gltf_options.max_rotation_step_deg,
                  "Baked rotations: largest turn between samples, degrees")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(CLI::Range(0.01, 180.0));
   CLI11_PARSE(app, argc, argv);
   if (output.empty()) output = std::filesystem::path(input).replace_extension(".gltf").filename();
 
