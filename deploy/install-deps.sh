@@ -9,7 +9,7 @@ packages=(
   # sanitizer and fuzzing builds (clang with its ASan/UBSan/TSan and libFuzzer runtimes)
   clang libclang-rt-dev
   # deploy/soak.py and the scene generators
-  python3
+  python3 curl
   # rendering
   libembree-dev libglm-dev libtinygltf-dev nlohmann-json3-dev libopenimageio-dev openimageio-tools
   # display
