@@ -1,11 +1,17 @@
 // afr-bench-sampler: what the sampler's control costs, measured side by side in one run.
 //   afr-bench-sampler [--scene kitchen.gltf] [--seconds 1.5] [--repeats 5]
-// Prints a Markdown table per scene:
+// Prints a Markdown table per scene. Single-thread figures are per CPU-second of the thread, so
+// that other work on the machine does not enter them:
 //  - control overhead: adaptive samples/s over uniform-random samples/s (same tracer,
-//    shading, thread); the paper reports the control costs under 15%;
+//    shading, sink, thread); the paper reports the control costs under 15%;
 //  - reprojection bookkeeping (without its occlusion ray) over the cost of a new crosshair,
 //    and the occlusion ray's cost apart (the paper: a reprojection costs ~1/35 of a sample);
 //  - samples/s of the threaded pool with 1 and 2 threads.
+// With --profile MODE it instead runs a fixed number of steps of one mode in profile_steps(),
+// for counting instructions reproducibly: adaptive, uniform, crosshair (adaptive steps with
+// r = 0: a new crosshair each) or reproject (reprojections alone, without occlusion rays):
+//   valgrind --tool=callgrind --toggle-collect='*profile_steps*' afr-bench-sampler --profile
+//   adaptive
 #include <afr/common/builtin_scene.h>
 #include <afr/common/gltf_loader.h>
 #include <afr/common/log.h>
@@ -18,7 +24,9 @@
 
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <chrono>
+#include <ctime>
 #include <thread>
 #include <vector>
 
@@ -29,6 +37,35 @@ struct CountingSink final : afr::SampleSink {
   void on_batch(afr::SampleBatch&& b) override { samples += b.samples.size(); }
   void on_tiling(afr::TilingSnapshot&&) override {}
 };
+
+// Counts samples and digests them (FNV-1a over the bits of position, time and color, a word at
+// a time), so that a change that should not alter the sample stream can be checked to leave it
+// bit for bit the same.
+uint64_t fnv(uint64_t h, const double* v, size_t n) {
+  for (size_t k = 0; k < n; ++k) h = (h ^ std::bit_cast<uint64_t>(v[k])) * 1099511628211ULL;
+  return h;
+}
+
+struct DigestSink final : afr::SampleSink {
+  uint64_t samples = 0;
+  uint64_t digest = 1469598103934665603ULL;
+  void on_batch(afr::SampleBatch&& b) override {
+    for (const afr::Sample& s : b.samples) {
+      const double v[6] = {s.time, s.x, s.y, s.color.r, s.color.g, s.color.b};
+      digest = fnv(digest, v, 6);
+    }
+    samples += b.samples.size();
+  }
+  void on_tiling(afr::TilingSnapshot&&) override {}
+};
+
+// CPU seconds of the calling thread: on a machine shared with other work, time spent waiting for
+// a core does not count against either variant.
+double thread_seconds() {
+  timespec ts;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
 
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
@@ -41,8 +78,9 @@ struct Run {
   afr::SamplerCounters counters;
 };
 
-// Runs one sampler on one thread for `seconds` of wall time (under a virtual clock at 400K
-// rays/s, so the scene animates as it would live) and reports its throughput.
+// Runs one sampler on one thread for `seconds` of the thread's CPU time (under a virtual clock
+// at 400K rays/s, so the scene animates as it would live) and reports its throughput per
+// CPU-second.
 Run run_single(const afr::Scene& scene, afr::Tracer& tracer, afr::SamplerConfig config,
                double seconds) {
   afr::VirtualClock clock(4e5, 1.0);
@@ -50,13 +88,13 @@ Run run_single(const afr::Scene& scene, afr::Tracer& tracer, afr::SamplerConfig 
   afr::Sampler sampler(scene, tracer, clock, config, sink);
   sampler.fill();
   const uint64_t start_samples = sampler.counters().samples;
-  const auto start = std::chrono::steady_clock::now();
+  const double start = thread_seconds();
   uint64_t steps = 0;
   double elapsed = 0.0;
   while (elapsed < seconds) {
     for (int k = 0; k < 256; ++k) sampler.step();
     steps += 256;
-    elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    elapsed = thread_seconds() - start;
   }
   Run r;
   r.seconds_per_step = elapsed / double(steps);
@@ -86,14 +124,14 @@ double run_pool(const afr::Scene& scene, const afr::SamplerConfig& config, int t
 // Times `calls` invocations of f, returns seconds per call.
 template <typename F>
 double time_per_call(int calls, F&& f) {
-  const auto start = std::chrono::steady_clock::now();
+  const double start = thread_seconds();
   for (int k = 0; k < calls; ++k) f(k);
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / calls;
+  return (thread_seconds() - start) / calls;
 }
 
-// The cost of one reprojection, with and without its occlusion ray, against one step without
-// reprojection (one new crosshair, the next crosshair's first sample, a share of the tiling
-// adjustment), on a sampler that has run for a while at a moving time.
+// The cost of one reprojection, without its occlusion ray, and of one occlusion ray, against one
+// step without reprojection (one new crosshair, the next crosshair's first sample, a share of
+// the tiling adjustment), on a sampler that has run for a while at a moving time.
 void reprojection_costs(const afr::Scene& scene, afr::Tracer& tracer, afr::SamplerConfig config,
                         double* bookkeeping_ratio, double* occlusion_ratio) {
   config.r = 0;
@@ -109,25 +147,33 @@ void reprojection_costs(const afr::Scene& scene, afr::Tracer& tracer, afr::Sampl
   s1.fill();
   for (int k = 0; k < 20000; ++k) s1.step();
   afr::Pcg32 rng(5);
+  // Per reprojection done: a call that picks an empty pixel does none, and its (small) cost is
+  // charged to the calls that do.
   const auto& tiles = s1.tiling().tiles();
-  const double plain = time_per_call(
-      calls, [&](int) { s1.reproject(tiles[rng.next_below(uint32_t(tiles.size()))]); });
+  const uint64_t done1 = s1.counters().reprojections;
+  const double plain =
+      time_per_call(calls,
+                    [&](int) { s1.reproject(tiles[rng.next_below(uint32_t(tiles.size()))]); }) *
+      calls / std::max<double>(1.0, double(s1.counters().reprojections - done1));
   config.occlusion_rays = true;
   afr::Sampler s2(scene, tracer, clock, config, sink);
   s2.fill();
   for (int k = 0; k < 20000; ++k) s2.step();
   const auto& tiles2 = s2.tiling().tiles();
-  const uint64_t rays0 = s2.counters().occlusion_rays;
-  const uint64_t traced0 = s2.counters().samples;
-  const double with_ray = time_per_call(
-      calls, [&](int) { s2.reproject(tiles2[rng.next_below(uint32_t(tiles2.size()))]); });
-  const double rays = double(s2.counters().occlusion_rays - rays0) / calls;
+  const afr::SamplerCounters c0 = s2.counters();
+  const double with_ray =
+      time_per_call(calls,
+                    [&](int) { s2.reproject(tiles2[rng.next_below(uint32_t(tiles2.size()))]); }) *
+      calls;
+  const afr::SamplerCounters& c1 = s2.counters();
+  const double rays = double(c1.occlusion_rays - c0.occlusion_rays);
   // Occluded crosshairs are replaced by newly traced ones; that tracing is sampling, not
   // occlusion testing, so it is taken out at the cost of a step per 5 samples.
-  const double replaced = double(s2.counters().samples - traced0) / 5.0 / calls;
+  const double replaced = double(c1.samples - c0.samples) / 5.0;
+  const double done2 = double(c1.reprojections - c0.reprojections);
   *bookkeeping_ratio = plain / step;
   *occlusion_ratio =
-      std::max(0.0, with_ray - plain - replaced * step) / std::max(rays, 1e-9) / step;
+      std::max(0.0, with_ray - done2 * plain - replaced * step) / std::max(rays, 1.0) / step;
 }
 
 void bench_scene(const afr::Scene& scene, const std::string& name, int size, double seconds,
@@ -155,8 +201,8 @@ void bench_scene(const afr::Scene& scene, const std::string& name, int size, dou
   fmt::print("\n### {} ({}x{}, {} triangles), median of {}\n\n", name, size, size,
              scene.triangle_count(), repeats);
   fmt::print("| measure | value |\n|---|---|\n");
-  fmt::print("| adaptive samples/s (1 thread) | {:.0f} |\n", median(adaptive));
-  fmt::print("| uniform random samples/s (1 thread) | {:.0f} |\n", median(uniform));
+  fmt::print("| adaptive samples per CPU-second (1 thread) | {:.0f} |\n", median(adaptive));
+  fmt::print("| uniform random samples per CPU-second (1 thread) | {:.0f} |\n", median(uniform));
   fmt::print("| control overhead ratio adaptive/uniform (goal >= 0.90) | {:.3f} |\n",
              median(ratio));
   fmt::print("| reprojection bookkeeping / new crosshair (goal <= 1/50) | 1/{:.1f} |\n",
@@ -166,6 +212,55 @@ void bench_scene(const afr::Scene& scene, const std::string& name, int size, dou
              occl > 0.0 ? fmt::format("1/{:.1f}", 1.0 / occl) : "below the noise");
   fmt::print("| pool samples/s, 1 thread (wall clock) | {:.0f} |\n", one);
   fmt::print("| pool samples/s, 2 threads (wall clock) | {:.0f} ({:.2f}x) |\n", two, two / one);
+}
+
+// The steps counted under --profile: kept out of line so that callgrind can collect only them.
+[[gnu::noinline]] void profile_steps(afr::Sampler& sampler, const std::string& mode, int steps) {
+  if (mode == "reproject") {
+    afr::Pcg32 rng(5);
+    const auto& tiles = sampler.tiling().tiles();
+    for (int k = 0; k < steps; ++k)
+      sampler.reproject(tiles[rng.next_below(uint32_t(tiles.size()))]);
+  } else {
+    for (int k = 0; k < steps; ++k) sampler.step();
+  }
+}
+
+// A fixed, seeded run of one mode under a virtual clock: fill, `steps` steps to settle, then
+// `steps` steps (or, for "reproject", reprojections without occlusion rays on a sampler with
+// r = 0) in profile_steps(). Prints what the profiled part did and digests of the sample
+// stream and of the tiles' statistics.
+void profile(const afr::Scene& scene, const std::string& mode, int size, int steps) {
+  afr::Tracer tracer(scene);
+  afr::SamplerConfig config;
+  config.width = config.height = size;
+  if (mode == "uniform") config.mode = afr::SamplerMode::kUniformRandom;
+  if (mode == "reproject" || mode == "crosshair") config.r = 0;
+  if (mode == "reproject") config.occlusion_rays = false;
+  afr::VirtualClock clock(4e5, 2.0);
+  DigestSink sink;
+  afr::Sampler sampler(scene, tracer, clock, config, sink);
+  sampler.fill();
+  for (int k = 0; k < steps; ++k) sampler.step();
+  const afr::SamplerCounters before = sampler.counters();
+  profile_steps(sampler, mode, steps);
+  const afr::SamplerCounters& after = sampler.counters();
+  sampler.flush();
+  // And the state the loop leaves: every tile's rectangle and statistics.
+  uint64_t state = 1469598103934665603ULL;
+  for (int t : mode == "uniform" ? std::vector<int>{} : sampler.tiling().tiles()) {
+    const afr::TileStats st = sampler.tile_stats(t);
+    const afr::PixelRect r = sampler.tiling().node(t).rect;
+    const double v[10] = {double(r.x0), double(r.y0), double(r.x1), double(r.y1), st.v,
+                          st.G_x,       st.G_y,       st.G_t,       st.mean_age,  double(st.count)};
+    state = fnv(state, v, 10);
+  }
+  fmt::print(
+      "{} {} steps: {} samples, {} crosshairs, {} reprojections, {} occlusion rays, {} splits; "
+      "stream digest {:016x}, state digest {:016x}\n",
+      mode, steps, after.samples - before.samples, after.crosshairs - before.crosshairs,
+      after.reprojections - before.reprojections, after.occlusion_rays - before.occlusion_rays,
+      after.splits - before.splits, sink.digest, state);
 }
 
 }  // namespace
@@ -180,9 +275,22 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.1, 60.0));
   app.add_option("--repeats", repeats, "repeats (median reported)")->check(CLI::Range(1, 101));
   app.add_option("--size", size, "square image size")->check(CLI::Range(16, 4096));
+  std::string profile_mode;
+  int profile_count = 20000;
+  app.add_option("--profile", profile_mode,
+                 "run only a fixed number of steps of one mode (for callgrind) on the --scene "
+                 "or the built-in scene")
+      ->check(CLI::IsMember({"adaptive", "uniform", "reproject", "crosshair"}));
+  app.add_option("--steps", profile_count, "steps under --profile")
+      ->check(CLI::Range(1, 100000000));
   CLI11_PARSE(app, argc, argv);
   try {
     afr::init_logging("warn");
+    if (!profile_mode.empty()) {
+      profile(scene_path.empty() ? afr::make_builtin_scene() : afr::load_gltf(scene_path),
+              profile_mode, size, profile_count);
+      return 0;
+    }
     bench_scene(afr::make_builtin_scene(), "built-in scene", size, seconds, repeats);
     if (!scene_path.empty()) {
       bench_scene(afr::load_gltf(scene_path), scene_path, size, seconds, repeats);

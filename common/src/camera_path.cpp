@@ -22,6 +22,19 @@ bool finite(const glm::dvec3& v) {
   return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
 }
 
+// The largest absolute component of a finite quaternion: dividing by it first keeps its length
+// from overflowing (components near 1e308) or underflowing.
+double largest_component(const glm::dquat& q) {
+  return std::max({std::abs(q.x), std::abs(q.y), std::abs(q.z), std::abs(q.w)});
+}
+
+// Length and unit quaternion of a finite, nonzero quaternion, without overflow.
+double safe_length(const glm::dquat& q) {
+  const double m = largest_component(q);
+  return m > 0.0 ? m * glm::length(q / m) : 0.0;
+}
+glm::dquat safe_normalize(const glm::dquat& q) { return glm::normalize(q / largest_component(q)); }
+
 // What is wrong with a key on its own (empty when nothing), with `previous` the key before it
 // or nullptr.
 std::string key_problem(const CameraKey& k, const CameraKey* previous) {
@@ -34,7 +47,9 @@ std::string key_problem(const CameraKey& k, const CameraKey* previous) {
   if (!std::isfinite(q.x) || !std::isfinite(q.y) || !std::isfinite(q.z) || !std::isfinite(q.w)) {
     return "the rotation is not finite";
   }
-  if (glm::length(q) < kMinRotationNorm) return "the rotation quaternion has (nearly) zero length";
+  if (safe_length(k.rotation) < kMinRotationNorm) {
+    return "the rotation quaternion has (nearly) zero length";
+  }
   if (!(k.yfov > 0.0 && k.yfov < std::numbers::pi)) {
     return fmt::format("yfov {} is outside (0, pi) radians", k.yfov);
   }
@@ -73,8 +88,8 @@ CameraPath::CameraPath(std::vector<CameraKey> keys) : keys_(std::move(keys)) {
     const std::string problem = key_problem(keys_[i], i > 0 ? &keys_[i - 1] : nullptr);
     if (!problem.empty()) throw Error(fmt::format("camera path: key {}: {}", i, problem));
     // A written path reads back bit for bit: rotations already of unit length are kept.
-    if (std::abs(glm::length(keys_[i].rotation) - 1.0) > 1e-12) {
-      keys_[i].rotation = glm::normalize(keys_[i].rotation);
+    if (std::abs(safe_length(keys_[i].rotation) - 1.0) > 1e-12) {
+      keys_[i].rotation = safe_normalize(keys_[i].rotation);
     }
   }
 }

@@ -122,7 +122,9 @@ class Loader {
  public:
   Loader(const fs::path& path, GltfLoadReport* report) : path_(path), report_(report) {}
 
+  // Loads the file at path_, or `bytes` as if they were its contents.
   Scene load();
+  Scene load(std::span<const uint8_t> bytes);
 
  private:
   [[noreturn]] void fail(const std::string& problem) const {
@@ -132,7 +134,7 @@ class Loader {
   void warn_once(const std::string& feature, const std::string& message);
 
   std::vector<uint8_t> read_file() const;
-  void parse(const std::vector<uint8_t>& bytes);
+  void parse(std::span<const uint8_t> bytes);
   void check_extensions();
 
   // Accessors.
@@ -188,7 +190,10 @@ std::vector<uint8_t> Loader::read_file() const {
   return bytes;
 }
 
-void Loader::parse(const std::vector<uint8_t>& bytes) {
+void Loader::parse(std::span<const uint8_t> bytes) {
+  if (bytes.size() > kMaxFileBytes) {
+    fail(fmt::format("file of {} bytes is larger than afr accepts", bytes.size()));
+  }
   std::error_code ec;
   access_.root = fs::weakly_canonical(fs::absolute(path_).parent_path(), ec);
   if (ec) fail(fmt::format("cannot resolve its folder: {}", ec.message()));
@@ -1055,8 +1060,10 @@ void Loader::load_scene_roots() {
   }
 }
 
-Scene Loader::load() {
-  parse(read_file());
+Scene Loader::load() { return load(read_file()); }
+
+Scene Loader::load(std::span<const uint8_t> bytes) {
+  parse(bytes);
   check_extensions();
   scene_.source = path_.string();
   load_meshes();
@@ -1080,6 +1087,11 @@ Scene Loader::load() {
 
 Scene load_gltf(const std::filesystem::path& path, GltfLoadReport* report) {
   return Loader(path, report).load();
+}
+
+Scene load_gltf_bytes(std::span<const uint8_t> bytes, const std::filesystem::path& path,
+                      GltfLoadReport* report) {
+  return Loader(path, report).load(bytes);
 }
 
 Scene load_scene(const std::filesystem::path& path) {

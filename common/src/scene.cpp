@@ -281,11 +281,15 @@ Camera Scene::camera_at(const SceneState& state) const {
   glm::dvec3 lo, hi;
   bounds(state, &lo, &hi);
   const glm::dvec3 center = 0.5 * (lo + hi);
-  const double radius = std::max(0.5 * glm::length(hi - lo), 1e-3);
+  // Lengths relative to the scene's own size, so that a scene in micrometres is framed as one
+  // in metres (an absolute floor of 1e-3 made it a dot in the middle of the view). Only a
+  // scene of one point (or none) gets a size from where it is.
+  const double extent = 0.5 * glm::length(hi - lo);
+  const double radius = extent > 0.0 ? extent : std::max(1e-3 * glm::length(center), 1e-3);
   const double yfov = 0.8;
   const double distance = radius / std::sin(0.5 * yfov);
   return Camera::look_at(center + glm::dvec3(0.0, 0.0, distance), center, glm::dvec3(0.0, 1.0, 0.0),
-                         yfov, std::max(distance - radius, 1e-3) * 0.1);
+                         yfov, (distance - radius) * 0.1);
 }
 
 size_t Scene::triangle_count() const {

@@ -30,7 +30,9 @@ struct PixelShape {
   float off_x = 0.0f, off_y = 0.0f;  // the Gaussian at the splat's edge: exp(-r_x^2 k_x), ...
   float r_x = 0.0f, r_y = 0.0f;      // the splat: the square of radius r cut to cutoff sigma
   float k_t = 0.0f;                  // 1 / (2 e_t^2)
-  float r = 1.0f;                    // splat size (what the coverage map records)
+  float norm = 1.0f;                 // 1 / (sigma_x sigma_y): the Gaussian's area
+  float r = 1.0f;                    // splat size
+  float growth = 1.0f;               // r / filter radius (what the coverage map records)
 };
 
 // Per-task counts of what happened to samples and pixels (summed after each phase).
@@ -165,7 +167,7 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
   SampleStore::Delta delta;
   m.sync(store_, &delta);
   FrameSetup setup;
-  prepare_frame(time, width, height, delta, &setup);
+  prepare_frame(time, width, height, delta, m.staging, &setup);
 
   const size_t pixels = size_t(width) * size_t(height);
   if (m.previous.width() != width || m.previous.height() != height) {
@@ -247,7 +249,9 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
         shape.off_x = fast_exp(-shape.r_x * shape.r_x * shape.k_x);
         shape.off_y = fast_exp(-shape.r_y * shape.r_y * shape.k_y);
         shape.k_t = f.k_t;
+        shape.norm = 1.0f / (sigma_x * sigma_y);
         shape.r = r;
+        shape.growth = splat_growth(r, r_filter);
         max_radius = std::max(max_radius, r);
       }
       m.task_counts[size_t(task)].max_radius = max_radius;
@@ -345,7 +349,7 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
           const int px = std::clamp(floor_int(s.x), 0, width - 1);
           const int py = std::clamp(floor_int(s.y), 0, height - 1);
           const PixelShape& shape = m.shapes[size_t(py) * size_t(width) + size_t(px)];
-          const float r = shape.r, r_x = shape.r_x, r_y = shape.r_y;
+          const float r_x = shape.r_x, r_y = shape.r_y, g = shape.growth;
           // Pixels i with |i + 0.5 - x| < r_x, rows likewise.
           const int x0 = std::max(0, floor_int(s.x - r_x - 0.5f) + 1);
           const int x1 = std::min(width - 1, ceil_int(s.x + r_x - 0.5f) - 1);
@@ -356,7 +360,7 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
             continue;
           }
           ++c.splatted;
-          const float w_t = std::max(fast_exp(-s.age * s.age * shape.k_t), min_wt);
+          const float w_t = std::max(fast_exp(-s.age * s.age * shape.k_t), min_wt) * shape.norm;
 #if defined(__SSE2__)
           const __m128 color1 = _mm_setr_ps(s.color.r, s.color.g, s.color.b, 1.0f);
 #endif
@@ -374,7 +378,7 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
             // Four pixels at a time without a branch per pixel: lanes past x1 or with a weight
             // at or below kMinSplatWeight add exactly 0 (and nothing to the coverage).
             const __m128 wyt4 = _mm_set1_ps(wyt);
-            const __m128 one_r = _mm_setr_ps(1.0f, r, 1.0f, r);
+            const __m128 one_g = _mm_setr_ps(1.0f, g, 1.0f, g);
             for (; i + 3 < width && i <= x1; i += 4) {
               const __m128 lane = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
               const __m128 inside = _mm_cmplt_ps(lane, _mm_set1_ps(float(x1 - i + 1)));
@@ -392,9 +396,9 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
                                                _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0xff))));
               float* cv = &cov[i].count;
               _mm_storeu_ps(
-                  cv, _mm_add_ps(_mm_loadu_ps(cv), _mm_and_ps(one_r, _mm_unpacklo_ps(ok, ok))));
+                  cv, _mm_add_ps(_mm_loadu_ps(cv), _mm_and_ps(one_g, _mm_unpacklo_ps(ok, ok))));
               _mm_storeu_ps(cv + 4, _mm_add_ps(_mm_loadu_ps(cv + 4),
-                                               _mm_and_ps(one_r, _mm_unpackhi_ps(ok, ok))));
+                                               _mm_and_ps(one_g, _mm_unpackhi_ps(ok, ok))));
             }
 #endif
             for (; i <= x1; ++i) {  // the image's last columns (and builds without SSE2)
@@ -402,7 +406,7 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
               if (!(w > kMinSplatWeight)) continue;
               acc[i] += glm::vec4(s.color * w, w);
               cov[i].count += 1.0f;
-              cov[i].radius_sum += r;
+              cov[i].growth_sum += g;
             }
           }
         }

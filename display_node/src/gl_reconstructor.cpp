@@ -249,7 +249,7 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
   m.stored = delta.stored;
 
   FrameSetup setup;
-  prepare_frame(time, width, height, delta, &setup);
+  prepare_frame(time, width, height, delta, m.staging, &setup);
   const bool resized = width != m.width || height != m.height;
   m.resize(width, height);
   if (setup.field_changed || resized) {

@@ -40,13 +40,13 @@ uniform float u_max_radius;
 
 uniform usampler2D u_tile_index;       // per output pixel: index into u_tile_filters
 uniform samplerBuffer u_tile_filters;  // sigma_x, sigma_y, k_t, e_t
-uniform sampler2D u_coverage;          // previous image: count, radius sum
+uniform sampler2D u_coverage;          // previous image: count, growth sum
 
 flat out vec2 v_center;
 flat out vec4 v_kernel;  // k_x, k_y, off_x, off_y
 flat out vec3 v_color;
 flat out float v_wt;
-flat out vec3 v_extent;  // r_x, r_y, r
+flat out vec3 v_extent;  // r_x, r_y, growth r / r_filter
 
 void skip() {
   gl_Position = vec4(2.0, 2.0, 2.0, 1.0);  // outside the clip volume: culled
@@ -54,17 +54,18 @@ void skip() {
 }
 
 float splat_radius(vec2 cell, float filter_radius) {
-  float r = filter_radius;
+  float g = 1.0;
   if (u_have_coverage) {
     if (!(cell.x > 0.0)) {
-      r = u_grow * filter_radius;
+      g = u_grow;
     } else {
       float mean = cell.y / cell.x;
-      if (cell.x < u_grow_below) r = u_grow * mean;
-      else if (cell.x > u_shrink_above) r = u_shrink * mean;
-      else r = mean;
+      if (cell.x < u_grow_below) g = u_grow * mean;
+      else if (cell.x > u_shrink_above) g = u_shrink * mean;
+      else g = mean;
     }
   }
+  float r = g * filter_radius;
   if (!(r >= u_min_radius)) return u_min_radius;
   return min(r, u_max_radius);
 }
@@ -112,10 +113,11 @@ void main() {
   float r_x = min(r, u_cutoff * sigma_x);
   float r_y = min(r, u_cutoff * sigma_y);
   v_kernel = vec4(k_x, k_y, exp(-r_x * r_x * k_x), exp(-r_y * r_y * k_y));
-  v_wt = max(exp(-age * age * f.z), u_min_wt);
+  // Divided by the Gaussian's area (filter.h).
+  v_wt = max(exp(-age * age * f.z), u_min_wt) / (sigma_x * sigma_y);
   v_center = p;
   v_color = a_color;
-  v_extent = vec3(r_x, r_y, r);
+  v_extent = vec3(r_x, r_y, r / r_filter);
   // The viewport is the image grown by u_guard on every side.
   gl_Position = vec4((p + u_guard) / (size + 2.0 * u_guard) * 2.0 - 1.0, 0.0, 1.0);
   // Covers every pixel center within r of p, with half a pixel to spare on each side for the

@@ -108,7 +108,7 @@ bool TileField::update(int width, int height) {
   for (const TilingSnapshot* snap : order) {
     for (const TileInfo& t : snap->tiles) {
       const uint32_t index = uint32_t(tiles_.size());
-      tiles_.push_back(FieldTile{t.G_x, t.G_y, t.G_t, t.rate, snap->sampler_id});
+      tiles_.push_back(FieldTile{t.G_x, t.G_y, t.G_t, t.rate, snap->sampler_id, t.rect});
       int i0, i1, j0, j1;
       pixel_span(t.rect.x0, t.rect.x1, sx, width, &i0, &i1);
       pixel_span(t.rect.y0, t.rect.y1, sy, height, &j0, &j1);

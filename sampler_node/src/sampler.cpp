@@ -14,6 +14,9 @@ namespace {
 // relative to the tile's reference time (about 1e30 at 20 s): keeps the sums far from
 // overflow, and old weights are re-based instead of underflowing one by one.
 constexpr double kMaxReferenceAge = 20.0;
+// Cells of half this many pixels up to about this many keep statistics of their own, from which
+// a tile's block is summed instead of visiting its crosshairs (4x4 pixels on 256x256).
+constexpr int kCellPixels = 32;
 // The smallest time difference a temporal gradient divides by (guards t - t0 near zero).
 constexpr double kMinTemporalSeconds = 1e-4;
 // At the target tile count, the worst tile is split and the best pair merged only while the
@@ -27,6 +30,96 @@ constexpr double kMinPixelDistance = 0.25;
 
 float sample_luminance(const ShadedSample& s) { return luminance(s.color); }
 
+// Adds (sign +1) or removes (sign -1) a crosshair to the sums of a block. A block that was empty
+// takes the crosshair's time as reference and its luminance as shift.
+void add_to_sums(TileSums& s, const CrosshairStats& c, double sign) {
+  if (sign > 0.0 && s.count == 0) {
+    s = TileSums{};
+    s.t_ref = c.time;
+    s.shift = c.luminance;
+  }
+  const double w = std::exp(kAgeDecay * (c.time - s.t_ref));
+  const double d = double(c.luminance) - s.shift;
+  s.w += sign * w;
+  s.wl += sign * w * d;
+  s.wll += sign * w * d * d;
+  s.wgx += sign * w * c.G_x;
+  s.wgy += sign * w * c.G_y;
+  if (c.has(Crosshair::kHasTemporalGradient)) {
+    s.wt += sign * w;
+    s.wgt += sign * w * c.G_t;
+  }
+  s.t_sum += sign * (c.time - s.t_ref);
+  s.count += sign > 0.0 ? 1 : -1;
+  if (c.has(Crosshair::kOccluded)) s.occluded += sign > 0.0 ? 1 : -1;
+  ++s.updates;
+  if (c.time - s.t_ref > kMaxReferenceAge) s.updates = std::numeric_limits<int32_t>::max() / 2;
+}
+
+// Sums that add and subtract drift: they are re-derived once the updates outnumber the block,
+// or when new weights grow too large against the reference time.
+bool needs_rederive(const TileSums& s) { return s.updates > 4 * s.count + 64; }
+
+// The sums of the crosshairs of a block, straight from the deep buffer, with the newest as
+// reference time.
+TileSums sums_from_buffer(const DeepBuffer& buffer, const PixelRect& rect, double shift) {
+  TileSums s;
+  s.shift = shift;
+  double newest = -std::numeric_limits<double>::infinity();
+  // Not only the front: reprojected crosshairs go to the back of their queue.
+  buffer.for_each_stats(rect, [&](const CrosshairStats& c) { newest = std::max(newest, c.time); });
+  if (!std::isfinite(newest)) return s;
+  s.t_ref = newest;
+  buffer.for_each_stats(rect, [&](const CrosshairStats& c) {
+    const double w = std::exp(kAgeDecay * (c.time - s.t_ref));
+    const double d = double(c.luminance) - s.shift;
+    s.w += w;
+    s.wl += w * d;
+    s.wll += w * d * d;
+    s.wgx += w * c.G_x;
+    s.wgy += w * c.G_y;
+    if (c.has(Crosshair::kHasTemporalGradient)) {
+      s.wt += w;
+      s.wgt += w * c.G_t;
+    }
+    s.t_sum += c.time - s.t_ref;
+    ++s.count;
+    if (c.has(Crosshair::kOccluded)) ++s.occluded;
+  });
+  return s;
+}
+
+// The sums of a block made of `n` disjoint blocks, moved to a common shift and to the newest of
+// their reference times. Every part's own weights stay below exp(kAgeDecay * kMaxReferenceAge)
+// and the factors below 1, so nothing overflows.
+TileSums sums_from_parts(const TileSums* parts, int n, double shift) {
+  TileSums out;
+  out.shift = shift;
+  double newest = -std::numeric_limits<double>::infinity();
+  for (int k = 0; k < n; ++k) {
+    if (parts[k].count > 0) newest = std::max(newest, parts[k].t_ref);
+  }
+  if (!std::isfinite(newest)) return out;
+  out.t_ref = newest;
+  for (int k = 0; k < n; ++k) {
+    const TileSums& s = parts[k];
+    if (s.count <= 0) continue;
+    const double f = std::exp(kAgeDecay * (s.t_ref - out.t_ref));
+    const double d = s.shift - out.shift;
+    out.w += f * s.w;
+    out.wl += f * (s.wl + d * s.w);
+    out.wll += f * (s.wll + 2.0 * d * s.wl + d * d * s.w);
+    out.wgx += f * s.wgx;
+    out.wgy += f * s.wgy;
+    out.wt += f * s.wt;
+    out.wgt += f * s.wgt;
+    out.t_sum += s.t_sum + s.count * (s.t_ref - out.t_ref);
+    out.count += s.count;
+    out.occluded += s.occluded;
+  }
+  return out;
+}
+
 }  // namespace
 
 Sampler::Sampler(const Scene& scene, Tracer& tracer, Clock& clock, const SamplerConfig& config,
@@ -38,8 +131,9 @@ Sampler::Sampler(const Scene& scene, Tracer& tracer, Clock& clock, const Sampler
       sink_(sink),
       region_(config.owned_region()),
       rng_(mix_seed(config.seed), mix_seed(uint64_t(config.sampler_id) + 1)),
-      tiling_(region_),
+      tiling_(region_, 40, kCellPixels),
       buffer_(region_, config.b),
+      cells_(size_t(tiling_.cell_count())),
       pending_(size_t(region_.area())) {
   if (config_.r > 0) fields_ |= kFieldPosition;
   if (config_.r > 0 && scene.has_moving_geometry()) fields_ |= kFieldVelocity;
@@ -50,6 +144,8 @@ Sampler::Sampler(const Scene& scene, Tracer& tracer, Clock& clock, const Sampler
   config_.max_tiles = int(std::max<int64_t>(1, std::min<int64_t>(config_.max_tiles, pixels / 4)));
   config_.min_tiles = std::min(config_.min_tiles, config_.max_tiles);
   target_tiles_ = config_.min_tiles;
+  max_x_ = std::nextafter(float(config_.width), 0.0f);
+  max_y_ = std::nextafter(float(config_.height), 0.0f);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -65,6 +161,7 @@ void Sampler::advance_scene_time() {
     if (camera_source_) {
       if (std::optional<Camera> c = camera_source_->camera_at(t)) camera_ = *c;
     }
+    tan_half_fov_ = std::tan(0.5 * camera_.yfov);
     scene_time_ = t;
     scene_time_set_ = true;
   }
@@ -85,6 +182,7 @@ void Sampler::fill() {
         insert_front(c);
       }
     }
+    for (int cell = 0; cell < tiling_.cell_count(); ++cell) rederive_cell(cell);
     rederive(tiling_.root());
     compute_errors();
     target_tiles_ = config_.min_tiles;  // no temporal gradients yet: start from the fewest
@@ -193,8 +291,9 @@ void Sampler::reproject(int tile) {
   if (buffer_.count(px, py) == 0) return;
   ++counters_.reprojections;
   Crosshair c = buffer_.pop_front(px, py);
-  add_to_tile(tile, c, -1.0);
-  settle(tile);
+  const int cell = tiling_.cell_at(px, py);
+  add_to_tile(tile, cell, stats_of(c), -1.0);
+  settle(tile, cell);
 
   const double now = clock_.now();
   const double dt = now - c.time;
@@ -202,7 +301,7 @@ void Sampler::reproject(int tile) {
   const auto project = [&](const glm::vec3& position, bool hit, glm::dvec2* xy) {
     const glm::dvec3 p = hit ? glm::dvec3(position) + motion
                              : camera_.eye + glm::dvec3(position) * (1e3 * (1.0 + camera_.znear));
-    return camera_.project(p, config_.width, config_.height, xy, nullptr);
+    return project_point(p, xy);
   };
   glm::dvec2 xy;
   const bool hit = c.has(Crosshair::kCenterHit);
@@ -240,8 +339,10 @@ void Sampler::reproject(int tile) {
   // point is where it was, and any difference to its neighbour is spatial.
   const int32_t qx = int32_t(std::floor(xy.x)), qy = int32_t(std::floor(xy.y));
   if (moved > kMinMoveForTemporal && buffer_.count(qx, qy) > 0) {
-    const Crosshair& newest = buffer_.at(qx, qy, 0);
-    const double explained = c.G_x * std::abs(newest.x - c.x) + c.G_y * std::abs(newest.y - c.y);
+    const CrosshairStats& newest = buffer_.stats(qx, qy, 0);
+    const glm::vec2 newest_xy = buffer_.image_position(qx, qy, 0);
+    const double explained =
+        c.G_x * std::abs(newest_xy.x - c.x) + c.G_y * std::abs(newest_xy.y - c.y);
     const double change =
         std::max(0.0, std::abs(double(c.luminance) - newest.luminance) - explained);
     c.G_t = float(change / std::max(std::abs(newest.time - c.time), kMinTemporalSeconds));
@@ -277,6 +378,20 @@ void Sampler::reproject(int tile) {
   insert_back(c);
 }
 
+// Camera::project with the tangent of the half field of view taken once per camera instead of
+// once per point: the same arithmetic in the same order, so the same results bit for bit.
+bool Sampler::project_point(const glm::dvec3& p, glm::dvec2* xy) const {
+  const glm::dvec3 d = p - camera_.eye;
+  const double z = glm::dot(d, camera_.forward);
+  if (!(z >= camera_.znear)) return false;
+  const double tan_half = tan_half_fov_;
+  const double aspect = double(config_.width) / double(config_.height);
+  const double sx = glm::dot(d, camera_.right) / (z * tan_half * aspect);
+  const double sy = glm::dot(d, camera_.up) / (z * tan_half);
+  *xy = glm::dvec2((sx + 1.0) * 0.5 * config_.width, (1.0 - sy) * 0.5 * config_.height);
+  return true;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Tracing and output
 
@@ -306,8 +421,8 @@ void Sampler::emit(double x, double y, const ShadedSample& s) {
   Sample out;
   out.time = scene_time_;
   // Rounding to float can carry 255.99999999 to 256: keep the sample inside its pixel row.
-  out.x = std::min(float(x), std::nextafter(float(config_.width), 0.0f));
-  out.y = std::min(float(y), std::nextafter(float(config_.height), 0.0f));
+  out.x = std::min(float(x), max_x_);
+  out.y = std::min(float(y), max_y_);
   out.color = s.color;
   if (fields_ & kFieldPosition) {
     out.position = s.position;
@@ -384,7 +499,7 @@ TilingSnapshot Sampler::snapshot() const {
   // 1 / tiles; spread over its pixels, that is its local rate.
   const double per_tile = sample_rate_ / double(tiling_.tile_count());
   for (int t : tiling_.tiles()) {
-    const TileStats st = tile_stats(t);
+    const TileStats st = tile_stats(t, snap.time);
     TileInfo info;
     info.rect = tiling_.node(t).rect;
     info.G_x = float(st.G_x);
@@ -425,53 +540,43 @@ void Sampler::insert_front(const Crosshair& c) {
   int32_t x, y;
   pixel_of(c, &x, &y);
   const int tile = tiling_.tile_at(x, y);
-  Crosshair evicted;
-  if (buffer_.push_front(x, y, c, &evicted)) add_to_tile(tile, evicted, -1.0);
-  add_to_tile(tile, c, 1.0);
-  settle(tile);
+  const int cell = tiling_.cell_at(x, y);
+  CrosshairStats evicted;
+  if (buffer_.push_front(x, y, c, &evicted)) add_to_tile(tile, cell, evicted, -1.0);
+  add_to_tile(tile, cell, stats_of(c), 1.0);
+  settle(tile, cell);
 }
 
 void Sampler::insert_back(const Crosshair& c) {
   int32_t x, y;
   pixel_of(c, &x, &y);
   const int tile = tiling_.tile_at(x, y);
-  Crosshair evicted;
-  if (buffer_.push_back(x, y, c, &evicted)) add_to_tile(tile, evicted, -1.0);
-  add_to_tile(tile, c, 1.0);
-  settle(tile);
+  const int cell = tiling_.cell_at(x, y);
+  CrosshairStats evicted;
+  if (buffer_.push_back(x, y, c, &evicted)) add_to_tile(tile, cell, evicted, -1.0);
+  add_to_tile(tile, cell, stats_of(c), 1.0);
+  settle(tile, cell);
 }
 
-void Sampler::add_to_tile(int tile, const Crosshair& c, double sign) {
-  TileSums& s = record(tile).sums;
-  if (sign > 0.0 && s.count == 0) {
-    s = TileSums{};
-    s.t_ref = c.time;
-    s.shift = c.luminance;
-  }
-  const double w = std::exp(kAgeDecay * (c.time - s.t_ref));
-  const double d = double(c.luminance) - s.shift;
-  s.w += sign * w;
-  s.wl += sign * w * d;
-  s.wll += sign * w * d * d;
-  s.wgx += sign * w * c.G_x;
-  s.wgy += sign * w * c.G_y;
-  if (c.has(Crosshair::kHasTemporalGradient)) {
-    s.wt += sign * w;
-    s.wgt += sign * w * c.G_t;
-  }
-  s.t_sum += sign * (c.time - s.t_ref);
-  s.count += sign > 0.0 ? 1 : -1;
-  if (c.has(Crosshair::kOccluded)) s.occluded += sign > 0.0 ? 1 : -1;
-  ++s.updates;
-  if (c.time - s.t_ref > kMaxReferenceAge) s.updates = std::numeric_limits<int32_t>::max() / 2;
+// Keeps the sums of a tile and of a cell in step with the buffer: called once for every
+// crosshair that enters or leaves a pixel of that cell.
+void Sampler::add_to_tile(int tile, int cell, const CrosshairStats& c, double sign) {
+  add_to_sums(record(tile).sums, c, sign);
+  add_to_sums(cells_[size_t(cell)], c, sign);
 }
 
-// Sums that add and subtract drift: re-derive them once the updates outnumber the block, or
-// when new weights grow too large against the reference time. Called after the buffer and
-// the sums agree again.
-void Sampler::settle(int tile) {
-  const TileSums& s = records_[size_t(tile)].sums;
-  if (s.updates > 4 * s.count + 64) rederive(tile);
+// Re-derives the sums of a cell and a tile that may have drifted (see needs_rederive). Called
+// after the buffer and the sums agree again; the cell first, as the tile may be summed from it.
+void Sampler::settle(int tile, int cell) {
+  if (needs_rederive(cells_[size_t(cell)])) rederive_cell(cell);
+  if (needs_rederive(records_[size_t(tile)].sums)) rederive(tile);
+}
+
+void Sampler::rederive_cell(int cell) {
+  const TileSums& old = cells_[size_t(cell)];
+  const double shift = old.count > 0 && old.w > 0.0 ? old.shift + old.wl / old.w : 0.0;
+  cells_[size_t(cell)] =
+      sums_from_buffer(buffer_, tiling_.cell_rect(cell), std::isfinite(shift) ? shift : 0.0);
 }
 
 // Recomputes a tile's sums from the crosshairs in its block, with the newest as reference
@@ -482,46 +587,17 @@ void Sampler::rederive(int tile) {
 }
 
 void Sampler::rederive(int tile, double shift) {
-  TileSums s;
-  s.shift = std::isfinite(shift) ? shift : 0.0;
-  const PixelRect rect = tiling_.node(tile).rect;
-  double newest = -std::numeric_limits<double>::infinity();
-  for (int32_t y = rect.y0; y < rect.y1; ++y) {
-    for (int32_t x = rect.x0; x < rect.x1; ++x) {
-      // Not only the front: reprojected crosshairs go to the back of their queue.
-      for (int k = 0; k < buffer_.count(x, y); ++k) {
-        newest = std::max(newest, buffer_.at(x, y, k).time);
-      }
-    }
-  }
-  if (std::isfinite(newest)) {
-    s.t_ref = newest;
-    for (int32_t y = rect.y0; y < rect.y1; ++y) {
-      for (int32_t x = rect.x0; x < rect.x1; ++x) {
-        for (int k = 0; k < buffer_.count(x, y); ++k) {
-          const Crosshair& c = buffer_.at(x, y, k);
-          const double w = std::exp(kAgeDecay * (c.time - s.t_ref));
-          const double d = double(c.luminance) - s.shift;
-          s.w += w;
-          s.wl += w * d;
-          s.wll += w * d * d;
-          s.wgx += w * c.G_x;
-          s.wgy += w * c.G_y;
-          if (c.has(Crosshair::kHasTemporalGradient)) {
-            s.wt += w;
-            s.wgt += w * c.G_t;
-          }
-          s.t_sum += c.time - s.t_ref;
-          ++s.count;
-          if (c.has(Crosshair::kOccluded)) ++s.occluded;
-        }
-      }
-    }
-  }
-  record(tile).sums = s;
+  shift = std::isfinite(shift) ? shift : 0.0;
+  // A tile of cell size or more is its cells; a smaller one is visited.
+  record(tile).sums = tiling_.covers_cells(tile)
+                          ? sums_from_parts(&cells_[size_t(tiling_.first_cell(tile))],
+                                            tiling_.cells_in(tile), shift)
+                          : sums_from_buffer(buffer_, tiling_.node(tile).rect, shift);
 }
 
-TileStats Sampler::tile_stats(int tile) const {
+TileStats Sampler::tile_stats(int tile) const { return tile_stats(tile, clock_.now()); }
+
+TileStats Sampler::tile_stats(int tile, double now) const {
   const TileSums& s = records_[size_t(tile)].sums;
   TileStats st;
   st.count = s.count;
@@ -532,7 +608,7 @@ TileStats Sampler::tile_stats(int tile) const {
   st.G_x = std::max(0.0, s.wgx / s.w);
   st.G_y = std::max(0.0, s.wgy / s.w);
   st.G_t = s.wt > 0.0 ? std::max(0.0, s.wgt / s.wt) : 0.0;
-  st.mean_age = std::max(0.0, clock_.now() - (s.t_ref + s.t_sum / s.count));
+  st.mean_age = std::max(0.0, now - (s.t_ref + s.t_sum / s.count));
   return st;
 }
 
@@ -566,8 +642,9 @@ void Sampler::compute_errors() {
   double sum_v = 0.0, sum_u = 0.0, sum_o = 0.0;
   double area = 0.0, spatial = 0.0, temporal = 0.0, age = 0.0;
   terms_.resize(tiles.size());
+  const double now = clock_.now();
   for (size_t k = 0; k < tiles.size(); ++k) {
-    const TileStats st = tile_stats(tiles[k]);
+    const TileStats st = tile_stats(tiles[k], now);
     const double s = double(tiling_.node(tiles[k]).rect.area());
     const double empty = s * b - st.count;
     const double u = empty > 0.0 ? 1.0 - std::min(1.0, config_.m * mean_empty / empty) : 0.0;
@@ -663,16 +740,16 @@ void Sampler::on_split(int parent, int a, int b) {
   const int64_t pending = record(parent).pending;
   record(parent).pending = -1;
   record(a).pending = record(b).pending = -1;
-  // Re-derive the smaller child from the buffer and take the other as the parent's sums minus
-  // it: half the pass over the buffer. The difference carries the parent's updates, so it is
-  // re-derived as soon as the parent would have been.
+  // Re-derive the smaller child (from its cells, or when smaller than a cell from the buffer)
+  // and take the other as the parent's sums minus it. The difference carries the parent's
+  // updates, so it is re-derived as soon as the parent would have been.
   const bool a_smaller = tiling_.node(a).rect.area() <= tiling_.node(b).rect.area();
   const int scanned = a_smaller ? a : b, derived = a_smaller ? b : a;
   const TileSums ps = records_[parent].sums;
   const double parent_mean = ps.count > 0 && ps.w > 0.0 ? ps.shift + ps.wl / ps.w : 0.0;
   rederive(scanned, parent_mean);
   records_[derived].sums = combine(ps, records_[scanned].sums, -1.0);
-  settle(derived);
+  if (needs_rederive(records_[derived].sums)) rederive(derived);
   for (int c : {a, b}) {
     // Until the next adjustment, a child's error is its share of the parent's.
     error_[c] = error_[parent] * double(tiling_.node(c).rect.area()) /

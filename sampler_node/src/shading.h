@@ -18,6 +18,7 @@
 #include <afr/common/scene.h>
 
 #include <cmath>
+#include <limits>
 
 namespace afr::shading {
 
@@ -74,7 +75,7 @@ inline bool light_incidence(const LightRecord& light, const glm::vec3& p, glm::v
   }
   const glm::vec3 d = light.position - p;
   const float d2 = glm::dot(d, d);
-  if (!(d2 > 1e-12f)) return false;
+  if (!(d2 >= std::numeric_limits<float>::min())) return false;  // 1 / d2 stays finite
   const float dist = std::sqrt(d2);
   *to_light = d / dist;
   *distance = dist;

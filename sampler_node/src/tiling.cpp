@@ -2,17 +2,60 @@
 
 #include <afr/common/check.h>
 
+#include <algorithm>
 #include <cstddef>
 
 namespace afr {
 
-KdTiling::KdTiling(PixelRect region, int max_depth) : max_depth_(max_depth) {
+KdTiling::KdTiling(PixelRect region, int max_depth, int cell_pixels) : max_depth_(max_depth) {
   AFR_CHECK(!region.empty());
-  root_ = allocate(region, -1, 0);
+  root_ = allocate(region, -1, 0, 0);
   add_leaf(root_);
+  build_cells(cell_pixels);
 }
 
-int KdTiling::allocate(const PixelRect& rect, int parent, int depth) {
+void KdTiling::split_rect(const PixelRect& r, PixelRect* first, PixelRect* second) {
+  *first = *second = r;
+  if (r.width() >= r.height()) {
+    first->x1 = second->x0 = r.x0 + r.width() / 2;
+  } else {
+    first->y1 = second->y0 = r.y0 + r.height() / 2;
+  }
+}
+
+// The deepest level whose nodes all hold at least cell_pixels / 2 pixels (so all of them can
+// split down to it), at most the tree's depth bound.
+void KdTiling::build_cells(int cell_pixels) {
+  const PixelRect region = this->region();
+  cell_depth_ = 0;
+  cell_rects_.assign(1, region);
+  if (cell_pixels <= 0) return;
+  while (cell_depth_ < std::min(max_depth_, 30)) {
+    std::vector<PixelRect> next(cell_rects_.size() * 2);
+    bool ok = true;
+    for (size_t k = 0; k < cell_rects_.size() && ok; ++k) {
+      split_rect(cell_rects_[k], &next[2 * k], &next[2 * k + 1]);
+      ok = 2 * next[2 * k].area() >= cell_pixels && 2 * next[2 * k + 1].area() >= cell_pixels &&
+           !next[2 * k].empty() && !next[2 * k + 1].empty();
+    }
+    if (!ok) break;
+    cell_rects_ = std::move(next);
+    ++cell_depth_;
+  }
+  cell_node_.assign(cell_rects_.size(), root_);
+  cell_of_pixel_.assign(size_t(region.area()), 0);
+  for (size_t c = 0; c < cell_rects_.size(); ++c) {
+    const PixelRect& r = cell_rects_[c];
+    for (int32_t y = r.y0; y < r.y1; ++y) {
+      for (int32_t x = r.x0; x < r.x1; ++x) {
+        cell_of_pixel_[size_t(y - region.y0) * size_t(region.width()) + size_t(x - region.x0)] =
+            uint32_t(c);
+      }
+    }
+  }
+}
+
+int KdTiling::allocate(const PixelRect& rect, int parent, int depth, uint64_t path) {
   int id;
   if (!free_.empty()) {
     id = free_.back();
@@ -22,7 +65,7 @@ int KdTiling::allocate(const PixelRect& rect, int parent, int depth) {
     nodes_.emplace_back();
     mergeable_slot_.push_back(-1);
   }
-  nodes_[id] = Node{rect, parent, {-1, -1}, depth, -1};
+  nodes_[id] = Node{rect, parent, {-1, -1}, depth, -1, path};
   return id;
 }
 
@@ -59,9 +102,18 @@ void KdTiling::update_mergeable(int id) {
   }
 }
 
+// Keeps cell_node_ pointing, for every cell under node `id` (no deeper than the cells), to `id`.
+void KdTiling::set_cell_node(int id) {
+  if (!covers_cells(id) || cell_of_pixel_.empty()) return;
+  const int first = first_cell(id), n = cells_in(id);
+  for (int c = first; c < first + n; ++c) cell_node_[size_t(c)] = id;
+}
+
 int KdTiling::tile_at(int32_t x, int32_t y) const {
   AFR_DCHECK(region().contains(x, y));
-  int id = root_;
+  // From the node at the cut or at cell depth that holds the pixel's cell, when there are
+  // cells; from the root otherwise.
+  int id = cell_of_pixel_.empty() ? root_ : cell_node_[size_t(cell_at(x, y))];
   while (!nodes_[id].is_leaf()) {
     const Node& n = nodes_[id];
     const int c = nodes_[n.child[0]].rect.contains(x, y) ? 0 : 1;
@@ -70,28 +122,21 @@ int KdTiling::tile_at(int32_t x, int32_t y) const {
   return id;
 }
 
-bool KdTiling::can_split(int leaf) const {
-  const Node& n = nodes_[leaf];
-  return n.is_leaf() && n.depth < max_depth_ && (n.rect.width() > 1 || n.rect.height() > 1);
-}
-
 void KdTiling::split(int leaf, int* first, int* second) {
   AFR_CHECK(can_split(leaf));
-  const PixelRect r = nodes_[leaf].rect;
-  PixelRect a = r, b = r;
-  if (r.width() >= r.height()) {
-    a.x1 = b.x0 = r.x0 + r.width() / 2;
-  } else {
-    a.y1 = b.y0 = r.y0 + r.height() / 2;
-  }
+  PixelRect a, b;
+  split_rect(nodes_[leaf].rect, &a, &b);
   const int depth = nodes_[leaf].depth + 1;
-  const int ia = allocate(a, leaf, depth);
-  const int ib = allocate(b, leaf, depth);  // may reallocate nodes_: index again below
+  const uint64_t path = nodes_[leaf].path;
+  const int ia = allocate(a, leaf, depth, 2 * path);
+  const int ib = allocate(b, leaf, depth, 2 * path + 1);  // may reallocate nodes_: index again
   remove_leaf(leaf);
   nodes_[leaf].child[0] = ia;
   nodes_[leaf].child[1] = ib;
   add_leaf(ia);
   add_leaf(ib);
+  set_cell_node(ia);
+  set_cell_node(ib);
   update_mergeable(leaf);
   update_mergeable(nodes_[leaf].parent);
   if (first) *first = ia;
@@ -111,6 +156,7 @@ void KdTiling::merge(int parent) {
   }
   nodes_[parent].child[0] = nodes_[parent].child[1] = -1;
   add_leaf(parent);
+  set_cell_node(parent);
   update_mergeable(parent);
   update_mergeable(nodes_[parent].parent);
 }

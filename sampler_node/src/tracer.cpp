@@ -31,8 +31,11 @@ using shading::ShadeMaterial;
 
 // Half-width of the central difference that gives instance velocities.
 constexpr double kVelocityDt = 1e-3;
-// Secondary rays start this far (relative to the hit point's magnitude) off the surface.
+// Secondary rays start this far (relative to the hit point's magnitude plus the scene's, the
+// latter at most 1) off the surface.
 constexpr float kRayOffset = 5e-5f;
+// Shaded colors are clamped to this: the largest half float, as the display keeps them.
+constexpr float kMaxRadiance = 65504.0f;
 // Mirror chains stop when what they could still add is below this.
 constexpr float kMinThroughput = 1e-3f;
 
@@ -43,9 +46,6 @@ bool finite(const glm::vec3& v) {
 float max_abs(const glm::vec3& v) {
   return std::max(std::abs(v.x), std::max(std::abs(v.y), std::abs(v.z)));
 }
-
-// The offset that keeps a ray leaving the surface at p from hitting that surface again.
-float offset_at(const glm::vec3& p) { return kRayOffset * (1.0f + max_abs(p)); }
 
 // One Embree triangle geometry: one primitive of a mesh. Static geometry is stored in world
 // space and knows its node; geometry of an instanced mesh is in the mesh's space and takes its
@@ -173,6 +173,10 @@ struct Tracer::Impl {
   std::vector<std::vector<glm::vec3>> static_normals_;
   SceneState state_, state_minus_, state_plus_;
   Camera camera_;
+  // The scene's size (largest coordinate at time 0), at most 1: the part of a ray offset that
+  // does not grow with the hit point. A fixed 1 would exceed the whole of a scene in
+  // micrometres, so that shadow rays started beyond every blocker.
+  float offset_floor_ = 1.0f;
 
   Impl(const Scene& scene, const TracerOptions& options);
   ~Impl() { release(); }
@@ -202,11 +206,18 @@ struct Tracer::Impl {
   bool begin_sample(const Ray& ray, const HitRef& hit, ShadedSample* o, Surface* s,
                     TraceStats* stats) const;
   void sanitize(ShadedSample* o, TraceStats* stats) const;
+  // The offset that keeps a ray leaving the surface at p from hitting that surface again.
+  float offset_at(const glm::vec3& p) const { return kRayOffset * (offset_floor_ + max_abs(p)); }
   void finish(const Ray& ray, const HitRef& hit, ShadedSample* out, TraceStats* stats) const;
 };
 
 Tracer::Impl::Impl(const Scene& scene, const TracerOptions& options)
     : scene_(scene), options_(options) {
+  glm::dvec3 lo, hi;
+  scene_.bounds(scene_.evaluate(0.0), &lo, &hi);
+  const glm::dvec3 m = glm::max(glm::abs(lo), glm::abs(hi));
+  const double extent = std::max(m.x, std::max(m.y, m.z));
+  offset_floor_ = float(std::clamp(extent, 1e-30, 1.0));
   device_ = rtcNewDevice("verbose=0");
   if (!device_)
     throw Error("embree: cannot create a device (error " +
@@ -683,7 +694,9 @@ void Tracer::Impl::sanitize(ShadedSample* o, TraceStats* stats) const {
     o->color = glm::vec3(0.0f);
     ++stats->sanitized;
   }
-  o->color = glm::max(o->color, glm::vec3(0.0f));
+  // Finite but huge radiance would overflow the sampler's float gradients and variances; the
+  // wire (RGB9E5) and the display (half-float range) clamp to about this anyway.
+  o->color = glm::clamp(o->color, glm::vec3(0.0f), glm::vec3(kMaxRadiance));
   if (!finite(o->position)) {
     o->position = glm::vec3(0.0f);
     ++stats->sanitized;
@@ -788,8 +801,8 @@ bool Tracer::occluded(const glm::vec3& from, const glm::vec3& to, TraceStats* st
   const glm::vec3 d = to - from;
   const float len = glm::length(d);
   if (!(len > 0.0f) || !std::isfinite(len)) return false;
-  const float near = std::min(offset_at(from), 0.5f * len);
-  const float far = std::max(len - offset_at(to), near);
+  const float near = std::min(impl_->offset_at(from), 0.5f * len);
+  const float far = std::max(len - impl_->offset_at(to), near);
   return impl_->blocked(from, d / len, near, far);
 }
 

@@ -157,5 +157,20 @@ TEST(CameraPathTest, MalformedFilesNameTheFileAndLine) {
   EXPECT_THROW(CameraPath(std::vector<CameraKey>{}), Error);
 }
 
+// Fuzzing found this (docs/robustness.md): a quaternion with a component near 1e308 has a
+// length that overflows, and was normalised to zero, so its written path could not be read.
+TEST(CameraPathTest, HugeRotationComponentsNormaliseWithoutOverflow) {
+  const CameraPath path = parse_camera_path(
+      "# afr camera path v1\n0 1 2 3 0 1e308 0 1e308 0.8\n1 1 2 3 0 0 -1.7e308 0 0.8\n", "huge");
+  const double h = std::sqrt(0.5);
+  EXPECT_NEAR(path.keys()[0].rotation.y, h, 1e-15);
+  EXPECT_NEAR(path.keys()[0].rotation.w, h, 1e-15);
+  EXPECT_EQ(path.keys()[1].rotation, glm::dquat(0.0, 0.0, 0.0, -1.0));
+  const CameraPath again = parse_camera_path(format_camera_path(path), "again");
+  EXPECT_EQ(again.keys()[0].rotation, path.keys()[0].rotation);
+  EXPECT_EQ(parse_error("# afr camera path v1\n0 0 0 0 1e-7 0 0 0 1\n"),
+            "paths/test.path:2: the rotation quaternion has (nearly) zero length");
+}
+
 }  // namespace
 }  // namespace afr

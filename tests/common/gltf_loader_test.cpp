@@ -795,6 +795,37 @@ TEST_F(GltfLoaderTest, BuffersOutsideTheSceneFolderAreRefused) {
   expect_error(dir_ / "escape.gltf", "outside the folder");
 }
 
+// The fuzz target loads from memory (docs/robustness.md): the same scene and the same checks
+// as the file.
+TEST_F(GltfLoaderTest, BytesInMemoryLoadLikeTheFile) {
+  GltfBuilder b;
+  add_quad(&b);
+  for (const char* name : {"quad.gltf", "quad.glb"}) {
+    const fs::path path = dir_ / name;
+    if (path.extension() == ".glb") {
+      b.write_glb(path);
+    } else {
+      b.write_embedded(path);
+    }
+    std::vector<uint8_t> bytes = read_bytes(path);
+    const Scene from_file = load_gltf(path);
+    const Scene from_memory = load_gltf_bytes(bytes, path);
+    EXPECT_EQ(from_memory.source, path.string());
+    const Primitive& a = from_file.meshes.at(0).primitives.at(0);
+    const Primitive& m = from_memory.meshes.at(0).primitives.at(0);
+    EXPECT_EQ(m.positions, a.positions);
+    EXPECT_EQ(m.normals, a.normals);
+    EXPECT_EQ(m.indices, a.indices);
+    bytes.resize(bytes.size() / 2);
+    try {
+      load_gltf_bytes(bytes, path);
+      ADD_FAILURE() << name << ": half of it loaded";
+    } catch (const Error& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(path.string() + ": ", 0), 0u) << e.what();
+    }
+  }
+}
+
 TEST(LoadSceneTest, EmptyPathGivesTheBuiltinScene) {
   const Scene scene = load_scene({});
   EXPECT_EQ(scene.source, "builtin");

@@ -8,20 +8,33 @@ namespace afr {
 namespace {
 
 TEST(CoverageMapTest, SplatRadiusFollowsSection62) {
+  // The map holds growths (radius over filter radius); a splat takes the rule's growth times
+  // its own filter radius.
   const SplatSizeRule rule;
   EXPECT_FLOAT_EQ(splat_radius(nullptr, 2.5f, rule), 2.5f);  // no previous image
   CoverageCell hole{0.0f, 0.0f};
   EXPECT_FLOAT_EQ(splat_radius(&hole, 2.5f, rule), 10.0f);
-  CoverageCell sparse{2.0f, 3.0f};  // mean 1.5
-  EXPECT_FLOAT_EQ(splat_radius(&sparse, 9.0f, rule), 6.0f);
+  CoverageCell sparse{2.0f, 3.0f};  // mean growth 1.5
+  EXPECT_FLOAT_EQ(splat_radius(&sparse, 2.0f, rule), 12.0f);
   CoverageCell dense{40.0f, 80.0f};  // mean 2
-  EXPECT_FLOAT_EQ(splat_radius(&dense, 9.0f, rule), 1.4f);
+  EXPECT_FLOAT_EQ(splat_radius(&dense, 3.0f, rule), 4.2f);
   CoverageCell fine{10.0f, 25.0f};  // mean 2.5
-  EXPECT_FLOAT_EQ(splat_radius(&fine, 9.0f, rule), 2.5f);
+  EXPECT_FLOAT_EQ(splat_radius(&fine, 2.0f, rule), 5.0f);
   // The thresholds themselves are not under- or oversampled.
   CoverageCell four{4.0f, 8.0f}, thirty_two{32.0f, 64.0f};
-  EXPECT_FLOAT_EQ(splat_radius(&four, 9.0f, rule), 2.0f);
-  EXPECT_FLOAT_EQ(splat_radius(&thirty_two, 9.0f, rule), 2.0f);
+  EXPECT_FLOAT_EQ(splat_radius(&four, 1.5f, rule), 3.0f);
+  EXPECT_FLOAT_EQ(splat_radius(&thirty_two, 1.5f, rule), 3.0f);
+  EXPECT_FLOAT_EQ(splat_growth(6.0f, 2.0f), 3.0f);
+}
+
+TEST(CoverageMapTest, WideSplatsNextDoorDoNotWidenNarrowOnes) {
+  // A cell reached by 30 splats grown 1x of narrow filters and by 2 of a wide sparse region's
+  // filters (grown 1x too, radius 12): a narrow splat landing there stays narrow. With mean
+  // radii it would take (30 x 1 + 2 x 12) / 32 = 1.7 pixels instead of 1.
+  const SplatSizeRule rule;
+  CoverageCell mixed{32.0f, 32.0f};
+  EXPECT_FLOAT_EQ(splat_radius(&mixed, 1.0f, rule), 1.0f);
+  EXPECT_FLOAT_EQ(splat_radius(&mixed, 12.0f, rule), 12.0f);
 }
 
 TEST(CoverageMapTest, SplatRadiusIsBounded) {

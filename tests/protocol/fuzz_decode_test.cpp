@@ -1,12 +1,13 @@
-// Runs the libFuzzer entry point (fuzz_decode.cpp) with any compiler: over the round-trip
-// corpus, every truncation and single-byte mutation of it, and random bytes. The entry point
-// aborts on a broken invariant; this test checks the verdicts it can know in advance.
+// Runs the libFuzzer entry point (tests/fuzz/protocol_fuzz.cpp) with any compiler: over the
+// round-trip corpus, every truncation and single-byte mutation of it, and random bytes. The entry
+// point aborts on a broken invariant; this test checks the verdicts it can know in advance.
 //
-// With AFR_FUZZ_CORPUS_DIR set, it also writes the corpus there as seeds for the clang fuzzer.
+// With AFR_FUZZ_CORPUS_DIR set, it also writes the seeds of the clang fuzzer there.
 #include "test_messages.h"
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <string>
@@ -32,16 +33,24 @@ std::vector<std::vector<uint8_t>> corpus(int rounds) {
 }
 
 TEST(FuzzDecodeTest, CorpusIsAccepted) {
-  const auto all = corpus(40);
-  for (const auto& bytes : all) {
+  for (const auto& bytes : corpus(40)) {
     EXPECT_TRUE(fuzz::check_one(bytes.data(), bytes.size()));
     EXPECT_EQ(LLVMFuzzerTestOneInput(bytes.data(), bytes.size()), 0);
   }
-  if (const char* dir = std::getenv("AFR_FUZZ_CORPUS_DIR")) {
-    for (size_t i = 0; i < all.size(); ++i) {
-      std::ofstream out(std::string(dir) + "/seed-" + std::to_string(i), std::ios::binary);
-      out.write(reinterpret_cast<const char*>(all[i].data()), std::streamsize(all[i].size()));
-    }
+}
+
+// The seeds of tests/fuzz/corpus/protocol: two messages of every type (every batch field
+// combination), written to $AFR_FUZZ_CORPUS_DIR when it is set.
+TEST(FuzzDecodeTest, SeedsAreAccepted) {
+  const auto seeds = corpus(2);
+  const char* dir = std::getenv("AFR_FUZZ_CORPUS_DIR");
+  for (size_t i = 0; i < seeds.size(); ++i) {
+    EXPECT_TRUE(fuzz::check_one(seeds[i].data(), seeds[i].size()));
+    if (dir == nullptr) continue;
+    char name[32];
+    std::snprintf(name, sizeof(name), "/seed-%02zu-type-%u", i, unsigned(seeds[i][6]));
+    std::ofstream out(std::string(dir) + name, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(seeds[i].data()), std::streamsize(seeds[i].size()));
   }
 }
 

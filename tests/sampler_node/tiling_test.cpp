@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <vector>
 
 namespace afr {
@@ -85,6 +86,68 @@ TEST(TilingTest, MergeKeepsTilesAPartitionOverRandomSequences) {
       }
       ASSERT_TRUE(tiling.is_valid());
       if (op % 50 == 0) expect_exact_partition(tiling);
+    }
+    expect_exact_partition(tiling);
+  }
+}
+
+// Every pixel lies in exactly one cell, the cell cell_at names; every node no deeper than the
+// cells is exactly the union of its cell range.
+void expect_cells_match_nodes(const KdTiling& t, int cell_pixels) {
+  const PixelRect r = t.region();
+  std::vector<int> cover(size_t(r.area()), 0);
+  for (int c = 0; c < t.cell_count(); ++c) {
+    const PixelRect q = t.cell_rect(c);
+    EXPECT_GE(2 * q.area(), cell_pixels);
+    for (int32_t y = q.y0; y < q.y1; ++y) {
+      for (int32_t x = q.x0; x < q.x1; ++x) {
+        ++cover[size_t(y - r.y0) * r.width() + (x - r.x0)];
+        ASSERT_EQ(t.cell_at(x, y), c);
+      }
+    }
+  }
+  for (int n : cover) ASSERT_EQ(n, 1);
+  std::vector<int> stack = {t.root()};
+  while (!stack.empty()) {
+    const int id = stack.back();
+    stack.pop_back();
+    if (!t.covers_cells(id)) continue;
+    int64_t area = 0;
+    for (int c = t.first_cell(id); c < t.first_cell(id) + t.cells_in(id); ++c) {
+      const PixelRect q = t.cell_rect(c);
+      const PixelRect n = t.node(id).rect;
+      ASSERT_TRUE(q.x0 >= n.x0 && q.x1 <= n.x1 && q.y0 >= n.y0 && q.y1 <= n.y1) << id;
+      area += q.area();
+    }
+    ASSERT_EQ(area, t.node(id).rect.area());
+    if (!t.node(id).is_leaf()) {
+      stack.push_back(t.node(id).child[0]);
+      stack.push_back(t.node(id).child[1]);
+    }
+  }
+}
+
+TEST(TilingTest, CellsAreTheNodesOfOneDepthOverRandomSequences) {
+  Pcg32 rng(7);
+  for (int run = 0; run < 20; ++run) {
+    const int32_t w = 1 + int32_t(rng.next_below(80)), h = 1 + int32_t(rng.next_below(80));
+    const int32_t x0 = int32_t(rng.next_below(100)), y0 = int32_t(rng.next_below(100));
+    const int cell_pixels = 1 + int(rng.next_below(40));
+    KdTiling tiling(PixelRect{x0, y0, x0 + w, y0 + h}, 40, cell_pixels);
+    // As deep as it can be: one level more would make a cell smaller than cell_pixels / 2.
+    EXPECT_EQ(tiling.cell_count(), 1 << tiling.cell_depth());
+    expect_cells_match_nodes(tiling, std::min<int>(cell_pixels, w * h * 2));
+    for (int op = 0; op < 300; ++op) {
+      if (rng.next_below(2) == 0) {
+        const int leaf = tiling.tiles()[rng.next_below(uint32_t(tiling.tile_count()))];
+        if (tiling.can_split(leaf)) tiling.split(leaf, nullptr, nullptr);
+      } else if (!tiling.mergeable().empty()) {
+        tiling.merge(tiling.mergeable()[rng.next_below(uint32_t(tiling.mergeable().size()))]);
+      }
+      ASSERT_TRUE(tiling.is_valid());
+      // tile_at starts from the cells: it must still find the tile of every pixel.
+      if (op % 25 == 0) expect_exact_partition(tiling);
+      if (op % 100 == 0) expect_cells_match_nodes(tiling, std::min<int>(cell_pixels, w * h * 2));
     }
     expect_exact_partition(tiling);
   }

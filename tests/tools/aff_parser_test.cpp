@@ -200,7 +200,36 @@ INSTANTIATE_TEST_SUITE_P(
                   4, "must not decrease"},
         Malformed{"view keyword out of order", "v\nfrom 0 0 0\nup 0 1 0\n", 3, "expected 'at'"},
         Malformed{"missing texture", "m vertices 1 0 0 0\ntexturecoords 1 nope.ppm\n", 2,
-                  "texture 'nope.ppm' not found"}));
+                  "texture 'nope.ppm' not found"},
+        // Bad input the fuzz target reports as out-of-memory, a hang or undefined behaviour
+        // unless the parser refuses it (docs/robustness.md, "Fuzzing").
+        Malformed{"polygon count beyond the file", "p 3 0 0 0 1 0 0 0 1 0\np 2000000000\n", 2,
+                  "a vertex count 2000000000 is more than the rest of the file holds"},
+        Malformed{"mesh count beyond the file", "m vertices 2 0 0 0 1 1 1 triangles 3\n0 1 1", 1,
+                  "a triangle count 3 is more than the rest of the file holds"},
+        Malformed{"tpa count beyond the file", "tpa 100000000\n", 1, "more than the rest"},
+        Malformed{"key count beyond the file", "k a {\n visibility 1000000000\n", 2,
+                  "a key count 1000000000 is more than the rest of the file holds"},
+        Malformed{"too many frames", "\na 0 1 200000000\n", 2, "200000000 frames"},
+        Malformed{"negative frames", "a 0 1 -3\n", 1, "-3 frames"},
+        Malformed{"nan radius", "s 0 0 0 nan\n", 1, "found 'nan', which is not a finite number"},
+        Malformed{
+            "infinite key time",
+            "k a { transl 4\n 0 0 0 0 0 0 0\n inf 0 0 0 0 0 0\n 2 0 0 0 0 0 0\n 3 0 0 0 0 0 0 }\n",
+            3, "not a finite number"}));
+
+TEST(AffParserTest, TransformsNestedTooDeepAreRefused) {
+  std::string text;
+  for (int i = 0; i < 1001; ++i) text += "xs 1 1 1 0 1 0 0 0 0 0 {\n";
+  const auto dir = test::fresh_temp_dir("aff-deep");
+  try {
+    parse_aff_text(text, "deep.aff", dir);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "deep.aff:1001: transforms nested more than 1000 deep");
+  }
+  std::filesystem::remove_all(dir);
+}
 
 TEST(AffParserTest, ErrorsInsideAnIncludeNameThatFileAndLine) {
   const auto dir = test::fresh_temp_dir("aff-bad-include");

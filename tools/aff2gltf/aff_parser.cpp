@@ -17,6 +17,12 @@ namespace afr::aff {
 namespace {
 
 constexpr int kMaxIncludeDepth = 64;
+// Transforms nested deeper than this are refused (the kitchen nests 6 deep); the conversion
+// recurses once per level.
+constexpr size_t kMaxTransformDepth = 1000;
+// Frames of `a`: they are not backed by bytes of the file, and each becomes a baked sample of
+// every animation channel (the kitchen has 800; 100000 is 55 minutes at 30 frames/s).
+constexpr int kMaxFrames = 100000;
 
 bool is_space(char c) {
   return c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == '\f' || c == '\v';
@@ -85,13 +91,40 @@ class Cursor {
     }
   }
 
-  double real(std::string_view what) { return number<double>(what); }
+  // Reals are finite: "nan" and "inf" are refused (as decimals beyond the double range are).
+  double real(std::string_view what) {
+    skip_space();
+    const char* start = p_;
+    const double x = number<double>(what);
+    if (!std::isfinite(x)) {
+      p_ = start;
+      fail("expected " + std::string(what) + ", found '" + token_for_message() +
+           "', which is not a finite number");
+    }
+    return x;
+  }
   int integer(std::string_view what) { return number<int>(what); }
+  // A count of items that follow, each written with at least `min_bytes` bytes of the file
+  // (a number and its separator take at least 2): what is allocated for the items stays
+  // within a few times the size of the file, whatever count it claims.
+  int count(std::string_view what, size_t min_bytes) {
+    const Location at = (skip_space(), here());
+    const int n = count(what);
+    expect_room(n, min_bytes, at, what);
+    return n;
+  }
+  // A count that is checked against the bytes left later (with expect_room).
   int count(std::string_view what) {
     const Location at = (skip_space(), here());
     const int n = integer(what);
     if (n < 0) throw Error(at.str() + ": negative " + std::string(what) + " " + std::to_string(n));
     return n;
+  }
+  void expect_room(int n, size_t min_bytes, const Location& at, std::string_view what) const {
+    if (size_t(n) > size_t(end_ - p_) / min_bytes) {
+      throw Error(at.str() + ": " + std::string(what) + " " + std::to_string(n) +
+                  " is more than the rest of the file holds");
+    }
   }
   glm::dvec3 vec3(std::string_view what) {
     glm::dvec3 v;
@@ -263,7 +296,12 @@ class Parser {
     AnimationRange a;
     a.start = in.real("the animation start time");
     a.end = in.real("the animation end time");
+    const Location frames_at = (in.skip_space(), in.here());
     a.frames = in.integer("the number of frames");
+    if (a.frames < 0 || a.frames > kMaxFrames) {
+      throw Error(frames_at.str() + ": " + std::to_string(a.frames) + " frames; afr accepts 0 to " +
+                  std::to_string(kMaxFrames));
+    }
     scene_->animation = a;
   }
 
@@ -357,7 +395,7 @@ class Parser {
 
   void polygon(Cursor& in, bool patch) {
     const Location at = in.here();
-    const int n = in.count("a vertex count");
+    const int n = in.count("a vertex count", patch ? 12 : 6);
     std::vector<glm::vec3> positions(static_cast<size_t>(n)), normals(patch ? positions.size() : 0);
     for (int k = 0; k < n; ++k) {
       positions[size_t(k)] = glm::vec3(in.vec3("a polygon vertex coordinate"));
@@ -408,7 +446,7 @@ class Parser {
 
   void animated_triangle(Cursor& in) {
     const Location at = in.here();
-    const int n = in.count("a number of times");
+    const int n = in.count("a number of times", 38);
     if (n < 1) in.fail("tpa needs at least one time");
     AnimatedTriangle tri;
     tri.material = material_index({}, at);
@@ -432,7 +470,7 @@ class Parser {
   void mesh(Cursor& in) {
     const Location at = in.here();
     in.keyword("vertices", "m");
-    const int nv = in.count("a vertex count");
+    const int nv = in.count("a vertex count", 6);
     std::vector<glm::vec3> positions(static_cast<size_t>(nv));
     for (auto& p : positions) p = glm::vec3(in.vec3("a vertex coordinate"));
 
@@ -443,14 +481,14 @@ class Parser {
     Location word_at = in.here();
     std::string_view w = in.word("'normals', 'texturecoords' or 'triangles'");
     if (w == "normals") {
-      normals.resize(size_t(in.count("a normal count")));
+      normals.resize(size_t(in.count("a normal count", 6)));
       for (auto& n : normals) n = glm::vec3(in.vec3("a normal component"));
       in.skip_space();
       word_at = in.here();
       w = in.word("'texturecoords' or 'triangles'");
     }
     if (w == "texturecoords") {
-      uvs.resize(size_t(in.count("a texture coordinate count")));
+      uvs.resize(size_t(in.count("a texture coordinate count", 4)));
       in.skip_space();
       const Location name_at = in.here();
       texture = texture_path(in.word("a texture name"), name_at);
@@ -469,7 +507,7 @@ class Parser {
                                : "'triangles'") +
                   " in m, found '" + std::string(w) + "'");
     }
-    const int ntri = in.count("a triangle count");
+    const int ntri = in.count("a triangle count", 6);
 
     TriangleSet set;
     set.material = material_index(texture, at);
@@ -527,6 +565,10 @@ class Parser {
   // -- transforms and animation --
 
   void push_node(Node node, const Location& at) {
+    if (stack_.size() > kMaxTransformDepth) {
+      throw Error(at.str() + ": transforms nested more than " + std::to_string(kMaxTransformDepth) +
+                  " deep");
+    }
     const int index = int(scene_->nodes.size());
     current().children.push_back(index);
     scene_->nodes.push_back(std::move(node));
@@ -576,9 +618,11 @@ class Parser {
       if (!seen.insert(type).second) {
         throw Error(type_at.str() + ": '" + type + "' given twice in k " + k.name);
       }
+      const Location count_at = (in.skip_space(), in.here());
       const int n = in.count("a key count");
       if (type == "transl" || type == "scale") {
         if (n < 4) throw Error(type_at.str() + ": " + type + " needs at least 4 keys");
+        in.expect_room(n, 14, count_at, "a key count");  // 7 numbers a key
         auto& keys = type == "transl" ? k.translation : k.scale;
         keys.resize(size_t(n));
         for (auto& key : keys) {
@@ -590,6 +634,7 @@ class Parser {
         }
       } else if (type == "rot") {
         if (n < 4) throw Error(type_at.str() + ": rot needs at least 4 keys");
+        in.expect_room(n, 16, count_at, "a key count");  // 8 numbers a key
         k.rotation.resize(size_t(n));
         for (auto& key : k.rotation) {
           key.t = key_time(in, &k.rotation.front(), &key);
@@ -601,6 +646,7 @@ class Parser {
         }
       } else if (type == "visibility") {
         if (n < 1) throw Error(type_at.str() + ": visibility needs at least 1 key");
+        in.expect_room(n, 4, count_at, "a key count");  // 2 numbers a key
         k.visibility.resize(size_t(n));
         for (auto& key : k.visibility) {
           key.t = key_time(in, &k.visibility.front(), &key);

@@ -579,8 +579,10 @@ class Builder {
     for (const AnimatedTriangle& tri : node.animated_triangles) {
       groups[{tri.material, tri.times}].push_back(&tri);
     }
-    for (const auto& [key, tris] : groups) {
-      const auto& [material, times] = key;
+    for (const auto& group : groups) {
+      // Not a structured binding: clang before 16 cannot capture one in the lambda below.
+      const std::vector<const AnimatedTriangle*>& tris = group.second;
+      const auto& [material, times] = group.first;
       const size_t samples = times.size();
       auto corners = [&](size_t j, bool normals) {
         std::vector<glm::vec3> v;

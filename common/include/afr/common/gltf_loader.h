@@ -6,7 +6,9 @@
 
 #include <afr/common/scene.h>
 
+#include <cstdint>
 #include <filesystem>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -17,6 +19,10 @@ struct GltfLoadReport {
 };
 
 Scene load_gltf(const std::filesystem::path& path, GltfLoadReport* report = nullptr);
+// The same for the bytes of a .gltf or .glb held in memory, with every check of a file: `path`
+// names it in errors, and its folder is where external buffers and images are looked for.
+Scene load_gltf_bytes(std::span<const uint8_t> bytes, const std::filesystem::path& path,
+                      GltfLoadReport* report = nullptr);
 
 // A scene from a file, or the built-in scene when `path` is empty.
 Scene load_scene(const std::filesystem::path& path);

@@ -1,5 +1,5 @@
 // Section 6.2: the coverage map. Every splat of an image adds to the pixels it reaches; the
-// next image sizes each splat from the count and mean splat radius at its pixel, so splats
+// next image sizes each splat from the count and mean splat growth at its pixel, so splats
 // grow fast where samples are sparse (disocclusions, leading edges) and shrink slowly where
 // they pile up.
 #pragma once
@@ -11,10 +11,11 @@
 namespace afr {
 
 // One pixel of the map, as accumulated during an image: how many splats reached it with a
-// non-zero weight and the sum of their radii (mean = radius_sum / count).
+// non-zero weight and the sum of their growths (a splat's radius over its filter's radius
+// cutoff max(sigma_x, sigma_y); mean = growth_sum / count).
 struct CoverageCell {
   float count = 0.0f;
-  float radius_sum = 0.0f;
+  float growth_sum = 0.0f;
 };
 
 // The resizing rule and its bounds (radii in output pixels).
@@ -38,33 +39,42 @@ inline int splat_guard_band(const SplatSizeRule& rule) {
 }
 
 // Section 6.2: the radius of a splat whose filter wants `filter_radius` (cutoff sigmas), given
-// the previous image's cell at its pixel (nullptr when there is no previous image):
-//   no previous image       -> filter_radius
-//   count 0 (a hole)        -> grow * filter_radius
-//   count < grow_below      -> grow * mean radius
-//   count > shrink_above    -> shrink * mean radius
-//   otherwise               -> mean radius
-// always clamped to [min_radius, max_radius]; NaN or non-positive input gives min_radius.
+// the previous image's cell at its pixel (nullptr when there is no previous image). The map
+// holds growths, radii relative to their own filter's, not radii: a splat takes the mean
+// growth of the splats that reached its pixel, times its own filter radius:
+//   no previous image       -> g = 1
+//   count 0 (a hole)        -> g = grow
+//   count < grow_below      -> g = grow * mean growth
+//   count > shrink_above    -> g = shrink * mean growth
+//   otherwise               -> g = mean growth
+// and r = g * filter_radius, clamped to [min_radius, max_radius]; NaN or non-positive input
+// gives min_radius. (Averaging absolute radii, as the paper words it, lets the wide splats of
+// a sparse region set the size of the narrow ones of a dense region next to it, which then
+// reach further, raise the mean further and blur across edges image after image.)
 inline float splat_radius(const CoverageCell* previous, float filter_radius,
                           const SplatSizeRule& rule) {
-  float r = filter_radius;
+  float g = 1.0f;
   if (previous != nullptr) {
     if (!(previous->count > 0.0f)) {
-      r = rule.grow * filter_radius;
+      g = rule.grow;
     } else {
-      const float mean = previous->radius_sum / previous->count;
+      const float mean = previous->growth_sum / previous->count;
       if (previous->count < rule.grow_below) {
-        r = rule.grow * mean;
+        g = rule.grow * mean;
       } else if (previous->count > rule.shrink_above) {
-        r = rule.shrink * mean;
+        g = rule.shrink * mean;
       } else {
-        r = mean;
+        g = mean;
       }
     }
   }
+  const float r = g * filter_radius;
   if (!(r >= rule.min_radius)) return rule.min_radius;  // NaN too
   return r < rule.max_radius ? r : rule.max_radius;
 }
+
+// What a splat of radius r records in the map: its growth r / filter_radius.
+inline float splat_growth(float radius, float filter_radius) { return radius / filter_radius; }
 
 // The previous image's map, held by the CPU backend (the GL backend keeps it in a texture).
 class CoverageMap {

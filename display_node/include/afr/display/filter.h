@@ -36,6 +36,9 @@ struct FilterLimits {
   // the densest sampling the store holds; 16 bounds blur and splat cost.
   float min_spatial_extent = 0.3f;
   float max_spatial_extent = 16.0f;
+  // The larger spatial extent is at most this many times the smaller (the smaller spatial
+  // gradient is raised to 1 / max_anisotropy of the larger).
+  float max_anisotropy = 4.0f;
   // Temporal standard deviation, seconds.
   float min_temporal_extent = 1e-3f;
   float max_temporal_extent = 60.0f;
@@ -61,13 +64,19 @@ struct FilterExtents {
 // Guarded and clamped, in this order:
 //   1. gradients clamped to [min, max] (NaN to min), R_l clamped, `depth` clamped to the
 //      temporal range (NaN to its top);
-//   2. e_x, e_y from the cube roots, clamped to [min_spatial_extent, max_spatial_extent];
-//   3. e_t = V_s / (e_x e_y), so the volume survives the spatial clamp;
-//   4. if e_t exceeds `depth` (how far back the sample store reaches), e_t = depth and the
-//      volume goes back to space: e_x e_y = V_s / depth with e_x / e_y = G_y / G_x, clamped;
-//   5. e_t clamped to [min_temporal_extent, max_temporal_extent].
-// Without clamps this is exactly the paper's three cube roots. The result is always finite
-// and inside the documented ranges.
+//   2. the smaller spatial gradient raised to 1 / max_anisotropy of the larger;
+//   3. G_t at its floor (no measured change over time, a still region): e_t = depth and the
+//      volume goes to space, e_x e_y = V_s / depth with e_x / e_y = G_y / G_x, clamped.
+//      Otherwise: e_x, e_y from the cube roots, clamped to [min_spatial_extent,
+//      max_spatial_extent]; e_t = V_s / (e_x e_y), so the volume survives the spatial clamp;
+//      if e_t exceeds `depth` (how far back the sample store reaches), e_t = depth and the
+//      volume goes back to space as in the still case;
+//   4. e_t clamped to [min_temporal_extent, max_temporal_extent].
+// Without clamps (max_anisotropy infinite) this is exactly the paper's three cube roots. Step
+// 3's first branch is their limit for G_t -> 0; taking the floors as gradients instead traded
+// pixels for seconds one to one wherever a spatial gradient was at its floor too (a straight
+// edge): a still edge got e_t ~ 10 ms of a 0.65 s store. The result is always finite and
+// inside the documented ranges.
 FilterExtents filter_extents(float G_x, float G_y, float G_t, float R_l, float depth,
                              const FilterLimits& limits);
 
@@ -88,7 +97,10 @@ TileFilter make_tile_filter(const FilterExtents& e, float scale_x, float scale_y
 // size r (coverage_map.h); when r > r_f both sigmas are multiplied by r / r_f, so a grown
 // splat keeps its shape and still reaches its edge. The splat is the square of radius r cut
 // to the Gaussian's cutoff box: r_x = min(r, cutoff sigma_x), r_y likewise.
-// w_t = max(exp(-age^2 k_t), min_temporal_weight).
+// w_t = max(exp(-age^2 k_t), min_temporal_weight) / (sigma_x sigma_y): every splat carries the
+// same total weight, so a wide splat from a sparse region, reaching into a dense one, weighs
+// little there against the narrow splats of the samples next to the pixel (unnormalised, its
+// peak weighed as much as theirs and the colors of flat regions bled pixels across edges).
 // Contributions at or below this weight are dropped (they would be denormal in the sums).
 inline constexpr float kMinSplatWeight = 1e-30f;
 

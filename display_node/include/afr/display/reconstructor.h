@@ -113,11 +113,12 @@ class Reconstructor : public SampleSink {
   // Implemented by the backends: *out is already width x height (or nullptr).
   virtual void do_reconstruct(const Camera& camera, double time, int width, int height,
                               Image* out) = 0;
-  // Brings the tile field up to date and computes the per-tile filters for this frame from
-  // the store's `delta` (its depth and measured rate). Fills frame_.stored, depth and
+  // Brings the tile field and the count of stored samples per pixel up to date and computes
+  // the per-tile filters for this frame from the store's `delta` (its depth and measured
+  // rate) and `fresh`, the samples it copied (oldest first). Fills frame_.stored, depth and
   // default_rate.
   void prepare_frame(double time, int width, int height, const SampleStore::Delta& delta,
-                     FrameSetup* setup);
+                     const std::vector<StoredSample>& fresh, FrameSetup* setup);
 
   ReconstructorConfig config_;
   SampleStore store_;
@@ -125,7 +126,20 @@ class Reconstructor : public SampleSink {
   FrameStats frame_;
 
  private:
+  // Keeps pixel_count_ equal to the number of stored samples whose sampling-image position
+  // falls in each pixel, from the samples entering the ring and those they overwrite.
+  void count_fresh_samples(const SampleStore::Delta& delta, const std::vector<StoredSample>& fresh);
+  // Samples in the store inside `rect` (sampling-image pixels).
+  uint64_t stored_in(const PixelRect& rect) const;
+
   ReconstructionMode mode_;
+  // Reconstructing thread only. Per ring slot, the sampling-image pixel of the sample in it
+  // (kNoPixel: empty or outside the image); per pixel, how many stored samples are in it; and
+  // the summed-area table of those counts, (image_width + 1) x (image_height + 1).
+  static constexpr uint32_t kNoPixel = ~uint32_t(0);
+  std::vector<uint32_t> slot_pixel_;
+  std::vector<uint32_t> pixel_count_;
+  std::vector<uint64_t> count_table_;
 };
 
 }  // namespace afr

@@ -20,6 +20,7 @@ struct FieldTile {
   float G_t = 0.0f;   // luminance per second, finite, >= 0
   float rate = 0.0f;  // samples per pixel per second; 0 = unknown (the store's rate is used)
   uint32_t sampler_id = 0;
+  PixelRect rect;  // in pixels of the sampling image, clipped to its snapshot's region
 };
 
 struct TileFieldStats {

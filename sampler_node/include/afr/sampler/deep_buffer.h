@@ -39,6 +39,21 @@ struct Crosshair {
   bool neighbor_hit(int k) const { return (flags & (kNeighborHit0 << k)) != 0; }
 };
 
+// The part of a crosshair that tile statistics read. The deep buffer keeps it apart from the
+// rest, so that a pass over a block reads 32 bytes per crosshair, never across a cache line.
+struct alignas(32) CrosshairStats {
+  double time = 0.0;
+  float luminance = 0.0f;
+  float G_x = 0.0f, G_y = 0.0f, G_t = 0.0f;
+  uint8_t flags = 0;  // Crosshair::Flags
+
+  bool has(uint8_t flag) const { return (flags & flag) != 0; }
+};
+
+inline CrosshairStats stats_of(const Crosshair& c) {
+  return CrosshairStats{c.time, c.luminance, c.G_x, c.G_y, c.G_t, c.flags};
+}
+
 class DeepBuffer {
  public:
   DeepBuffer(PixelRect region, int depth);
@@ -48,32 +63,79 @@ class DeepBuffer {
   int64_t size() const { return size_; }  // crosshairs held
   int64_t capacity() const { return region_.area() * depth_; }
 
-  int count(int32_t x, int32_t y) const { return count_[index(x, y)]; }
-  // The k-th crosshair of pixel (x, y), k = 0 the newest. k < count(x, y).
-  const Crosshair& at(int32_t x, int32_t y, int k) const {
-    const size_t p = index(x, y);
-    return slots_[p * depth_ + (head_[p] + k) % depth_];
+  int count(int32_t x, int32_t y) const { return queues_[index(x, y)].count; }
+  // The k-th crosshair of pixel (x, y), k = 0 the newest, as a copy. k < count(x, y).
+  Crosshair at(int32_t x, int32_t y, int k) const;
+  // Its statistics part, and its image position, without assembling the whole crosshair.
+  const CrosshairStats& stats(int32_t x, int32_t y, int k) const {
+    return stats_[slot(index(x, y), k)];
+  }
+  glm::vec2 image_position(int32_t x, int32_t y, int k) const {
+    const Rest& r = rest_[slot(index(x, y), k)];
+    return {r.x, r.y};
   }
 
-  // Inserts at the front (newest). When the queue was full, the oldest is evicted into
-  // *evicted and true is returned.
-  bool push_front(int32_t x, int32_t y, const Crosshair& c, Crosshair* evicted);
+  // Inserts at the front (newest). When the queue was full, the oldest is evicted (its
+  // statistics part into *evicted) and true is returned.
+  bool push_front(int32_t x, int32_t y, const Crosshair& c, CrosshairStats* evicted);
   // Inserts at the back (oldest). When the queue was full, the previous oldest is evicted.
-  bool push_back(int32_t x, int32_t y, const Crosshair& c, Crosshair* evicted);
+  bool push_back(int32_t x, int32_t y, const Crosshair& c, CrosshairStats* evicted);
   // Removes and returns the newest crosshair. count(x, y) > 0.
   Crosshair pop_front(int32_t x, int32_t y);
 
+  // Calls f(const CrosshairStats&) for every crosshair of the pixels of `rect` (inside the
+  // region), row by row, newest first within a pixel.
+  template <typename F>
+  void for_each_stats(const PixelRect& rect, F&& f) const {
+    for (int32_t y = rect.y0; y < rect.y1; ++y) {
+      size_t p = index(rect.x0, y);
+      for (int32_t x = rect.x0; x < rect.x1; ++x, ++p) {
+        const Queue q = queues_[p];
+        const CrosshairStats* base = &stats_[p * size_t(depth_)];
+        int s = q.head;
+        for (int k = 0; k < q.count; ++k) {
+          f(base[s]);
+          if (++s == depth_) s = 0;
+        }
+      }
+    }
+  }
+
  private:
+  // Per pixel: slot of the newest crosshair and how many there are.
+  struct Queue {
+    uint8_t head = 0;
+    uint8_t count = 0;
+  };
+  // The rest of a crosshair, which only reprojection reads: two whole cache lines, the image
+  // position in the first.
+  struct alignas(64) Rest {
+    float x, y;
+    double old_time;
+    glm::vec3 position, velocity;
+    glm::vec3 neighbor_position[4];
+    float old_luminance;
+    float neighbor_luminance[4];
+  };
+
   size_t index(int32_t x, int32_t y) const {
     return size_t(y - region_.y0) * size_t(region_.width()) + size_t(x - region_.x0);
   }
+  // The array index of the k-th crosshair of pixel p (k may reach the queue's depth - 1).
+  size_t slot(size_t p, int k) const {
+    int s = queues_[p].head + k;
+    if (s >= depth_) s -= depth_;
+    return p * size_t(depth_) + size_t(s);
+  }
+  void store(size_t i, const Crosshair& c);
 
   PixelRect region_;
   int depth_;
   int64_t size_ = 0;
-  std::vector<Crosshair> slots_;  // pixel * depth + slot
-  std::vector<uint8_t> head_;     // slot of the newest crosshair
-  std::vector<uint8_t> count_;
+  // Slots pixel * depth + s, as two arrays: the statistics part and the rest.
+  std::vector<CrosshairStats> stats_;
+  std::vector<Rest> rest_;
+  std::vector<Queue> queues_;
 };
 
 }  // namespace afr

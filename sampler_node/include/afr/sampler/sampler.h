@@ -140,18 +140,22 @@ class Sampler {
   void emit(double x, double y, const ShadedSample& s);
   Crosshair make_crosshair(double x, double y, const std::array<ShadedSample, 5>& s) const;
 
+  bool project_point(const glm::dvec3& p, glm::dvec2* xy) const;
+
   // Deep buffer and statistics.
   void pixel_of(const Crosshair& c, int32_t* x, int32_t* y) const;
   void insert_front(const Crosshair& c);
   void insert_back(const Crosshair& c);
-  void add_to_tile(int tile, const Crosshair& c, double sign);
-  void settle(int tile);
+  void add_to_tile(int tile, int cell, const CrosshairStats& c, double sign);
+  void settle(int tile, int cell);
   void rederive(int tile);
   void rederive(int tile, double shift);
+  void rederive_cell(int cell);
   TileRecord& record(int tile);
   void on_split(int parent, int a, int b);
   void on_merge(int parent, int a, int b);
   int64_t pending_index(int32_t x, int32_t y) const;
+  TileStats tile_stats(int tile, double now) const;
   void compute_errors();
 
   const Scene& scene_;
@@ -163,15 +167,18 @@ class Sampler {
   Pcg32 rng_;
   KdTiling tiling_;
   DeepBuffer buffer_;
+  std::vector<TileSums> cells_;               // by cell of the tiling (KdTiling::cell_at)
   std::vector<TileRecord> records_;           // by tiling node id
   std::vector<double> error_;                 // by tiling node id
   std::vector<std::array<double, 3>> terms_;  // v, u, o per tile, scratch of compute_errors
   std::vector<Pending> pending_;              // by region pixel
   Camera camera_;
+  double tan_half_fov_ = 0.0;  // of camera_
   const CameraSource* camera_source_ = nullptr;
   double scene_time_ = 0.0;
   bool scene_time_set_ = false;
   uint32_t fields_ = 0;
+  float max_x_ = 0.0f, max_y_ = 0.0f;  // the largest emitted positions: just short of the edge
   SampleBatch batch_;
   uint64_t sequence_ = 0;
   SamplerCounters counters_;

@@ -1,8 +1,9 @@
-// libFuzzer target for the protocol decoder. Built as afr_protocol_fuzz when the compiler is
-// clang (-fsanitize=fuzzer,address,undefined); fuzz_decode_test.cpp runs the same entry point
-// over a corpus with any compiler. Besides "no crash, no out-of-bounds read", it checks that
-// everything the decoder accepts the encoder accepts too, and that it survives a second trip:
-// bytes unchanged for exact messages, values unchanged (times within a tick) for batches.
+// libFuzzer target for the protocol decoder: every message type's decode entry on every input.
+// Built as afr_fuzz_protocol with clang (tests/fuzz/CMakeLists.txt); the protocol tests
+// (tests/protocol/fuzz_decode_test.cpp) run the same entry point over a corpus with any
+// compiler. Besides "no crash, no out-of-bounds read", it checks that everything the decoder
+// accepts the encoder accepts too, and that it survives a second trip: bytes unchanged for
+// exact messages, values unchanged (times within a tick) for batches.
 #include <afr/common/check.h>
 #include <afr/protocol/codec.h>
 

@@ -1,0 +1,306 @@
+#!/usr/bin/env python3
+"""Writes the seed corpora of the fuzz targets in tests/fuzz/corpus/ (docs/robustness.md).
+
+  aff/          the hand-written scene of the AFF tests (every directive) and small excerpts
+                of the BART kitchen (its view, lights, camera and toy car keyframes, a few
+                small files whole), read from the shared folder (never copied whole)
+  gltf/         small .gltf files with embedded buffers (and one .glb), one per feature of
+                the loader: accessors (strided, sparse, normalized), strips and fans, textures,
+                cameras, lights, node trees, animations, unsupported features
+  camera_path/  bench/paths/toycar.path, the head of interactive.path, and variants (CRLF,
+                tabs, comments)
+  protocol/     not written here: encoded messages come from the codec itself, through
+                AFR_FUZZ_CORPUS_DIR=... afr_protocol_test --gtest_filter=FuzzDecodeTest.SeedsAreAccepted
+
+Run from the repository root:  python3 tests/fuzz/make_seeds.py [SHARED_DIR]
+(deterministic output; SHARED_DIR defaults to ../shared).
+"""
+import base64
+import json
+import os
+import re
+import struct
+import sys
+import zlib
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+CORPUS = os.path.join(ROOT, "tests", "fuzz", "corpus")
+
+
+def write(target, name, data):
+    folder = os.path.join(CORPUS, target)
+    os.makedirs(folder, exist_ok=True)
+    if isinstance(data, str):
+        data = data.encode("latin-1")
+    with open(os.path.join(folder, name), "wb") as f:
+        f.write(data)
+
+
+# ---- AFF -------------------------------------------------------------------------------------
+
+
+def hand_scene():
+    """The scene of tests/tools/hand_scene.h, taken from that header (LF line ends)."""
+    with open(os.path.join(ROOT, "tests", "tools", "hand_scene.h"), encoding="latin-1") as f:
+        header = f.read()
+    body = header[header.index("hand_scene_text()"):]
+    body = body[:body.index(";\n}")]
+    parts = re.findall(r'R"\((.*?)\)"|"((?:[^"\\]|\\.)*)"', body, re.S)
+    text = ""
+    for raw, escaped in parts:
+        text += raw if raw else escaped.encode("latin-1").decode("unicode_escape")
+    return text
+
+
+def block(lines, start_pattern, count=None):
+    """From the first line matching start_pattern up to the closing '}' (or `count` lines)."""
+    start = next(i for i, line in enumerate(lines) if re.match(start_pattern, line))
+    end = start
+    while end < len(lines) and (count is not None or lines[end].strip() != "}"):
+        end += 1
+        if count is not None and end - start >= count:
+            break
+    return "\n".join(lines[start:end + 1]) + "\n"
+
+
+def aff_seeds(shared):
+    write("aff", "hand.aff", hand_scene())
+    aff = os.path.join(shared, "scenes", "bart-kitchen", "aff")
+    with open(os.path.join(aff, "kitchen.aff"), encoding="latin-1") as f:
+        kitchen = f.read().split("\n")
+    head = kitchen[:kitchen.index("i 0 floor.aff")]
+    write("aff", "kitchen_view.aff", "\n".join(head) + "\na 0.0 20.0 800\n")
+    write("aff", "kitchen_camera.aff", "a 0.0 20.0 800\n" + block(kitchen, r"^k camera"))
+    # The toy car: its x block (with its include replaced by one the fuzzer can find) and
+    # its k block (transl of the worked example, scale, rot), cut to 12 rotation keys.
+    toycar = block(kitchen, r"^k toycar").split("\n")
+    rot = next(i for i, line in enumerate(toycar) if line.strip().startswith("rot"))
+    toycar = toycar[:rot] + ["  rot 12"] + toycar[rot + 1:rot + 13] + ["}"]
+    x = block(kitchen, r"^x toycar").replace("car.aff", "part.aff")
+    write("aff", "kitchen_toycar.aff", "a 0.0 20.0 800\n" + x + "\n".join(toycar) + "\n")
+    for name in ["floor.aff", "garden.aff", "car.aff", "param_glass.aff", "cupboard_box_small.aff",
+                 "car_front_wheel_left.aff"]:
+        with open(os.path.join(aff, name), "rb") as f:
+            write("aff", "kitchen_" + name, f.read())
+    write("aff", "include.aff", "d 2\ni 0 part.aff\ni 3 skipped.aff\nxs 1 1 1 0 1 0 0 0 0 0 {\n"
+          "i 1 part.aff\n}\n")
+
+
+# ---- glTF ------------------------------------------------------------------------------------
+
+FLOAT, U8, U16, U32, I8, I16 = 5126, 5121, 5123, 5125, 5120, 5122
+
+
+def png(width, height, rgb):
+    """A tiny 8-bit RGB PNG."""
+    def chunk(kind, data):
+        return (struct.pack(">I", len(data)) + kind + data +
+                struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+    raw = b"".join(b"\0" + bytes(rgb[y * width * 3:(y + 1) * width * 3]) for y in range(height))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)) +
+            chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
+
+
+class Gltf:
+    def __init__(self):
+        self.doc = {"asset": {"version": "2.0"}}
+        self.bin = bytearray()
+
+    def view(self, data, stride=None):
+        while len(self.bin) % 4:
+            self.bin.append(0)
+        v = {"buffer": 0, "byteOffset": len(self.bin), "byteLength": len(data)}
+        if stride:
+            v["byteStride"] = stride
+        self.bin += data
+        self.doc.setdefault("bufferViews", []).append(v)
+        return len(self.doc["bufferViews"]) - 1
+
+    def accessor(self, view, ctype, kind, count, **extra):
+        a = {"componentType": ctype, "type": kind, "count": count}
+        if view is not None:
+            a["bufferView"] = view
+        a.update(extra)
+        self.doc.setdefault("accessors", []).append(a)
+        return len(self.doc["accessors"]) - 1
+
+    def floats(self, values, kind, **extra):
+        width = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}[kind]
+        data = struct.pack("<%df" % len(values), *values)
+        return self.accessor(self.view(data), FLOAT, kind, len(values) // width, **extra)
+
+    def indices(self, values, ctype=U16):
+        fmt = {U8: "B", U16: "H", U32: "I"}[ctype]
+        return self.accessor(self.view(struct.pack("<%d%s" % (len(values), fmt), *values)), ctype,
+                             "SCALAR", len(values))
+
+    def quad(self, **attributes):
+        p = self.floats([0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0], "VEC3", min=[0, 0, 0], max=[1, 1, 0])
+        prim = {"attributes": dict(POSITION=p, **attributes), "indices": self.indices([0, 1, 2, 0, 2, 3])}
+        self.doc.setdefault("meshes", []).append({"name": "quad", "primitives": [prim]})
+        self.doc.setdefault("nodes", []).append({"mesh": len(self.doc["meshes"]) - 1})
+        self.doc["scenes"] = [{"nodes": [0]}]
+        self.doc["scene"] = 0
+        return prim
+
+    def embedded(self):
+        doc = dict(self.doc)
+        doc["buffers"] = [{"byteLength": len(self.bin), "uri": "data:application/octet-stream;base64," +
+                           base64.b64encode(bytes(self.bin)).decode()}]
+        return json.dumps(doc, separators=(",", ":"))
+
+    def glb(self):
+        doc = dict(self.doc)
+        doc["buffers"] = [{"byteLength": len(self.bin)}]
+        text = json.dumps(doc, separators=(",", ":")).encode()
+        text += b" " * (-len(text) % 4)
+        data = bytes(self.bin) + b"\0" * (-len(self.bin) % 4)
+        total = 12 + 8 + len(text) + 8 + len(data)
+        return (b"glTF" + struct.pack("<II", 2, total) + struct.pack("<I", len(text)) + b"JSON" +
+                text + struct.pack("<I", len(data)) + b"BIN\0" + data)
+
+
+def gltf_seeds():
+    g = Gltf()
+    g.quad()
+    write("gltf", "quad.gltf", g.embedded())
+    write("gltf", "quad.glb", g.glb())
+
+    g = Gltf()
+    n = g.floats([0, 0, 1] * 4, "VEC3")
+    t = g.floats([0, 0, 1, 0, 1, 1, 0, 1], "VEC2")
+    g.quad(NORMAL=n, TEXCOORD_0=t)["material"] = 0
+    image = png(2, 2, [255, 0, 0, 0, 255, 0, 0, 0, 255, 128, 128, 128])
+    g.doc["images"] = [{"uri": "data:image/png;base64," + base64.b64encode(image).decode()},
+                       {"bufferView": g.view(image), "mimeType": "image/png"}]
+    g.doc["samplers"] = [{"wrapS": 10497, "wrapT": 10497}, {"wrapS": 33071, "wrapT": 33648}]
+    g.doc["textures"] = [{"source": 0, "sampler": 0}, {"source": 1, "sampler": 1}]
+    g.doc["materials"] = [
+        {"pbrMetallicRoughness": {"baseColorFactor": [1, 0.5, 0.25, 1], "baseColorTexture": {"index": 0},
+                                  "metallicFactor": 0.2, "roughnessFactor": 0.7},
+         "emissiveFactor": [0.1, 0.1, 0],
+         "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 2}},
+         "doubleSided": True, "extras": {"afr_ambient": [0.1, 0.2, 0.3]}},
+        {"pbrMetallicRoughness": {"baseColorTexture": {"index": 1, "texCoord": 1}}, "alphaMode": "MASK",
+         "normalTexture": {"index": 0}}]
+    g.doc["extensionsUsed"] = ["KHR_materials_emissive_strength"]
+    write("gltf", "textured.gltf", g.embedded())
+
+    # Strips and fans over one interleaved (strided) buffer view; 8-bit indices.
+    g = Gltf()
+    verts = []
+    for x, y in [(0, 0), (1, 0), (0, 1), (1, 1), (0, 2)]:
+        verts += [x, y, 0, 0, 0, 1]
+    v = g.view(struct.pack("<30f", *verts), stride=24)
+    p = g.accessor(v, FLOAT, "VEC3", 5, min=[0, 0, 0], max=[1, 2, 0])
+    nrm = g.accessor(v, FLOAT, "VEC3", 5, byteOffset=12)
+    g.doc["meshes"] = [{"primitives": [
+        {"attributes": {"POSITION": p, "NORMAL": nrm}, "indices": g.indices([0, 1, 2, 3, 4], U8), "mode": 5},
+        {"attributes": {"POSITION": p}, "indices": g.indices([0, 1, 3, 2], U32), "mode": 6},
+        {"attributes": {"POSITION": p}, "mode": 4, "indices": g.indices([0, 1, 2])},
+        {"attributes": {"POSITION": p}, "mode": 1}]}]
+    g.doc["nodes"] = [{"mesh": 0}]
+    write("gltf", "strip_fan.gltf", g.embedded())
+
+    # Sparse accessors, on a buffer view and on zeros; normalized integer texture coordinates.
+    g = Gltf()
+    base = g.view(struct.pack("<12f", 0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0))
+    p = g.accessor(base, FLOAT, "VEC3", 4, sparse={
+        "count": 1, "indices": {"bufferView": g.view(struct.pack("<H", 2)), "componentType": U16},
+        "values": {"bufferView": g.view(struct.pack("<3f", 2, 2, 0))}})
+    n = g.accessor(None, FLOAT, "VEC3", 4, sparse={
+        "count": 2, "indices": {"bufferView": g.view(bytes([0, 3])), "componentType": U8},
+        "values": {"bufferView": g.view(struct.pack("<6f", 0, 0, 1, 0, 0, 1))}})
+    uv = g.accessor(g.view(struct.pack("<8h", 0, 0, 32767, 0, 32767, 32767, 0, -32768)), I16, "VEC2", 4,
+                    normalized=True)
+    g.doc["meshes"] = [{"primitives": [{"attributes": {"POSITION": p, "NORMAL": n, "TEXCOORD_0": uv},
+                                        "indices": g.indices([0, 1, 2, 0, 2, 3])}]}]
+    g.doc["nodes"] = [{"mesh": 0}]
+    g.doc["extensionsUsed"] = ["KHR_mesh_quantization"]
+    write("gltf", "sparse.gltf", g.embedded())
+
+    # A node tree with every transform form, cameras, the three light types and scene extras.
+    g = Gltf()
+    g.quad()
+    g.doc["nodes"] = [
+        {"mesh": 0, "children": [1, 2], "translation": [1, 2, 3], "rotation": [0, 0.7071068, 0, 0.7071068],
+         "scale": [2, 2, 2]},
+        {"camera": 0, "matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 1, 5, 1]},
+        {"children": [3, 4], "extensions": {"KHR_lights_punctual": {"light": 0}}},
+        {"extensions": {"KHR_lights_punctual": {"light": 1}}, "rotation": [0.3826834, 0, 0, 0.9238795]},
+        {"extensions": {"KHR_lights_punctual": {"light": 2}}, "camera": 1},
+        {"mesh": 0}]
+    g.doc["scenes"] = [{"nodes": [0, 5], "extras": {"afr_background": [0.1, 0.2, 0.3],
+                                                     "afr_ambient": [1, 1, 1]}}]
+    g.doc["cameras"] = [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.01, "aspectRatio": 1.5}},
+                        {"type": "orthographic", "orthographic": {"xmag": 1, "ymag": 1, "znear": 0, "zfar": 10}}]
+    g.doc["extensions"] = {"KHR_lights_punctual": {"lights": [
+        {"type": "point", "color": [1, 0.9, 0.8], "intensity": 5, "extras": {"afr_falloff": "none"}},
+        {"type": "spot", "intensity": 10, "range": 20, "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.6}},
+        {"type": "directional", "intensity": 2, "extras": {"afr_falloff": "inverse_square"}}]}}
+    g.doc["extensionsUsed"] = ["KHR_lights_punctual"]
+    write("gltf", "nodes_cameras_lights.gltf", g.embedded())
+
+    # Animations: LINEAR translation, STEP scale, CUBICSPLINE rotation, and an unsupported path.
+    g = Gltf()
+    g.quad()
+    g.doc["nodes"] = [{"mesh": 0}, {"children": [0]}]
+    g.doc["scenes"] = [{"nodes": [1]}]
+    times = g.floats([0, 1, 2], "SCALAR", min=[0], max=[2])
+    g.doc["animations"] = [{"samplers": [
+        {"input": times, "output": g.floats([0, 0, 0, 1, 0, 0, 1, 1, 0], "VEC3"), "interpolation": "LINEAR"},
+        {"input": times, "output": g.floats([1, 1, 1, 2, 2, 2, 1, 1, 1], "VEC3"), "interpolation": "STEP"},
+        {"input": times, "output": g.floats([0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0] +
+                                            [0, 0, 0, 0, 0, 0.7071068, 0, 0.7071068, 0, 0, 0, 0] +
+                                            [0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0], "VEC4"),
+         "interpolation": "CUBICSPLINE"},
+        {"input": times, "output": g.floats([0, 1, 0], "SCALAR"), "interpolation": "LINEAR"}],
+        "channels": [{"sampler": 0, "target": {"node": 1, "path": "translation"}},
+                     {"sampler": 1, "target": {"node": 0, "path": "scale"}},
+                     {"sampler": 2, "target": {"node": 0, "path": "rotation"}},
+                     {"sampler": 3, "target": {"node": 0, "path": "weights"}}]}]
+    write("gltf", "animation.gltf", g.embedded())
+
+    # Features afr skips with a warning: skins, morph targets, points, vertex colors, unknown
+    # required extensions, no scenes.
+    g = Gltf()
+    prim = g.quad(COLOR_0=g.floats([1, 0, 0, 1] * 4, "VEC4"))
+    prim["targets"] = [{"POSITION": g.floats([0, 0, 1] * 4, "VEC3")}]
+    g.doc["meshes"][0]["weights"] = [0.5]
+    g.doc["meshes"][0]["primitives"].append({"attributes": {"POSITION": 0}, "mode": 0})
+    g.doc["skins"] = [{"joints": [0]}]
+    g.doc["nodes"][0]["skin"] = 0
+    g.doc["extensionsUsed"] = ["EXT_unknown", "KHR_texture_transform"]
+    g.doc["extensionsRequired"] = ["EXT_unknown"]
+    del g.doc["scenes"]
+    del g.doc["scene"]
+    write("gltf", "unsupported.gltf", g.embedded())
+
+
+# ---- Camera paths ----------------------------------------------------------------------------
+
+
+def camera_path_seeds():
+    paths = os.path.join(ROOT, "bench", "paths")
+    with open(os.path.join(paths, "toycar.path"), "rb") as f:
+        toycar = f.read()
+    write("camera_path", "toycar.path", toycar)
+    with open(os.path.join(paths, "interactive.path"), "rb") as f:
+        lines = f.read().split(b"\n")
+    head = b"\n".join(lines[:40]) + b"\n"
+    write("camera_path", "interactive_head.path", head)
+    write("camera_path", "interactive_crlf.path", head[:1200].rsplit(b"\n", 1)[0].replace(b"\n", b"\r\n"))
+    write("camera_path", "tabs_blank_lines.path",
+          b"# afr camera path v1\n\n0\t1 2 3\t0 0 0 1\t0.8\n# a comment\n   \n"
+          b"1.5 1e-3 -2.5E2 +3 0.5 0.5 0.5 0.5 3.1\n2 0 0 0 0 0 0 2 1e-9\n")
+
+
+def main():
+    shared = sys.argv[1] if len(sys.argv) > 1 else os.path.join(ROOT, "..", "shared")
+    aff_seeds(shared)
+    gltf_seeds()
+    camera_path_seeds()
+
+
+if __name__ == "__main__":
+    main()
