@@ -16,6 +16,8 @@
 #include <string>
 #include <vector>
 
+#include "support/base64.h"
+
 namespace afr {
 namespace {
 
@@ -28,22 +30,6 @@ constexpr int kShort = 5122;
 constexpr int kUnsignedShort = 5123;
 constexpr int kUnsignedInt = 5125;
 constexpr int kFloat = 5126;
-
-std::string base64(const std::vector<uint8_t>& bytes) {
-  static const char* kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  for (size_t i = 0; i < bytes.size(); i += 3) {
-    const uint32_t b0 = bytes[i];
-    const uint32_t b1 = i + 1 < bytes.size() ? bytes[i + 1] : 0;
-    const uint32_t b2 = i + 2 < bytes.size() ? bytes[i + 2] : 0;
-    const uint32_t v = (b0 << 16) | (b1 << 8) | b2;
-    out += kAlphabet[(v >> 18) & 63];
-    out += kAlphabet[(v >> 12) & 63];
-    out += i + 1 < bytes.size() ? kAlphabet[(v >> 6) & 63] : '=';
-    out += i + 2 < bytes.size() ? kAlphabet[v & 63] : '=';
-  }
-  return out;
-}
 
 std::vector<uint8_t> read_bytes(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
@@ -106,7 +92,7 @@ class GltfBuilder {
     json doc = doc_;
     doc["buffers"] =
         json::array({{{"byteLength", bin_.size()},
-                      {"uri", "data:application/octet-stream;base64," + base64(bin_)}}});
+                      {"uri", "data:application/octet-stream;base64," + testing::base64(bin_)}}});
     write_text(path, doc.dump(2));
   }
 
@@ -356,7 +342,8 @@ TEST_F(GltfLoaderTest, MaterialsAndEmbeddedPngTexturesDecodeToLinearTexels) {
   // The same image three ways: a data URI, a file beside the .gltf, a buffer view of a .glb.
   GltfBuilder data_uri;
   build(&data_uri);
-  data_uri.doc()["images"] = json::array({{{"uri", "data:image/png;base64," + base64(png_bytes)}}});
+  data_uri.doc()["images"] =
+      json::array({{{"uri", "data:image/png;base64," + testing::base64(png_bytes)}}});
   data_uri.write_embedded(dir_ / "data_uri.gltf");
   GltfBuilder file;
   build(&file);
@@ -416,7 +403,7 @@ TEST_F(GltfLoaderTest, UndecodableTextureFailsNamingTheImage) {
       json::array({{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}}});
   b.doc()["textures"] = json::array({{{"source", 0}}});
   const std::vector<uint8_t> not_png = {0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A, 1, 2, 3};
-  b.doc()["images"] = json::array({{{"uri", "data:image/png;base64," + base64(not_png)}}});
+  b.doc()["images"] = json::array({{{"uri", "data:image/png;base64," + testing::base64(not_png)}}});
   const fs::path path = dir_ / "bad_texture.gltf";
   b.write_embedded(path);
   expect_error(path, "image 0");

@@ -5,6 +5,7 @@
 
 #include <afr/common/samples.h>
 #include <afr/sampler/sampler.h>
+#include "support/tile_stats.h"
 
 #include <gtest/gtest.h>
 
@@ -53,49 +54,6 @@ inline ::testing::AssertionResult snapshot_is_sane(const TilingSnapshot& snap) {
   return ::testing::AssertionSuccess();
 }
 
-// The statistics of a tile straight from the crosshairs in its block: weights exp(-3.47 age)
-// taken relative to the newest crosshair (the same ratios, finite for any age), variance as
-// E[L^2] - E[L]^2 in long double.
-inline TileStats brute_force_stats(const Sampler& s, int tile, double now) {
-  const PixelRect rect = s.tiling().node(tile).rect;
-  const DeepBuffer& b = s.buffer();
-  TileStats st;
-  double newest = -std::numeric_limits<double>::infinity();
-  for (int32_t y = rect.y0; y < rect.y1; ++y) {
-    for (int32_t x = rect.x0; x < rect.x1; ++x) {
-      for (int k = 0; k < b.count(x, y); ++k) newest = std::max(newest, b.at(x, y, k).time);
-    }
-  }
-  long double w = 0, wl = 0, wll = 0, wgx = 0, wgy = 0, wt = 0, wgt = 0, age = 0;
-  for (int32_t y = rect.y0; y < rect.y1; ++y) {
-    for (int32_t x = rect.x0; x < rect.x1; ++x) {
-      for (int k = 0; k < b.count(x, y); ++k) {
-        const Crosshair& c = b.at(x, y, k);
-        const long double wi = std::exp(-(long double)kAgeDecay * (newest - c.time));
-        w += wi;
-        wl += wi * c.luminance;
-        wll += wi * c.luminance * c.luminance;
-        wgx += wi * c.G_x;
-        wgy += wi * c.G_y;
-        if (c.has(Crosshair::kHasTemporalGradient)) {
-          wt += wi;
-          wgt += wi * c.G_t;
-        }
-        age += now - c.time;
-        ++st.count;
-      }
-    }
-  }
-  if (st.count == 0) return st;
-  const long double mean = wl / w;
-  st.v = double(wll / w - mean * mean);
-  st.G_x = double(wgx / w);
-  st.G_y = double(wgy / w);
-  st.G_t = wt > 0 ? double(wgt / wt) : 0.0;
-  st.mean_age = double(age / st.count);
-  return st;
-}
-
 // Every tile's incremental statistics equal the brute-force ones (relative tolerance `rel`,
 // with an absolute floor of 1e-9 luminance units, far below any step of a display, for values
 // near zero), and the variance is never negative.
@@ -103,7 +61,7 @@ inline ::testing::AssertionResult stats_match_buffer(const Sampler& s, double no
                                                      double rel = 1e-6) {
   for (int t : s.tiling().tiles()) {
     const TileStats inc = s.tile_stats(t);
-    const TileStats ref = brute_force_stats(s, t, now);
+    const TileStats ref = testing::brute_force_stats(s, t, now);
     if (inc.count != ref.count) {
       return ::testing::AssertionFailure()
              << "tile " << t << " count " << inc.count << " vs " << ref.count;

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "extremes/extremes_support.h"
+#include "support/base64.h"
 #include "support/test_scenes.h"
 
 namespace afr {
@@ -265,22 +266,6 @@ TEST(ExtremesTest, DegenerateTrianglesTraceFinite) {
   sink.expect_clean();
 }
 
-std::string base64(const std::vector<uint8_t>& bytes) {
-  static const char* kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  for (size_t i = 0; i < bytes.size(); i += 3) {
-    const uint32_t b0 = bytes[i];
-    const uint32_t b1 = i + 1 < bytes.size() ? bytes[i + 1] : 0;
-    const uint32_t b2 = i + 2 < bytes.size() ? bytes[i + 2] : 0;
-    const uint32_t v = (b0 << 16) | (b1 << 8) | b2;
-    out += kAlphabet[(v >> 18) & 63];
-    out += kAlphabet[(v >> 12) & 63];
-    out += i + 1 < bytes.size() ? kAlphabet[(v >> 6) & 63] : '=';
-    out += i + 2 < bytes.size() ? kAlphabet[v & 63] : '=';
-  }
-  return out;
-}
-
 // A one-triangle glTF whose positions are `positions` (9 floats), buffer embedded.
 std::filesystem::path write_triangle_gltf(const std::string& name, const float positions[9]) {
   std::vector<uint8_t> bin(36);
@@ -291,7 +276,7 @@ std::filesystem::path write_triangle_gltf(const std::string& name, const float p
       R"("accessors":[{"bufferView":0,"componentType":5126,"type":"VEC3","count":3}],)"
       R"("bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":36}],)"
       R"("buffers":[{"byteLength":36,"uri":"data:application/octet-stream;base64,)" +
-      base64(bin) + R"("}]})";
+      testing::base64(bin) + R"("}]})";
   const std::filesystem::path path = std::filesystem::temp_directory_path() /
                                      ("afr_extremes_" + std::to_string(getpid()) + "_" + name);
   std::ofstream(path) << json;

@@ -11,6 +11,7 @@
 #include <limits>
 
 #include "support/test_scenes.h"
+#include "support/tile_stats.h"
 
 namespace afr {
 namespace {
@@ -37,49 +38,6 @@ double tile_density(const Sampler& s, int32_t x0, int32_t x1) {
     }
   }
   return sum / double(n);
-}
-
-// The brute-force statistics of a tile, straight from the section 4 definitions.
-TileStats brute_force(const Sampler& s, int tile, double now) {
-  const PixelRect rect = s.tiling().node(tile).rect;
-  const DeepBuffer& b = s.buffer();
-  long double w = 0, wl = 0, wll = 0, wgx = 0, wgy = 0, wt = 0, wgt = 0, age = 0;
-  TileStats st;
-  // Weights relative to the newest crosshair: the same ratios as exp(-3.47 age), but finite
-  // even when every age is hours long.
-  double newest = -std::numeric_limits<double>::infinity();
-  for (int32_t y = rect.y0; y < rect.y1; ++y) {
-    for (int32_t x = rect.x0; x < rect.x1; ++x) {
-      for (int k = 0; k < b.count(x, y); ++k) newest = std::max(newest, b.at(x, y, k).time);
-    }
-  }
-  for (int32_t y = rect.y0; y < rect.y1; ++y) {
-    for (int32_t x = rect.x0; x < rect.x1; ++x) {
-      for (int k = 0; k < b.count(x, y); ++k) {
-        const Crosshair& c = b.at(x, y, k);
-        const long double wi = std::exp(-3.47L * (newest - c.time));
-        w += wi;
-        wl += wi * c.luminance;
-        wll += wi * c.luminance * c.luminance;
-        wgx += wi * c.G_x;
-        wgy += wi * c.G_y;
-        if (c.has(Crosshair::kHasTemporalGradient)) {
-          wt += wi;
-          wgt += wi * c.G_t;
-        }
-        age += now - c.time;
-        ++st.count;
-      }
-    }
-  }
-  if (st.count == 0) return st;
-  const long double mean = wl / w;
-  st.v = double(wll / w - mean * mean);
-  st.G_x = double(wgx / w);
-  st.G_y = double(wgy / w);
-  st.G_t = wt > 0 ? double(wgt / wt) : 0.0;
-  st.mean_age = double(age / st.count);
-  return st;
 }
 
 void expect_close(double incremental, double reference, double rel, const char* what) {
@@ -165,7 +123,7 @@ TEST(SamplerTest, IncrementalStatisticsEqualBruteForceOverHoursOfVirtualTime) {
   EXPECT_GT(clock.now(), 3600.0);
   for (int t : sampler.tiling().tiles()) {
     const TileStats inc = sampler.tile_stats(t);
-    const TileStats ref = brute_force(sampler, t, clock.now());
+    const TileStats ref = testing::brute_force_stats(sampler, t, clock.now());
     ASSERT_EQ(inc.count, ref.count);
     EXPECT_GE(inc.v, 0.0);
     expect_close(inc.v, ref.v, 1e-6, "v");
