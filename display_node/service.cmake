@@ -1,5 +1,6 @@
 # The display_node program and its service parts: coordinator (membership, regions), display
-# clock and views, ingest, metrics over HTTP, overlays. docs/service.md.
+# clock and views, ingest, metrics over HTTP, overlays, the display wall. docs/service.md,
+# docs/wall.md.
 find_package(PkgConfig REQUIRED)
 pkg_check_modules(AFR_HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
 
@@ -8,6 +9,8 @@ add_library(afr_display_service
   ${CMAKE_CURRENT_LIST_DIR}/src/service/display_service.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/metrics.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/overlays.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/service/wall.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/service/wall_follower.cpp
 )
 target_include_directories(afr_display_service PUBLIC ${CMAKE_CURRENT_LIST_DIR}/include)
 target_link_libraries(afr_display_service

@@ -373,13 +373,13 @@ std::optional<View> ViewSubscriber::receive(int timeout_ms) {
 bool allowed_to_display(MessageType type) {
   return type == MessageType::kJoin || type == MessageType::kSceneRequest ||
          type == MessageType::kStats || type == MessageType::kHeartbeat ||
-         type == MessageType::kLeave;
+         type == MessageType::kLeave || type == MessageType::kDisplayJoin;
 }
 
 bool allowed_to_sampler(MessageType type) {
   return type == MessageType::kWelcome || type == MessageType::kSceneChunk ||
          type == MessageType::kRegionAssignment || type == MessageType::kHeartbeat ||
-         type == MessageType::kLeave;
+         type == MessageType::kLeave || type == MessageType::kWallLayout;
 }
 
 namespace {

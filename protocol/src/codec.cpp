@@ -40,6 +40,10 @@ const char* message_type_name(MessageType type) {
       return "heartbeat";
     case MessageType::kLeave:
       return "leave";
+    case MessageType::kDisplayJoin:
+      return "display_join";
+    case MessageType::kWallLayout:
+      return "wall_layout";
   }
   return "unknown";
 }
@@ -59,6 +63,8 @@ static_assert(kAlternativeIs<MessageType::kJoin, Join> &&
               kAlternativeIs<MessageType::kStats, SamplerStats> &&
               kAlternativeIs<MessageType::kHeartbeat, Heartbeat> &&
               kAlternativeIs<MessageType::kLeave, Leave> &&
+              kAlternativeIs<MessageType::kDisplayJoin, DisplayJoin> &&
+              kAlternativeIs<MessageType::kWallLayout, WallLayout> &&
               std::variant_size_v<Message> == kLastMessageType);
 
 MessageType message_type(const Message& message) {
@@ -454,6 +460,99 @@ Status decode(Bytes message, Leave* out) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// DisplayJoin: u32 node_id, u16 protocol_version, u16 column, u16 row, string samples_endpoint,
+// string name
+
+Status encode(const DisplayJoin& m, std::vector<uint8_t>* out) {
+  out->clear();
+  if (Status s = validate(m); !s) return s;
+  Writer w = wire::begin_message(
+      MessageType::kDisplayJoin,
+      10 + wire::string_bytes(m.samples_endpoint) + wire::string_bytes(m.name), out);
+  w.u32(m.node_id);
+  w.u16(m.protocol_version);
+  w.u16(m.column);
+  w.u16(m.row);
+  w.string(m.samples_endpoint);
+  w.string(m.name);
+  AFR_CHECK(w.done());
+  return {};
+}
+
+Status decode(Bytes message, DisplayJoin* out) {
+  return decode_with(message, MessageType::kDisplayJoin, out, [&](Reader& r) {
+    r.u32(&out->node_id, "node_id") && r.u16(&out->protocol_version, "protocol_version") &&
+        r.u16(&out->column, "column") && r.u16(&out->row, "row") &&
+        r.string(&out->samples_endpoint, "samples_endpoint", kMaxNameBytes) &&
+        r.string(&out->name, "name", kMaxNameBytes);
+  });
+}
+
+// ---------------------------------------------------------------------------------------------
+// WallLayout: u64 epoch, u32 width, u32 height, i32 margin, u32 count, then per node: u32 node_id,
+// i32 x0, y0, x1, y1, string samples_endpoint
+
+Status encode(const WallLayout& m, std::vector<uint8_t>* out) {
+  out->clear();
+  if (Status s = validate(m); !s) return s;
+  size_t bytes = 24;
+  for (const WallNode& n : m.nodes) bytes += 20 + wire::string_bytes(n.samples_endpoint);
+  Writer w = wire::begin_message(MessageType::kWallLayout, bytes, out);
+  w.u64(m.epoch);
+  w.u32(uint32_t(m.width));
+  w.u32(uint32_t(m.height));
+  w.i32(m.margin);
+  w.u32(uint32_t(m.nodes.size()));
+  for (const WallNode& n : m.nodes) {
+    w.u32(n.node_id);
+    w.i32(n.cell.x0);
+    w.i32(n.cell.y0);
+    w.i32(n.cell.x1);
+    w.i32(n.cell.y1);
+    w.string(n.samples_endpoint);
+  }
+  AFR_CHECK(w.done());
+  return {};
+}
+
+Status decode(Bytes message, WallLayout* out) {
+  return decode_with(message, MessageType::kWallLayout, out, [&](Reader& r) {
+    uint32_t count = 0;
+    if (!(r.u64(&out->epoch, "epoch") && r.i32(&out->width, "width") &&
+          r.i32(&out->height, "height") && r.i32(&out->margin, "margin") &&
+          r.u32(&count, "count"))) {
+      return;
+    }
+    // Each node takes at least 22 bytes: a count the bytes cannot hold is refused before any
+    // allocation.
+    if (count < 1 || count > kMaxWallNodes) {
+      r.fail("count", std::to_string(count) + " is outside 1.." + std::to_string(kMaxWallNodes));
+      return;
+    }
+    if (r.remaining() < size_t(count) * 22) {
+      r.fail("count", std::to_string(count) + " nodes do not fit in the message");
+      return;
+    }
+    out->nodes.resize(count);
+    for (WallNode& n : out->nodes) {
+      if (!(r.u32(&n.node_id, "node_id") && r.i32(&n.cell.x0, "cell.x0") &&
+            r.i32(&n.cell.y0, "cell.y0") && r.i32(&n.cell.x1, "cell.x1") &&
+            r.i32(&n.cell.y1, "cell.y1") &&
+            r.string(&n.samples_endpoint, "samples_endpoint", kMaxNameBytes))) {
+        return;
+      }
+    }
+  });
+}
+
+PixelRect wall_receive_rect(const WallLayout& layout, const WallNode& node) {
+  return PixelRect{std::max(0, node.cell.x0 - layout.margin),
+                   std::max(0, node.cell.y0 - layout.margin),
+                   std::min(layout.width, node.cell.x1 + layout.margin),
+                   std::min(layout.height, node.cell.y1 + layout.margin)};
+}
+
+// ---------------------------------------------------------------------------------------------
 // Any message
 
 Status encode(const Message& m, std::vector<uint8_t>* out) {
@@ -498,6 +597,12 @@ Result<Message> decode_message(Bytes message, const ImageBounds& bounds) {
       break;
     case MessageType::kLeave:
       m.emplace<Leave>();
+      break;
+    case MessageType::kDisplayJoin:
+      m.emplace<DisplayJoin>();
+      break;
+    case MessageType::kWallLayout:
+      m.emplace<WallLayout>();
       break;
   }
   AFR_CHECK(message_type(m) == h->type);

@@ -29,6 +29,14 @@ Status check_text(const char* message, const char* field, const std::string& s) 
   return {};
 }
 
+Status check_endpoint(const char* message, const char* field, const std::string& s) {
+  if (Status st = check_text(message, field, s); !st) return st;
+  for (const char* scheme : {"tcp://", "ipc://", "inproc://"}) {
+    if (s.rfind(scheme, 0) == 0 && s.size() > std::string(scheme).size()) return {};
+  }
+  return field_error(message, field, "'" + s + "' is not a tcp://, ipc:// or inproc:// endpoint");
+}
+
 Status check_time(const char* message, const char* field, double t) {
   if (!std::isfinite(t)) return field_error(message, field, "not finite");
   if (t < 0.0) return field_error(message, field, "negative (" + std::to_string(t) + ")");
@@ -167,6 +175,61 @@ Status validate(const SamplerStats& m) {
 }
 
 Status validate(const Heartbeat& m) { return check_time("heartbeat", "time", m.time); }
+
+Status validate(const DisplayJoin& m) {
+  if (m.protocol_version != kProtocolVersion) {
+    return field_error("display_join", "protocol_version",
+                       std::to_string(m.protocol_version) + " (this build speaks " +
+                           std::to_string(kProtocolVersion) + ")");
+  }
+  if (m.samples_endpoint.empty()) {
+    return field_error("display_join", "samples_endpoint", "empty");
+  }
+  if (Status s = check_endpoint("display_join", "samples_endpoint", m.samples_endpoint); !s) {
+    return s;
+  }
+  return check_text("display_join", "name", m.name);
+}
+
+Status validate(const WallLayout& m) {
+  if (Status s = check_image_size("wall_layout", m.width, m.height); !s) return s;
+  if (m.margin < 0 || m.margin > kMaxWallMargin) {
+    return field_error(
+        "wall_layout", "margin",
+        std::to_string(m.margin) + " is outside 0.." + std::to_string(kMaxWallMargin));
+  }
+  if (m.nodes.empty() || m.nodes.size() > kMaxWallNodes) {
+    return field_error(
+        "wall_layout", "count",
+        std::to_string(m.nodes.size()) + " is outside 1.." + std::to_string(kMaxWallNodes));
+  }
+  for (size_t i = 0; i < m.nodes.size(); ++i) {
+    const WallNode& n = m.nodes[i];
+    const std::string at = "nodes[" + std::to_string(i) + "]";
+    if (n.node_id == 0) return field_error("wall_layout", at + ".node_id", "0 is not an id");
+    if (Status s = check_rect("wall_layout", "cell", n.cell, m.width, m.height); !s) return s;
+    if (!n.samples_endpoint.empty()) {
+      if (Status s = check_endpoint("wall_layout", "samples_endpoint", n.samples_endpoint); !s) {
+        return s;
+      }
+    }
+    // At most kMaxWallNodes^2 / 2 comparisons (half a million): cheap for a rare message.
+    for (size_t j = 0; j < i; ++j) {
+      const WallNode& o = m.nodes[j];
+      if (o.node_id == n.node_id) {
+        return field_error("wall_layout", at + ".node_id",
+                           std::to_string(n.node_id) + " appears twice");
+      }
+      const bool overlap = n.cell.x0 < o.cell.x1 && o.cell.x0 < n.cell.x1 &&
+                           n.cell.y0 < o.cell.y1 && o.cell.y0 < n.cell.y1;
+      if (overlap) {
+        return field_error("wall_layout", at + ".cell",
+                           "overlaps the cell of node " + std::to_string(o.node_id));
+      }
+    }
+  }
+  return {};
+}
 
 Status validate(const Leave& m) {
   if (uint16_t(m.reason) > kLastLeaveReason) {

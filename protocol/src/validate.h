@@ -10,6 +10,8 @@ namespace afr::protocol::detail {
 
 // Names and texts: at most kMaxNameBytes bytes, no control characters (they end up in logs).
 Status check_text(const char* message, const char* field, const std::string& s);
+// A ZeroMQ endpoint: tcp://, ipc:// or inproc://, then something; a text by check_text's rules.
+Status check_endpoint(const char* message, const char* field, const std::string& s);
 // Finite, and >= 0: an absolute display-clock time.
 Status check_time(const char* message, const char* field, double t);
 // 1..kMaxImageSize on both sides.

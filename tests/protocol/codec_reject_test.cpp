@@ -96,7 +96,8 @@ TEST(CodecRejectTest, WrongMagicVersionAndTypeAreRejected) {
   std::vector<uint8_t> b = good;
   b[0] = 'X';
   EXPECT_REJECTED(b, "magic");
-  for (uint16_t version : {uint16_t(0), uint16_t(2), uint16_t(0xffff)}) {
+  for (uint16_t version : {uint16_t(0), uint16_t(kProtocolVersion - 1),
+                           uint16_t(kProtocolVersion + 1), uint16_t(0xffff)}) {
     b = good;
     b[4] = uint8_t(version);
     b[5] = uint8_t(version >> 8);
@@ -106,7 +107,7 @@ TEST(CodecRejectTest, WrongMagicVersionAndTypeAreRejected) {
     ASSERT_TRUE(h.ok()) << h.error();
     EXPECT_EQ(h->version, version);
   }
-  for (uint16_t type : {uint16_t(0), uint16_t(12), uint16_t(0xffff)}) {
+  for (uint16_t type : {uint16_t(0), uint16_t(kLastMessageType + 1), uint16_t(0xffff)}) {
     b = good;
     b[6] = uint8_t(type);
     b[7] = uint8_t(type >> 8);
@@ -442,6 +443,90 @@ TEST(CodecRejectTest, EncoderRefusesInvalidSamplesAndWritesNothing) {
   b = random_batch(rng, kFieldPosition, 5);
   b.samples[0].velocity.x = NAN;
   EXPECT_TRUE(encode(b, &out).ok());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Display wall
+
+TEST(CodecRejectTest, MalformedWallLayoutsAreRejected) {
+  Pcg32 rng(41);
+  std::vector<uint8_t> out;
+  const auto refused = [&](const WallLayout& m, const char* text) {
+    const Status s = encode(m, &out);
+    EXPECT_FALSE(s.ok()) << "accepted; expected an error about '" << text << "'";
+    EXPECT_NE(s.message().find(text), std::string::npos) << s.message();
+    EXPECT_TRUE(out.empty());
+  };
+  WallLayout base;
+  base.epoch = 3;
+  base.width = 200;
+  base.height = 100;
+  base.margin = 8;
+  base.nodes = {WallNode{1, PixelRect{0, 0, 100, 100}, ""},
+                WallNode{2, PixelRect{100, 0, 200, 100}, "tcp://10.0.0.2:7202"}};
+  ASSERT_TRUE(encode(base, &out).ok());
+
+  WallLayout m = base;
+  m.nodes[1].cell.x0 = 99;  // overlaps node 1
+  refused(m, "overlaps the cell of node 1");
+  m = base;
+  m.nodes[1].node_id = 1;
+  refused(m, "appears twice");
+  m = base;
+  m.nodes[0].node_id = 0;
+  refused(m, "node_id");
+  m = base;
+  m.nodes[1].cell.x1 = 201;
+  refused(m, "cell");
+  m = base;
+  m.margin = kMaxWallMargin + 1;
+  refused(m, "margin");
+  m = base;
+  m.margin = -1;
+  refused(m, "margin");
+  m = base;
+  m.nodes.clear();
+  refused(m, "count");
+  m = base;
+  m.nodes[1].samples_endpoint = "http://10.0.0.2:7202";
+  refused(m, "samples_endpoint");
+  m = base;
+  m.width = kMaxImageSize + 1;
+  refused(m, "width");
+
+  // A count beyond the limit, or beyond what the bytes hold, is refused before allocating.
+  ASSERT_TRUE(encode(base, &out).ok());
+  std::vector<uint8_t> b = out;
+  put_u32(b, 20, kMaxWallNodes + 1);
+  EXPECT_REJECTED(b, "count");
+  b = out;
+  put_u32(b, 20, 1000);
+  EXPECT_REJECTED(b, "do not fit");
+  b = out;
+  put_u32(b, 20, 0xffffffffu);
+  EXPECT_REJECTED(b, "count");
+}
+
+TEST(CodecRejectTest, MalformedDisplayJoinsAreRejected) {
+  std::vector<uint8_t> out;
+  DisplayJoin j;
+  j.samples_endpoint = "tcp://10.0.0.3:7202";
+  j.name = "wall-1-0";
+  ASSERT_TRUE(encode(j, &out).ok());
+  DisplayJoin m = j;
+  m.samples_endpoint.clear();
+  EXPECT_FALSE(encode(m, &out).ok());
+  m = j;
+  m.samples_endpoint = "10.0.0.3:7202";
+  EXPECT_FALSE(encode(m, &out).ok());
+  m = j;
+  m.name = "bell\a";
+  EXPECT_FALSE(encode(m, &out).ok());
+  // Another version is refused with a reason that says so.
+  ASSERT_TRUE(encode(j, &out).ok());
+  std::vector<uint8_t> b = out;
+  put_u16(b, 4, kProtocolVersion + 1);
+  EXPECT_REJECTED(b, "protocol_version");
 }
 
 }  // namespace

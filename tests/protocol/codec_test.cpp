@@ -53,7 +53,45 @@ TEST(CodecTest, ControlMessagesRoundTripExactly) {
     const View view = random_view(rng);
     EXPECT_EQ(round_trip(view, &bytes), view);
     EXPECT_EQ(bytes.size(), kMaxViewChannelMessage);
+    const DisplayJoin display_join = random_display_join(rng);
+    EXPECT_EQ(round_trip(display_join, &bytes), display_join);
+    EXPECT_EQ(bytes.size(),
+              kHeaderBytes + 14 + display_join.samples_endpoint.size() + display_join.name.size());
+    const WallLayout layout = random_wall_layout(rng);
+    EXPECT_EQ(round_trip(layout, &bytes), layout);
   }
+}
+
+TEST(CodecTest, LargestWallLayoutFitsTheControlChannelLimit) {
+  // 32 x 32 cells, every endpoint as long as the protocol allows.
+  WallLayout m;
+  m.width = m.height = kMaxImageSize;
+  m.margin = kMaxWallMargin;
+  for (int32_t r = 0; r < 32; ++r) {
+    for (int32_t c = 0; c < 32; ++c) {
+      WallNode n;
+      n.node_id = uint32_t(1 + r * 32 + c);
+      n.cell = PixelRect{c * 1024, r * 1024, (c + 1) * 1024, (r + 1) * 1024};
+      n.samples_endpoint = "tcp://" + std::string(kMaxNameBytes - 6, 'h');
+      m.nodes.push_back(n);
+    }
+  }
+  ASSERT_EQ(m.nodes.size(), kMaxWallNodes);
+  std::vector<uint8_t> bytes;
+  EXPECT_EQ(round_trip(m, &bytes), m);
+  EXPECT_LE(bytes.size(), kMaxControlChannelMessage);
+}
+
+TEST(CodecTest, WallReceiveRectIsTheCellGrownByTheMarginInsideTheImage) {
+  WallLayout m;
+  m.width = 100;
+  m.height = 80;
+  m.margin = 8;
+  m.nodes = {WallNode{1, PixelRect{0, 0, 50, 40}, ""}, WallNode{2, PixelRect{50, 40, 100, 80}, ""}};
+  EXPECT_EQ(wall_receive_rect(m, m.nodes[0]), (PixelRect{0, 0, 58, 48}));
+  EXPECT_EQ(wall_receive_rect(m, m.nodes[1]), (PixelRect{42, 32, 100, 80}));
+  m.margin = 0;
+  EXPECT_EQ(wall_receive_rect(m, m.nodes[1]), m.nodes[1].cell);
 }
 
 TEST(CodecTest, LargestChunkFitsTheControlChannelLimit) {
@@ -96,11 +134,11 @@ TEST(CodecTest, JoinBytesAreTheDocumentedLayout) {
   std::vector<uint8_t> bytes;
   ASSERT_TRUE(encode(join, &bytes).ok());
   const std::vector<uint8_t> expected = {'A',  'F',  'R',  'P',   // magic
-                                         1,    0,                 // version
+                                         2,    0,                 // version
                                          1,    0,                 // type: join
                                          16,   0,    0,    0,     // payload bytes
                                          0x04, 0x03, 0x02, 0x01,  // sampler_id
-                                         1,    0,                 // protocol_version
+                                         2,    0,                 // protocol_version
                                          8,    0,                 // threads
                                          5,    0,    0,    0,     // capabilities
                                          2,    0,    'a',  'b'};  // name

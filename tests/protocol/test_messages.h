@@ -181,6 +181,44 @@ inline Leave random_leave(Pcg32& rng) {
   return Leave{rng.next_u32(), LeaveReason(rng.next_below(kLastLeaveReason + 1)), random_name(rng)};
 }
 
+inline std::string random_endpoint(Pcg32& rng) {
+  return "tcp://10." + std::to_string(rng.next_below(256)) + "." +
+         std::to_string(rng.next_below(256)) + ".7:" + std::to_string(1 + rng.next_below(65535));
+}
+
+inline DisplayJoin random_display_join(Pcg32& rng) {
+  DisplayJoin m;
+  m.node_id = rng.next_u32();
+  m.column = uint16_t(rng.next_below(64));
+  m.row = uint16_t(rng.next_below(64));
+  m.samples_endpoint = random_endpoint(rng);
+  m.name = random_name(rng);
+  return m;
+}
+
+// A grid of columns x rows cells over a random image (some cells left out), random margin.
+inline WallLayout random_wall_layout(Pcg32& rng, uint32_t max_side = 8) {
+  WallLayout m;
+  m.epoch = random_u64(rng);
+  m.width = int32_t(max_side + rng.next_below(kMaxImageSize - max_side));
+  m.height = int32_t(max_side + rng.next_below(kMaxImageSize - max_side));
+  m.margin = int32_t(rng.next_below(kMaxWallMargin + 1));
+  const int32_t columns = int32_t(1 + rng.next_below(max_side));
+  const int32_t rows = int32_t(1 + rng.next_below(max_side));
+  for (int32_t r = 0; r < rows; ++r) {
+    for (int32_t c = 0; c < columns; ++c) {
+      if (!m.nodes.empty() && rng.next_below(4) == 0) continue;
+      WallNode n;
+      n.node_id = uint32_t(1 + r * columns + c);
+      n.cell = PixelRect{c * m.width / columns, r * m.height / rows, (c + 1) * m.width / columns,
+                         (r + 1) * m.height / rows};
+      if (rng.next_below(3) != 0) n.samples_endpoint = random_endpoint(rng);
+      m.nodes.push_back(n);
+    }
+  }
+  return m;
+}
+
 // One random message of every type (batches in every field combination).
 inline std::vector<Message> random_messages(Pcg32& rng) {
   std::vector<Message> all;
@@ -197,6 +235,8 @@ inline std::vector<Message> random_messages(Pcg32& rng) {
   all.push_back(random_stats(rng));
   all.push_back(random_heartbeat(rng));
   all.push_back(random_leave(rng));
+  all.push_back(random_display_join(rng));
+  all.push_back(random_wall_layout(rng));
   return all;
 }
 

@@ -4,7 +4,6 @@
 #include <afr/protocol/scene_hash.h>
 
 #include <fmt/format.h>
-#include <httplib.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -75,12 +74,19 @@ struct DisplayService::Control {
   };
   std::map<std::string, Transfer> transfers;   // by peer
   std::map<std::string, double> told_unknown;  // peers told to join again, when
+  // The wall's follower displays, by peer (docs/wall.md); the lead is node 1.
+  struct WallMember {
+    uint32_t id = 0;
+    std::string name;
+    int column = 0, row = 0;
+    std::string endpoint;
+    double last_heard = 0.0;
+  };
+  std::map<std::string, WallMember> wall_nodes;
+  uint32_t next_node_id = 2;
+  bool wall_changed = false;
   uint64_t view_sequence = 0;
   uint64_t heartbeat_sequence = 0;
-};
-
-struct DisplayService::Http {
-  httplib::Server server;
 };
 
 namespace {
@@ -125,18 +131,26 @@ DisplayService::DisplayService(DisplayServiceOptions options, SampleSink& sink)
   }
   samples_->set_image_bounds({options_.width, options_.height});
   if (options_.metrics_port > 0) {
-    http_ = std::make_unique<Http>();
-    http_->server.Get("/metrics", [this](const httplib::Request&, httplib::Response& res) {
-      res.set_content(metrics_.prometheus(), "text/plain; version=0.0.4");
-    });
-    http_->server.Get("/stats", [this](const httplib::Request&, httplib::Response& res) {
-      res.set_content(metrics_.json(), "application/json");
-    });
-    if (!http_->server.bind_to_port(options_.metrics_address.c_str(), options_.metrics_port)) {
-      throw Error(fmt::format("cannot serve metrics on {}:{} (port in use?)",
-                              options_.metrics_address, options_.metrics_port));
-    }
+    http_ =
+        std::make_unique<MetricsServer>(metrics_, options_.metrics_address, options_.metrics_port);
   }
+  check_wall_grid(options_.wall, options_.width, options_.height);
+  check_wall_cell(options_.wall, options_.wall_column, options_.wall_row);
+  layout_.width = options_.width;
+  layout_.height = options_.height;
+  layout_.margin = options_.wall.margin;
+  layout_.nodes = {WallNode{1, cell(), ""}};
+  metrics_.set_wall(1, cell(), 1, 0);
+}
+
+PixelRect DisplayService::cell() const {
+  return options_.wall.cell(options_.wall_column, options_.wall_row, options_.width,
+                            options_.height);
+}
+
+WallLayout DisplayService::wall_layout() const {
+  std::lock_guard<std::mutex> lock(regions_mutex_);
+  return layout_;
 }
 
 DisplayService::~DisplayService() { stop(); }
@@ -159,59 +173,59 @@ void DisplayService::start() {
                                                               options_.allowed_keys.size()));
   control_thread_ = std::thread([this] { control_loop(); });
   ingest_thread_ = std::thread([this] { ingest_loop(); });
-  if (http_) {
-    http_thread_ = std::thread([this] { http_->server.listen_after_bind(); });
-    spdlog::info("metrics on http://{}:{}/metrics and /stats", options_.metrics_address,
-                 options_.metrics_port);
-  }
+  if (http_) http_->start();
 }
 
 void DisplayService::stop() {
   if (!running_.exchange(false)) return;
   if (control_thread_.joinable()) control_thread_.join();
   if (ingest_thread_.joinable()) ingest_thread_.join();
-  if (http_) {
-    http_->server.stop();
-    if (http_thread_.joinable()) http_thread_.join();
-  }
+  if (http_) http_->stop();
 }
 
 // ---------------------------------------------------------------------------------------------
 // Ingest: the sample channel into the sink
 
-void DisplayService::ingest_loop() {
+void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metrics,
+                const std::function<bool(uint32_t)>& is_member, const std::atomic<bool>& running) {
   uint64_t rejected = 0;
-  while (running_.load(std::memory_order_relaxed)) {
-    switch (samples_->receive(50)) {
+  while (running.load(std::memory_order_relaxed)) {
+    switch (receiver.receive(50)) {
       case SampleReceiver::Got::kNothing:
         break;
       case SampleReceiver::Got::kBatch: {
-        const SampleBatch& b = samples_->batch();
-        bool member;
-        {
-          std::lock_guard<std::mutex> lock(regions_mutex_);
-          member = std::any_of(regions_.begin(), regions_.end(),
-                               [&](const auto& r) { return r.first == b.sampler_id; });
-        }
-        metrics_.on_batch(b, batch_message_bytes(b.fields, b.samples.size()), member);
-        sink_.on_batch(std::move(samples_->batch()));
+        const SampleBatch& b = receiver.batch();
+        metrics.on_batch(b, batch_message_bytes(b.fields, b.samples.size()),
+                         is_member(b.sampler_id));
+        sink.on_batch(std::move(receiver.batch()));
         break;
       }
       case SampleReceiver::Got::kTiling: {
-        const TilingSnapshot& t = samples_->tiling();
-        metrics_.on_tiling(t.sampler_id, snapshot_message_bytes(t.tiles.size()));
-        sink_.on_tiling(std::move(samples_->tiling()));
+        const TilingSnapshot& t = receiver.tiling();
+        metrics.on_tiling(t.sampler_id, snapshot_message_bytes(t.tiles.size()));
+        sink.on_tiling(std::move(receiver.tiling()));
         break;
       }
       case SampleReceiver::Got::kRejected:
-        metrics_.on_rejected_sample_message();
+        metrics.on_rejected_sample_message();
         if (rejected++ % 1000 == 0) {
           spdlog::warn("sample channel: rejected a message ({} so far): {}", rejected,
-                       samples_->rejection().message());
+                       receiver.rejection().message());
         }
         break;
     }
   }
+}
+
+void DisplayService::ingest_loop() {
+  run_ingest(
+      *samples_, sink_, metrics_,
+      [this](uint32_t id) {
+        std::lock_guard<std::mutex> lock(regions_mutex_);
+        return std::any_of(regions_.begin(), regions_.end(),
+                           [&](const auto& r) { return r.first == id; });
+      },
+      running_);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -243,9 +257,10 @@ void DisplayService::control_loop() {
     std::lock_guard<std::mutex> lock(regions_mutex_);
     regions_ = std::move(regions);
   };
-  auto welcome = [&](const Member& m, double t) {
+  // The answer to a sampler's join, and to a follower display's (id: its node id).
+  auto welcome = [&](const std::string& peer, uint32_t id) {
     Welcome w;
-    w.sampler_id = m.id;
+    w.sampler_id = id;
     w.session = session_;
     w.width = options_.width;
     w.height = options_.height;
@@ -255,7 +270,99 @@ void DisplayService::control_loop() {
     w.scene_size = options_.scene.bytes.size();
     w.scene_name = options_.scene.name;
     w.presets = options_.preset;
-    send(m.peer, w);
+    send(peer, w);
+  };
+  // The wall: the layout every sampler routes by, sent on every change and to each newcomer.
+  auto send_layout = [&](const std::string& peer) {
+    WallLayout l;
+    {
+      std::lock_guard<std::mutex> lock(regions_mutex_);
+      l = layout_;
+    }
+    send(peer, l);
+  };
+  auto publish_layout = [&] {
+    WallLayout l;
+    l.width = options_.width;
+    l.height = options_.height;
+    l.margin = options_.wall.margin;
+    l.nodes.push_back(WallNode{1, cell(), ""});
+    for (const auto& [peer, n] : c.wall_nodes) {
+      l.nodes.push_back(WallNode{
+          n.id, options_.wall.cell(n.column, n.row, options_.width, options_.height), n.endpoint});
+    }
+    {
+      std::lock_guard<std::mutex> lock(regions_mutex_);
+      l.epoch = layout_.epoch + 1;
+      layout_ = l;
+    }
+    metrics_.set_wall(1, cell(), l.nodes.size(), l.epoch);
+    spdlog::info("wall layout {}: {} display node(s)", l.epoch, l.nodes.size());
+    for (const auto& [id, m] : co.members()) send(m.peer, l);
+    for (const auto& [peer, n] : c.wall_nodes) send(peer, l);
+  };
+  // A follower display asks for a cell. Returns the refusal, or "" when admitted.
+  auto admit_display = [&](const std::string& peer, const DisplayJoin& j, double t) -> std::string {
+    if (!options_.wall.is_wall()) {
+      return "this display is not a wall: start it with --wall COLUMNSxROWS";
+    }
+    if (j.column >= options_.wall.columns || j.row >= options_.wall.rows) {
+      return fmt::format("cell {},{} is outside the {}x{} wall", j.column, j.row,
+                         options_.wall.columns, options_.wall.rows);
+    }
+    if (j.column == options_.wall_column && j.row == options_.wall_row) {
+      return fmt::format("cell {},{} is the lead display's own", j.column, j.row);
+    }
+    for (const auto& [other, n] : c.wall_nodes) {
+      if (other != peer && n.column == j.column && n.row == j.row) {
+        return fmt::format("cell {},{} is shown by node {} ({})", j.column, j.row, n.id, n.name);
+      }
+    }
+    auto it = c.wall_nodes.find(peer);
+    if (it == c.wall_nodes.end()) {
+      uint32_t id = j.node_id;
+      const bool taken = id < 2 || std::any_of(c.wall_nodes.begin(), c.wall_nodes.end(),
+                                               [&](const auto& e) { return e.second.id == id; });
+      if (taken) id = c.next_node_id;
+      c.next_node_id = std::max(c.next_node_id, id + 1);
+      it = c.wall_nodes
+               .emplace(peer,
+                        Control::WallMember{id, j.name, j.column, j.row, j.samples_endpoint, t})
+               .first;
+      spdlog::info("display node {} joined the wall: {} shows cell {},{}, samples at {}", id,
+                   j.name, j.column, j.row, j.samples_endpoint);
+      c.wall_changed = true;
+    } else if (it->second.column != j.column || it->second.row != j.row ||
+               it->second.endpoint != j.samples_endpoint) {
+      it->second.column = j.column;
+      it->second.row = j.row;
+      it->second.endpoint = j.samples_endpoint;
+      c.wall_changed = true;
+    }
+    it->second.last_heard = t;
+    welcome(peer, it->second.id);
+    if (!c.wall_changed) send_layout(peer);  // a repeated join; a change is sent to everyone
+    return "";
+  };
+  // Messages of a wall follower (or a follower's join). Returns whether it was one.
+  auto handle_wall = [&](const std::string& peer, const Message& msg, double t) {
+    if (const auto* j = std::get_if<DisplayJoin>(&msg)) {
+      if (std::string refusal = admit_display(peer, *j, t); !refusal.empty()) {
+        spdlog::warn("display {} refused: {}", j->name, refusal);
+        send(peer, Leave{0, LeaveReason::kRefused, refusal});
+      }
+      return true;
+    }
+    auto it = c.wall_nodes.find(peer);
+    if (it == c.wall_nodes.end()) return false;
+    it->second.last_heard = t;
+    if (const auto* l = std::get_if<Leave>(&msg)) {
+      spdlog::info("display node {} ({}) left the wall: {}", it->second.id, it->second.name,
+                   l->text);
+      c.wall_nodes.erase(it);
+      c.wall_changed = true;
+    }
+    return true;
   };
 
   while (running_.load(std::memory_order_relaxed)) {
@@ -274,7 +381,9 @@ void DisplayService::control_loop() {
       } else {
         const Message& msg = in->message.value();
         Member* m = co.find_peer(in->peer);
-        if (const auto* j = std::get_if<Join>(&msg)) {
+        if (handle_wall(in->peer, msg, t)) {
+          // a follower display of the wall
+        } else if (const auto* j = std::get_if<Join>(&msg)) {
           bool is_new = false;
           Member& mm =
               co.join(in->peer, j->sampler_id, j->name, in->public_key, j->threads, t, &is_new);
@@ -283,7 +392,8 @@ void DisplayService::control_loop() {
                          in->public_key.empty() ? "" : ", key " + in->public_key);
             metrics_.on_member(j->name, mm.id, in->public_key, j->threads);
           }
-          welcome(mm, t);
+          welcome(mm.peer, mm.id);
+          send_layout(mm.peer);
           if (!is_new) {  // a repeated join: the region it may have missed
             send(mm.peer,
                  RegionAssignment{mm.id, co.epoch(), options_.width, options_.height, mm.region});
@@ -361,6 +471,21 @@ void DisplayService::control_loop() {
         c.transfers.erase(dead.peer);
         send(dead.peer, Leave{dead.id, LeaveReason::kTimeout, "no heartbeat: join again"});
       }
+      for (auto it = c.wall_nodes.begin(); it != c.wall_nodes.end();) {
+        if (t - it->second.last_heard > options_.coordinator.member_timeout) {
+          spdlog::warn("display node {} ({}) lost: no word for {:.2f} s; its cell goes dark",
+                       it->second.id, it->second.name, t - it->second.last_heard);
+          send(it->first, Leave{it->second.id, LeaveReason::kTimeout, "no heartbeat: join again"});
+          it = c.wall_nodes.erase(it);
+          c.wall_changed = true;
+        } else {
+          ++it;
+        }
+      }
+    }
+    if (c.wall_changed) {
+      c.wall_changed = false;
+      publish_layout();
     }
     if (co.maybe_recut(t)) send_regions(t);
 
@@ -368,6 +493,9 @@ void DisplayService::control_loop() {
       last_heartbeat = t;
       for (const auto& [id, m] : co.members()) {
         send(m.peer, Heartbeat{id, session_, c.heartbeat_sequence, t});
+      }
+      for (const auto& [peer, n] : c.wall_nodes) {
+        send(peer, Heartbeat{n.id, session_, c.heartbeat_sequence, t});
       }
       ++c.heartbeat_sequence;
       if (context_.zap()) metrics_.set_zap(context_.zap()->accepted(), context_.zap()->refused());
@@ -387,6 +515,9 @@ void DisplayService::control_loop() {
   }
   for (const auto& [id, m] : co.members()) {
     send(m.peer, Leave{id, LeaveReason::kShutdown, "display shutting down"});
+  }
+  for (const auto& [peer, n] : c.wall_nodes) {
+    send(peer, Leave{n.id, LeaveReason::kShutdown, "display shutting down"});
   }
 }
 

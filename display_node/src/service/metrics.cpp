@@ -1,10 +1,15 @@
 #include <afr/display/service/metrics.h>
 
+#include <afr/common/error.h>
+
 #include <fmt/format.h>
+#include <httplib.h>
+#include <spdlog/spdlog.h>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <thread>
 
 namespace afr::service {
 
@@ -174,6 +179,15 @@ void ServiceMetrics::set_display(uint64_t session, int width, int height,
   display_.mode = mode;
 }
 
+void ServiceMetrics::set_wall(uint32_t node_id, const PixelRect& cell, uint64_t nodes,
+                              uint64_t epoch) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  display_.wall_node = node_id;
+  display_.wall_cell = cell;
+  display_.wall_nodes = nodes;
+  display_.wall_epoch = epoch;
+}
+
 void ServiceMetrics::set_uptime(double seconds) {
   std::lock_guard<std::mutex> lock(mutex_);
   display_.uptime = seconds;
@@ -277,6 +291,12 @@ std::string ServiceMetrics::prometheus() const {
          "messages rejected on the sample and control channels",
          d.rejected_samples_channel + d.rejected_control);
   scalar("afr_display_zap_refused_total", "counter", "CurveZMQ clients refused", d.zap_refused);
+  scalar("afr_display_wall_nodes", "gauge", "display nodes in the wall (1: no wall)", d.wall_nodes);
+  metric("afr_display_wall_cell", "gauge",
+         "this node's part of the virtual display, labels node x0 y0 x1 y1");
+  o += fmt::format(
+      "afr_display_wall_cell{{node=\"{}\",x0=\"{}\",y0=\"{}\",x1=\"{}\",y1=\"{}\"}} 1\n",
+      d.wall_node, d.wall_cell.x0, d.wall_cell.y0, d.wall_cell.x1, d.wall_cell.y1);
   metric("afr_display_sample_latency_seconds", "histogram",
          "sample-to-display latency: display time of the frame that first shows a sample "
          "minus the sample's time");
@@ -321,7 +341,12 @@ std::string ServiceMetrics::json() const {
                   {"latency_p50", d.latency_p50},
                   {"latency_p99", d.latency_p99},
                   {"window_latency_p50", d.window_latency_p50},
-                  {"window_latency_p99", d.window_latency_p99}};
+                  {"window_latency_p99", d.window_latency_p99},
+                  {"wall",
+                   {{"node", d.wall_node},
+                    {"cell", {d.wall_cell.x0, d.wall_cell.y0, d.wall_cell.x1, d.wall_cell.y1}},
+                    {"nodes", d.wall_nodes},
+                    {"epoch", d.wall_epoch}}}};
   j["samplers"] = nlohmann::json::array();
   for (const SamplerMetrics& s : samplers()) {
     j["samplers"].push_back({{"id", s.id},
@@ -359,6 +384,44 @@ std::string ServiceMetrics::log_line() const {
                      s.reported.batches_dropped, s.sequence_gaps);
   }
   return o;
+}
+
+// ---------------------------------------------------------------------------------------------
+// HTTP
+
+struct MetricsServer::Impl {
+  httplib::Server server;
+  std::thread thread;
+  std::string address;
+  int port = 0;
+};
+
+MetricsServer::MetricsServer(const ServiceMetrics& metrics, const std::string& address, int port)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->address = address;
+  impl_->port = port;
+  impl_->server.Get("/metrics", [&metrics](const httplib::Request&, httplib::Response& res) {
+    res.set_content(metrics.prometheus(), "text/plain; version=0.0.4");
+  });
+  impl_->server.Get("/stats", [&metrics](const httplib::Request&, httplib::Response& res) {
+    res.set_content(metrics.json(), "application/json");
+  });
+  if (!impl_->server.bind_to_port(address.c_str(), port)) {
+    throw Error(fmt::format("cannot serve metrics on {}:{} (port in use?)", address, port));
+  }
+}
+
+MetricsServer::~MetricsServer() { stop(); }
+
+void MetricsServer::start() {
+  if (impl_->thread.joinable()) return;
+  impl_->thread = std::thread([this] { impl_->server.listen_after_bind(); });
+  spdlog::info("metrics on http://{}:{}/metrics and /stats", impl_->address, impl_->port);
+}
+
+void MetricsServer::stop() {
+  impl_->server.stop();
+  if (impl_->thread.joinable()) impl_->thread.join();
 }
 
 }  // namespace afr::service

@@ -1,5 +1,6 @@
 #include <afr/sampler/service/sampler_service.h>
 
+#include <afr/common/clock.h>
 #include <afr/common/error.h>
 #include <afr/protocol/scene_hash.h>
 #include <afr/sampler/presets.h>
@@ -13,6 +14,7 @@
 #include <chrono>
 #include <cmath>
 #include <future>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -26,51 +28,6 @@ namespace {
 double steady_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
-
-// ---------------------------------------------------------------------------------------------
-// The display's clock, as learned from views (DESIGN.md, "Time")
-
-// now() = local steady time + offset. Each view gives a candidate offset (its display time
-// minus the local time it arrived); the largest candidate is the one that travelled fastest,
-// so the clock follows the largest seen, re-anchored every few seconds so that it can also
-// follow a slow drift between machines. Read from any thread; observe() from one.
-class DisplayClock final : public Clock {
- public:
-  double now() const override { return offset_.load(std::memory_order_relaxed) + local(); }
-
-  void observe(double display_time) {
-    const double e = local();
-    const double c = display_time - e;
-    if (!set_) {
-      reset_to(display_time);
-      return;
-    }
-    if (c > offset_.load()) offset_.store(c);
-    window_max_ = std::max(window_max_, c);
-    if (e - window_start_ > kWindowSeconds) {
-      offset_.store(window_max_);
-      window_max_ = c;
-      window_start_ = e;
-    }
-  }
-  // A new session: the display's clock starts over.
-  void reset_to(double display_time) {
-    const double e = local();
-    offset_.store(display_time - e);
-    window_max_ = display_time - e;
-    window_start_ = e;
-    set_ = true;
-  }
-
- private:
-  static constexpr double kWindowSeconds = 2.0;
-  static double local() { return steady_seconds(); }
-
-  std::atomic<double> offset_{-steady_seconds()};
-  double window_max_ = 0.0;
-  double window_start_ = 0.0;
-  bool set_ = false;
-};
 
 // ---------------------------------------------------------------------------------------------
 // The camera of the display's views
@@ -108,16 +65,42 @@ class ViewCamera final : public CameraSource {
 };
 
 // ---------------------------------------------------------------------------------------------
-// The pool's sink: the sample channel, shared by the pool's worker threads
+// The pool's sink: the sample channels, shared by the pool's worker threads
+
+// Where samples go. Without a wall, one route: the display's sample channel, everything. On a
+// display wall (docs/wall.md), one route per display node, with the part of the image whose
+// samples and tiles that node needs; a sample inside several (the margins overlap) goes to each.
+struct SampleRoute {
+  SampleSender* sender = nullptr;
+  PixelRect rect;         // empty: everything (no wall)
+  uint64_t sequence = 0;  // batches sent on this route: each node sees its own sequence
+};
 
 class NetworkSink final : public SampleSink {
  public:
   void attach(SampleSender* sender, uint32_t sampler_id, ImageBounds bounds) {
     std::lock_guard<std::mutex> lock(mutex_);
     retire_locked();
-    sender_ = sender;
+    routes_.push_back(SampleRoute{sender, PixelRect{}, 0});
     sampler_id_ = sampler_id;
     bounds_ = bounds;
+  }
+  // A display wall's routes (each sender outlives its route). Keeps the ids and bounds of
+  // attach(); counters of senders no longer routed to are kept.
+  void route(const std::vector<SampleRoute>& routes) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::vector<SampleRoute> next = routes;
+    for (SampleRoute& r : next) {
+      for (const SampleRoute& old : routes_) {
+        if (old.sender == r.sender) r.sequence = old.sequence;
+      }
+    }
+    for (const SampleRoute& old : routes_) {
+      const bool kept = std::any_of(next.begin(), next.end(),
+                                    [&](const SampleRoute& r) { return r.sender == old.sender; });
+      if (!kept) add(&retired_, old.sender->counters());
+    }
+    routes_ = std::move(next);
   }
   void detach() {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -126,30 +109,64 @@ class NetworkSink final : public SampleSink {
 
   void on_batch(SampleBatch&& batch) override {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (!sender_) {
+    if (routes_.empty()) {
       ++unsent_;
       return;
     }
-    // One sequence per node: the pool's threads each count their own batches.
     batch.sampler_id = sampler_id_;
-    batch.sequence = sequence_++;
-    if (Status s = sender_->send(batch, bounds_); !s.ok()) report(s);
+    if (routes_.size() == 1 && routes_[0].rect.empty()) {
+      // One sequence per node: the pool's threads each count their own batches.
+      batch.sequence = routes_[0].sequence++;
+      if (Status s = routes_[0].sender->send(batch, bounds_); !s.ok()) report(s);
+      return;
+    }
+    for (SampleRoute& r : routes_) {
+      part_.sampler_id = batch.sampler_id;
+      part_.fields = batch.fields;
+      part_.samples.clear();
+      for (const Sample& smp : batch.samples) {
+        if (smp.x >= float(r.rect.x0) && smp.x < float(r.rect.x1) && smp.y >= float(r.rect.y0) &&
+            smp.y < float(r.rect.y1)) {
+          part_.samples.push_back(smp);
+        }
+      }
+      if (part_.samples.empty()) continue;
+      part_.sequence = r.sequence++;
+      if (Status s = r.sender->send(part_, bounds_); !s.ok()) report(s);
+    }
   }
   void on_tiling(TilingSnapshot&& snapshot) override {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (!sender_) return;
     snapshot.sampler_id = sampler_id_;
-    if (Status s = sender_->send(snapshot, bounds_); !s.ok()) report(s);
+    for (SampleRoute& r : routes_) {
+      if (r.rect.empty()) {
+        if (Status s = r.sender->send(snapshot, bounds_); !s.ok()) report(s);
+        continue;
+      }
+      // The node learns the sampler's whole region (so tiles of it that moved away are
+      // dropped) but only the tiles that reach its part of the image.
+      tiles_.sampler_id = snapshot.sampler_id;
+      tiles_.time = snapshot.time;
+      tiles_.region = snapshot.region;
+      tiles_.tiles.clear();
+      for (const TileInfo& t : snapshot.tiles) {
+        if (t.rect.x0 < r.rect.x1 && r.rect.x0 < t.rect.x1 && t.rect.y0 < r.rect.y1 &&
+            r.rect.y0 < t.rect.y1) {
+          tiles_.tiles.push_back(t);
+        }
+      }
+      if (Status s = r.sender->send(tiles_, bounds_); !s.ok()) report(s);
+    }
   }
   void pump() {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (sender_) sender_->pump();
+    for (SampleRoute& r : routes_) r.sender->pump();
   }
   // Over every sender this sink has had.
   SampleSender::Counters counters() const {
     std::lock_guard<std::mutex> lock(mutex_);
     SampleSender::Counters c = retired_;
-    if (sender_) add(&c, sender_->counters());
+    for (const SampleRoute& r : routes_) add(&c, r.sender->counters());
     c.batches_dropped += unsent_;
     return c;
   }
@@ -163,8 +180,8 @@ class NetworkSink final : public SampleSink {
     a->tilings_dropped += b.tilings_dropped;
   }
   void retire_locked() {
-    if (sender_) add(&retired_, sender_->counters());
-    sender_ = nullptr;
+    for (const SampleRoute& r : routes_) add(&retired_, r.sender->counters());
+    routes_.clear();
   }
   void report(const Status& s) {
     // Only a bug upstream makes a batch the codec refuses; say it once in a while.
@@ -175,10 +192,11 @@ class NetworkSink final : public SampleSink {
   }
 
   mutable std::mutex mutex_;
-  SampleSender* sender_ = nullptr;
+  std::vector<SampleRoute> routes_;
   uint32_t sampler_id_ = 0;
   ImageBounds bounds_;
-  uint64_t sequence_ = 0;
+  SampleBatch part_;      // the samples of one route (reused: no allocation per batch)
+  TilingSnapshot tiles_;  // the tiles of one route
   uint64_t unsent_ = 0;
   uint64_t encode_errors_ = 0;
   SampleSender::Counters retired_;
@@ -199,6 +217,7 @@ struct SamplerService::Impl {
   void on_welcome(const Welcome& w, ControlClient& control, SampleSender& sender);
   void on_chunk(const SceneChunk& c, ControlClient& control);
   void on_region(const RegionAssignment& r);
+  void on_wall(const WallLayout& w, SampleSender& sender);
   void use_scene(const std::filesystem::path& file, const SceneHash& hash);
   void update_pool();
   void stop_pool();
@@ -207,7 +226,7 @@ struct SamplerService::Impl {
 
   SamplerServiceOptions options;
   Context context;
-  DisplayClock clock;
+  RemoteClock clock;  // the display's (DESIGN.md, "Time"), learned from views
   ViewCamera view_camera;
   NetworkSink sink;
   SceneCache cache;
@@ -223,6 +242,10 @@ struct SamplerService::Impl {
   double last_chunk_time = 0.0;
   std::optional<RegionAssignment> region;
   uint64_t epoch = 0;
+  // A display wall's sample channels (the lead display's is the session's own sender), by
+  // endpoint; they live as long as the session or until the wall drops their node.
+  std::map<std::string, std::unique_ptr<SampleSender>> wall_senders;
+  uint64_t wall_epoch = 0;
 
   // Scene and pool.
   std::unique_ptr<Scene> scene;
@@ -380,9 +403,12 @@ SessionEnd SamplerService::Impl::run_session(const std::atomic<bool>& stop) {
   if (end == SessionEnd::kStopped && joined) {
     (void)control.send(Leave{sampler_id, LeaveReason::kShutdown, "sampler stopped"});
     sender.flush(200);
+    for (auto& [endpoint, s] : wall_senders) s->flush(200);
   }
   stop_pool();
-  sink.detach();
+  sink.detach();  // before the senders it routes to go away
+  wall_senders.clear();
+  wall_epoch = 0;
   joined = false;
   return end;
 }
@@ -396,6 +422,8 @@ void SamplerService::Impl::handle(const Message& m, ControlClient& control, Samp
     on_chunk(*c, control);
   } else if (const auto* r = std::get_if<RegionAssignment>(&m)) {
     on_region(*r);
+  } else if (const auto* wl = std::get_if<WallLayout>(&m)) {
+    on_wall(*wl, sender);
   } else if (const auto* hb = std::get_if<Heartbeat>(&m)) {
     if (joined && hb->session != session) {
       spdlog::info("the display restarted (session {:x} -> {:x}): joining again", session,
@@ -513,6 +541,48 @@ void SamplerService::Impl::on_region(const RegionAssignment& r) {
   region = r;
   std::lock_guard<std::mutex> lock(counters_mutex);
   ++counters.regions;
+}
+
+// A display wall's layout: one sample route per display node, to the part of the image it
+// needs (docs/wall.md). The lead display's own node has no endpoint: the session's sender.
+void SamplerService::Impl::on_wall(const WallLayout& w, SampleSender& sender) {
+  if (!joined || w.epoch < wall_epoch) return;
+  if (w.width != welcome.width || w.height != welcome.height) {
+    spdlog::warn("wall layout {}x{} does not match the display's image {}x{}: ignored", w.width,
+                 w.height, welcome.width, welcome.height);
+    return;
+  }
+  wall_epoch = w.epoch;
+  std::vector<SampleRoute> routes;
+  std::map<std::string, std::unique_ptr<SampleSender>> kept;
+  for (const WallNode& n : w.nodes) {
+    SampleSender* to = &sender;
+    if (!n.samples_endpoint.empty()) {
+      auto it = wall_senders.find(n.samples_endpoint);
+      if (it != wall_senders.end()) {
+        kept[n.samples_endpoint] = std::move(it->second);
+        wall_senders.erase(it);
+      } else if (!kept.count(n.samples_endpoint)) {
+        try {
+          kept[n.samples_endpoint] =
+              std::make_unique<SampleSender>(context, n.samples_endpoint, options.security);
+        } catch (const zmq::error_t& e) {
+          spdlog::error("wall node {}: cannot connect to {}: {}", n.node_id, n.samples_endpoint,
+                        e.what());
+          continue;
+        }
+      }
+      to = kept[n.samples_endpoint].get();
+    }
+    const bool whole = n.cell == PixelRect{0, 0, w.width, w.height};
+    routes.push_back(SampleRoute{to, whole ? PixelRect{} : wall_receive_rect(w, n), 0});
+  }
+  sink.route(routes);  // no longer routes to the senders left in wall_senders
+  wall_senders = std::move(kept);
+  spdlog::info("wall layout {}: {} display node(s), margin {} px", w.epoch, w.nodes.size(),
+               w.margin);
+  std::lock_guard<std::mutex> lock(counters_mutex);
+  ++counters.wall_layouts;
 }
 
 // Starts, replaces or keeps the pool so that it runs on the current region. Pools are built on

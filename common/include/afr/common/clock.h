@@ -40,6 +40,54 @@ class WallClock final : public Clock {
   std::atomic<double> offset_{0.0};
 };
 
+// The display's clock as another process learns it from the display's messages (views):
+// now() = local steady time + offset. Each message stamped with the display time gives a
+// candidate offset (its display time minus the local time it arrived); the largest candidate
+// is the one that travelled fastest, so the clock follows the largest seen, re-anchored every
+// few seconds so that it also follows a slow drift between machines. now() from any thread;
+// observe() and reset_to() from one.
+class RemoteClock final : public Clock {
+ public:
+  double now() const override { return offset_.load(std::memory_order_relaxed) + local(); }
+
+  void observe(double display_time) {
+    const double e = local();
+    const double c = display_time - e;
+    if (!set_) {
+      reset_to(display_time);
+      return;
+    }
+    if (c > offset_.load()) offset_.store(c);
+    window_max_ = c > window_max_ ? c : window_max_;
+    if (e - window_start_ > kWindowSeconds) {
+      offset_.store(window_max_);
+      window_max_ = c;
+      window_start_ = e;
+    }
+  }
+  // A new session: the display's clock starts over.
+  void reset_to(double display_time) {
+    const double e = local();
+    offset_.store(display_time - e);
+    window_max_ = display_time - e;
+    window_start_ = e;
+    set_ = true;
+  }
+  bool is_set() const { return set_; }
+
+ private:
+  static constexpr double kWindowSeconds = 2.0;
+  static double local() {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
+        .count();
+  }
+
+  std::atomic<double> offset_{-local()};
+  double window_max_ = 0.0;
+  double window_start_ = 0.0;
+  bool set_ = false;
+};
+
 // Time that advances 1/rate seconds per traced primary ray. It counts rays in an integer and
 // computes now() = start + rays / rate, so it does not accumulate rounding error.
 class VirtualClock final : public Clock {

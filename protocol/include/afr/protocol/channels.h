@@ -219,8 +219,10 @@ class ViewSubscriber {
 // Control: display <-> samplers
 
 // Which messages may travel on the control channel, by direction.
-bool allowed_to_display(MessageType type);  // join, scene_request, stats, heartbeat, leave
-bool allowed_to_sampler(MessageType type);  // welcome, scene_chunk, region, heartbeat, leave
+// join, scene_request, stats, heartbeat, leave, and display_join (from a wall's followers)
+bool allowed_to_display(MessageType type);
+// welcome, scene_chunk, region, heartbeat, leave, and wall_layout (to samplers and followers)
+bool allowed_to_sampler(MessageType type);
 
 // ROUTER, bound by the display. Knows each peer by ZeroMQ's routing id and, with CurveZMQ, by
 // its public key (the user id the ZAP handler gave it).

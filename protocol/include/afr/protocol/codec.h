@@ -94,6 +94,8 @@ Status encode(const TilingSnapshot& m, std::vector<uint8_t>* out, const ImageBou
 Status encode(const SamplerStats& m, std::vector<uint8_t>* out);
 Status encode(const Heartbeat& m, std::vector<uint8_t>* out);
 Status encode(const Leave& m, std::vector<uint8_t>* out);
+Status encode(const DisplayJoin& m, std::vector<uint8_t>* out);
+Status encode(const WallLayout& m, std::vector<uint8_t>* out);
 Status encode(const Message& m, std::vector<uint8_t>* out);
 
 // ---------------------------------------------------------------------------------------------
@@ -112,6 +114,8 @@ Status decode(Bytes message, TilingSnapshot* out, const ImageBounds& bounds = {}
 Status decode(Bytes message, SamplerStats* out);
 Status decode(Bytes message, Heartbeat* out);
 Status decode(Bytes message, Leave* out);
+Status decode(Bytes message, DisplayJoin* out);
+Status decode(Bytes message, WallLayout* out);
 // Any type, by its header (allocates a fresh object; for control messages).
 Result<Message> decode_message(Bytes message, const ImageBounds& bounds = {});
 
@@ -130,5 +134,7 @@ Status validate(const TilingSnapshot& m, const ImageBounds& bounds = {});
 Status validate(const SamplerStats& m);
 Status validate(const Heartbeat& m);
 Status validate(const Leave& m);
+Status validate(const DisplayJoin& m);
+Status validate(const WallLayout& m);
 
 }  // namespace afr::protocol

@@ -19,8 +19,9 @@ namespace afr::protocol {
 // Versions and limits
 
 // Bumped on every change of a byte layout; a peer of another version is refused (a decoder
-// still reads the header of any version, so it can say why).
-inline constexpr uint16_t kProtocolVersion = 1;
+// still reads the header of any version, so it can say why). Version 2 added the display wall
+// (DisplayJoin, WallLayout).
+inline constexpr uint16_t kProtocolVersion = 2;
 
 inline constexpr int32_t kMaxImageSize = 32768;          // pixels a side (DESIGN.md, "Samples")
 inline constexpr uint32_t kMaxSamplesPerBatch = 65536;   // the sampler's batch_size limit
@@ -29,6 +30,9 @@ inline constexpr uint32_t kMaxChunkBytes = 1u << 20;     // scene transfer chunk
 inline constexpr uint64_t kMaxSceneBytes = 1ull << 32;   // 4 GiB
 inline constexpr uint32_t kMaxNameBytes = 255;           // names, presets, leave texts
 inline constexpr uint16_t kMaxThreads = 4096;
+// A display wall: at most this many display nodes, and this many pixels of margin.
+inline constexpr uint32_t kMaxWallNodes = 1024;
+inline constexpr int32_t kMaxWallMargin = 1024;
 // Batch time offsets are 15-bit ticks of 2^tick_exp seconds, tick_exp in this range: from
 // about 1 ns ticks (a 30 us span) to 1 s ticks (a 9 h span).
 inline constexpr int kMinTickExp = -30;
@@ -50,9 +54,11 @@ enum class MessageType : uint16_t {
   kStats = 9,
   kHeartbeat = 10,
   kLeave = 11,
+  kDisplayJoin = 12,
+  kWallLayout = 13,
 };
 inline constexpr uint16_t kFirstMessageType = 1;
-inline constexpr uint16_t kLastMessageType = 11;
+inline constexpr uint16_t kLastMessageType = 13;
 
 // "join", "sample_batch", ...; "unknown" for values outside the enum.
 const char* message_type_name(MessageType type);
@@ -193,9 +199,51 @@ struct View {
 
 // Sample channel (PUSH/PULL): SampleBatch and TilingSnapshot of afr/common/samples.h.
 
+// ---------------------------------------------------------------------------------------------
+// Display wall (docs/wall.md): one lead display coordinates; follower displays each show one
+// cell of a grid over the virtual display and receive the samples of their cell plus a margin.
+
+// follower display -> lead display, on the control channel: "I show this cell". The lead
+// answers with a Welcome (node id in sampler_id, the session and clock) and a WallLayout;
+// afterwards the follower sends heartbeats, like a sampler.
+struct DisplayJoin {
+  uint32_t node_id = 0;  // 0: assign one; else the id this node had before a reconnect
+  uint16_t protocol_version = kProtocolVersion;
+  uint16_t column = 0;  // the cell of the lead's grid
+  uint16_t row = 0;
+  std::string samples_endpoint;  // where samplers push this node's samples (tcp://HOST:PORT)
+  std::string name;
+  bool operator==(const DisplayJoin&) const = default;
+};
+
+struct WallNode {
+  uint32_t node_id = 0;  // >= 1, unique in a layout
+  PixelRect cell;        // the part of the virtual display this node shows
+  // Its sample channel; empty: the lead's own (the endpoint the sampler joined through).
+  std::string samples_endpoint;
+  bool operator==(const WallNode&) const = default;
+};
+
+// lead display -> samplers and followers, on the control channel, whenever the wall changes:
+// which display node needs which samples. A sampler sends each sample (and each tile of its
+// snapshots) to every node whose cell, grown by `margin` pixels and clipped to the image,
+// contains it, and nothing to the others.
+struct WallLayout {
+  uint64_t epoch = 0;  // +1 per change; older epochs are ignored
+  int32_t width = 0;   // the virtual display, 1..kMaxImageSize
+  int32_t height = 0;
+  int32_t margin = 0;           // 0..kMaxWallMargin pixels
+  std::vector<WallNode> nodes;  // 1..kMaxWallNodes, cells inside the image, not overlapping
+  bool operator==(const WallLayout&) const = default;
+};
+
+// The samples a node of `layout` needs: its cell grown by the margin, clipped to the image.
+PixelRect wall_receive_rect(const WallLayout& layout, const WallNode& node);
+
 // Any message, for channels that carry several types.
-using Message = std::variant<Join, Welcome, SceneRequest, SceneChunk, RegionAssignment, View,
-                             SampleBatch, TilingSnapshot, SamplerStats, Heartbeat, Leave>;
+using Message =
+    std::variant<Join, Welcome, SceneRequest, SceneChunk, RegionAssignment, View, SampleBatch,
+                 TilingSnapshot, SamplerStats, Heartbeat, Leave, DisplayJoin, WallLayout>;
 
 MessageType message_type(const Message& message);
 

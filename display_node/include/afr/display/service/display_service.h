@@ -12,6 +12,7 @@
 #include <afr/common/samples.h>
 #include <afr/display/service/coordinator.h>
 #include <afr/display/service/metrics.h>
+#include <afr/display/service/wall.h>
 #include <afr/protocol/channels.h>
 
 #include <atomic>
@@ -55,7 +56,19 @@ struct DisplayServiceOptions {
   // HTTP /metrics and /stats; port 0: off.
   std::string metrics_address = "127.0.0.1";
   int metrics_port = 0;
+  // Display wall (docs/wall.md): the grid over the image and this lead node's cell. Follower
+  // displays (WallFollower) join for the other cells. 1 x 1: no wall.
+  WallGrid wall;
+  int wall_column = 0;
+  int wall_row = 0;
 };
+
+// Reads the sample channel into `sink` until `running` turns false (waking every 50 ms to
+// check), counting in `metrics`; is_member(sampler id) says whether a batch comes from a known
+// member (for the metrics only: every valid batch goes to the sink). The ingest thread of a
+// display or of a wall's follower.
+void run_ingest(protocol::SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metrics,
+                const std::function<bool(uint32_t)>& is_member, const std::atomic<bool>& running);
 
 class DisplayService {
  public:
@@ -75,11 +88,13 @@ class DisplayService {
   ServiceMetrics& metrics() { return metrics_; }
   // The current regions by sampler id (for overlays).
   std::vector<std::pair<uint32_t, PixelRect>> regions() const;
+  // This node's cell of the wall (the whole image without a wall), and the current layout.
+  PixelRect cell() const;
+  protocol::WallLayout wall_layout() const;
 
  private:
   void control_loop();
   void ingest_loop();
-  void http_loop();
 
   struct Control;
   DisplayServiceOptions options_;
@@ -93,10 +108,10 @@ class DisplayService {
   std::unique_ptr<protocol::SampleReceiver> samples_;
   mutable std::mutex regions_mutex_;
   std::vector<std::pair<uint32_t, PixelRect>> regions_;
+  protocol::WallLayout layout_;  // under regions_mutex_
   std::atomic<bool> running_{false};
-  std::thread control_thread_, ingest_thread_, http_thread_;
-  struct Http;
-  std::unique_ptr<Http> http_;
+  std::thread control_thread_, ingest_thread_;
+  std::unique_ptr<MetricsServer> http_;
 };
 
 }  // namespace afr::service

@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -89,6 +90,12 @@ struct DisplayMetrics {
   uint64_t zap_refused = 0;
   uint64_t views = 0;
   uint64_t scene_chunks_sent = 0;
+  // Display wall (docs/wall.md): this node's id and cell of the virtual display, and the nodes
+  // in the wall (1 without a wall).
+  uint32_t wall_node = 1;
+  PixelRect wall_cell;
+  uint64_t wall_nodes = 1;
+  uint64_t wall_epoch = 0;
   double latency_p50 = 0.0, latency_p99 = 0.0;  // seconds, since the start
   double window_latency_p50 = 0.0, window_latency_p99 = 0.0;
 };
@@ -114,6 +121,8 @@ class ServiceMetrics {
   void set_display(uint64_t session, int width, int height, const std::string& backend,
                    const std::string& mode);
   void set_uptime(double seconds);
+  // Either thread: the wall as this node knows it.
+  void set_wall(uint32_t node_id, const PixelRect& cell, uint64_t nodes, uint64_t epoch);
 
   // Rates and windowed latencies: call once per stats period (the log line's).
   void end_period(double seconds);
@@ -135,6 +144,23 @@ class ServiceMetrics {
   LatencyHistogram latency_, window_latency_;
   uint64_t period_frames_ = 0;
   double reconstruct_ms_sum_ = 0.0;
+};
+
+// Serves a ServiceMetrics over HTTP: /metrics (Prometheus text) and /stats (JSON), on its own
+// thread from start() to stop() (or destruction).
+class MetricsServer {
+ public:
+  // Binds now; throws afr::Error naming the address when it cannot.
+  MetricsServer(const ServiceMetrics& metrics, const std::string& address, int port);
+  ~MetricsServer();
+  MetricsServer(const MetricsServer&) = delete;
+  MetricsServer& operator=(const MetricsServer&) = delete;
+  void start();
+  void stop();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
 
 }  // namespace afr::service

@@ -3,7 +3,8 @@
 // the display's clock from view messages, runs a SamplerPool on its region and streams sample
 // batches and tiling snapshots back, with heartbeats and stats on the control channel. It
 // follows region changes (restarting its pool on the new region) and, when the display goes
-// away or restarts, joins again by itself.
+// away or restarts, joins again by itself. On a display wall it sends each sample to the
+// display nodes whose part of the image needs it (docs/wall.md).
 //
 // Threads: run() is the control loop (one thread); the pool's workers call the network sink,
 // which serialises them on the sample socket. Stop by setting the flag run() watches.
@@ -40,6 +41,7 @@ struct SamplerServiceCounters {
   uint64_t sessions = 0;
   uint64_t joins_sent = 0;
   uint64_t regions = 0;
+  uint64_t wall_layouts = 0;  // display-wall layouts followed
   uint64_t scenes_received = 0;
   uint64_t scene_cache_hits = 0;
   uint64_t rejected_messages = 0;

@@ -1,0 +1,217 @@
+#include <afr/display/service/wall_follower.h>
+
+#include <afr/common/error.h>
+#include <afr/display/service/display_service.h>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+
+namespace afr::service {
+
+using namespace afr::protocol;
+
+namespace {
+
+double steady_seconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+}  // namespace
+
+WallFollower::WallFollower(WallFollowerOptions options, SampleSink& sink)
+    : options_(std::move(options)), sink_(sink) {
+  (void)service_endpoints(options_.lead);  // throws for a malformed endpoint
+  if (options_.column < 0 || options_.row < 0 || options_.column > 65535 || options_.row > 65535) {
+    throw Error(fmt::format("--cell {},{}: out of range", options_.column, options_.row));
+  }
+  const bool curve = !options_.keys.secret_key.empty();
+  if (curve) {
+    context_.allow_curve_clients(options_.allowed_keys, [](const ZapDecision& d) {
+      if (!d.accepted) {
+        spdlog::warn("CurveZMQ: REFUSED {} key {} from {}: not on the allow-list", d.mechanism,
+                     d.public_key.empty() ? "(none)" : d.public_key, d.address);
+      }
+    });
+  }
+  try {
+    samples_ = std::make_unique<SampleReceiver>(
+        context_, options_.bind, curve ? Security::server(options_.keys) : Security::none());
+  } catch (const zmq::error_t& e) {
+    throw Error(fmt::format("cannot bind the sample channel {}: {}", options_.bind, e.what()));
+  }
+  if (options_.advertise.empty()) options_.advertise = samples_->endpoint();
+  if (options_.name.empty()) {
+    options_.name = fmt::format("wall-{}-{}", options_.column, options_.row);
+  }
+  if (options_.metrics_port > 0) {
+    http_ =
+        std::make_unique<MetricsServer>(metrics_, options_.metrics_address, options_.metrics_port);
+  }
+}
+
+WallFollower::~WallFollower() { stop(); }
+
+void WallFollower::start() {
+  if (running_.exchange(true)) return;
+  spdlog::info("wall follower {}: cell {},{} of the lead {}, samples at {}", options_.name,
+               options_.column, options_.row, options_.lead, options_.advertise);
+  control_thread_ = std::thread([this] { control_loop(); });
+  ingest_thread_ = std::thread([this] {
+    run_ingest(
+        *samples_, sink_, metrics_, [](uint32_t) { return true; }, running_);
+  });
+  if (http_) http_->start();
+}
+
+void WallFollower::stop() {
+  if (!running_.exchange(false)) return;
+  if (control_thread_.joinable()) control_thread_.join();
+  if (ingest_thread_.joinable()) ingest_thread_.join();
+  if (http_) http_->stop();
+}
+
+std::optional<Camera> WallFollower::camera() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return camera_;
+}
+
+std::optional<WallLayout> WallFollower::layout() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return layout_;
+}
+
+uint32_t WallFollower::node_id() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return node_id_;
+}
+
+PixelRect WallFollower::cell() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (layout_) {
+    for (const WallNode& n : layout_->nodes) {
+      if (n.node_id == node_id_) return n.cell;
+    }
+  }
+  return {};
+}
+
+std::string WallFollower::endpoint() const { return samples_->endpoint(); }
+
+// One loop over sessions: fresh sockets, join until welcomed, then heartbeats, views and
+// layouts until the lead falls silent, restarts or asks this node to go.
+void WallFollower::control_loop() {
+  const ServiceEndpoints ep = service_endpoints(options_.lead);
+  const Security client = options_.keys.secret_key.empty()
+                              ? Security::none()
+                              : Security::client(options_.keys, options_.lead_public_key.empty()
+                                                                    ? options_.keys.public_key
+                                                                    : options_.lead_public_key);
+  uint64_t heartbeat_sequence = 0;
+  while (running_.load() && !failed_.load()) {
+    ControlClient control(context_, ep.control, client);
+    ViewSubscriber views(context_, ep.views, client);
+    bool joined = false, over = false;
+    uint64_t session = 0;
+    const double started = steady_seconds();
+    double last_join = -1e9, last_heard = started, last_heartbeat = 0.0;
+    bool warned = false;
+    while (running_.load() && !over) {
+      const double t = steady_seconds();
+      if (!joined) {
+        if (t - last_join >= 0.5) {
+          DisplayJoin j;
+          j.node_id = node_id();
+          j.column = uint16_t(options_.column);
+          j.row = uint16_t(options_.row);
+          j.samples_endpoint = options_.advertise;
+          j.name = options_.name;
+          if (Status s = control.send(j); !s.ok() && !warned) {
+            spdlog::warn("cannot ask the lead to join: {}", s.message());
+          }
+          last_join = t;
+        }
+        if (!warned && t - started > 5.0) {
+          warned = true;
+          spdlog::warn("no answer from the lead display at {} after 5 s (is it running?)",
+                       options_.lead);
+        }
+        if (t - started > 10.0) break;  // fresh sockets now and then
+      } else if (t - last_heard > options_.lead_timeout) {
+        spdlog::warn("lead display silent for {:.1f} s: joining again", t - last_heard);
+        break;
+      }
+      zmq::pollitem_t items[] = {{control.socket().handle(), 0, ZMQ_POLLIN, 0},
+                                 {views.socket().handle(), 0, ZMQ_POLLIN, 0}};
+      try {
+        zmq::poll(items, 2, std::chrono::milliseconds(10));
+      } catch (const zmq::error_t& e) {
+        if (e.num() != EINTR) throw;
+      }
+      while (std::optional<Result<Message>> m = control.receive(0)) {
+        if (!m->ok()) {
+          spdlog::warn("control channel: rejected a message from the lead: {}", m->error());
+          continue;
+        }
+        last_heard = steady_seconds();
+        const Message& msg = m->value();
+        if (const auto* w = std::get_if<Welcome>(&msg)) {
+          if (!joined || w->session != session) {
+            spdlog::info("joined the wall as display node {} (session {:x}): {}x{} virtual display",
+                         w->sampler_id, w->session, w->width, w->height);
+          }
+          std::lock_guard<std::mutex> lock(mutex_);
+          if (w->session != session) layout_.reset();  // a new session numbers layouts anew
+          joined = true;
+          session = w->session;
+          clock_.reset_to(w->display_time);
+          node_id_ = w->sampler_id;
+        } else if (const auto* l = std::get_if<WallLayout>(&msg)) {
+          std::lock_guard<std::mutex> lock(mutex_);
+          if (layout_ && l->epoch < layout_->epoch) continue;  // an older one, overtaken
+          layout_ = *l;
+          samples_->set_image_bounds({l->width, l->height});
+          for (const WallNode& n : l->nodes) {
+            if (n.node_id == node_id_) {
+              metrics_.set_wall(n.node_id, n.cell, l->nodes.size(), l->epoch);
+            }
+          }
+        } else if (const auto* hb = std::get_if<Heartbeat>(&msg)) {
+          if (joined && hb->session != session) {
+            spdlog::info("the lead display restarted: joining again");
+            over = true;
+          }
+        } else if (const auto* l = std::get_if<Leave>(&msg)) {
+          if (l->reason == LeaveReason::kVersionMismatch) {
+            spdlog::error("the lead display refused this node: {} (protocol version {})", l->text,
+                          kProtocolVersion);
+            failed_.store(true);
+          } else {
+            spdlog::warn("the lead display asked this node to leave: {}", l->text);
+          }
+          over = true;
+        }
+      }
+      while (std::optional<View> v = views.receive(0)) {
+        if (!joined) continue;
+        clock_.observe(v->time);
+        last_heard = steady_seconds();
+        std::lock_guard<std::mutex> lock(mutex_);
+        camera_ = v->camera;
+      }
+      if (joined && t - last_heartbeat >= options_.heartbeat_interval) {
+        last_heartbeat = t;
+        (void)control.send(Heartbeat{node_id(), session, heartbeat_sequence++, clock_.now()});
+      }
+    }
+    if (joined && !running_.load() && !failed_.load()) {
+      (void)control.send(Leave{node_id(), LeaveReason::kShutdown, "display node stopped"});
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    if (!running_.load() || failed_.load()) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+}
+
+}  // namespace afr::service
