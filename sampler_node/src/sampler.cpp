@@ -27,6 +27,11 @@ constexpr double kBalanceRatio = 3.0;
 constexpr double kMinMoveForTemporal = 1e-3;
 // The smallest pixel distance a reprojected spatial gradient divides by.
 constexpr double kMinPixelDistance = 0.25;
+// A removal or a split that leaves less than this fraction of a block's weight (w, or wt) has
+// left mostly rounding: 1 + 1e-45 - 1 is 0 in double. Such sums are re-derived at once.
+constexpr double kCancellation = 1e-6;
+// `TileSums::updates` at or above this asks for a re-derivation before the sums are next read.
+constexpr int32_t kRederiveNow = std::numeric_limits<int32_t>::max() / 2;
 
 float sample_luminance(const ShadedSample& s) { return luminance(s.color); }
 
@@ -40,6 +45,7 @@ void add_to_sums(TileSums& s, const CrosshairStats& c, double sign) {
   }
   const double w = std::exp(kAgeDecay * (c.time - s.t_ref));
   const double d = double(c.luminance) - s.shift;
+  const double w_before = s.w, wt_before = s.wt;
   s.w += sign * w;
   s.wl += sign * w * d;
   s.wll += sign * w * d * d;
@@ -48,17 +54,35 @@ void add_to_sums(TileSums& s, const CrosshairStats& c, double sign) {
   if (c.has(Crosshair::kHasTemporalGradient)) {
     s.wt += sign * w;
     s.wgt += sign * w * c.G_t;
+    s.temporal += sign > 0.0 ? 1 : -1;
+    if (s.temporal == 0) s.wt = s.wgt = 0.0;  // exactly, not the rounding of what was taken
   }
   s.t_sum += sign * (c.time - s.t_ref);
   s.count += sign > 0.0 ? 1 : -1;
   if (c.has(Crosshair::kOccluded)) s.occluded += sign > 0.0 ? 1 : -1;
   ++s.updates;
-  if (c.time - s.t_ref > kMaxReferenceAge) s.updates = std::numeric_limits<int32_t>::max() / 2;
+  if (c.time - s.t_ref > kMaxReferenceAge) s.updates = kRederiveNow;
+  // The crosshair held nearly all of the weight (crosshairs of a block seconds apart): what is
+  // left is rounding, not the weight of the others.
+  if (sign < 0.0 && s.count > 0 &&
+      (s.w < kCancellation * w_before || (s.temporal > 0 && s.wt < kCancellation * wt_before))) {
+    s.updates = kRederiveNow;
+  }
 }
 
 // Sums that add and subtract drift: they are re-derived once the updates outnumber the block,
-// or when new weights grow too large against the reference time.
+// when new weights grow too large against the reference time, or after a cancellation.
 bool needs_rederive(const TileSums& s) { return s.updates > 4 * s.count + 64; }
+
+// The shift a re-derivation of `old` takes: its weighted mean, which keeps the squares small.
+// Sums marked for re-derivation may be rounding only (see kCancellation), so they keep their
+// shift, a luminance of the block.
+double rederive_shift(const TileSums& old) {
+  if (old.count <= 0) return 0.0;
+  if (old.updates >= kRederiveNow || !(old.w > 0.0)) return old.shift;
+  const double mean = old.shift + old.wl / old.w;
+  return std::isfinite(mean) ? mean : old.shift;
+}
 
 // The sums of the crosshairs of a block, straight from the deep buffer, with the newest as
 // reference time.
@@ -81,6 +105,7 @@ TileSums sums_from_buffer(const DeepBuffer& buffer, const PixelRect& rect, doubl
     if (c.has(Crosshair::kHasTemporalGradient)) {
       s.wt += w;
       s.wgt += w * c.G_t;
+      ++s.temporal;
     }
     s.t_sum += c.time - s.t_ref;
     ++s.count;
@@ -115,6 +140,7 @@ TileSums sums_from_parts(const TileSums* parts, int n, double shift) {
     out.wgt += f * s.wgt;
     out.t_sum += s.t_sum + s.count * (s.t_ref - out.t_ref);
     out.count += s.count;
+    out.temporal += s.temporal;
     out.occluded += s.occluded;
   }
   return out;
@@ -356,7 +382,11 @@ void Sampler::reproject(int tile) {
     const double len = glm::length(to_eye);
     if (len > 0.0) {
       const glm::dvec3 dir = to_eye / len;
-      const double eps = 1e-4 * (1.0 + glm::length(glm::dvec3(c.position)));
+      // Off the surface by a fraction of the way to the eye, plus some float spacings of the
+      // point's coordinates: relative to the scene's scale, so that in a scene in micrometres
+      // the ray still starts between the point and the eye.
+      const double eps =
+          std::min(1e-4 * len + 1e-6 * glm::length(glm::dvec3(c.position)), 0.5 * len);
       const glm::vec3 from(glm::dvec3(c.position) + eps * dir);
       if (tracer_.occluded(from, glm::vec3(camera_.eye), &trace_stats_)) {
         // Replace it by a new crosshair at the same image location; the hidden sample is its
@@ -573,18 +603,13 @@ void Sampler::settle(int tile, int cell) {
 }
 
 void Sampler::rederive_cell(int cell) {
-  const TileSums& old = cells_[size_t(cell)];
-  const double shift = old.count > 0 && old.w > 0.0 ? old.shift + old.wl / old.w : 0.0;
   cells_[size_t(cell)] =
-      sums_from_buffer(buffer_, tiling_.cell_rect(cell), std::isfinite(shift) ? shift : 0.0);
+      sums_from_buffer(buffer_, tiling_.cell_rect(cell), rederive_shift(cells_[size_t(cell)]));
 }
 
 // Recomputes a tile's sums from the crosshairs in its block, with the newest as reference
 // time and the block's previous weighted mean as shift (a split passes the parent's).
-void Sampler::rederive(int tile) {
-  const TileSums& old = record(tile).sums;
-  rederive(tile, old.count > 0 && old.w > 0.0 ? old.shift + old.wl / old.w : 0.0);
-}
+void Sampler::rederive(int tile) { rederive(tile, rederive_shift(record(tile).sums)); }
 
 void Sampler::rederive(int tile, double shift) {
   shift = std::isfinite(shift) ? shift : 0.0;
@@ -742,12 +767,12 @@ void Sampler::on_split(int parent, int a, int b) {
   record(a).pending = record(b).pending = -1;
   // Re-derive the smaller child (from its cells, or when smaller than a cell from the buffer)
   // and take the other as the parent's sums minus it. The difference carries the parent's
-  // updates, so it is re-derived as soon as the parent would have been.
+  // updates, so it is re-derived as soon as the parent would have been, or at once when the
+  // smaller child held nearly all of the parent's weight (combine() marks it).
   const bool a_smaller = tiling_.node(a).rect.area() <= tiling_.node(b).rect.area();
   const int scanned = a_smaller ? a : b, derived = a_smaller ? b : a;
   const TileSums ps = records_[parent].sums;
-  const double parent_mean = ps.count > 0 && ps.w > 0.0 ? ps.shift + ps.wl / ps.w : 0.0;
-  rederive(scanned, parent_mean);
+  rederive(scanned, rederive_shift(ps));
   records_[derived].sums = combine(ps, records_[scanned].sums, -1.0);
   if (needs_rederive(records_[derived].sums)) rederive(derived);
   for (int c : {a, b}) {
@@ -796,9 +821,16 @@ TileSums combine(const TileSums& a, const TileSums& b, double sign) {
     out.wgt += f * s->wgt;
     out.t_sum += signs[k] * (s->t_sum + s->count * (s->t_ref - out.t_ref));
     out.count += int32_t(signs[k]) * s->count;
+    out.temporal += int32_t(signs[k]) * s->temporal;
     out.occluded += int32_t(signs[k]) * s->occluded;
   }
   out.updates = a.updates + b.updates;
+  if (out.temporal <= 0) out.wt = out.wgt = 0.0;
+  // Block b held nearly all of a's weight: the difference is mostly rounding.
+  if (sign < 0.0 &&
+      (out.w < kCancellation * a.w || (out.temporal > 0 && out.wt < kCancellation * a.wt))) {
+    out.updates = kRederiveNow;
+  }
   return out;
 }
 

@@ -251,9 +251,7 @@ TEST(ExtremesTest, OneSamplePerSecondStaysFinite) {
   Pipeline p(scene, sampler_config(32, 32), 1.0);
   p.run_until(5.0 * 3600.0);
   const Image image = p.reconstruct();
-  // Exact statistics at this rate need the sampler fix of README.md ("Pending") (see the disabled
-  // StaticSceneForTenHoursKeepsExactStatistics); finite and non-negative they are already.
-  p.expect_clean(image, /*exact_stats=*/false);
+  p.expect_clean(image);  // with exact statistics, though a tile's crosshairs are seconds apart
   for (int t : p.sampler.tiling().tiles()) {
     const TileStats st = p.sampler.tile_stats(t);
     ASSERT_TRUE(std::isfinite(st.v) && st.v >= 0.0 && std::isfinite(st.G_t) &&
@@ -502,10 +500,10 @@ TEST(ExtremesTest, SceneScalesOfAMillionAndAMillionthStayFinite) {
   EXPECT_LT(scaled_run(1e-6, truth, &hits_small), 25.0);
 }
 
-TEST(ExtremesTest, DISABLED_OcclusionRaysWorkAtAMillionthScale) {
-  // Disabled until the sampler.cpp/tracer.cpp offset fix of README.md ("Pending") is in: the
-  // occlusion ray of a reprojection starts 1e-4 units off the surface, past the eye of a scene
-  // in micrometres, and the tracer's offsets (5e-5 at least) leave it an empty segment.
+TEST(ExtremesTest, OcclusionRaysWorkAtAMillionthScale) {
+  // The occlusion ray of a reprojection starts off the surface by a distance relative to the
+  // way to the eye and to the point's coordinates: an absolute 1e-4 would start it past the
+  // eye of a scene in micrometres, and it would never hit.
   const Image truth = exact_image(scaled_scene(1.0), 0.5, 40, 40);
   uint64_t hits_at_one, hits_small;
   scaled_run(1.0, truth, &hits_at_one);

@@ -96,13 +96,12 @@ Scene static_quads_scene() {
   return s;
 }
 
-TEST(ExtremesTest, DISABLED_StaticSceneForTenHoursKeepsExactStatistics) {
+TEST(ExtremesTest, StaticSceneForTenHoursKeepsExactStatistics) {
   // 10 rays per virtual second: ten hours are ~360000 rays. Every weight underflows thousands
-  // of times over; the running sums must still equal a fresh pass over the deep buffer.
-  // Disabled until the sampler.cpp cancellation fix of README.md ("Pending") is in: when the
-  // crosshair that held nearly all of a tile's weight leaves it (or a split derives a child
-  // by subtracting its sibling that held it), w becomes exactly 0 while the block still has
-  // crosshairs, and the tile reports zero variance, gradients and age.
+  // of times over; the running sums must still equal a fresh pass over the deep buffer. The
+  // crosshairs of a tile are seconds apart, so the one that leaves it (or the sibling a split
+  // subtracts) often held nearly all of its weight: what the subtraction leaves is rounding,
+  // and the sampler must re-derive those sums before it reads them.
   const Scene scene = static_quads_scene();
   Tracer tracer(scene);
   VirtualClock clock(10.0);
@@ -346,9 +345,8 @@ TEST(ExtremesTest, NanAndInfRadianceIsSanitisedAndCounted) {
 
 TEST(ExtremesTest, HugeFiniteRadianceKeepsStatisticsFinite) {
   // Finite radiance near the float limit passes the tracer's NaN/Inf check, but differences
-  // and squares of it overflow floats: the crosshair gradients (float) and the snapshot's
-  // variance become Inf. Disabled until the tracer.cpp sanitize() clamp of README.md
-  // ("Pending") is in.
+  // and squares of it would overflow floats (the crosshair gradients and the snapshot's
+  // variance): the tracer clamps colors to 65504, the largest half float.
   Scene s = testing::camera_scene();
   testing::add_quad(&s, glm::vec3(3e38f), {-10, -10}, {0.0123f, 10});
   testing::add_quad(&s, glm::vec3(0.0f), {0.0123f, -10}, {10, 10});
@@ -430,10 +428,9 @@ std::vector<ShadedSample> trace_image(const Scene& scene, int w, int h, TraceSta
 
 TEST(ExtremesTest, LitSceneLooksTheSameAtEveryScale) {
   // The same scene in units a million times larger and smaller, with the light scaled to give
-  // the same radiance: the images agree except at a few edge pixels. Disabled until the
-  // tracer.cpp/shading.h fix of README.md ("Pending") is in: at 1e-6 the absolute floors of
-  // the secondary-ray offset (5e-5) and of the light distance (1e-6) exceed the scene, so
-  // shadows and nearby lights vanish.
+  // the same radiance: the images agree except at a few edge pixels. Secondary-ray offsets
+  // and the light-distance guard are relative to the scene's size; absolute ones (5e-5, 1e-6)
+  // would exceed a scene in micrometres, and its shadows and nearby lights would vanish.
   constexpr int kW = 64, kH = 48;
   TraceStats stats;
   const std::vector<ShadedSample> unit = trace_image(lit_scene(1.0), kW, kH, &stats);

@@ -134,6 +134,101 @@ TEST(SamplerTest, IncrementalStatisticsEqualBruteForceOverHoursOfVirtualTime) {
   }
 }
 
+// Static vertical stripes 0.1 units wide, bright and dark in turn, two units in front of the
+// camera; and a grey wall one unit in front, out of view at time 0, in front of the stripes
+// from 150 s on and sliding right at 0.1 units per second.
+Scene stripes_and_sliding_wall_scene() {
+  Scene s = testing::camera_scene();
+  Mesh stripes{"stripes", {}};
+  for (int tone = 0; tone < 2; ++tone) {
+    Material m;
+    m.base_color_factor = glm::vec4(0, 0, 0, 1);
+    m.metallic = 0.0f;
+    m.emissive = glm::vec3(tone == 0 ? 0.1f : 1.0f);
+    s.materials.push_back(m);
+    Primitive p;
+    p.material = int(s.materials.size()) - 1;
+    for (int i = tone; i < 60; i += 2) {
+      const float x0 = -3.0f + 0.1f * float(i), x1 = x0 + 0.1f;
+      const uint32_t v = uint32_t(p.positions.size());
+      p.positions.insert(p.positions.end(),
+                         {{x0, -10, -2}, {x1, -10, -2}, {x1, 10, -2}, {x0, 10, -2}});
+      p.indices.insert(p.indices.end(), {v, v + 1, v + 2, v, v + 2, v + 3});
+    }
+    stripes.primitives.push_back(p);
+  }
+  s.meshes.push_back(stripes);
+  Node n;
+  n.mesh = int(s.meshes.size()) - 1;
+  s.nodes.push_back(n);
+  AnimationChannel ch;
+  ch.node = testing::add_quad(&s, glm::vec3(0.5f), {-50, -50}, {50, 50});
+  ch.path = AnimatedPath::kTranslation;
+  ch.interpolation = Interpolation::kLinear;
+  ch.times = {0.0, 150.0, 10000.0};
+  ch.values = {{0, 100, 0, 0}, {0, 0, 0, 0}, {0.1 * 9850.0, 0, 0, 0}};
+  s.channels.push_back(ch);
+  s.finalize();
+  return s;
+}
+
+TEST(SamplerTest, StatisticsStayExactWhenTheCrosshairHoldingNearlyAllTheWeightLeaves) {
+  // Half a ray per second: the fill (16 crosshairs of the stripes, at time 0) takes 160 s, so
+  // a crosshair traced after it outweighs all of them by exp(3.47 * 160) ~ 1e241. It lands on
+  // the sliding wall, and its reprojection carries it out of the region: taking its weight
+  // out of the sums leaves 1 + 1e-241 - 1 = 0. The tile must still report, at once, the
+  // statistics of the stripes' crosshairs, as a brute-force pass over its block gives them.
+  const Scene scene = stripes_and_sliding_wall_scene();
+  Tracer tracer(scene);
+  VirtualClock clock(0.5);
+  CollectingSink sink;
+  SamplerConfig config = small_config(16, 16);
+  config.region = PixelRect{6, 6, 10, 10};
+  config.fill_step = 1;
+  config.min_tiles = config.max_tiles = 1;
+  config.r = 0;                   // reproject only when the test says so
+  config.occlusion_rays = false;  // the wall hides the stripes: keep their crosshairs
+  config.loop_animation = false;
+  Sampler sampler(scene, tracer, clock, config, sink);
+  sampler.fill();
+  ASSERT_EQ(sampler.tiling().tile_count(), 1);
+  const int tile = sampler.tiling().tiles()[0];
+  const auto expect_exact = [&](const char* when) {
+    const TileStats inc = sampler.tile_stats(tile);
+    const TileStats ref = testing::brute_force_stats(sampler, tile, clock.now());
+    ASSERT_EQ(inc.count, ref.count) << when;
+    const double pairs[][2] = {{inc.v, ref.v},
+                               {inc.G_x, ref.G_x},
+                               {inc.G_y, ref.G_y},
+                               {inc.G_t, ref.G_t},
+                               {inc.mean_age, ref.mean_age}};
+    const char* names[] = {"v", "G_x", "G_y", "G_t", "mean age"};
+    for (int k = 0; k < 5; ++k) {
+      EXPECT_NEAR(pairs[k][0], pairs[k][1], 1e-6 * std::abs(pairs[k][1]) + 1e-9)
+          << names[k] << " " << when;
+    }
+  };
+  expect_exact("after the fill");
+  const TileStats stripes = testing::brute_force_stats(sampler, tile, clock.now());
+  ASSERT_EQ(stripes.count, 16);
+  ASSERT_GT(stripes.v, 0.01);  // something to get wrong
+  ASSERT_GT(stripes.G_x, 0.1);
+  for (int round = 0; round < 5; ++round) {
+    SCOPED_TRACE(round);
+    sampler.step();  // one crosshair on the wall, the newest by far
+    ASSERT_EQ(sampler.tile_stats(tile).count, 17);
+    expect_exact("with the wall's crosshair");
+    // Reproject until it is the one taken (the others are static and stay in their pixel).
+    const uint64_t dropped = sampler.counters().reprojections_dropped;
+    for (int k = 0; k < 1000 && sampler.counters().reprojections_dropped == dropped; ++k) {
+      sampler.reproject(tile);
+    }
+    ASSERT_EQ(sampler.counters().reprojections_dropped, dropped + 1);
+    expect_exact("after it left");
+    EXPECT_NEAR(sampler.tile_stats(tile).v, stripes.v, 1e-9);
+  }
+}
+
 TEST(SamplerTest, GainControlIsFiniteAndBoundedAtTheExtremes) {
   const double inf = std::numeric_limits<double>::infinity();
   const double nan = std::numeric_limits<double>::quiet_NaN();

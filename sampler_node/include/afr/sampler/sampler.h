@@ -53,8 +53,10 @@ struct TileSums {
   double wt = 0.0, wgt = 0.0;   // over crosshairs with a temporal gradient: w, w * G_t
   double t_sum = 0.0;           // sum of (t - t_ref), for the mean age
   int32_t count = 0;            // crosshairs in the block
+  int32_t temporal = 0;         // of them, with a temporal gradient (those in wt)
   int32_t occluded = 0;         // of them, made to replace an occluded crosshair
-  int32_t updates = 0;          // adds and removes since the sums were last re-derived
+  int32_t updates = 0;          // adds and removes since the sums were last re-derived, or a
+                                // large value when they must be re-derived before use
 };
 
 // The sums of two disjoint blocks together (sign +1: a merge of two tiles), or of block a
