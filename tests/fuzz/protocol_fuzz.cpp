@@ -57,6 +57,8 @@ bool check_one(const uint8_t* data, size_t size) {
     SamplerStats i;
     Heartbeat j;
     Leave k;
+    DisplayJoin l;
+    WallLayout n;
     (void)decode(bytes, &a);
     (void)decode(bytes, &b);
     (void)decode(bytes, &c);
@@ -68,6 +70,8 @@ bool check_one(const uint8_t* data, size_t size) {
     (void)decode(bytes, &i);
     (void)decode(bytes, &j);
     (void)decode(bytes, &k);
+    (void)decode(bytes, &l);
+    (void)decode(bytes, &n);
   }
   const Result<Message> m = decode_message(bytes);
   const Result<Header> h = peek_header(bytes);
