@@ -109,10 +109,28 @@ struct CpuReconstructor::Impl {
   std::vector<Projected> sorted;     // in home-band order (pass B)
   std::vector<PixelShape> shapes;    // per pixel (pass C)
   std::vector<Counts> task_counts;
-  std::vector<glm::vec4> accum;             // (sum w c, sum w) per pixel
+  std::vector<glm::vec4> accum;             // (sum w c, sum w) per grid pixel
   std::vector<CoverageCell> coverage_next;  // this image's coverage
   CoverageMap previous;                     // the previous image's
+  PixelGrid previous_grid;                  // ... and where its pixels lie
   HolePyramid pyramid;
+  // The last image's grid size and the output's place in it (read_weights, read_coverage).
+  int grid_width = 0;
+  int view_x = 0, view_y = 0, out_width = 0, out_height = 0;
+
+  // The output's part of a per-grid-pixel buffer.
+  template <typename T>
+  void crop(const std::vector<T>& grid, std::vector<T>* out) const {
+    out->resize(size_t(out_width) * size_t(out_height));
+    if (grid.empty()) {
+      std::fill(out->begin(), out->end(), T{});
+      return;
+    }
+    for (int v = 0; v < out_height; ++v) {
+      const T* row = grid.data() + size_t(v + view_y) * size_t(grid_width) + size_t(view_x);
+      std::copy_n(row, out_width, out->data() + size_t(v) * size_t(out_width));
+    }
+  }
   // Traditional frameless.
   std::vector<double> newest_age;
 
@@ -153,12 +171,14 @@ CpuReconstructor::~CpuReconstructor() = default;
 int CpuReconstructor::threads() const { return impl_->pool.size(); }
 
 void CpuReconstructor::read_weights(std::vector<float>* out) {
-  out->resize(impl_->accum.size());
-  for (size_t i = 0; i < impl_->accum.size(); ++i) (*out)[i] = impl_->accum[i].w;
+  std::vector<glm::vec4> accum;
+  impl_->crop(impl_->accum, &accum);
+  out->resize(accum.size());
+  for (size_t i = 0; i < accum.size(); ++i) (*out)[i] = accum[i].w;
 }
 
 void CpuReconstructor::read_coverage(std::vector<CoverageCell>* out) {
-  *out = impl_->previous.cells();
+  impl_->crop(impl_->previous.cells(), out);
 }
 
 void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int width, int height,
@@ -169,9 +189,21 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
   FrameSetup setup;
   prepare_frame(time, width, height, delta, m.staging, &setup);
 
+  // From here on the image is the grid: the viewport with its margin. The output is its
+  // viewport part (the whole grid when the viewport is the whole image).
+  const int out_width = width, out_height = height;
+  width = setup.grid.width;
+  height = setup.grid.height;
+  const float origin_x = float(setup.grid.origin_x), origin_y = float(setup.grid.origin_y);
+  m.grid_width = width;
+  m.view_x = setup.view_x;
+  m.view_y = setup.view_y;
+  m.out_width = out_width;
+  m.out_height = out_height;
   const size_t pixels = size_t(width) * size_t(height);
-  if (m.previous.width() != width || m.previous.height() != height) {
+  if (!(m.previous_grid == setup.grid)) {
     m.previous.reset(width, height);
+    m.previous_grid = setup.grid;
   }
   m.accum.resize(pixels);
   m.coverage_next.resize(pixels);
@@ -199,7 +231,7 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
         ++frame_.future;
         continue;
       }
-      const float x = s.x * setup.scale_x, y = s.y * setup.scale_y;
+      const float x = s.x * setup.scale_x - origin_x, y = s.y * setup.scale_y - origin_y;
       if (!(x >= 0.0f && x < float(width) && y >= 0.0f && y < float(height))) {
         ++frame_.off_screen;
         continue;
@@ -216,7 +248,8 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
     std::fill(m.coverage_next.begin(), m.coverage_next.end(), CoverageCell{});
   } else {
     const bool reproject = current_mode == ReconstructionMode::kAdaptive;
-    const Projector projector(camera, width, height);
+    const Projector projector(camera, setup.image_width, setup.image_height, setup.grid.origin_x,
+                              setup.grid.origin_y);
     // Samples are kept while their center is inside the image grown by this (a whole number
     // of pixels, as the GL backend's viewport): their splats may still reach it.
     const float guard = float(splat_guard_band(rule));
@@ -294,8 +327,8 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
             continue;
           }
         } else {
-          x = s.x * setup.scale_x;
-          y = s.y * setup.scale_y;
+          x = s.x * setup.scale_x - origin_x;
+          y = s.y * setup.scale_y - origin_y;
         }
         if (!(x > -guard && x < float(width) + guard && y > -guard && y < float(height) + guard)) {
           ++c.off_screen;
@@ -419,27 +452,30 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
     frame_.future = c.future;
   }
 
-  // ---- Normalise; holes from wider support (hole_fill.h).
+  // ---- Normalise the output's pixels; holes from wider support (hole_fill.h) over the grid.
   m.pyramid.build(m.accum, width, height);
-  m.task_counts.assign(size_t(row_tasks), Counts{});
-  m.pool.run(row_tasks, [&](int task) {
-    size_t p0, p1;
-    rows_of(task, &p0, &p1);
+  const int out_tasks = std::min(out_height, threads * 4);
+  m.task_counts.assign(size_t(out_tasks), Counts{});
+  m.pool.run(out_tasks, [&](int task) {
     Counts& c = m.task_counts[size_t(task)];
-    for (size_t p = p0; p < p1; ++p) {
-      const glm::vec4 a = m.accum[p];
-      glm::vec3 color;
-      if (a.w > 0.0f) {
-        color = glm::vec3(a) / a.w;
-      } else {
-        ++c.holes;
-        if (!m.pyramid.fill(int(p % size_t(width)), int(p / size_t(width)), &color)) ++c.empty;
+    for (int v = out_height * task / out_tasks; v < out_height * (task + 1) / out_tasks; ++v) {
+      const int y = v + setup.view_y;
+      const glm::vec4* row = m.accum.data() + size_t(y) * size_t(width) + size_t(setup.view_x);
+      for (int u = 0; u < out_width; ++u) {
+        const glm::vec4 a = row[u];
+        glm::vec3 color;
+        if (a.w > 0.0f) {
+          color = glm::vec3(a) / a.w;
+        } else {
+          ++c.holes;
+          if (!m.pyramid.fill(u + setup.view_x, y, &color)) ++c.empty;
+        }
+        if (!std::isfinite(color.x) || !std::isfinite(color.y) || !std::isfinite(color.z)) {
+          ++c.nonfinite;
+          color = glm::vec3(0.0f);
+        }
+        if (out != nullptr) out->pixels[size_t(v) * size_t(out_width) + size_t(u)] = color;
       }
-      if (!std::isfinite(color.x) || !std::isfinite(color.y) || !std::isfinite(color.z)) {
-        ++c.nonfinite;
-        color = glm::vec3(0.0f);
-      }
-      if (out != nullptr) out->pixels[p] = color;
     }
   });
   const Counts c = m.sum_counts();

@@ -108,8 +108,12 @@ struct GlReconstructor::Impl {
 
   // Tile field.
   GLuint tile_filters_buffer = 0, tile_filters = 0;
-  // Per output size.
-  int width = 0, height = 0;
+  // Per grid (the viewport with its margin: accumulation, coverage, tile index, pyramid) and
+  // per output (the viewport's pixels).
+  int width = 0, height = 0;          // grid
+  int out_width = 0, out_height = 0;  // output
+  int view_x = 0, view_y = 0;         // the output's first pixel in the grid
+  PixelGrid grid;
   std::vector<PyramidLevel> levels;
   GLuint tile_index = 0, accum = 0, atlas = 0, output = 0, depth = 0;
   std::array<GLuint, 2> coverage{};
@@ -118,6 +122,7 @@ struct GlReconstructor::Impl {
   bool have_coverage = false;   // coverage[1 - current] holds the previous image's map
   GLuint counts = 0;            // hole, empty, non-finite pixel counters
   GLint max_viewport[2] = {0, 0};
+  GLint max_texture = 0;
 
   void release_sized() {
     glDeleteFramebuffers(2, fbo.data());
@@ -127,18 +132,30 @@ struct GlReconstructor::Impl {
     fbo = {};
     coverage = {};
     tile_index = accum = atlas = output = depth = 0;
-    width = height = 0;
+    width = height = out_width = out_height = 0;
   }
 
-  void resize(int w, int h) {
-    if (w == width && h == height) return;
+  // Returns true when the textures were made anew.
+  bool resize(const FrameSetup& setup) {
+    const int w = setup.grid.width, h = setup.grid.height;
+    view_x = setup.view_x;
+    view_y = setup.view_y;
+    if (!(setup.grid == grid)) {
+      grid = setup.grid;
+      have_coverage = false;  // the previous coverage lies elsewhere
+    }
+    if (w == width && h == height && setup.width == out_width && setup.height == out_height) {
+      return false;
+    }
     release_sized();
     width = w;
     height = h;
+    out_width = setup.width;
+    out_height = setup.height;
     levels = pyramid_layout(w, h);
     tile_index = make_texture(GL_R32UI, w, h);
     accum = make_texture(GL_RGBA32F, w, h);
-    output = make_texture(GL_RGBA32F, w, h);
+    output = make_texture(GL_RGBA32F, out_width, out_height);
     atlas = make_texture(GL_RGBA32F, std::max(1, (w + 1) / 2), pyramid_atlas_height(levels));
     for (GLuint& c : coverage) c = make_texture(GL_RG32F, w, h);
     glGenRenderbuffers(1, &depth);
@@ -160,6 +177,20 @@ struct GlReconstructor::Impl {
     current = 0;
     have_coverage = false;
     check_gl("resizing the reconstruction targets");
+    return true;
+  }
+
+  // The output's part of a grid-sized texture with `channels` floats per pixel.
+  void read_cropped(GLuint texture, GLenum format, int channels, float* out) const {
+    std::vector<float> all(size_t(width) * size_t(height) * size_t(channels));
+    glBindTexture(GL_TEXTURE_2D, texture);
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    glGetTexImage(GL_TEXTURE_2D, 0, format, GL_FLOAT, all.data());
+    const size_t row = size_t(out_width) * size_t(channels);
+    for (int v = 0; v < out_height; ++v) {
+      std::copy_n(all.data() + (size_t(v + view_y) * size_t(width) + size_t(view_x)) * channels,
+                  row, out + size_t(v) * row);
+    }
   }
 };
 
@@ -201,6 +232,7 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
   glTexBuffer(GL_TEXTURE_BUFFER, GL_RGBA32F, m.tile_filters_buffer);
 
   glGetIntegerv(GL_MAX_VIEWPORT_DIMS, m.max_viewport);
+  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &m.max_texture);
   glGenBuffers(1, &m.counts);
   glBindBuffer(GL_SHADER_STORAGE_BUFFER, m.counts);
   glBufferData(GL_SHADER_STORAGE_BUFFER, 3 * sizeof(uint32_t), nullptr, GL_DYNAMIC_READ);
@@ -226,14 +258,6 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
                                      Image* out) {
   context_->make_current();
   Impl& m = *impl_;
-  // The splat pass draws into the image grown by a guard band on every side.
-  const int g = splat_guard_band(config_.splat);
-  if (width + 2 * g > m.max_viewport[0] || height + 2 * g > m.max_viewport[1]) {
-    throw Error(
-        fmt::format("GL reconstructor: output {}x{} plus the {} pixel guard band exceeds "
-                    "this driver's largest viewport {}x{}",
-                    width, height, g, m.max_viewport[0], m.max_viewport[1]));
-  }
 
   // ---- Only the new samples go to the GPU, into their ring slots.
   const SampleStore::Delta delta = store_.copy_since(m.seen, &m.staging);
@@ -250,8 +274,22 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
 
   FrameSetup setup;
   prepare_frame(time, width, height, delta, m.staging, &setup);
-  const bool resized = width != m.width || height != m.height;
-  m.resize(width, height);
+  // From here on the image is the grid: the viewport with its margin. The output is its
+  // viewport part (the whole grid when the viewport is the whole image).
+  const int out_width = width, out_height = height;
+  width = setup.grid.width;
+  height = setup.grid.height;
+  // The splat pass draws into the grid grown by a guard band on every side.
+  const int g = splat_guard_band(config_.splat);
+  if (width + 2 * g > m.max_viewport[0] || height + 2 * g > m.max_viewport[1] ||
+      width > m.max_texture || height > m.max_texture) {
+    throw Error(
+        fmt::format("GL reconstructor: output {}x{} with its margin ({}x{}) plus the {} pixel "
+                    "guard band exceeds this driver's largest viewport {}x{} or texture {}",
+                    out_width, out_height, width, height, g, m.max_viewport[0], m.max_viewport[1],
+                    m.max_texture));
+  }
+  const bool resized = m.resize(setup);
   if (setup.field_changed || resized) {
     glBindTexture(GL_TEXTURE_2D, m.tile_index);
     glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
@@ -266,6 +304,7 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
   const FilterLimits& limits = config_.filter;
   const SplatSizeRule& rule = config_.splat;
   const glm::vec2 scale(setup.scale_x, setup.scale_y);
+  const glm::vec2 origin(float(setup.grid.origin_x), float(setup.grid.origin_y));
   const glm::ivec2 size(width, height);
 
   // ---- Splats (or newest samples) into (sum w c, sum w) and coverage.
@@ -288,6 +327,7 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     u.set("u_now", time);
     u.set("u_max_future", limits.max_future);
     u.set("u_scale", scale);
+    u.set("u_origin", origin);
     u.set("u_size", size);
     u.set("u_guard", float(g));
     glDisable(GL_BLEND);
@@ -298,7 +338,8 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
   } else {
     glUseProgram(m.splat);
     const Uniforms u{m.splat};
-    const Projector proj(camera, width, height);
+    const Projector proj(camera, setup.image_width, setup.image_height, setup.grid.origin_x,
+                         setup.grid.origin_y);
     u.set("u_now", time);
     u.set("u_reproject", current_mode == ReconstructionMode::kAdaptive ? 1 : 0);
     u.set("u_eye", proj.eye);
@@ -310,6 +351,7 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     u.set("u_min_direction_z", Projector::kMinDirectionZ);
     u.set("u_max_coordinate", Projector::kMaxCoordinate);
     u.set("u_scale", scale);
+    u.set("u_origin", origin);
     u.set("u_size", size);
     u.set("u_guard", float(g));
     u.set("u_max_future", limits.max_future);
@@ -380,13 +422,14 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     std::vector<glm::ivec3> level_data;
     for (const PyramidLevel& L : m.levels) level_data.emplace_back(L.width, L.height, L.row_offset);
     AFR_CHECK(level_data.size() <= 32);
-    u.set("u_size", size);
+    u.set("u_size", glm::ivec2(out_width, out_height));
+    u.set("u_offset", glm::ivec2(setup.view_x, setup.view_y));
     u.set("u_levels", int(level_data.size()));
     if (!level_data.empty()) {
       glUniform3iv(u.at("u_level"), GLsizei(level_data.size()), &level_data[0].x);
     }
-    glDispatchCompute(GLuint((width + kGroup - 1) / kGroup), GLuint((height + kGroup - 1) / kGroup),
-                      1);
+    glDispatchCompute(GLuint((out_width + kGroup - 1) / kGroup),
+                      GLuint((out_height + kGroup - 1) / kGroup), 1);
     glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_TEXTURE_UPDATE_BARRIER_BIT |
                     GL_TEXTURE_FETCH_BARRIER_BIT);
     uint32_t counts[3] = {0, 0, 0};
@@ -414,12 +457,10 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
 void GlReconstructor::read_weights(std::vector<float>* out) {
   context_->make_current();
   Impl& m = *impl_;
-  std::vector<glm::vec4> rgba(size_t(m.width) * size_t(m.height));
+  std::vector<glm::vec4> rgba(size_t(m.out_width) * size_t(m.out_height));
   out->resize(rgba.size());
   if (rgba.empty()) return;
-  glBindTexture(GL_TEXTURE_2D, m.accum);
-  glPixelStorei(GL_PACK_ALIGNMENT, 4);
-  glGetTexImage(GL_TEXTURE_2D, 0, GL_RGBA, GL_FLOAT, rgba.data());
+  m.read_cropped(m.accum, GL_RGBA, 4, &rgba[0].x);
   for (size_t i = 0; i < rgba.size(); ++i) (*out)[i] = rgba[i].w;
   check_gl("read_weights");
 }
@@ -427,12 +468,10 @@ void GlReconstructor::read_weights(std::vector<float>* out) {
 void GlReconstructor::read_coverage(std::vector<CoverageCell>* out) {
   context_->make_current();
   Impl& m = *impl_;
-  out->assign(size_t(m.width) * size_t(m.height), CoverageCell{});
+  out->assign(size_t(m.out_width) * size_t(m.out_height), CoverageCell{});
   if (out->empty() || !m.have_coverage) return;
   static_assert(sizeof(CoverageCell) == 2 * sizeof(float));
-  glBindTexture(GL_TEXTURE_2D, m.coverage[size_t(1 - m.current)]);
-  glPixelStorei(GL_PACK_ALIGNMENT, 4);
-  glGetTexImage(GL_TEXTURE_2D, 0, GL_RG, GL_FLOAT, out->data());
+  m.read_cropped(m.coverage[size_t(1 - m.current)], GL_RG, 2, &(*out)[0].count);
   check_gl("read_coverage");
 }
 
@@ -441,8 +480,8 @@ void GlReconstructor::draw_output(int fb_width, int fb_height) {
   Impl& m = *impl_;
   if (m.output == 0 || fb_width <= 0 || fb_height <= 0) return;
   // Fit the image into the framebuffer, keeping its aspect.
-  const double s = std::min(double(fb_width) / m.width, double(fb_height) / m.height);
-  const int w = std::max(1, int(m.width * s)), h = std::max(1, int(m.height * s));
+  const double s = std::min(double(fb_width) / m.out_width, double(fb_height) / m.out_height);
+  const int w = std::max(1, int(m.out_width * s)), h = std::max(1, int(m.out_height * s));
   glViewport((fb_width - w) / 2, (fb_height - h) / 2, w, h);
   glUseProgram(m.blit);
   glActiveTexture(GL_TEXTURE0);

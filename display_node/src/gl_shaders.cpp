@@ -23,7 +23,8 @@ uniform vec2 u_half;
 uniform float u_min_direction_z;
 uniform float u_max_coordinate;
 uniform vec2 u_scale;   // sampling image -> output pixels
-uniform ivec2 u_size;   // output pixels
+uniform vec2 u_origin;  // the grid's first pixel in the whole image, output pixels
+uniform ivec2 u_size;   // grid pixels (the viewport with its margin)
 uniform float u_guard;  // samples are kept while inside the image grown by this
 // FilterLimits
 uniform float u_max_future;
@@ -93,7 +94,7 @@ void main() {
     p = vec2(u_half.x + dot(d, u_axis_x) / z, u_half.y - dot(d, u_axis_y) / z);
     if (!(abs(p.x) < u_max_coordinate) || !(abs(p.y) < u_max_coordinate)) { skip(); return; }
   } else {
-    p = a_xy * u_scale;
+    p = a_xy * u_scale - u_origin;
   }
   vec2 size = vec2(u_size);
   if (!(p.x > -u_guard && p.x < size.x + u_guard && p.y > -u_guard && p.y < size.y + u_guard)) {
@@ -155,12 +156,13 @@ layout(location = 2) in vec3 a_color;
 uniform double u_now;
 uniform float u_max_future;
 uniform vec2 u_scale;
+uniform vec2 u_origin;
 uniform ivec2 u_size;
 uniform float u_guard;
 flat out vec3 v_color;
 void main() {
   double age_d = u_now - a_time;
-  vec2 p = a_xy * u_scale;
+  vec2 p = a_xy * u_scale - u_origin;
   vec2 size = vec2(u_size);
   if (age_d < double(-u_max_future) || !(p.x >= 0.0 && p.x < size.x && p.y >= 0.0 && p.y < size.y)) {
     gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
@@ -219,7 +221,8 @@ layout(std430, binding = 0) buffer Counts {
   uint empty;
   uint nonfinite;
 };
-uniform ivec2 u_size;
+uniform ivec2 u_size;    // output pixels
+uniform ivec2 u_offset;  // the output's first pixel in the grid (accum and pyramid)
 uniform int u_levels;
 uniform ivec3 u_level[32];  // width, height, first atlas row of levels 1..u_levels
 
@@ -229,8 +232,9 @@ vec4 texel(int k, int x, int y) {
 }
 
 void main() {
-  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
-  if (p.x >= u_size.x || p.y >= u_size.y) return;
+  ivec2 o = ivec2(gl_GlobalInvocationID.xy);
+  if (o.x >= u_size.x || o.y >= u_size.y) return;
+  ivec2 p = o + u_offset;
   vec4 a = imageLoad(u_accum, p);
   vec3 c = vec3(0.0);
   if (a.w > 0.0) {
@@ -259,7 +263,7 @@ void main() {
     atomicAdd(nonfinite, 1u);
     c = vec3(0.0);
   }
-  imageStore(u_out, p, vec4(c, 1.0));
+  imageStore(u_out, o, vec4(c, 1.0));
 }
 )";
 

@@ -12,36 +12,91 @@ namespace afr {
 
 namespace {
 
-size_t checked_capacity(const ReconstructorConfig& c) {
+// The config with its viewport, margin, splat rule and capacity resolved and checked.
+ReconstructorConfig resolved(const ReconstructorConfig& config) {
+  ReconstructorConfig c = config;
   if (c.image_width < 1 || c.image_height < 1 || c.image_width > 32768 || c.image_height > 32768) {
     throw Error(fmt::format("reconstructor: sampling image {}x{} is outside 1..32768 a side",
                             c.image_width, c.image_height));
   }
-  const size_t n =
-      c.capacity != 0 ? c.capacity : 4 * size_t(c.image_width) * size_t(c.image_height);
+  SplatSizeRule& rule = c.splat;
+  rule.max_radius = std::clamp(rule.max_radius, 1.0f, kSplatRadiusLimit);
+  rule.min_radius = std::clamp(rule.min_radius, 0.5f, rule.max_radius);
+  if (!(c.filter.cutoff >= 1.0f && c.filter.cutoff <= 8.0f)) {
+    throw Error("reconstructor: the filter cutoff must be in [1, 8] standard deviations");
+  }
+  const PixelRect image{0, 0, c.image_width, c.image_height};
+  if (c.viewport == PixelRect{}) c.viewport = image;
+  const PixelRect& v = c.viewport;
+  if (v.empty() || v.x0 < 0 || v.y0 < 0 || v.x1 > image.x1 || v.y1 > image.y1) {
+    throw Error(
+        fmt::format("reconstructor: viewport [{}, {}) x [{}, {}) is empty or not inside "
+                    "the {}x{} sampling image",
+                    v.x0, v.x1, v.y0, v.y1, c.image_width, c.image_height));
+  }
+  if (c.viewport_margin == -1) c.viewport_margin = auto_viewport_margin(rule);
+  if (c.viewport_margin < 0 || c.viewport_margin > 32768) {
+    throw Error(fmt::format("reconstructor: viewport margin {} is outside 0..32768 (or -1)",
+                            c.viewport_margin));
+  }
+  return c;
+}
+
+PixelRect grown(const ReconstructorConfig& c) {
+  const int m = c.viewport_margin;
+  return PixelRect{std::max(0, c.viewport.x0 - m), std::max(0, c.viewport.y0 - m),
+                   std::min(c.image_width, c.viewport.x1 + m),
+                   std::min(c.image_height, c.viewport.y1 + m)};
+}
+
+size_t checked_capacity(const ReconstructorConfig& c) {
+  const size_t n = c.capacity != 0 ? c.capacity : 4 * size_t(grown(c).area());
   if (n > kMaxCapacity) {
     throw Error(fmt::format("reconstructor: capacity {} exceeds the limit {}", n, kMaxCapacity));
   }
   return n;
 }
 
+// The grid's margins are at most this many output pixels (an upscaled output would otherwise
+// reconstruct margin x scale pixels, far more than any splat reaches), and its origin is
+// aligned to this many.
+constexpr int kMaxGridMargin = 4 * int(kSplatRadiusLimit);
+constexpr int kGridAlign = 32;
+
+// One axis of the grid: the viewport [v0, v1) of an image `side` sampling pixels wide, shown
+// as `out` output pixels (scale s), with `margin` sampling pixels around it.
+void place_axis(int32_t v0, int32_t v1, int32_t side, int out, int margin, int max_margin,
+                int* offset, int* size, double* origin) {
+  const double s = double(out) / double(v1 - v0);
+  const double start = double(v0) * s;  // the viewport's first output pixel in the whole image
+  const int m = int(std::min(std::ceil(double(margin) * s), double(max_margin)));
+  // Whole output pixels between the image's edges and the viewport's.
+  const int room_before = int(std::floor(start + 1e-9));
+  const int room_after = int(std::floor(double(side - v1) * s + 1e-9));
+  int before = std::min(m, room_before);
+  const double nearest = std::round(start);
+  if (std::abs(start - nearest) < 1e-9) {
+    // The viewport starts on a pixel of the whole image's grid: start the margin on a multiple
+    // of kGridAlign there (or at the image's edge).
+    const int64_t first = int64_t(nearest) - m;
+    const int64_t aligned = first >= 0 ? first / kGridAlign * kGridAlign : 0;
+    before = int(int64_t(nearest) - aligned);
+  }
+  *offset = before;
+  *size = before + out + std::min(m, room_after);
+  *origin = start - double(before);
+}
+
 }  // namespace
 
 Reconstructor::Reconstructor(const ReconstructorConfig& config)
-    : config_(config),
-      store_(checked_capacity(config)),
-      field_(config.image_width, config.image_height),
-      mode_(config.mode) {
+    : config_(resolved(config)),
+      received_(grown(config_)),
+      store_(checked_capacity(config_)),
+      field_(config_.image_width, config_.image_height),
+      mode_(config_.mode),
+      counts_(received_, store_.capacity()) {
   config_.capacity = store_.capacity();
-  slot_pixel_.assign(store_.capacity(), kNoPixel);
-  pixel_count_.assign(size_t(config.image_width) * size_t(config.image_height), 0u);
-  count_table_.assign(size_t(config.image_width + 1) * size_t(config.image_height + 1), 0u);
-  SplatSizeRule& rule = config_.splat;
-  rule.max_radius = std::clamp(rule.max_radius, 1.0f, kSplatRadiusLimit);
-  rule.min_radius = std::clamp(rule.min_radius, 0.5f, rule.max_radius);
-  if (!(config_.filter.cutoff >= 1.0f && config_.filter.cutoff <= 8.0f)) {
-    throw Error("reconstructor: the filter cutoff must be in [1, 8] standard deviations");
-  }
 }
 
 Reconstructor::~Reconstructor() = default;
@@ -69,46 +124,19 @@ Image Reconstructor::reconstruct(const Camera& camera, double time, int width, i
   return image;
 }
 
-void Reconstructor::count_fresh_samples(const SampleStore::Delta& delta,
-                                        const std::vector<StoredSample>& fresh) {
-  const int W = config_.image_width, H = config_.image_height;
-  RingRun runs[2];
-  const int k = ring_runs(delta.first, delta.end, slot_pixel_.size(), runs);
-  for (int r = 0; r < k; ++r) {
-    for (size_t j = 0; j < runs[r].count; ++j) {
-      uint32_t& slot = slot_pixel_[runs[r].slot + j];
-      if (slot != kNoPixel) --pixel_count_[slot];
-      const StoredSample& s = fresh[runs[r].offset + j];
-      // (NaN and far-away positions were rejected at the door; the comparisons keep the
-      // cast in range anyway.)
-      if (s.x >= 0.0f && s.y >= 0.0f && s.x < float(W) && s.y < float(H)) {
-        const int x = std::min(int(s.x), W - 1), y = std::min(int(s.y), H - 1);
-        slot = uint32_t(y) * uint32_t(W) + uint32_t(x);
-        ++pixel_count_[slot];
-      } else {
-        slot = kNoPixel;
-      }
-    }
-  }
-  // The summed-area table: entry (x, y) counts the samples in [0, x) x [0, y).
-  const size_t stride = size_t(W) + 1;
-  for (int y = 0; y < H; ++y) {
-    uint64_t row = 0;
-    const uint64_t* above = count_table_.data() + size_t(y) * stride;
-    uint64_t* here = count_table_.data() + size_t(y + 1) * stride;
-    for (int x = 0; x < W; ++x) {
-      row += pixel_count_[size_t(y) * size_t(W) + size_t(x)];
-      here[x + 1] = above[x + 1] + row;
-    }
-  }
-}
-
-uint64_t Reconstructor::stored_in(const PixelRect& rect) const {
-  const size_t stride = size_t(config_.image_width) + 1;
-  const auto at = [&](int32_t x, int32_t y) {
-    return count_table_[size_t(y) * stride + size_t(x)];
-  };
-  return at(rect.x1, rect.y1) - at(rect.x0, rect.y1) - at(rect.x1, rect.y0) + at(rect.x0, rect.y0);
+void Reconstructor::place_grid(int width, int height, FrameSetup* setup) const {
+  const PixelRect& v = config_.viewport;
+  const int margin = config_.viewport_margin;
+  PixelGrid& g = setup->grid;
+  place_axis(v.x0, v.x1, config_.image_width, width, margin, kMaxGridMargin, &setup->view_x,
+             &g.width, &g.origin_x);
+  place_axis(v.y0, v.y1, config_.image_height, height, margin, kMaxGridMargin, &setup->view_y,
+             &g.height, &g.origin_y);
+  g.scale_x = double(width) / double(v.width());
+  g.scale_y = double(height) / double(v.height());
+  // (Exactly width and height for the whole image.)
+  setup->image_width = double(width) * double(config_.image_width) / double(v.width());
+  setup->image_height = double(height) * double(config_.image_height) / double(v.height());
 }
 
 void Reconstructor::prepare_frame(double time, int width, int height,
@@ -118,10 +146,14 @@ void Reconstructor::prepare_frame(double time, int width, int height,
   setup->time = time;
   setup->width = width;
   setup->height = height;
-  setup->scale_x = float(width) / float(config_.image_width);
-  setup->scale_y = float(height) / float(config_.image_height);
-  setup->field_changed = field_.update(width, height);
-  count_fresh_samples(delta, fresh);
+  place_grid(width, height, setup);
+  setup->scale_x = float(setup->grid.scale_x);
+  setup->scale_y = float(setup->grid.scale_y);
+  setup->field_changed = field_.update(setup->grid);
+  // Recount the (new) tiles over the samples stored so far, then move the counts with the
+  // samples that entered the ring and those they replaced.
+  if (setup->field_changed) counts_.set_tiles(field_.tiles());
+  counts_.update(delta, fresh);
 
   // How far back the store reaches, and the mean rate it was filled at: the cap of e_t and the
   // rate of pixels no tile with a known rate covers.
@@ -129,29 +161,36 @@ void Reconstructor::prepare_frame(double time, int width, int height,
   const double depth =
       std::clamp(std::isfinite(reach) ? reach : 0.0, double(limits.min_temporal_extent),
                  double(limits.max_temporal_extent));
-  const double pixels = double(config_.image_width) * double(config_.image_height);
-  const double rate = double(delta.stored) / (pixels * depth);
+  const double pixels = double(received_.area());
+  const double rate = double(counts_.total()) / (pixels * depth);
   frame_.stored = delta.stored;
   frame_.depth = float(depth);
   frame_.default_rate = float(rate);
 
   const std::vector<FieldTile>& tiles = field_.tiles();
   setup->filters.resize(tiles.size());
+  tile_states_.resize(tiles.size());
   for (size_t i = 0; i < tiles.size(); ++i) {
     const FieldTile& t = tiles[i];
-    // R_l: the samples the store holds in the tile, over its area and the store's depth. The
+    // R_l: the samples the store holds in the tile, over its area and the store's depth, both
+    // counted inside the received region (a wall node gets no samples outside it). The
     // sampler's rate is what it expects to send there; after a retiling (new tiles, regions
     // moved between samplers) the store's samples were taken under other tiles and can be far
     // fewer or more. A tile with no stored sample keeps the sampler's rate (samples
     // reprojected into it still need a filter), and pixels no tile covers the store's mean.
     float R_l = t.rate > 0.0f ? t.rate : float(rate);
-    if (i > 0 && !t.rect.empty()) {
-      const uint64_t inside = stored_in(t.rect);
-      if (inside > 0) R_l = float(double(inside) / (double(t.rect.area()) * depth));
-    }
-    setup->filters[i] =
-        make_tile_filter(filter_extents(t.G_x, t.G_y, t.G_t, R_l, float(depth), limits),
-                         setup->scale_x, setup->scale_y);
+    const uint64_t inside = counts_.count(i);
+    if (inside > 0) R_l = float(double(inside) / (double(counts_.area(i)) * depth));
+    const FilterExtents e = filter_extents(t.G_x, t.G_y, t.G_t, R_l, float(depth), limits);
+    setup->filters[i] = make_tile_filter(e, setup->scale_x, setup->scale_y);
+    TileState& state = tile_states_[i];
+    state.rect = t.rect;
+    state.counted = PixelRect{std::max(t.rect.x0, received_.x0), std::max(t.rect.y0, received_.y0),
+                              std::min(t.rect.x1, received_.x1), std::min(t.rect.y1, received_.y1)};
+    if (state.counted.empty()) state.counted = PixelRect{};
+    state.stored = inside;
+    state.rate = R_l;
+    state.extents = e;
   }
 }
 

@@ -624,9 +624,7 @@ long peak_rss_kib() {
   return u.ru_maxrss;
 }
 
-// Disabled: the reconstructor now keeps a stored-sample count per image pixel (the measured
-// per-tile rate), which at 32768^2 allocates for the whole image; to be made sparse.
-TEST(ExtremesTest, DISABLED_DisplayOf32768ImageIndexesWithoutOverflowAndAllocatesForItsOutput) {
+TEST(ExtremesTest, DisplayOf32768ImageIndexesWithoutOverflowAndAllocatesForItsOutput) {
   // A 32768 x 32768 sampling image, N = 2^18 samples, reconstructed at 512 x 512 and at
   // 2048 x 1024. Samples reach the far corner (the last float below 32768); tiles cover it.
   // Nothing may be allocated per sampling-image pixel (that would be >= 4 GiB).
@@ -740,21 +738,27 @@ TEST(ExtremesTest, SampleStoreRingIndexesPastTwoToThe32Samples) {
 // ---------------------------------------------------------------------------------------------
 // Tiles and filter
 
-// Disabled: with the rate measured from the store per tile, one-pixel tiles and one tile of
-// the same values no longer give bit-identical images; expectation to be restated.
-TEST(ExtremesTest, DISABLED_OnePixelTilesAtTheDisplayEqualOneTileOfTheSameValues) {
-  // 4096 tiles of one pixel each, all with the same values, give bit for bit the image of one
-  // tile over the whole image; with random values per pixel the image stays finite.
-  constexpr int kSide = 64;
+TEST(ExtremesTest, OnePixelTilesAtTheDisplayEqualOneTileOfTheSameValues) {
+  // 4096 tiles of one pixel each, all with the same values and the same measured rate, give
+  // bit for bit the image of one tile over the whole image; with random values per pixel the
+  // image stays finite. R_l is measured per tile from the store (filter.h, step 0), so the
+  // samples are stratified: every pixel holds exactly 4 of them (the store's N = 4 x pixels
+  // keeps them all), and every one-pixel tile measures 4 / depth, the rate of the single tile
+  // (4 x 4096 / (4096 x depth)).
+  constexpr int kSide = 64, kPerPixel = 4;
   Pcg32 rng(4);
   SampleBatch batch;
-  for (int i = 0; i < 30000; ++i) {
-    Sample s;
-    s.x = kSide * rng.next_float();
-    s.y = kSide * rng.next_float();
-    s.time = rng.next_double();
-    s.color = glm::vec3(rng.next_float(), 0.5f, rng.next_float());
-    batch.samples.push_back(s);
+  for (int k = 0; k < kPerPixel; ++k) {
+    for (int y = 0; y < kSide; ++y) {
+      for (int x = 0; x < kSide; ++x) {
+        Sample s;
+        s.x = std::min(float(x) + rng.next_float(), std::nextafter(float(x + 1), 0.0f));
+        s.y = std::min(float(y) + rng.next_float(), std::nextafter(float(y + 1), 0.0f));
+        s.time = rng.next_double();
+        s.color = glm::vec3(rng.next_float(), 0.5f, rng.next_float());
+        batch.samples.push_back(s);
+      }
+    }
   }
   const auto tiling = [&](bool single_pixels, bool random_values) {
     TilingSnapshot t;
@@ -776,6 +780,7 @@ TEST(ExtremesTest, DISABLED_OnePixelTilesAtTheDisplayEqualOneTileOfTheSameValues
   };
   const Camera cam = Camera::look_at({0, 0, 0}, {0, 0, -1}, {0, 1, 0}, 1.0, 0.01);
   Image images[3];
+  float rates[3] = {0.0f, 0.0f, 0.0f};
   const bool cases[3][2] = {{false, false}, {true, false}, {true, true}};
   for (int k = 0; k < 3; ++k) {
     CpuReconstructor rec(rec_config(kSide, kSide));
@@ -785,18 +790,26 @@ TEST(ExtremesTest, DISABLED_OnePixelTilesAtTheDisplayEqualOneTileOfTheSameValues
     EXPECT_EQ(rec.tiling_stats().dropped_tiles, 0u);
     EXPECT_EQ(rec.frame_stats().nonfinite_pixels, 0u);
     for (const glm::vec3& c : images[k].pixels) ASSERT_TRUE(finite3(c));
+    // Every tile measured what it holds: 4 samples a pixel.
+    const std::vector<TileState>& tiles = rec.tile_states();
+    ASSERT_EQ(tiles.size(), 1u + (cases[k][0] ? size_t(kSide) * kSide : 1u));
+    for (size_t i = 1; i < tiles.size(); ++i) {
+      ASSERT_EQ(tiles[i].stored, uint64_t(kPerPixel) * uint64_t(tiles[i].rect.area())) << i;
+      ASSERT_EQ(tiles[i].rate, tiles[1].rate) << i;
+    }
+    if (k == 1) EXPECT_EQ(tiles[1].rate, rates[0]);
+    rates[k] = tiles[1].rate;
   }
   for (size_t p = 0; p < images[0].pixels.size(); ++p) {
     ASSERT_EQ(images[0].pixels[p], images[1].pixels[p]) << p;
   }
 }
 
-// Disabled: the 4:1 anisotropy cap keeps the filter from reaching both extent clamps in
-// this setup; the test is to be restated against the new limits.
-TEST(ExtremesTest, DISABLED_FilterExtentsAtBothClampsGiveFiniteImages) {
+TEST(ExtremesTest, FilterExtentsAtBothClampsGiveFiniteImages) {
   // Every combination of extreme gradients, rates and store depths gives extents inside the
-  // documented clamps; tiles at the narrowest and widest clamps, upscaled 16x and downscaled,
-  // reconstruct a uniform color exactly.
+  // documented clamps and within the 4:1 anisotropy cap, and reaches every corner of the
+  // clamps the cap leaves reachable; tiles at the narrowest and widest clamps, upscaled 16x
+  // and downscaled, reconstruct a uniform color exactly.
   const FilterLimits lim;
   const float kBig = std::numeric_limits<float>::max();
   const float kDenorm = std::numeric_limits<float>::denorm_min();
@@ -810,7 +823,8 @@ TEST(ExtremesTest, DISABLED_FilterExtentsAtBothClampsGiveFiniteImages) {
   const float depths[] = {
       0.0f, 1e-9f, lim.min_temporal_extent, 1.0f, lim.max_temporal_extent, 1e30f, kInf,
       kNaN, -1.0f};
-  bool hit_low = false, hit_high = false;
+  // Corners of (spatial, temporal) clamps reached: [spatial low/high][temporal low/high].
+  bool hit[2][2] = {{false, false}, {false, false}};
   for (float gx : gradients) {
     for (float gy : gradients) {
       for (float gt : gradients) {
@@ -825,16 +839,33 @@ TEST(ExtremesTest, DISABLED_FilterExtentsAtBothClampsGiveFiniteImages) {
             const TileFilter f = make_tile_filter(e, 16.0f, 1.0f / 64.0f);
             ASSERT_TRUE(std::isfinite(f.k_t) && f.k_t > 0.0f && f.sigma_x > 0.0f &&
                         f.sigma_y > 0.0f);
-            hit_low =
-                hit_low || (e.e_x == lim.min_spatial_extent && e.e_t == lim.min_temporal_extent);
-            hit_high =
-                hit_high || (e.e_x == lim.max_spatial_extent && e.e_t == lim.max_temporal_extent);
+            const float ratio = std::max(e.e_x / e.e_y, e.e_y / e.e_x);
+            ASSERT_LE(ratio, lim.max_anisotropy * (1.0f + 1e-5f))
+                << gx << " " << gy << " " << gt << " " << r << " " << d;
+            const float e_s = std::max(e.e_x, e.e_y), e_s_low = std::min(e.e_x, e.e_y);
+            for (int t = 0; t < 2; ++t) {
+              if (e.e_t != (t ? lim.max_temporal_extent : lim.min_temporal_extent)) continue;
+              hit[0][t] = hit[0][t] || e_s_low == lim.min_spatial_extent;
+              hit[1][t] = hit[1][t] || e_s == lim.max_spatial_extent;
+            }
           }
         }
       }
     }
   }
-  EXPECT_TRUE(hit_low && hit_high);
+  // Sharp in space and time (dense, fast-changing), wide in space and sharp in time (sparse,
+  // flat, fast-changing), sharp in space and long in time (dense, still, a deep store).
+  EXPECT_TRUE(hit[0][0]);
+  EXPECT_TRUE(hit[1][0]);
+  EXPECT_TRUE(hit[0][1]);
+  // Wide in space and long in time at once is out of reach under the cap: e_x = 16 px needs
+  // e_y >= 16 / 4 = 4 px, and e_t = 60 s then a volume V_s = e_x e_y e_t >= 3840 pixel
+  // seconds, while V_s = 1 / R_l <= 1 / min_rate = 1000 (the extents only shrink below the
+  // volume when clamped, never grow past it in both space and time).
+  EXPECT_GT(lim.max_spatial_extent * lim.max_spatial_extent / lim.max_anisotropy *
+                lim.max_temporal_extent,
+            1.0f / lim.min_rate);
+  EXPECT_FALSE(hit[1][1]);
   // The cutoff's own range is enforced; splat radii are clamped to what GL can draw.
   ReconstructorConfig bad = rec_config(16, 16);
   bad.filter.cutoff = 0.99f;
@@ -843,47 +874,66 @@ TEST(ExtremesTest, DISABLED_FilterExtentsAtBothClampsGiveFiniteImages) {
   EXPECT_THROW(CpuReconstructor{bad}, Error);
   bad.filter.cutoff = kNaN;
   EXPECT_THROW(CpuReconstructor{bad}, Error);
-  // Tiles at both clamps side by side, the widest with a cutoff of 8: reconstructed at the
-  // sampling size, 16x larger (the splats' radius clamp) and 8x smaller.
+  // Tiles at the clamps side by side, the widest with a cutoff of 8: reconstructed at the
+  // sampling size, 16x larger (the splats' radius clamp) and 8x smaller. R_l is measured from
+  // the store (filter.h, step 0), so the store is built to drive each tile to its clamps:
+  // 8000 samples in the sharp tile (a still edge: G = max, G_t = 0), 2000 in the wide one (flat
+  // and changing fast: G = 0, G_t = max). With a store reaching back 100 s (depth clamped to
+  // 60 s) the sharp tile is at (0.3 px, 60 s) and the wide one at 16 px; with a store reaching
+  // back 1 ms (the floor) the sharp tile is at (0.3 px, 1 ms) and the wide one at (16 px, 1 ms).
   constexpr int kSide = 32;
-  ReconstructorConfig cfg = rec_config(kSide, kSide);
-  cfg.filter.cutoff = 8.0f;
-  cfg.splat.max_radius = 1e9f;
-  CpuReconstructor rec(cfg);
-  EXPECT_EQ(rec.config().splat.max_radius, kSplatRadiusLimit);
-  Pcg32 rng(8);
-  SampleBatch batch;
-  for (int i = 0; i < 4000; ++i) {
-    Sample s;
-    s.x = kSide * rng.next_float();
-    s.y = kSide * rng.next_float();
-    s.time = 100.0 * rng.next_double();
-    s.color = glm::vec3(0.125f, 0.5f, 2.0f);
-    batch.samples.push_back(s);
-  }
-  rec.add_batch(batch);
-  TilingSnapshot tiling;
-  tiling.region = PixelRect{0, 0, kSide, kSide};
-  tiling.time = 100.0;
-  TileInfo narrow, wide;
-  narrow.rect = PixelRect{0, 0, kSide / 2, kSide};
-  narrow.G_x = narrow.G_y = kBig;  // as sharp as the clamps allow, in space and time
-  narrow.G_t = 0.0f;
-  narrow.rate = kBig;
-  wide.rect = PixelRect{kSide / 2, 0, kSide, kSide};
-  wide.G_x = wide.G_y = 0.0f;  // as wide as they allow
-  wide.G_t = kBig;
-  wide.rate = 0.0f;
-  tiling.tiles = {narrow, wide};
-  rec.set_tiling(tiling);
   const Camera cam = Camera::look_at({0, 0, 0}, {0, 0, -1}, {0, 1, 0}, 1.0, 0.01);
-  for (int out : {kSide, 16 * kSide, kSide / 8}) {
-    const Image image = rec.reconstruct(cam, 100.0, out, out);
-    EXPECT_EQ(rec.frame_stats().nonfinite_pixels, 0u) << out;
-    EXPECT_EQ(rec.frame_stats().empty_pixels, 0u) << out;
-    for (const glm::vec3& c : image.pixels) {
-      ASSERT_NEAR(c.r, 0.125f, 1e-6f) << out;
-      ASSERT_NEAR(c.b, 2.0f, 1e-5f) << out;
+  for (const double reach : {100.0, 1e-3}) {
+    ReconstructorConfig cfg = rec_config(kSide, kSide);
+    cfg.filter.cutoff = 8.0f;
+    cfg.splat.max_radius = 1e9f;
+    cfg.capacity = 10000;  // holds every sample below
+    CpuReconstructor rec(cfg);
+    EXPECT_EQ(rec.config().splat.max_radius, kSplatRadiusLimit);
+    Pcg32 rng(8);
+    SampleBatch batch;
+    for (int i = 0; i < 10000; ++i) {
+      Sample s;
+      s.x = kSide / 2 * rng.next_float() + (i < 8000 ? 0.0f : kSide / 2);
+      s.y = kSide * rng.next_float();
+      s.time = 100.0 - reach * double(10000 - i) / 10000.0;  // in time order
+      s.color = glm::vec3(0.125f, 0.5f, 2.0f);
+      batch.samples.push_back(s);
+    }
+    rec.add_batch(batch);
+    TilingSnapshot tiling;
+    tiling.region = PixelRect{0, 0, kSide, kSide};
+    tiling.time = 100.0;
+    TileInfo narrow, wide;
+    narrow.rect = PixelRect{0, 0, kSide / 2, kSide};
+    narrow.G_x = narrow.G_y = kBig;  // as sharp as the clamps allow
+    narrow.G_t = 0.0f;
+    narrow.rate = kBig;
+    wide.rect = PixelRect{kSide / 2, 0, kSide, kSide};
+    wide.G_x = wide.G_y = 0.0f;  // as wide as they allow
+    wide.G_t = kBig;
+    wide.rate = 0.0f;
+    tiling.tiles = {narrow, wide};
+    rec.set_tiling(tiling);
+    for (int out : {kSide, 16 * kSide, kSide / 8}) {
+      const Image image = rec.reconstruct(cam, 100.0, out, out);
+      EXPECT_EQ(rec.frame_stats().nonfinite_pixels, 0u) << out;
+      EXPECT_EQ(rec.frame_stats().empty_pixels, 0u) << out;
+      for (const glm::vec3& c : image.pixels) {
+        ASSERT_NEAR(c.r, 0.125f, 1e-6f) << out;
+        ASSERT_NEAR(c.b, 2.0f, 1e-5f) << out;
+      }
+      // The tiles reached the clamps they were built for.
+      const std::vector<TileState>& tiles = rec.tile_states();
+      ASSERT_EQ(tiles.size(), 3u);
+      const FilterExtents sharp = tiles[1].extents, flat = tiles[2].extents;
+      const float e_t = reach > 1.0 ? lim.max_temporal_extent : lim.min_temporal_extent;
+      EXPECT_EQ(sharp.e_x, lim.min_spatial_extent) << reach;
+      EXPECT_EQ(sharp.e_y, lim.min_spatial_extent) << reach;
+      EXPECT_EQ(sharp.e_t, e_t) << reach;
+      EXPECT_EQ(flat.e_x, lim.max_spatial_extent) << reach;
+      EXPECT_EQ(flat.e_y, lim.max_spatial_extent) << reach;
+      if (reach < 1.0) EXPECT_EQ(flat.e_t, lim.min_temporal_extent);
     }
   }
 }

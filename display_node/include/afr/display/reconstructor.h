@@ -12,6 +12,9 @@
 //   - Construction may happen anywhere (GlReconstructor: on the reconstructing thread).
 // Ownership: the reconstructor owns its sample store, tile field, coverage map and buffers; the
 // caller owns the output image.
+// Viewports (a display wall): a reconstructor may draw one rectangle of the sampling image.
+// It reconstructs the viewport grown by a margin, as a reconstruction of the whole image would
+// there, and shows the viewport; it needs only the samples and tiles of received_region().
 #pragma once
 
 #include <afr/common/camera.h>
@@ -32,7 +35,22 @@ struct ReconstructorConfig {
   // another size are the same image scaled.
   int image_width = 256;
   int image_height = 256;
-  // N, the samples kept; 0 means 4 x image_width x image_height (section 5.2).
+  // The rectangle of the sampling image that reconstruct() shows, scaled to its output size;
+  // empty (the default) means the whole image. Must lie inside the image.
+  PixelRect viewport;
+  // Sampling-image pixels around the viewport that are reconstructed too, but not shown:
+  // samples there splat into the viewport, and the coverage map and hole filling there are
+  // what the viewport's border pixels read, so the viewport's border matches a
+  // reconstruction of the whole image. Clipped to the image. -1 means
+  // auto_viewport_margin(splat), 3 splat guard bands (99 px for the default splat sizes) at
+  // output scales of 1 or more; at a scale s < 1 use 3 (max_radius + 1) / s. What a margin
+  // must cover: one splat's reach, plus how far the coverage map carries the missing samples
+  // beyond it inward from one image to the next (up to a splat's reach per image where
+  // splats are at their largest), plus how far stored samples reproject while the camera
+  // moves (docs/reconstruction.md, "Viewports").
+  int viewport_margin = -1;
+  // N, the samples kept; 0 means 4 x the pixels of received_region() (section 5.2): with the
+  // default viewport, 4 x image_width x image_height.
   size_t capacity = 0;
   ReconstructionMode mode = ReconstructionMode::kAdaptive;
   FilterLimits filter;
@@ -54,6 +72,15 @@ struct FrameStats {
   float depth = 0.0f;             // seconds the store reaches back (the cap of e_t)
   float default_rate = 0.0f;      // measured samples per pixel per second, for unknown tiles
   double milliseconds = 0.0;      // wall time of the reconstruct() call
+};
+
+// One tile of the last image as the filter saw it (Reconstructor::tile_states()).
+struct TileState {
+  PixelRect rect;         // the tile, sampling-image pixels
+  PixelRect counted;      // the part of it inside received_region(): where R_l is measured
+  uint64_t stored = 0;    // samples the store holds in `counted`
+  float rate = 0.0f;      // R_l: stored / (counted area x depth), or the fallback (filter.h)
+  FilterExtents extents;  // e_x, e_y (sampling-image pixels), e_t (seconds)
 };
 
 // Output sides are limited to this (the largest texture of common GPUs and of llvmpipe).
@@ -92,7 +119,18 @@ class Reconstructor : public SampleSink {
   ReconstructionMode mode() const { return mode_; }
   virtual const char* backend_name() const = 0;
 
+  // The config with the viewport, margin and capacity resolved.
   const ReconstructorConfig& config() const { return config_; }
+  const PixelRect& viewport() const { return config_.viewport; }
+  // The viewport grown by the margin, clipped to the image: where the samples and tiles this
+  // reconstructor uses lie (what a display wall node must be sent), and where R_l is counted.
+  const PixelRect& received_region() const { return received_; }
+  // The pixels the last reconstruct() computed (viewport, margin, alignment) placed in the
+  // sampling image.
+  const PixelGrid& frame_grid() const { return field_.grid(); }
+  // The tiles of the last image: index 0 is the entry of pixels no tile covers. The
+  // reconstructing thread only.
+  const std::vector<TileState>& tile_states() const { return tile_states_; }
   const FrameStats& frame_stats() const { return frame_; }
   IngestStats ingest_stats() const { return store_.stats(); }
   TileFieldStats tiling_stats() const { return field_.stats(); }
@@ -102,10 +140,18 @@ class Reconstructor : public SampleSink {
   // What both backends compute before splatting.
   struct FrameSetup {
     double time = 0.0;
-    int width = 0;
+    int width = 0;  // the output: the viewport scaled
     int height = 0;
     float scale_x = 1.0f;  // output pixels per sampling-image pixel
     float scale_y = 1.0f;
+    // The pixels reconstructed (the viewport with its margin), and the output's first pixel
+    // in them: output pixel (u, v) is grid pixel (u + view_x, v + view_y).
+    PixelGrid grid;
+    int view_x = 0;
+    int view_y = 0;
+    // Output pixels of the whole image at this scale, for the projection (Projector's size).
+    double image_width = 0.0;
+    double image_height = 0.0;
     bool field_changed = false;       // the tile index map was rebuilt
     std::vector<TileFilter> filters;  // one per field_.tiles() entry
   };
@@ -113,33 +159,33 @@ class Reconstructor : public SampleSink {
   // Implemented by the backends: *out is already width x height (or nullptr).
   virtual void do_reconstruct(const Camera& camera, double time, int width, int height,
                               Image* out) = 0;
-  // Brings the tile field and the count of stored samples per pixel up to date and computes
-  // the per-tile filters for this frame from the store's `delta` (its depth and measured
-  // rate) and `fresh`, the samples it copied (oldest first). Fills frame_.stored, depth and
-  // default_rate.
+  // Places the frame's pixels, brings the tile field and the stored-sample count per tile up
+  // to date and computes the per-tile filters for this frame from the store's `delta` (its
+  // depth) and `fresh`, the samples it copied (oldest first). Fills frame_.stored, depth and
+  // default_rate, and tile_states().
   void prepare_frame(double time, int width, int height, const SampleStore::Delta& delta,
                      const std::vector<StoredSample>& fresh, FrameSetup* setup);
 
   ReconstructorConfig config_;
+  PixelRect received_;
   SampleStore store_;
   TileField field_;
   FrameStats frame_;
 
  private:
-  // Keeps pixel_count_ equal to the number of stored samples whose sampling-image position
-  // falls in each pixel, from the samples entering the ring and those they overwrite.
-  void count_fresh_samples(const SampleStore::Delta& delta, const std::vector<StoredSample>& fresh);
-  // Samples in the store inside `rect` (sampling-image pixels).
-  uint64_t stored_in(const PixelRect& rect) const;
+  // The grid of an output of width x height: the viewport scaled, grown by the margin (at
+  // most kMaxGridMargin output pixels) and clipped to the image; where it does not reach the
+  // image's edge its origin is aligned to kGridAlign output pixels, the blocks of the hole
+  // pyramid's first levels, so that holes near the viewport fill as in the whole image.
+  void place_grid(int width, int height, FrameSetup* setup) const;
 
   ReconstructionMode mode_;
-  // Reconstructing thread only. Per ring slot, the sampling-image pixel of the sample in it
-  // (kNoPixel: empty or outside the image); per pixel, how many stored samples are in it; and
-  // the summed-area table of those counts, (image_width + 1) x (image_height + 1).
-  static constexpr uint32_t kNoPixel = ~uint32_t(0);
-  std::vector<uint32_t> slot_pixel_;
-  std::vector<uint32_t> pixel_count_;
-  std::vector<uint64_t> count_table_;
+  // Reconstructing thread only.
+  TileSampleCounts counts_;
+  std::vector<TileState> tile_states_;
 };
+
+// The margin ReconstructorConfig::viewport_margin = -1 stands for.
+inline int auto_viewport_margin(const SplatSizeRule& rule) { return 3 * splat_guard_band(rule); }
 
 }  // namespace afr

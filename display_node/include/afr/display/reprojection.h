@@ -13,7 +13,11 @@ namespace afr {
 
 class Projector {
  public:
-  Projector(const Camera& camera, int width, int height);
+  // The camera's image is width x height pixels (the whole sampling image at the output
+  // scale); positions come out relative to its pixel (origin_x, origin_y), where the
+  // reconstructed pixels (a viewport and its margin) start.
+  Projector(const Camera& camera, double width, double height, double origin_x = 0.0,
+            double origin_y = 0.0);
 
   // The image position of a world point (hit) or of a direction (miss). False when the point
   // is behind the camera or nearer than znear, the direction points away from the view, or

@@ -1,10 +1,12 @@
 // The tile field: for every output pixel, the G_x, G_y, G_t and local rate R_l that the
 // filter reads (section 5.2's tile texture). It is made from the latest tiling snapshot of
 // every sampler, each covering that sampler's region; snapshots arrive on any thread and the
-// reconstructor rebuilds the per-pixel map when one has arrived since its last image.
+// reconstructor rebuilds the per-pixel map when one has arrived since its last image. R_l is
+// measured from the store: TileSampleCounts keeps how many stored samples lie in each tile.
 #pragma once
 
 #include <afr/common/samples.h>
+#include <afr/display/sample_store.h>
 
 #include <cstdint>
 #include <map>
@@ -30,6 +32,22 @@ struct TileFieldStats {
   uint64_t dropped_tiles = 0;    // empty after clipping, or beyond kMaxTilesPerSnapshot
 };
 
+// The pixels a reconstructor computes, placed in the sampling image: pixel (i, j) of this
+// width x height grid is pixel (origin_x + i, origin_y + j) of the whole sampling image scaled
+// by scale_x, scale_y (output pixels per sampling pixel), so its center lies at
+// ((origin_x + i + 0.5) / scale_x, (origin_y + j + 0.5) / scale_y) in sampling pixels. The whole
+// image at the output size is {width, height, 0, 0, width / image_width, height / image_height};
+// a viewport with its margin has its origin where it starts.
+struct PixelGrid {
+  int width = 0;
+  int height = 0;
+  double origin_x = 0.0;  // output pixels
+  double origin_y = 0.0;
+  double scale_x = 1.0;
+  double scale_y = 1.0;
+  bool operator==(const PixelGrid&) const = default;
+};
+
 class TileField {
  public:
   static constexpr size_t kMaxTilesPerSnapshot = size_t(1) << 20;
@@ -44,19 +62,22 @@ class TileField {
   TileFieldStats stats() const;
 
   // ---- The reconstructing thread only.
-  // Brings the per-pixel map up to date for an output of width x height pixels (the sampling
-  // image scaled by width / image_width, height / image_height). Returns true when the map or
-  // the tile list changed since the last call.
+  // Brings the per-pixel map up to date for `grid`. Returns true when the map or the tile
+  // list changed since the last call. Only tiles that overlap the grid's part of the sampling
+  // image are kept (the map and the filters are bounded by what is drawn).
+  bool update(const PixelGrid& grid);
+  // The whole sampling image at width x height pixels.
   bool update(int width, int height);
-  int width() const { return width_; }
-  int height() const { return height_; }
+  int width() const { return grid_.width; }
+  int height() const { return grid_.height; }
+  const PixelGrid& grid() const { return grid_; }
   // Index 0 is the "no tile" entry (zero gradients, unknown rate) of pixels no tile covers.
   const std::vector<FieldTile>& tiles() const { return tiles_; }
   // width x height tile indices, row 0 at the top. Where tiles of several snapshots overlap
   // (regions being reassigned), the newest snapshot wins.
   const std::vector<uint32_t>& index_map() const { return index_map_; }
   const FieldTile& at(int x, int y) const {
-    return tiles_[index_map_[size_t(y) * size_t(width_) + size_t(x)]];
+    return tiles_[index_map_[size_t(y) * size_t(grid_.width) + size_t(x)]];
   }
 
  private:
@@ -70,10 +91,77 @@ class TileField {
 
   // Reconstructing thread only.
   uint64_t built_version_ = ~uint64_t(0);
-  int width_ = 0;
-  int height_ = 0;
+  PixelGrid grid_;
   std::vector<FieldTile> tiles_;
   std::vector<uint32_t> index_map_;
+};
+
+// Section 5.1's local rate R_l, measured: how many samples of the store lie in each tile of
+// the field, counted over `region` of the sampling image (the part this reconstructor receives
+// samples for), and kept up to date from the samples entering and leaving the ring.
+//
+// The region is cut into square blocks of 2^k pixels, as few powers of two as keep the blocks
+// at most max(2^16, capacity); with the default N = 4 x pixels that is one block per pixel.
+// Each block keeps its count and its samples as a queue in ring order (the ring overwrites
+// oldest first, so a sample leaving the ring is always the first of its block's queue), and
+// each block lists the tiles that overlap it. Hence:
+//   - update(): O(1 + tiles listed in the sample's block) per sample entering or leaving;
+//   - set_tiles() (a new tiling): O(blocks the tiles cover + samples in blocks a tile edge
+//     cuts) - blocks inside a tile add their count, cut ones are walked sample by sample.
+// The counts are exact: count(i) is the number of stored samples whose position lies in
+// tile i's rectangle inside the region (samples in overlapping tiles count in each).
+// Memory: 8 bytes per ring slot, 16 bytes per block, 4 bytes per (tile, block) overlap, 32
+// bytes per tile; nothing per pixel of the sampling image outside the region.
+class TileSampleCounts {
+ public:
+  // region: non-empty, inside the sampling image, sides <= 32768. capacity: the ring's N.
+  TileSampleCounts(const PixelRect& region, size_t capacity);
+
+  // The field's tiles changed (TileField::update returned true): recount them all.
+  void set_tiles(const std::vector<FieldTile>& tiles);
+  // The samples the store copied (SampleStore::copy_since), oldest first, into ring slots
+  // [delta.first, delta.end) mod N, replacing the samples there.
+  void update(const SampleStore::Delta& delta, const std::vector<StoredSample>& fresh);
+
+  const PixelRect& region() const { return region_; }
+  // Stored samples in tile i's rectangle inside the region, and that part's area in pixels.
+  uint64_t count(size_t tile) const { return counts_[tile]; }
+  int64_t area(size_t tile) const { return rects_[tile].area(); }
+  // Stored samples inside the region.
+  uint64_t total() const { return total_; }
+  int block_side() const { return 1 << shift_; }
+  size_t blocks() const { return blocks_.size(); }
+
+ private:
+  static constexpr uint32_t kNone = ~uint32_t(0);
+  struct Block {
+    uint32_t head = kNone;  // oldest sample's ring slot
+    uint32_t tail = kNone;  // newest
+    uint32_t count = 0;
+  };
+  // A sample's pixel, relative to the region: x in the low 16 bits, y in the high ones.
+  static uint32_t pack(int x, int y) { return uint32_t(x) | (uint32_t(y) << 16); }
+  static int unpack_x(uint32_t v) { return int(v & 0xffffu); }
+  static int unpack_y(uint32_t v) { return int(v >> 16); }
+  size_t block_of(uint32_t v) const {
+    return size_t(unpack_y(v) >> shift_) * size_t(grid_width_) + size_t(unpack_x(v) >> shift_);
+  }
+  void remove(size_t slot);
+  void insert(size_t slot, const StoredSample& s);
+  void clear_samples();
+
+  PixelRect region_;
+  int shift_ = 0;  // block side = 2^shift_
+  int grid_width_ = 0, grid_height_ = 0;
+  uint64_t total_ = 0;
+  std::vector<uint32_t> slot_pixel_;  // per ring slot: packed pixel, kNone if outside/empty
+  std::vector<uint32_t> slot_next_;   // per ring slot: the next (newer) slot of its block
+  std::vector<Block> blocks_;
+  // Tiles per block: block_tiles_[block_first_[b] .. block_first_[b + 1]).
+  std::vector<uint32_t> block_first_;
+  std::vector<uint32_t> block_tiles_;
+  std::vector<PixelRect> rects_;  // per tile: its rectangle inside the region, relative to it
+  std::vector<uint64_t> counts_;  // per tile
 };
 
 }  // namespace afr
