@@ -3,6 +3,9 @@
 //   display_node --headless --size 256x256 --seconds 10 --output out     (built-in scene)
 //   display_node kitchen.glb --bind tcp://0.0.0.0:7100 --keys keys/ --metrics-port 9100
 //   display_node keygen keys/ --samplers 4     (CurveZMQ keys for a LAN; docs/service.md)
+//   display_node --wall 2x2 --headless                        (lead of a wall: cell 0,0)
+//   display_node --follow tcp://LEAD:7100 --cell 1,0 --bind tcp://127.0.0.1:7110 --headless
+//                                                             (a follower; docs/wall.md)
 #include <afr/common/builtin_scene.h>
 #include <afr/common/camera_path.h>
 #include <afr/common/cli.h>
@@ -15,6 +18,7 @@
 #include <afr/display/glfw_window.h>
 #include <afr/display/service/display_service.h>
 #include <afr/display/service/overlays.h>
+#include <afr/display/service/wall_follower.h>
 #include <afr/protocol/keys.h>
 #include <afr/sampler/presets.h>
 
@@ -26,6 +30,7 @@
 #include <cmath>
 #include <csignal>
 #include <filesystem>
+#include <mutex>
 #include <thread>
 
 namespace {
@@ -43,6 +48,8 @@ int keygen(const std::string& dir, int samplers) {
   afr::protocol::save_curve_public_key((fs::path(dir) / "display.pub").string(),
                                        display.public_key);
   std::string allow = "# afr: sampler public keys the display admits (one per line)\n";
+  // The display's own key: the follower displays of a wall use the display's key pair.
+  allow += fmt::format("{} display (wall followers)\n", display.public_key);
   for (int i = 1; i <= samplers; ++i) {
     const afr::protocol::CurveKeyPair s = afr::protocol::generate_curve_keypair();
     const std::string name = fmt::format("sampler-{}", i);
@@ -80,24 +87,49 @@ std::function<afr::Camera(double)> camera_function(const afr::Scene& scene,
   };
 }
 
+// The ingest side of a wall follower: samples arrive as soon as the lead admits the node, before
+// the reconstructor (sized from the lead's layout) exists; until then they are dropped.
+class SwitchSink final : public afr::SampleSink {
+ public:
+  void set(afr::SampleSink* target) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    target_ = target;
+  }
+  void on_batch(afr::SampleBatch&& batch) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (target_) target_->on_batch(std::move(batch));
+  }
+  void on_tiling(afr::TilingSnapshot&& snapshot) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (target_) target_->on_tiling(std::move(snapshot));
+  }
+
+ private:
+  std::mutex mutex_;
+  afr::SampleSink* target_ = nullptr;
+};
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"display_node: the afr display: coordinates sampler nodes and reconstructs"};
   std::string scene_path, size_text = "256x256", backend_text = "auto", preset = "balanced",
                           mode_text = "adaptive", keys_dir, key_file, allow_file, record, replay,
-                          output = "out", log_level = "info";
+                          output = "out", log_level = "info", wall_text = "1x1", cell_text = "0,0",
+                          follow, advertise;
   DisplayServiceOptions o;
   bool headless = false, insecure = false;
   double fps = 30.0, seconds = 0.0, stats_interval = 2.0;
-  int screenshot_every = 0;
+  int screenshot_every = 0, margin = -1;
+  size_t capacity = 0;
   app.add_option("scene", scene_path,
                  "glTF scene (.glb, or .gltf with embedded buffers); "
                  "the built-in scene if omitted")
       ->check(CLI::ExistingFile);
   app.add_option("--bind", o.bind, "base endpoint tcp://HOST:PORT (uses PORT..PORT+2)")
       ->capture_default_str();
-  app.add_option("-s,--size", size_text, "image size WxH")->capture_default_str();
+  app.add_option("-s,--size", size_text, "image size WxH (a wall's whole virtual display)")
+      ->capture_default_str();
   app.add_flag("--headless", headless, "no window: reconstruct at --fps and write images");
   app.add_option("--backend", backend_text, "reconstruction backend gl, cpu or auto")
       ->capture_default_str();
@@ -132,6 +164,27 @@ int main(int argc, char** argv) {
                  "seconds without a word before a sampler is dead")
       ->capture_default_str()
       ->check(CLI::Range(0.1, 60.0));
+  app.add_option(
+         "--wall", wall_text,
+         "display wall: COLUMNSxROWS cells over --size, this display leading (docs/wall.md)")
+      ->capture_default_str();
+  app.add_option("--cell", cell_text, "this display's cell COLUMN,ROW of the wall")
+      ->capture_default_str();
+  app.add_option("--margin", margin,
+                 "pixels of samples each wall node receives around its cell "
+                 "(-1: what the reconstructor's splats reach)")
+      ->capture_default_str()
+      ->check(CLI::Range(-1, int(afr::protocol::kMaxWallMargin)));
+  app.add_option("--follow", follow,
+                 "follow the lead display at tcp://HOST:PORT as one cell of its wall; --bind "
+                 "then gives this node's endpoints (samples on PORT+2)");
+  app.add_option("--advertise", advertise,
+                 "follower: the sample endpoint samplers should use (default: the bound one)");
+  app.add_option("--capacity", capacity,
+                 "samples the reconstructor keeps (0: the preset's samples per pixel x the "
+                 "pixels this node receives samples for)")
+      ->capture_default_str()
+      ->check(CLI::Range(size_t(0), afr::kMaxCapacity));
   app.add_option("--log", log_level, "log level")->capture_default_str();
   std::string keygen_dir;
   int keygen_samplers = 1;
@@ -146,13 +199,24 @@ int main(int argc, char** argv) {
     afr::init_logging(log_level);
     if (*kg) return keygen(keygen_dir, keygen_samplers);
 
+    // Before anything waits (a follower waits for the lead), so a stop is always clean.
+    std::signal(SIGINT, on_signal);
+    std::signal(SIGTERM, on_signal);
+    std::signal(SIGPIPE, SIG_IGN);
+    const bool follower = !follow.empty();
     const afr::ImageSize size = afr::parse_image_size(size_text);
     o.width = size.width;
     o.height = size.height;
     o.refresh_interval = 1.0 / fps;
     o.preset = preset;
-    const afr::Preset& p = afr::find_preset(preset);
+    const afr::Preset* p = &afr::find_preset(preset);
     const afr::Backend backend = afr::parse_backend(backend_text);
+    o.wall = afr::service::parse_wall_grid(wall_text);
+    afr::service::parse_wall_cell(cell_text, &o.wall_column, &o.wall_row);
+    if (follower && (wall_text != "1x1" || margin != -1 || !scene_path.empty())) {
+      throw afr::Error(
+          "--follow: the wall's grid, margin and scene are the lead's; give only --cell");
+    }
 
     // Security: loopback may go plain; anything else needs CurveZMQ or --insecure.
     const afr::protocol::ServiceEndpoints ep = afr::protocol::service_endpoints(o.bind);
@@ -180,30 +244,93 @@ int main(int argc, char** argv) {
       spdlog::warn("--insecure: {} accepts any sampler, unencrypted", o.bind);
     }
 
-    const afr::Scene scene = afr::load_scene(scene_path);
-    o.scene = afr::service::read_scene_payload(scene_path);
-    std::unique_ptr<afr::CameraPath> path;
-    if (!replay.empty()) {
-      path = std::make_unique<afr::CameraPath>(afr::read_camera_path(replay));
-      spdlog::warn(
-          "--replay {}: the display reprojects with the path's camera; samplers "
-          "trace the scene's own camera (docs/service.md, \"Camera paths\")",
-          replay);
-    }
-    o.camera_at = camera_function(scene, path.get());
-    spdlog::info("scene {}: {} triangles, {:.2f} s of animation, {} bytes to serve", o.scene.name,
-                 scene.triangle_count(), scene.duration(), o.scene.bytes.size());
-
     afr::ReconstructorConfig rc;
-    rc.image_width = size.width;
-    rc.image_height = size.height;
-    rc.capacity = size_t(
-        std::max(1.0, p.reconstruction.samples_per_pixel * size.width * double(size.height)));
-    rc.capacity = std::min(rc.capacity, afr::kMaxCapacity);
-    rc.filter.min_spatial_extent = p.reconstruction.min_spatial_extent;
-    rc.filter.max_spatial_extent = p.reconstruction.max_spatial_extent;
-    rc.filter.max_temporal_extent = p.reconstruction.max_temporal_extent;
     rc.mode = afr::parse_mode(mode_text);
+    // The wall's margin is what the reconstructor's splats reach unless told otherwise; the
+    // lead sends it to every node in the layout.
+    o.wall.margin = margin >= 0 ? margin : afr::auto_viewport_margin(rc.splat);
+
+    // The role: the lead (or only) display, with its scene and coordinator; or a follower of a
+    // lead, which learns the virtual display, its cell and the camera from the lead.
+    std::unique_ptr<afr::Scene> scene;
+    std::unique_ptr<afr::CameraPath> path;
+    SwitchSink switch_sink;
+    std::unique_ptr<afr::service::DisplayService> service;
+    std::unique_ptr<afr::service::WallFollower> wall_follower;
+    afr::PixelRect cell;
+    if (follower) {
+      afr::service::WallFollowerOptions fo;
+      fo.lead = follow;
+      fo.bind = ep.samples;
+      fo.advertise = advertise;
+      fo.column = o.wall_column;
+      fo.row = o.wall_row;
+      fo.keys = o.keys;
+      fo.allowed_keys = o.allowed_keys;
+      fo.metrics_address = o.metrics_address;
+      fo.metrics_port = o.metrics_port;
+      wall_follower = std::make_unique<afr::service::WallFollower>(fo, switch_sink);
+      wall_follower->start();
+      double next_note = 5.0;
+      const auto waiting = std::chrono::steady_clock::now();
+      // The layout that names this node gives the virtual display and the cell.
+      while (!g_stop.load() && !wall_follower->failed()) {
+        if (wall_follower->layout() && !wall_follower->cell().empty() && wall_follower->camera()) {
+          break;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        const double waited =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - waiting).count();
+        if (waited > next_note) {
+          spdlog::info("waiting for the lead display {} to admit cell {},{} ({:.0f} s)", follow,
+                       o.wall_column, o.wall_row, waited);
+          next_note += 5.0;
+        }
+      }
+      if (wall_follower->failed()) return 2;
+      if (g_stop.load()) return 0;
+      const afr::protocol::WallLayout layout = *wall_follower->layout();
+      o.width = layout.width;
+      o.height = layout.height;
+      cell = wall_follower->cell();
+      rc.viewport_margin = layout.margin;
+      // The lead's preset, unless this node was given one.
+      if (app.count("--preset") == 0 && !wall_follower->preset().empty()) {
+        p = &afr::find_preset(wall_follower->preset());
+      }
+    } else {
+      scene = std::make_unique<afr::Scene>(afr::load_scene(scene_path));
+      o.scene = afr::service::read_scene_payload(scene_path);
+      if (!replay.empty()) {
+        path = std::make_unique<afr::CameraPath>(afr::read_camera_path(replay));
+        spdlog::warn(
+            "--replay {}: the display reprojects with the path's camera; samplers "
+            "trace the scene's own camera (docs/service.md, \"Camera paths\")",
+            replay);
+      }
+      o.camera_at = camera_function(*scene, path.get());
+      spdlog::info("scene {}: {} triangles, {:.2f} s of animation, {} bytes to serve", o.scene.name,
+                   scene->triangle_count(), scene->duration(), o.scene.bytes.size());
+      service = std::make_unique<afr::service::DisplayService>(o, switch_sink);
+      cell = service->cell();
+      rc.viewport_margin = o.wall.margin;
+    }
+    rc.image_width = o.width;
+    rc.image_height = o.height;
+    rc.viewport = cell;
+    rc.filter.min_spatial_extent = p->reconstruction.min_spatial_extent;
+    rc.filter.max_spatial_extent = p->reconstruction.max_spatial_extent;
+    rc.filter.max_temporal_extent = p->reconstruction.max_temporal_extent;
+    // N: the preset's samples per pixel of the pixels this node receives samples for.
+    const afr::PixelRect received{std::max(0, cell.x0 - rc.viewport_margin),
+                                  std::max(0, cell.y0 - rc.viewport_margin),
+                                  std::min(o.width, cell.x1 + rc.viewport_margin),
+                                  std::min(o.height, cell.y1 + rc.viewport_margin)};
+    rc.capacity =
+        size_t(std::max(1.0, p->reconstruction.samples_per_pixel * double(received.area())));
+    rc.capacity = std::min(rc.capacity, afr::kMaxCapacity);
+    const int out_w = cell.width(), out_h = cell.height();
+    const bool whole = cell == afr::PixelRect{0, 0, o.width, o.height};
 
     // Window (GL in the window's context) or headless (make_reconstructor picks).
     std::shared_ptr<afr::GlfwWindow> window;
@@ -211,7 +338,7 @@ int main(int argc, char** argv) {
     afr::GlReconstructor* gl = nullptr;
     if (!headless) {
       std::string error;
-      window = afr::GlfwWindow::create(size.width, size.height, "afr display", &error);
+      window = afr::GlfwWindow::create(out_w, out_h, "afr display", &error);
       if (window) {
         auto g = std::make_unique<afr::GlReconstructor>(rc, window);
         gl = g.get();
@@ -224,37 +351,56 @@ int main(int argc, char** argv) {
     if (!recon) recon = afr::make_reconstructor(backend, rc).reconstructor;
 
     afr::service::OverlaySink tee(*recon);
-    afr::service::DisplayService service(o, tee);
-    service.metrics().set_display(service.session(), size.width, size.height, recon->backend_name(),
-                                  afr::mode_name(recon->mode()));
-    std::signal(SIGINT, on_signal);
-    std::signal(SIGTERM, on_signal);
-    std::signal(SIGPIPE, SIG_IGN);
-    service.start();
+    switch_sink.set(&tee);
+    afr::service::ServiceMetrics& metrics = service ? service->metrics() : wall_follower->metrics();
+    const auto now = [&] { return service ? service->now() : wall_follower->now(); };
+    // The camera of the image at display time t: the lead's own; a follower's, the lead's
+    // latest view.
+    const auto camera_at = [&](double t) {
+      return service ? o.camera_at(t) : *wall_follower->camera();
+    };
+    const auto regions = [&] {
+      return service ? service->regions() : std::vector<std::pair<uint32_t, afr::PixelRect>>{};
+    };
+    metrics.set_display(service ? service->session() : 0, out_w, out_h, recon->backend_name(),
+                        afr::mode_name(recon->mode()));
+    if (!whole) {
+      spdlog::info("wall cell [{}, {}) x [{}, {}) of the {}x{} display, margin {} px, N = {}",
+                   cell.x0, cell.x1, cell.y0, cell.y1, o.width, o.height, rc.viewport_margin,
+                   recon->capacity());
+    }
+    if (service) service->start();
     if (!output.empty()) fs::create_directories(output);
 
     std::vector<afr::CameraKey> recorded;
     afr::Image image;
     uint64_t frame = 0;
-    double next_frame = service.now(), next_stats = service.now() + stats_interval,
-           last_stats = service.now();
+    double next_frame = now(), next_stats = now() + stats_interval, last_stats = now();
+    const double started = now();
     bool key_down[3] = {false, false, false};
     auto save = [&](const std::string& stem, double t) {
-      afr::service::write_images(*recon, image, tee, service.regions(), fs::path(output) / stem);
-      spdlog::info("wrote {}/{}.png (t={:.2f}s) with _tiling and _density overlays", output, stem,
-                   t);
+      if (whole) {
+        afr::service::write_images(*recon, image, tee, regions(), fs::path(output) / stem);
+        spdlog::info("wrote {}/{}.png (t={:.2f}s) with _tiling and _density overlays", output, stem,
+                     t);
+      } else {  // the overlays draw whole-image coordinates: the cell's image alone
+        afr::write_image(image, fs::path(output) / (stem + ".png"));
+        afr::write_image(image, fs::path(output) / (stem + ".exr"));
+        spdlog::info("wrote {}/{}.png and .exr (t={:.2f}s)", output, stem, t);
+      }
     };
     while (!g_stop.load()) {
-      const double t = service.now();
-      if (seconds > 0.0 && t >= seconds) break;
+      const double t = now();
+      if (seconds > 0.0 && t - started >= seconds) break;
       if (window && window->should_close()) break;
+      if (wall_follower && wall_follower->failed()) break;
       if (headless && t < next_frame) {
         std::this_thread::sleep_for(std::chrono::duration<double>(std::min(next_frame - t, 0.05)));
         continue;
       }
       next_frame += 1.0 / fps;
       if (next_frame < t) next_frame = t + 1.0 / fps;
-      const afr::Camera camera = o.camera_at(t);
+      const afr::Camera camera = camera_at(t);
       if (!record.empty()) recorded.push_back(afr::camera_key(t, camera));
       const bool write =
           headless && screenshot_every > 0 && frame > 0 && frame % uint64_t(screenshot_every) == 0;
@@ -277,7 +423,7 @@ int main(int argc, char** argv) {
               recon->set_mode(next);
               spdlog::info("reconstruction mode: {}", afr::mode_name(next));
             } else if (k == 1) {
-              recon->reconstruct(camera, t, size.width, size.height, &image);
+              recon->reconstruct(camera, t, out_w, out_h, &image);
               save(fmt::format("screenshot_{:06d}", frame), t);
             } else {
               g_stop.store(true);
@@ -287,33 +433,35 @@ int main(int argc, char** argv) {
         }
         if (w && glfwGetKey(w, GLFW_KEY_ESCAPE) == GLFW_PRESS) g_stop.store(true);
       } else {
-        recon->reconstruct(camera, t, size.width, size.height, &image);
+        recon->reconstruct(camera, t, out_w, out_h, &image);
       }
-      const double done = service.now();
-      service.metrics().on_frame(done, recon->frame_stats().milliseconds,
-                                 recon->frame_stats().stored, recon->capacity());
+      const double done = now();
+      metrics.on_frame(done, recon->frame_stats().milliseconds, recon->frame_stats().stored,
+                       recon->capacity());
       if (write) save(fmt::format("frame_{:06d}", frame), t);
       ++frame;
       if (done >= next_stats) {
-        service.metrics().set_uptime(done);
-        service.metrics().end_period(done - last_stats);
+        metrics.set_uptime(done);
+        metrics.end_period(done - last_stats);
         last_stats = done;
         next_stats = done + stats_interval;
-        spdlog::info("{}", service.metrics().log_line());
+        spdlog::info("{}", metrics.log_line());
       }
     }
 
-    const double t = service.now();
-    recon->reconstruct(o.camera_at(t), t, size.width, size.height, &image);
-    service.metrics().set_uptime(t);
+    const double t = now();
+    recon->reconstruct(camera_at(t), t, out_w, out_h, &image);
+    metrics.set_uptime(t);
     if (!output.empty()) save("final", t);
     if (!record.empty() && !recorded.empty()) {
       afr::write_camera_path(afr::CameraPath(std::move(recorded)), record);
       spdlog::info("recorded the camera path to {}", record);
     }
-    spdlog::info("stopping: {}", service.metrics().log_line());
-    service.stop();
-    return 0;
+    spdlog::info("stopping: {}", metrics.log_line());
+    if (service) service->stop();
+    if (wall_follower) wall_follower->stop();
+    switch_sink.set(nullptr);
+    return wall_follower && wall_follower->failed() ? 2 : 0;
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());
     return 1;

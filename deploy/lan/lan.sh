@@ -7,14 +7,17 @@
 #
 #   sudo deploy/lan/lan.sh --samplers 3 --seconds 10
 #   sudo deploy/lan/lan.sh --samplers 2 --rate 1gbit --drop 0.5 --curve --seconds 20
+#   sudo deploy/lan/lan.sh --samplers 2 --wall 2x2 --size 256x256 --check   (a display wall:
+#        the lead on the display host, a follower display host per other cell; docs/wall.md)
 # Options: --samplers N, --seconds S, --rate RATE (tc syntax: 100mbit, 1gbit), --drop PERCENT
 # (per packet sent by each host), --threads T, --cap SAMPLES_PER_S, --size WxH, --scene FILE,
 # --curve (CurveZMQ with generated keys, else --insecure), --build DIR, --output DIR,
-# --check (exit 1 unless every sampler joined and an image was written).
+# --wall CxR (follower display hosts for the other cells), --check (exit 1 unless every sampler
+# and wall node joined and every image was written).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 samplers=3 seconds=10 rate="" drop="" threads=1 cap=0 size=128x96 scene="" curve=0
-build="$root/build" output="$root/out/lan" check=0 port=7100
+build="$root/build" output="$root/out/lan" check=0 port=7100 wall=1x1
 while [ $# -gt 0 ]; do
   case "$1" in
     --samplers) samplers=$2; shift 2 ;;
@@ -29,7 +32,8 @@ while [ $# -gt 0 ]; do
     --build) build=$2; shift 2 ;;
     --output) output=$2; shift 2 ;;
     --check) check=1; shift ;;
-    -h|--help) sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --wall) wall=$2; shift 2 ;;
+    -h|--help) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "lan.sh: unknown option '$1'" >&2; exit 1 ;;
   esac
 done
@@ -45,10 +49,15 @@ for b in "$display_bin" "$sampler_bin"; do
   [ -x "$b" ] || { echo "lan.sh: $b not built (cmake --build $build --target display_node sampler_node)" >&2; exit 1; }
 done
 
+[[ "$wall" =~ ^([0-9]+)x([0-9]+)$ ]] || { echo "lan.sh: --wall must be COLUMNSxROWS" >&2; exit 1; }
+cols=${BASH_REMATCH[1]} rows=${BASH_REMATCH[2]}
+followers=$((cols * rows - 1))
+
 p="afr$$"            # prefix of every name made here, so teardown removes exactly these
 sw="${p}sw"
 hosts=("${p}d")
 for i in $(seq 1 "$samplers"); do hosts+=("${p}s$i"); done
+for k in $(seq 1 "$followers"); do hosts+=("${p}w$k"); done
 pids=()
 teardown() {
   for pid in "${pids[@]}"; do kill -TERM "$pid" 2>/dev/null || true; done
@@ -98,10 +107,25 @@ if [ "$curve" = 1 ]; then
 fi
 # shellcheck disable=SC2086
 ip netns exec "${p}d" "$display_bin" $scene --headless --bind "tcp://$display_ip:$port" \
-  --size "$size" --seconds "$seconds" --output "$output" --metrics-port 9100 \
+  --size "$size" --seconds "$seconds" --output "$output" --metrics-port 9100 --wall "$wall" \
   --backend cpu "${security[@]}" >"$output/logs/display.log" 2>&1 &
 display_pid=$!
 pids+=("$display_pid")
+# Wall followers: host k shows the k-th cell after 0,0 (row by row).
+k=0 follower_pids=()
+for r in $(seq 0 $((rows - 1))); do
+  for c in $(seq 0 $((cols - 1))); do
+    [ "$c" = 0 ] && [ "$r" = 0 ] && continue
+    k=$((k + 1))
+    ip=10.77.0.$((samplers + 1 + k))
+    ip netns exec "${p}w$k" "$display_bin" --headless --follow "tcp://$display_ip:$port" \
+      --cell "$c,$r" --bind "tcp://$ip:$port" --seconds "$(awk -v s="$seconds" 'BEGIN { print s - 0.5 }')" \
+      --output "$output/cell-$c-$r" --backend cpu "${security[@]}" \
+      >"$output/logs/cell-$c-$r.log" 2>&1 &
+    pids+=("$!")
+    follower_pids+=("$!")
+  done
+done
 for i in $(seq 1 "$samplers"); do
   [ "$curve" = 1 ] && sampler_security=(--key "$output/keys/sampler-$i.key" --server-key "$output/keys/display.pub")
   ip netns exec "${p}s$i" "$sampler_bin" --display "tcp://$display_ip:$port" --threads "$threads" \
@@ -113,13 +137,17 @@ echo "lan.sh: display 10.77.0.1, samplers 10.77.0.2..$((samplers + 1))${rate:+, 
 sleep "$(awk -v s="$seconds" 'BEGIN { print (s > 1.5 ? s - 1.0 : s / 2) }')"
 ip netns exec "${p}d" curl -s "http://127.0.0.1:9100/stats" >"$output/stats.json" 2>/dev/null || true
 status=0
+for pid in "${follower_pids[@]}"; do wait "$pid" || status=$?; done
 wait "$display_pid" || status=$?
 grep -E "joined|t=|lost|REFUSED" "$output/logs/display.log" | tail -n 12 || true
 if [ "$check" = 1 ]; then
   joined=$(grep -c "joined:" "$output/logs/display.log" || true)
-  if [ "$status" -ne 0 ] || [ ! -s "$output/final.png" ] || [ "$joined" -lt "$samplers" ]; then
-    echo "lan.sh: CHECK FAILED (display exit $status, $joined of $samplers samplers joined)"
+  nodes=$(grep -c "joined the wall" "$output/logs/display.log" || true)
+  images=$(find "$output" -name final.png | wc -l)
+  if [ "$status" -ne 0 ] || [ ! -s "$output/final.png" ] || [ "$joined" -lt "$samplers" ] ||
+     [ "$nodes" -lt "$followers" ] || [ "$images" -lt $((followers + 1)) ]; then
+    echo "lan.sh: CHECK FAILED (exit $status, $joined of $samplers samplers and $nodes of $followers wall nodes joined, $images images)"
     exit 1
   fi
-  echo "lan.sh: check passed: $joined samplers joined across namespaces, image $output/final.png"
+  echo "lan.sh: check passed: $joined samplers and $nodes wall nodes joined across namespaces, $images image(s) in $output"
 fi

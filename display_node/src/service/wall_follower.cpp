@@ -97,6 +97,11 @@ PixelRect WallFollower::cell() const {
   return {};
 }
 
+std::string WallFollower::preset() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return preset_;
+}
+
 std::string WallFollower::endpoint() const { return samples_->endpoint(); }
 
 // One loop over sessions: fresh sockets, join until welcomed, then heartbeats, views and
@@ -167,6 +172,7 @@ void WallFollower::control_loop() {
           session = w->session;
           clock_.reset_to(w->display_time);
           node_id_ = w->sampler_id;
+          preset_ = w->presets;
         } else if (const auto* l = std::get_if<WallLayout>(&msg)) {
           std::lock_guard<std::mutex> lock(mutex_);
           if (layout_ && l->epoch < layout_->epoch) continue;  // an older one, overtaken

@@ -72,8 +72,9 @@ class ViewCamera final : public CameraSource {
 // samples and tiles that node needs; a sample inside several (the margins overlap) goes to each.
 struct SampleRoute {
   SampleSender* sender = nullptr;
-  PixelRect rect;         // empty: everything (no wall)
-  uint64_t sequence = 0;  // batches sent on this route: each node sees its own sequence
+  PixelRect rect;          // empty: everything (no wall)
+  uint64_t sequence = 0;   // batches sent on this route: each node sees its own sequence
+  bool had_tiles = false;  // the last snapshot sent on this route had tiles
 };
 
 class NetworkSink final : public SampleSink {
@@ -121,15 +122,7 @@ class NetworkSink final : public SampleSink {
       return;
     }
     for (SampleRoute& r : routes_) {
-      part_.sampler_id = batch.sampler_id;
-      part_.fields = batch.fields;
-      part_.samples.clear();
-      for (const Sample& smp : batch.samples) {
-        if (smp.x >= float(r.rect.x0) && smp.x < float(r.rect.x1) && smp.y >= float(r.rect.y0) &&
-            smp.y < float(r.rect.y1)) {
-          part_.samples.push_back(smp);
-        }
-      }
+      select_samples(batch, r.rect, &part_);
       if (part_.samples.empty()) continue;
       part_.sequence = r.sequence++;
       if (Status s = r.sender->send(part_, bounds_); !s.ok()) report(s);
@@ -143,18 +136,12 @@ class NetworkSink final : public SampleSink {
         if (Status s = r.sender->send(snapshot, bounds_); !s.ok()) report(s);
         continue;
       }
-      // The node learns the sampler's whole region (so tiles of it that moved away are
-      // dropped) but only the tiles that reach its part of the image.
-      tiles_.sampler_id = snapshot.sampler_id;
-      tiles_.time = snapshot.time;
-      tiles_.region = snapshot.region;
-      tiles_.tiles.clear();
-      for (const TileInfo& t : snapshot.tiles) {
-        if (t.rect.x0 < r.rect.x1 && r.rect.x0 < t.rect.x1 && t.rect.y0 < r.rect.y1 &&
-            r.rect.y0 < t.rect.y1) {
-          tiles_.tiles.push_back(t);
-        }
-      }
+      // Only the tiles that reach the node's part of the image. When none do any more (the
+      // sampler's region moved away), one empty snapshot tells the node to drop this sampler's
+      // tiles; after that the node hears nothing from it.
+      select_tiles(snapshot, r.rect, &tiles_);
+      if (tiles_.tiles.empty() && !r.had_tiles) continue;
+      r.had_tiles = !tiles_.tiles.empty();
       if (Status s = r.sender->send(tiles_, bounds_); !s.ok()) report(s);
     }
   }

@@ -239,6 +239,11 @@ struct WallLayout {
 
 // The samples a node of `layout` needs: its cell grown by the margin, clipped to the image.
 PixelRect wall_receive_rect(const WallLayout& layout, const WallNode& node);
+// What a wall node is sent (the samplers' routing, protocol/src/wall.cpp): the samples of
+// `batch` inside `rect`, and the tiles of `snapshot` that overlap it. The other fields are
+// copied; *out's vectors are reused.
+void select_samples(const SampleBatch& batch, const PixelRect& rect, SampleBatch* out);
+void select_tiles(const TilingSnapshot& snapshot, const PixelRect& rect, TilingSnapshot* out);
 
 // Any message, for channels that carry several types.
 using Message =

@@ -62,6 +62,8 @@ class WallFollower {
   std::optional<protocol::WallLayout> layout() const;
   uint32_t node_id() const;
   PixelRect cell() const;
+  // The preset the lead names (its welcome), "" before joining.
+  std::string preset() const;
   // The sample endpoint as bound (the port resolved for "tcp://HOST:*").
   std::string endpoint() const;
   // True once the lead refused this node for good (another protocol version).
@@ -82,6 +84,7 @@ class WallFollower {
   std::optional<Camera> camera_;
   std::optional<protocol::WallLayout> layout_;
   uint32_t node_id_ = 0;
+  std::string preset_;
   std::atomic<bool> running_{false};
   std::atomic<bool> failed_{false};
   std::thread control_thread_, ingest_thread_;

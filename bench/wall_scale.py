@@ -1,0 +1,152 @@
+#!/usr/bin/env python3
+"""Display-wall scale measurements (docs/wall.md): runs a lead display_node, its followers and
+sampler_nodes on loopback for each configuration, and prints per display node: the virtual
+display and its cell, samples/s and bytes/s received, the store's capacity N, reconstruction
+time, and peak resident memory (VmHWM). Also one display showing one cell's worth of pixels
+alone, to compare a wall node's memory with a display of its rectangle's size.
+
+  python3 bench/wall_scale.py [--build build] [--seconds 12] [--samplers 2] [--cap 100000]
+                              [--configs 1024:2x2,4096:1x1,4096:2x2,8192:2x2] [--preset fast]
+                              [--fps 1]
+
+Each configuration is SIZE:GRID (a square virtual display of SIZE pixels a side, GRID cells).
+The samplers are capped so every configuration gets the same sample stream rate.
+"""
+import argparse
+import json
+import os
+import random
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.request
+
+
+def free_port():
+    while True:
+        p = random.randint(20000, 40000)
+        ok = True
+        for q in range(p, p + 4):
+            with socket.socket() as s:
+                try:
+                    s.bind(("127.0.0.1", q))
+                except OSError:
+                    ok = False
+        if ok:
+            return p
+
+
+def stats(port):
+    try:
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/stats", timeout=2) as r:
+            return json.loads(r.read())
+    except Exception:
+        return None
+
+
+def hwm_kib(pid):
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1])
+    except OSError:
+        pass
+    return 0
+
+
+def run(cfg, a, tmp):
+    size, grid = cfg.split(":")
+    size = int(size)
+    cols, rows = (int(v) for v in grid.split("x"))
+    disp = os.path.join(a.build, "display_node", "display_node")
+    samp = os.path.join(a.build, "sampler_node", "sampler_node")
+    lead_port = free_port()
+    lead = f"tcp://127.0.0.1:{lead_port}"
+    # Few frames: on a 2-core machine four CPU reconstructors at full rate would starve the
+    # samplers and the ingest threads that are measured here.
+    common = ["--headless", "--backend", "cpu", "--fps", str(a.fps), "--stats-interval", "1",
+              "--output", ""]
+    procs = []  # (name, Popen, metrics port)
+    log = open(os.path.join(tmp, "log.txt"), "a")
+    procs.append(("0,0", subprocess.Popen(
+        [disp, "--bind", lead, "--size", f"{size}x{size}", "--wall", grid, "--preset", a.preset,
+         "--metrics-port", str(lead_port + 3)] + common, stdout=log, stderr=log), lead_port + 3))
+    time.sleep(0.5)
+    for r in range(rows):
+        for c in range(cols):
+            if (c, r) == (0, 0):
+                continue
+            p = free_port()
+            procs.append((f"{c},{r}", subprocess.Popen(
+                [disp, "--follow", lead, "--cell", f"{c},{r}", "--bind", f"tcp://127.0.0.1:{p}",
+                 "--metrics-port", str(p + 3)] + common, stdout=log, stderr=log), p + 3))
+    samplers = [subprocess.Popen(
+        [samp, "--display", lead, "--cache", os.path.join(tmp, "cache"),
+         "--max-samples-per-second", str(a.cap)], stdout=log, stderr=log)
+        for _ in range(a.samplers)]
+    # Received samples and bytes over the second half of the run, from the counters.
+    def totals():
+        out = {}
+        for name, _, port in procs:
+            s = stats(port)
+            if s is not None:
+                out[name] = (sum(m["samples"] for m in s["samplers"]),
+                             sum(m["bytes"] for m in s["samplers"]), time.monotonic(), s)
+        return out
+    time.sleep(a.seconds / 2)
+    first = totals()
+    time.sleep(a.seconds / 2)
+    last = totals()
+    rows_out = []
+    for name, p, port in procs:
+        if name not in first or name not in last:
+            rows_out.append((cfg, name, None, hwm_kib(p.pid), 0, 0))
+            continue
+        dt = last[name][2] - first[name][2]
+        rows_out.append((cfg, name, last[name][3], hwm_kib(p.pid),
+                         (last[name][0] - first[name][0]) / dt,
+                         (last[name][1] - first[name][1]) / dt))
+    for p in samplers:
+        p.terminate()
+    for _, p, _ in procs:
+        p.terminate()
+    for p in samplers + [p for _, p, _ in procs]:
+        try:
+            p.wait(20)
+        except subprocess.TimeoutExpired:
+            p.kill()
+    return rows_out
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--build", default="build")
+    ap.add_argument("--seconds", type=float, default=12.0)
+    ap.add_argument("--samplers", type=int, default=2)
+    ap.add_argument("--cap", type=int, default=100000)
+    ap.add_argument("--preset", default="fast")
+    ap.add_argument("--fps", type=float, default=1.0)
+    ap.add_argument("--configs", default="1024:2x2,4096:1x1,4096:2x2,8192:2x2")
+    a = ap.parse_args()
+    print("| virtual display | grid | node (cell) | cell px | N (samples kept) | samples/s in | "
+          "MB/s in | reconstruct ms | peak RSS MiB |")
+    print("|---|---|---|---|---:|---:|---:|---:|---:|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for cfg in a.configs.split(","):
+            for c, name, s, hwm, sps, bps in run(cfg, a, tmp):
+                size, grid = c.split(":")
+                if s is None:
+                    print(f"| {size}^2 | {grid} | {name} | - | - | - | - | - | {hwm / 1024:.0f} |")
+                    continue
+                d = s["display"]
+                cell = d["wall"]["cell"]
+                print(f"| {size}^2 | {grid} | {name} | {cell[2] - cell[0]}x{cell[3] - cell[1]} | "
+                      f"{d['store_capacity']} | {sps / 1e3:.0f} k | {bps / 1e6:.1f} | "
+                      f"{d['reconstruct_ms_mean']:.0f} | {hwm / 1024:.0f} |", flush=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

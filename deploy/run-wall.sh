@@ -1,0 +1,96 @@
+#!/usr/bin/env bash
+# Runs a display wall on this machine (docs/wall.md): a lead display_node for cell 0,0 of a
+# COLUMNSxROWS grid over a WxH virtual display, one follower display_node per other cell, and
+# N sampler nodes, all headless on loopback. At the end each node writes its cell's image and
+# the script stitches them into OUTPUT/wall.png.
+#
+#   deploy/run-wall.sh 2x2 2                         4 display nodes, 2 samplers, 512x512, 20 s
+#   deploy/run-wall.sh 2x2 2 --size 8192x8192 --seconds 30 --preset fast
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+usage() {
+  sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//'
+  echo "options: --seconds S --size WxH --scene FILE --threads T --port P --preset NAME"
+  echo "         --margin PX --cap SAMPLES_PER_S --output DIR --build DIR"
+  exit "${1:-0}"
+}
+[ $# -ge 2 ] || usage 1
+grid=$1 n=$2; shift 2
+[[ "$grid" =~ ^([0-9]+)x([0-9]+)$ ]] || { echo "run-wall: grid must be COLUMNSxROWS, got '$grid'" >&2; exit 1; }
+cols=${BASH_REMATCH[1]} rows=${BASH_REMATCH[2]}
+[[ "$n" =~ ^[0-9]+$ ]] && [ "$n" -ge 1 ] && [ "$n" -le 64 ] || { echo "run-wall: N must be 1..64, got '$n'" >&2; exit 1; }
+seconds=20 size=512x512 scene="" threads=1 port=7100 preset=balanced margin=-1 cap=0
+output=out/wall build=build
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --seconds) seconds=$2; shift 2 ;;
+    --size) size=$2; shift 2 ;;
+    --scene) scene=$2; shift 2 ;;
+    --threads) threads=$2; shift 2 ;;
+    --port) port=$2; shift 2 ;;
+    --preset) preset=$2; shift 2 ;;
+    --margin) margin=$2; shift 2 ;;
+    --cap) cap=$2; shift 2 ;;
+    --output) output=$2; shift 2 ;;
+    --build) build=$2; shift 2 ;;
+    -h|--help) usage 0 ;;
+    *) echo "run-wall: unknown option '$1'" >&2; usage 1 ;;
+  esac
+done
+
+if [ ! -f "$build/build.ninja" ]; then
+  cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+fi
+cmake --build "$build" --target display_node sampler_node
+rm -rf "$output"
+mkdir -p "$output/logs"
+
+pids=()
+cleanup() {
+  for p in "${pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done
+  for p in "${pids[@]}"; do wait "$p" 2>/dev/null || true; done
+}
+trap cleanup EXIT
+
+lead="tcp://127.0.0.1:$port"
+echo "run-wall: lead display on $lead (metrics :$((port + 3))), ${cols}x${rows} cells of $size, $n sampler(s), $seconds s"
+# shellcheck disable=SC2086
+"$build/display_node/display_node" $scene --headless --bind "$lead" --size "$size" \
+  --wall "${cols}x${rows}" --margin "$margin" --preset "$preset" --seconds "$((seconds + 2))" \
+  --output "$output/cell-0-0" --metrics-port "$((port + 3))" >"$output/logs/lead.log" 2>&1 &
+lead_pid=$!
+pids+=("$lead_pid")
+k=0
+for r in $(seq 0 $((rows - 1))); do
+  for c in $(seq 0 $((cols - 1))); do
+    [ "$c" = 0 ] && [ "$r" = 0 ] && continue
+    k=$((k + 1))
+    base=$((port + 10 * k))
+    "$build/display_node/display_node" --headless --follow "$lead" --cell "$c,$r" \
+      --bind "tcp://127.0.0.1:$base" --metrics-port "$((base + 3))" --seconds "$seconds" \
+      --output "$output/cell-$c-$r" >"$output/logs/cell-$c-$r.log" 2>&1 &
+    pids+=("$!")
+  done
+done
+for i in $(seq 1 "$n"); do
+  "$build/sampler_node/sampler_node" --display "$lead" --threads "$threads" --name "local-$i" \
+    --max-samples-per-second "$cap" --cache "$output/scene-cache" >"$output/logs/sampler-$i.log" 2>&1 &
+  pids+=("$!")
+done
+for p in "${pids[@]:1:$k}"; do wait "$p" || true; done
+wait "$lead_pid" || true
+cleanup
+trap - EXIT
+
+# Stitch the cells (row by row) into one image.
+tiles=()
+for r in $(seq 0 $((rows - 1))); do
+  for c in $(seq 0 $((cols - 1))); do tiles+=("$output/cell-$c-$r/final.png"); done
+done
+if command -v oiiotool >/dev/null && oiiotool "${tiles[@]}" --mosaic "${cols}x${rows}" -o "$output/wall.png" 2>/dev/null; then
+  echo "run-wall: stitched $output/wall.png; cells in $output/cell-*/final.png, logs in $output/logs/"
+else
+  echo "run-wall: cells in $output/cell-*/final.png (not stitched: a cell image is missing or oiiotool is absent)"
+fi
+grep -E "wall layout|joined the wall|lost" "$output/logs/lead.log" | tail -n 6 || true

@@ -1,0 +1,152 @@
+// The display wall is seamless (docs/wall.md): a 2 x 2 wall of 512 x 512 display nodes, each
+// sent only what the samplers' routing sends it (protocol::select_samples / select_tiles over
+// its cell grown by the layout's margin), reconstructs the same image as one 1024 x 1024
+// display fed every sample, seams included. The sampler is the real one on the built-in
+// scene under a virtual clock; the nodes are CPU reconstructors with viewports.
+#include <afr/common/builtin_scene.h>
+#include <afr/common/clock.h>
+#include <afr/common/image.h>
+#include <afr/display/backend.h>
+#include <afr/display/service/wall.h>
+#include <afr/protocol/messages.h>
+#include <afr/sampler/sampler.h>
+#include <afr/sampler/tracer.h>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <vector>
+
+namespace afr {
+namespace {
+
+// Feeds the whole display everything and each wall node what the routing sends it.
+class WallSink final : public SampleSink {
+ public:
+  WallSink(Reconstructor& whole, const protocol::WallLayout& layout,
+           std::vector<std::unique_ptr<Reconstructor>>& nodes)
+      : whole_(whole), layout_(layout), nodes_(nodes) {}
+  void on_batch(SampleBatch&& batch) override {
+    whole_.add_batch(batch);
+    total_ += batch.samples.size();
+    for (size_t i = 0; i < nodes_.size(); ++i) {
+      protocol::select_samples(batch, protocol::wall_receive_rect(layout_, layout_.nodes[i]),
+                               &part_);
+      routed_ += part_.samples.size();
+      if (!part_.samples.empty()) nodes_[i]->add_batch(part_);
+    }
+  }
+  void on_tiling(TilingSnapshot&& snapshot) override {
+    whole_.set_tiling(snapshot);
+    for (size_t i = 0; i < nodes_.size(); ++i) {
+      protocol::select_tiles(snapshot, protocol::wall_receive_rect(layout_, layout_.nodes[i]),
+                             &tiles_);
+      nodes_[i]->set_tiling(tiles_);
+    }
+  }
+  uint64_t total() const { return total_; }
+  uint64_t routed() const { return routed_; }
+
+ private:
+  Reconstructor& whole_;
+  const protocol::WallLayout& layout_;
+  std::vector<std::unique_ptr<Reconstructor>>& nodes_;
+  SampleBatch part_;
+  TilingSnapshot tiles_;
+  uint64_t total_ = 0, routed_ = 0;
+};
+
+TEST(WallSeamTest, TwoByTwoWallOf512EqualsOneDisplayOf1024SeamsIncluded) {
+  constexpr int kSide = 1024;
+  const Scene scene = make_builtin_scene();
+  ReconstructorConfig base;
+  base.image_width = base.image_height = kSide;
+  base.threads = 2;
+  const int margin = auto_viewport_margin(base.splat);
+
+  service::WallGrid grid;
+  grid.columns = grid.rows = 2;
+  grid.margin = margin;
+  protocol::WallLayout layout;
+  layout.width = layout.height = kSide;
+  layout.margin = margin;
+  std::vector<std::unique_ptr<Reconstructor>> nodes;
+  for (int r = 0; r < 2; ++r) {
+    for (int c = 0; c < 2; ++c) {
+      const PixelRect cell = grid.cell(c, r, kSide, kSide);
+      layout.nodes.push_back(protocol::WallNode{uint32_t(1 + 2 * r + c), cell, ""});
+      ReconstructorConfig rc = base;
+      rc.viewport = cell;
+      rc.viewport_margin = margin;
+      // Each node keeps everything it receives, as the whole display does.
+      rc.capacity = size_t(4) * kSide * kSide;
+      nodes.push_back(make_reconstructor(Backend::kCpu, rc).reconstructor);
+    }
+  }
+  ReconstructorConfig wc = base;
+  wc.capacity = size_t(4) * kSide * kSide;
+  std::unique_ptr<Reconstructor> whole = make_reconstructor(Backend::kCpu, wc).reconstructor;
+
+  // The sampler at 2M rays/s of virtual time; three frames 1/60 s apart, so the coverage map
+  // of each image sizes the splats of the next, as a live display's does.
+  WallSink sink(*whole, layout, nodes);
+  Tracer tracer(scene);
+  VirtualClock clock(2e6, 2.0);
+  SamplerConfig sc;
+  sc.width = sc.height = kSide;
+  sc.fill_step = 4;
+  Sampler sampler(scene, tracer, clock, sc, sink);
+  sampler.fill();
+  for (int frame = 0; frame < 3; ++frame) {
+    const double until = clock.now() + 1.0 / 60.0;
+    while (clock.now() < until) sampler.step();
+    sampler.flush();
+    const double t = clock.now();
+    const Camera camera = scene.camera_at(scene.evaluate(t));
+    const Image expected = whole->reconstruct(camera, t, kSide, kSide);
+    Image stitched(kSide, kSide);
+    for (size_t i = 0; i < nodes.size(); ++i) {
+      const PixelRect cell = layout.nodes[i].cell;
+      const Image part = nodes[i]->reconstruct(camera, t, cell.width(), cell.height());
+      for (int y = 0; y < cell.height(); ++y) {
+        for (int x = 0; x < cell.width(); ++x) {
+          stitched.at(cell.x0 + x, cell.y0 + y) = part.at(x, y);
+        }
+      }
+    }
+    // The paper's metric on the displayed 8-bit values, over the whole image and over the
+    // seams alone (the 16 pixels each side of the cell borders).
+    const double rms = rms_error_255(stitched, expected);
+    double seam_sum = 0.0, max_diff = 0.0;
+    uint64_t seam_n = 0;
+    for (int y = 0; y < kSide; ++y) {
+      for (int x = 0; x < kSide; ++x) {
+        const bool seam = std::abs(x - kSide / 2) < 16 || std::abs(y - kSide / 2) < 16;
+        for (int k = 0; k < 3; ++k) {
+          const double d = std::abs(double(linear_to_srgb8(stitched.at(x, y)[k])) -
+                                    double(linear_to_srgb8(expected.at(x, y)[k])));
+          max_diff = std::max(max_diff, d);
+          if (seam) {
+            seam_sum += d * d;
+            ++seam_n;
+          }
+        }
+      }
+    }
+    const double seam_rms = std::sqrt(seam_sum / double(std::max<uint64_t>(seam_n, 1)));
+    std::printf("frame %d: wall vs one display RMS %.4f, seams %.4f, max %.0f (0-255)\n", frame,
+                rms, seam_rms, max_diff);
+    EXPECT_LE(rms, 1.0) << "frame " << frame;
+    EXPECT_LE(seam_rms, 1.0) << "frame " << frame;
+  }
+  // Routing sent each node its part: together about the margin's overhead, never everything
+  // to everyone.
+  const double overhead = double(sink.routed()) / double(sink.total());
+  std::printf("samples routed to the 4 nodes / samples traced: %.3f\n", overhead);
+  EXPECT_GE(overhead, 1.0);
+  EXPECT_LT(overhead, 1.5);
+}
+
+}  // namespace
+}  // namespace afr

@@ -1,0 +1,204 @@
+// Multi-process tests of the display wall on loopback (docs/wall.md): a lead display_node with
+// a 2 x 2 grid, three follower display_nodes, two sampler_nodes; observed through each node's
+// /stats, logs and images.
+#include "process.h"
+
+#include <afr/common/image.h>
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+namespace afr::testing {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kDisplay = AFR_DISPLAY_NODE;
+const std::string kSampler = AFR_SAMPLER_NODE;
+
+class WallTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() /
+           (std::string("afr-wall-") + info->name() + "-" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    lead_port_ = free_base_port();
+    ASSERT_NE(lead_port_, 0);
+  }
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir_);
+  }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  static std::string endpoint(int port) { return "tcp://127.0.0.1:" + std::to_string(port); }
+
+  std::unique_ptr<Process> lead(std::vector<std::string> extra) {
+    std::vector<std::string> argv = {kDisplay,
+                                     "--headless",
+                                     "--bind",
+                                     endpoint(lead_port_),
+                                     "--metrics-port",
+                                     std::to_string(lead_port_ + 3),
+                                     "--backend",
+                                     "cpu",
+                                     "--output",
+                                     path("lead"),
+                                     "--stats-interval",
+                                     "1",
+                                     "--size",
+                                     "128x128",
+                                     "--fps",
+                                     "20"};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    return std::make_unique<Process>(argv, path("lead.log"));
+  }
+  // A follower for cell (column, row) on a base port of its own (metrics on port + 3).
+  std::unique_ptr<Process> follower(int column, int row, int port) {
+    const std::string name = "cell-" + std::to_string(column) + "-" + std::to_string(row);
+    std::vector<std::string> argv = {kDisplay,
+                                     "--headless",
+                                     "--follow",
+                                     endpoint(lead_port_),
+                                     "--cell",
+                                     std::to_string(column) + "," + std::to_string(row),
+                                     "--bind",
+                                     endpoint(port),
+                                     "--metrics-port",
+                                     std::to_string(port + 3),
+                                     "--backend",
+                                     "cpu",
+                                     "--output",
+                                     path(name),
+                                     "--stats-interval",
+                                     "1",
+                                     "--fps",
+                                     "20"};
+    return std::make_unique<Process>(argv, path(name + ".log"));
+  }
+  std::unique_ptr<Process> sampler(const std::string& log) {
+    return std::make_unique<Process>(
+        std::vector<std::string>{kSampler, "--display", endpoint(lead_port_), "--cache",
+                                 path("cache"), "--max-samples-per-second", "40000"},
+        path(log));
+  }
+  // Samples a node has received from all samplers (its /stats), -1 when it does not answer.
+  static int64_t received(int metrics_port) {
+    const nlohmann::json s = get_stats(metrics_port);
+    if (s.is_null() || s.is_discarded()) return -1;
+    int64_t n = 0;
+    for (const auto& m : s["samplers"]) n += m["samples"].get<int64_t>();
+    return n;
+  }
+  static int wall_nodes(int metrics_port) {
+    const nlohmann::json s = get_stats(metrics_port);
+    if (s.is_null() || s.is_discarded()) return -1;
+    return s["display"]["wall"]["nodes"].get<int>();
+  }
+
+  fs::path dir_;
+  int lead_port_ = 0;
+};
+
+TEST_F(WallTest, FourNodesEachReceiveTheirCellAndALostNodeIsNoticedWithinOneSecond) {
+  // A margin of 8 px: each node needs a 72 x 72 part of the 128 x 128 image, so together the
+  // four receive about 1.27 x what the samplers send (4 x if every sample went everywhere).
+  auto l = lead({"--wall", "2x2", "--margin", "8"});
+  const int lead_metrics = lead_port_ + 3;
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 1; }, 5.0)) << l->log();
+  const int cells[3][2] = {{1, 0}, {0, 1}, {1, 1}};
+  int ports[3];
+  std::unique_ptr<Process> followers[3];
+  for (int i = 0; i < 3; ++i) {
+    ports[i] = free_base_port();
+    ASSERT_NE(ports[i], 0);
+    followers[i] = follower(cells[i][0], cells[i][1], ports[i]);
+    ASSERT_TRUE(wait_until([&] { return wall_nodes(ports[i] + 3) >= 0; }, 5.0));
+  }
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 4; }, 5.0)) << l->log();
+  auto s1 = sampler("s1.log");
+  auto s2 = sampler("s2.log");
+  // Every node receives samples.
+  ASSERT_TRUE(wait_until(
+      [&] {
+        bool all = received(lead_metrics) > 0;
+        for (int i = 0; i < 3; ++i) all = all && received(ports[i] + 3) > 0;
+        return all;
+      },
+      8.0))
+      << l->log() << followers[0]->log() << s1->log();
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+
+  // Routing: the samples received over all nodes against those the samplers sent.
+  const nlohmann::json lead_stats = get_stats(lead_metrics);
+  int64_t sent = 0;
+  for (const auto& m : lead_stats["samplers"]) sent += m["reported_samples"].get<int64_t>();
+  int64_t total = received(lead_metrics);
+  for (int i = 0; i < 3; ++i) total += received(ports[i] + 3);
+  const double ratio = double(total) / double(std::max<int64_t>(sent, 1));
+  std::printf("samples received by the 4 nodes / sent: %.2f (%lld / %lld)\n", ratio,
+              (long long)total, (long long)sent);
+  EXPECT_GT(ratio, 0.8);
+  EXPECT_LT(ratio, 2.5);
+  // Each node's cell, as the lead's layout gives it.
+  const nlohmann::json f0 = get_stats(ports[0] + 3);
+  EXPECT_EQ(f0["display"]["wall"]["cell"], (nlohmann::json{64, 0, 128, 64}));
+  EXPECT_EQ(f0["display"]["wall"]["nodes"].get<int>(), 4);
+
+  // kill -9 of a follower: the lead drops it from the layout within a second, and the others
+  // keep receiving.
+  followers[2]->signal(SIGKILL);
+  const auto t0 = std::chrono::steady_clock::now();
+  const bool dropped = wait_until([&] { return wall_nodes(lead_metrics) == 3; }, 3.0, 0.01);
+  const double took = seconds_since(t0);
+  std::printf("display node dropped from the wall %.3f s after kill -9\n", took);
+  ASSERT_TRUE(dropped) << l->log();
+  EXPECT_LT(took, 1.0);
+  EXPECT_NE(l->log().find("lost: no word for"), std::string::npos);
+  const int64_t before = received(ports[0] + 3);
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  EXPECT_GT(received(ports[0] + 3), before);
+
+  // It comes back on the same cell.
+  followers[2] = follower(1, 1, ports[2]);
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 4; }, 5.0)) << l->log();
+  ASSERT_TRUE(wait_until([&] { return received(ports[2] + 3) > 0; }, 5.0)) << followers[2]->log();
+
+  // Every node writes its cell's image at exit.
+  for (auto& f : followers) f->signal(SIGTERM);
+  l->signal(SIGTERM);
+  EXPECT_EQ(l->wait(10.0), 0) << l->log();
+  for (auto& f : followers) EXPECT_EQ(f->wait(10.0), 0) << f->log();
+  for (const char* name : {"lead", "cell-1-0", "cell-0-1", "cell-1-1"}) {
+    const Image img = read_image(path(std::string(name) + "/final.png"));
+    EXPECT_EQ(img.width, 64) << name;
+    EXPECT_EQ(img.height, 64) << name;
+  }
+}
+
+TEST_F(WallTest, FollowersAskingForATakenCellOrANonWallAreRefusedWithTheReason) {
+  auto l = lead({"--wall", "2x1"});
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_port_ + 3) == 1; }, 5.0)) << l->log();
+  // The lead's own cell.
+  auto f = follower(0, 0, free_base_port());
+  EXPECT_TRUE(wait_until(
+      [&] { return l->log().find("is the lead display's own") != std::string::npos; }, 5.0))
+      << l->log();
+  EXPECT_TRUE(wait_until(
+      [&] { return f->log().find("is the lead display's own") != std::string::npos; }, 5.0))
+      << f->log();
+  // Outside the grid.
+  auto g = follower(3, 0, free_base_port());
+  EXPECT_TRUE(
+      wait_until([&] { return g->log().find("outside the 2x1 wall") != std::string::npos; }, 5.0))
+      << g->log();
+  // The lead keeps serving: one node, frames going on.
+  EXPECT_EQ(wall_nodes(lead_port_ + 3), 1);
+  const uint64_t frames = get_stats(lead_port_ + 3)["display"]["frames"].get<uint64_t>();
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_GT(get_stats(lead_port_ + 3)["display"]["frames"].get<uint64_t>(), frames);
+}
+
+}  // namespace
+}  // namespace afr::testing
