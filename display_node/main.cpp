@@ -327,7 +327,9 @@ int main(int argc, char** argv) {
                                   std::min(o.width, cell.x1 + rc.viewport_margin),
                                   std::min(o.height, cell.y1 + rc.viewport_margin)};
     rc.capacity =
-        size_t(std::max(1.0, p->reconstruction.samples_per_pixel * double(received.area())));
+        capacity > 0
+            ? capacity
+            : size_t(std::max(1.0, p->reconstruction.samples_per_pixel * double(received.area())));
     rc.capacity = std::min(rc.capacity, afr::kMaxCapacity);
     const int out_w = cell.width(), out_h = cell.height();
     const bool whole = cell == afr::PixelRect{0, 0, o.width, o.height};
