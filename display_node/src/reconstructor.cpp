@@ -150,10 +150,10 @@ void Reconstructor::prepare_frame(double time, int width, int height,
   setup->scale_x = float(setup->grid.scale_x);
   setup->scale_y = float(setup->grid.scale_y);
   setup->field_changed = field_.update(setup->grid);
-  // Recount the (new) tiles over the samples stored so far, then move the counts with the
-  // samples that entered the ring and those they replaced.
-  if (setup->field_changed) counts_.set_tiles(field_.tiles());
+  // The stored samples per block, moved by those that entered the ring and those they
+  // replaced; then per tile.
   counts_.update(delta, fresh);
+  counts_.count_tiles(field_.tiles());
 
   // How far back the store reaches, and the mean rate it was filled at: the cap of e_t and the
   // rate of pixels no tile with a known rate covers.

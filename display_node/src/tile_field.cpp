@@ -148,80 +148,78 @@ TileSampleCounts::TileSampleCounts(const PixelRect& region, size_t capacity) : r
   while (blocks_at(shift_) > budget) ++shift_;
   grid_width_ = ((region.width() - 1) >> shift_) + 1;
   grid_height_ = ((region.height() - 1) >> shift_) + 1;
-  blocks_.assign(size_t(grid_width_) * size_t(grid_height_), Block{});
-  block_first_.assign(blocks_.size() + 1, 0u);
+  block_count_.assign(size_t(grid_width_) * size_t(grid_height_), 0u);
   slot_pixel_.assign(capacity, kNone);
-  slot_next_.assign(capacity, kNone);
+  if (shift_ > 0) {
+    queues_.assign(block_count_.size(), Queue{});
+    slot_next_.assign(capacity, kNone);
+  }
   rects_.assign(1, PixelRect{});
   counts_.assign(1, 0u);
 }
 
-void TileSampleCounts::set_tiles(const std::vector<FieldTile>& tiles) {
+void TileSampleCounts::count_tiles(const std::vector<FieldTile>& tiles) {
   const size_t n = tiles.size();
   const PixelRect local{0, 0, region_.width(), region_.height()};
+  const size_t gw = size_t(grid_width_);
   rects_.resize(n);
   counts_.assign(n, 0u);
-  // The blocks tile i overlaps: [bx0, bx1] x [by0, by1] (empty rects: none).
-  const auto blocks_of = [&](const PixelRect& r, int* bx0, int* bx1, int* by0, int* by1) {
-    *bx0 = r.x0 >> shift_;
-    *bx1 = (r.x1 - 1) >> shift_;
-    *by0 = r.y0 >> shift_;
-    *by1 = (r.y1 - 1) >> shift_;
+  rects_[0] = PixelRect{};  // "no tile"
+  const int side = 1 << shift_;
+  const auto walk = [&](size_t b, const PixelRect& r) {
+    uint64_t c = 0;
+    for (uint32_t s = queues_[b].head; s != kNone; s = slot_next_[s]) {
+      const uint32_t v = slot_pixel_[s];
+      c += r.contains(unpack_x(v), unpack_y(v)) ? 1 : 0;
+    }
+    return c;
   };
-  // Pass 1: how many tiles each block lists (in block_first_[b + 1]).
-  std::fill(block_first_.begin(), block_first_.end(), 0u);
-  for (size_t i = 0; i < n; ++i) {
+  for (size_t i = 1; i < n; ++i) {
     const PixelRect& t = tiles[i].rect;
     PixelRect r = intersect(
         PixelRect{t.x0 - region_.x0, t.y0 - region_.y0, t.x1 - region_.x0, t.y1 - region_.y0},
         local);
-    if (i == 0 || r.empty()) r = PixelRect{};  // entry 0 is "no tile"
+    if (r.empty()) r = PixelRect{};
     rects_[i] = r;
     if (r.empty()) continue;
-    int bx0, bx1, by0, by1;
-    blocks_of(r, &bx0, &bx1, &by0, &by1);
-    for (int by = by0; by <= by1; ++by) {
-      for (int bx = bx0; bx <= bx1; ++bx) ++block_first_[size_t(by) * grid_width_ + bx + 1];
-    }
-  }
-  for (size_t b = 1; b < block_first_.size(); ++b) block_first_[b] += block_first_[b - 1];
-  block_tiles_.resize(block_first_.back());
-  // Pass 2: list the tiles (block_first_[b] runs ahead as a cursor) and count each tile's
-  // samples: whole blocks by their count, blocks the tile's edge cuts sample by sample.
-  const int side = 1 << shift_;
-  for (size_t i = 1; i < n; ++i) {
-    const PixelRect& r = rects_[i];
-    if (r.empty()) continue;
-    int bx0, bx1, by0, by1;
-    blocks_of(r, &bx0, &bx1, &by0, &by1);
     uint64_t count = 0;
-    for (int by = by0; by <= by1; ++by) {
-      const int y0 = by * side, y1 = std::min(y0 + side, local.y1);
-      for (int bx = bx0; bx <= bx1; ++bx) {
-        const size_t b = size_t(by) * grid_width_ + bx;
-        block_tiles_[block_first_[b]++] = uint32_t(i);
-        const int x0 = bx * side, x1 = std::min(x0 + side, local.x1);
-        if (r.x0 <= x0 && x1 <= r.x1 && r.y0 <= y0 && y1 <= r.y1) {
-          count += blocks_[b].count;
-          continue;
-        }
-        for (uint32_t s = blocks_[b].head; s != kNone; s = slot_next_[s]) {
-          const uint32_t v = slot_pixel_[s];
-          count += r.contains(unpack_x(v), unpack_y(v)) ? 1 : 0;
-        }
+    if (shift_ == 0) {
+      // One block per pixel: the sum of the rectangle's counts, row by row.
+      for (int y = r.y0; y < r.y1; ++y) {
+        const uint32_t* row = block_count_.data() + size_t(y) * gw;
+        uint32_t sum = 0;  // < N < 2^32
+        for (int x = r.x0; x < r.x1; ++x) sum += row[x];
+        count += sum;
       }
+      counts_[i] = count;
+      continue;
+    }
+    // The blocks it overlaps, [bx0, bx1] x [by0, by1], and those wholly inside it,
+    // [ix0, ix1) x [iy0, iy1) (the region's last blocks may be narrower).
+    const int bx0 = r.x0 >> shift_, bx1 = (r.x1 - 1) >> shift_;
+    const int by0 = r.y0 >> shift_, by1 = (r.y1 - 1) >> shift_;
+    const int ix0 = std::min((r.x0 + side - 1) >> shift_, bx1 + 1);
+    const int ix1 = std::max(r.x1 == local.x1 ? grid_width_ : r.x1 >> shift_, ix0);
+    const int iy0 = (r.y0 + side - 1) >> shift_;
+    const int iy1 = r.y1 == local.y1 ? grid_height_ : r.y1 >> shift_;
+    for (int by = by0; by <= by1; ++by) {
+      const size_t row = size_t(by) * gw;
+      if (by < iy0 || by >= iy1) {
+        for (int bx = bx0; bx <= bx1; ++bx) count += walk(row + size_t(bx), r);
+        continue;
+      }
+      for (int bx = bx0; bx < ix0; ++bx) count += walk(row + size_t(bx), r);
+      for (int bx = ix0; bx < ix1; ++bx) count += block_count_[row + size_t(bx)];
+      for (int bx = ix1; bx <= bx1; ++bx) count += walk(row + size_t(bx), r);
     }
     counts_[i] = count;
   }
-  // The cursors ended at the next block's start: shift them back.
-  for (size_t b = block_first_.size() - 1; b > 0; --b) block_first_[b] = block_first_[b - 1];
-  block_first_[0] = 0;
 }
 
 void TileSampleCounts::clear_samples() {
-  std::fill(blocks_.begin(), blocks_.end(), Block{});
+  std::fill(block_count_.begin(), block_count_.end(), 0u);
+  std::fill(queues_.begin(), queues_.end(), Queue{});
   std::fill(slot_pixel_.begin(), slot_pixel_.end(), kNone);
-  std::fill(counts_.begin(), counts_.end(), 0u);
   total_ = 0;
 }
 
@@ -230,17 +228,14 @@ void TileSampleCounts::remove(size_t slot) {
   if (v == kNone) return;
   slot_pixel_[slot] = kNone;
   const size_t b = block_of(v);
-  Block& block = blocks_[b];
-  // The ring overwrites its oldest sample: the first of its block's queue.
-  AFR_CHECK(block.head == uint32_t(slot));
-  block.head = slot_next_[slot];
-  if (block.head == kNone) block.tail = kNone;
-  --block.count;
+  --block_count_[b];
   --total_;
-  const int x = unpack_x(v), y = unpack_y(v);
-  for (uint32_t k = block_first_[b]; k < block_first_[b + 1]; ++k) {
-    const uint32_t t = block_tiles_[k];
-    if (rects_[t].contains(x, y)) --counts_[t];
+  if (shift_ > 0) {
+    // The ring overwrites its oldest sample: the first of its block's queue.
+    Queue& q = queues_[b];
+    AFR_CHECK(q.head == uint32_t(slot));
+    q.head = slot_next_[slot];
+    if (q.head == kNone) q.tail = kNone;
   }
 }
 
@@ -256,20 +251,18 @@ void TileSampleCounts::insert(size_t slot, const StoredSample& s) {
   const int y = std::min(int(s.y), region_.y1 - 1) - region_.y0;
   const uint32_t v = pack(x, y);
   slot_pixel_[slot] = v;
-  slot_next_[slot] = kNone;
   const size_t b = block_of(v);
-  Block& block = blocks_[b];
-  if (block.tail != kNone) {
-    slot_next_[block.tail] = uint32_t(slot);
-  } else {
-    block.head = uint32_t(slot);
-  }
-  block.tail = uint32_t(slot);
-  ++block.count;
+  ++block_count_[b];
   ++total_;
-  for (uint32_t k = block_first_[b]; k < block_first_[b + 1]; ++k) {
-    const uint32_t t = block_tiles_[k];
-    if (rects_[t].contains(x, y)) ++counts_[t];
+  if (shift_ > 0) {
+    Queue& q = queues_[b];
+    slot_next_[slot] = kNone;
+    if (q.tail != kNone) {
+      slot_next_[q.tail] = uint32_t(slot);
+    } else {
+      q.head = uint32_t(slot);
+    }
+    q.tail = uint32_t(slot);
   }
 }
 

@@ -425,7 +425,8 @@ TEST(ViewportTest, GlMemoryIsBoundedByTheViewportNotTheSamplingImage) {
 
 // The counts against a brute-force count over a list of what the ring holds, through ring
 // wraps, retilings, overlapping tiles, tiles cut by the region and more than N samples
-// arriving between two updates; with one block per pixel and with 4 x 4 pixel blocks.
+// arriving between two updates; with one block per pixel and with 2 x 2 pixel blocks (the
+// blocks tile edges cut are walked sample by sample).
 TEST(TileSampleCountsTest, CountsEqualABruteForceCountThroughRingWrapsAndRetilings) {
   for (const size_t capacity : {size_t(1) << 17, size_t(5000)}) {
     const PixelRect region{100, 50, 100 + 300, 50 + 400};  // 120000 pixels
@@ -461,10 +462,10 @@ TEST(TileSampleCountsTest, CountsEqualABruteForceCountThroughRingWrapsAndRetilin
           tiles.push_back(t);
         }
         tiles.push_back(FieldTile{0, 0, 0, 0, 0, PixelRect{101, 51, 102, 52}});  // one pixel
-        counts.set_tiles(tiles);
       }
       const SampleStore::Delta d = store.copy_since(seen, &fresh);
       counts.update(d, fresh);
+      counts.count_tiles(tiles);
       seen = d.end;
       for (const StoredSample& s : fresh) held.push_back(s);
       while (held.size() > d.stored) held.pop_front();

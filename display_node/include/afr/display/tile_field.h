@@ -98,46 +98,48 @@ class TileField {
 
 // Section 5.1's local rate R_l, measured: how many samples of the store lie in each tile of
 // the field, counted over `region` of the sampling image (the part this reconstructor receives
-// samples for), and kept up to date from the samples entering and leaving the ring.
-//
-// The region is cut into square blocks of 2^k pixels, as few powers of two as keep the blocks
-// at most max(2^16, capacity); with the default N = 4 x pixels that is one block per pixel.
-// Each block keeps its count and its samples as a queue in ring order (the ring overwrites
-// oldest first, so a sample leaving the ring is always the first of its block's queue), and
-// each block lists the tiles that overlap it. Hence:
-//   - update(): O(1 + tiles listed in the sample's block) per sample entering or leaving;
-//   - set_tiles() (a new tiling): O(blocks the tiles cover + samples in blocks a tile edge
-//     cuts) - blocks inside a tile add their count, cut ones are walked sample by sample.
-// The counts are exact: count(i) is the number of stored samples whose position lies in
-// tile i's rectangle inside the region (samples in overlapping tiles count in each).
-// Memory: 8 bytes per ring slot, 16 bytes per block, 4 bytes per (tile, block) overlap, 32
+// samples for). The region is cut into square blocks of 2^k pixels, as few powers of two as
+// keep the blocks at most max(2^16, capacity): one block per pixel with the default N = 4 x
+// pixels, and on average at most 4 samples per block otherwise. Each block keeps how many
+// stored samples it holds, moved by update() with the samples entering and leaving the ring;
+// blocks of more than one pixel also keep their samples as a queue in ring order (the ring
+// overwrites oldest first, so a sample leaving it is always the first of its block's queue).
+// count_tiles() then sums, per tile, the blocks wholly inside it and walks the samples of the
+// blocks its edges cut (none with one-pixel blocks). The counts are exact: count(i) is the
+// number of stored samples whose position lies in tile i's rectangle inside the region
+// (samples in overlapping tiles count in each).
+// Cost per image: O(1) per sample entering or leaving, O(blocks the tiles cover + samples in
+// cut blocks) for the sums. (Keeping per-tile counts incrementally instead, through per-block
+// tile lists, cost ~40 ns per entering/leaving pair in cache misses, ~5x the sums at N = 4 x
+// pixels turned over once a second, and samplers send a new tiling every 1/60 s anyway.)
+// Memory: 4 bytes per ring slot and per block (16 and 12 with blocks of several pixels), 24
 // bytes per tile; nothing per pixel of the sampling image outside the region.
 class TileSampleCounts {
  public:
   // region: non-empty, inside the sampling image, sides <= 32768. capacity: the ring's N.
   TileSampleCounts(const PixelRect& region, size_t capacity);
 
-  // The field's tiles changed (TileField::update returned true): recount them all.
-  void set_tiles(const std::vector<FieldTile>& tiles);
   // The samples the store copied (SampleStore::copy_since), oldest first, into ring slots
   // [delta.first, delta.end) mod N, replacing the samples there.
   void update(const SampleStore::Delta& delta, const std::vector<StoredSample>& fresh);
+  // Counts the stored samples in each of `tiles` (entry 0, "no tile", gets none).
+  void count_tiles(const std::vector<FieldTile>& tiles);
 
   const PixelRect& region() const { return region_; }
-  // Stored samples in tile i's rectangle inside the region, and that part's area in pixels.
+  // After count_tiles(): stored samples in tile i's rectangle inside the region, and that
+  // part's area in pixels.
   uint64_t count(size_t tile) const { return counts_[tile]; }
   int64_t area(size_t tile) const { return rects_[tile].area(); }
   // Stored samples inside the region.
   uint64_t total() const { return total_; }
   int block_side() const { return 1 << shift_; }
-  size_t blocks() const { return blocks_.size(); }
+  size_t blocks() const { return block_count_.size(); }
 
  private:
   static constexpr uint32_t kNone = ~uint32_t(0);
-  struct Block {
+  struct Queue {
     uint32_t head = kNone;  // oldest sample's ring slot
     uint32_t tail = kNone;  // newest
-    uint32_t count = 0;
   };
   // A sample's pixel, relative to the region: x in the low 16 bits, y in the high ones.
   static uint32_t pack(int x, int y) { return uint32_t(x) | (uint32_t(y) << 16); }
@@ -154,12 +156,12 @@ class TileSampleCounts {
   int shift_ = 0;  // block side = 2^shift_
   int grid_width_ = 0, grid_height_ = 0;
   uint64_t total_ = 0;
-  std::vector<uint32_t> slot_pixel_;  // per ring slot: packed pixel, kNone if outside/empty
-  std::vector<uint32_t> slot_next_;   // per ring slot: the next (newer) slot of its block
-  std::vector<Block> blocks_;
-  // Tiles per block: block_tiles_[block_first_[b] .. block_first_[b + 1]).
-  std::vector<uint32_t> block_first_;
-  std::vector<uint32_t> block_tiles_;
+  std::vector<uint32_t> slot_pixel_;   // per ring slot: packed pixel, kNone if outside/empty
+  std::vector<uint32_t> block_count_;  // per block
+  // Blocks of several pixels only: per block its queue, per ring slot the next (newer) slot
+  // of its block.
+  std::vector<Queue> queues_;
+  std::vector<uint32_t> slot_next_;
   std::vector<PixelRect> rects_;  // per tile: its rectangle inside the region, relative to it
   std::vector<uint64_t> counts_;  // per tile
 };
