@@ -163,7 +163,15 @@ TEST_F(WallTest, FourNodesEachReceiveTheirCellAndALostNodeIsNoticedWithinOneSeco
   // It comes back on the same cell.
   followers[2] = follower(1, 1, ports[2]);
   ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 4; }, 5.0)) << l->log();
-  ASSERT_TRUE(wait_until([&] { return received(ports[2] + 3) > 0; }, 5.0)) << followers[2]->log();
+  // Until its first image (a follower reconstructs once the lead's layout and views arrive).
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const nlohmann::json st = get_stats(ports[2] + 3);
+        return received(ports[2] + 3) > 0 && !st.is_null() && !st.is_discarded() &&
+               st["display"]["frames"].get<uint64_t>() > 0;
+      },
+      5.0))
+      << followers[2]->log();
 
   // Every node writes its cell's image at exit.
   for (auto& f : followers) f->signal(SIGTERM);
@@ -198,6 +206,23 @@ TEST_F(WallTest, FollowersAskingForATakenCellOrANonWallAreRefusedWithTheReason) 
   const uint64_t frames = get_stats(lead_port_ + 3)["display"]["frames"].get<uint64_t>();
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   EXPECT_GT(get_stats(lead_port_ + 3)["display"]["frames"].get<uint64_t>(), frames);
+}
+
+TEST_F(WallTest, CapacityFlagSetsTheSamplesEachNodeKeeps) {
+  // Without --capacity a node keeps the preset's samples per pixel of what it receives; with
+  // it, exactly that many (a wall of large cells on small machines).
+  auto l = lead({"--wall", "2x1", "--capacity", "5000"});
+  const int port = free_base_port();
+  auto f = follower(1, 0, port);
+  const auto capacity = [](int port) -> int64_t {
+    const nlohmann::json s = get_stats(port);
+    if (s.is_null() || s.is_discarded()) return -1;
+    return s["display"]["store_capacity"].get<int64_t>();
+  };
+  ASSERT_TRUE(wait_until([&] { return capacity(lead_port_ + 3) == 5000; }, 5.0)) << l->log();
+  // The follower was not given --capacity: 4 samples per pixel (the lead's balanced preset)
+  // of its 64 x 128 cell grown by the 66-pixel margin inside the 128 x 128 image: all of it.
+  EXPECT_TRUE(wait_until([&] { return capacity(port + 3) == 4 * 128 * 128; }, 5.0)) << f->log();
 }
 
 }  // namespace
