@@ -98,6 +98,13 @@ int main(int argc, char** argv) {
     o.cache_dir = cache_dir.empty() ? afr::service::default_scene_cache_dir()
                                     : std::filesystem::path(cache_dir);
     o.config.validate();
+    // Flags given on the command line win over the preset the display names.
+    const auto given = [&](const char* flag) { return app.count(flag) > 0; };
+    if (given("--b")) o.overrides.b = o.config.b;
+    if (given("--r")) o.overrides.r = o.config.r;
+    if (given("--chunk")) o.overrides.chunk = o.config.chunk;
+    if (given("--min-tiles")) o.overrides.min_tiles = o.config.min_tiles;
+    if (given("--max-tiles")) o.overrides.max_tiles = o.config.max_tiles;
 
     std::signal(SIGINT, on_signal);
     std::signal(SIGTERM, on_signal);

@@ -369,5 +369,16 @@ TEST_F(ServiceTest, NonLoopbackBindWithoutKeysIsRefused) {
   EXPECT_NE(d->log().find("reachable from other machines"), std::string::npos) << d->log();
 }
 
+TEST_F(ServiceTest, SamplerFlagsGivenExplicitlyWinOverTheDisplaysPreset) {
+  // The display names the fast preset (r = 2, chunk 100); the sampler is given --b 1 and
+  // --chunk 50 and keeps those, taking the rest (r) from the preset.
+  auto d = display({"--size", "64x64", "--preset", "fast"}, "display.log");
+  auto s = sampler({"--b", "1", "--chunk", "50", "--max-samples-per-second", "20000"}, "s.log");
+  ASSERT_TRUE(wait_until([&] { return s->log().find("sampler knobs:") != std::string::npos; }, 5.0))
+      << s->log();
+  const std::string log = s->log();
+  EXPECT_NE(log.find("preset fast, b = 1, r = 2, chunk = 50"), std::string::npos) << log;
+}
+
 }  // namespace
 }  // namespace afr::testing

@@ -3,6 +3,10 @@
 // its cell grown by the layout's margin), reconstructs the same image as one 1024 x 1024
 // display fed every sample, seams included. The sampler is the real one on the built-in
 // scene under a virtual clock; the nodes are CPU reconstructors with viewports.
+//
+// AFR_SEAM_FRAMES (default 3) and AFR_SEAM_MARGIN (default: the reconstructor's automatic
+// margin) rerun it longer or with another margin: docs/wall.md ("Seams") gives the error's
+// growth over longer runs that these reproduce.
 #include <afr/common/builtin_scene.h>
 #include <afr/common/clock.h>
 #include <afr/common/image.h>
@@ -15,6 +19,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <memory>
 #include <vector>
 
@@ -63,7 +68,8 @@ TEST(WallSeamTest, TwoByTwoWallOf512EqualsOneDisplayOf1024SeamsIncluded) {
   ReconstructorConfig base;
   base.image_width = base.image_height = kSide;
   base.threads = 2;
-  const int margin = auto_viewport_margin(base.splat);
+  const int margin = std::getenv("AFR_SEAM_MARGIN") ? std::atoi(std::getenv("AFR_SEAM_MARGIN"))
+                                                    : auto_viewport_margin(base.splat);
 
   service::WallGrid grid;
   grid.columns = grid.rows = 2;
@@ -98,7 +104,8 @@ TEST(WallSeamTest, TwoByTwoWallOf512EqualsOneDisplayOf1024SeamsIncluded) {
   sc.fill_step = 4;
   Sampler sampler(scene, tracer, clock, sc, sink);
   sampler.fill();
-  for (int frame = 0; frame < 3; ++frame) {
+  const int frames = std::getenv("AFR_SEAM_FRAMES") ? std::atoi(std::getenv("AFR_SEAM_FRAMES")) : 3;
+  for (int frame = 0; frame < frames; ++frame) {
     const double until = clock.now() + 1.0 / 60.0;
     while (clock.now() < until) sampler.step();
     sampler.flush();

@@ -605,6 +605,7 @@ void SamplerService::Impl::update_pool() {
   if (!preset_name.empty()) {
     try {
       find_preset(preset_name).apply(&config);
+      options.overrides.apply(&config);
     } catch (const Error& e) {
       spdlog::warn("display's preset: {}; using the sampler's flags", e.what());
     }
@@ -615,6 +616,9 @@ void SamplerService::Impl::update_pool() {
   config.sampler_id = sampler_id;
   config.seed = options.config.seed + uint64_t(sampler_id) * 0x9e3779b97f4a7c15ULL;
   config.refresh_interval = welcome.refresh_interval;
+  spdlog::info("sampler knobs: preset {}, b = {}, r = {}, chunk = {}, tiles {}..{}",
+               preset_name.empty() ? "(none)" : preset_name, config.b, config.r, config.chunk,
+               config.min_tiles, config.max_tiles);
   SamplerPoolOptions po;
   po.threads = int(std::min<int64_t>(options.threads, region->region.area()));
   po.max_samples_per_second = options.max_samples_per_second;

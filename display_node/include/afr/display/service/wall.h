@@ -12,15 +12,13 @@
 
 namespace afr::service {
 
-// Pixels of samples a node receives around its cell by default: the widest splat the
-// reconstructor draws for a sample at the preset's widest spatial extent reaches this far, so
-// that a node's image near its border equals a single display's (docs/wall.md, "Margin").
-inline constexpr int kDefaultWallMargin = 24;
-
 struct WallGrid {
   int columns = 1;
   int rows = 1;
-  int margin = kDefaultWallMargin;
+  // Pixels around each cell whose samples the node receives and reconstructs (not shown).
+  // display_node sets it to the reconstructor's auto_viewport_margin() unless told otherwise
+  // (docs/wall.md, "Margin").
+  int margin = 0;
 
   bool is_wall() const { return columns * rows > 1; }
   // The cell at (column, row) of a width x height virtual display: columns split the width

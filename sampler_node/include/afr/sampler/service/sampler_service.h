@@ -16,9 +16,23 @@
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 namespace afr::service {
+
+// Knobs a preset sets (presets.h) that the user gave explicitly: they win over the preset
+// the display names.
+struct PresetOverrides {
+  std::optional<int> b, r, chunk, min_tiles, max_tiles;
+  void apply(SamplerConfig* c) const {
+    if (b) c->b = *b;
+    if (r) c->r = *r;
+    if (chunk) c->chunk = *chunk;
+    if (min_tiles) c->min_tiles = *min_tiles;
+    if (max_tiles) c->max_tiles = *max_tiles;
+  }
+};
 
 struct SamplerServiceOptions {
   std::string display;  // base endpoint of the display, "tcp://HOST:PORT"
@@ -26,6 +40,7 @@ struct SamplerServiceOptions {
   double max_samples_per_second = 0.0;  // over all threads; 0 = no cap
   std::string preset;                   // empty: the preset the display names in its welcome
   SamplerConfig config;                 // knobs from flags; size and region come from the display
+  PresetOverrides overrides;            // flags given explicitly: applied after the preset
   std::string name;                     // for the display's logs; default: host name + pid
   std::filesystem::path cache_dir;      // received scenes
   protocol::Security security;          // CurveZMQ client keys, or none
