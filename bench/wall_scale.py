@@ -68,7 +68,7 @@ def run(cfg, a, tmp):
     # Few frames: on a 2-core machine four CPU reconstructors at full rate would starve the
     # samplers and the ingest threads that are measured here.
     common = ["--headless", "--backend", "cpu", "--fps", str(a.fps), "--stats-interval", "1",
-              "--output", ""]
+              "--output", "", "--capacity", str(a.capacity)]
     procs = []  # (name, Popen, metrics port)
     log = open(os.path.join(tmp, "log.txt"), "a")
     procs.append(("0,0", subprocess.Popen(
@@ -85,7 +85,7 @@ def run(cfg, a, tmp):
                  "--metrics-port", str(p + 3)] + common, stdout=log, stderr=log), p + 3))
     samplers = [subprocess.Popen(
         [samp, "--display", lead, "--cache", os.path.join(tmp, "cache"),
-         "--max-samples-per-second", str(a.cap)], stdout=log, stderr=log)
+         "--max-samples-per-second", str(a.cap)] + a.sampler_args.split(), stdout=log, stderr=log)
         for _ in range(a.samplers)]
     # Received samples and bytes over the second half of the run, from the counters.
     def totals():
@@ -109,7 +109,8 @@ def run(cfg, a, tmp):
         rows_out.append((cfg, name, last[name][3], hwm_kib(p.pid),
                          (last[name][0] - first[name][0]) / dt,
                          (last[name][1] - first[name][1]) / dt))
-    for p in samplers:
+    for i, p in enumerate(samplers):
+        rows_out.append((cfg, f"sampler {i + 1}", None, hwm_kib(p.pid), 0, 0))
         p.terminate()
     for _, p, _ in procs:
         p.terminate()
@@ -129,6 +130,10 @@ def main():
     ap.add_argument("--cap", type=int, default=100000)
     ap.add_argument("--preset", default="fast")
     ap.add_argument("--fps", type=float, default=1.0)
+    ap.add_argument("--capacity", type=int, default=0,
+                    help="samples each display node keeps (0: the preset's)")
+    ap.add_argument("--sampler-args", default="",
+                    help="extra sampler_node flags, e.g. '--b 1 --fill-step 8' for large images")
     ap.add_argument("--configs", default="1024:2x2,4096:1x1,4096:2x2,8192:2x2")
     a = ap.parse_args()
     print("| virtual display | grid | node (cell) | cell px | N (samples kept) | samples/s in | "
@@ -139,7 +144,8 @@ def main():
             for c, name, s, hwm, sps, bps in run(cfg, a, tmp):
                 size, grid = c.split(":")
                 if s is None:
-                    print(f"| {size}^2 | {grid} | {name} | - | - | - | - | - | {hwm / 1024:.0f} |")
+                    print(f"| {size}^2 | {grid} | {name} | - | - | - | - | - | {hwm / 1024:.0f} |",
+                          flush=True)
                     continue
                 d = s["display"]
                 cell = d["wall"]["cell"]
