@@ -85,5 +85,36 @@ TEST(CoordinatorTest, AreasFollowThroughputWithHysteresis) {
   EXPECT_FALSE(c.maybe_recut(2.5));
 }
 
+TEST(CoordinatorTest, ErrorSharesFollowThroughputOnceTheErrorIsKnown) {
+  // Equal throughputs; then the error sits mostly in the left quarter of the image: the cut
+  // gives each sampler half of the error, so the left region shrinks to about an eighth.
+  CoordinatorOptions o;
+  o.settle_seconds = 0.0;
+  Coordinator c(200, 100, o);
+  bool is_new = false;
+  c.join("a", 0, "a", "", 1, 0.0, &is_new);
+  c.join("b", 0, "b", "", 1, 0.0, &is_new);
+  c.maybe_recut(0.0);
+  c.report_throughput(1, 100000.0, 0.1);
+  c.report_throughput(2, 100000.0, 0.1);
+  EXPECT_EQ(c.members().at(1).region, (PixelRect{0, 0, 100, 100}));
+  MassDensity error(200, 100, 50, 25);
+  error.add(PixelRect{0, 0, 50, 100}, 1000.0);
+  error.add_uniform(1e-3);
+  c.set_error(error);
+  EXPECT_TRUE(c.maybe_recut(1.1));  // the halves hold 0.998 and 0.002 of the error
+  const PixelRect left = c.members().at(1).region;
+  EXPECT_NEAR(left.x1, 25, 1);
+  EXPECT_NEAR(error.mass(left) / error.total(), 0.5, 0.02);
+  EXPECT_TRUE(partitions(c));
+  // The same error again: the shares hold, no recut.
+  c.set_error(error);
+  EXPECT_FALSE(c.maybe_recut(2.2));
+  // No error anywhere (an all-black image): back to areas at the next recut.
+  c.set_error(MassDensity(200, 100, 50, 25));
+  EXPECT_TRUE(c.maybe_recut(3.3));
+  EXPECT_EQ(c.members().at(1).region, (PixelRect{0, 0, 100, 100}));
+}
+
 }  // namespace
 }  // namespace afr::service

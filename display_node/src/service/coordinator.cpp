@@ -96,9 +96,24 @@ std::vector<double> Coordinator::shares() const {
   return s;
 }
 
+void Coordinator::set_error(MassDensity density) {
+  if (density.total() > 0.0) {
+    error_ = std::move(density);
+  } else {
+    error_.reset();
+  }
+}
+
+double Coordinator::fraction(const PixelRect& r) const {
+  if (error_) return error_->mass(r) / error_->total();
+  return double(r.area()) / (double(width_) * double(height_));
+}
+
 void Coordinator::cut(double now) {
   const std::vector<double> s = shares();
-  const std::vector<PixelRect> parts = split_region(PixelRect{0, 0, width_, height_}, s);
+  const PixelRect image{0, 0, width_, height_};
+  const std::vector<PixelRect> parts =
+      error_ ? split_region(image, s, *error_) : split_region(image, s);
   size_t i = 0;
   for (auto& [id, m] : members_) {
     if (!(m.region == parts[i])) m.region_since = now;
@@ -123,12 +138,11 @@ bool Coordinator::maybe_recut(double now) {
   const std::vector<double> s = shares();
   double total = 0.0;
   for (double x : s) total += x;
-  const double area = double(width_) * double(height_);
   size_t i = 0;
   bool drift = false;
   for (const auto& [id, m] : members_) {
     const double want = s[i++] / total;
-    const double have = double(m.region.area()) / area;
+    const double have = fraction(m.region);
     if (have <= 0.0 || std::abs(want / have - 1.0) > options_.hysteresis) drift = true;
   }
   if (!drift) return false;

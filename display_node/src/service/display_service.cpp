@@ -187,7 +187,8 @@ void DisplayService::stop() {
 // Ingest: the sample channel into the sink
 
 void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metrics,
-                const std::function<bool(uint32_t)>& is_member, const std::atomic<bool>& running) {
+                const std::function<bool(uint32_t)>& is_member, const std::atomic<bool>& running,
+                const std::function<void(const TilingSnapshot&)>& on_tiling) {
   uint64_t rejected = 0;
   while (running.load(std::memory_order_relaxed)) {
     switch (receiver.receive(50)) {
@@ -203,6 +204,7 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
       case SampleReceiver::Got::kTiling: {
         const TilingSnapshot& t = receiver.tiling();
         metrics.on_tiling(t.sampler_id, snapshot_message_bytes(t.tiles.size()));
+        if (on_tiling) on_tiling(t);
         sink.on_tiling(std::move(receiver.tiling()));
         break;
       }
@@ -225,7 +227,18 @@ void DisplayService::ingest_loop() {
         return std::any_of(regions_.begin(), regions_.end(),
                            [&](const auto& r) { return r.first == id; });
       },
-      running_);
+      running_,
+      [this](const TilingSnapshot& t) {
+        // The tile's luminance variance over its pixels: comparable between samplers (their
+        // E_tile is normalised by each sampler's own sums, section 6.1).
+        std::vector<std::pair<PixelRect, double>> tiles;
+        tiles.reserve(t.tiles.size());
+        for (const TileInfo& tile : t.tiles) {
+          tiles.emplace_back(tile.rect, double(tile.v) * double(tile.rect.area()));
+        }
+        std::lock_guard<std::mutex> lock(errors_mutex_);
+        tile_errors_[t.sampler_id] = std::move(tiles);
+      });
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -235,7 +248,24 @@ void DisplayService::control_loop() {
   Control& c = *control_;
   Coordinator& co = c.coordinator;
   const double heartbeat_interval = 0.15;
-  double last_heartbeat = 0.0, last_expire = 0.0, next_view = now();
+  double last_heartbeat = 0.0, last_expire = 0.0, last_error = 0.0, next_view = now();
+  // The image's error from the members' latest tilings, on a grid of at most 64 x 64 cells,
+  // with a floor of 1% of the mean so that no part of the image weighs nothing.
+  auto error_density = [&] {
+    MassDensity d(options_.width, options_.height, std::min(64, options_.width),
+                  std::min(64, options_.height));
+    std::lock_guard<std::mutex> lock(errors_mutex_);
+    for (auto it = tile_errors_.begin(); it != tile_errors_.end();) {
+      if (!co.members().count(it->first)) {
+        it = tile_errors_.erase(it);
+        continue;
+      }
+      for (const auto& [rect, mass] : it->second) d.add(rect, mass);
+      ++it;
+    }
+    d.add_uniform(0.01 * d.total() / (double(options_.width) * double(options_.height)));
+    return d;
+  };
 
   auto send = [&](const std::string& peer, const Message& m) {
     Status s = c.server.send(peer, m);
@@ -486,6 +516,10 @@ void DisplayService::control_loop() {
     if (c.wall_changed) {
       c.wall_changed = false;
       publish_layout();
+    }
+    if (t - last_error >= options_.coordinator.recut_interval) {
+      last_error = t;
+      co.set_error(error_density());
     }
     if (co.maybe_recut(t)) send_regions(t);
 

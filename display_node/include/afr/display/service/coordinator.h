@@ -1,16 +1,20 @@
 // The display's coordinator (DESIGN.md, "The closed loop", "Network"): who the samplers are
 // (membership by join, heartbeats and leave), and which part of the image each one samples.
-// The image is cut into one region per sampler with split_region, each region's area
-// proportional to that sampler's measured throughput; the cut is redone at once when a
-// sampler joins, leaves or dies, and at most once per recut_interval when throughputs drift
-// further than the hysteresis from the areas. Plain logic, no I/O: the display service feeds it
-// and sends what it decides.
+// The image is cut into one region per sampler with split_region, each region's share of the
+// image's error proportional to that sampler's measured throughput (DESIGN.md: the error is
+// what the samplers' tiling snapshots say, set with set_error(); before any, the area); the
+// cut is redone at once when a sampler joins, leaves or dies, and at most once per
+// recut_interval when the regions' error shares drift further than the hysteresis from the
+// throughput shares. Plain logic, no I/O: the display service feeds it and sends what it
+// decides.
 #pragma once
 
 #include <afr/common/rect.h>
+#include <afr/common/region_split.h>
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -51,6 +55,8 @@ class Coordinator {
   // Any message from a member.
   void heard(uint32_t id, double now);
   void report_throughput(uint32_t id, double samples_per_second, double now);
+  // The image's error as the samplers' tilings last said it (an empty density: unknown).
+  void set_error(MassDensity density);
   // A leave. Returns whether it was a member.
   bool remove(uint32_t id);
   // Removes and returns members not heard from for member_timeout.
@@ -69,10 +75,13 @@ class Coordinator {
  private:
   std::vector<double> shares() const;
   void cut(double now);
+  // What part of the image `r` holds: of the error when it is known, else of the area.
+  double fraction(const PixelRect& r) const;
 
   int width_, height_;
   CoordinatorOptions options_;
   std::map<uint32_t, Member> members_;  // by id: the order of the cut
+  std::optional<MassDensity> error_;
   uint32_t next_id_ = 1;
   bool dirty_ = false;
   double last_cut_ = -1e9;

@@ -18,7 +18,9 @@
 #include <atomic>
 #include <chrono>
 #include <functional>
+#include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -67,8 +69,10 @@ struct DisplayServiceOptions {
 // check), counting in `metrics`; is_member(sampler id) says whether a batch comes from a known
 // member (for the metrics only: every valid batch goes to the sink). The ingest thread of a
 // display or of a wall's follower.
+// on_tiling, when set, sees every snapshot before the sink does.
 void run_ingest(protocol::SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metrics,
-                const std::function<bool(uint32_t)>& is_member, const std::atomic<bool>& running);
+                const std::function<bool(uint32_t)>& is_member, const std::atomic<bool>& running,
+                const std::function<void(const TilingSnapshot&)>& on_tiling = {});
 
 class DisplayService {
  public:
@@ -109,6 +113,10 @@ class DisplayService {
   mutable std::mutex regions_mutex_;
   std::vector<std::pair<uint32_t, PixelRect>> regions_;
   protocol::WallLayout layout_;  // under regions_mutex_
+  // Each sampler's tiles as its last snapshot gave them: (tile, error mass = v x area), for
+  // the coordinator's cut by error. Ingest thread writes, control thread reads.
+  std::mutex errors_mutex_;
+  std::map<uint32_t, std::vector<std::pair<PixelRect, double>>> tile_errors_;
   std::atomic<bool> running_{false};
   std::thread control_thread_, ingest_thread_;
   std::unique_ptr<MetricsServer> http_;
