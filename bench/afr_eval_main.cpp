@@ -3,6 +3,7 @@
 // virtual clock. See docs/evaluation.md and docs/tradeoffs.md.
 //   afr-eval --size 256x256 --seconds 3 --spp 16                 (Table 1, Figure 8, strips)
 //   afr-eval --sweep --animations bart,toycar --seconds 2         (the trade, Pareto fronts)
+//   afr-eval --sweep --knobs kappa,lambda,m,i --animations builtin (the control weights)
 #include <afr/common/cli.h>
 #include <afr/common/error.h>
 #include <afr/common/log.h>
@@ -60,7 +61,7 @@ int main(int argc, char** argv) {
   std::string paths = source + "/bench/paths";
   std::string out_dir = source + "/out/eval", cache = source + "/out/ideal-cache";
   std::vector<std::string> animation_names{"bart", "toycar", "interactive", "builtin"};
-  std::vector<std::string> rate_texts{"100K", "400K", "800K"}, method_names, starts;
+  std::vector<std::string> rate_texts{"100K", "400K", "800K"}, method_names, starts, knobs;
   std::vector<int> strip_frames;
   double seconds = 3.0, warmup = 1.0, capacity_per_pixel = 4.0;
   int spp = 16, threads = 0;
@@ -101,7 +102,14 @@ int main(int argc, char** argv) {
   app.add_option("--strip-frames", strip_frames, "frame indices shown in image strips")
       ->delimiter(',');
   app.add_option("-j,--threads", threads, "threads (0 = all cores)")->check(CLI::Range(0, 256));
-  app.add_flag("--sweep", sweep, "run the speed/accuracy sweeps instead of the table");
+  CLI::Option* sweep_flag =
+      app.add_flag("--sweep", sweep, "run the speed/accuracy sweeps instead of the table");
+  app.add_option("--knobs", knobs,
+                 "with --sweep: only these knobs' points, plus the defaults (R, b, r, chunk, N, "
+                 "tiles, filter, framed-60hz, frameless, framed-taa, kappa, lambda, m, i; "
+                 "default: the speed/accuracy sweep, without kappa, lambda, m, i)")
+      ->delimiter(',')
+      ->needs(sweep_flag);
   app.add_option("--preset", preset_name, "fast, balanced or accurate (sampler_node presets)");
   app.add_flag("--no-progress", no_progress, "no progress bar");
   app.add_flag("--no-plots", no_plots, "do not run gnuplot");
@@ -194,7 +202,8 @@ int main(int argc, char** argv) {
         size.width, size.height, seconds, frames, spp, warmup, sampler.seed);
 
     if (sweep) {
-      const std::vector<SweepResult> results = run_sweep(config, default_sweep());
+      const std::vector<SweepResult> results =
+          run_sweep(config, knobs.empty() ? default_sweep() : select_sweep(knobs));
       write_sweep_csv(results, out / "sweep.csv");
       std::vector<fs::path> plots;
       if (!no_plots) plots = write_sweep_plots(results, out);

@@ -1,5 +1,6 @@
 #include <afr/eval/sweep.h>
 
+#include <afr/common/error.h>
 #include <afr/common/log.h>
 #include <afr/eval/report.h>
 
@@ -55,6 +56,69 @@ std::vector<SweepPoint> default_sweep() {
     for (double r : {1e5, 2e5, 4e5, 8e5, 1.6e6}) add(method_name(m), rate_label(r), m, r, nullptr);
   }
   return p;
+}
+
+std::vector<SweepPoint> control_sweep() {
+  std::vector<SweepPoint> p;
+  const auto add = [&](std::string knob, std::string value,
+                       std::function<void(RunSettings*)> apply) {
+    p.push_back(
+        SweepPoint{std::move(knob), std::move(value), Method::kAdaptive, 4e5, std::move(apply)});
+  };
+  add("default", "defaults", nullptr);
+  for (double kappa : {0.2, 0.4, 0.8, 1.0}) {
+    add("kappa", fmt::format("kappa={}", kappa), [kappa](RunSettings* s) {
+      s->sampler.kappa = kappa;
+      s->sampler.lambda = std::min(s->sampler.lambda, 1.0 - kappa);
+    });
+  }
+  for (double lambda : {0.0, 0.1, 0.4}) {
+    add("lambda", fmt::format("lambda={}", lambda), [lambda](RunSettings* s) {
+      s->sampler.lambda = lambda;
+      s->sampler.kappa = std::min(s->sampler.kappa, 1.0 - lambda);
+    });
+  }
+  for (double m : {1.0, 4.0, 8.0}) {
+    add("m", fmt::format("m={}", m), [m](RunSettings* s) { s->sampler.m = m; });
+  }
+  for (double i : {0.01, 0.03, 0.3, 1.0}) {
+    add("i", fmt::format("i={}", i), [i](RunSettings* s) { s->sampler.i = i; });
+  }
+  return p;
+}
+
+std::vector<std::string> sweep_knobs() {
+  std::vector<std::string> knobs;
+  for (const auto& points : {default_sweep(), control_sweep()}) {
+    for (const SweepPoint& point : points) {
+      if (std::find(knobs.begin(), knobs.end(), point.knob) == knobs.end()) {
+        knobs.push_back(point.knob);
+      }
+    }
+  }
+  return knobs;
+}
+
+std::vector<SweepPoint> select_sweep(const std::vector<std::string>& knobs) {
+  const std::vector<std::string> known = sweep_knobs();
+  for (const std::string& knob : knobs) {
+    if (std::find(known.begin(), known.end(), knob) == known.end()) {
+      std::string names;
+      for (const std::string& k : known) names += (names.empty() ? "" : ", ") + k;
+      throw Error(fmt::format("unknown sweep knob '{}' (expected one of {})", knob, names));
+    }
+  }
+  std::vector<SweepPoint> out;
+  for (const auto& points : {default_sweep(), control_sweep()}) {
+    for (const SweepPoint& point : points) {
+      const bool is_default = point.knob == "default";
+      if (is_default && !out.empty()) continue;
+      if (is_default || std::find(knobs.begin(), knobs.end(), point.knob) != knobs.end()) {
+        out.push_back(point);
+      }
+    }
+  }
+  return out;
 }
 
 void mark_pareto(std::vector<SweepResult>* results) {

@@ -2,7 +2,9 @@
 // changed at a time from the defaults (R, b, r, chunk, the reconstructor's N, the tile count
 // bounds and the filter clamps), plus the framed, frameless and TAA baselines over R, each
 // scored by mean RMS against the ideal frames and by wall-clock cost, with the Pareto front
-// (no other point both cheaper and more accurate) marked per animation.
+// (no other point both cheaper and more accurate) marked per animation. control_sweep() does
+// the same for the sampler's control weights (kappa, lambda, m, i), which docs/sampler.md
+// chose with it.
 #pragma once
 
 #include <afr/eval/evaluation.h>
@@ -15,7 +17,8 @@
 namespace afr::eval {
 
 struct SweepPoint {
-  std::string knob;   // "R", "b", "r", "chunk", "N", "tiles", "filter", or a baseline's method
+  std::string knob;   // "default", "R", "b", "r", "chunk", "N", "tiles", "filter", a
+                      // baseline's method, or "kappa", "lambda", "m", "i" (control_sweep())
   std::string value;  // as shown in tables and plots
   Method method = Method::kAdaptive;
   double rate = 4e5;
@@ -37,6 +40,20 @@ struct SweepResult {
 
 // The default sweep around `base` (knob values in docs/tradeoffs.md).
 std::vector<SweepPoint> default_sweep();
+
+// The sampler's control weights one at a time around `base`, adaptive at R = 400K: kappa
+// (variance) 0.2, 0.4, 0.8 and 1 (lambda lowered to 1 - kappa where the sum would pass 1),
+// lambda (undersampling) 0, 0.1, 0.4, m (undersampling threshold) 1, 4, 8, i (temporal
+// importance in gain control) 0.01, 0.03, 0.3, 1, and the defaults point.
+std::vector<SweepPoint> control_sweep();
+
+// The knob names of default_sweep() then control_sweep(), each once, "default" first.
+std::vector<std::string> sweep_knobs();
+
+// The defaults point, then the points of default_sweep() and control_sweep() whose knob is
+// one of `knobs` (afr-eval --sweep --knobs kappa,lambda,m,i). Throws afr::Error naming an
+// unknown knob and the known ones.
+std::vector<SweepPoint> select_sweep(const std::vector<std::string>& knobs);
 
 // Runs every point on every animation of `config` (config.methods and config.rates are not
 // used) and marks the Pareto fronts.
