@@ -124,6 +124,19 @@ void MassDensity::add(const PixelRect& rect, double mass) {
   built_ = false;
 }
 
+void MassDensity::blend(const MassDensity& other, double w) {
+  if (other.cells_x_ != cells_x_ || other.cells_y_ != cells_y_ || other.width_ != width_ ||
+      other.height_ != height_) {
+    *this = other;
+    return;
+  }
+  w = std::clamp(w, 0.0, 1.0);
+  for (size_t i = 0; i < density_.size(); ++i) {
+    density_[i] = (1.0 - w) * density_[i] + w * other.density_[i];
+  }
+  built_ = false;
+}
+
 void MassDensity::add_uniform(double density) {
   if (!(density > 0.0) || !std::isfinite(density)) return;
   for (double& d : density_) d += density;

@@ -146,6 +146,13 @@ TEST(MassDensityTest, SplitByMassGivesEachPartItsShareOfTheMass) {
       EXPECT_FALSE(cut[k].empty());
     }
   }
+  // Blending: halfway between an error on the left and one on the right, equal halves.
+  MassDensity l(64, 64, 8, 8), r(64, 64, 8, 8);
+  l.add(PixelRect{0, 0, 8, 64}, 10.0);
+  r.add(PixelRect{56, 0, 64, 64}, 10.0);
+  l.blend(r, 0.5);
+  EXPECT_NEAR(l.mass(PixelRect{0, 0, 32, 64}), 5.0, 1e-9);
+  EXPECT_NEAR(l.mass(PixelRect{32, 0, 64, 64}), 5.0, 1e-9);
   // No mass at all: areas, as the plain split.
   MassDensity none(64, 64, 8, 8);
   EXPECT_EQ(split_region(PixelRect{0, 0, 64, 64}, equal, none),

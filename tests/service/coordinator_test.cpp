@@ -74,15 +74,37 @@ TEST(CoordinatorTest, AreasFollowThroughputWithHysteresis) {
   c.join("b", 0, "b", "", 1, 0.0, &is_new);
   c.maybe_recut(0.0);
   EXPECT_EQ(c.members().at(1).region.area(), 10000);
-  c.report_throughput(1, 300000.0, 0.5);
+  // 4:1 against halves: 0.8 / 0.5 is beyond the hysteresis (0.5).
+  c.report_throughput(1, 400000.0, 0.5);
   c.report_throughput(2, 100000.0, 0.5);
   EXPECT_FALSE(c.maybe_recut(0.5));  // at most once per recut_interval
   EXPECT_TRUE(c.maybe_recut(1.1));
-  EXPECT_NEAR(double(c.members().at(1).region.area()) / 20000.0, 0.75, 0.02);
+  EXPECT_NEAR(double(c.members().at(1).region.area()) / 20000.0, 0.8, 0.02);
   EXPECT_TRUE(partitions(c));
   // A 10% change is inside the hysteresis: no recut.
-  c.report_throughput(1, 330000.0, 2.0);
+  c.report_throughput(1, 440000.0, 2.0);
   EXPECT_FALSE(c.maybe_recut(2.5));
+}
+
+TEST(CoordinatorTest, NoDriftRecutUntilEveryRegionHasSettled) {
+  // A new region restarts the sampler's pool: for settle_seconds its figures are not used.
+  CoordinatorOptions o;
+  o.settle_seconds = 2.0;
+  Coordinator c(200, 100, o);
+  bool is_new = false;
+  c.join("a", 0, "a", "", 1, 0.0, &is_new);
+  c.join("b", 0, "b", "", 1, 0.0, &is_new);
+  c.maybe_recut(0.0);
+  MassDensity error(200, 100, 50, 25);
+  error.add(PixelRect{0, 0, 20, 100}, 1000.0);
+  c.set_error(error);
+  EXPECT_FALSE(c.maybe_recut(1.5));  // regions 1.5 s old
+  EXPECT_TRUE(c.maybe_recut(2.1));   // settled, and the error is far from half and half
+  EXPECT_LT(c.members().at(1).region.x1, 20);
+  // The joining of a third sampler recuts at once, settled or not.
+  c.join("c", 0, "c", "", 1, 2.5, &is_new);
+  EXPECT_TRUE(c.maybe_recut(2.5));
+  EXPECT_TRUE(partitions(c));
 }
 
 TEST(CoordinatorTest, ErrorSharesFollowThroughputOnceTheErrorIsKnown) {

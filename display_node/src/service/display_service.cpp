@@ -11,6 +11,7 @@
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <optional>
 #include <random>
 
 namespace afr::service {
@@ -249,6 +250,7 @@ void DisplayService::control_loop() {
   Coordinator& co = c.coordinator;
   const double heartbeat_interval = 0.15;
   double last_heartbeat = 0.0, last_expire = 0.0, last_error = 0.0, next_view = now();
+  std::optional<MassDensity> error;  // smoothed
   // The image's error from the members' latest tilings, on a grid of at most 64 x 64 cells,
   // with a floor of 1% of the mean so that no part of the image weighs nothing.
   auto error_density = [&] {
@@ -517,9 +519,21 @@ void DisplayService::control_loop() {
       c.wall_changed = false;
       publish_layout();
     }
-    if (t - last_error >= options_.coordinator.recut_interval) {
+    // The error as the tilings say it, once every member has settled in its region (its
+    // tiles then describe its region, not the one before or its pool's first fill).
+    const bool settled = std::all_of(co.members().begin(), co.members().end(), [&](const auto& e) {
+      return t - e.second.region_since >= options_.coordinator.settle_seconds;
+    });
+    if (settled && t - last_error >= options_.coordinator.recut_interval) {
       last_error = t;
-      co.set_error(error_density());
+      // Smoothed over about three readings: one snapshot's variances are noisy, and a cut
+      // that follows the noise restarts the samplers for nothing.
+      if (error) {
+        error->blend(error_density(), 0.3);
+      } else {
+        error = error_density();
+      }
+      co.set_error(*error);
     }
     if (co.maybe_recut(t)) send_regions(t);
 

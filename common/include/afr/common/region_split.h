@@ -26,6 +26,8 @@ class MassDensity {
   void add(const PixelRect& rect, double mass);
   // Adds `density` per pixel everywhere (a floor, so no part of the image is weightless).
   void add_uniform(double density);
+  // This = (1 - w) x this + w x other, cell by cell (same grid; a different grid: other).
+  void blend(const MassDensity& other, double w);
   double total() const;
   double mass(const PixelRect& rect) const;  // builds the integral table on first use
 

@@ -23,7 +23,8 @@ namespace afr::service {
 struct CoordinatorOptions {
   double member_timeout = 0.5;  // seconds without a message before a sampler is dead
   double recut_interval = 1.0;  // seconds between throughput-driven recuts
-  double hysteresis = 0.25;     // relative mismatch of share and area that triggers one
+  double hysteresis =
+      0.5;  // relative mismatch of error share and throughput share that triggers one
   // Throughput reports this soon after a region change are ignored (the pool restarts).
   double settle_seconds = 2.0;
 };
