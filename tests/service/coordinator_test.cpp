@@ -27,6 +27,14 @@ bool partitions(const Coordinator& c) {
   return true;
 }
 
+// Samplers "a" (id 1) and "b" (id 2) joined at time 0, and the first cut made.
+void join_two(Coordinator* c) {
+  bool is_new = false;
+  c->join("a", 0, "a", "", 1, 0.0, &is_new);
+  c->join("b", 0, "b", "", 1, 0.0, &is_new);
+  c->maybe_recut(0.0);
+}
+
 TEST(CoordinatorTest, JoinsGetIdsAndTheRegionsPartitionTheImage) {
   Coordinator c(100, 60);
   bool is_new = false;
@@ -52,10 +60,7 @@ TEST(CoordinatorTest, SilentMemberExpiresAndItsRegionGoesToTheOthers) {
   CoordinatorOptions o;
   o.member_timeout = 0.5;
   Coordinator c(64, 64, o);
-  bool is_new = false;
-  c.join("a", 0, "a", "", 1, 0.0, &is_new);
-  c.join("b", 0, "b", "", 1, 0.0, &is_new);
-  c.maybe_recut(0.0);
+  join_two(&c);
   c.heard(1, 0.4);
   EXPECT_TRUE(c.expire(0.45).empty());
   const std::vector<Member> dead = c.expire(0.6);
@@ -69,10 +74,7 @@ TEST(CoordinatorTest, AreasFollowThroughputWithHysteresis) {
   CoordinatorOptions o;
   o.settle_seconds = 0.0;
   Coordinator c(200, 100, o);
-  bool is_new = false;
-  c.join("a", 0, "a", "", 1, 0.0, &is_new);
-  c.join("b", 0, "b", "", 1, 0.0, &is_new);
-  c.maybe_recut(0.0);
+  join_two(&c);
   EXPECT_EQ(c.members().at(1).region.area(), 10000);
   // 4:1 against halves: 0.8 / 0.5 is beyond the hysteresis (0.5).
   c.report_throughput(1, 400000.0, 0.5);
@@ -91,10 +93,7 @@ TEST(CoordinatorTest, NoDriftRecutUntilEveryRegionHasSettled) {
   CoordinatorOptions o;
   o.settle_seconds = 2.0;
   Coordinator c(200, 100, o);
-  bool is_new = false;
-  c.join("a", 0, "a", "", 1, 0.0, &is_new);
-  c.join("b", 0, "b", "", 1, 0.0, &is_new);
-  c.maybe_recut(0.0);
+  join_two(&c);
   MassDensity error(200, 100, 50, 25);
   error.add(PixelRect{0, 0, 20, 100}, 1000.0);
   c.set_error(error);
@@ -102,6 +101,7 @@ TEST(CoordinatorTest, NoDriftRecutUntilEveryRegionHasSettled) {
   EXPECT_TRUE(c.maybe_recut(2.1));   // settled, and the error is far from half and half
   EXPECT_LT(c.members().at(1).region.x1, 20);
   // The joining of a third sampler recuts at once, settled or not.
+  bool is_new = false;
   c.join("c", 0, "c", "", 1, 2.5, &is_new);
   EXPECT_TRUE(c.maybe_recut(2.5));
   EXPECT_TRUE(partitions(c));
@@ -113,10 +113,7 @@ TEST(CoordinatorTest, ErrorSharesFollowThroughputOnceTheErrorIsKnown) {
   CoordinatorOptions o;
   o.settle_seconds = 0.0;
   Coordinator c(200, 100, o);
-  bool is_new = false;
-  c.join("a", 0, "a", "", 1, 0.0, &is_new);
-  c.join("b", 0, "b", "", 1, 0.0, &is_new);
-  c.maybe_recut(0.0);
+  join_two(&c);
   c.report_throughput(1, 100000.0, 0.1);
   c.report_throughput(2, 100000.0, 0.1);
   EXPECT_EQ(c.members().at(1).region, (PixelRect{0, 0, 100, 100}));
