@@ -17,6 +17,7 @@
 #include <afr/display/gl_reconstructor.h>
 #include <afr/display/glfw_window.h>
 #include <afr/display/service/display_service.h>
+#include <afr/display/service/fly_camera.h>
 #include <afr/display/service/overlays.h>
 #include <afr/display/service/wall_follower.h>
 #include <afr/protocol/keys.h>
@@ -118,7 +119,7 @@ int main(int argc, char** argv) {
                           output = "out", log_level = "info", wall_text = "1x1", cell_text = "0,0",
                           follow, advertise;
   DisplayServiceOptions o;
-  bool headless = false, insecure = false;
+  bool headless = false, insecure = false, interactive = false;
   double fps = 30.0, seconds = 0.0, stats_interval = 2.0;
   int screenshot_every = 0, margin = -1;
   size_t capacity = 0;
@@ -151,6 +152,9 @@ int main(int argc, char** argv) {
   app.add_option("--record", record, "write the views' camera path to this file at exit");
   app.add_option("--replay", replay, "views follow this camera path (looping)")
       ->check(CLI::ExistingFile);
+  app.add_flag("--interactive", interactive,
+               "steer the camera in the window: drag with the left mouse button to look, "
+               "arrow keys to move, Page Up/Down to rise and sink (record it with --record)");
   app.add_option("--screenshot-every", screenshot_every,
                  "write an image every K frames to --output (0 = only at exit)")
       ->check(CLI::Range(0, 1000000000));
@@ -257,6 +261,7 @@ int main(int argc, char** argv) {
     SwitchSink switch_sink;
     std::unique_ptr<afr::service::DisplayService> service;
     std::unique_ptr<afr::service::WallFollower> wall_follower;
+    std::unique_ptr<afr::service::FlyCamera> fly;  // --interactive
     afr::PixelRect cell;
     if (follower) {
       afr::service::WallFollowerOptions fo;
@@ -309,6 +314,16 @@ int main(int argc, char** argv) {
             replay);
       }
       o.camera_at = camera_function(*scene, path.get());
+      if (interactive) {
+        if (headless) throw afr::Error("--interactive needs a window (drop --headless)");
+        // From where the animation (or path) starts, a tenth of the scene's size per second.
+        glm::dvec3 lo, hi;
+        scene->bounds(scene->evaluate(0.0), &lo, &hi);
+        const double size = glm::length(hi - lo);
+        fly = std::make_unique<afr::service::FlyCamera>(
+            o.camera_at(0.0), std::isfinite(size) && size > 0.0 ? 0.1 * size : 1.0);
+        o.camera_at = [f = fly.get()](double) { return f->camera(); };
+      }
       spdlog::info("scene {}: {} triangles, {:.2f} s of animation, {} bytes to serve", o.scene.name,
                    scene->triangle_count(), scene->duration(), o.scene.bytes.size());
       service = std::make_unique<afr::service::DisplayService>(o, switch_sink);
@@ -380,6 +395,8 @@ int main(int argc, char** argv) {
     double next_frame = now(), next_stats = now() + stats_interval, last_stats = now();
     const double started = now();
     bool key_down[3] = {false, false, false};
+    bool dragging = false;
+    double drag_x = 0.0, drag_y = 0.0, last_input = now();
     auto save = [&](const std::string& stem, double t) {
       if (whole) {
         afr::service::write_images(*recon, image, tee, regions(), fs::path(output) / stem);
@@ -415,6 +432,23 @@ int main(int argc, char** argv) {
         window->poll_events();
         // Keys: M cycles the reconstruction mode, S writes a screenshot, Q/Esc quits.
         GLFWwindow* w = glfwGetCurrentContext();
+        if (fly && w) {
+          // --interactive: a left-button drag looks around, arrows and Page Up/Down move.
+          double cx = 0.0, cy = 0.0;
+          glfwGetCursorPos(w, &cx, &cy);
+          if (glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS && dragging) {
+            fly->look(cx - drag_x, cy - drag_y);
+          }
+          dragging = glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
+          drag_x = cx;
+          drag_y = cy;
+          const auto key = [&](int k) { return glfwGetKey(w, k) == GLFW_PRESS ? 1.0 : 0.0; };
+          const glm::dvec3 move(key(GLFW_KEY_RIGHT) - key(GLFW_KEY_LEFT),
+                                key(GLFW_KEY_PAGE_UP) - key(GLFW_KEY_PAGE_DOWN),
+                                key(GLFW_KEY_UP) - key(GLFW_KEY_DOWN));
+          fly->move(move, std::min(t - last_input, 0.1));
+        }
+        last_input = t;
         const int keys[3] = {GLFW_KEY_M, GLFW_KEY_S, GLFW_KEY_Q};
         for (int k = 0; k < 3 && w; ++k) {
           const bool down = glfwGetKey(w, keys[k]) == GLFW_PRESS;

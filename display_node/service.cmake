@@ -7,6 +7,7 @@ pkg_check_modules(AFR_HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
 add_library(afr_display_service
   ${CMAKE_CURRENT_LIST_DIR}/src/service/coordinator.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/display_service.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/service/fly_camera.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/metrics.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/overlays.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/wall.cpp

@@ -380,5 +380,11 @@ TEST_F(ServiceTest, SamplerFlagsGivenExplicitlyWinOverTheDisplaysPreset) {
   EXPECT_NE(log.find("preset fast, b = 1, r = 2, chunk = 50"), std::string::npos) << log;
 }
 
+TEST_F(ServiceTest, InteractiveCameraWithoutAWindowIsRefusedWithTheReason) {
+  auto d = display({"--interactive"}, "display.log");  // the fixture runs --headless
+  EXPECT_EQ(d->wait(10.0), 1);
+  EXPECT_NE(d->log().find("--interactive needs a window"), std::string::npos) << d->log();
+}
+
 }  // namespace
 }  // namespace afr::testing
