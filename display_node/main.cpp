@@ -396,6 +396,7 @@ int main(int argc, char** argv) {
     const double started = now();
     bool key_down[3] = {false, false, false};
     bool dragging = false;
+    int overlay = 0;  // window: 0 the image, 1 tiling, 2 gradients, 3 density
     double drag_x = 0.0, drag_y = 0.0, last_input = now();
     auto save = [&](const std::string& stem, double t) {
       if (whole) {
@@ -426,12 +427,32 @@ int main(int argc, char** argv) {
       if (window) {
         int fw = 0, fh = 0;
         window->framebuffer_size(&fw, &fh);
-        recon->reconstruct(camera, t, std::max(1, fw), std::max(1, fh), nullptr);
-        window->draw(*gl);
+        if (overlay == 0 || !whole) {
+          recon->reconstruct(camera, t, std::max(1, fw), std::max(1, fh), nullptr);
+          window->draw(*gl);
+        } else {
+          // An overlay: the image read back at the sampling size, drawn over, scaled up.
+          recon->reconstruct(camera, t, out_w, out_h, &image);
+          const auto tilings = tee.tilings();
+          if (overlay == 1) {
+            window->draw_image(afr::service::tiling_overlay(image, tilings, regions()));
+          } else if (overlay == 2) {
+            window->draw_image(afr::service::gradient_overlay(tilings, out_w, out_h));
+          } else {
+            std::vector<float> weights;
+            recon->read_weights(&weights);
+            window->draw_image(afr::service::density_overlay(weights, out_w, out_h));
+          }
+        }
         window->swap();
         window->poll_events();
-        // Keys: M cycles the reconstruction mode, S writes a screenshot, Q/Esc quits.
+        // Keys: M cycles the reconstruction mode, S writes a screenshot, Q/Esc quits; 1, 2, 3
+        // show the tiling (the paper's Figure 3), the gradients (Figure 4) and the sample
+        // density (Figure 7) over the image, 0 the image alone.
         GLFWwindow* w = glfwGetCurrentContext();
+        for (int k = 0; k < 4 && w; ++k) {
+          if (glfwGetKey(w, GLFW_KEY_0 + k) == GLFW_PRESS) overlay = k;
+        }
         if (fly && w) {
           // --interactive: a left-button drag looks around, arrows and Page Up/Down move.
           double cx = 0.0, cy = 0.0;
@@ -482,6 +503,8 @@ int main(int argc, char** argv) {
         last_stats = done;
         next_stats = done + stats_interval;
         spdlog::info("{}", metrics.log_line());
+        // The window's heads-up line: the same figures in its title.
+        if (window) window->set_title("afr display | " + metrics.log_line());
       }
     }
 

@@ -10,6 +10,8 @@
 
 #include <fmt/format.h>
 
+#include <vector>
+
 namespace afr {
 
 namespace {
@@ -59,6 +61,11 @@ std::unique_ptr<GlfwWindow> GlfwWindow::create(int width, int height, const std:
 }
 
 GlfwWindow::~GlfwWindow() {
+  if (window_ != nullptr && image_texture_ != 0) {
+    make_current();
+    glDeleteFramebuffers(1, &image_framebuffer_);
+    glDeleteTextures(1, &image_texture_);
+  }
   if (window_ != nullptr) glfwDestroyWindow(window_);
   glfwTerminate();
 }
@@ -88,6 +95,40 @@ void GlfwWindow::draw(GlReconstructor& reconstructor) {
   glClear(GL_COLOR_BUFFER_BIT);
   reconstructor.draw_output(w, h);
 }
+
+void GlfwWindow::draw_image(const Image& image) {
+  make_current();
+  if (image.width < 1 || image.height < 1) return;
+  // sRGB bytes, rows bottom to top as GL keeps them.
+  std::vector<uint8_t> rgb(size_t(image.width) * size_t(image.height) * 3);
+  for (int y = 0; y < image.height; ++y) {
+    uint8_t* row = rgb.data() + size_t(image.height - 1 - y) * size_t(image.width) * 3;
+    for (int x = 0; x < image.width; ++x) {
+      for (int c = 0; c < 3; ++c) row[3 * x + c] = linear_to_srgb8(image.at(x, y)[c]);
+    }
+  }
+  if (image_texture_ == 0) {
+    glGenTextures(1, &image_texture_);
+    glGenFramebuffers(1, &image_framebuffer_);
+  }
+  glBindTexture(GL_TEXTURE_2D, image_texture_);
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB8, image.width, image.height, 0, GL_RGB, GL_UNSIGNED_BYTE,
+               rgb.data());
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, image_framebuffer_);
+  glFramebufferTexture2D(GL_READ_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, image_texture_,
+                         0);
+  glBindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
+  int w = 0, h = 0;
+  framebuffer_size(&w, &h);
+  // The bytes are already what the display shows: no conversion on the way.
+  glDisable(GL_FRAMEBUFFER_SRGB);
+  glBlitFramebuffer(0, 0, image.width, image.height, 0, 0, w, h, GL_COLOR_BUFFER_BIT,
+                    image.width == w && image.height == h ? GL_NEAREST : GL_LINEAR);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+}
+
+void GlfwWindow::set_title(const std::string& title) { glfwSetWindowTitle(window_, title.c_str()); }
 
 void GlfwWindow::swap() { glfwSwapBuffers(window_); }
 

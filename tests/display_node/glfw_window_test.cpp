@@ -55,5 +55,25 @@ TEST(GlfwWindowTest, ShowsTheReconstructedImageTopUp) {
   }
 }
 
+TEST(GlfwWindowTest, DrawsAnImageAsItsSrgbValuesScaledToTheWindow) {
+  std::string error;
+  std::shared_ptr<GlfwWindow> window = GlfwWindow::create(64, 48, "afr test", &error);
+  if (window == nullptr) GTEST_SKIP() << error;
+  // Left half a dim grey, right half green; row 0 (top) white.
+  Image img(32, 24, glm::vec3(0.2f));
+  for (int y = 0; y < 24; ++y) {
+    for (int x = 16; x < 32; ++x) img.at(x, y) = glm::vec3(0.0f, 1.0f, 0.0f);
+  }
+  for (int x = 0; x < 32; ++x) img.at(x, 0) = glm::vec3(1.0f);
+  window->draw_image(img);  // 32 x 24 scaled 2x
+  const Image shown = window->read_back_buffer();
+  window->swap();
+  ASSERT_EQ(shown.width, 64);
+  EXPECT_NEAR(shown.at(10, 24).r, linear_to_srgb8(0.2f) / 255.0f, 1.5f / 255);
+  EXPECT_NEAR(shown.at(50, 24).g, 1.0f, 1e-6f);
+  EXPECT_NEAR(shown.at(50, 24).r, 0.0f, 1e-6f);
+  EXPECT_NEAR(shown.at(10, 0).b, 1.0f, 1e-6f);  // the top row at the top
+}
+
 }  // namespace
 }  // namespace afr

@@ -60,6 +60,34 @@ Image tiling_overlay(const Image& image, const std::map<uint32_t, TilingSnapshot
   return out;
 }
 
+Image gradient_overlay(const std::map<uint32_t, TilingSnapshot>& tilings, int width, int height) {
+  Image out(width, height);
+  glm::vec3 largest(0.0f);
+  for (const auto& [id, snap] : tilings) {
+    for (const TileInfo& t : snap.tiles) {
+      const glm::vec3 g(t.G_x, t.G_y, t.G_t);
+      for (int c = 0; c < 3; ++c) {
+        if (std::isfinite(g[c])) largest[c] = std::max(largest[c], std::abs(g[c]));
+      }
+    }
+  }
+  for (const auto& [id, snap] : tilings) {
+    for (const TileInfo& t : snap.tiles) {
+      glm::vec3 color(0.0f);
+      const glm::vec3 g(t.G_x, t.G_y, t.G_t);
+      for (int c = 0; c < 3; ++c) {
+        color[c] = largest[c] > 0.0f && std::isfinite(g[c]) ? std::abs(g[c]) / largest[c] : 0.0f;
+      }
+      const int x0 = std::clamp(t.rect.x0, 0, width), x1 = std::clamp(t.rect.x1, 0, width);
+      const int y0 = std::clamp(t.rect.y0, 0, height), y1 = std::clamp(t.rect.y1, 0, height);
+      for (int y = y0; y < y1; ++y) {
+        for (int x = x0; x < x1; ++x) out.at(x, y) = color;
+      }
+    }
+  }
+  return out;
+}
+
 Image density_overlay(const std::vector<float>& weights, int width, int height) {
   Image out(width, height);
   if (weights.size() != size_t(width) * size_t(height)) return out;

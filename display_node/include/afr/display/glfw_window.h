@@ -28,6 +28,10 @@ class GlfwWindow final : public GlContext {
   void framebuffer_size(int* width, int* height) const;
   // Draws the reconstructor's last image into the back buffer; swap() shows it.
   void draw(GlReconstructor& reconstructor);
+  // Draws a linear-RGB image (an overlay: the tiling, gradients, sample density), scaled to
+  // the window, into the back buffer as the sRGB values a display shows.
+  void draw_image(const Image& image);
+  void set_title(const std::string& title);
   void swap();
   // The back buffer as drawn (before swap), row 0 at the top: for tests and screenshots.
   Image read_back_buffer();
@@ -35,6 +39,7 @@ class GlfwWindow final : public GlContext {
  private:
   GlfwWindow() = default;
   GLFWwindow* window_ = nullptr;
+  unsigned image_texture_ = 0, image_framebuffer_ = 0;  // draw_image's
 };
 
 }  // namespace afr
