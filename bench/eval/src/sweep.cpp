@@ -78,7 +78,9 @@ std::vector<SweepPoint> control_sweep() {
       s->sampler.kappa = std::min(s->sampler.kappa, 1.0 - lambda);
     });
   }
-  for (double m : {1.0, 4.0, 8.0}) {
+  // m's list holds the default (1) and the former default (2), so that a sweep around either
+  // (afr-eval --m 2) has both neighbours; the point equal to the base repeats the defaults.
+  for (double m : {0.5, 1.0, 2.0, 4.0, 8.0}) {
     add("m", fmt::format("m={}", m), [m](RunSettings* s) { s->sampler.m = m; });
   }
   for (double i : {0.01, 0.03, 0.3, 1.0}) {
