@@ -304,13 +304,13 @@ SampleReceiver::Got SampleReceiver::receive(int timeout_ms) {
   Result<Header> header = peek_header(bytes);
   if (!header) return reject(header.status());
   if (header->type == MessageType::kSampleBatch) {
-    if (Status s = decode(bytes, &batch_, bounds_); !s) return reject(std::move(s));
+    if (Status s = decode(bytes, &batch_, image_bounds()); !s) return reject(std::move(s));
     ++counters_.batches;
     counters_.samples += batch_.samples.size();
     return Got::kBatch;
   }
   if (header->type == MessageType::kTilingSnapshot) {
-    if (Status s = decode(bytes, &tiling_, bounds_); !s) return reject(std::move(s));
+    if (Status s = decode(bytes, &tiling_, image_bounds()); !s) return reject(std::move(s));
     ++counters_.tilings;
     return Got::kTiling;
   }

@@ -27,6 +27,7 @@
 
 #include <zmq.hpp>
 
+#include <atomic>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -162,7 +163,16 @@ class SampleReceiver {
   const Status& rejection() const { return rejection_; }
 
   // Samples and tiles outside this image are rejected (default: the protocol's limit).
-  void set_image_bounds(const ImageBounds& bounds) { bounds_ = bounds; }
+  // Safe from any thread while another receives (a wall's follower learns its image from the
+  // control thread): the bounds travel as one atomic word, read once per message.
+  void set_image_bounds(const ImageBounds& bounds) {
+    bounds_.store((uint64_t(uint32_t(bounds.width)) << 32) | uint32_t(bounds.height),
+                  std::memory_order_relaxed);
+  }
+  ImageBounds image_bounds() const {
+    const uint64_t b = bounds_.load(std::memory_order_relaxed);
+    return ImageBounds{int32_t(b >> 32), int32_t(b & 0xffffffffu)};
+  }
   const Counters& counters() const { return counters_; }
   // The endpoint as bound ("tcp://127.0.0.1:41234" for "tcp://127.0.0.1:*").
   std::string endpoint() const;
@@ -174,7 +184,8 @@ class SampleReceiver {
   SampleBatch batch_;
   TilingSnapshot tiling_;
   Status rejection_;
-  ImageBounds bounds_;
+  std::atomic<uint64_t> bounds_{(uint64_t(uint32_t(kMaxImageSize)) << 32) |
+                                uint32_t(kMaxImageSize)};
   Counters counters_;
 };
 
