@@ -35,14 +35,19 @@ struct PixelShape {
   float growth = 1.0f;               // r / filter radius (what the coverage map records)
 };
 
-// Per-task counts of what happened to samples and pixels (summed after each phase).
-struct Counts {
+// Per-task counts of what happened to samples and pixels (summed after each phase); a cache
+// line each, so that tasks on different threads never share one.
+struct alignas(64) Counts {
   uint64_t splatted = 0, behind = 0, off_screen = 0, future = 0;
   uint64_t holes = 0, empty = 0, nonfinite = 0;
-  float max_radius = 0.0f;
 };
 
 constexpr uint16_t kNoBand = 0xffff;
+
+// Rows per band of pass D, whatever the thread count (so that the image does not depend on it):
+// tall enough that few splats reach beyond the next band, short enough that bands outnumber
+// threads several times over (for balance).
+int band_height_for(int height) { return std::clamp(height / 32, 8, 64); }
 
 // floor and ceil to int without a libm call (the baseline x86-64 target has no roundss);
 // |v| < 2^31.
@@ -81,16 +86,19 @@ int default_threads(int requested) {
 }  // namespace
 
 // The adaptive modes run in four passes, each touching memory in order where it can:
+//   C. (per pixel) the splat shape every pixel would give a sample: tile filter and coverage;
 //   A. (chunks of the ring) reproject each sample, note its home band (the band of horizontal
-//      rows its center falls in) and count samples per chunk and home band;
+//      rows its center falls in, or the oversize bucket for a splat taller than a band) and
+//      count samples per chunk and home band;
 //   B. (chunks) copy the projected samples into home-band order (stable: sample order within
 //      a band, whatever the thread count);
-//   C. (per pixel) the splat shape every pixel would give a sample: tile filter and coverage;
-//   D. (home bands) look up each sample's shape and splat it. Bands are at least as tall as
-//      the largest splat radius, so a splat reaches only its home band and the two next to it;
-//      bands are done in three rounds (home band index mod 3), and within a round no two bands
-//      reach the same row: no two threads ever write the same pixel. The shape table and the
-//      accumulation rows a band touches stay in cache, which random sample order would not.
+//   D. (home bands) look up each sample's shape and splat it. A splat in a band reaches only
+//      its home band and the two next to it (taller ones went to the oversize bucket); bands
+//      are done in three rounds (home band index mod 3), and within a round no two bands reach
+//      the same row: no two threads ever write the same pixel. Then the oversize bucket, on
+//      one thread (well under 1% of samples: grown splats in undersampled regions). The shape
+//      table and the accumulation rows a band touches stay in cache, which random sample order
+//      would not.
 struct CpuReconstructor::Impl {
   explicit Impl(int threads, size_t capacity) : pool(threads) { mirror.resize(capacity); }
 
@@ -108,6 +116,7 @@ struct CpuReconstructor::Impl {
   std::vector<size_t> band_start;    // bands + 1
   std::vector<Projected> sorted;     // in home-band order (pass B)
   std::vector<PixelShape> shapes;    // per pixel (pass C)
+  std::vector<uint8_t> reach;        // per pixel: ceil(shape.r_y), at most 255 (pass C)
   std::vector<Counts> task_counts;
   std::vector<glm::vec4> accum;             // (sum w c, sum w) per grid pixel
   std::vector<CoverageCell> coverage_next;  // this image's coverage
@@ -156,7 +165,6 @@ struct CpuReconstructor::Impl {
       total.holes += c.holes;
       total.empty += c.empty;
       total.nonfinite += c.nonfinite;
-      total.max_radius = std::max(total.max_radius, c.max_radius);
     }
     return total;
   }
@@ -258,13 +266,12 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
     // ---- C (first: it gives the band height). Per pixel, what a splat landing there gets:
     // its tile's filter and, section 6.2, the size from the previous image's coverage there.
     m.shapes.resize(pixels);
-    m.task_counts.assign(size_t(row_tasks), Counts{});
+    m.reach.resize(pixels);
     const std::vector<uint32_t>& index_map = field_.index_map();
     m.pool.run(row_tasks, [&](int task) {
       size_t p0, p1;
       rows_of(task, &p0, &p1);
       const CoverageCell* previous = m.previous.valid() ? m.previous.cells().data() : nullptr;
-      float max_radius = 0.0f;
       for (size_t p = p0; p < p1; ++p) {
         const TileFilter& f = setup.filters[index_map[p]];
         const float r_filter = cutoff * std::max(f.sigma_x, f.sigma_y);
@@ -285,32 +292,32 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
         shape.norm = 1.0f / (sigma_x * sigma_y);
         shape.r = r;
         shape.growth = splat_growth(r, r_filter);
-        max_radius = std::max(max_radius, r);
+        m.reach[p] = uint8_t(std::min(ceil_int(shape.r_y), 255));
       }
-      m.task_counts[size_t(task)].max_radius = max_radius;
       // Clear this image's sums while here.
       std::fill(m.accum.begin() + ptrdiff_t(p0), m.accum.begin() + ptrdiff_t(p1), glm::vec4(0.0f));
       std::fill(m.coverage_next.begin() + ptrdiff_t(p0), m.coverage_next.begin() + ptrdiff_t(p1),
                 CoverageCell{});
     });
-    const float max_radius = m.sum_counts().max_radius;
-    // Bands taller than any splat reaches, and at least 16 rows.
+    // Bands, and the oversize bucket after them (index `bands`).
     const int band_height =
-        std::max({16, ceil_int(max_radius) + 1, (height + kNoBand - 1) / (kNoBand - 1)});
+        std::max(band_height_for(height), (height + kNoBand - 2) / (kNoBand - 2));
     const int bands = (height + band_height - 1) / band_height;
+    // A row of counts per chunk, padded to whole cache lines (chunks run on different threads).
+    const size_t count_stride = (size_t(bands) + 1 + 15) / 16 * 16;
 
     // ---- A. Reproject; count per chunk and home band.
     const int chunks = int(std::clamp<size_t>(n / 8192, 1, size_t(threads) * 4));
     m.projected.resize(std::max<size_t>(n, 1));
     m.home.resize(std::max<size_t>(n, 1));
-    m.counts.assign(size_t(chunks) * size_t(bands), 0u);
+    m.counts.assign(size_t(chunks) * count_stride, 0u);
     m.cursor.resize(m.counts.size());
-    m.task_counts.assign(size_t(std::max(chunks, bands)), Counts{});
+    m.task_counts.assign(size_t(std::max(chunks, bands + 1)), Counts{});
     m.pool.run(chunks, [&](int chunk) {
       const size_t begin = n * size_t(chunk) / size_t(chunks);
       const size_t end = n * size_t(chunk + 1) / size_t(chunks);
       Counts& c = m.task_counts[size_t(chunk)];
-      uint32_t* counts = m.counts.data() + size_t(chunk) * size_t(bands);
+      uint32_t* counts = m.counts.data() + size_t(chunk) * count_stride;
       for (size_t i = begin; i < end; ++i) {
         m.home[i] = kNoBand;
         const StoredSample& s = m.mirror[i];
@@ -335,116 +342,120 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
           continue;
         }
         m.projected[i] = Projected{x, y, std::max(age_signed, 0.0f), s.color};
-        const int band = std::clamp(floor_int(y), 0, height - 1) / band_height;
+        const int py = std::clamp(floor_int(y), 0, height - 1);
+        const int px = std::clamp(floor_int(x), 0, width - 1);
+        const int band = m.reach[size_t(py) * size_t(width) + size_t(px)] < band_height
+                             ? py / band_height
+                             : bands;
         m.home[i] = uint16_t(band);
         ++counts[band];
       }
     });
 
     // ---- B. Home-band order: band-major, chunk by chunk inside a band (so sample order).
-    m.band_start.resize(size_t(bands) + 1);
+    m.band_start.resize(size_t(bands) + 2);
     size_t total = 0;
-    for (int b = 0; b < bands; ++b) {
+    for (int b = 0; b <= bands; ++b) {
       m.band_start[size_t(b)] = total;
       for (int c = 0; c < chunks; ++c) {
-        const size_t k = size_t(c) * size_t(bands) + size_t(b);
+        const size_t k = size_t(c) * count_stride + size_t(b);
         m.cursor[k] = total;
         total += m.counts[k];
       }
     }
-    m.band_start[size_t(bands)] = total;
+    m.band_start[size_t(bands) + 1] = total;
     m.sorted.resize(std::max<size_t>(total, 1));
     m.pool.run(chunks, [&](int chunk) {
       const size_t begin = n * size_t(chunk) / size_t(chunks);
       const size_t end = n * size_t(chunk + 1) / size_t(chunks);
-      size_t* cursor = m.cursor.data() + size_t(chunk) * size_t(bands);
+      size_t* cursor = m.cursor.data() + size_t(chunk) * count_stride;
       for (size_t i = begin; i < end; ++i) {
         if (m.home[i] != kNoBand) m.sorted[cursor[m.home[i]]++] = m.projected[i];
       }
     });
 
-    // ---- D. Splat, three rounds of bands.
-    for (int round = 0; round < 3; ++round) {
-      const int in_round = (bands - round + 2) / 3;
-      m.pool.run(in_round, [&](int k) {
-        const int band = round + 3 * k;
-        Counts& c = m.task_counts[size_t(band)];
-        std::array<float, 2 * int(kSplatRadiusLimit) + 4> wx, wy;
-        const size_t q_end = m.band_start[size_t(band) + 1];
-        for (size_t q = m.band_start[size_t(band)]; q < q_end; ++q) {
-          const Projected& s = m.sorted[q];
-          if (q + 8 < q_end) {  // the shape table is read in random order: fetch ahead
-            const Projected& ahead = m.sorted[q + 8];
-            const int ax = std::clamp(int(ahead.x), 0, width - 1);
-            const int ay = std::clamp(int(ahead.y), 0, height - 1);
-            __builtin_prefetch(&m.shapes[size_t(ay) * size_t(width) + size_t(ax)]);
-          }
-          const int px = std::clamp(floor_int(s.x), 0, width - 1);
-          const int py = std::clamp(floor_int(s.y), 0, height - 1);
-          const PixelShape& shape = m.shapes[size_t(py) * size_t(width) + size_t(px)];
-          const float r_x = shape.r_x, r_y = shape.r_y, g = shape.growth;
-          // Pixels i with |i + 0.5 - x| < r_x, rows likewise.
-          const int x0 = std::max(0, floor_int(s.x - r_x - 0.5f) + 1);
-          const int x1 = std::min(width - 1, ceil_int(s.x + r_x - 0.5f) - 1);
-          const int y0 = std::max(0, floor_int(s.y - r_y - 0.5f) + 1);
-          const int y1 = std::min(height - 1, ceil_int(s.y + r_y - 0.5f) - 1);
-          if (x0 > x1 || y0 > y1) {
-            ++c.off_screen;
-            continue;
-          }
-          ++c.splatted;
-          const float w_t = std::max(fast_exp(-s.age * s.age * shape.k_t), min_wt) * shape.norm;
+    // ---- D. Splat: three rounds of bands, then the oversize bucket.
+    const auto splat_band = [&](int band) {
+      Counts& c = m.task_counts[size_t(band)];
+      std::array<float, 2 * int(kSplatRadiusLimit) + 4> wx, wy;
+      const size_t q_end = m.band_start[size_t(band) + 1];
+      for (size_t q = m.band_start[size_t(band)]; q < q_end; ++q) {
+        const Projected& s = m.sorted[q];
+        if (q + 8 < q_end) {  // the shape table is read in random order: fetch ahead
+          const Projected& ahead = m.sorted[q + 8];
+          const int ax = std::clamp(int(ahead.x), 0, width - 1);
+          const int ay = std::clamp(int(ahead.y), 0, height - 1);
+          __builtin_prefetch(&m.shapes[size_t(ay) * size_t(width) + size_t(ax)]);
+        }
+        const int px = std::clamp(floor_int(s.x), 0, width - 1);
+        const int py = std::clamp(floor_int(s.y), 0, height - 1);
+        const PixelShape& shape = m.shapes[size_t(py) * size_t(width) + size_t(px)];
+        const float r_x = shape.r_x, r_y = shape.r_y, g = shape.growth;
+        // Pixels i with |i + 0.5 - x| < r_x, rows likewise.
+        const int x0 = std::max(0, floor_int(s.x - r_x - 0.5f) + 1);
+        const int x1 = std::min(width - 1, ceil_int(s.x + r_x - 0.5f) - 1);
+        const int y0 = std::max(0, floor_int(s.y - r_y - 0.5f) + 1);
+        const int y1 = std::min(height - 1, ceil_int(s.y + r_y - 0.5f) - 1);
+        if (x0 > x1 || y0 > y1) {
+          ++c.off_screen;
+          continue;
+        }
+        ++c.splatted;
+        const float w_t = std::max(fast_exp(-s.age * s.age * shape.k_t), min_wt) * shape.norm;
 #if defined(__SSE2__)
-          const __m128 color1 = _mm_setr_ps(s.color.r, s.color.g, s.color.b, 1.0f);
+        const __m128 color1 = _mm_setr_ps(s.color.r, s.color.g, s.color.b, 1.0f);
 #endif
-          // The Gaussian of every column and row of the splat.
-          gaussian_row(x0, x1, s.x, shape.k_x, shape.off_x, wx.data());
-          gaussian_row(y0, y1, s.y, shape.k_y, shape.off_y, wy.data());
-          for (int j = y0; j <= y1; ++j) {
-            const float wyj = wy[size_t(j - y0)];
-            if (!(wyj > 0.0f)) continue;
-            const float wyt = wyj * w_t;
-            glm::vec4* acc = m.accum.data() + size_t(j) * size_t(width);
-            CoverageCell* cov = m.coverage_next.data() + size_t(j) * size_t(width);
-            int i = x0;
+        // The Gaussian of every column and row of the splat.
+        gaussian_row(x0, x1, s.x, shape.k_x, shape.off_x, wx.data());
+        gaussian_row(y0, y1, s.y, shape.k_y, shape.off_y, wy.data());
+        for (int j = y0; j <= y1; ++j) {
+          const float wyj = wy[size_t(j - y0)];
+          if (!(wyj > 0.0f)) continue;
+          const float wyt = wyj * w_t;
+          glm::vec4* acc = m.accum.data() + size_t(j) * size_t(width);
+          CoverageCell* cov = m.coverage_next.data() + size_t(j) * size_t(width);
+          int i = x0;
 #if defined(__SSE2__)
-            // Four pixels at a time without a branch per pixel: lanes past x1 or with a weight
-            // at or below kMinSplatWeight add exactly 0 (and nothing to the coverage).
-            const __m128 wyt4 = _mm_set1_ps(wyt);
-            const __m128 one_g = _mm_setr_ps(1.0f, g, 1.0f, g);
-            for (; i + 3 < width && i <= x1; i += 4) {
-              const __m128 lane = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
-              const __m128 inside = _mm_cmplt_ps(lane, _mm_set1_ps(float(x1 - i + 1)));
-              const __m128 w4 = _mm_mul_ps(_mm_loadu_ps(&wx[size_t(i - x0)]), wyt4);
-              const __m128 ok = _mm_and_ps(inside, _mm_cmpgt_ps(w4, _mm_set1_ps(kMinSplatWeight)));
-              const __m128 w = _mm_and_ps(w4, ok);
-              float* a = &acc[i].x;
-              _mm_storeu_ps(
-                  a, _mm_add_ps(_mm_loadu_ps(a), _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0x00))));
-              _mm_storeu_ps(a + 4, _mm_add_ps(_mm_loadu_ps(a + 4),
-                                              _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0x55))));
-              _mm_storeu_ps(a + 8, _mm_add_ps(_mm_loadu_ps(a + 8),
-                                              _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0xaa))));
-              _mm_storeu_ps(a + 12, _mm_add_ps(_mm_loadu_ps(a + 12),
-                                               _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0xff))));
-              float* cv = &cov[i].count;
-              _mm_storeu_ps(
-                  cv, _mm_add_ps(_mm_loadu_ps(cv), _mm_and_ps(one_g, _mm_unpacklo_ps(ok, ok))));
-              _mm_storeu_ps(cv + 4, _mm_add_ps(_mm_loadu_ps(cv + 4),
-                                               _mm_and_ps(one_g, _mm_unpackhi_ps(ok, ok))));
-            }
+          // Four pixels at a time without a branch per pixel: lanes past x1 or with a weight
+          // at or below kMinSplatWeight add exactly 0 (and nothing to the coverage).
+          const __m128 wyt4 = _mm_set1_ps(wyt);
+          const __m128 one_g = _mm_setr_ps(1.0f, g, 1.0f, g);
+          for (; i + 3 < width && i <= x1; i += 4) {
+            const __m128 lane = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
+            const __m128 inside = _mm_cmplt_ps(lane, _mm_set1_ps(float(x1 - i + 1)));
+            const __m128 w4 = _mm_mul_ps(_mm_loadu_ps(&wx[size_t(i - x0)]), wyt4);
+            const __m128 ok = _mm_and_ps(inside, _mm_cmpgt_ps(w4, _mm_set1_ps(kMinSplatWeight)));
+            const __m128 w = _mm_and_ps(w4, ok);
+            float* a = &acc[i].x;
+            _mm_storeu_ps(
+                a, _mm_add_ps(_mm_loadu_ps(a), _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0x00))));
+            _mm_storeu_ps(a + 4, _mm_add_ps(_mm_loadu_ps(a + 4),
+                                            _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0x55))));
+            _mm_storeu_ps(a + 8, _mm_add_ps(_mm_loadu_ps(a + 8),
+                                            _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0xaa))));
+            _mm_storeu_ps(a + 12, _mm_add_ps(_mm_loadu_ps(a + 12),
+                                             _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0xff))));
+            float* cv = &cov[i].count;
+            _mm_storeu_ps(cv,
+                          _mm_add_ps(_mm_loadu_ps(cv), _mm_and_ps(one_g, _mm_unpacklo_ps(ok, ok))));
+            _mm_storeu_ps(cv + 4, _mm_add_ps(_mm_loadu_ps(cv + 4),
+                                             _mm_and_ps(one_g, _mm_unpackhi_ps(ok, ok))));
+          }
 #endif
-            for (; i <= x1; ++i) {  // the image's last columns (and builds without SSE2)
-              const float w = wx[size_t(i - x0)] * wyt;
-              if (!(w > kMinSplatWeight)) continue;
-              acc[i] += glm::vec4(s.color * w, w);
-              cov[i].count += 1.0f;
-              cov[i].growth_sum += g;
-            }
+          for (; i <= x1; ++i) {  // the image's last columns (and builds without SSE2)
+            const float w = wx[size_t(i - x0)] * wyt;
+            if (!(w > kMinSplatWeight)) continue;
+            acc[i] += glm::vec4(s.color * w, w);
+            cov[i].count += 1.0f;
+            cov[i].growth_sum += g;
           }
         }
-      });
+      }
+    };
+    for (int round = 0; round < 3; ++round) {
+      m.pool.run((bands - round + 2) / 3, [&](int k) { splat_band(round + 3 * k); });
     }
+    splat_band(bands);
     const Counts c = m.sum_counts();
     frame_.splatted = c.splatted;
     frame_.behind_camera = c.behind;
