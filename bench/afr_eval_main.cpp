@@ -21,6 +21,9 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <thread>
+
+#include <sys/resource.h>
 
 namespace {
 
@@ -64,7 +67,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> rate_texts{"100K", "400K", "800K"}, method_names, starts, knobs;
   std::vector<int> strip_frames;
   double seconds = 3.0, warmup = 1.0, capacity_per_pixel = 4.0;
-  int spp = 16, threads = 0;
+  int spp = 16, threads = 0, jobs = 0;
   bool sweep = false, no_progress = false, no_plots = false, no_cache = false;
   afr::SamplerConfig sampler;
   afr::ReconstructorConfig recon;
@@ -102,6 +105,9 @@ int main(int argc, char** argv) {
   app.add_option("--strip-frames", strip_frames, "frame indices shown in image strips")
       ->delimiter(',');
   app.add_option("-j,--threads", threads, "threads (0 = all cores)")->check(CLI::Range(0, 256));
+  app.add_option("--jobs", jobs,
+                 "runs at the same time, each with threads / jobs threads (0 = one per thread)")
+      ->check(CLI::Range(0, 256));
   CLI::Option* sweep_flag =
       app.add_flag("--sweep", sweep, "run the speed/accuracy sweeps instead of the table");
   app.add_option("--knobs", knobs,
@@ -164,6 +170,7 @@ int main(int argc, char** argv) {
     config.base.taa = taa;
     config.base.seed = sampler.seed;
     config.base.threads = threads;
+    config.jobs = jobs;
     config.rates.clear();
     for (const std::string& r : rate_texts) config.rates.push_back(parse_rate(r));
     for (const std::string& m : method_names) config.methods.push_back(parse_method(m));
@@ -197,9 +204,13 @@ int main(int argc, char** argv) {
     const fs::path out = fs::path(out_dir);
     fs::create_directories(out);
     const auto start = std::chrono::steady_clock::now();
+    const int cores = threads > 0 ? threads : std::max(1, int(std::thread::hardware_concurrency()));
+    const int run_jobs = jobs > 0 ? jobs : cores;
     const std::string setup = fmt::format(
-        "{}x{}, {} s ({} frames at 60 Hz) per animation, ideal {} spp, warm-up {} s, seed {}",
-        size.width, size.height, seconds, frames, spp, warmup, sampler.seed);
+        "{}x{}, {} s ({} frames at 60 Hz) per animation, ideal {} spp, warm-up {} s, seed {}; "
+        "{} runs at a time, {} threads each",
+        size.width, size.height, seconds, frames, spp, warmup, sampler.seed, run_jobs,
+        std::max(1, cores / run_jobs));
 
     if (sweep) {
       const std::vector<SweepResult> results =
@@ -226,10 +237,20 @@ int main(int argc, char** argv) {
     if (!no_plots) plots = write_frame_plots(results, out);
     const double minutes =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / 60;
+    double ideal_minutes = 0.0;
+    for (const AnimationResult& a : results) ideal_minutes += a.ideal_seconds / 60;
+    // CPU time of the whole process: what the run costs whatever else the machine was doing.
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    const double cpu_minutes = (double(usage.ru_utime.tv_sec) + double(usage.ru_stime.tv_sec) +
+                                1e-6 * double(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec)) /
+                               60;
     const std::string rms = rms_table_markdown(results), wall = wall_table_markdown(results);
     std::ofstream md(out / "table.md");
-    md << fmt::format("# afr-eval\n\n    {}\n\n{}; {:.1f} minutes in all.\n\n", command, setup,
-                      minutes);
+    md << fmt::format(
+        "# afr-eval\n\n    {}\n\n{}; {:.1f} minutes in all, {:.1f} of them rendering ideal "
+        "frames; {:.1f} CPU minutes.\n\n",
+        command, setup, minutes, ideal_minutes, cpu_minutes);
     md << "## Mean RMS error (0-255)\n\n" << rms << "\n## Wall seconds per run\n\n" << wall;
     md << "\n## Ideal frames\n\n";
     for (const AnimationResult& a : results) {
@@ -241,7 +262,9 @@ int main(int argc, char** argv) {
     for (const fs::path& p : strips)
       md << fmt::format("\n![{}]({})\n", p.stem().string(), p.filename().string());
     fmt::print("Mean RMS error (0-255), {}\n\n{}\nWall seconds per run\n\n{}\n", setup, rms, wall);
-    fmt::print("written to {} in {:.1f} minutes\n", out.string(), minutes);
+    fmt::print(
+        "written to {} in {:.1f} minutes ({:.1f} rendering ideal frames), {:.1f} CPU minutes\n",
+        out.string(), minutes, ideal_minutes, cpu_minutes);
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());
     return 1;

@@ -42,5 +42,37 @@ TEST(EvalCiTest, AdaptiveBeatsFramelessAndFramed60AtTheSameRate) {
   EXPECT_LT(rms[0], rms[2]) << "adaptive " << rms[0] << " vs framed 60 Hz " << rms[2];
 }
 
+// Runs done at the same time (each with its own tracer, sampler and reconstructor) give the
+// same frames as runs done one after the other, in the same table order.
+TEST(EvalCiTest, RunsAtTheSameTimeGiveTheSameResultsAsOneAfterTheOther) {
+  EvalConfig config;
+  config.animations = {AnimationSpec{"builtin", "", "", 2.0}};
+  config.rates = {1e5, 4e5};
+  config.methods = {Method::kAdaptive, Method::kFrameless, Method::kFramed60, Method::kFullRes60};
+  config.seconds = 0.25;
+  config.ideal_spp = 1;
+  config.base.width = 64;
+  config.base.height = 48;
+  config.base.warmup = 0.2;
+  config.base.threads = 2;
+  config.progress = false;
+  config.jobs = 1;
+  const std::vector<AnimationResult> serial = evaluate(config);
+  config.jobs = 3;
+  const std::vector<AnimationResult> parallel = evaluate(config);
+  ASSERT_EQ(serial.size(), 1u);
+  ASSERT_EQ(parallel.size(), 1u);
+  ASSERT_EQ(serial[0].runs.size(), 7u);  // 3 methods x 2 rates, and full res 60 Hz once
+  ASSERT_EQ(parallel[0].runs.size(), serial[0].runs.size());
+  for (size_t k = 0; k < serial[0].runs.size(); ++k) {
+    const RunResult &a = serial[0].runs[k], &b = parallel[0].runs[k];
+    EXPECT_EQ(a.method, b.method) << k;
+    EXPECT_EQ(a.rate, b.rate) << k;
+    EXPECT_EQ(a.rms, b.rms) << method_name(a.method) << " at " << a.rate;
+    EXPECT_EQ(a.stats.primary_rays, b.stats.primary_rays) << method_name(a.method);
+    EXPECT_GT(a.mean_rms, 0.0);
+  }
+}
+
 }  // namespace
 }  // namespace afr::eval

@@ -10,9 +10,15 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <exception>
+#include <memory>
+#include <mutex>
 #include <numeric>
 #include <optional>
+#include <thread>
 
 namespace afr::eval {
 
@@ -97,6 +103,9 @@ std::vector<AnimationResult> evaluate(const EvalConfig& config) {
   Progress progress(config.animations.size() * uint64_t(frames) * (1 + runs_per_animation),
                     config.progress);
 
+  const int cores = config.base.threads > 0 ? config.base.threads
+                                            : std::max(1, int(std::thread::hardware_concurrency()));
+  const int jobs = config.jobs > 0 ? config.jobs : cores;
   std::vector<AnimationResult> results;
   for (const AnimationSpec& spec : config.animations) {
     AnimationResult ar;
@@ -109,6 +118,8 @@ std::vector<AnimationResult> evaluate(const EvalConfig& config) {
         ideal_frames(scene, tracer, config, spec.start, frames, &progress, &ar);
     for (int j = 0; j < frames; ++j) ar.frame_times.push_back(spec.start + j / config.base.fps);
     for (int f : strips) ar.ideal_strip_images[f] = ideal[size_t(f)];
+    // Every (method, rate) run of the animation, in table order.
+    std::vector<RunSettings> runs;
     for (Method m : methods) {
       const std::vector<double> rates =
           method_uses_rate(m) ? config.rates : std::vector<double>{0.0};
@@ -118,16 +129,50 @@ std::vector<AnimationResult> evaluate(const EvalConfig& config) {
         s.rate = method_uses_rate(m) ? rate : double(s.width) * s.height * s.fps;
         s.first_time = spec.start;
         s.frames = frames;
-        progress.set_task(
-            fmt::format("{}: {} at {:.0f}K", spec.name, method_name(m), s.rate / 1000.0));
-        RunResult r = run_and_compare(scene, tracer, s, ideal, strips, &progress);
-        r.animation = spec.name;
-        spdlog::debug("{} {} {:.0f}: mean RMS {:.2f}, {:.1f} s sampling, {:.1f} s reconstruction",
-                      spec.name, method_name(m), r.rate, r.mean_rms, r.stats.sample_seconds,
-                      r.stats.reconstruct_seconds);
-        ar.runs.push_back(std::move(r));
+        s.threads = std::max(1, cores / jobs);
+        runs.push_back(s);
       }
     }
+    // Started costliest first (cost ~ rays per second), so that the last ones to end are short.
+    std::vector<size_t> order(runs.size());
+    std::iota(order.begin(), order.end(), size_t(0));
+    std::stable_sort(order.begin(), order.end(),
+                     [&](size_t a, size_t b) { return runs[a].rate > runs[b].rate; });
+    std::vector<RunResult> done(runs.size());
+    std::atomic<size_t> next{0}, finished{0};
+    std::mutex error_mutex;
+    std::exception_ptr error;
+    const auto work = [&](Tracer* own) {
+      for (size_t k = next++; k < order.size(); k = next++) {
+        const RunSettings& s = runs[order[k]];
+        try {
+          RunResult r = run_and_compare(scene, *own, s, ideal, strips, &progress);
+          r.animation = spec.name;
+          spdlog::debug("{} {} {:.0f}: mean RMS {:.2f}, {:.1f} s sampling, {:.1f} s reconstruction",
+                        spec.name, method_name(s.method), r.rate, r.mean_rms,
+                        r.stats.sample_seconds, r.stats.reconstruct_seconds);
+          done[order[k]] = std::move(r);
+        } catch (...) {
+          std::lock_guard<std::mutex> lock(error_mutex);
+          if (!error) error = std::current_exception();
+          next = order.size();
+        }
+        progress.set_task(
+            fmt::format("{}: {} of {} runs done", spec.name, ++finished, runs.size()));
+      }
+    };
+    progress.set_task(fmt::format("{}: {} runs, {} at a time", spec.name, runs.size(), jobs));
+    // A tracer per worker: a tracer holds the scene at one time (Tracer::set_time).
+    std::vector<std::unique_ptr<Tracer>> tracers;
+    for (int w = 1; w < std::min<int>(jobs, int(runs.size())); ++w) {
+      tracers.push_back(std::make_unique<Tracer>(scene));
+    }
+    std::vector<std::thread> workers;
+    for (auto& t : tracers) workers.emplace_back(work, t.get());
+    work(&tracer);
+    for (std::thread& w : workers) w.join();
+    if (error) std::rethrow_exception(error);
+    for (RunResult& r : done) ar.runs.push_back(std::move(r));
     results.push_back(std::move(ar));
   }
   progress.finish();

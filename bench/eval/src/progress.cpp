@@ -30,16 +30,19 @@ Progress::Progress(uint64_t total, bool enabled, double log_interval)
 Progress::~Progress() { finish(); }
 
 void Progress::set_task(std::string task) {
+  std::lock_guard<std::mutex> lock(mutex_);
   task_ = std::move(task);
   draw(!terminal_ ? false : true);
 }
 
 void Progress::advance(uint64_t units) {
+  std::lock_guard<std::mutex> lock(mutex_);
   done_ += units;
   draw(false);
 }
 
 void Progress::finish() {
+  std::lock_guard<std::mutex> lock(mutex_);
   if (enabled_ && drawn_ && terminal_) std::fputc('\n', stderr);
   drawn_ = false;
 }

@@ -36,6 +36,11 @@ struct EvalConfig {
   // Everything else of a run: size, fps, warm-up, knobs, seed, threads (method, rate,
   // first_time and frames are set per run).
   RunSettings base;
+  // Runs of an animation done at the same time, each with base.threads / jobs threads (at
+  // least 1); 0: one per core. Results do not depend on it (each run has its own sampler,
+  // reconstructor and seed, and the CPU reconstructor's image does not depend on its thread
+  // count); wall times per run do (a run gets fewer cores).
+  int jobs = 1;
   bool progress = true;
 };
 

@@ -1,10 +1,11 @@
 // A progress bar on stderr for long evaluations: done/total units of work, the current task,
 // elapsed time and an estimate of the time left. On a terminal it redraws one line; otherwise
-// it prints a line at most every `log_interval` seconds.
+// it prints a line at most every `log_interval` seconds. Safe to call from several threads.
 #pragma once
 
 #include <chrono>
 #include <cstdint>
+#include <mutex>
 #include <string>
 
 namespace afr::eval {
@@ -17,13 +18,17 @@ class Progress {
 
   void set_task(std::string task);
   void advance(uint64_t units = 1);
-  void add_total(uint64_t units) { total_ += units; }
+  void add_total(uint64_t units) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    total_ += units;
+  }
   // Ends the bar's line (the next output starts on a fresh line).
   void finish();
 
  private:
-  void draw(bool force);
+  void draw(bool force);  // with mutex_ held
 
+  std::mutex mutex_;
   uint64_t total_;
   uint64_t done_ = 0;
   bool enabled_;
