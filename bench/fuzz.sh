@@ -9,6 +9,9 @@
 #                   the asan preset when missing)
 #   AFR_FUZZ_BUILD  0: use the binary as it is (ctest); otherwise it is built first
 #   AFR_FUZZ_KEEP   1: keep the scratch directory (the corpus grown by the run) after success
+#   AFR_FUZZ_CORPUS a corpus directory to run on in place instead of the scratch copy (created
+#                   when missing, the seeds added to it): a later run with the same directory
+#                   continues from the corpus the earlier ones grew
 # docs/robustness.md, "Fuzzing", has the figures of the long runs and how they were made.
 set -euo pipefail
 
@@ -46,9 +49,10 @@ fi
 
 mkdir -p "$build/fuzz-runs"
 scratch="$(mktemp -d "$build/fuzz-runs/$name.XXXXXX")"
-mkdir "$scratch/corpus"
-cp "$seeds"/* "$scratch/corpus/"
-seed_count=$(find "$scratch/corpus" -type f | wc -l)
+corpus="${AFR_FUZZ_CORPUS:-$scratch/corpus}"
+mkdir -p "$corpus"
+cp -n "$seeds"/* "$corpus/"
+seed_count=$(find "$corpus" -type f | wc -l)
 flags=(-max_total_time="$seconds" -max_len=4096 -rss_limit_mb=2048 -timeout=10
        -print_final_stats=1 -artifact_prefix="$scratch/")
 dict="$root/tests/fuzz/$name.dict"
@@ -59,17 +63,17 @@ export LSAN_OPTIONS="suppressions=$root/tests/fuzz/lsan.supp${LSAN_OPTIONS:+:$LS
 
 limit="$seconds s"
 [[ "$seconds" == 0 ]] && limit="no time limit"
-echo "$target: $limit, $seed_count seeds, scratch $scratch"
+echo "$target: $limit, $seed_count inputs in $corpus, scratch $scratch"
 status=0
 start=$SECONDS
-nice -n 10 "$binary" "${flags[@]}" "$@" "$scratch/corpus" >"$scratch/log" 2>&1 || status=$?
+nice -n 10 "$binary" "${flags[@]}" "$@" "$corpus" >"$scratch/log" 2>&1 || status=$?
 
 final_stat() { sed -n "s/^stat::$1: *//p" "$scratch/log" | tail -1; }
 executions="$(final_stat number_of_executed_units)"
 rate="$(final_stat average_exec_per_sec)"
 elapsed=$((SECONDS - start))
-corpus_count=$(find "$scratch/corpus" -type f | wc -l)
-corpus_kb=$(( $(cat "$scratch"/corpus/* | wc -c) / 1024 ))
+corpus_count=$(find "$corpus" -type f | wc -l)
+corpus_kb=$(( $(find "$corpus" -type f -exec cat {} + | wc -c) / 1024 ))
 crash="$(find "$scratch" -maxdepth 1 -type f \( -name 'crash-*' -o -name 'leak-*' -o -name 'timeout-*' \
         -o -name 'oom-*' \) -printf '%f\n')"
 # A sanitizer, libFuzzer (out-of-memory, timeout, deadly signal) or AFR_CHECK report; a run
