@@ -2,15 +2,27 @@
 """Display-wall scale measurements (docs/wall.md): runs a lead display_node, its followers and
 sampler_nodes on loopback for each configuration, and prints per display node: the virtual
 display and its cell, samples/s and bytes/s received, the store's capacity N, reconstruction
-time, and peak resident memory (VmHWM). Also one display showing one cell's worth of pixels
-alone, to compare a wall node's memory with a display of its rectangle's size.
+time, resident memory (VmRSS at half time and at the end, peak VmHWM) and the memory model's
+prediction (180 MiB + 160 B per stored sample + 86 B per computed pixel, docs/wall.md); per
+sampler node its resident memory, and in all the samples/s the samplers report. With two or
+more configurations that differ in size it also prints the samplers' memory per pixel of the
+image (they own it all between them): the slope of their summed peak RSS between the sizes.
 
   python3 bench/wall_scale.py [--build build] [--seconds 12] [--samplers 2] [--cap 100000]
                               [--configs 1024:2x2,4096:1x1,4096:2x2,8192:2x2] [--preset fast]
-                              [--fps 1]
+                              [--fps 1] [--capacity N] [--sampler-args '--b 1 --fill-step 16']
 
 Each configuration is SIZE:GRID (a square virtual display of SIZE pixels a side, GRID cells).
 The samplers are capped so every configuration gets the same sample stream rate.
+
+The 8192 x 8192 wall over 4 display nodes (docs/wall.md, "8192^2"):
+
+  python3 bench/wall_scale.py --wall-8192
+
+Samplers' bytes per region pixel (docs/wall.md; add --sampler-args '--b 1 --fill-step 16' for
+b = 1):
+
+  python3 bench/wall_scale.py --configs 1024:1x1,2048:1x1 --samplers 1 --capacity 100000
 """
 import argparse
 import json
@@ -46,15 +58,32 @@ def stats(port):
         return None
 
 
-def hwm_kib(pid):
+def status_kib(pid, field):
     try:
         with open(f"/proc/{pid}/status") as f:
             for line in f:
-                if line.startswith("VmHWM:"):
+                if line.startswith(field + ":"):
                     return int(line.split()[1])
     except OSError:
         pass
     return 0
+
+
+def hwm_kib(pid):
+    return status_kib(pid, "VmHWM")
+
+
+def rss_kib(pid):
+    return status_kib(pid, "VmRSS")
+
+
+def model_mib(n, cell, size, margin):
+    """docs/wall.md's fit: 180 MiB + 160 B per stored sample + 86 B per computed pixel (the
+    cell plus the margin, inside the virtual display)."""
+    x0, y0, x1, y1 = cell
+    w = min(size, x1 + margin) - max(0, x0 - margin)
+    h = min(size, y1 + margin) - max(0, y0 - margin)
+    return 180 + (160 * n + 86 * w * h) / 2**20
 
 
 def run(cfg, a, tmp):
@@ -98,19 +127,27 @@ def run(cfg, a, tmp):
         return out
     time.sleep(a.seconds / 2)
     first = totals()
+    half_rss = {p.pid: rss_kib(p.pid) for _, p, _ in procs}
+    half_rss.update({p.pid: rss_kib(p.pid) for p in samplers})
     time.sleep(a.seconds / 2)
     last = totals()
     rows_out = []
     for name, p, port in procs:
+        rss = (half_rss[p.pid], rss_kib(p.pid))
         if name not in first or name not in last:
-            rows_out.append((cfg, name, None, hwm_kib(p.pid), 0, 0))
+            rows_out.append((cfg, name, None, hwm_kib(p.pid), rss, 0, 0))
             continue
         dt = last[name][2] - first[name][2]
-        rows_out.append((cfg, name, last[name][3], hwm_kib(p.pid),
+        rows_out.append((cfg, name, last[name][3], hwm_kib(p.pid), rss,
                          (last[name][0] - first[name][0]) / dt,
                          (last[name][1] - first[name][1]) / dt))
+    # What the samplers say they trace, summed (from the lead, which hears every sampler).
+    lead_stats = last.get("0,0", (0, 0, 0, None))[3]
+    traced = sum(m["reported_samples_per_second"] for m in lead_stats["samplers"]) \
+        if lead_stats else 0
     for i, p in enumerate(samplers):
-        rows_out.append((cfg, f"sampler {i + 1}", None, hwm_kib(p.pid), 0, 0))
+        rows_out.append((cfg, f"sampler {i + 1}", None, hwm_kib(p.pid),
+                         (half_rss[p.pid], rss_kib(p.pid)), traced, 0))
         p.terminate()
     for _, p, _ in procs:
         p.terminate()
@@ -135,24 +172,47 @@ def main():
     ap.add_argument("--sampler-args", default="",
                     help="extra sampler_node flags, e.g. '--b 1 --fill-step 8' for large images")
     ap.add_argument("--configs", default="1024:2x2,4096:1x1,4096:2x2,8192:2x2")
+    ap.add_argument("--model-margin", type=int, default=99,
+                    help="the wall's margin for the memory model (99 px: the presets' splats)")
+    ap.add_argument("--wall-8192", action="store_true",
+                    help="the 8192 x 8192 wall of docs/wall.md: 4 display nodes (2x2, "
+                    "N = 10^6 each), 2 samplers at b = 1, 60 s")
     a = ap.parse_args()
+    if a.wall_8192:
+        a.configs, a.seconds, a.samplers, a.capacity = "8192:2x2", 60.0, 2, 1000000
+        a.sampler_args = a.sampler_args or "--b 1 --fill-step 16"
+        a.cap = 0
     print("| virtual display | grid | node (cell) | cell px | N (samples kept) | samples/s in | "
-          "MB/s in | reconstruct ms | peak RSS MiB |")
-    print("|---|---|---|---|---:|---:|---:|---:|---:|")
+          "MB/s in | reconstruct ms | RSS MiB half / end | peak RSS MiB | model MiB |")
+    print("|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|")
+    samplers_by_size = {}
     with tempfile.TemporaryDirectory() as tmp:
         for cfg in a.configs.split(","):
-            for c, name, s, hwm, sps, bps in run(cfg, a, tmp):
+            for c, name, s, hwm, rss, sps, bps in run(cfg, a, tmp):
                 size, grid = c.split(":")
+                rss_text = f"{rss[0] / 1024:.0f} / {rss[1] / 1024:.0f}"
                 if s is None:
-                    print(f"| {size}^2 | {grid} | {name} | - | - | - | - | - | {hwm / 1024:.0f} |",
-                          flush=True)
+                    if name.startswith("sampler"):
+                        samplers_by_size.setdefault(int(size), []).append(hwm * 1024)
+                        print(f"| {size}^2 | {grid} | {name} | - | - | {sps / 1e3:.0f} k traced "
+                              f"by all | - | - | {rss_text} | {hwm / 1024:.0f} | - |", flush=True)
+                    else:
+                        print(f"| {size}^2 | {grid} | {name} | - | - | - | - | - | {rss_text} | "
+                              f"{hwm / 1024:.0f} | - |", flush=True)
                     continue
                 d = s["display"]
                 cell = d["wall"]["cell"]
+                model = model_mib(d["store_capacity"], cell, int(size), a.model_margin)
                 print(f"| {size}^2 | {grid} | {name} | {cell[2] - cell[0]}x{cell[3] - cell[1]} | "
                       f"{d['store_capacity']} | {sps / 1e3:.0f} k | {bps / 1e6:.1f} | "
-                      f"{d['reconstruct_ms_mean']:.0f} | {hwm / 1024:.0f} |", flush=True)
-
+                      f"{d['reconstruct_ms_mean']:.0f} | {rss_text} | {hwm / 1024:.0f} | "
+                      f"{model:.0f} |", flush=True)
+    sizes = sorted(samplers_by_size)
+    if len(sizes) >= 2:
+        lo, hi = sizes[0], sizes[-1]
+        slope = (sum(samplers_by_size[hi]) - sum(samplers_by_size[lo])) / (hi * hi - lo * lo)
+        print(f"\nsamplers: {slope:.0f} B per pixel of the image (slope of their summed peak RSS "
+              f"between {lo}^2 and {hi}^2)")
 
 if __name__ == "__main__":
     sys.exit(main())

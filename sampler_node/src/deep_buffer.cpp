@@ -2,52 +2,103 @@
 
 #include <afr/common/check.h>
 
+#include <cstring>
+
 namespace afr {
 
-DeepBuffer::DeepBuffer(PixelRect region, int depth) : region_(region), depth_(depth) {
+namespace {
+
+// Byte offsets of the reprojection fields in a slot's rest.
+constexpr size_t kImageAt = 0;               // float x, y
+constexpr size_t kPositionAt = 8;            // vec3
+constexpr size_t kNeighborLuminanceAt = 20;  // float[4]
+constexpr size_t kNeighborPositionAt = 36;   // vec3[4]
+constexpr size_t kReprojectionBytes = 84;
+constexpr size_t kVelocityBytes = 12;
+constexpr size_t kOldSampleBytes = 12;  // double old_time, float old_luminance
+
+static_assert(sizeof(glm::vec3) == 12 && sizeof(glm::vec2) == 8);
+
+template <typename T>
+void put(std::byte* at, const T& v) {
+  std::memcpy(at, &v, sizeof(T));
+}
+template <typename T>
+void get(const std::byte* at, T* v) {
+  std::memcpy(v, at, sizeof(T));
+}
+
+}  // namespace
+
+DeepBuffer::DeepBuffer(PixelRect region, int depth, uint32_t fields)
+    : region_(region), depth_(depth), fields_(fields & kKeepAll) {
   AFR_CHECK(!region.empty() && depth >= 1 && depth <= 255);
+  if (fields_ & kKeepReprojection) rest_stride_ += kReprojectionBytes;
+  if (fields_ & kKeepVelocity) {
+    velocity_at_ = int(rest_stride_);
+    rest_stride_ += kVelocityBytes;
+  }
+  if (fields_ & kKeepOldSample) {
+    old_sample_at_ = int(rest_stride_);
+    rest_stride_ += kOldSampleBytes;
+  }
   const size_t pixels = size_t(region.area());
   stats_.resize(pixels * size_t(depth));
-  rest_.resize(pixels * size_t(depth));
+  rest_.resize(pixels * size_t(depth) * rest_stride_);
   queues_.resize(pixels);
+}
+
+size_t DeepBuffer::bytes() const {
+  return stats_.size() * sizeof(CrosshairStats) + rest_.size() + queues_.size() * sizeof(Queue);
 }
 
 void DeepBuffer::store(size_t i, const Crosshair& c) {
   stats_[i] = stats_of(c);
-  Rest& r = rest_[i];
-  r.old_time = c.old_time;
-  r.position = c.position;
-  r.velocity = c.velocity;
-  for (int k = 0; k < 4; ++k) {
-    r.neighbor_position[k] = c.neighbor_position[k];
-    r.neighbor_luminance[k] = c.neighbor_luminance[k];
+  std::byte* r = rest(i);
+  if (fields_ & kKeepReprojection) {
+    put(r + kImageAt, glm::vec2(c.x, c.y));
+    put(r + kPositionAt, c.position);
+    put(r + kNeighborLuminanceAt, c.neighbor_luminance);
+    put(r + kNeighborPositionAt, c.neighbor_position);
   }
-  r.x = c.x;
-  r.y = c.y;
-  r.old_luminance = c.old_luminance;
+  if (velocity_at_ >= 0) put(r + velocity_at_, c.velocity);
+  if (old_sample_at_ >= 0) {
+    put(r + old_sample_at_, c.old_time);
+    put(r + old_sample_at_ + sizeof(double), c.old_luminance);
+  }
+}
+
+glm::vec2 DeepBuffer::image_position(int32_t x, int32_t y, int k) const {
+  glm::vec2 xy(0.0f);
+  if (fields_ & kKeepReprojection) get(rest(slot(index(x, y), k)) + kImageAt, &xy);
+  return xy;
 }
 
 Crosshair DeepBuffer::at(int32_t x, int32_t y, int k) const {
   const size_t i = slot(index(x, y), k);
   const CrosshairStats& s = stats_[i];
-  const Rest& r = rest_[i];
+  const std::byte* r = rest(i);
   Crosshair c;
   c.time = s.time;
-  c.old_time = r.old_time;
-  c.position = r.position;
-  c.velocity = r.velocity;
-  for (int n = 0; n < 4; ++n) {
-    c.neighbor_position[n] = r.neighbor_position[n];
-    c.neighbor_luminance[n] = r.neighbor_luminance[n];
-  }
-  c.x = r.x;
-  c.y = r.y;
   c.luminance = s.luminance;
-  c.old_luminance = r.old_luminance;
   c.G_x = s.G_x;
   c.G_y = s.G_y;
   c.G_t = s.G_t;
   c.flags = s.flags;
+  if (fields_ & kKeepReprojection) {
+    glm::vec2 xy;
+    get(r + kImageAt, &xy);
+    c.x = xy.x;
+    c.y = xy.y;
+    get(r + kPositionAt, &c.position);
+    get(r + kNeighborLuminanceAt, &c.neighbor_luminance);
+    get(r + kNeighborPositionAt, &c.neighbor_position);
+  }
+  if (velocity_at_ >= 0) get(r + velocity_at_, &c.velocity);
+  if (old_sample_at_ >= 0) {
+    get(r + old_sample_at_, &c.old_time);
+    get(r + old_sample_at_ + sizeof(double), &c.old_luminance);
+  }
   return c;
 }
 

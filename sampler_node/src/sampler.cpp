@@ -146,6 +146,15 @@ TileSums sums_from_parts(const TileSums* parts, int n, double shift) {
   return out;
 }
 
+// What the deep buffer keeps of a crosshair: only what the run reads. Reprojection (every step
+// with r > 0, and reproject() when called) reads positions and neighbours, and velocities
+// where something moves (the tracer gives zero velocity elsewhere); nothing reads the old
+// sample back. The baselines never fill the buffer.
+uint32_t buffer_fields(const SamplerConfig& config, const Scene& scene) {
+  if (config.mode != SamplerMode::kAdaptive) return 0;
+  return kKeepReprojection | (scene.has_moving_geometry() ? kKeepVelocity : 0u);
+}
+
 }  // namespace
 
 Sampler::Sampler(const Scene& scene, Tracer& tracer, Clock& clock, const SamplerConfig& config,
@@ -158,9 +167,8 @@ Sampler::Sampler(const Scene& scene, Tracer& tracer, Clock& clock, const Sampler
       region_(config.owned_region()),
       rng_(mix_seed(config.seed), mix_seed(uint64_t(config.sampler_id) + 1)),
       tiling_(region_, 40, kCellPixels),
-      buffer_(region_, config.b),
-      cells_(size_t(tiling_.cell_count())),
-      pending_(size_t(region_.area())) {
+      buffer_(region_, config.b, buffer_fields(config, scene)),
+      cells_(size_t(tiling_.cell_count())) {
   if (config_.r > 0) fields_ |= kFieldPosition;
   if (config_.r > 0 && scene.has_moving_geometry()) fields_ |= kFieldVelocity;
   batch_.sampler_id = config_.sampler_id;
@@ -252,16 +260,15 @@ void Sampler::step_adaptive() {
   double x, y;
   Pending old;
   TileRecord& rec = record(tile);
-  if (rec.pending != -1 && pending_[rec.pending].valid) {
-    old = pending_[rec.pending];
-    pending_[rec.pending].valid = false;
+  if (rec.pending.valid) {
+    old = rec.pending;
     x = old.x;
     y = old.y;
   } else {
     x = rect.x0 + rect.width() * rng_.next_double();
     y = rect.y0 + rect.height() * rng_.next_double();
   }
-  rec.pending = -1;
+  rec.pending = Pending{};
   std::array<ShadedSample, 5> s;
   trace_crosshair(x, y, &s);
   Crosshair c = make_crosshair(x, y, s);
@@ -282,9 +289,8 @@ void Sampler::step_adaptive() {
   const double nx = rect.x0 + rect.width() * rng_.next_double();
   const double ny = rect.y0 + rect.height() * rng_.next_double();
   const ShadedSample first = trace_one(nx, ny);
-  const int64_t p = pending_index(int32_t(nx), int32_t(ny));
-  pending_[p] = Pending{scene_time_, nx, ny, sample_luminance(first), true};
-  record(tiling_.tile_at(int32_t(nx), int32_t(ny))).pending = p;
+  record(tiling_.tile_at(int32_t(nx), int32_t(ny))).pending =
+      Pending{scene_time_, nx, ny, sample_luminance(first), true};
 
   if (++chunk_progress_ >= config_.chunk) {
     chunk_progress_ = 0;
@@ -555,10 +561,6 @@ Sampler::TileRecord& Sampler::record(int tile) {
   return records_[size_t(tile)];
 }
 
-int64_t Sampler::pending_index(int32_t x, int32_t y) const {
-  return int64_t(y - region_.y0) * region_.width() + (x - region_.x0);
-}
-
 // The region pixel holding a crosshair. Positions are floats: one that rounded up onto the
 // region's far edge still belongs to the last pixel.
 void Sampler::pixel_of(const Crosshair& c, int32_t* x, int32_t* y) const {
@@ -762,9 +764,9 @@ void Sampler::adjust_tiling() {
 }
 
 void Sampler::on_split(int parent, int a, int b) {
-  const int64_t pending = record(parent).pending;
-  record(parent).pending = -1;
-  record(a).pending = record(b).pending = -1;
+  const Pending pending = record(parent).pending;
+  record(parent).pending = Pending{};
+  record(a).pending = record(b).pending = Pending{};
   // Re-derive the smaller child (from its cells, or when smaller than a cell from the buffer)
   // and take the other as the parent's sums minus it. The difference carries the parent's
   // updates, so it is re-derived as soon as the parent would have been, or at once when the
@@ -780,17 +782,16 @@ void Sampler::on_split(int parent, int a, int b) {
     error_[c] = error_[parent] * double(tiling_.node(c).rect.area()) /
                 double(tiling_.node(parent).rect.area());
   }
-  if (pending != -1) {
-    const int32_t x = region_.x0 + int32_t(pending % region_.width());
-    const int32_t y = region_.y0 + int32_t(pending / region_.width());
+  if (pending.valid) {
+    const int32_t x = int32_t(pending.x), y = int32_t(pending.y);
     record(tiling_.node(a).rect.contains(x, y) ? a : b).pending = pending;
   }
 }
 
 void Sampler::on_merge(int parent, int a, int b) {
   TileRecord& rec = record(parent);
-  rec.pending = records_[a].pending != -1 ? records_[a].pending : records_[b].pending;
-  records_[a].pending = records_[b].pending = -1;
+  rec.pending = records_[a].pending.valid ? records_[a].pending : records_[b].pending;
+  records_[a].pending = records_[b].pending = Pending{};
   rec.sums = combine(records_[a].sums, records_[b].sums);
 }
 

@@ -43,16 +43,6 @@ void KdTiling::build_cells(int cell_pixels) {
     ++cell_depth_;
   }
   cell_node_.assign(cell_rects_.size(), root_);
-  cell_of_pixel_.assign(size_t(region.area()), 0);
-  for (size_t c = 0; c < cell_rects_.size(); ++c) {
-    const PixelRect& r = cell_rects_[c];
-    for (int32_t y = r.y0; y < r.y1; ++y) {
-      for (int32_t x = r.x0; x < r.x1; ++x) {
-        cell_of_pixel_[size_t(y - region.y0) * size_t(region.width()) + size_t(x - region.x0)] =
-            uint32_t(c);
-      }
-    }
-  }
 }
 
 int KdTiling::allocate(const PixelRect& rect, int parent, int depth, uint64_t path) {
@@ -104,7 +94,7 @@ void KdTiling::update_mergeable(int id) {
 
 // Keeps cell_node_ pointing, for every cell under node `id` (no deeper than the cells), to `id`.
 void KdTiling::set_cell_node(int id) {
-  if (!covers_cells(id) || cell_of_pixel_.empty()) return;
+  if (!covers_cells(id) || cell_node_.empty()) return;
   const int first = first_cell(id), n = cells_in(id);
   for (int c = first; c < first + n; ++c) cell_node_[size_t(c)] = id;
 }
@@ -113,7 +103,7 @@ int KdTiling::tile_at(int32_t x, int32_t y) const {
   AFR_DCHECK(region().contains(x, y));
   // From the node at the cut or at cell depth that holds the pixel's cell, when there are
   // cells; from the root otherwise.
-  int id = cell_of_pixel_.empty() ? root_ : cell_node_[size_t(cell_at(x, y))];
+  int id = cell_node_.empty() ? root_ : cell_node_[size_t(cell_at(x, y))];
   while (!nodes_[id].is_leaf()) {
     const Node& n = nodes_[id];
     const int c = nodes_[n.child[0]].rect.contains(x, y) ? 0 : 1;

@@ -1,11 +1,12 @@
 // The sampler's temporally deep buffer (section 4): for every pixel of the owned region a
 // queue of up to b crosshairs, newest at the front. Memory is proportional to the owned
-// region, never to the whole image.
+// region, never to the whole image, and a crosshair takes only the fields its run reads.
 #pragma once
 
 #include <afr/common/math.h>
 #include <afr/sampler/tiling.h>
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -54,14 +55,29 @@ inline CrosshairStats stats_of(const Crosshair& c) {
   return CrosshairStats{c.time, c.luminance, c.G_x, c.G_y, c.G_t, c.flags};
 }
 
+// What a deep buffer keeps of a crosshair besides its statistics part. A field it does not keep
+// reads back as its default (zero).
+enum DeepBufferFields : uint32_t {
+  // What reprojection reads: the image position, the center's and the neighbours' world
+  // points and the neighbours' luminances (84 bytes).
+  kKeepReprojection = 1u << 0,
+  kKeepVelocity = 1u << 1,   // 12 bytes; zero in a scene where nothing moves
+  kKeepOldSample = 1u << 2,  // old_time and old_luminance, 12 bytes; the sampler never reads them
+  kKeepAll = kKeepReprojection | kKeepVelocity | kKeepOldSample,
+};
+
 class DeepBuffer {
  public:
-  DeepBuffer(PixelRect region, int depth);
+  DeepBuffer(PixelRect region, int depth, uint32_t fields = kKeepAll);
 
   const PixelRect& region() const { return region_; }
   int depth() const { return depth_; }
+  uint32_t fields() const { return fields_; }
   int64_t size() const { return size_; }  // crosshairs held
   int64_t capacity() const { return region_.area() * depth_; }
+  // Bytes allocated per crosshair slot, and in all (per pixel: depth x slot + 2).
+  size_t bytes_per_slot() const { return sizeof(CrosshairStats) + rest_stride_; }
+  size_t bytes() const;
 
   int count(int32_t x, int32_t y) const { return queues_[index(x, y)].count; }
   // The k-th crosshair of pixel (x, y), k = 0 the newest, as a copy. k < count(x, y).
@@ -70,10 +86,7 @@ class DeepBuffer {
   const CrosshairStats& stats(int32_t x, int32_t y, int k) const {
     return stats_[slot(index(x, y), k)];
   }
-  glm::vec2 image_position(int32_t x, int32_t y, int k) const {
-    const Rest& r = rest_[slot(index(x, y), k)];
-    return {r.x, r.y};
-  }
+  glm::vec2 image_position(int32_t x, int32_t y, int k) const;
 
   // Inserts at the front (newest). When the queue was full, the oldest is evicted (its
   // statistics part into *evicted) and true is returned.
@@ -107,16 +120,6 @@ class DeepBuffer {
     uint8_t head = 0;
     uint8_t count = 0;
   };
-  // The rest of a crosshair, which only reprojection reads: two whole cache lines, the image
-  // position in the first.
-  struct alignas(64) Rest {
-    float x, y;
-    double old_time;
-    glm::vec3 position, velocity;
-    glm::vec3 neighbor_position[4];
-    float old_luminance;
-    float neighbor_luminance[4];
-  };
 
   size_t index(int32_t x, int32_t y) const {
     return size_t(y - region_.y0) * size_t(region_.width()) + size_t(x - region_.x0);
@@ -128,13 +131,20 @@ class DeepBuffer {
     return p * size_t(depth_) + size_t(s);
   }
   void store(size_t i, const Crosshair& c);
+  std::byte* rest(size_t i) { return rest_.data() + i * rest_stride_; }
+  const std::byte* rest(size_t i) const { return rest_.data() + i * rest_stride_; }
 
   PixelRect region_;
   int depth_;
+  uint32_t fields_;
   int64_t size_ = 0;
+  // The rest of a slot, packed without padding: the fields that `fields_` keeps, at these
+  // byte offsets (the image position first); -1 for one not kept.
+  size_t rest_stride_ = 0;
+  int velocity_at_ = -1, old_sample_at_ = -1;
   // Slots pixel * depth + s, as two arrays: the statistics part and the rest.
   std::vector<CrosshairStats> stats_;
-  std::vector<Rest> rest_;
+  std::vector<std::byte> rest_;
   std::vector<Queue> queues_;
 };
 

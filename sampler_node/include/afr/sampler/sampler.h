@@ -118,15 +118,17 @@ class Sampler {
   double sample_rate() const { return sample_rate_; }
 
  private:
-  struct TileRecord {
-    TileSums sums;
-    int64_t pending = -1;  // pixel (in pending_) of the tile's initiated crosshair, or -1
-  };
+  // The first sample of a crosshair initiated at a tile's last visit (x, y, t0), which the
+  // next visit completes. A tile has at most one, inside it; kept with the tile, not per pixel.
   struct Pending {
     double time = 0.0;
     double x = 0.0, y = 0.0;
     float luminance = 0.0f;
     bool valid = false;
+  };
+  struct TileRecord {
+    TileSums sums;
+    Pending pending;
   };
 
   // Loop steps.
@@ -156,7 +158,6 @@ class Sampler {
   TileRecord& record(int tile);
   void on_split(int parent, int a, int b);
   void on_merge(int parent, int a, int b);
-  int64_t pending_index(int32_t x, int32_t y) const;
   TileStats tile_stats(int tile, double now) const;
   void compute_errors();
 
@@ -173,7 +174,6 @@ class Sampler {
   std::vector<TileRecord> records_;           // by tiling node id
   std::vector<double> error_;                 // by tiling node id
   std::vector<std::array<double, 3>> terms_;  // v, u, o per tile, scratch of compute_errors
-  std::vector<Pending> pending_;              // by region pixel
   Camera camera_;
   double tan_half_fov_ = 0.0;  // of camera_
   const CameraSource* camera_source_ = nullptr;

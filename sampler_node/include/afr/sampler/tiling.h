@@ -29,7 +29,7 @@ class KdTiling {
 
   // One tile covering `region` (non-empty). Tiles never get deeper than max_depth. With
   // cell_pixels > 0 the region is also divided into cells of about that many pixels (at least
-  // cell_pixels / 2), which costs 4 bytes per pixel of the region.
+  // cell_pixels / 2), which costs 20 bytes per cell and nothing per pixel.
   KdTiling(PixelRect region, int max_depth = 40, int cell_pixels = 0);
 
   const PixelRect& region() const { return node(root_).rect; }
@@ -67,11 +67,25 @@ class KdTiling {
   int cell_count() const { return int(cell_rects_.size()); }
   int cell_depth() const { return cell_depth_; }
   const PixelRect& cell_rect(int cell) const { return cell_rects_[size_t(cell)]; }
-  // The cell of pixel (x, y) of the region.
+  // The cell of pixel (x, y) of the region: the path of the splits from the root down to cell
+  // depth that keep the pixel, computed rather than stored. O(cell_depth()).
   int cell_at(int32_t x, int32_t y) const {
-    if (cell_of_pixel_.empty()) return 0;
-    const PixelRect& r = region();
-    return int(cell_of_pixel_[size_t(y - r.y0) * size_t(r.width()) + size_t(x - r.x0)]);
+    PixelRect r = region();
+    int cell = 0;
+    for (int d = 0; d < cell_depth_; ++d) {
+      int side;
+      if (r.width() >= r.height()) {  // as split_rect
+        const int32_t mid = r.x0 + r.width() / 2;
+        side = x >= mid;
+        (side ? r.x0 : r.x1) = mid;
+      } else {
+        const int32_t mid = r.y0 + r.height() / 2;
+        side = y >= mid;
+        (side ? r.y0 : r.y1) = mid;
+      }
+      cell = 2 * cell + side;
+    }
+    return cell;
   }
   bool covers_cells(int id) const { return nodes_[id].depth <= cell_depth_; }
   int first_cell(int id) const { return int(nodes_[id].path << (cell_depth_ - nodes_[id].depth)); }
@@ -100,8 +114,7 @@ class KdTiling {
   std::vector<PixelRect> cell_rects_;  // by cell
   // By cell: the leaf that covers it when that is no deeper than the cells, else the node at
   // cell depth that is the cell; tile_at descends from there.
-  std::vector<int> cell_node_;
-  std::vector<uint32_t> cell_of_pixel_;  // by region pixel, row by row; empty without cells
+  std::vector<int> cell_node_;  // empty without cells
 };
 
 }  // namespace afr
