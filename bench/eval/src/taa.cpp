@@ -1,6 +1,7 @@
 #include <afr/eval/taa.h>
 
 #include <afr/common/check.h>
+#include <afr/display/fast_exp.h>
 
 #include <algorithm>
 #include <chrono>
@@ -103,27 +104,54 @@ const Image& TemporalAccumulator::render(Tracer& tracer, int64_t k, double time,
   const float k_near = float(0.5 / (options_.sample_sigma * options_.sample_sigma));
   const float k_wide = float(0.5 / (cell_x * cell_y));
   const float max_w = float(options_.max_history_weight);
+  // The grid is regular (every sample of a grid column has the same x, of a grid row the same
+  // y), so a pixel's Gaussians over its 3 x 3 grid neighbours are products of per-column and
+  // per-row factors: exp(-(dx^2 + dy^2) k) = exp(-dx^2 k) exp(-dy^2 k), computed once per
+  // output column and row rather than per pixel and neighbour.
+  struct Axis {
+    int center = 0, first = 0, last = -1;          // grid index nearest, and the neighbours used
+    float d2[3] = {}, near[3] = {}, wide[3] = {};  // for grid index center - 1 + i
+  };
+  const auto make_axis = [&](int pixel, double cell, double jitter, int cells) {
+    Axis axis;
+    const float c = float(pixel) + 0.5f;
+    axis.center = std::clamp(int(std::lround(c / cell - jitter)), 0, cells - 1);
+    axis.first = std::max(0, axis.center - 1);
+    axis.last = std::min(cells - 1, axis.center + 1);
+    for (int g = axis.first; g <= axis.last; ++g) {
+      const int i = g - axis.center + 1;
+      const float d = float((g + jitter) * cell) - c;
+      axis.d2[i] = d * d;
+      axis.near[i] = fast_exp(-axis.d2[i] * k_near);
+      axis.wide[i] = fast_exp(-axis.d2[i] * k_wide);
+    }
+    return axis;
+  };
+  std::vector<Axis> columns(static_cast<size_t>(width_)), rows(static_cast<size_t>(height_));
+  for (int x = 0; x < width_; ++x) columns[size_t(x)] = make_axis(x, cell_x, j.x, grid_width_);
+  for (int y = 0; y < height_; ++y) rows[size_t(y)] = make_axis(y, cell_y, j.y, grid_height_);
   parallel_rows(height_, threads, [&](int y) {
     const float cy = float(y) + 0.5f;
-    const int b = std::clamp(int(std::lround(cy / cell_y - j.y)), 0, grid_height_ - 1);
+    const Axis& row = rows[size_t(y)];
     for (int x = 0; x < width_; ++x) {
       const float cx = float(x) + 0.5f;
-      const int a = std::clamp(int(std::lround(cx / cell_x - j.x)), 0, grid_width_ - 1);
+      const Axis& column = columns[size_t(x)];
       glm::vec3 lo(1e30f), hi(-1e30f), near_sum(0.0f), wide_sum(0.0f), m1(0.0f), m2(0.0f);
       int count = 0;
       float near_w = 0.0f, wide_w = 0.0f, best_d2 = 1e30f;
       const GridSample* nearest = nullptr;
-      for (int bb = std::max(0, b - 1); bb <= std::min(grid_height_ - 1, b + 1); ++bb) {
-        for (int aa = std::max(0, a - 1); aa <= std::min(grid_width_ - 1, a + 1); ++aa) {
+      for (int bb = row.first; bb <= row.last; ++bb) {
+        const int iy = bb - row.center + 1;
+        for (int aa = column.first; aa <= column.last; ++aa) {
+          const int ix = aa - column.center + 1;
           const GridSample& g = grid_[size_t(bb) * size_t(grid_width_) + size_t(aa)];
-          const float dx = g.position.x - cx, dy = g.position.y - cy;
-          const float d2 = dx * dx + dy * dy;
+          const float d2 = column.d2[ix] + row.d2[iy];
           lo = glm::min(lo, g.color);
           hi = glm::max(hi, g.color);
           m1 += g.color;
           m2 += g.color * g.color;
           ++count;
-          const float wn = std::exp(-d2 * k_near), ww = std::exp(-d2 * k_wide);
+          const float wn = column.near[ix] * row.near[iy], ww = column.wide[ix] * row.wide[iy];
           near_sum += wn * g.color;
           near_w += wn;
           wide_sum += ww * g.color;
