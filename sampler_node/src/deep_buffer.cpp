@@ -43,18 +43,44 @@ DeepBuffer::DeepBuffer(PixelRect region, int depth, uint32_t fields)
     rest_stride_ += kOldSampleBytes;
   }
   const size_t pixels = size_t(region.area());
+  AFR_CHECK(pixels < size_t(UINT32_MAX));
   stats_.resize(pixels * size_t(depth));
-  rest_.resize(pixels * size_t(depth) * rest_stride_);
   queues_.resize(pixels);
+  if (rest_stride_ > 0) block_.resize(pixels);
 }
 
 size_t DeepBuffer::bytes() const {
-  return stats_.size() * sizeof(CrosshairStats) + rest_.size() + queues_.size() * sizeof(Queue);
+  return stats_.size() * sizeof(CrosshairStats) + queues_.size() * sizeof(Queue) +
+         block_.size() * sizeof(uint32_t) + free_blocks_.capacity() * sizeof(uint32_t) +
+         chunks_.size() * kBlocksPerChunk * size_t(depth_) * rest_stride_;
 }
 
-void DeepBuffer::store(size_t i, const Crosshair& c) {
-  stats_[i] = stats_of(c);
-  std::byte* r = rest(i);
+void DeepBuffer::acquire_block(size_t p) {
+  if (rest_stride_ == 0 || block_[p] != 0) return;
+  uint32_t b;
+  if (!free_blocks_.empty()) {
+    b = free_blocks_.back();
+    free_blocks_.pop_back();
+  } else {
+    if ((blocks_ & kChunkMask) == 0) {
+      // Not value-initialized: a slot is written before it is read.
+      chunks_.emplace_back(new std::byte[kBlocksPerChunk * size_t(depth_) * rest_stride_]);
+    }
+    b = blocks_++;
+  }
+  block_[p] = b + 1;
+}
+
+void DeepBuffer::release_block(size_t p) {
+  if (rest_stride_ == 0) return;
+  free_blocks_.push_back(block_[p] - 1);
+  block_[p] = 0;
+}
+
+void DeepBuffer::store(size_t p, int s, const Crosshair& c) {
+  stats_[p * size_t(depth_) + size_t(s)] = stats_of(c);
+  if (rest_stride_ == 0) return;
+  std::byte* r = rest(p, s);
   if (fields_ & kKeepReprojection) {
     put(r + kImageAt, glm::vec2(c.x, c.y));
     put(r + kPositionAt, c.position);
@@ -70,14 +96,15 @@ void DeepBuffer::store(size_t i, const Crosshair& c) {
 
 glm::vec2 DeepBuffer::image_position(int32_t x, int32_t y, int k) const {
   glm::vec2 xy(0.0f);
-  if (fields_ & kKeepReprojection) get(rest(slot(index(x, y), k)) + kImageAt, &xy);
+  const size_t p = index(x, y);
+  if (fields_ & kKeepReprojection) get(rest(p, slot_of(p, k)) + kImageAt, &xy);
   return xy;
 }
 
 Crosshair DeepBuffer::at(int32_t x, int32_t y, int k) const {
-  const size_t i = slot(index(x, y), k);
-  const CrosshairStats& s = stats_[i];
-  const std::byte* r = rest(i);
+  const size_t p = index(x, y);
+  const int slot_k = slot_of(p, k);
+  const CrosshairStats& s = stats_[p * size_t(depth_) + size_t(slot_k)];
   Crosshair c;
   c.time = s.time;
   c.luminance = s.luminance;
@@ -85,6 +112,8 @@ Crosshair DeepBuffer::at(int32_t x, int32_t y, int k) const {
   c.G_y = s.G_y;
   c.G_t = s.G_t;
   c.flags = s.flags;
+  if (rest_stride_ == 0) return c;
+  const std::byte* r = rest(p, slot_k);
   if (fields_ & kKeepReprojection) {
     glm::vec2 xy;
     get(r + kImageAt, &xy);
@@ -112,10 +141,11 @@ bool DeepBuffer::push_front(int32_t x, int32_t y, const Crosshair& c, CrosshairS
   if (full) {
     if (evicted) *evicted = stats_[i];
   } else {
+    if (q.count == 0) acquire_block(p);
     ++q.count;
     ++size_;
   }
-  store(i, c);
+  store(p, head, c);
   q.head = uint8_t(head);
   return full;
 }
@@ -125,11 +155,12 @@ bool DeepBuffer::push_back(int32_t x, int32_t y, const Crosshair& c, CrosshairSt
   Queue& q = queues_[p];
   const bool full = q.count == depth_;
   if (full) {
-    const size_t i = slot(p, depth_ - 1);
-    if (evicted) *evicted = stats_[i];
-    store(i, c);
+    const int back = slot_of(p, depth_ - 1);
+    if (evicted) *evicted = stats_[p * size_t(depth_) + size_t(back)];
+    store(p, back, c);
   } else {
-    store(slot(p, q.count), c);
+    if (q.count == 0) acquire_block(p);
+    store(p, slot_of(p, q.count), c);
     ++q.count;
     ++size_;
   }
@@ -144,6 +175,7 @@ Crosshair DeepBuffer::pop_front(int32_t x, int32_t y) {
   q.head = uint8_t(q.head + 1 == depth_ ? 0 : q.head + 1);
   --q.count;
   --size_;
+  if (q.count == 0) release_block(p);
   return c;
 }
 

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <deque>
 #include <vector>
 
@@ -117,6 +118,76 @@ TEST(DeepBufferTest, MemoryFollowsTheOwnedRegion) {
   EXPECT_EQ(buffer.capacity(), 160);
   buffer.push_front(32009, 32003, tagged(1.0), nullptr);
   EXPECT_EQ(buffer.count(32009, 32003), 1);
+}
+
+// A crosshair whose every field says which it is: time t, the rest derived from t.
+Crosshair full_crosshair(double t) {
+  Crosshair c;
+  c.time = t;
+  c.old_time = t - 0.5;
+  const float f = float(t);
+  c.position = {f, f + 1, f + 2};
+  c.velocity = {-f, f, 2 * f};
+  for (int k = 0; k < 4; ++k) {
+    c.neighbor_position[k] = glm::vec3(f + k, f - k, f * k);
+    c.neighbor_luminance[k] = f + 0.25f * float(k);
+  }
+  c.x = f + 0.5f;
+  c.y = f + 0.75f;
+  c.luminance = 2 * f;
+  c.old_luminance = 3 * f;
+  c.G_x = f + 0.125f;
+  return c;
+}
+
+TEST(DeepBufferTest, PixelsTakeTheRestOfCrosshairsOnlyWhileTheyHoldSome) {
+  // Crosshairs come and go in a few pixels of a large region. Every field that is kept comes
+  // back as it went in, those not kept come back zero, and the pool holds no more blocks than
+  // the most pixels that held crosshairs at once (a pixel that empties gives its block back).
+  for (uint32_t fields : {uint32_t(kKeepAll), uint32_t(kKeepReprojection), 0u}) {
+    SCOPED_TRACE(fields);
+    const PixelRect region{0, 0, 1000, 1000};
+    DeepBuffer buffer(region, 2, fields);
+    std::deque<double> model[8];
+    int64_t busy = 0, most_busy = 0;
+    double next = 1.0;
+    for (int op = 0; op < 4000; ++op) {
+      const int pixel = (op * 5) % 8;
+      const int32_t x = 100 * pixel + 7, y = 999 - pixel;
+      std::deque<double>& q = model[pixel];
+      if ((op * 7919) % 3 != 0) {
+        if (q.empty()) most_busy = std::max(most_busy, ++busy);
+        buffer.push_front(x, y, full_crosshair(next), nullptr);
+        if (q.size() == 2) q.pop_back();
+        q.push_front(next);
+        next += 1.0;
+      } else if (!q.empty()) {
+        const Crosshair c = buffer.pop_front(x, y);
+        const Crosshair want = full_crosshair(q.front());
+        q.pop_front();
+        if (q.empty()) --busy;
+        EXPECT_EQ(c.time, want.time);
+        EXPECT_EQ(c.G_x, want.G_x);
+        const bool reprojection = (fields & kKeepReprojection) != 0;
+        EXPECT_EQ(c.position, reprojection ? want.position : glm::vec3(0.0f));
+        EXPECT_EQ(c.neighbor_position[3], reprojection ? want.neighbor_position[3] : glm::vec3(0));
+        EXPECT_EQ(c.neighbor_luminance[2], reprojection ? want.neighbor_luminance[2] : 0.0f);
+        EXPECT_EQ(c.x, reprojection ? want.x : 0.0f);
+        EXPECT_EQ(c.velocity, (fields & kKeepVelocity) ? want.velocity : glm::vec3(0.0f));
+        EXPECT_EQ(c.old_time, (fields & kKeepOldSample) ? want.old_time : 0.0);
+        EXPECT_EQ(c.old_luminance, (fields & kKeepOldSample) ? want.old_luminance : 0.0f);
+      }
+      for (int k = 0; k < int(q.size()); ++k) {
+        ASSERT_EQ(buffer.at(x, y, k).time, q[size_t(k)]);
+      }
+    }
+    ASSERT_GE(most_busy, 4);
+    EXPECT_LE(buffer.pooled_pixels(), fields == 0 ? 0 : most_busy);
+    // A million pixels: the statistics part of every slot, the rest for a few pixels only.
+    const size_t dense = size_t(region.area()) *
+                         (2 * sizeof(CrosshairStats) + 2 + (fields == 0 ? 0 : sizeof(uint32_t)));
+    EXPECT_LE(buffer.bytes(), dense + 4096 * 2 * buffer.rest_bytes() + 1024);
+  }
 }
 
 }  // namespace

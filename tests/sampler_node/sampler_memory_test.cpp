@@ -66,9 +66,17 @@ class DiscardingSink : public SampleSink {
   uint64_t samples = 0;
 };
 
+struct Heap {
+  int64_t peak = 0;           // the most heap the sampler took, bytes
+  int64_t pooled_pixels = 0;  // pixels the deep buffer gave the rest of crosshairs to
+  int64_t rest_bytes = 0;     // bytes of that rest per crosshair slot
+};
+
 // The most heap a sampler of `region` in a width x height image takes while it is built,
-// fills and runs 3000 steps (the scene and tracer are built before counting starts).
-int64_t peak_heap(const Scene& scene, int32_t width, int32_t height, PixelRect region, int b) {
+// fills (one crosshair every fill_step pixels) and runs `steps` steps; the scene and the tracer
+// are built before counting starts.
+Heap peak_heap(const Scene& scene, int32_t width, int32_t height, PixelRect region, int b,
+               int fill_step, int steps) {
   Tracer tracer(scene);
   VirtualClock clock(1e5);
   DiscardingSink sink;
@@ -78,27 +86,32 @@ int64_t peak_heap(const Scene& scene, int32_t width, int32_t height, PixelRect r
   config.region = region;
   config.b = b;
   config.seed = 7;
-  config.fill_step = 8;
+  config.fill_step = fill_step;
   const int64_t before = g_live.load();
   g_peak = before;
+  Heap heap;
   {
     Sampler sampler(scene, tracer, clock, config, sink);
     sampler.fill();
-    for (int k = 0; k < 3000; ++k) sampler.step();
+    for (int k = 0; k < steps; ++k) sampler.step();
     sampler.flush();
-    EXPECT_GT(sink.samples, 3000u);
+    EXPECT_GT(sink.samples, uint64_t(steps));
+    heap.pooled_pixels = sampler.buffer().pooled_pixels();
+    heap.rest_bytes = int64_t(sampler.buffer().rest_bytes());
   }
-  return g_peak.load() - before;
+  heap.peak = g_peak.load() - before;
+  return heap;
 }
 
-// A deep buffer slot holds 32 bytes of statistics and 84 of what reprojection reads (96 where
-// something moves); per pixel b slots and a 2-byte queue. The cells' sums (88 bytes per cell
-// of at least 16 pixels) and the tiles come on top: the budget below allows 12 bytes per pixel
-// and 1 MiB for them, the sample batch and the tiling.
+// Every pixel of the region takes b x 32 bytes of crosshair statistics, a 2-byte queue and a
+// 4-byte index into the pool of the rest; the cells' sums (88 bytes per cell of at least 16
+// pixels) come on top: 12 bytes per pixel are allowed for them. A pixel holding crosshairs
+// takes b x the rest (84 bytes, 96 where something moves) from a pool that grows 4096 such
+// pixels at a time.
+int64_t per_pixel_budget(int b) { return b * 32 + 2 + 4 + 12; }
+constexpr int64_t kPoolStep = 4096;
+// The tiles, the sample batch and the tiling's other arrays.
 constexpr int64_t kFixedBudget = int64_t(1) << 20;
-int64_t budget(int64_t pixels, int b, bool moving) {
-  return pixels * (b * (32 + 84 + (moving ? 12 : 0)) + 2 + 12) + kFixedBudget;
-}
 
 TEST(SamplerMemoryTest, SmallRegionOfAGigapixelImageTakesHeapForTheRegionOnly) {
   // 256 x 128 pixels of a 32768 x 32768 image: one byte per image pixel would be 1 GiB.
@@ -106,29 +119,43 @@ TEST(SamplerMemoryTest, SmallRegionOfAGigapixelImageTakesHeapForTheRegionOnly) {
   const PixelRect region{16000, 16000, 16256, 16128};
   for (int b : {1, 4}) {
     SCOPED_TRACE(b);
-    const int64_t huge = peak_heap(scene, 32768, 32768, region, b);
-    EXPECT_LE(huge, budget(region.area(), b, scene.has_moving_geometry()));
-    // The same region's pixels in an image of their own size take the same heap, but for the
-    // tiles, which follow what the image shows (a few thousand of 120 bytes).
-    const int64_t own =
-        peak_heap(scene, 256, 128, PixelRect{0, 0, region.width(), region.height()}, b);
-    EXPECT_NEAR(double(huge), double(own), 1024.0 * 1024.0);
+    const Heap huge = peak_heap(scene, 32768, 32768, region, b, 8, 3000);
+    ASSERT_GT(huge.pooled_pixels, 0);
+    ASSERT_LE(huge.pooled_pixels, region.area());
+    EXPECT_LE(huge.peak, region.area() * per_pixel_budget(b) +
+                             (huge.pooled_pixels + kPoolStep) * b * huge.rest_bytes + kFixedBudget);
+    // The same region's pixels in an image of their own size take about the same heap: the
+    // tiles and the pixels that hold crosshairs follow what the image shows.
+    const Heap own =
+        peak_heap(scene, 256, 128, PixelRect{0, 0, region.width(), region.height()}, b, 8, 3000);
+    EXPECT_NEAR(double(huge.peak), double(own.peak),
+                double(kFixedBudget + 2 * kPoolStep * b * huge.rest_bytes));
   }
 }
 
-TEST(SamplerMemoryTest, HeapPerRegionPixelStaysInItsBudgetAsTheRegionGrows) {
-  // Three times the pixels, three times the per-pixel part: the slope between the two is per region
-  // pixel, whatever the fixed part, and the moving scene keeps velocities as well.
+TEST(SamplerMemoryTest, HeapPerRegionPixelFollowsThePixelsThatHoldCrosshairs) {
+  // Three times the pixels, three times the per-pixel part: the slope between two regions is
+  // per region pixel, whatever the fixed part. A moving scene keeps velocities as well.
   const Scene scene = testing::moving_scene();
   ASSERT_TRUE(scene.has_moving_geometry());
+  const PixelRect small{0, 0, 256, 256}, large{0, 0, 768, 256};
+  const double added = double(large.area() - small.area());
   for (int b : {1, 4}) {
     SCOPED_TRACE(b);
-    const int64_t small = peak_heap(scene, 1024, 1024, PixelRect{0, 0, 256, 256}, b);
-    const int64_t large = peak_heap(scene, 1024, 1024, PixelRect{0, 0, 768, 256}, b);
-    const double per_pixel = double(large - small) / (512.0 * 256.0);
-    EXPECT_LE(per_pixel, double(b * (32 + 84 + 12) + 2 + 12));
-    // At least the slots themselves: what is measured is the buffer, not a stray allocation.
-    EXPECT_GE(per_pixel, double(b * (32 + 84 + 12) + 2));
+    // A crosshair in every pixel: every pixel takes its rest.
+    const Heap full_small = peak_heap(scene, 1024, 1024, small, b, 1, 0);
+    const Heap full_large = peak_heap(scene, 1024, 1024, large, b, 1, 0);
+    ASSERT_EQ(full_large.pooled_pixels, large.area());
+    ASSERT_EQ(full_large.rest_bytes, 96);
+    const double full = double(full_large.peak - full_small.peak) / added;
+    EXPECT_LE(full, double(per_pixel_budget(b) + b * 96));
+    EXPECT_GE(full, double(b * (32 + 96) + 2 + 4));  // at least the slots themselves
+    // One pixel in 64 holds a crosshair: the others take the statistics part only.
+    const Heap sparse_small = peak_heap(scene, 1024, 1024, small, b, 8, 0);
+    const Heap sparse_large = peak_heap(scene, 1024, 1024, large, b, 8, 0);
+    const double sparse = double(sparse_large.peak - sparse_small.peak) / added;
+    EXPECT_LE(sparse, double(per_pixel_budget(b)) + b * 96 / 8.0);
+    EXPECT_GE(sparse, double(b * 32 + 2 + 4));
   }
 }
 

@@ -1,6 +1,7 @@
 // The sampler's temporally deep buffer (section 4): for every pixel of the owned region a
 // queue of up to b crosshairs, newest at the front. Memory is proportional to the owned
-// region, never to the whole image, and a crosshair takes only the fields its run reads.
+// region, never to the whole image; a crosshair takes only the fields its run reads, and the
+// larger part of it takes memory only in pixels that hold crosshairs.
 #pragma once
 
 #include <afr/common/math.h>
@@ -8,6 +9,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace afr {
@@ -75,8 +77,12 @@ class DeepBuffer {
   uint32_t fields() const { return fields_; }
   int64_t size() const { return size_; }  // crosshairs held
   int64_t capacity() const { return region_.area() * depth_; }
-  // Bytes allocated per crosshair slot, and in all (per pixel: depth x slot + 2).
-  size_t bytes_per_slot() const { return sizeof(CrosshairStats) + rest_stride_; }
+  // Bytes of the rest of a slot (what `fields` keeps), which pixels holding crosshairs take
+  // depth times from a pool; every pixel takes depth x 32 + 2 (+ 4 when the rest is kept).
+  size_t rest_bytes() const { return rest_stride_; }
+  // Blocks of depth rests the pool has handed out: at most the most pixels ever holding
+  // crosshairs at once.
+  int64_t pooled_pixels() const { return int64_t(blocks_); }
   size_t bytes() const;
 
   int count(int32_t x, int32_t y) const { return queues_[index(x, y)].count; }
@@ -124,15 +130,27 @@ class DeepBuffer {
   size_t index(int32_t x, int32_t y) const {
     return size_t(y - region_.y0) * size_t(region_.width()) + size_t(x - region_.x0);
   }
-  // The array index of the k-th crosshair of pixel p (k may reach the queue's depth - 1).
-  size_t slot(size_t p, int k) const {
-    int s = queues_[p].head + k;
-    if (s >= depth_) s -= depth_;
-    return p * size_t(depth_) + size_t(s);
+  // The slot of pixel p of its k-th crosshair (k may reach the queue's depth - 1), and its
+  // index in stats_.
+  int slot_of(size_t p, int k) const {
+    const int s = queues_[p].head + k;
+    return s >= depth_ ? s - depth_ : s;
   }
-  void store(size_t i, const Crosshair& c);
-  std::byte* rest(size_t i) { return rest_.data() + i * rest_stride_; }
-  const std::byte* rest(size_t i) const { return rest_.data() + i * rest_stride_; }
+  size_t slot(size_t p, int k) const { return p * size_t(depth_) + size_t(slot_of(p, k)); }
+  // Writes slot s of pixel p, which has a block when the rest is kept.
+  void store(size_t p, int s, const Crosshair& c);
+  // The rest of slot s of pixel p, which has a block.
+  const std::byte* rest(size_t p, int s) const {
+    const uint32_t b = block_[p] - 1;
+    return chunks_[b >> kChunkShift].get() +
+           (size_t(b & kChunkMask) * size_t(depth_) + size_t(s)) * rest_stride_;
+  }
+  std::byte* rest(size_t p, int s) {
+    return const_cast<std::byte*>(static_cast<const DeepBuffer*>(this)->rest(p, s));
+  }
+  // Gives pixel p a block (when the rest is kept and it has none), and takes it back.
+  void acquire_block(size_t p);
+  void release_block(size_t p);
 
   PixelRect region_;
   int depth_;
@@ -142,10 +160,18 @@ class DeepBuffer {
   // byte offsets (the image position first); -1 for one not kept.
   size_t rest_stride_ = 0;
   int velocity_at_ = -1, old_sample_at_ = -1;
-  // Slots pixel * depth + s, as two arrays: the statistics part and the rest.
+  // The statistics part of slot s of pixel p at p * depth + s, for every pixel.
   std::vector<CrosshairStats> stats_;
-  std::vector<std::byte> rest_;
   std::vector<Queue> queues_;
+  // The rest: a block of depth slots per pixel that holds crosshairs, from chunks of
+  // kBlocksPerChunk blocks allocated as needed (never written before use, so never resident
+  // before it). A pixel whose queue empties gives its block back.
+  static constexpr int kChunkShift = 12;
+  static constexpr uint32_t kBlocksPerChunk = 1u << kChunkShift, kChunkMask = kBlocksPerChunk - 1;
+  std::vector<uint32_t> block_;  // per pixel: its block + 1, or 0 for none
+  std::vector<std::unique_ptr<std::byte[]>> chunks_;
+  std::vector<uint32_t> free_blocks_;
+  uint32_t blocks_ = 0;  // blocks handed out from the chunks
 };
 
 }  // namespace afr
