@@ -40,12 +40,10 @@ while [ $# -gt 0 ]; do
   esac
 done
 
+# shellcheck source=deploy/nodes.sh
+. deploy/nodes.sh
 # Always brings the two programs up to date (a no-op when they are).
-if [ ! -f "$build/build.ninja" ]; then
-  echo "run-local: configuring $build/"
-  cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-fi
-cmake --build "$build" --target display_node sampler_node
+build_nodes "$build" run-local
 
 mkdir -p "$output" "$output/logs"
 headless=--headless
@@ -53,11 +51,6 @@ if [ "$window" = 1 ]; then
   if [ -n "${DISPLAY:-}" ]; then headless=""; else echo "run-local: no \$DISPLAY: headless"; fi
 fi
 
-pids=()
-cleanup() {
-  for p in "${pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done
-  for p in "${pids[@]}"; do wait "$p" 2>/dev/null || true; done
-}
 trap cleanup EXIT INT TERM
 
 echo "run-local: display on tcp://127.0.0.1:$port (metrics http://127.0.0.1:$metrics_port/stats), $n sampler(s), $seconds s"

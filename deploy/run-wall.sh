@@ -39,18 +39,12 @@ while [ $# -gt 0 ]; do
   esac
 done
 
-if [ ! -f "$build/build.ninja" ]; then
-  cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-fi
-cmake --build "$build" --target display_node sampler_node
+# shellcheck source=deploy/nodes.sh
+. deploy/nodes.sh
+build_nodes "$build" run-wall
 rm -rf "$output"
 mkdir -p "$output/logs"
 
-pids=()
-cleanup() {
-  for p in "${pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done
-  for p in "${pids[@]}"; do wait "$p" 2>/dev/null || true; done
-}
 trap cleanup EXIT
 
 lead="tcp://127.0.0.1:$port"

@@ -49,8 +49,9 @@ case "$receiver" in display|ingest) ;; *) echo "goodput.sh: --receiver display|i
 [[ "$size" =~ ^([0-9]+)x([0-9]+)$ ]] || { echo "goodput.sh: --size must be WxH" >&2; exit 1; }
 width=${BASH_REMATCH[1]} height=${BASH_REMATCH[2]}
 
-if [ "$(id -u)" -ne 0 ]; then echo "goodput.sh: needs root (network namespaces): skipped"; exit 77; fi
-if ! ip netns list >/dev/null 2>&1; then echo "goodput.sh: 'ip netns' unavailable: skipped"; exit 77; fi
+# shellcheck source=deploy/lan/netns.sh
+. "$root/deploy/lan/netns.sh"
+netns_require goodput.sh
 bench_bin="$build/bench/afr-bench-service"
 display_bin="$build/display_node/display_node"
 need=("$bench_bin")
@@ -65,35 +66,16 @@ hosts=("$dh" "$sh")
 out=$(mktemp -d)
 pids=()
 teardown() {
-  for pid in "${pids[@]}"; do kill -TERM "$pid" 2>/dev/null || true; done
-  sleep 0.3
-  for pid in "${pids[@]}"; do kill -KILL "$pid" 2>/dev/null || true; done
-  for h in "${hosts[@]}" "$sw"; do ip netns del "$h" 2>/dev/null || true; done
+  netns_stop "${pids[@]}"
+  netns_down "$sw" "${hosts[@]}"
   rm -rf "$out"
 }
 trap teardown EXIT INT TERM
 
-# The switch namespace holds the bridge; each host's uplink and the switch's port towards it
-# get the same tbf, so both directions of both links are limited (as in lan.sh).
-ip netns add "$sw"
-ip -n "$sw" link add br0 type bridge
-ip -n "$sw" link set br0 up
-ip -n "$sw" link set lo up
-n=0
-for h in "${hosts[@]}"; do
-  n=$((n + 1))
-  ip netns add "$h"
-  ip link add "v$n$p" type veth peer name "eth0$p"
-  ip link set "v$n$p" netns "$sw"
-  ip link set "eth0$p" netns "$h"
-  ip -n "$h" link set "eth0$p" name eth0
-  ip -n "$sw" link set "v$n$p" master br0 up
-  ip -n "$h" addr add "10.77.0.$n/24" dev eth0
-  ip -n "$h" link set eth0 up
-  ip -n "$h" link set lo up
-  ip netns exec "$h" tc qdisc add dev eth0 root tbf rate "$rate" burst "$burst" latency "$latency"
-  ip netns exec "$sw" tc qdisc add dev "v$n$p" root tbf rate "$rate" burst "$burst" latency "$latency"
-done
+# The same tbf on each host's uplink and the switch's port towards it, so both directions of
+# both links are limited (as in lan.sh).
+netns_rate=$rate netns_burst=$burst netns_latency=$latency
+netns_up "$p" "$sw" "${hosts[@]}"
 display_ip=10.77.0.1
 endpoint="tcp://$display_ip:$port"
 

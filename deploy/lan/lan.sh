@@ -38,8 +38,9 @@ while [ $# -gt 0 ]; do
   esac
 done
 
-if [ "$(id -u)" -ne 0 ]; then echo "lan.sh: needs root (network namespaces): skipped"; exit 77; fi
-if ! ip netns list >/dev/null 2>&1; then echo "lan.sh: 'ip netns' unavailable: skipped"; exit 77; fi
+# shellcheck source=deploy/lan/netns.sh
+. "$root/deploy/lan/netns.sh"
+netns_require lan.sh
 if [ -n "$drop" ] && ! command -v nft >/dev/null; then
   echo "lan.sh: --drop needs nft (apt-get install nftables)" >&2; exit 1
 fi
@@ -60,42 +61,13 @@ for i in $(seq 1 "$samplers"); do hosts+=("${p}s$i"); done
 for k in $(seq 1 "$followers"); do hosts+=("${p}w$k"); done
 pids=()
 teardown() {
-  for pid in "${pids[@]}"; do kill -TERM "$pid" 2>/dev/null || true; done
-  sleep 0.3
-  for pid in "${pids[@]}"; do kill -KILL "$pid" 2>/dev/null || true; done
-  for h in "${hosts[@]}" "$sw"; do ip netns del "$h" 2>/dev/null || true; done
+  netns_stop "${pids[@]}"
+  netns_down "$sw" "${hosts[@]}"
 }
 trap teardown EXIT INT TERM
 
-# The switch: a namespace holding the bridge, so the host's own network is never touched.
-ip netns add "$sw"
-ip -n "$sw" link add br0 type bridge
-ip -n "$sw" link set br0 up
-ip -n "$sw" link set lo up
-n=0
-for h in "${hosts[@]}"; do
-  n=$((n + 1))
-  ip netns add "$h"
-  ip link add "v$n$p" type veth peer name "eth0$p"
-  ip link set "v$n$p" netns "$sw"
-  ip link set "eth0$p" netns "$h"
-  ip -n "$h" link set "eth0$p" name eth0
-  ip -n "$sw" link set "v$n$p" master br0 up
-  ip -n "$h" addr add "10.77.0.$n/24" dev eth0
-  ip -n "$h" link set eth0 up
-  ip -n "$h" link set lo up
-  if [ -n "$rate" ]; then
-    # Each host's uplink and the switch's port towards it.
-    ip netns exec "$h" tc qdisc add dev eth0 root tbf rate "$rate" burst 256kb latency 20ms
-    ip netns exec "$sw" tc qdisc add dev "v$n$p" root tbf rate "$rate" burst 256kb latency 20ms
-  fi
-  if [ -n "$drop" ]; then
-    permille=$(awk -v d="$drop" 'BEGIN { printf "%d", d * 10 }')
-    ip netns exec "$h" nft add table inet afr
-    ip netns exec "$h" nft add chain inet afr out '{ type filter hook output priority 0; }'
-    ip netns exec "$h" nft add rule inet afr out oifname eth0 numgen random mod 1000 lt "$permille" drop
-  fi
-done
+netns_rate=$rate netns_drop=$drop
+netns_up "$p" "$sw" "${hosts[@]}"
 
 mkdir -p "$output/logs"
 display_ip=10.77.0.1
