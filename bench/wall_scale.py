@@ -99,10 +99,11 @@ def run(cfg, a, tmp):
     common = ["--headless", "--backend", "cpu", "--fps", str(a.fps), "--stats-interval", "1",
               "--output", "", "--capacity", str(a.capacity)]
     procs = []  # (name, Popen, metrics port)
-    log = open(os.path.join(tmp, "log.txt"), "a")
+    log = open(os.path.join(a.logs or tmp, "log.txt"), "a")
     procs.append(("0,0", subprocess.Popen(
         [disp, "--bind", lead, "--size", f"{size}x{size}", "--wall", grid, "--preset", a.preset,
-         "--metrics-port", str(lead_port + 3)] + common, stdout=log, stderr=log), lead_port + 3))
+         "--metrics-port", str(lead_port + 3), "--member-timeout", str(a.member_timeout)] + common,
+        stdout=log, stderr=log), lead_port + 3))
     time.sleep(0.5)
     for r in range(rows):
         for c in range(cols):
@@ -135,7 +136,8 @@ def run(cfg, a, tmp):
     for name, p, port in procs:
         rss = (half_rss[p.pid], rss_kib(p.pid))
         if name not in first or name not in last:
-            rows_out.append((cfg, name, None, hwm_kib(p.pid), rss, 0, 0))
+            gone = f" (exited {p.returncode})" if p.poll() is not None else " (no stats)"
+            rows_out.append((cfg, name + gone, None, hwm_kib(p.pid), rss, 0, 0))
             continue
         dt = last[name][2] - first[name][2]
         rows_out.append((cfg, name, last[name][3], hwm_kib(p.pid), rss,
@@ -162,7 +164,8 @@ def run(cfg, a, tmp):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--build", default="build")
-    ap.add_argument("--seconds", type=float, default=12.0)
+    ap.add_argument("--seconds", type=float, default=None, help="run time per configuration "
+                    "(12 s; 60 s with --wall-8192), measured over its second half")
     ap.add_argument("--samplers", type=int, default=2)
     ap.add_argument("--cap", type=int, default=100000)
     ap.add_argument("--preset", default="fast")
@@ -172,16 +175,30 @@ def main():
     ap.add_argument("--sampler-args", default="",
                     help="extra sampler_node flags, e.g. '--b 1 --fill-step 8' for large images")
     ap.add_argument("--configs", default="1024:2x2,4096:1x1,4096:2x2,8192:2x2")
+    ap.add_argument("--member-timeout", type=float, default=0.5,
+                    help="seconds without a word before the lead drops a sampler")
+    ap.add_argument("--logs", default="",
+                    help="a folder to keep the nodes' log in (log.txt), instead of a temporary one")
     ap.add_argument("--model-margin", type=int, default=99,
                     help="the wall's margin for the memory model (99 px: the presets' splats)")
     ap.add_argument("--wall-8192", action="store_true",
                     help="the 8192 x 8192 wall of docs/wall.md: 4 display nodes (2x2, "
-                    "N = 10^6 each), 2 samplers at b = 1, 60 s")
+                    "N = 10^6 each, a frame every 5 s, members dropped after 60 s), 2 uncapped samplers "
+                    "at b = 1, 60 s")
     a = ap.parse_args()
     if a.wall_8192:
-        a.configs, a.seconds, a.samplers, a.capacity = "8192:2x2", 60.0, 2, 1000000
-        a.sampler_args = a.sampler_args or "--b 1 --fill-step 16"
-        a.cap = 0
+        # A CPU reconstruction of a 4195^2 node takes seconds: four of them at 1 Hz would
+        # leave the samplers nothing on this machine.
+        a.configs, a.samplers, a.capacity = "8192:2x2", 2, 1000000
+        a.seconds = a.seconds or 60.0
+        a.sampler_args = a.sampler_args or "--b 1 --fill-step 16 --display-timeout 60"
+        a.cap, a.fps = 0, 0.2
+        # On this loaded 2-core machine nodes go unheard for seconds while four CPU
+        # reconstructions of 4195^2 pixels run (10-20 s each): with the default 0.5 s, or even
+        # 5 s, the lead drops samplers and display nodes, the samplers give up on the lead
+        # (1.5 s) and join again, and every recut rebuilds the samplers.
+        a.member_timeout = max(a.member_timeout, 60.0)
+    a.seconds = a.seconds or 12.0
     print("| virtual display | grid | node (cell) | cell px | N (samples kept) | samples/s in | "
           "MB/s in | reconstruct ms | RSS MiB half / end | peak RSS MiB | model MiB |")
     print("|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|")
@@ -202,7 +219,9 @@ def main():
                     continue
                 d = s["display"]
                 cell = d["wall"]["cell"]
-                model = model_mib(d["store_capacity"], cell, int(size), a.model_margin)
+                # A follower reports no capacity of its own: it stores what --capacity says.
+                n = d["store_capacity"] or a.capacity
+                model = model_mib(n, cell, int(size), a.model_margin)
                 print(f"| {size}^2 | {grid} | {name} | {cell[2] - cell[0]}x{cell[3] - cell[1]} | "
                       f"{d['store_capacity']} | {sps / 1e3:.0f} k | {bps / 1e6:.1f} | "
                       f"{d['reconstruct_ms_mean']:.0f} | {rss_text} | {hwm / 1024:.0f} | "
