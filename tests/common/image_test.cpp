@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -95,6 +96,41 @@ TEST(SrgbTest, EightBitEncodingClampsAndRejectsNaN) {
   EXPECT_EQ(linear_to_srgb8(std::nanf("")), 0);
   // 18% grey is 117.6 on the display scale.
   EXPECT_EQ(linear_to_srgb8(0.18f), 118);
+}
+
+// linear_to_srgb8 looks the code up in a table of thresholds; it must give the formula's
+// lround(255 srgb(c)) for every float: checked on every 16th float of (0, 1) (66 M values),
+// which includes each threshold's neighbourhood within 16 ulps, and on 64 ulps around each
+// code's boundary.
+TEST(SrgbTest, EightBitEncodingEqualsTheFormulaForEveryFloatChecked) {
+  const auto formula = [](float c) {
+    return int(std::lround(reference_linear_to_srgb(c) * 255.0));
+  };
+  const auto from_bits = [](uint32_t bits) {
+    float v;
+    std::memcpy(&v, &bits, sizeof v);
+    return v;
+  };
+  int mismatches = 0;
+  for (uint32_t bits = 1; bits < 0x3f800000u && mismatches < 10; bits += 16) {
+    const float c = from_bits(bits);
+    if (linear_to_srgb8(c) != formula(c)) {
+      ++mismatches;
+      ADD_FAILURE() << c << ": " << int(linear_to_srgb8(c)) << " vs " << formula(c);
+    }
+  }
+  for (int k = 1; k < 256; ++k) {
+    // The boundary between codes k - 1 and k: where 255 srgb(c) = k - 0.5.
+    const float edge = float(reference_srgb_to_linear((k - 0.5) / 255.0));
+    uint32_t bits;
+    std::memcpy(&bits, &edge, sizeof bits);
+    for (uint32_t b = bits - 64; b <= bits + 64; ++b) {
+      const float c = from_bits(b);
+      if (c >= 1.0f) break;
+      ASSERT_EQ(linear_to_srgb8(c), formula(c)) << c << " near code " << k;
+    }
+  }
+  EXPECT_EQ(mismatches, 0);
 }
 
 TEST_F(ImageTest, PngRoundTripKeepsEveryEightBitValue) {
