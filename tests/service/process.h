@@ -2,6 +2,7 @@
 // on scope exit), waiting for conditions, free ports, and HTTP GETs of the display's /stats.
 #pragma once
 
+#include <gtest/gtest.h>
 #include <httplib.h>
 #include <netinet/in.h>
 #include <signal.h>
@@ -13,6 +14,7 @@
 #include <fcntl.h>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <random>
@@ -160,5 +162,31 @@ inline int members(const nlohmann::json& stats) {
   if (stats.is_null() || stats.is_discarded()) return -1;
   return stats["display"]["members"].get<int>();
 }
+
+// A multi-process test: a scratch folder of its own (removed unless the test failed, to read
+// the nodes' logs) and a free base port (4 ports from it: a node's data, control, spare and
+// metrics ports).
+class ProcessTest : public ::testing::Test {
+ protected:
+  explicit ProcessTest(std::string prefix) : prefix_(std::move(prefix)) {}
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = std::filesystem::temp_directory_path() /
+           (prefix_ + info->name() + "-" + std::to_string(::getpid()));
+    std::filesystem::remove_all(dir_);
+    std::filesystem::create_directories(dir_);
+    port_ = free_base_port();
+    ASSERT_NE(port_, 0);
+  }
+  void TearDown() override {
+    if (!HasFailure()) std::filesystem::remove_all(dir_);
+  }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  static std::string endpoint(int port) { return "tcp://127.0.0.1:" + std::to_string(port); }
+
+  std::string prefix_;
+  std::filesystem::path dir_;
+  int port_ = 0;  // the base port of the first display node
+};
 
 }  // namespace afr::testing

@@ -24,23 +24,12 @@ const std::string kDisplay = AFR_DISPLAY_NODE;
 const std::string kSampler = AFR_SAMPLER_NODE;
 const std::string kStaticScene = AFR_STATIC_SCENE;
 
-class ServiceTest : public ::testing::Test {
+class ServiceTest : public ProcessTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           (std::string("afr-service-") + info->name() + "-" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    port_ = free_base_port();
-    ASSERT_NE(port_, 0);
-  }
-  void TearDown() override {
-    if (!HasFailure()) fs::remove_all(dir_);
-  }
-  std::string endpoint() const { return "tcp://127.0.0.1:" + std::to_string(port_); }
+  ServiceTest() : ProcessTest("afr-service-") {}
+  using ProcessTest::endpoint;
+  std::string endpoint() const { return endpoint(port_); }
   int metrics_port() const { return port_ + 3; }
-  std::string path(const std::string& name) const { return (dir_ / name).string(); }
 
   std::unique_ptr<Process> display(std::vector<std::string> extra, const std::string& log) {
     std::vector<std::string> argv = {kDisplay,           "--headless",
@@ -70,9 +59,6 @@ class ServiceTest : public ::testing::Test {
     }
     return out;
   }
-
-  fs::path dir_;
-  int port_ = 0;
 };
 
 // ---------------------------------------------------------------------------------------------

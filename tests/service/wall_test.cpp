@@ -17,30 +17,17 @@ namespace fs = std::filesystem;
 const std::string kDisplay = AFR_DISPLAY_NODE;
 const std::string kSampler = AFR_SAMPLER_NODE;
 
-class WallTest : public ::testing::Test {
+class WallTest : public ProcessTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           (std::string("afr-wall-") + info->name() + "-" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    lead_port_ = free_base_port();
-    ASSERT_NE(lead_port_, 0);
-  }
-  void TearDown() override {
-    if (!HasFailure()) fs::remove_all(dir_);
-  }
-  std::string path(const std::string& name) const { return (dir_ / name).string(); }
-  static std::string endpoint(int port) { return "tcp://127.0.0.1:" + std::to_string(port); }
+  WallTest() : ProcessTest("afr-wall-") {}
 
   std::unique_ptr<Process> lead(std::vector<std::string> extra) {
     std::vector<std::string> argv = {kDisplay,
                                      "--headless",
                                      "--bind",
-                                     endpoint(lead_port_),
+                                     endpoint(port_),
                                      "--metrics-port",
-                                     std::to_string(lead_port_ + 3),
+                                     std::to_string(port_ + 3),
                                      "--backend",
                                      "cpu",
                                      "--output",
@@ -60,7 +47,7 @@ class WallTest : public ::testing::Test {
     std::vector<std::string> argv = {kDisplay,
                                      "--headless",
                                      "--follow",
-                                     endpoint(lead_port_),
+                                     endpoint(port_),
                                      "--cell",
                                      std::to_string(column) + "," + std::to_string(row),
                                      "--bind",
@@ -79,8 +66,8 @@ class WallTest : public ::testing::Test {
   }
   std::unique_ptr<Process> sampler(const std::string& log) {
     return std::make_unique<Process>(
-        std::vector<std::string>{kSampler, "--display", endpoint(lead_port_), "--cache",
-                                 path("cache"), "--max-samples-per-second", "40000"},
+        std::vector<std::string>{kSampler, "--display", endpoint(port_), "--cache", path("cache"),
+                                 "--max-samples-per-second", "40000"},
         path(log));
   }
   // Samples a node has received from all samplers (its /stats), -1 when it does not answer.
@@ -96,16 +83,13 @@ class WallTest : public ::testing::Test {
     if (s.is_null() || s.is_discarded()) return -1;
     return s["display"]["wall"]["nodes"].get<int>();
   }
-
-  fs::path dir_;
-  int lead_port_ = 0;
 };
 
 TEST_F(WallTest, FourNodesEachReceiveTheirCellAndALostNodeIsNoticedWithinOneSecond) {
   // A margin of 8 px: each node needs a 72 x 72 part of the 128 x 128 image, so together the
   // four receive about 1.27 x what the samplers send (4 x if every sample went everywhere).
   auto l = lead({"--wall", "2x2", "--margin", "8"});
-  const int lead_metrics = lead_port_ + 3;
+  const int lead_metrics = port_ + 3;
   ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 1; }, 5.0)) << l->log();
   const int cells[3][2] = {{1, 0}, {0, 1}, {1, 1}};
   int ports[3];
@@ -187,7 +171,7 @@ TEST_F(WallTest, FourNodesEachReceiveTheirCellAndALostNodeIsNoticedWithinOneSeco
 
 TEST_F(WallTest, FollowersAskingForATakenCellOrANonWallAreRefusedWithTheReason) {
   auto l = lead({"--wall", "2x1"});
-  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_port_ + 3) == 1; }, 5.0)) << l->log();
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(port_ + 3) == 1; }, 5.0)) << l->log();
   // The lead's own cell.
   auto f = follower(0, 0, free_base_port());
   EXPECT_TRUE(wait_until(
@@ -202,10 +186,10 @@ TEST_F(WallTest, FollowersAskingForATakenCellOrANonWallAreRefusedWithTheReason) 
       wait_until([&] { return g->log().find("outside the 2x1 wall") != std::string::npos; }, 5.0))
       << g->log();
   // The lead keeps serving: one node, frames going on.
-  EXPECT_EQ(wall_nodes(lead_port_ + 3), 1);
-  const uint64_t frames = get_stats(lead_port_ + 3)["display"]["frames"].get<uint64_t>();
+  EXPECT_EQ(wall_nodes(port_ + 3), 1);
+  const uint64_t frames = get_stats(port_ + 3)["display"]["frames"].get<uint64_t>();
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
-  EXPECT_GT(get_stats(lead_port_ + 3)["display"]["frames"].get<uint64_t>(), frames);
+  EXPECT_GT(get_stats(port_ + 3)["display"]["frames"].get<uint64_t>(), frames);
 }
 
 TEST_F(WallTest, CapacityFlagSetsTheSamplesEachNodeKeeps) {
@@ -219,7 +203,7 @@ TEST_F(WallTest, CapacityFlagSetsTheSamplesEachNodeKeeps) {
     if (s.is_null() || s.is_discarded()) return -1;
     return s["display"]["store_capacity"].get<int64_t>();
   };
-  ASSERT_TRUE(wait_until([&] { return capacity(lead_port_ + 3) == 5000; }, 5.0)) << l->log();
+  ASSERT_TRUE(wait_until([&] { return capacity(port_ + 3) == 5000; }, 5.0)) << l->log();
   // The follower was not given --capacity: 4 samples per pixel (the lead's balanced preset)
   // of its 64 x 128 cell grown by the 66-pixel margin inside the 128 x 128 image: all of it.
   EXPECT_TRUE(wait_until([&] { return capacity(port + 3) == 4 * 128 * 128; }, 5.0)) << f->log();
