@@ -7,13 +7,28 @@ It samples, every few seconds, the resident memory (RSS) of every process, the d
 periodic screenshots, the image's RMS error against an ideal render of the same still scene.
 At the end it prints a report and exits non-zero when a check fails:
 
-  - RSS after warm-up stays within --rss-tolerance (5%) of its median, for the display and for
-    every sampler incarnation that lived past warm-up;
+  - the display's RSS after warm-up stays within --rss-tolerance (5%) of its median;
+  - a sampler's RSS after warm-up stays within --rss-tolerance of a model of its memory: a
+    fixed part of its own plus a cost per pixel of its region (the deep buffer), the cost per
+    pixel fitted by least squares, within each incarnation, to the readings of every sampler
+    incarnation that lived past warm-up. The coordinator cuts regions by error and throughput,
+    so a sampler's region changes every few seconds as others die and rejoin, and a new region
+    restarts its pool on that region; the model takes the regions out, and what is left (a
+    leak, a growing cache) shows as a deviation. Readings within --region-settle seconds of the
+    sampler getting a larger region than any before (the old and the new pool both alive) are
+    left out of the fit and the check;
   - the store never holds more than its capacity and ZeroMQ queues stay bounded (samples
     dropped by a sampler's full queue are counted, never queued without bound);
   - no log line at error level or above, no process exits on its own;
-  - the image keeps converging: after warm-up every screenshot's error stays within
-    --rms-bound of the first converged one (it does not drift upward as samplers come and go).
+  - the image keeps converging: after warm-up, every screenshot's error stays within
+    --rms-bound of the median screenshot's, and the median of the last third of the screenshots
+    within --drift-bound of the first third's (no upward drift as samplers come and go). Left
+    out: screenshots written within --recovery seconds after a change of membership, a kill or
+    a "lost" or "joined" line of the display's log (on a loaded machine a live sampler that
+    stays silent for the member timeout is declared lost too). A lost sampler's region gets no
+    fresh samples until the display declares it lost (0.5 s without a message), and a region
+    cut for a joining sampler none until its pool has filled it. Those screenshots are reported,
+    and at least half the screenshots after warm-up must lie outside the recovery windows.
 
   deploy/soak.py --build build --minutes 10 --samplers 4 --kill-every 30
   deploy/soak.py --minutes 1 --kill-every 10        (a short smoke run)
@@ -34,6 +49,8 @@ import urllib.request
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 STATIC_SCENE = os.path.join(ROOT, "tests", "service", "data", "static_scene.gltf")
+RECOVERY_S = 5.0  # default --recovery
+REGION_SETTLE_S = 5.0  # default --region-settle
 
 
 def rss_kib(pid):
@@ -82,11 +99,34 @@ class Node:
 
 def flatness(series, warmup_s):
     """(median, largest relative deviation from it) of RSS readings taken after warm-up."""
-    late = [kib for t, kib in series if t >= warmup_s and kib is not None]
+    late = [r[1] for r in series if r[0] >= warmup_s and r[1] is not None]
     if len(late) < 3:
         return None, None
     med = statistics.median(late)
     return med, max(abs(k - med) for k in late) / med
+
+
+def checked_sampler_readings(series, warmup_s):
+    """(region pixels, KiB) of a sampler's readings after warm-up, its largest region settled."""
+    return [(px, kib) for t, kib, px, peak, settled in series
+            if t >= warmup_s and kib is not None and px and settled]
+
+
+def fit_rss_model(incarnations):
+    """KiB per region pixel, fitted by least squares to the (pixels, KiB) readings of each
+    incarnation around its own means (each has its own fixed part), and the fixed part of each:
+    the median of its readings less the pixels' cost. With no change of region after warm-up
+    the cost per pixel is not determined: then it is 0."""
+    num = den = 0.0
+    for points in incarnations.values():
+        mean_p = statistics.fmean(p for p, _ in points)
+        mean_k = statistics.fmean(k for _, k in points)
+        num += sum((p - mean_p) * (k - mean_k) for p, k in points)
+        den += sum((p - mean_p) ** 2 for p, _ in points)
+    per_pixel = num / den if den > 0 else 0.0
+    fixed = {key: statistics.median(k - per_pixel * p for p, k in points)
+             for key, points in incarnations.items()}
+    return fixed, per_pixel
 
 
 def main():
@@ -104,12 +144,21 @@ def main():
     ap.add_argument("--rss-tolerance", type=float, default=0.05)
     ap.add_argument("--rms-bound", type=float, default=3.0,
                     help="allowed rise (0-255) of the image error over the run")
+    ap.add_argument("--drift-bound", type=float, default=1.0,
+                    help="allowed rise (0-255) of the median image error, first to last third")
+    ap.add_argument("--recovery", type=float, default=RECOVERY_S,
+                    help="seconds after a change of membership in which the image error may "
+                         "exceed the bound")
+    ap.add_argument("--region-settle", type=float, default=REGION_SETTLE_S,
+                    help="seconds after a region change before a sampler's RSS is checked")
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args()
     if not 1 <= args.samplers <= 64:
         ap.error(f"--samplers must be 1..64, got {args.samplers}")
     if args.minutes <= 0 or args.kill_every <= 0 or args.interval <= 0:
         ap.error("--minutes, --kill-every and --interval must be positive")
+    if args.recovery < 0 or args.region_settle < 0:
+        ap.error("--recovery and --region-settle must not be negative")
 
     display_bin = os.path.join(args.build, "display_node", "display_node")
     sampler_bin = os.path.join(args.build, "sampler_node", "sampler_node")
@@ -149,9 +198,14 @@ def main():
 
     samplers = [start_sampler(i) for i in range(args.samplers)]
     t0 = time.monotonic()
+    t0_wall = time.time()  # screenshots are placed in time by their files' modification times
     duration = args.minutes * 60.0
     readings, kills, exits = [], [], []
-    rss = {"display": []}  # key: process name -> [(t since its own start, KiB)]
+    # Process name -> [(t since its own start, KiB)]; for a sampler also the pixels of its
+    # region and of the largest it has held (None before it has one) and whether that largest
+    # region had settled (--region-settle).
+    rss = {"display": []}
+    largest = {}  # sampler key -> (pixels of the largest region it has held, t it got it)
     next_kill, next_read = args.kill_every, 0.0
     try:
         while (now := time.monotonic() - t0) < duration:
@@ -171,14 +225,26 @@ def main():
                 next_kill += args.kill_every
             if now >= next_read:
                 next_read += args.interval
-                r = {"t": round(now, 1), "rss_kib": {}}
+                r = {"t": round(now, 1), "rss_kib": {}, "region_pixels": {}}
+                st = get_stats(metrics_port)
+                by_name = {x["name"]: x for x in st["samplers"]} if st else {}
                 rss["display"].append((now, rss_kib(display.proc.pid)))
                 r["rss_kib"]["display"] = rss["display"][-1][1]
                 for i, s in enumerate(samplers):
                     key = f"sampler-{i + 1}.{incarnation[i]}"
-                    rss.setdefault(key, []).append((now - (s.started - t0), rss_kib(s.proc.pid)))
+                    x = by_name.get(f"soak-{i + 1}.{incarnation[i]}")
+                    pixels, peak, settled = None, None, False
+                    if x is not None and x["member"]:
+                        x0, y0, x1, y1 = x["region"]
+                        pixels = max(0, x1 - x0) * max(0, y1 - y0)
+                        if pixels > largest.get(key, (0, 0))[0]:
+                            largest[key] = (pixels, now)
+                        peak = largest[key][0]
+                        settled = now - largest[key][1] >= args.region_settle
+                    rss.setdefault(key, []).append((now - (s.started - t0), rss_kib(s.proc.pid),
+                                                    pixels, peak, settled))
                     r["rss_kib"][key] = rss[key][-1][1]
-                st = get_stats(metrics_port)
+                    r["region_pixels"][key] = pixels
                 if st:
                     d = st["display"]
                     r["store"] = [d["store_samples"], d["store_capacity"]]
@@ -196,29 +262,72 @@ def main():
         display.kill(signal.SIGTERM)
 
     # Image error of every screenshot, in time order.
+    # Times from the files (a starved display renders fewer frames than --fps a second).
     errors = []
     for f in sorted(os.listdir(shots)):
-        m = re.fullmatch(r"frame_(\d+)\.png", f)
-        if m:
-            e = rms_255(reference, os.path.join(shots, f))
+        if re.fullmatch(r"frame_(\d+)\.png", f):
+            path = os.path.join(shots, f)
+            e = rms_255(reference, path)
             if e is not None:
-                errors.append((int(m.group(1)) / fps, e))
+                errors.append((os.path.getmtime(path) - t0_wall, e))
+
+    # Changes of membership: the kills, and the display's "lost" and "joined" lines (local
+    # time of day, as the log writes it).
+    changes = [k for k, _ in kills]
+    day = time.localtime(t0_wall)
+    with open(os.path.join(args.output, "logs", "display.log"), errors="replace") as fh:
+        for ln in fh:
+            m = re.match(r"(\d\d):(\d\d):(\d\d(?:\.\d+)?) \w+ sampler \d+ .*(lost:|joined:)", ln)
+            if m:
+                midnight = time.mktime(day[:3] + (0, 0, 0) + day[6:8] + (-1,))
+                at = midnight + 3600 * int(m[1]) + 60 * int(m[2]) + float(m[3])
+                if at < t0_wall - 43200:
+                    at += 86400  # past midnight
+                changes.append(at - t0_wall)
+
+    def recovering_since(t):
+        """Seconds since the last change of membership, if t lies in its recovery window."""
+        since = [t - c for c in changes if 0 <= t - c < args.recovery]
+        return min(since) if since else None
 
     failures = []
     print("\n# soak report")
     print(f"{args.samplers} samplers, {args.minutes:g} min, kill -9 every {args.kill_every:g} s "
           f"({len(kills)} kills), {args.size}, scene {os.path.basename(args.scene)}")
-    print("\n| process | readings after warm-up | median RSS (MiB) | largest deviation |")
-    print("|---|---|---|---|")
-    for key, series in rss.items():
-        med, dev = flatness(series, args.warmup)
-        if med is None:
-            continue
-        n = len([1 for t, k in series if t >= args.warmup and k is not None])
-        print(f"| {key} | {n} | {med / 1024:.1f} | {100 * dev:.1f}% |")
+    med, dev = flatness(rss["display"], args.warmup)
+    if med is None:
+        failures.append("display: fewer than 3 RSS readings after warm-up")
+    else:
+        n = len([1 for t, k in rss["display"] if t >= args.warmup and k is not None])
+        print(f"\ndisplay RSS after warm-up: median {med / 1024:.1f} MiB, largest deviation "
+              f"{100 * dev:.1f}% over {n} readings")
         if dev > args.rss_tolerance:
-            failures.append(f"{key}: RSS varies {100 * dev:.1f}% after warm-up "
+            failures.append(f"display: RSS varies {100 * dev:.1f}% after warm-up "
                             f"(> {100 * args.rss_tolerance:.0f}%)")
+    checked = {k: checked_sampler_readings(v, args.warmup) for k, v in rss.items()
+               if k != "display"}
+    checked = {k: v for k, v in checked.items() if len(v) >= 3}
+    if not checked:
+        failures.append("no sampler lived past warm-up with a settled region")
+    else:
+        fixed, per_pixel = fit_rss_model(checked)
+        n = sum(len(v) for v in checked.values())
+        print(f"sampler RSS model, fitted to {n} readings of {len(checked)} incarnations: a fixed "
+              f"part per incarnation + {1024 * per_pixel:.0f} bytes per region pixel")
+        print("\n| sampler | readings checked | region (px) | fixed part (MiB) | "
+              "median RSS (MiB) | RSS spread | largest deviation from the model |")
+        print("|---|---|---|---|---|---|---|")
+        for key, v in checked.items():
+            kib = [k for _, k in v]
+            spread = (max(kib) - min(kib)) / statistics.median(kib)
+            worst = max(abs(k - (fixed[key] + per_pixel * p)) / (fixed[key] + per_pixel * p)
+                        for p, k in v)
+            print(f"| {key} | {len(v)} | {min(p for p, _ in v)}-{max(p for p, _ in v)} | "
+                  f"{fixed[key] / 1024:.1f} | {statistics.median(kib) / 1024:.1f} | "
+                  f"{100 * spread:.1f}% | {100 * worst:.1f}% |")
+            if worst > args.rss_tolerance:
+                failures.append(f"{key}: RSS deviates {100 * worst:.1f}% from the model "
+                                f"(> {100 * args.rss_tolerance:.0f}%)")
     stored = [r for r in readings if "store" in r]
     if stored:
         worst = max(r["store"][0] / max(1, r["store"][1]) for r in stored)
@@ -244,18 +353,39 @@ def main():
     for name, code, at in exits:
         failures.append(f"{name} exited by itself with {code} at {at:.0f} s")
     if errors:
-        converged = [e for t, e in errors if t >= args.warmup] or [errors[-1][1]]
-        print("\nimage RMS error vs the ideal render (0-255), per screenshot: " +
-              ", ".join(f"{t:.0f}s {e:.2f}" for t, e in errors))
-        first = converged[0]
-        print(f"after warm-up: first {first:.2f}, worst {max(converged):.2f}, last "
-              f"{converged[-1]:.2f} (allowed rise {args.rms_bound:g})")
-        if max(converged) > first + args.rms_bound:
-            failures.append(f"image error rose from {first:.2f} to {max(converged):.2f}")
+        print("\nimage RMS error vs the ideal render (0-255), per screenshot (* within "
+              f"{args.recovery:g} s after a change of membership): " +
+              ", ".join(f"{t:.0f}s {e:.2f}{'*' if recovering_since(t) is not None else ''}"
+                        for t, e in errors))
+        print(f"changes of membership: {len(changes)} ({len(kills)} kills, "
+              f"{len(changes) - len(kills)} lost or joined lines in the display's log)")
+        converged = [(t, e) for t, e in errors if t >= args.warmup] or [errors[-1]]
+        steady = [e for t, e in converged if recovering_since(t) is None]
+        recovering = [(t, e) for t, e in converged if recovering_since(t) is not None]
+        if len(steady) < max(1, len(converged) / 2):
+            failures.append(f"only {len(steady)} of {len(converged)} screenshots after warm-up lie "
+                            "outside the recovery windows")
+        if steady:
+            med = statistics.median(steady)
+            third = max(1, len(steady) // 3)
+            early, late = statistics.median(steady[:third]), statistics.median(steady[-third:])
+            print(f"after warm-up, outside the recovery windows ({len(steady)} screenshots): "
+                  f"median {med:.2f}, worst {max(steady):.2f} (allowed {med + args.rms_bound:.2f}); "
+                  f"median of the first third {early:.2f}, of the last third {late:.2f} "
+                  f"(allowed rise {args.drift_bound:g})")
+            if max(steady) > med + args.rms_bound:
+                failures.append(f"image error {max(steady):.2f} outside a recovery window, "
+                                f"more than {args.rms_bound:g} above the median {med:.2f}")
+            if late > early + args.drift_bound:
+                failures.append(f"image error drifted from {early:.2f} to {late:.2f}")
+        if recovering:
+            print(f"within {args.recovery:g} s after a change ({len(recovering)} screenshots): " +
+                  ", ".join(f"{e:.2f} at {recovering_since(t):.1f} s" for t, e in recovering))
     else:
         failures.append("no screenshots")
     with open(os.path.join(args.output, "soak.json"), "w") as f:
-        json.dump({"args": vars(args), "readings": readings, "kills": kills, "errors": errors,
+        json.dump({"args": vars(args), "readings": readings, "kills": kills,
+                   "membership_changes": sorted(changes), "errors": errors,
                    "rss": rss, "failures": failures}, f, indent=1)
     print("\nresult: " + ("PASS" if not failures else "FAIL\n  " + "\n  ".join(failures)))
     return 0 if not failures else 1
