@@ -283,9 +283,10 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
         PixelShape& shape = m.shapes[p];
         shape.k_x = 0.5f / (sigma_x * sigma_x);
         shape.k_y = 0.5f / (sigma_y * sigma_y);
-        // The splat is the square of radius r cut to the Gaussian's own cutoff box.
-        shape.r_x = std::min(r, cutoff * sigma_x);
-        shape.r_y = std::min(r, cutoff * sigma_y);
+        // The splat is the square of radius r cut to the Gaussian's own cutoff box, rounded
+        // as positions are, so that a splat's pixel range is exact (reprojection.h).
+        shape.r_x = quantize_position(std::min(r, cutoff * sigma_x));
+        shape.r_y = quantize_position(std::min(r, cutoff * sigma_y));
         shape.off_x = fast_exp(-shape.r_x * shape.r_x * shape.k_x);
         shape.off_y = fast_exp(-shape.r_y * shape.r_y * shape.k_y);
         shape.k_t = f.k_t;
@@ -299,10 +300,17 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
       std::fill(m.coverage_next.begin() + ptrdiff_t(p0), m.coverage_next.begin() + ptrdiff_t(p1),
                 CoverageCell{});
     });
-    // Bands, and the oversize bucket after them (index `bands`).
-    const int band_height =
-        std::max(band_height_for(height), (height + kNoBand - 2) / (kNoBand - 2));
-    const int bands = (height + band_height - 1) / band_height;
+    // Bands, and the oversize bucket after them (index `bands`). Bands are rows of the whole
+    // image's lattice (their height from the whole image's, band k its rows [k h, (k + 1) h)),
+    // and the rounds go by the whole image's band index: a viewport's grid then adds each
+    // pixel's splats in the order the whole image's reconstruction does, so its sums are the
+    // same bit for bit (docs/reconstruction.md, "Viewports").
+    const int band_height = std::max(band_height_for(int(std::min(setup.image_height, 1e9))),
+                                     (height + kNoBand - 2) / (kNoBand - 2));
+    const int first_row = int(std::floor(setup.grid.origin_y));
+    const int first_band = first_row / band_height;
+    const int band_offset = first_row - first_band * band_height;  // grid row 0 in its band
+    const int bands = (band_offset + height + band_height - 1) / band_height;
     // A row of counts per chunk, padded to whole cache lines (chunks run on different threads).
     const size_t count_stride = (size_t(bands) + 1 + 15) / 16 * 16;
 
@@ -334,8 +342,8 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
             continue;
           }
         } else {
-          x = s.x * setup.scale_x - origin_x;
-          y = s.y * setup.scale_y - origin_y;
+          x = quantize_position(s.x * setup.scale_x) - origin_x;
+          y = quantize_position(s.y * setup.scale_y) - origin_y;
         }
         if (!(x > -guard && x < float(width) + guard && y > -guard && y < float(height) + guard)) {
           ++c.off_screen;
@@ -345,7 +353,7 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
         const int py = std::clamp(floor_int(y), 0, height - 1);
         const int px = std::clamp(floor_int(x), 0, width - 1);
         const int band = m.reach[size_t(py) * size_t(width) + size_t(px)] < band_height
-                             ? py / band_height
+                             ? (py + band_offset) / band_height
                              : bands;
         m.home[i] = uint16_t(band);
         ++counts[band];
@@ -453,7 +461,8 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
       }
     };
     for (int round = 0; round < 3; ++round) {
-      m.pool.run((bands - round + 2) / 3, [&](int k) { splat_band(round + 3 * k); });
+      const int start = ((round - first_band) % 3 + 3) % 3;  // whole-image band index mod 3
+      m.pool.run((bands - start + 2) / 3, [&](int k) { splat_band(start + 3 * k); });
     }
     splat_band(bands);
     const Counts c = m.sum_counts();

@@ -19,7 +19,7 @@ uniform vec3 u_forward;
 uniform vec3 u_axis_x;
 uniform vec3 u_axis_y;
 uniform float u_znear;
-uniform vec2 u_half;
+uniform vec2 u_half;  // the whole image's center
 uniform float u_min_direction_z;
 uniform float u_max_coordinate;
 uniform vec2 u_scale;   // sampling image -> output pixels
@@ -53,6 +53,12 @@ void skip() {
   gl_Position = vec4(2.0, 2.0, 2.0, 1.0);  // outside the clip volume: culled
   gl_PointSize = 1.0;
 }
+
+// quantize_position (reprojection.h): 1/256 pixel in the whole image's coordinates.
+vec2 quantize_position(vec2 v) {
+  return mix(v, roundEven(v * 256.0) / 256.0, lessThan(abs(v), vec2(16384.0)));
+}
+float quantize_position(float v) { return abs(v) < 16384.0 ? roundEven(v * 256.0) / 256.0 : v; }
 
 float splat_radius(vec2 cell, float filter_radius) {
   float g = 1.0;
@@ -93,8 +99,9 @@ void main() {
     }
     p = vec2(u_half.x + dot(d, u_axis_x) / z, u_half.y - dot(d, u_axis_y) / z);
     if (!(abs(p.x) < u_max_coordinate) || !(abs(p.y) < u_max_coordinate)) { skip(); return; }
+    p = quantize_position(p) - u_origin;
   } else {
-    p = a_xy * u_scale - u_origin;
+    p = quantize_position(a_xy * u_scale) - u_origin;
   }
   vec2 size = vec2(u_size);
   if (!(p.x > -u_guard && p.x < size.x + u_guard && p.y > -u_guard && p.y < size.y + u_guard)) {
@@ -111,8 +118,8 @@ void main() {
   float k_x = 0.5 / (sigma_x * sigma_x);
   float k_y = 0.5 / (sigma_y * sigma_y);
   // The square of radius r cut to the Gaussian's own cutoff box.
-  float r_x = min(r, u_cutoff * sigma_x);
-  float r_y = min(r, u_cutoff * sigma_y);
+  float r_x = quantize_position(min(r, u_cutoff * sigma_x));
+  float r_y = quantize_position(min(r, u_cutoff * sigma_y));
   v_kernel = vec4(k_x, k_y, exp(-r_x * r_x * k_x), exp(-r_y * r_y * k_y));
   // Divided by the Gaussian's area (filter.h).
   v_wt = max(exp(-age * age * f.z), u_min_wt) / (sigma_x * sigma_y);

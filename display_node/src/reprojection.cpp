@@ -4,8 +4,8 @@
 
 namespace afr {
 
-Projector::Projector(const Camera& camera, double width, double height, double origin_x,
-                     double origin_y) {
+Projector::Projector(const Camera& camera, double width, double height, double grid_x,
+                     double grid_y) {
   const double tan_half = std::tan(0.5 * camera.yfov);
   const double aspect = width / height;
   // Camera::project: x = (sx + 1) W / 2 with sx = dot(d, right) / (z tan_half aspect).
@@ -14,10 +14,12 @@ Projector::Projector(const Camera& camera, double width, double height, double o
   axis_x = glm::vec3(camera.right * (0.5 * width / (tan_half * aspect)));
   axis_y = glm::vec3(camera.up * (0.5 * height / tan_half));
   znear = float(camera.znear);
-  // The image's center relative to the origin, in double: exact for whole pixels, and the
-  // float projection then works with numbers of the size of the grid, not of the image.
-  half_width = float(0.5 * width - origin_x);
-  half_height = float(0.5 * height - origin_y);
+  // Positions are computed in the whole image and rounded (quantize_position) before the
+  // origin is subtracted, so that every grid gets the same positions up to whole pixels.
+  half_width = float(0.5 * width);
+  half_height = float(0.5 * height);
+  origin_x = float(grid_x);
+  origin_y = float(grid_y);
 }
 
 }  // namespace afr

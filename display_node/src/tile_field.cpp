@@ -117,17 +117,49 @@ bool TileField::update(const PixelGrid& grid) {
                           int32_t(std::floor(grid.origin_y / sy)),
                           int32_t(std::ceil((grid.origin_x + width) / sx)),
                           int32_t(std::ceil((grid.origin_y + height) / sy))};
+  const auto add = [&](const TileInfo& t, const PixelRect& rect, uint32_t sampler_id) {
+    const uint32_t index = uint32_t(tiles_.size());
+    tiles_.push_back(FieldTile{t.G_x, t.G_y, t.G_t, t.rate, sampler_id, rect});
+    int i0, i1, j0, j1;
+    pixel_span(rect.x0, rect.x1, sx, grid.origin_x, width, &i0, &i1);
+    pixel_span(rect.y0, rect.y1, sy, grid.origin_y, height, &j0, &j1);
+    for (int j = j0; j < j1; ++j) {
+      uint32_t* row = index_map_.data() + size_t(j) * size_t(width);
+      std::fill(row + i0, row + i1, index);
+    }
+  };
+  // The lattice cells [k L, (k + 1) L) that the span [a, b) reaches, one axis.
+  const auto cells = [](int32_t a, int32_t b, int32_t* k0, int32_t* k1) {
+    *k0 = a / kRateLattice;
+    *k1 = (b - 1) / kRateLattice + 1;
+  };
   for (const TilingSnapshot* snap : order) {
     for (const TileInfo& t : snap->tiles) {
-      if (intersect(t.rect, covered).empty()) continue;
-      const uint32_t index = uint32_t(tiles_.size());
-      tiles_.push_back(FieldTile{t.G_x, t.G_y, t.G_t, t.rate, snap->sampler_id, t.rect});
-      int i0, i1, j0, j1;
-      pixel_span(t.rect.x0, t.rect.x1, sx, grid.origin_x, width, &i0, &i1);
-      pixel_span(t.rect.y0, t.rect.y1, sy, grid.origin_y, height, &j0, &j1);
-      for (int j = j0; j < j1; ++j) {
-        uint32_t* row = index_map_.data() + size_t(j) * size_t(width);
-        std::fill(row + i0, row + i1, index);
+      const PixelRect seen = intersect(t.rect, covered);
+      if (seen.empty()) continue;
+      if (t.rect.width() <= kRateLattice && t.rect.height() <= kRateLattice) {
+        add(t, t.rect, snap->sampler_id);
+        continue;
+      }
+      // A larger tile: its pieces in the lattice's cells (an axis the tile spans at most one
+      // cell's width of is not cut), those that reach the grid.
+      const bool cut_x = t.rect.width() > kRateLattice, cut_y = t.rect.height() > kRateLattice;
+      int32_t kx0 = 0, kx1 = 1, ky0 = 0, ky1 = 1;
+      if (cut_x) cells(seen.x0, seen.x1, &kx0, &kx1);
+      if (cut_y) cells(seen.y0, seen.y1, &ky0, &ky1);
+      for (int32_t ky = ky0; ky < ky1; ++ky) {
+        for (int32_t kx = kx0; kx < kx1; ++kx) {
+          PixelRect piece = t.rect;
+          if (cut_x) {
+            piece.x0 = std::max(piece.x0, kx * kRateLattice);
+            piece.x1 = std::min(piece.x1, (kx + 1) * kRateLattice);
+          }
+          if (cut_y) {
+            piece.y0 = std::max(piece.y0, ky * kRateLattice);
+            piece.y1 = std::min(piece.y1, (ky + 1) * kRateLattice);
+          }
+          add(t, piece, snap->sampler_id);
+        }
       }
     }
   }

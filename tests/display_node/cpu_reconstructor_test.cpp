@@ -78,10 +78,21 @@ Reference gather(const SampleBatch& batch, const TilingSnapshot* tiling,
           const double cx = (px + 0.5) / sx, cy = (py + 0.5) / sy;
           if (cx >= t.rect.x0 && cx < t.rect.x1 && cy >= t.rect.y0 && cy < t.rect.y1) {
             G_x = t.G_x, G_y = t.G_y, G_t = t.G_t, R_l = t.rate;
-            // The rate the store shows in the tile, when it holds samples there.
+            // The rate the store shows in the tile's piece (kRateLattice: a tile larger than
+            // the lattice is cut along it on the axes where it is), when it holds samples.
+            PixelRect piece = t.rect;
+            const int32_t L = kRateLattice;
+            if (t.rect.width() > L) {
+              piece.x0 = std::max(piece.x0, int32_t(std::floor(cx)) / L * L);
+              piece.x1 = std::min(piece.x1, piece.x0 / L * L + L);
+            }
+            if (t.rect.height() > L) {
+              piece.y0 = std::max(piece.y0, int32_t(std::floor(cy)) / L * L);
+              piece.y1 = std::min(piece.y1, piece.y0 / L * L + L);
+            }
             int inside = 0;
-            for (const Sample& o : samples) inside += t.rect.contains(int(o.x), int(o.y));
-            if (inside > 0) R_l = float(inside / (double(t.rect.area()) * depth));
+            for (const Sample& o : samples) inside += piece.contains(int(o.x), int(o.y));
+            if (inside > 0) R_l = float(inside / (double(piece.area()) * depth));
           }
         }
       }
@@ -94,13 +105,15 @@ Reference gather(const SampleBatch& batch, const TilingSnapshot* tiling,
       const double grown = std::max(1.0, sp.r / r_filter);
       sp.sigma_x = e.e_x * sx * grown;
       sp.sigma_y = e.e_y * sy * grown;
-      sp.r_x = std::min(sp.r, lim.cutoff * sp.sigma_x);
-      sp.r_y = std::min(sp.r, lim.cutoff * sp.sigma_y);
+      // Rounded to kPositionStep, as the reconstructors do (reprojection.h).
+      sp.r_x = std::round(std::min(sp.r, lim.cutoff * sp.sigma_x) * 256.0) / 256.0;
+      sp.r_y = std::round(std::min(sp.r, lim.cutoff * sp.sigma_y) * 256.0) / 256.0;
       sp.w_t =
           std::max(std::exp(-age * age / (2.0 * e.e_t * e.e_t)), double(lim.min_temporal_weight)) /
           (sp.sigma_x * sp.sigma_y);
-      sp.x = p.x;
-      sp.y = p.y;
+      // Positions are rounded to kPositionStep in the whole image (reprojection.h).
+      sp.x = std::round(p.x * 256.0) / 256.0;
+      sp.y = std::round(p.y * 256.0) / 256.0;
       sp.color = glm::dvec3(s.color);
     }
     splats.push_back(sp);
@@ -162,14 +175,17 @@ TEST(CpuReconstructorTest, OneSampleGivesTheHandComputedGaussianFootprint) {
   rec.read_weights(&weights);
 
   const double e_x = std::cbrt(2.0), e_y = std::cbrt(0.25), e_t = std::cbrt(0.002);
-  // The splat: 3 sigma in each direction.
-  const double r_x = 3.0 * e_x, r_y = 3.0 * e_y,
+  // The splat: 3 sigma in each direction, rounded to 1/256 pixel (kPositionStep).
+  const double r_x = std::round(3.0 * e_x * 256.0) / 256.0,
+               r_y = std::round(3.0 * e_y * 256.0) / 256.0,
                w_t = 5.0 * std::exp(-0.25 / (2 * e_t * e_t)) / (e_x * e_y);
   const auto g = [](double d, double e) { return std::exp(-d * d / (2 * e * e)); };
   int reached = 0;
   for (int j = 0; j < 48; ++j) {
     for (int i = 0; i < 64; ++i) {
-      const double dx = i + 0.5 - 30.3, dy = j + 0.5 - 20.7;
+      // The sample's position rounded to 1/256 pixel (kPositionStep).
+      const double dx = i + 0.5 - std::round(30.3 * 256.0) / 256.0,
+                   dy = j + 0.5 - std::round(20.7 * 256.0) / 256.0;
       double want = 0.0;
       if (std::abs(dx) < r_x && std::abs(dy) < r_y) {
         want = std::max(0.0, (g(dx, e_x) - g(r_x, e_x)) * (g(dy, e_y) - g(r_y, e_y)) * w_t);

@@ -236,7 +236,8 @@ TEST(ViewportTest, GlViewportsStitchIntoTheWholeImage) {
 
 TEST(ViewportTest, AViewportIsTheSameImageScaledAndItsTileRatesCountTheReceivedPart) {
   // A viewport shown at twice its size is the whole image's upscaled reconstruction cropped
-  // (same grid, same pixels); a tile cut by the received region gets the rate of its part
+  // (same grid, same pixels); tiles larger than kRateLattice enter the field as their pieces
+  // in the lattice's cells, and a piece cut by the received region gets the rate of its part
   // inside: the samples there over that part's area and the store's depth.
   constexpr int kSide = 96;
   Pcg32 rng(5);
@@ -271,21 +272,29 @@ TEST(ViewportTest, AViewportIsTheSameImageScaledAndItsTileRatesCountTheReceivedP
   const Camera cam = Camera::look_at({0, 0, 0}, {0, 0, -1}, {0, 1, 0}, 1.0, 0.01);
   const Image p = part.reconstruct(cam, 1.0, 96, 96);
   whole.reconstruct(cam, 1.0, 2 * kSide, 2 * kSide);
-  // The tiles as the part measured them: the lower tile is cut at y = 58.
+  // The tiles as the part measured them: the pieces of the lattice's cells x in [32, 64) and
+  // [64, 96) (its grid starts at x = 32) of the upper tile (y [0, 32) and [32, 50)) and of the
+  // lower one (y [50, 64): the grid ends at y = 58), those at x < 38 and y >= 58 cut off.
   const std::vector<TileState>& tiles = part.tile_states();
-  ASSERT_EQ(tiles.size(), 3u);
+  const std::vector<PixelRect> pieces = {{32, 0, 64, 32},  {64, 0, 96, 32},  {32, 32, 64, 50},
+                                         {64, 32, 96, 50}, {32, 50, 64, 64}, {64, 50, 96, 64}};
+  ASSERT_EQ(tiles.size(), 1 + pieces.size());
   const double depth = part.frame_stats().depth;
   for (size_t i = 1; i < tiles.size(); ++i) {
-    const PixelRect want{38, tiling.tiles[i - 1].rect.y0, 96,
-                         std::min(58, tiling.tiles[i - 1].rect.y1)};
+    EXPECT_EQ(tiles[i].rect, pieces[i - 1]);
+    const PixelRect& r = pieces[i - 1];
+    const PixelRect want{std::max(38, r.x0), r.y0, r.x1, std::min(58, r.y1)};
     EXPECT_EQ(tiles[i].counted, want);
     uint64_t inside = 0;
     for (const Sample& s : batch.samples) inside += want.contains(int(s.x), int(s.y)) ? 1 : 0;
     EXPECT_EQ(tiles[i].stored, inside);
     EXPECT_NEAR(tiles[i].rate, double(inside) / (double(want.area()) * depth), 1e-4);
   }
-  // The whole image's upper tile counts all of it.
-  EXPECT_EQ(whole.tile_states()[1].counted, tiling.tiles[0].rect);
+  // The whole image counts every piece whole.
+  for (size_t i = 1; i < whole.tile_states().size(); ++i) {
+    EXPECT_EQ(whole.tile_states()[i].counted, whole.tile_states()[i].rect);
+  }
+  EXPECT_EQ(whole.tile_states().size(), 1u + 3u * 2u + 3u * 2u);
   // The image: the same splats over the same pixels (the part's rates differ by the counting
   // region only, a fraction of a percent here).
   Image whole_image = whole.reconstruct(cam, 1.0, 2 * kSide, 2 * kSide);
@@ -394,9 +403,18 @@ void expect_bounded_by_the_viewport(const MakeReconstructor& make) {
   };
   draw(kView);
   draw(kView / 4);
-  // Only the tiles that overlap the grid are kept: the big one at the corner and the 2 small
-  // ones cut from it (of 1026).
-  EXPECT_EQ(rec->tile_states().size(), 1u + 3u);
+  // Only the tiles that overlap the grid are kept (of 1026): the big one at the corner and the
+  // 2 small ones cut from it, the first two as their pieces in the kRateLattice cells that
+  // reach the grid (at most 640 / 32 + 1 = 21 a side).
+  const size_t kept = rec->tile_states().size();
+  EXPECT_GE(kept, 1u + 3u);
+  EXPECT_LE(kept, 1u + 21u * 21u + 21u + 1u);
+  for (size_t i = 1; i < kept; ++i) {
+    const PixelRect& r = rec->tile_states()[i].rect;
+    EXPECT_GE(r.x0, kSide - 1024);
+    EXPECT_LE(r.width(), kRateLattice);
+    EXPECT_LE(r.height(), kRateLattice);
+  }
   // The single-pixel tile holds what was sent there.
   uint64_t at_corner = 0;
   for (const Sample& s : batch.samples) {

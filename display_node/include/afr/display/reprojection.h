@@ -11,6 +11,21 @@
 
 namespace afr {
 
+// Image positions are rounded to 1/256 pixel (kPositionStep) in the whole image's coordinates
+// before the grid's origin is subtracted: the result is then exact in float, so a viewport's
+// reconstructor (a display wall node) places a sample at exactly the whole image's position
+// minus a whole number of pixels, and computes bit for bit the weights a reconstruction of the
+// whole image does there (docs/reconstruction.md, "Viewports"). Beyond 2^14 pixels a float
+// has at most 1/512 pixel to round to and the value is kept.
+inline constexpr float kPositionStep = 1.0f / 256.0f;
+inline float quantize_position(float v) {
+  if (!(std::abs(v) < 16384.0f)) return v;
+  // Round to nearest (even) at 2^-8 without a libm call: 1.5 * 2^23 leaves no fraction bits.
+  // (Exact IEEE arithmetic: nothing here may be built with -ffast-math.)
+  const float t = v * 256.0f;
+  return ((t + 12582912.0f) - 12582912.0f) * kPositionStep;
+}
+
 class Projector {
  public:
   // The camera's image is width x height pixels (the whole sampling image at the output
@@ -43,15 +58,17 @@ class Projector {
   }
 
   // The projection, as uniforms for a shader: with d = p - eye (or the direction),
-  //   z = dot(d, forward), x = half_width + dot(d, axis_x) / z, y = half_height - dot(d, axis_y) /
-  //   z.
+  //   z = dot(d, forward), x = q(half_width + dot(d, axis_x) / z) - origin_x,
+  //   y = q(half_height - dot(d, axis_y) / z) - origin_y, q = quantize_position.
   glm::vec3 eye{0.0f};
   glm::vec3 forward{0.0f, 0.0f, -1.0f};
   glm::vec3 axis_x{1.0f, 0.0f, 0.0f};
   glm::vec3 axis_y{0.0f, 1.0f, 0.0f};
   float znear = 0.01f;
-  float half_width = 0.0f;
+  float half_width = 0.0f;  // the whole image's center
   float half_height = 0.0f;
+  float origin_x = 0.0f;  // the grid's first pixel in the whole image
+  float origin_y = 0.0f;
 
   // A direction counts as in front when dot(d, forward) exceeds this.
   static constexpr float kMinDirectionZ = 1e-6f;
@@ -63,8 +80,8 @@ class Projector {
     const float px = half_width + glm::dot(d, axis_x) / z;
     const float py = half_height - glm::dot(d, axis_y) / z;
     if (!(std::abs(px) < kMaxCoordinate) || !(std::abs(py) < kMaxCoordinate)) return false;
-    *x = px;
-    *y = py;
+    *x = quantize_position(px) - origin_x;
+    *y = quantize_position(py) - origin_y;
     return true;
   }
 };

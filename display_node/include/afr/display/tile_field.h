@@ -48,6 +48,17 @@ struct PixelGrid {
   bool operator==(const PixelGrid&) const = default;
 };
 
+// Tiles wider or taller than this many sampling-image pixels enter the field cut along the
+// lattice of cells [k L, (k + 1) L) (L = kRateLattice) on the axes where they are: each piece
+// gets its own R_l, measured over the piece. Every piece is then at most L a side and lies in
+// one cell of a lattice that is the same for every reconstructor, so a viewport's
+// reconstructor whose margin reaches L past what its viewport's pixels read holds every
+// sample of the pieces they read, and measures their R_l as the whole image's reconstruction
+// does (docs/reconstruction.md, "Viewports"). The sampler draws a tile's samples uniformly,
+// so its pieces' rates are its own up to counting noise (1.6% at 4 samples per pixel over a
+// 32 x 32 piece).
+inline constexpr int32_t kRateLattice = 32;
+
 class TileField {
  public:
   static constexpr size_t kMaxTilesPerSnapshot = size_t(1) << 20;
@@ -71,7 +82,8 @@ class TileField {
   int width() const { return grid_.width; }
   int height() const { return grid_.height; }
   const PixelGrid& grid() const { return grid_; }
-  // Index 0 is the "no tile" entry (zero gradients, unknown rate) of pixels no tile covers.
+  // Index 0 is the "no tile" entry (zero gradients, unknown rate) of pixels no tile covers;
+  // tiles larger than kRateLattice are here as their pieces.
   const std::vector<FieldTile>& tiles() const { return tiles_; }
   // width x height tile indices, row 0 at the top. Where tiles of several snapshots overlap
   // (regions being reassigned), the newest snapshot wins.
