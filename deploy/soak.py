@@ -143,14 +143,15 @@ def main():
     ap.add_argument("--interval", type=float, default=5.0, help="seconds between readings")
     ap.add_argument("--rss-tolerance", type=float, default=0.05)
     ap.add_argument("--rms-bound", type=float, default=3.0,
-                    help="allowed rise (0-255) of the image error over the run")
+                    help="allowed excess (0-255) of a screenshot's image error over the median")
     ap.add_argument("--drift-bound", type=float, default=1.0,
                     help="allowed rise (0-255) of the median image error, first to last third")
     ap.add_argument("--recovery", type=float, default=RECOVERY_S,
                     help="seconds after a change of membership in which the image error may "
                          "exceed the bound")
     ap.add_argument("--region-settle", type=float, default=REGION_SETTLE_S,
-                    help="seconds after a region change before a sampler's RSS is checked")
+                    help="seconds after a sampler gets a larger region than before until its RSS "
+                         "is checked again")
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args()
     if not 1 <= args.samplers <= 64:
