@@ -323,7 +323,7 @@ void Sampler::reproject(int tile) {
   if (buffer_.count(px, py) == 0) return;
   ++counters_.reprojections;
   Crosshair c = buffer_.pop_front(px, py);
-  const int cell = tiling_.cell_at(px, py);
+  const int cell = tiling_.cell_of(tile, px, py);
   add_to_tile(tile, cell, stats_of(c), -1.0);
   settle(tile, cell);
 
@@ -571,8 +571,8 @@ void Sampler::pixel_of(const Crosshair& c, int32_t* x, int32_t* y) const {
 void Sampler::insert_front(const Crosshair& c) {
   int32_t x, y;
   pixel_of(c, &x, &y);
-  const int tile = tiling_.tile_at(x, y);
-  const int cell = tiling_.cell_at(x, y);
+  int cell;
+  const int tile = tiling_.tile_at(x, y, &cell);
   CrosshairStats evicted;
   if (buffer_.push_front(x, y, c, &evicted)) add_to_tile(tile, cell, evicted, -1.0);
   add_to_tile(tile, cell, stats_of(c), 1.0);
@@ -582,8 +582,8 @@ void Sampler::insert_front(const Crosshair& c) {
 void Sampler::insert_back(const Crosshair& c) {
   int32_t x, y;
   pixel_of(c, &x, &y);
-  const int tile = tiling_.tile_at(x, y);
-  const int cell = tiling_.cell_at(x, y);
+  int cell;
+  const int tile = tiling_.tile_at(x, y, &cell);
   CrosshairStats evicted;
   if (buffer_.push_back(x, y, c, &evicted)) add_to_tile(tile, cell, evicted, -1.0);
   add_to_tile(tile, cell, stats_of(c), 1.0);

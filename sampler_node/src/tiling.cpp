@@ -99,11 +99,13 @@ void KdTiling::set_cell_node(int id) {
   for (int c = first; c < first + n; ++c) cell_node_[size_t(c)] = id;
 }
 
-int KdTiling::tile_at(int32_t x, int32_t y) const {
+int KdTiling::tile_at(int32_t x, int32_t y, int* cell) const {
   AFR_DCHECK(region().contains(x, y));
   // From the node at the cut or at cell depth that holds the pixel's cell, when there are
   // cells; from the root otherwise.
-  int id = cell_node_.empty() ? root_ : cell_node_[size_t(cell_at(x, y))];
+  const int c = cell_at(x, y);
+  if (cell) *cell = c;
+  int id = cell_node_.empty() ? root_ : cell_node_[size_t(c)];
   while (!nodes_[id].is_leaf()) {
     const Node& n = nodes_[id];
     const int c = nodes_[n.child[0]].rect.contains(x, y) ? 0 : 1;

@@ -153,6 +153,36 @@ TEST(TilingTest, CellsAreTheNodesOfOneDepthOverRandomSequences) {
   }
 }
 
+TEST(TilingTest, TheCellOfAPixelIsTheSameFromTheRootAndFromItsTile) {
+  // cell_of starts from a tile (or takes its ancestor at cell depth), tile_at hands out the cell
+  // it started from: both must name the cell that holds the pixel, as cell_rect says.
+  Pcg32 rng(11);
+  for (int run = 0; run < 20; ++run) {
+    const int32_t w = 1 + int32_t(rng.next_below(70)), h = 1 + int32_t(rng.next_below(70));
+    const int32_t x0 = int32_t(rng.next_below(50)), y0 = int32_t(rng.next_below(50));
+    KdTiling tiling(PixelRect{x0, y0, x0 + w, y0 + h}, 40, 1 + int(rng.next_below(40)));
+    for (int op = 0; op < 200; ++op) {
+      if (rng.next_below(3) != 0) {
+        const int leaf = tiling.tiles()[rng.next_below(uint32_t(tiling.tile_count()))];
+        if (tiling.can_split(leaf)) tiling.split(leaf, nullptr, nullptr);
+      } else if (!tiling.mergeable().empty()) {
+        tiling.merge(tiling.mergeable()[rng.next_below(uint32_t(tiling.mergeable().size()))]);
+      }
+      if (op % 20 != 0) continue;
+      for (int32_t y = y0; y < y0 + h; ++y) {
+        for (int32_t x = x0; x < x0 + w; ++x) {
+          int cell = -1;
+          const int tile = tiling.tile_at(x, y, &cell);
+          ASSERT_TRUE(tiling.cell_rect(cell).contains(x, y)) << x << "," << y;
+          ASSERT_EQ(tiling.cell_at(x, y), cell);
+          ASSERT_EQ(tiling.cell_of(tile, x, y), cell);
+          ASSERT_EQ(tiling.cell_of(tiling.root(), x, y), cell);
+        }
+      }
+    }
+  }
+}
+
 TEST(TilingTest, MergeableListsExactlyTheParentsOfTwoLeaves) {
   KdTiling t(PixelRect{0, 0, 16, 16});
   int a, b, c, d;

@@ -41,8 +41,9 @@ class KdTiling {
   int node_capacity() const { return int(nodes_.size()); }
   int root() const { return root_; }
 
-  // The tile containing pixel (x, y), which must lie in the region. O(depth).
-  int tile_at(int32_t x, int32_t y) const;
+  // The tile containing pixel (x, y), which must lie in the region, and when `cell` is given
+  // the pixel's cell (see cell_at) as well. O(depth).
+  int tile_at(int32_t x, int32_t y, int* cell = nullptr) const;
 
   // A leaf can split if it is wider or taller than one pixel and above the depth bound.
   bool can_split(int leaf) const {
@@ -69,10 +70,25 @@ class KdTiling {
   const PixelRect& cell_rect(int cell) const { return cell_rects_[size_t(cell)]; }
   // The cell of pixel (x, y) of the region: the path of the splits from the root down to cell
   // depth that keep the pixel, computed rather than stored. O(cell_depth()).
-  int cell_at(int32_t x, int32_t y) const {
-    PixelRect r = region();
-    int cell = 0;
-    for (int d = 0; d < cell_depth_; ++d) {
+  int cell_at(int32_t x, int32_t y) const { return descend(region(), 0, cell_depth_, x, y); }
+  // The cell of pixel (x, y) of node `id`, which holds it: from the node down, or for a node
+  // deeper than the cells its ancestor's path.
+  int cell_of(int id, int32_t x, int32_t y) const {
+    const Node& n = nodes_[id];
+    if (n.depth >= cell_depth_) return int(n.path >> (n.depth - cell_depth_));
+    return descend(n.rect, int(n.path), cell_depth_ - n.depth, x, y);
+  }
+  bool covers_cells(int id) const { return nodes_[id].depth <= cell_depth_; }
+  int first_cell(int id) const { return int(nodes_[id].path << (cell_depth_ - nodes_[id].depth)); }
+  int cells_in(int id) const { return 1 << (cell_depth_ - nodes_[id].depth); }
+
+  // Checks the invariants (the leaves partition the region, links agree); for tests.
+  bool is_valid() const;
+
+ private:
+  // The path `levels` splits below a node of rectangle r and path `path` that keep (x, y).
+  static int descend(PixelRect r, int path, int levels, int32_t x, int32_t y) {
+    for (int d = 0; d < levels; ++d) {
       int side;
       if (r.width() >= r.height()) {  // as split_rect
         const int32_t mid = r.x0 + r.width() / 2;
@@ -83,18 +99,10 @@ class KdTiling {
         side = y >= mid;
         (side ? r.y0 : r.y1) = mid;
       }
-      cell = 2 * cell + side;
+      path = 2 * path + side;
     }
-    return cell;
+    return path;
   }
-  bool covers_cells(int id) const { return nodes_[id].depth <= cell_depth_; }
-  int first_cell(int id) const { return int(nodes_[id].path << (cell_depth_ - nodes_[id].depth)); }
-  int cells_in(int id) const { return 1 << (cell_depth_ - nodes_[id].depth); }
-
-  // Checks the invariants (the leaves partition the region, links agree); for tests.
-  bool is_valid() const;
-
- private:
   int allocate(const PixelRect& rect, int parent, int depth, uint64_t path);
   void build_cells(int cell_pixels);
   void set_cell_node(int id);
