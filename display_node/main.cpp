@@ -21,6 +21,7 @@
 #include <afr/display/service/overlays.h>
 #include <afr/display/service/wall_follower.h>
 #include <afr/protocol/keys.h>
+#include <afr/protocol/messages.h>
 #include <afr/sampler/presets.h>
 
 #include <GLFW/glfw3.h>
@@ -337,10 +338,14 @@ int main(int argc, char** argv) {
     rc.filter.max_spatial_extent = p->reconstruction.max_spatial_extent;
     rc.filter.max_temporal_extent = p->reconstruction.max_temporal_extent;
     // N: the preset's samples per pixel of the pixels this node receives samples for.
-    const afr::PixelRect received{std::max(0, cell.x0 - rc.viewport_margin),
-                                  std::max(0, cell.y0 - rc.viewport_margin),
-                                  std::min(o.width, cell.x1 + rc.viewport_margin),
-                                  std::min(o.height, cell.y1 + rc.viewport_margin)};
+    // (The samplers' routing rule: this node's cell grown by the margin, clipped to the image.)
+    afr::protocol::WallLayout shape;
+    shape.width = o.width;
+    shape.height = o.height;
+    shape.margin = rc.viewport_margin;
+    afr::protocol::WallNode self;
+    self.cell = cell;
+    const afr::PixelRect received = afr::protocol::wall_receive_rect(shape, self);
     rc.capacity =
         capacity > 0
             ? capacity
