@@ -66,14 +66,15 @@ class WallSink final : public SampleSink {
   const bool route_all_ = std::getenv("AFR_SEAM_ROUTE_ALL") != nullptr;
 };
 
-TEST(WallSeamTest, TwoByTwoWallOf512EqualsOneDisplayOf1024SeamsIncluded) {
+// Runs the wall and the single display side by side for `frames` refreshes and checks each:
+// RMS <= 1/255 over the image and over the seams, and 8-bit equality for the first
+// `exact_frames`.
+void expect_seamless(int margin, int frames, int exact_frames) {
   constexpr int kSide = 1024;
   const Scene scene = make_builtin_scene();
   ReconstructorConfig base;
   base.image_width = base.image_height = kSide;
   base.threads = 2;
-  const int margin = std::getenv("AFR_SEAM_MARGIN") ? std::atoi(std::getenv("AFR_SEAM_MARGIN"))
-                                                    : auto_viewport_margin(base.splat);
 
   service::WallGrid grid;
   grid.columns = grid.rows = 2;
@@ -108,12 +109,6 @@ TEST(WallSeamTest, TwoByTwoWallOf512EqualsOneDisplayOf1024SeamsIncluded) {
   sc.fill_step = 4;
   Sampler sampler(scene, tracer, clock, sc, sink);
   sampler.fill();
-  const int frames = std::getenv("AFR_SEAM_FRAMES") ? std::atoi(std::getenv("AFR_SEAM_FRAMES")) : 6;
-  // Until what the nodes lack beyond their margins (docs/wall.md, "Seams") has reached a
-  // cell, the wall computes exactly what the single display does (reprojection.h, the CPU
-  // backend's bands, kRateLattice): equal 8-bit values everywhere. At the default margin that
-  // holds for the first 6 refreshes.
-  const int exact_frames = margin >= auto_viewport_margin(base.splat) ? 6 : 0;
   for (int frame = 0; frame < frames; ++frame) {
     const double until = clock.now() + 1.0 / 60.0;
     while (clock.now() < until) sampler.step();
@@ -162,7 +157,30 @@ TEST(WallSeamTest, TwoByTwoWallOf512EqualsOneDisplayOf1024SeamsIncluded) {
   const double overhead = double(sink.routed()) / double(sink.total());
   std::printf("samples routed to the 4 nodes / samples traced: %.3f\n", overhead);
   EXPECT_GE(overhead, 1.0);
-  EXPECT_LT(overhead, 1.5);
+  const double side = double(512 + margin) / 512.0;  // a corner cell's received region
+  if (std::getenv("AFR_SEAM_ROUTE_ALL") == nullptr) EXPECT_LT(overhead, 1.05 * side * side);
+}
+
+int env_int(const char* name, int fallback) {
+  return std::getenv(name) != nullptr ? std::atoi(std::getenv(name)) : fallback;
+}
+
+// Until what the nodes lack beyond their margins (docs/wall.md, "Seams") reaches a cell, the
+// wall computes exactly what the single display does (reprojection.h, the CPU backend's
+// bands, kRateLattice): equal 8-bit values everywhere. At the default margin (99 px) that
+// holds for the first 6 refreshes (measured: the 7th has one pixel 1/255 off).
+TEST(WallSeamTest, TwoByTwoWallOf512EqualsOneDisplayOf1024SeamsIncluded) {
+  const int margin = env_int("AFR_SEAM_MARGIN", auto_viewport_margin(SplatSizeRule{}));
+  const int frames = env_int("AFR_SEAM_FRAMES", 6);
+  expect_seamless(margin, frames, margin == auto_viewport_margin(SplatSizeRule{}) ? 6 : 0);
+}
+
+// The long run: 40 refreshes (0.67 s) of the moving camera. A 297 px margin (9 guard bands)
+// covers how far the nodes' missing data travels inward in that time: 8-bit equal for the
+// first 30 refreshes (measured: 37), within 1/255 for all (measured: RMS <= 0.07, seams <=
+// 0.28).
+TEST(WallSeamTest, TwoByTwoWallStaysSeamlessOverFortyRefreshesWithA297PixelMargin) {
+  expect_seamless(3 * auto_viewport_margin(SplatSizeRule{}), 40, 30);
 }
 
 }  // namespace
