@@ -44,6 +44,42 @@ TEST(TileFieldTest, EveryPixelReadsTheTileThatCoversIt) {
   EXPECT_FALSE(field.update(8, 6));      // nothing new
 }
 
+TEST(TileFieldTest, TilesLargerThanTheRateLatticeEnterAsTheirPiecesInItsCells) {
+  // kRateLattice = 32: a tile wider or taller is cut along the lattice's lines on the axes
+  // where it is; one within it on both axes stays whole, wherever it lies.
+  ASSERT_EQ(kRateLattice, 32);
+  TileField field(128, 96);
+  field.set_tiling(snapshot(0, 1.0, {0, 0, 128, 96},
+                            {tile(10, 0, 90, 20, 0.1f),       // 80 wide: x pieces
+                             tile(100, 10, 120, 80, 0.2f),    // 70 tall: y pieces
+                             tile(20, 40, 52, 72, 0.3f),      // 32 x 32 across lattice lines: whole
+                             tile(60, 30, 100, 70, 0.4f)}));  // 40 x 40: both axes
+  EXPECT_TRUE(field.update(128, 96));
+  std::vector<PixelRect> got;
+  for (size_t i = 1; i < field.tiles().size(); ++i) got.push_back(field.tiles()[i].rect);
+  const std::vector<PixelRect> want = {
+      {10, 0, 32, 20},    {32, 0, 64, 20},    {64, 0, 90, 20},  {100, 10, 120, 32},
+      {100, 32, 120, 64}, {100, 64, 120, 80}, {20, 40, 52, 72}, {60, 30, 64, 32},
+      {64, 30, 96, 32},   {96, 30, 100, 32},  {60, 32, 64, 64}, {64, 32, 96, 64},
+      {96, 32, 100, 64},  {60, 64, 64, 70},   {64, 64, 96, 70}, {96, 64, 100, 70}};
+  EXPECT_EQ(got, want);
+  // The pieces keep their tile's values, and every pixel still reads its tile's.
+  for (size_t i = 1; i < field.tiles().size(); ++i) {
+    const FieldTile& t = field.tiles()[i];
+    EXPECT_FLOAT_EQ(t.G_y, 2 * t.G_x);
+    EXPECT_EQ(t.rate, 5.0f);
+  }
+  EXPECT_FLOAT_EQ(field.at(89, 19).G_x, 0.1f);
+  EXPECT_FLOAT_EQ(field.at(100, 79).G_x, 0.2f);
+  EXPECT_FLOAT_EQ(field.at(60, 69).G_x, 0.4f);
+  EXPECT_FLOAT_EQ(field.at(51, 71).G_x, 0.3f);
+  // A grid over part of the image keeps only the pieces that reach it.
+  EXPECT_TRUE(field.update(PixelGrid{16, 16, 66, 40, 1.0, 1.0}));
+  got.clear();
+  for (size_t i = 1; i < field.tiles().size(); ++i) got.push_back(field.tiles()[i].rect);
+  EXPECT_EQ(got, (std::vector<PixelRect>{{64, 32, 96, 64}}));
+}
+
 TEST(TileFieldTest, NewerSnapshotsReplaceOlderOnesOfTheSameSampler) {
   TileField field(4, 4);
   field.set_tiling(snapshot(0, 2.0, {0, 0, 4, 4}, {tile(0, 0, 4, 4, 0.5f)}));
