@@ -13,19 +13,7 @@
 namespace afr::eval {
 namespace {
 
-// The reference: one ray through every pixel center at scene time t, traced here with the
-// tracer's plain interface (not through trace_frame).
-Image reference_frame(Tracer& tracer, double t, int w, int h) {
-  tracer.set_time(t);
-  const Camera cam = tracer.camera();
-  TraceStats stats;
-  Image image(w, h);
-  for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x)
-      image.at(x, y) = tracer.trace(cam.ray(x + 0.5, y + 0.5, w, h), &stats).color;
-  }
-  return image;
-}
+using testing::reference_frame;
 
 TEST(FrameScheduleTest, ShowsTheNewestFrameDoneByTheDisplayTime) {
   std::mt19937_64 rng(3);

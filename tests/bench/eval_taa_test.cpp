@@ -15,19 +15,6 @@ namespace {
 
 constexpr int kW = 64, kH = 64, kGrid = 16;
 
-// One ray through every pixel center at time t.
-Image reference_frame(Tracer& tracer, double t) {
-  tracer.set_time(t);
-  const Camera cam = tracer.camera();
-  TraceStats stats;
-  Image image(kW, kH);
-  for (int y = 0; y < kH; ++y) {
-    for (int x = 0; x < kW; ++x)
-      image.at(x, y) = tracer.trace(cam.ray(x + 0.5, y + 0.5, kW, kH), &stats).color;
-  }
-  return image;
-}
-
 double rms(const Image& a, const Image& b) {
   double sum = 0.0;
   for (size_t i = 0; i < a.pixels.size(); ++i) {
@@ -40,7 +27,7 @@ double rms(const Image& a, const Image& b) {
 TEST(TaaTest, AccumulatesDetailOnAStillSceneAndKeepsUniformRegionsExact) {
   const Scene scene = testing::sliding_quad_scene(0.0);  // the quad stands still
   Tracer tracer(scene);
-  const Image reference = reference_frame(tracer, 1.0);
+  const Image reference = testing::reference_frame(tracer, 1.0, kW, kH);
   TemporalAccumulator taa(kW, kH, kGrid, kGrid, TaaOptions{});
   TraceStats stats;
   double first = 0.0, last = 0.0;

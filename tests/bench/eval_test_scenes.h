@@ -1,7 +1,9 @@
 // Small scenes for the evaluation's tests.
 #pragma once
 
+#include <afr/common/image.h>
 #include <afr/common/scene.h>
+#include <afr/sampler/tracer.h>
 
 namespace afr::eval::testing {
 
@@ -41,6 +43,20 @@ inline Scene sliding_quad_scene(double speed = 1.0) {
   s.channels.push_back(ch);
   s.finalize();
   return s;
+}
+
+// The reference: one ray through every pixel center at scene time t, traced with the tracer's
+// plain interface (not through the evaluation's framed code).
+inline Image reference_frame(Tracer& tracer, double t, int w, int h) {
+  tracer.set_time(t);
+  const Camera cam = tracer.camera();
+  TraceStats stats;
+  Image image(w, h);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x)
+      image.at(x, y) = tracer.trace(cam.ray(x + 0.5, y + 0.5, w, h), &stats).color;
+  }
+  return image;
 }
 
 }  // namespace afr::eval::testing
