@@ -37,9 +37,11 @@ class CurveTest : public ::testing::Test {
   }
 
   CurveKeyPair display_, allowed_, stranger_;
-  Context context_;
+  // Declared before the context, so destroyed after it: its authentication thread calls back
+  // into them until the context is gone.
   std::mutex mutex_;
   std::vector<ZapDecision> decisions_;
+  Context context_;
 };
 
 TEST_F(CurveTest, AllowedKeyConnectsAndIsIdentified) {
