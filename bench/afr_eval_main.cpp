@@ -204,13 +204,12 @@ int main(int argc, char** argv) {
     const fs::path out = fs::path(out_dir);
     fs::create_directories(out);
     const auto start = std::chrono::steady_clock::now();
-    const int cores = threads > 0 ? threads : std::max(1, int(std::thread::hardware_concurrency()));
-    const int run_jobs = jobs > 0 ? jobs : cores;
+    const afr::eval::JobSplit split = afr::eval::job_split(config);
     const std::string setup = fmt::format(
         "{}x{}, {} s ({} frames at 60 Hz) per animation, ideal {} spp, warm-up {} s, seed {}; "
         "{} runs at a time, {} threads each",
-        size.width, size.height, seconds, frames, spp, warmup, sampler.seed, run_jobs,
-        std::max(1, cores / run_jobs));
+        size.width, size.height, seconds, frames, spp, warmup, sampler.seed, split.jobs,
+        split.threads_per_run);
 
     if (sweep) {
       const std::vector<SweepResult> results =

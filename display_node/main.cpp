@@ -124,6 +124,8 @@ int main(int argc, char** argv) {
   double fps = 30.0, seconds = 0.0, stats_interval = 2.0;
   int screenshot_every = 0, margin = -1;
   size_t capacity = 0;
+  double lead_timeout = 1.5;
+  bool no_exchange = false;
   app.add_option("scene", scene_path,
                  "glTF scene (.glb, or .gltf with embedded buffers); "
                  "the built-in scene if omitted")
@@ -183,6 +185,13 @@ int main(int argc, char** argv) {
   app.add_option("--follow", follow,
                  "follow the lead display at tcp://HOST:PORT as one cell of its wall; --bind "
                  "then gives this node's endpoints (samples on PORT+2)");
+  app.add_option("--lead-timeout", lead_timeout,
+                 "follower: seconds without a word from the lead before joining it again")
+      ->capture_default_str()
+      ->check(CLI::Range(0.2, 600.0));
+  app.add_flag("--no-exchange", no_exchange,
+               "wall: do not exchange coverage and strays with the other display nodes (they "
+               "then drift apart from a single display's image; docs/wall.md, \"Seams\")");
   app.add_option("--advertise", advertise,
                  "follower: the sample endpoint samplers should use (default: the bound one)");
   app.add_option("--capacity", capacity,
@@ -275,6 +284,7 @@ int main(int argc, char** argv) {
       fo.allowed_keys = o.allowed_keys;
       fo.metrics_address = o.metrics_address;
       fo.metrics_port = o.metrics_port;
+      fo.lead_timeout = lead_timeout;
       wall_follower = std::make_unique<afr::service::WallFollower>(fo, switch_sink);
       wall_follower->start();
       double next_note = 5.0;
@@ -394,6 +404,30 @@ int main(int argc, char** argv) {
     if (service) service->start();
     if (!output.empty()) fs::create_directories(output);
 
+    // A wall's nodes exchange coverage and strays after every image (docs/wall.md, "Seams"):
+    // as clients of each other's sample channels, with the display key pair they share.
+    afr::protocol::Context links_context;
+    std::unique_ptr<afr::service::WallPeerLinks> links;
+    if (!no_exchange && (wall_follower || o.wall.is_wall())) {
+      const afr::protocol::Security client =
+          o.keys.secret_key.empty() ? afr::protocol::Security::none()
+                                    : afr::protocol::Security::client(o.keys, o.keys.public_key);
+      links = std::make_unique<afr::service::WallPeerLinks>(
+          links_context, client, wall_follower ? wall_follower->lead_samples_endpoint() : "");
+    }
+    afr::service::WallCoverageInbox& wall_inbox =
+        service ? service->wall_coverage() : wall_follower->wall_coverage();
+    // Before an image: the current layout, and the peers' coverage into the reconstructor.
+    const auto exchange_before = [&]() -> uint64_t {
+      if (!links) return 0;
+      if (service) {
+        links->set_layout(service->wall_layout(), 1);
+      } else if (const auto layout = wall_follower->layout()) {
+        links->set_layout(*layout, wall_follower->node_id());
+      }
+      return links->apply(wall_inbox, *recon);
+    };
+
     std::vector<afr::CameraKey> recorded;
     afr::Image image;
     uint64_t frame = 0;
@@ -427,6 +461,8 @@ int main(int argc, char** argv) {
       if (next_frame < t) next_frame = t + 1.0 / fps;
       const afr::Camera camera = camera_at(t);
       if (!record.empty()) recorded.push_back(afr::camera_key(t, camera));
+      const uint64_t coverage_applied = exchange_before();
+      bool cell_sized = !window;  // the image is the cell at its own size
       const bool write =
           headless && screenshot_every > 0 && frame > 0 && frame % uint64_t(screenshot_every) == 0;
       if (window) {
@@ -434,6 +470,7 @@ int main(int argc, char** argv) {
         window->framebuffer_size(&fw, &fh);
         if (overlay == 0 || !whole) {
           recon->reconstruct(camera, t, std::max(1, fw), std::max(1, fh), nullptr);
+          cell_sized = fw == out_w && fh == out_h;
           window->draw(*gl);
         } else {
           // An overlay: the image read back at the sampling size, drawn over, scaled up.
@@ -497,6 +534,7 @@ int main(int argc, char** argv) {
       } else {
         recon->reconstruct(camera, t, out_w, out_h, &image);
       }
+      if (links) links->send(*recon, camera, t, cell_sized, coverage_applied, metrics);
       const double done = now();
       metrics.on_frame(done, recon->frame_stats().milliseconds, recon->frame_stats().stored,
                        recon->capacity());

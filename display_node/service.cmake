@@ -11,6 +11,7 @@ add_library(afr_display_service
   ${CMAKE_CURRENT_LIST_DIR}/src/service/metrics.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/overlays.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/wall.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/service/wall_exchange.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/wall_follower.cpp
 )
 target_include_directories(afr_display_service PUBLIC ${CMAKE_CURRENT_LIST_DIR}/include)

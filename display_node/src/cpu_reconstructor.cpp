@@ -189,6 +189,28 @@ void CpuReconstructor::read_coverage(std::vector<CoverageCell>* out) {
   impl_->crop(impl_->previous.cells(), out);
 }
 
+Reconstructor::StoredSlots CpuReconstructor::stored_samples() {
+  const Impl& m = *impl_;
+  return StoredSlots{m.mirror.data(), m.mirror.size(), m.seen, m.stored};
+}
+
+size_t CpuReconstructor::write_coverage(const PixelRect& rect,
+                                        const std::vector<CoverageCell>& cells) {
+  check_coverage_size(rect, cells);
+  Impl& m = *impl_;
+  if (!m.previous.valid()) return 0;
+  const PixelRect part = grid_part(m.previous_grid, rect);
+  const int32_t gx = int32_t(m.previous_grid.origin_x), gy = int32_t(m.previous_grid.origin_y);
+  for (int32_t y = part.y0; y < part.y1; ++y) {
+    const CoverageCell* from = cells.data() + size_t(y + gy - rect.y0) * size_t(rect.width()) +
+                               size_t(part.x0 + gx - rect.x0);
+    std::copy_n(
+        from, part.width(),
+        m.previous.cells().data() + size_t(y) * size_t(m.previous.width()) + size_t(part.x0));
+  }
+  return size_t(part.area());
+}
+
 void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int width, int height,
                                       Image* out) {
   Impl& m = *impl_;

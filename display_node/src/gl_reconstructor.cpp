@@ -103,6 +103,11 @@ struct GlReconstructor::Impl {
   uint64_t seen = 0;
   size_t stored = 0;
   std::vector<StoredSample> staging;
+  // A CPU copy of the ring, kept once stored_samples() asked for it: from sequence number
+  // mirror_from on.
+  bool mirrored = false;
+  uint64_t mirror_from = 0;
+  std::vector<StoredSample> mirror;
 
   GLuint splat = 0, newest = 0, pyramid = 0, normalise = 0, blit = 0;
 
@@ -268,6 +273,10 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     glBufferSubData(GL_ARRAY_BUFFER, GLintptr(runs[r].slot * sizeof(StoredSample)),
                     GLsizeiptr(runs[r].count * sizeof(StoredSample)),
                     m.staging.data() + runs[r].offset);
+    if (m.mirrored) {
+      std::copy_n(m.staging.begin() + ptrdiff_t(runs[r].offset), runs[r].count,
+                  m.mirror.begin() + ptrdiff_t(runs[r].slot));
+    }
   }
   m.seen = delta.end;
   m.stored = delta.stored;
@@ -473,6 +482,39 @@ void GlReconstructor::read_coverage(std::vector<CoverageCell>* out) {
   static_assert(sizeof(CoverageCell) == 2 * sizeof(float));
   m.read_cropped(m.coverage[size_t(1 - m.current)], GL_RG, 2, &(*out)[0].count);
   check_gl("read_coverage");
+}
+
+Reconstructor::StoredSlots GlReconstructor::stored_samples() {
+  Impl& m = *impl_;
+  if (!m.mirrored) {
+    m.mirrored = true;
+    m.mirror_from = m.seen;
+    m.mirror.resize(store_.capacity());
+  }
+  const uint64_t kept = m.seen - m.mirror_from;
+  return StoredSlots{m.mirror.data(), m.mirror.size(), m.seen,
+                     size_t(std::min<uint64_t>(kept, m.stored))};
+}
+
+size_t GlReconstructor::write_coverage(const PixelRect& rect,
+                                       const std::vector<CoverageCell>& cells) {
+  check_coverage_size(rect, cells);
+  context_->make_current();
+  Impl& m = *impl_;
+  if (!m.have_coverage) return 0;
+  const PixelRect part = grid_part(m.grid, rect);
+  if (part.empty()) return 0;
+  const int32_t gx = int32_t(m.grid.origin_x), gy = int32_t(m.grid.origin_y);
+  glBindTexture(GL_TEXTURE_2D, m.coverage[size_t(1 - m.current)]);
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+  glPixelStorei(GL_UNPACK_ROW_LENGTH, rect.width());
+  const CoverageCell* first = cells.data() + size_t(part.y0 + gy - rect.y0) * size_t(rect.width()) +
+                              size_t(part.x0 + gx - rect.x0);
+  glTexSubImage2D(GL_TEXTURE_2D, 0, part.x0, part.y0, part.width(), part.height(), GL_RG, GL_FLOAT,
+                  &first->count);
+  glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
+  check_gl("write_coverage");
+  return size_t(part.area());
 }
 
 void GlReconstructor::draw_output(int fb_width, int fb_height) {

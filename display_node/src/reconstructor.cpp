@@ -194,4 +194,22 @@ void Reconstructor::prepare_frame(double time, int width, int height,
   }
 }
 
+void Reconstructor::check_coverage_size(const PixelRect& rect,
+                                        const std::vector<CoverageCell>& cells) {
+  if (rect.empty() ? !cells.empty() : cells.size() != size_t(rect.area())) {
+    throw Error(fmt::format("write_coverage: {} cells for a {} x {} rectangle", cells.size(),
+                            std::max(rect.width(), 0), std::max(rect.height(), 0)));
+  }
+}
+
+PixelRect grid_part(const PixelGrid& grid, const PixelRect& rect) {
+  const double ox = std::floor(grid.origin_x), oy = std::floor(grid.origin_y);
+  if (ox != grid.origin_x || oy != grid.origin_y) return PixelRect{};
+  // Both in grid pixels; the grid's origin is at most kMaxOutputSide plus a margin.
+  const int32_t gx = int32_t(ox), gy = int32_t(oy);
+  PixelRect part{std::max(rect.x0 - gx, 0), std::max(rect.y0 - gy, 0),
+                 std::min(rect.x1 - gx, grid.width), std::min(rect.y1 - gy, grid.height)};
+  return part.empty() ? PixelRect{} : part;
+}
+
 }  // namespace afr

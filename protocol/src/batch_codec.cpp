@@ -1,6 +1,6 @@
-// Sample batches and tiling snapshots: the high-rate messages of the sample channel. The
-// per-sample loops are instantiated per field combination so that they branch on nothing but
-// the checks, and they allocate nothing.
+// Sample batches, tiling snapshots and wall coverage maps: the large messages of the sample
+// channel. The per-sample loops are instantiated per field combination so that they branch on
+// nothing but the checks, and they allocate nothing.
 #include <afr/protocol/codec.h>
 #include <afr/protocol/packing.h>
 
@@ -79,7 +79,10 @@ Status check_samples(const SampleBatch& m, const ImageBounds& bounds, double* t_
     }
   }
   if (m.samples.empty()) lo = hi = 0.0;
-  if (hi - lo > double(kMaxTicks) * std::ldexp(1.0, kMaxTickExp)) {
+  // 32767 ticks of the coarsest size, and the half tick more that pack_samples clamps into the
+  // last tick: absolute times that a decoder made as base + 32767 ticks can span a few ulps
+  // more than that once rounded, and must encode again.
+  if (hi - lo > (double(kMaxTicks) + 0.5) * std::ldexp(1.0, kMaxTickExp)) {
     return field_error(
         kBatch, "samples",
         "times span " + std::to_string(hi - lo) + " s, more than one batch may (32767 s)");
@@ -406,6 +409,131 @@ Status decode(Bytes message, TilingSnapshot* out, const ImageBounds& bounds) {
     t.count = wire::load_u32(p + 28);
     t.rate = wire::load_f32(p + 32);
     if (Status s = check_tile(i, t, out->region); !s) return s;
+  }
+  return {};
+}
+
+// ---------------------------------------------------------------------------------------------
+// WallCoverage: u32 node_id, f64 time, u16 rect x0, y0, x1, y1, u32 cell_count; then per pixel
+// of rect, row by row, f32 count, f32 growth_sum
+
+namespace {
+
+constexpr const char* kCoverage = "wall_coverage";
+constexpr size_t kCoverageCellBytes = 8;  // f32 count, f32 growth_sum
+static_assert(wall_coverage_message_bytes(1) - wall_coverage_message_bytes(0) ==
+              kCoverageCellBytes);
+// The sample channel's MAXMSGSIZE must let the largest map through (2 MiB + 36 bytes; a full
+// tiling snapshot is larger still).
+static_assert(wall_coverage_message_bytes(kMaxWallCoverageCells) <= kMaxSampleChannelMessage);
+
+// Everything but the cells: the sender, the time, and a rect inside the image that is small
+// enough for one message.
+Status check_coverage_header(uint32_t node_id, double time, const PixelRect& rect,
+                             const ImageBounds& bounds) {
+  if (node_id == 0) return field_error(kCoverage, "node_id", "0 is not a node id");
+  if (Status s = check_time(kCoverage, "time", time); !s) return s;
+  if (Status s = check_rect(kCoverage, "rect", rect, bounds.width, bounds.height); !s) return s;
+  if (rect.area() > int64_t(kMaxWallCoverageCells)) {
+    return field_error(kCoverage, "rect",
+                       std::to_string(rect.area()) + " pixels, over the limit of " +
+                           std::to_string(kMaxWallCoverageCells) + " per message");
+  }
+  return {};
+}
+
+// A cell's values are finite and >= 0 (false for NaN too).
+bool cell_value_ok(float v) { return std::isfinite(v) && v >= 0.0f; }
+
+// What is wrong with cell i, one of whose values is not ok: built only on failure, so the
+// checking loops allocate nothing.
+Status cell_error(size_t i, float count, float growth_sum) {
+  const bool count_ok = cell_value_ok(count);
+  const float v = count_ok ? growth_sum : count;
+  return field_error(kCoverage,
+                     "cells[" + std::to_string(i) + "]." + (count_ok ? "growth_sum" : "count"),
+                     std::isfinite(v) ? "negative" : "not finite");
+}
+
+}  // namespace
+
+Status validate(const WallCoverage& m, const ImageBounds& bounds) {
+  if (Status s = check_bounds(kCoverage, bounds); !s) return s;
+  if (Status s = check_coverage_header(m.node_id, m.time, m.rect, bounds); !s) return s;
+  const size_t pixels = size_t(m.rect.area());
+  if (m.cells.size() != 2 * pixels) {
+    return field_error(kCoverage, "cells",
+                       std::to_string(m.cells.size()) + " floats, the rect's " +
+                           std::to_string(pixels) + " pixels need " + std::to_string(2 * pixels));
+  }
+  for (size_t i = 0; i < pixels; ++i) {
+    const float c = m.cells[2 * i], g = m.cells[2 * i + 1];
+    if (!cell_value_ok(c) || !cell_value_ok(g)) [[unlikely]] {
+      return cell_error(i, c, g);
+    }
+  }
+  return {};
+}
+
+Status encode(const WallCoverage& m, std::vector<uint8_t>* out, const ImageBounds& bounds) {
+  out->clear();
+  if (Status s = validate(m, bounds); !s) return s;
+  const size_t pixels = size_t(m.rect.area());
+  Writer w = wire::begin_message(MessageType::kWallCoverage,
+                                 kWallCoverageHeaderBytes + pixels * kCoverageCellBytes, out);
+  w.u32(m.node_id);
+  w.f64(m.time);
+  // Coordinates are in [0, 32768] after validation: u16 holds them.
+  w.u16(uint16_t(m.rect.x0));
+  w.u16(uint16_t(m.rect.y0));
+  w.u16(uint16_t(m.rect.x1));
+  w.u16(uint16_t(m.rect.y1));
+  w.u32(uint32_t(pixels));
+  uint8_t* p = w.take(pixels * kCoverageCellBytes);
+  for (size_t i = 0; i < 2 * pixels; ++i, p += 4) wire::store_f32(p, m.cells[i]);
+  AFR_CHECK(w.done());
+  return {};
+}
+
+Status decode(Bytes message, WallCoverage* out, const ImageBounds& bounds) {
+  if (Status s = check_bounds(kCoverage, bounds); !s) return s;
+  Result<Bytes> payload = detail::open_message(message, MessageType::kWallCoverage);
+  if (!payload) return payload.status();
+  Reader r(*payload, kCoverage);
+  uint16_t rc[4] = {};
+  uint32_t count = 0;
+  if (!(r.u32(&out->node_id, "node_id") && r.f64(&out->time, "time") && r.u16(&rc[0], "rect.x0") &&
+        r.u16(&rc[1], "rect.y0") && r.u16(&rc[2], "rect.x1") && r.u16(&rc[3], "rect.y1") &&
+        r.u32(&count, "cell_count"))) {
+    return r.status();
+  }
+  out->rect = PixelRect{rc[0], rc[1], rc[2], rc[3]};
+  if (Status s = check_coverage_header(out->node_id, out->time, out->rect, bounds); !s) {
+    return s;
+  }
+  // The count is checked against the limit, the rect and the bytes before anything is
+  // allocated for it.
+  if (count > kMaxWallCoverageCells || int64_t(count) != out->rect.area()) {
+    return field_error(kCoverage, "cell_count",
+                       std::to_string(count) + " is not the rect's " +
+                           std::to_string(out->rect.area()) + " pixels (at most " +
+                           std::to_string(kMaxWallCoverageCells) + ")");
+  }
+  const uint64_t need = uint64_t(count) * kCoverageCellBytes;
+  if (r.remaining() != need) {
+    return field_error(kCoverage, "cell_count",
+                       std::to_string(count) + " cells need " + std::to_string(need) + " bytes, " +
+                           std::to_string(r.remaining()) + " are there");
+  }
+  const uint8_t* p = r.take(need, "cells");
+  out->cells.resize(2 * size_t(count));
+  for (uint32_t i = 0; i < count; ++i, p += kCoverageCellBytes) {
+    const float c = wire::load_f32(p), g = wire::load_f32(p + 4);
+    if (!cell_value_ok(c) || !cell_value_ok(g)) [[unlikely]] {
+      return cell_error(i, c, g);
+    }
+    out->cells[2 * size_t(i)] = c;
+    out->cells[2 * size_t(i) + 1] = g;
   }
   return {};
 }

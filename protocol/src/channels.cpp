@@ -221,29 +221,44 @@ void SampleSender::pop_slot() {
   --size_;
 }
 
-Status SampleSender::send(const SampleBatch& batch, const ImageBounds& bounds) {
-  Slot& slot = push_slot();
-  if (Status s = encode(batch, &slot.bytes, bounds); !s) return s;
-  slot.is_batch = true;
+uint64_t& SampleSender::sent_counter(Kind kind) {
+  if (kind == Kind::kBatch) return counters_.batches_sent;
+  if (kind == Kind::kTiling) return counters_.tilings_sent;
+  return counters_.coverage_sent;
+}
+
+uint64_t& SampleSender::dropped_counter(Kind kind) {
+  if (kind == Kind::kBatch) return counters_.batches_dropped;
+  if (kind == Kind::kTiling) return counters_.tilings_dropped;
+  return counters_.coverage_dropped;
+}
+
+void SampleSender::commit_slot(Kind kind) {
+  push_slot().kind = kind;
   if (size_ == slots_.size() - 1) {
-    (slots_[head_].is_batch ? counters_.batches_dropped : counters_.tilings_dropped)++;
+    // Popping the head leaves the tail, the slot just encoded, where it is.
+    ++dropped_counter(slots_[head_].kind);
     pop_slot();
   }
   ++size_;
   pump();
+}
+
+Status SampleSender::send(const SampleBatch& batch, const ImageBounds& bounds) {
+  if (Status s = encode(batch, &push_slot().bytes, bounds); !s) return s;
+  commit_slot(Kind::kBatch);
   return {};
 }
 
 Status SampleSender::send(const TilingSnapshot& snapshot, const ImageBounds& bounds) {
-  Slot& slot = push_slot();
-  if (Status s = encode(snapshot, &slot.bytes, bounds); !s) return s;
-  slot.is_batch = false;
-  if (size_ == slots_.size() - 1) {
-    (slots_[head_].is_batch ? counters_.batches_dropped : counters_.tilings_dropped)++;
-    pop_slot();
-  }
-  ++size_;
-  pump();
+  if (Status s = encode(snapshot, &push_slot().bytes, bounds); !s) return s;
+  commit_slot(Kind::kTiling);
+  return {};
+}
+
+Status SampleSender::send(const WallCoverage& coverage, const ImageBounds& bounds) {
+  if (Status s = encode(coverage, &push_slot().bytes, bounds); !s) return s;
+  commit_slot(Kind::kCoverage);
   return {};
 }
 
@@ -252,7 +267,7 @@ size_t SampleSender::pump() {
     Slot& slot = slots_[head_];
     zmq::message_t m(slot.bytes.data(), slot.bytes.size());
     if (!send_retry(socket_, m, zmq::send_flags::dontwait)) break;
-    (slot.is_batch ? counters_.batches_sent : counters_.tilings_sent)++;
+    ++sent_counter(slot.kind);
     counters_.bytes_sent += slot.bytes.size();
     pop_slot();
   }
@@ -313,6 +328,11 @@ SampleReceiver::Got SampleReceiver::receive(int timeout_ms) {
     if (Status s = decode(bytes, &tiling_, image_bounds()); !s) return reject(std::move(s));
     ++counters_.tilings;
     return Got::kTiling;
+  }
+  if (header->type == MessageType::kWallCoverage) {
+    if (Status s = decode(bytes, &coverage_, image_bounds()); !s) return reject(std::move(s));
+    ++counters_.coverage;
+    return Got::kCoverage;
   }
   return reject(type_error(header->type, "sample"));
 }

@@ -44,6 +44,8 @@ const char* message_type_name(MessageType type) {
       return "display_join";
     case MessageType::kWallLayout:
       return "wall_layout";
+    case MessageType::kWallCoverage:
+      return "wall_coverage";
   }
   return "unknown";
 }
@@ -65,6 +67,7 @@ static_assert(kAlternativeIs<MessageType::kJoin, Join> &&
               kAlternativeIs<MessageType::kLeave, Leave> &&
               kAlternativeIs<MessageType::kDisplayJoin, DisplayJoin> &&
               kAlternativeIs<MessageType::kWallLayout, WallLayout> &&
+              kAlternativeIs<MessageType::kWallCoverage, WallCoverage> &&
               std::variant_size_v<Message> == kLastMessageType);
 
 MessageType message_type(const Message& message) {
@@ -597,12 +600,16 @@ Result<Message> decode_message(Bytes message, const ImageBounds& bounds) {
     case MessageType::kWallLayout:
       m.emplace<WallLayout>();
       break;
+    case MessageType::kWallCoverage:
+      m.emplace<WallCoverage>();
+      break;
   }
   AFR_CHECK(message_type(m) == h->type);
   Status s = std::visit(
       [&](auto& v) -> Status {
         using T = std::decay_t<decltype(v)>;
-        if constexpr (std::is_same_v<T, SampleBatch> || std::is_same_v<T, TilingSnapshot>) {
+        if constexpr (std::is_same_v<T, SampleBatch> || std::is_same_v<T, TilingSnapshot> ||
+                      std::is_same_v<T, WallCoverage>) {
           return decode(message, &v, bounds);
         } else {
           return decode(message, &v);

@@ -326,6 +326,75 @@ TEST(ViewportTest, BadViewportsAndMarginsThrow) {
   EXPECT_EQ(whole.config().viewport_margin, auto_viewport_margin(whole.config().splat));
 }
 
+// ---- A wall's coverage exchange (write_coverage, docs/wall.md "Seams")
+
+// write_coverage replaces the previous image's coverage where the rectangle meets the grid,
+// which read_coverage then shows and the next image's splats are sized from.
+void expect_coverage_written(const MakeReconstructor& make) {
+  constexpr int kSide = 64;
+  std::unique_ptr<Reconstructor> r = make(config(kSide, kSide));
+  const std::vector<CoverageCell> cells(6 * 4, CoverageCell{7.0f, 3.5f});
+  const PixelRect rect{10, 20, 16, 24};
+  EXPECT_EQ(r->write_coverage(rect, cells), 0u);  // no image yet: nothing to replace
+  EXPECT_THROW(r->write_coverage(rect, std::vector<CoverageCell>(5)), Error);
+  test::FloorScene scene;
+  Pcg32 rng(5);
+  const Camera cam = Camera::look_at({0.0, 0.6, 0.0}, {0.2, 0.0, -5.0}, {0, 1, 0}, 1.0, 0.01);
+  r->add_batch(
+      test::scene_batch(scene, cam, rng, 3 * kSide * kSide, kSide, kSide, 0.0, 1.0, false));
+  r->reconstruct(cam, 1.0, kSide, kSide);
+  std::vector<CoverageCell> before, after;
+  r->read_coverage(&before);
+  EXPECT_EQ(r->write_coverage(rect, cells), 24u);
+  // Partly outside the image: its part inside, x 60..63 and y 62..63.
+  EXPECT_EQ(r->write_coverage(PixelRect{60, 62, 66, 66}, cells), 8u);
+  r->read_coverage(&after);
+  ASSERT_EQ(after.size(), before.size());
+  for (int y = 0; y < kSide; ++y) {
+    for (int x = 0; x < kSide; ++x) {
+      const size_t i = size_t(y) * kSide + size_t(x);
+      const bool written = rect.contains(x, y) || (x >= 60 && y >= 62);
+      const CoverageCell want = written ? CoverageCell{7.0f, 3.5f} : before[i];
+      ASSERT_EQ(after[i].count, want.count) << x << "," << y;
+      ASSERT_EQ(after[i].growth_sum, want.growth_sum) << x << "," << y;
+    }
+  }
+
+  // A viewport: a rectangle in its margin changes what it shows next, one beyond its grid
+  // replaces nothing.
+  ReconstructorConfig vc = config(kSide, kSide, PixelRect{0, 0, 32, 32});
+  vc.viewport_margin = 16;
+  std::unique_ptr<Reconstructor> a = make(vc), b = make(vc);
+  rng = Pcg32(9);
+  const SampleBatch sparse =
+      test::scene_batch(scene, cam, rng, kSide * kSide / 8, kSide, kSide, 0.0, 1.0, false);
+  for (auto* v : {a.get(), b.get()}) {
+    v->add_batch(sparse);
+    v->reconstruct(cam, 1.0, 32, 32);
+  }
+  // The margin right of the viewport, x 32..47: every pixel a hole, so splats landing there
+  // grow 4x.
+  const std::vector<CoverageCell> holes(16 * 32, CoverageCell{});
+  EXPECT_EQ(a->write_coverage(PixelRect{32, 0, 48, 32}, holes), 16u * 32u);
+  EXPECT_EQ(a->write_coverage(PixelRect{48, 40, 64, 72}, std::vector<CoverageCell>(16 * 32)), 0u);
+  const test::Diff8 d =
+      test::diff8(a->reconstruct(cam, 1.0, 32, 32), b->reconstruct(cam, 1.0, 32, 32));
+  EXPECT_GT(d.max, 0);
+}
+
+TEST(ViewportTest, CpuCoverageWrittenByAPeerIsWhatTheNextImageReads) {
+  expect_coverage_written([](const ReconstructorConfig& c) {
+    return std::unique_ptr<Reconstructor>(std::make_unique<CpuReconstructor>(c));
+  });
+}
+
+TEST(ViewportTest, GlCoverageWrittenByAPeerIsWhatTheNextImageReads) {
+  AFR_REQUIRE_GL(context);
+  expect_coverage_written([context](const ReconstructorConfig& c) {
+    return std::unique_ptr<Reconstructor>(std::make_unique<GlReconstructor>(c, context));
+  });
+}
+
 // ---- Memory
 
 // Resident memory of the process now (not its peak), KiB.

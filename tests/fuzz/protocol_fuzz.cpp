@@ -59,6 +59,7 @@ bool check_one(const uint8_t* data, size_t size) {
     Leave k;
     DisplayJoin l;
     WallLayout n;
+    WallCoverage o;
     (void)decode(bytes, &a);
     (void)decode(bytes, &b);
     (void)decode(bytes, &c);
@@ -72,6 +73,7 @@ bool check_one(const uint8_t* data, size_t size) {
     (void)decode(bytes, &k);
     (void)decode(bytes, &l);
     (void)decode(bytes, &n);
+    (void)decode(bytes, &o, ImageBounds{17, 9});
   }
   const Result<Message> m = decode_message(bytes);
   const Result<Header> h = peek_header(bytes);

@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -505,6 +506,184 @@ TEST(CodecRejectTest, MalformedWallLayoutsAreRejected) {
   b = out;
   put_u32(b, 20, 0xffffffffu);
   EXPECT_REJECTED(b, "count");
+}
+
+// A 3 x 2 map at (10, 20) from node 4, for the tests below. Payload offsets: node_id 0,
+// time 4, rect 12 (u16 x0, y0, x1, y1), cell_count 20, cells from 24 (8 bytes per pixel).
+WallCoverage small_coverage() {
+  WallCoverage m;
+  m.node_id = 4;
+  m.time = 12.5;
+  m.rect = PixelRect{10, 20, 13, 22};
+  m.cells = {1, 0.5f, 0, 0, 2, 3, 1, 1, 0, 0, 4, 0.25f};
+  return m;
+}
+
+TEST(CodecRejectTest, EncoderRefusesMalformedWallCoverageAndWritesNothing) {
+  std::vector<uint8_t> out = {1, 2, 3};
+  const auto refused = [&](const WallCoverage& m, const char* text,
+                           const ImageBounds& bounds = {}) {
+    const Status s = encode(m, &out, bounds);
+    EXPECT_FALSE(s.ok()) << "accepted; expected an error about '" << text << "'";
+    EXPECT_NE(s.message().find(text), std::string::npos) << s.message();
+    EXPECT_TRUE(out.empty());
+  };
+  const WallCoverage base = small_coverage();
+  ASSERT_TRUE(encode(base, &out).ok());
+  ASSERT_TRUE(encode(base, &out, ImageBounds{13, 22}).ok());
+
+  WallCoverage m = base;
+  m.node_id = 0;
+  refused(m, "wall_coverage.node_id");
+  for (double t : {double(NAN), double(INFINITY), -double(INFINITY), -1.0}) {
+    m = base;
+    m.time = t;
+    refused(m, "wall_coverage.time");
+  }
+  for (PixelRect r :
+       {PixelRect{10, 20, 10, 22}, PixelRect{10, 20, 13, 20}, PixelRect{13, 20, 10, 22}}) {
+    m = base;
+    m.rect = r;
+    m.cells.clear();
+    refused(m, "wall_coverage.rect");  // empty
+  }
+  m = base;
+  m.rect = PixelRect{-1, 20, 2, 22};
+  refused(m, "wall_coverage.rect");
+  m = base;
+  m.rect = PixelRect{kMaxImageSize - 2, 20, kMaxImageSize + 1, 22};
+  refused(m, "wall_coverage.rect");
+  refused(base, "wall_coverage.rect", ImageBounds{12, 100});  // outside the receiver's image
+  refused(base, "wall_coverage.rect", ImageBounds{100, 21});
+  // One pixel over the limit of a message.
+  m = base;
+  m.rect = PixelRect{0, 0, 512, 513};
+  m.cells.assign(2 * 512 * 513, 0.0f);
+  refused(m, "wall_coverage.rect: 262656 pixels, over the limit of 262144");
+  m.rect = PixelRect{0, 0, 512, 512};
+  m.cells.resize(2 * 512 * 512);
+  EXPECT_TRUE(encode(m, &out).ok());
+  // Two floats per pixel, exactly.
+  m = base;
+  m.cells.pop_back();
+  refused(m, "wall_coverage.cells: 11 floats");
+  m = base;
+  m.cells.push_back(0.0f);
+  m.cells.push_back(0.0f);
+  refused(m, "wall_coverage.cells: 14 floats");
+  for (float bad : {NAN, INFINITY, -INFINITY}) {
+    m = base;
+    m.cells[4] = bad;
+    refused(m, "wall_coverage.cells[2].count: not finite");
+    m = base;
+    m.cells[11] = bad;
+    refused(m, "wall_coverage.cells[5].growth_sum: not finite");
+  }
+  m = base;
+  m.cells[6] = -1.0f;
+  refused(m, "wall_coverage.cells[3].count: negative");
+  m = base;
+  m.cells[1] = -1e-30f;
+  refused(m, "wall_coverage.cells[0].growth_sum: negative");
+}
+
+TEST(CodecRejectTest, MalformedWallCoverageBytesAreRejected) {
+  const std::vector<uint8_t> good = encoded(small_coverage());
+  ASSERT_EQ(good.size(), kHeaderBytes + 24 + 6 * 8);
+  ASSERT_EQ(error_of(good), "");
+  std::vector<uint8_t> b = good;
+  put_u32(b, 0, 0);
+  EXPECT_REJECTED(b, "wall_coverage.node_id");
+  for (double t : {double(NAN), double(INFINITY), -double(INFINITY), -2.0}) {
+    b = good;
+    put_f64(b, 4, t);
+    EXPECT_REJECTED(b, "wall_coverage.time");
+  }
+  // Rects: empty, reversed, beyond the protocol's image (a u16 holds up to 65535).
+  const auto put_rect = [](std::vector<uint8_t>& b, uint16_t x0, uint16_t y0, uint16_t x1,
+                           uint16_t y1) {
+    put_u16(b, 12, x0);
+    put_u16(b, 14, y0);
+    put_u16(b, 16, x1);
+    put_u16(b, 18, y1);
+  };
+  for (const auto& [x0, y0, x1, y1] :
+       {std::array<uint16_t, 4>{10, 20, 10, 26}, std::array<uint16_t, 4>{10, 20, 16, 20},
+        std::array<uint16_t, 4>{16, 20, 10, 21}, std::array<uint16_t, 4>{65530, 0, 65535, 1}}) {
+    b = good;
+    put_rect(b, x0, y0, x1, y1);
+    EXPECT_REJECTED(b, "wall_coverage.rect");
+  }
+  // Outside the receiver's image, which the receiver passes in.
+  EXPECT_EQ(error_of(good, ImageBounds{13, 22}), "");
+  EXPECT_NE(error_of(good, ImageBounds{12, 22}).find("wall_coverage.rect"), std::string::npos);
+  EXPECT_NE(error_of(good, ImageBounds{13, 21}).find("wall_coverage.rect"), std::string::npos);
+  // A rect over the limit is refused for its area, before the count or the bytes are looked
+  // at, whatever the count says.
+  for (uint32_t count : {6u, 1024u * 1024u, 0xffffffffu}) {
+    b = good;
+    put_rect(b, 0, 0, 1024, 1024);
+    put_u32(b, 20, count);
+    EXPECT_REJECTED(b, "wall_coverage.rect: 1048576 pixels, over the limit");
+  }
+  // A count that is not the rect's area, or that the bytes do not back, is refused without
+  // allocating for it.
+  for (uint32_t count : {0u, 5u, 7u, kMaxWallCoverageCells, kMaxWallCoverageCells + 1,
+                         0x20000000u,  // count * 8 wraps 32 bits
+                         0xffffffffu}) {
+    b = good;
+    put_u32(b, 20, count);
+    WallCoverage out;
+    const Status st = decode(Bytes(b), &out);
+    EXPECT_FALSE(st.ok()) << count;
+    EXPECT_NE(st.message().find("wall_coverage.cell_count"), std::string::npos) << st.message();
+    EXPECT_EQ(out.cells.capacity(), 0u) << count;
+  }
+  // The largest rect with its count, but the cells of the small one.
+  b = good;
+  put_rect(b, 0, 0, 512, 512);
+  put_u32(b, 20, kMaxWallCoverageCells);
+  {
+    WallCoverage out;
+    const Status st = decode(Bytes(b), &out);
+    EXPECT_NE(st.message().find("wall_coverage.cell_count: 262144 cells need 2097152 bytes, 48 "
+                                "are there"),
+              std::string::npos)
+        << st.message();
+    EXPECT_EQ(out.cells.capacity(), 0u);
+  }
+  // Cells cut short (the header's length agreeing), or one byte too many.
+  b = good;
+  b.resize(b.size() - 4);
+  fix_length(b);
+  EXPECT_REJECTED(b, "wall_coverage.cell_count: 6 cells need 48 bytes, 44 are there");
+  b = good;
+  b.push_back(0);
+  fix_length(b);
+  EXPECT_REJECTED(b, "wall_coverage.cell_count: 6 cells need 48 bytes, 49 are there");
+  // Truncated inside the fixed fields.
+  b = good;
+  b.resize(kHeaderBytes + 22);
+  fix_length(b);
+  EXPECT_REJECTED(b, "wall_coverage.cell_count: truncated");
+  b.resize(kHeaderBytes + 6);
+  fix_length(b);
+  EXPECT_REJECTED(b, "wall_coverage.time: truncated");
+  // Cell values: not finite or negative, each named with its pixel and field.
+  for (float bad : {NAN, INFINITY, -INFINITY}) {
+    b = good;
+    put_f32(b, 24 + 8 * 2, bad);
+    EXPECT_REJECTED(b, "wall_coverage.cells[2].count: not finite");
+    b = good;
+    put_f32(b, 24 + 8 * 5 + 4, bad);
+    EXPECT_REJECTED(b, "wall_coverage.cells[5].growth_sum: not finite");
+  }
+  b = good;
+  put_f32(b, 24 + 8 * 3, -0.5f);
+  EXPECT_REJECTED(b, "wall_coverage.cells[3].count: negative");
+  b = good;
+  put_f32(b, 24 + 4, -1.0f);
+  EXPECT_REJECTED(b, "wall_coverage.cells[0].growth_sum: negative");
 }
 
 TEST(CodecRejectTest, MalformedDisplayJoinsAreRejected) {

@@ -25,6 +25,10 @@ T round_trip(const T& in, std::vector<uint8_t>* bytes, const Bounds&... bounds) 
   return out;
 }
 
+// Bytes of a wall_coverage message over `pixels` pixels, from docs/protocol.md: the header,
+// 24 bytes of node_id, time, rect and cell_count, and two f32 per pixel.
+constexpr size_t coverage_bytes(size_t pixels) { return kHeaderBytes + 24 + 8 * pixels; }
+
 // ---------------------------------------------------------------------------------------------
 // Control and view messages travel exactly
 
@@ -134,11 +138,11 @@ TEST(CodecTest, JoinBytesAreTheDocumentedLayout) {
   std::vector<uint8_t> bytes;
   ASSERT_TRUE(encode(join, &bytes).ok());
   const std::vector<uint8_t> expected = {'A',  'F',  'R',  'P',   // magic
-                                         2,    0,                 // version
+                                         3,    0,                 // version
                                          1,    0,                 // type: join
                                          16,   0,    0,    0,     // payload bytes
                                          0x04, 0x03, 0x02, 0x01,  // sampler_id
-                                         2,    0,                 // protocol_version
+                                         3,    0,                 // protocol_version
                                          8,    0,                 // threads
                                          5,    0,    0,    0,     // capabilities
                                          2,    0,    'a',  'b'};  // name
@@ -246,6 +250,31 @@ TEST(CodecTest, BatchTimesAreExactWhenTheyFallOnTicks) {
   for (int k = 0; k < 100; ++k) EXPECT_EQ(out.samples[k].time, in.samples[k].time) << k;
   // The tick byte: 99 * 2^-20 s needs 2^-28 s ticks (32767 * 2^-29 < 99 * 2^-20).
   EXPECT_EQ(int8_t(bytes[12 + 28]), -28);
+}
+
+// Found by afr_fuzz_protocol: a batch decoded with 1 s ticks, one sample at the base time and
+// one 32767 ticks later, has absolute times whose difference rounds to a few ulps over 32767 s.
+// The encoder must take it back (clamping into the last tick) rather than refuse the span.
+TEST(CodecTest, BatchesAtTheLongestSpanEncodeAgainAfterDecoding) {
+  SampleBatch in;
+  in.fields = 0;
+  const double base = 63144.367073921712;
+  for (double offset : {0.0, 32767.0, 38.0}) {
+    Sample s;
+    s.time = base + offset;
+    s.x = s.y = 1.5f;
+    in.samples.push_back(s);
+  }
+  ASSERT_GT(in.samples[1].time - in.samples[0].time, 32767.0);  // rounded up: the case
+  std::vector<uint8_t> bytes;
+  const SampleBatch once = round_trip(in, &bytes);
+  const SampleBatch twice = round_trip(once, &bytes);
+  for (size_t i = 0; i < in.samples.size(); ++i) {
+    EXPECT_LE(std::abs(twice.samples[i].time - in.samples[i].time), 0.5) << i;
+  }
+  // Half a tick more is still refused.
+  in.samples[1].time = base + 32767.6;
+  EXPECT_FALSE(encode(in, &bytes).ok());
 }
 
 TEST(CodecTest, OneSampleBatchIsTheDocumentedLayout) {
@@ -378,6 +407,7 @@ TEST(CodecTest, ChannelLimitsHoldTheLargestMessages) {
   EXPECT_EQ(kMaxSampleChannelMessage, snapshot_message_bytes(kMaxTilesPerSnapshot));
   EXPECT_GE(kMaxSampleChannelMessage,
             batch_message_bytes(kFieldPosition | kFieldVelocity, kMaxSamplesPerBatch));
+  EXPECT_GE(kMaxSampleChannelMessage, coverage_bytes(kMaxWallCoverageCells));
   Pcg32 rng(8);
   std::vector<uint8_t> bytes;
   ASSERT_TRUE(encode(random_batch(rng, 3, kMaxSamplesPerBatch), &bytes).ok());
@@ -385,6 +415,113 @@ TEST(CodecTest, ChannelLimitsHoldTheLargestMessages) {
   SampleBatch too_big = random_batch(rng, 0, kMaxSamplesPerBatch + 1);
   EXPECT_FALSE(encode(too_big, &bytes).ok());
   EXPECT_TRUE(bytes.empty());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Display wall: coverage maps and strays between display nodes
+
+TEST(CodecTest, WallCoverageRoundTripsExactly) {
+  Pcg32 rng(9);
+  std::vector<uint8_t> bytes;
+  WallCoverage out;  // reused, as a receiver does
+  for (int i = 0; i < 200; ++i) {
+    const WallCoverage in = random_wall_coverage(rng, 1 + rng.next_below(64));
+    ASSERT_TRUE(encode(in, &bytes).ok());
+    EXPECT_EQ(bytes.size(), coverage_bytes(size_t(in.rect.area())));
+    EXPECT_EQ(bytes.size(), wall_coverage_message_bytes(size_t(in.rect.area())));
+    const Status s = decode(Bytes(bytes), &out);
+    ASSERT_TRUE(s.ok()) << s.message();
+    EXPECT_EQ(out, in);
+  }
+  // Inside a receiver's own image, its right and bottom edges included.
+  WallCoverage in = random_wall_coverage(rng);
+  const ImageBounds bounds{in.rect.x1, in.rect.y1};
+  EXPECT_EQ(round_trip(in, &bytes, bounds), in);
+}
+
+TEST(CodecTest, WallCoverageBytesAreTheDocumentedLayout) {
+  WallCoverage m;
+  m.node_id = 0x01020304;
+  m.time = 2.0;
+  m.rect = PixelRect{3, 4, 5, 5};  // two pixels
+  m.cells = {1.0f, 0.5f, 0.0f, 0.0f};
+  std::vector<uint8_t> bytes;
+  ASSERT_TRUE(encode(m, &bytes).ok());
+  const std::vector<uint8_t> expected = {
+      'A',  'F',  'R',  'P',  3,    0,    14,   0,    40, 0, 0, 0,  // header: version 3, type 14
+      0x04, 0x03, 0x02, 0x01,                                       // node_id
+      0,    0,    0,    0,    0,    0,    0x00, 0x40,               // time: 2.0
+      3,    0,    4,    0,    5,    0,    5,    0,                  // rect x0, y0, x1, y1
+      2,    0,    0,    0,                                          // cell_count
+      0x00, 0x00, 0x80, 0x3f, 0x00, 0x00, 0x00, 0x3f,  // (3, 4): count 1, growth_sum 0.5
+      0,    0,    0,    0,    0,    0,    0,    0};    // (4, 4): nothing reached it
+  EXPECT_EQ(bytes, expected);
+}
+
+TEST(CodecTest, LargestWallCoverageFitsTheSampleChannelLimit) {
+  WallCoverage m;
+  m.node_id = kMaxWallNodes;
+  m.time = 1e6;
+  m.rect = PixelRect{kMaxImageSize - 512, kMaxImageSize - 512, kMaxImageSize, kMaxImageSize};
+  ASSERT_EQ(m.rect.area(), int64_t(kMaxWallCoverageCells));
+  m.cells.assign(2 * size_t(kMaxWallCoverageCells), 0.25f);
+  std::vector<uint8_t> bytes;
+  EXPECT_EQ(round_trip(m, &bytes), m);
+  EXPECT_EQ(bytes.size(), 12u + 24 + 8 * size_t(kMaxWallCoverageCells));  // 2 MiB + 36
+  EXPECT_LE(bytes.size(), kMaxSampleChannelMessage);
+}
+
+TEST(CodecTest, WallCoverageDecodesAsAnyMessage) {
+  Pcg32 rng(10);
+  const WallCoverage in = random_wall_coverage(rng);
+  const std::vector<uint8_t> bytes = encoded(in);
+  Result<Message> m = decode_message(bytes);
+  ASSERT_TRUE(m.ok()) << m.error();
+  ASSERT_TRUE(std::holds_alternative<WallCoverage>(*m));
+  EXPECT_EQ(std::get<WallCoverage>(*m), in);
+  EXPECT_EQ(message_type(*m), MessageType::kWallCoverage);
+  EXPECT_STREQ(message_type_name(MessageType::kWallCoverage), "wall_coverage");
+  // The bounds reach the coverage decoder, as they reach those of batches and snapshots.
+  const ImageBounds inside{in.rect.x1, in.rect.y1};
+  EXPECT_TRUE(decode_message(bytes, inside).ok());
+  const ImageBounds outside{in.rect.x1 - 1, in.rect.y1};
+  const Result<Message> refused = decode_message(bytes, outside);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.error().find("wall_coverage.rect"), std::string::npos) << refused.error();
+}
+
+TEST(CodecTest, DecodingReusesTheCoverageWithoutReallocating) {
+  Pcg32 rng(11);
+  WallCoverage big = random_wall_coverage(rng), small = random_wall_coverage(rng);
+  big.rect = PixelRect{0, 0, 16, 16};
+  big.cells.assign(2 * 256, 1.0f);
+  small.rect = PixelRect{8, 8, 10, 9};
+  small.cells.assign(4, 2.0f);
+  const std::vector<uint8_t> big_bytes = encoded(big), small_bytes = encoded(small);
+  WallCoverage out;
+  ASSERT_TRUE(decode(Bytes(big_bytes), &out).ok());
+  const float* data = out.cells.data();
+  for (int i = 0; i < 10; ++i) {
+    ASSERT_TRUE(decode(Bytes(i % 2 ? big_bytes : small_bytes), &out).ok());
+    EXPECT_EQ(out.cells.data(), data);
+    EXPECT_EQ(out, i % 2 ? big : small);
+  }
+}
+
+// Strays one wall node forwards to another are ordinary batches with sampler_id 0, an id the
+// coordinator never assigns: the sample channel takes them like any other batch.
+TEST(CodecTest, SampleBatchesFromAWallPeerAreValid) {
+  Pcg32 rng(12);
+  SampleBatch in = random_batch(rng, kFieldPosition, 20);
+  in.sampler_id = kWallPeerSamplerId;
+  EXPECT_TRUE(validate(in).ok());
+  std::vector<uint8_t> bytes;
+  const SampleBatch out = round_trip(in, &bytes);
+  EXPECT_EQ(out.sampler_id, 0u);
+  EXPECT_EQ(out.samples.size(), in.samples.size());
+  Result<Message> m = decode_message(bytes);
+  ASSERT_TRUE(m.ok()) << m.error();
+  EXPECT_EQ(std::get<SampleBatch>(*m).sampler_id, kWallPeerSamplerId);
 }
 
 }  // namespace

@@ -219,6 +219,25 @@ inline WallLayout random_wall_layout(Pcg32& rng, uint32_t max_side = 8) {
   return m;
 }
 
+// A coverage map of a random rectangle of at most max_side x max_side pixels somewhere in the
+// protocol's image, with whole splat counts (some zero) and growth sums to match.
+inline WallCoverage random_wall_coverage(Pcg32& rng, uint32_t max_side = 8) {
+  WallCoverage m;
+  m.node_id = 1 + rng.next_below(kMaxWallNodes);
+  m.time = random_time(rng);
+  const int32_t w = int32_t(1 + rng.next_below(max_side));
+  const int32_t h = int32_t(1 + rng.next_below(max_side));
+  const int32_t x0 = int32_t(rng.next_below(uint32_t(kMaxImageSize - w + 1)));
+  const int32_t y0 = int32_t(rng.next_below(uint32_t(kMaxImageSize - h + 1)));
+  m.rect = PixelRect{x0, y0, x0 + w, y0 + h};
+  m.cells.resize(2 * size_t(m.rect.area()));
+  for (size_t i = 0; i < m.cells.size(); i += 2) {
+    m.cells[i] = float(rng.next_below(6));
+    m.cells[i + 1] = m.cells[i] * rng.next_float() * 3.0f;
+  }
+  return m;
+}
+
 // One random message of every type (batches in every field combination).
 inline std::vector<Message> random_messages(Pcg32& rng) {
   std::vector<Message> all;
@@ -237,6 +256,7 @@ inline std::vector<Message> random_messages(Pcg32& rng) {
   all.push_back(random_leave(rng));
   all.push_back(random_display_join(rng));
   all.push_back(random_wall_layout(rng));
+  all.push_back(random_wall_coverage(rng));
   return all;
 }
 

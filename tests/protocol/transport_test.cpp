@@ -117,6 +117,57 @@ TEST(TransportTest, PushPullCarriesBatchesAndTilings) {
   }
 }
 
+// What display nodes of a wall send each other on the receiver's sample channel: coverage maps,
+// and strays as batches with sampler_id 0 (docs/wall.md, "Seams").
+TEST(TransportTest, PushPullCarriesWallCoverageAndPeerStrays) {
+  for (const char* where : {"inproc://coverage-test", "tcp://127.0.0.1:*"}) {
+    Context context;
+    SampleReceiver receiver(context, where);
+    const ImageBounds image{1920, 1080};
+    receiver.set_image_bounds(image);
+    SampleSender sender(context, receiver.endpoint());
+    Pcg32 rng(12);
+    SampleBatch stray = random_batch(rng, kFieldPosition, 16, 0.01, image);
+    stray.sampler_id = kWallPeerSamplerId;
+    WallCoverage coverage = random_wall_coverage(rng, 32);
+    coverage.rect = PixelRect{900, 500, 932, 520};
+    coverage.cells.assign(2 * 32 * 20, 0.0f);
+    for (size_t i = 0; i < coverage.cells.size(); i += 2) {
+      coverage.cells[i] = float(i % 5);
+      coverage.cells[i + 1] = 0.75f * coverage.cells[i];
+    }
+    ASSERT_TRUE(eventually(
+        [&] { return sender.send(stray, image).ok() && sender.counters().batches_sent > 0; }));
+    ASSERT_TRUE(sender.send(coverage, image).ok());
+    EXPECT_EQ(sender.pump(), 0u);
+    EXPECT_EQ(sender.counters().coverage_sent, 1u);
+    EXPECT_EQ(sender.counters().coverage_dropped, 0u);
+
+    SampleReceiver::Got got = receiver.receive(2000);
+    ASSERT_EQ(got, SampleReceiver::Got::kBatch) << where << " " << receiver.rejection().message();
+    EXPECT_EQ(receiver.batch().sampler_id, kWallPeerSamplerId);
+    EXPECT_EQ(receiver.batch().samples.size(), 16u);
+    while ((got = receiver.receive(2000)) == SampleReceiver::Got::kBatch) {
+      EXPECT_EQ(receiver.batch().sampler_id, kWallPeerSamplerId);
+    }
+    ASSERT_EQ(got, SampleReceiver::Got::kCoverage)
+        << where << " " << receiver.rejection().message();
+    EXPECT_EQ(receiver.coverage(), coverage);
+    EXPECT_EQ(receiver.counters().coverage, 1u);
+    EXPECT_EQ(receiver.counters().batches, sender.counters().batches_sent);
+    EXPECT_EQ(receiver.counters().rejected, 0u);
+
+    // A map outside the receiver's image is refused like a sample outside it.
+    receiver.set_image_bounds(ImageBounds{640, 480});
+    ASSERT_TRUE(sender.send(coverage).ok());
+    ASSERT_EQ(receiver.receive(2000), SampleReceiver::Got::kRejected);
+    EXPECT_NE(receiver.rejection().message().find("wall_coverage.rect"), std::string::npos)
+        << receiver.rejection().message();
+    EXPECT_EQ(receiver.counters().coverage, 1u);
+    EXPECT_EQ(receiver.receive(0), SampleReceiver::Got::kNothing);
+  }
+}
+
 TEST(TransportTest, SampleIdsTellSendersApartOnOnePullSocket) {
   Context context;
   SampleReceiver receiver(context, "tcp://127.0.0.1:*");
@@ -156,6 +207,52 @@ TEST(TransportTest, SenderKeepsTheFreshestWhenTheDisplayIsAway) {
     EXPECT_EQ(receiver.batch().sequence, uint64_t(100 - queue + i));
   }
   EXPECT_EQ(receiver.receive(100), SampleReceiver::Got::kNothing);
+}
+
+TEST(TransportTest, SenderCountsSendsAndDropsPerKind) {
+  const int port = free_port();
+  Context context;
+  SampleSender sender(context, tcp(port));
+  const size_t queue = size_t(ChannelOptions::samples().sender_queue);
+  ASSERT_GE(queue, 8u);
+  Pcg32 rng(13);
+  const SampleBatch batch = random_batch(rng, 0, 4);
+  const TilingSnapshot tiling = random_tiling(rng, 3);
+  const WallCoverage coverage = random_wall_coverage(rng);
+  // No display: 5 maps, 3 snapshots and queue - 8 batches fill the queue; one more map pushes
+  // out the oldest map, 6 more batches the other 4 maps and 2 snapshots.
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(sender.send(coverage).ok());
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(sender.send(tiling).ok());
+  for (size_t i = 0; i < queue - 8; ++i) ASSERT_TRUE(sender.send(batch).ok());
+  ASSERT_TRUE(sender.send(coverage).ok());
+  for (int i = 0; i < 6; ++i) ASSERT_TRUE(sender.send(batch).ok());
+  const SampleSender::Counters& c = sender.counters();
+  EXPECT_EQ(c.coverage_dropped, 5u);
+  EXPECT_EQ(c.tilings_dropped, 2u);
+  EXPECT_EQ(c.batches_dropped, 0u);
+  EXPECT_EQ(c.batches_sent + c.tilings_sent + c.coverage_sent, 0u);
+  // A map that breaks the rules is refused and changes nothing.
+  WallCoverage bad = coverage;
+  bad.node_id = 0;
+  EXPECT_FALSE(sender.send(bad).ok());
+  EXPECT_EQ(c.coverage_dropped, 5u);
+
+  // The display comes up: what is left goes out oldest first, each counted as its kind.
+  SampleReceiver receiver(context, tcp(port));
+  ASSERT_TRUE(eventually([&] { return sender.pump() == 0; }));
+  EXPECT_EQ(c.tilings_sent, 1u);
+  EXPECT_EQ(c.batches_sent, queue - 2);
+  EXPECT_EQ(c.coverage_sent, 1u);
+  using Got = SampleReceiver::Got;
+  std::vector<Got> expected = {Got::kTiling};
+  expected.insert(expected.end(), queue - 8, Got::kBatch);
+  expected.push_back(Got::kCoverage);
+  expected.insert(expected.end(), 6, Got::kBatch);
+  std::vector<Got> got;
+  for (size_t i = 0; i < expected.size(); ++i) got.push_back(receiver.receive(2000));
+  EXPECT_EQ(got, expected);
+  EXPECT_EQ(receiver.coverage(), coverage);
+  EXPECT_EQ(receiver.receive(100), Got::kNothing);
 }
 
 TEST(TransportTest, SenderMemoryStaysBoundedWhenTheDisplayStalls) {

@@ -125,6 +125,19 @@ TEST_F(WallTest, FourNodesEachReceiveTheirCellAndALostNodeIsNoticedWithinOneSeco
               (long long)total, (long long)sent);
   EXPECT_GT(ratio, 0.8);
   EXPECT_LT(ratio, 2.5);
+  // The nodes exchange coverage after every image: each received its neighbours' and wrote it
+  // into its reconstructor's margin, and sent its own (docs/wall.md, "Seams").
+  uint64_t strays = 0;
+  for (int port : {lead_metrics, ports[0] + 3, ports[1] + 3, ports[2] + 3}) {
+    const nlohmann::json x = get_stats(port)["display"]["wall"]["exchange"];
+    SCOPED_TRACE(x.dump());
+    EXPECT_GT(x["coverage_in"].get<uint64_t>(), 0u);
+    EXPECT_GT(x["coverage_cells_applied"].get<uint64_t>(), 0u);
+    EXPECT_GT(x["coverage_out"].get<uint64_t>(), 0u);
+    EXPECT_GT(x["bytes_out"].get<uint64_t>(), 0u);
+    strays += x["strays_in"].get<uint64_t>();
+  }
+  std::printf("strays forwarded between the nodes: %llu samples\n", (unsigned long long)strays);
   // Each node's cell, as the lead's layout gives it.
   const nlohmann::json f0 = get_stats(ports[0] + 3);
   EXPECT_EQ(f0["display"]["wall"]["cell"], (nlohmann::json{64, 0, 128, 64}));

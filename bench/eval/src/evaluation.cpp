@@ -89,6 +89,15 @@ RunResult run_and_compare(const Scene& scene, Tracer& tracer, const RunSettings&
   return r;
 }
 
+JobSplit job_split(const EvalConfig& config) {
+  const int cores = config.base.threads > 0 ? config.base.threads
+                                            : std::max(1, int(std::thread::hardware_concurrency()));
+  JobSplit split;
+  split.jobs = config.jobs > 0 ? config.jobs : cores;
+  split.threads_per_run = std::max(1, cores / split.jobs);
+  return split;
+}
+
 std::vector<AnimationResult> evaluate(const EvalConfig& config) {
   const std::vector<Method> methods =
       config.methods.empty() ? std::vector<Method>(all_methods().begin(), all_methods().end())
@@ -103,9 +112,8 @@ std::vector<AnimationResult> evaluate(const EvalConfig& config) {
   Progress progress(config.animations.size() * uint64_t(frames) * (1 + runs_per_animation),
                     config.progress);
 
-  const int cores = config.base.threads > 0 ? config.base.threads
-                                            : std::max(1, int(std::thread::hardware_concurrency()));
-  const int jobs = config.jobs > 0 ? config.jobs : cores;
+  const JobSplit split = job_split(config);
+  const int jobs = split.jobs;
   std::vector<AnimationResult> results;
   for (const AnimationSpec& spec : config.animations) {
     AnimationResult ar;
@@ -129,7 +137,7 @@ std::vector<AnimationResult> evaluate(const EvalConfig& config) {
         s.rate = method_uses_rate(m) ? rate : double(s.width) * s.height * s.fps;
         s.first_time = spec.start;
         s.frames = frames;
-        s.threads = std::max(1, cores / jobs);
+        s.threads = split.threads_per_run;
         runs.push_back(s);
       }
     }

@@ -189,7 +189,8 @@ void DisplayService::stop() {
 
 void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metrics,
                 const std::function<bool(uint32_t)>& is_member, const std::atomic<bool>& running,
-                const std::function<void(const TilingSnapshot&)>& on_tiling) {
+                const std::function<void(const TilingSnapshot&)>& on_tiling,
+                WallCoverageInbox* coverage) {
   uint64_t rejected = 0;
   while (running.load(std::memory_order_relaxed)) {
     switch (receiver.receive(50)) {
@@ -197,9 +198,28 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
         break;
       case SampleReceiver::Got::kBatch: {
         const SampleBatch& b = receiver.batch();
-        metrics.on_batch(b, batch_message_bytes(b.fields, b.samples.size()),
-                         is_member(b.sampler_id));
+        const size_t bytes = batch_message_bytes(b.fields, b.samples.size());
+        if (b.sampler_id == kWallPeerSamplerId) {
+          metrics.on_wall_strays_in(b.samples.size(), bytes);
+        } else {
+          metrics.on_batch(b, bytes, is_member(b.sampler_id));
+        }
         sink.on_batch(std::move(receiver.batch()));
+        break;
+      }
+      case SampleReceiver::Got::kCoverage: {
+        WallCoverage& c = receiver.coverage();
+        if (coverage == nullptr) {
+          metrics.on_rejected_sample_message();
+          if (rejected++ % 1000 == 0) {
+            spdlog::warn("sample channel: wall_coverage from node {} but this node is no wall's",
+                         c.node_id);
+          }
+          break;
+        }
+        metrics.on_wall_coverage_in(uint64_t(c.rect.area()),
+                                    wall_coverage_message_bytes(c.cells.size() / 2));
+        coverage->put(std::move(c));
         break;
       }
       case SampleReceiver::Got::kTiling: {
@@ -239,7 +259,8 @@ void DisplayService::ingest_loop() {
         }
         std::lock_guard<std::mutex> lock(errors_mutex_);
         tile_errors_[t.sampler_id] = std::move(tiles);
-      });
+      },
+      &wall_coverage_);
 }
 
 // ---------------------------------------------------------------------------------------------

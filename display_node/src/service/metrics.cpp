@@ -77,6 +77,32 @@ void ServiceMetrics::on_batch(const SampleBatch& batch, size_t bytes, bool membe
   }
 }
 
+void ServiceMetrics::on_wall_coverage_in(uint64_t cells, size_t bytes) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++display_.wall_exchange.coverage_in;
+  display_.wall_exchange.coverage_cells_in += cells;
+  display_.wall_exchange.bytes_in += bytes;
+}
+
+void ServiceMetrics::on_wall_strays_in(uint64_t samples, size_t bytes) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  display_.wall_exchange.strays_in += samples;
+  display_.wall_exchange.bytes_in += bytes;
+}
+
+void ServiceMetrics::on_wall_exchanged(uint64_t cells_applied, uint64_t coverage_out,
+                                       uint64_t cells_out, uint64_t strays_out,
+                                       uint64_t bytes_out_total, uint64_t dropped_out_total) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  DisplayMetrics::WallExchange& w = display_.wall_exchange;
+  w.coverage_cells_applied += cells_applied;
+  w.coverage_out += coverage_out;
+  w.coverage_cells_out += cells_out;
+  w.strays_out += strays_out;
+  w.bytes_out = bytes_out_total;
+  w.dropped_out = dropped_out_total;
+}
+
 void ServiceMetrics::on_tiling(uint32_t sampler_id, size_t bytes) {
   std::lock_guard<std::mutex> lock(mutex_);
   SamplerMetrics& m = samplers_[sampler_id];
@@ -297,6 +323,23 @@ std::string ServiceMetrics::prometheus() const {
   o += fmt::format(
       "afr_display_wall_cell{{node=\"{}\",x0=\"{}\",y0=\"{}\",x1=\"{}\",y1=\"{}\"}} 1\n",
       d.wall_node, d.wall_cell.x0, d.wall_cell.y0, d.wall_cell.x1, d.wall_cell.y1);
+  const DisplayMetrics::WallExchange& w = d.wall_exchange;
+  scalar("afr_display_wall_coverage_in_total", "counter",
+         "coverage messages from the wall's other nodes", w.coverage_in);
+  scalar("afr_display_wall_coverage_applied_pixels_total", "counter",
+         "pixels of this node's coverage map replaced by its peers'", w.coverage_cells_applied);
+  scalar("afr_display_wall_strays_in_total", "counter",
+         "samples forwarded by the wall's other nodes", w.strays_in);
+  scalar("afr_display_wall_coverage_out_total", "counter",
+         "coverage messages sent to the wall's other nodes", w.coverage_out);
+  scalar("afr_display_wall_strays_out_total", "counter",
+         "samples forwarded to the wall's other nodes", w.strays_out);
+  scalar("afr_display_wall_exchange_bytes_in_total", "counter",
+         "bytes of coverage and strays from the wall's other nodes", w.bytes_in);
+  scalar("afr_display_wall_exchange_bytes_out_total", "counter",
+         "bytes of coverage and strays to the wall's other nodes", w.bytes_out);
+  scalar("afr_display_wall_exchange_dropped_total", "counter",
+         "coverage and stray messages the peers' queues had no room for", w.dropped_out);
   metric("afr_display_sample_latency_seconds", "histogram",
          "sample-to-display latency: display time of the frame that first shows a sample "
          "minus the sample's time");
@@ -346,7 +389,18 @@ std::string ServiceMetrics::json() const {
                    {{"node", d.wall_node},
                     {"cell", {d.wall_cell.x0, d.wall_cell.y0, d.wall_cell.x1, d.wall_cell.y1}},
                     {"nodes", d.wall_nodes},
-                    {"epoch", d.wall_epoch}}}};
+                    {"epoch", d.wall_epoch},
+                    {"exchange",
+                     {{"coverage_in", d.wall_exchange.coverage_in},
+                      {"coverage_cells_in", d.wall_exchange.coverage_cells_in},
+                      {"coverage_cells_applied", d.wall_exchange.coverage_cells_applied},
+                      {"strays_in", d.wall_exchange.strays_in},
+                      {"bytes_in", d.wall_exchange.bytes_in},
+                      {"coverage_out", d.wall_exchange.coverage_out},
+                      {"coverage_cells_out", d.wall_exchange.coverage_cells_out},
+                      {"strays_out", d.wall_exchange.strays_out},
+                      {"bytes_out", d.wall_exchange.bytes_out},
+                      {"dropped_out", d.wall_exchange.dropped_out}}}}}};
   j["samplers"] = nlohmann::json::array();
   for (const SamplerMetrics& s : samplers()) {
     j["samplers"].push_back({{"id", s.id},

@@ -60,7 +60,7 @@ void WallFollower::start() {
   control_thread_ = std::thread([this] { control_loop(); });
   ingest_thread_ = std::thread([this] {
     run_ingest(
-        *samples_, sink_, metrics_, [](uint32_t) { return true; }, running_);
+        *samples_, sink_, metrics_, [](uint32_t) { return true; }, running_, {}, &wall_coverage_);
   });
   if (http_) http_->start();
 }
@@ -70,6 +70,10 @@ void WallFollower::stop() {
   if (control_thread_.joinable()) control_thread_.join();
   if (ingest_thread_.joinable()) ingest_thread_.join();
   if (http_) http_->stop();
+}
+
+std::string WallFollower::lead_samples_endpoint() const {
+  return service_endpoints(options_.lead).samples;
 }
 
 std::optional<Camera> WallFollower::camera() const {

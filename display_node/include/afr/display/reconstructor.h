@@ -114,6 +114,28 @@ class Reconstructor : public SampleSink {
   // and its coverage map (section 6.2), row 0 at the top.
   virtual void read_weights(std::vector<float>* out) = 0;
   virtual void read_coverage(std::vector<CoverageCell>* out) = 0;
+  // A display wall's nodes keep their coverage maps equal (docs/wall.md, "Seams"): `cells`
+  // (row-major, rect.area() of them) is the coverage another reconstructor of the same image
+  // at the same output scale read from its last image (read_coverage of its viewport), and
+  // `rect` where it lies, in output pixels of the whole image. Where it overlaps the pixels
+  // this reconstructor computed last (frame_grid()), it replaces this one's coverage, which
+  // the next reconstruct() sizes its splats from. Returns the pixels replaced: 0 before the
+  // first image, after the grid moved, or when the grid's origin is not a whole pixel. Throws
+  // afr::Error when cells.size() != rect.area().
+  virtual size_t write_coverage(const PixelRect& rect, const std::vector<CoverageCell>& cells) = 0;
+
+  // The samples the last reconstruct() held, as ring slots: the sample with sequence number q
+  // (SampleStore's) is slots[q % size] for q in [end - stored, end). The CPU backend's own
+  // copy; the GL backend keeps one from the first call on (its samples live on the GPU), so
+  // its first call returns nothing. Valid until the next reconstruct(). A display wall node
+  // finds the samples it forwards to its peers here (WallExchange).
+  struct StoredSlots {
+    const StoredSample* slots = nullptr;
+    size_t size = 0;
+    uint64_t end = 0;
+    size_t stored = 0;
+  };
+  virtual StoredSlots stored_samples() = 0;
 
   void set_mode(ReconstructionMode mode) { mode_ = mode; }
   ReconstructionMode mode() const { return mode_; }
@@ -156,6 +178,10 @@ class Reconstructor : public SampleSink {
     std::vector<TileFilter> filters;  // one per field_.tiles() entry
   };
 
+  // write_coverage's check of its arguments: throws afr::Error unless cells.size() equals
+  // rect.area().
+  static void check_coverage_size(const PixelRect& rect, const std::vector<CoverageCell>& cells);
+
   // Implemented by the backends: *out is already width x height (or nullptr).
   virtual void do_reconstruct(const Camera& camera, double time, int width, int height,
                               Image* out) = 0;
@@ -184,6 +210,10 @@ class Reconstructor : public SampleSink {
   TileSampleCounts counts_;
   std::vector<TileState> tile_states_;
 };
+
+// The part of `rect` (output pixels of the whole image) inside `grid`, in the grid's pixels;
+// empty when they do not overlap or the grid's origin is not a whole output pixel.
+PixelRect grid_part(const PixelGrid& grid, const PixelRect& rect);
 
 // The margin ReconstructorConfig::viewport_margin = -1 stands for.
 inline int auto_viewport_margin(const SplatSizeRule& rule) { return 3 * splat_guard_band(rule); }

@@ -103,6 +103,8 @@ class SampleSender {
     uint64_t bytes_sent = 0;
     uint64_t batches_dropped = 0;
     uint64_t tilings_dropped = 0;
+    uint64_t coverage_sent = 0;  // wall_coverage messages (a display wall's nodes)
+    uint64_t coverage_dropped = 0;
   };
 
   SampleSender(Context& context, const std::string& endpoint, const Security& security = {},
@@ -112,6 +114,7 @@ class SampleSender {
   // and hand as much of the queue to ZeroMQ as it takes.
   Status send(const SampleBatch& batch, const ImageBounds& bounds = {});
   Status send(const TilingSnapshot& snapshot, const ImageBounds& bounds = {});
+  Status send(const WallCoverage& coverage, const ImageBounds& bounds = {});
   // Hands queued messages to ZeroMQ; call when idle. Returns the number still queued.
   size_t pump();
   // Waits (up to timeout_ms; -1: forever) until ZeroMQ has taken the whole queue: for a last
@@ -123,12 +126,19 @@ class SampleSender {
   zmq::socket_t& socket() { return socket_; }
 
  private:
+  // What a queued message is, so that sends and drops are counted per kind.
+  enum class Kind : uint8_t { kBatch, kTiling, kCoverage };
   struct Slot {
     std::vector<uint8_t> bytes;
-    bool is_batch = true;
+    Kind kind = Kind::kBatch;
   };
   Slot& push_slot();
   void pop_slot();
+  // Queues the message just encoded into push_slot() (dropping the oldest when the queue is
+  // full) and pumps.
+  void commit_slot(Kind kind);
+  uint64_t& sent_counter(Kind kind);
+  uint64_t& dropped_counter(Kind kind);
 
   zmq::socket_t socket_;
   std::vector<Slot> slots_;  // ring buffer of encoded messages
@@ -140,10 +150,11 @@ class SampleSender {
 // ZeroMQ's message.
 class SampleReceiver {
  public:
-  enum class Got { kNothing, kBatch, kTiling, kRejected };
+  enum class Got { kNothing, kBatch, kTiling, kCoverage, kRejected };
   struct Counters {
     uint64_t batches = 0;
     uint64_t tilings = 0;
+    uint64_t coverage = 0;
     uint64_t samples = 0;
     uint64_t bytes = 0;
     uint64_t rejected = 0;
@@ -153,13 +164,15 @@ class SampleReceiver {
                  const ChannelOptions& options = ChannelOptions::samples());
 
   // Waits up to timeout_ms (0: only what is there; -1: forever) for one message and decodes
-  // it. After kBatch read batch(), after kTiling tiling(), after kRejected rejection(); each
-  // stays valid until the next receive().
+  // it. After kBatch read batch(), after kTiling tiling(), after kCoverage coverage(), after
+  // kRejected rejection(); each stays valid until the next receive().
   Got receive(int timeout_ms);
   const SampleBatch& batch() const { return batch_; }
   SampleBatch& batch() { return batch_; }
   const TilingSnapshot& tiling() const { return tiling_; }
   TilingSnapshot& tiling() { return tiling_; }
+  const WallCoverage& coverage() const { return coverage_; }
+  WallCoverage& coverage() { return coverage_; }
   const Status& rejection() const { return rejection_; }
 
   // Samples and tiles outside this image are rejected (default: the protocol's limit).
@@ -183,6 +196,7 @@ class SampleReceiver {
   zmq::message_t message_;
   SampleBatch batch_;
   TilingSnapshot tiling_;
+  WallCoverage coverage_;
   Status rejection_;
   std::atomic<uint64_t> bounds_{(uint64_t(uint32_t(kMaxImageSize)) << 32) |
                                 uint32_t(kMaxImageSize)};

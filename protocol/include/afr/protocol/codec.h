@@ -61,6 +61,12 @@ constexpr size_t snapshot_message_bytes(size_t tiles) {
   return kHeaderBytes + kSnapshotHeaderBytes + tiles * kTileBytes;
 }
 
+// A wall_coverage message of `pixels` cells (8 bytes each).
+inline constexpr size_t kWallCoverageHeaderBytes = 24;
+constexpr size_t wall_coverage_message_bytes(size_t pixels) {
+  return kHeaderBytes + kWallCoverageHeaderBytes + pixels * 8;
+}
+
 // The largest message of each channel, for ZMQ_MAXMSGSIZE.
 inline constexpr size_t kMaxSampleChannelMessage =
     std::max(batch_message_bytes(kFieldPosition | kFieldVelocity, kMaxSamplesPerBatch),
@@ -96,6 +102,7 @@ Status encode(const Heartbeat& m, std::vector<uint8_t>* out);
 Status encode(const Leave& m, std::vector<uint8_t>* out);
 Status encode(const DisplayJoin& m, std::vector<uint8_t>* out);
 Status encode(const WallLayout& m, std::vector<uint8_t>* out);
+Status encode(const WallCoverage& m, std::vector<uint8_t>* out, const ImageBounds& bounds = {});
 Status encode(const Message& m, std::vector<uint8_t>* out);
 
 // ---------------------------------------------------------------------------------------------
@@ -116,6 +123,7 @@ Status decode(Bytes message, Heartbeat* out);
 Status decode(Bytes message, Leave* out);
 Status decode(Bytes message, DisplayJoin* out);
 Status decode(Bytes message, WallLayout* out);
+Status decode(Bytes message, WallCoverage* out, const ImageBounds& bounds = {});
 // Any type, by its header (allocates a fresh object; for control messages).
 Result<Message> decode_message(Bytes message, const ImageBounds& bounds = {});
 
@@ -136,5 +144,6 @@ Status validate(const Heartbeat& m);
 Status validate(const Leave& m);
 Status validate(const DisplayJoin& m);
 Status validate(const WallLayout& m);
+Status validate(const WallCoverage& m, const ImageBounds& bounds = {});
 
 }  // namespace afr::protocol

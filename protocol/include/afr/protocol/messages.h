@@ -21,7 +21,7 @@ namespace afr::protocol {
 // Bumped on every change of a byte layout; a peer of another version is refused (a decoder
 // still reads the header of any version, so it can say why). Version 2 added the display wall
 // (DisplayJoin, WallLayout).
-inline constexpr uint16_t kProtocolVersion = 2;
+inline constexpr uint16_t kProtocolVersion = 3;
 
 inline constexpr int32_t kMaxImageSize = 32768;          // pixels a side (DESIGN.md, "Samples")
 inline constexpr uint32_t kMaxSamplesPerBatch = 65536;   // the sampler's batch_size limit
@@ -33,6 +33,11 @@ inline constexpr uint16_t kMaxThreads = 4096;
 // A display wall: at most this many display nodes, and this many pixels of margin.
 inline constexpr uint32_t kMaxWallNodes = 1024;
 inline constexpr int32_t kMaxWallMargin = 1024;
+// The sampler_id of sample batches one display node of a wall forwards to another (strays,
+// docs/wall.md "Seams"): 0, which the coordinator never assigns to a sampler.
+inline constexpr uint32_t kWallPeerSamplerId = 0;
+// Pixels in one wall_coverage message (2 MiB of cells); larger rectangles go in strips.
+inline constexpr uint32_t kMaxWallCoverageCells = 1u << 18;
 // Batch time offsets are 15-bit ticks of 2^tick_exp seconds, tick_exp in this range: from
 // about 1 ns ticks (a 30 us span) to 1 s ticks (a 9 h span).
 inline constexpr int kMinTickExp = -30;
@@ -56,9 +61,10 @@ enum class MessageType : uint16_t {
   kLeave = 11,
   kDisplayJoin = 12,
   kWallLayout = 13,
+  kWallCoverage = 14,
 };
 inline constexpr uint16_t kFirstMessageType = 1;
-inline constexpr uint16_t kLastMessageType = 13;
+inline constexpr uint16_t kLastMessageType = 14;
 
 // "join", "sample_batch", ...; "unknown" for values outside the enum.
 const char* message_type_name(MessageType type);
@@ -237,6 +243,23 @@ struct WallLayout {
   bool operator==(const WallLayout&) const = default;
 };
 
+// display node -> display node of the same wall, on the receiver's sample channel, after
+// each image: the coverage map (section 6.2) the sender computed over `rect`, a part of its
+// cell that lies in the receiver's received region. The receiver sizes its next image's
+// splats there from it (docs/wall.md, "Seams"). Strays, the other thing nodes exchange, are
+// ordinary sample batches with sampler_id kWallPeerSamplerId.
+struct WallCoverage {
+  uint32_t node_id = 0;  // the sender, >= 1
+  double time = 0.0;     // display time of the image the map belongs to
+  // In pixels of the virtual display, inside the receiver's image; 1..kMaxWallCoverageCells
+  // pixels.
+  PixelRect rect;
+  // Per pixel of rect, row by row: the count of splats that reached it, then the sum of their
+  // growths (afr::CoverageCell); both finite and >= 0. 2 x rect.area() floats.
+  std::vector<float> cells;
+  bool operator==(const WallCoverage&) const = default;
+};
+
 // The samples a node of `layout` needs: its cell grown by the margin, clipped to the image.
 PixelRect wall_receive_rect(const WallLayout& layout, const WallNode& node);
 // What a wall node is sent (the samplers' routing, protocol/src/wall.cpp): the samples of
@@ -246,9 +269,9 @@ void select_samples(const SampleBatch& batch, const PixelRect& rect, SampleBatch
 void select_tiles(const TilingSnapshot& snapshot, const PixelRect& rect, TilingSnapshot* out);
 
 // Any message, for channels that carry several types.
-using Message =
-    std::variant<Join, Welcome, SceneRequest, SceneChunk, RegionAssignment, View, SampleBatch,
-                 TilingSnapshot, SamplerStats, Heartbeat, Leave, DisplayJoin, WallLayout>;
+using Message = std::variant<Join, Welcome, SceneRequest, SceneChunk, RegionAssignment, View,
+                             SampleBatch, TilingSnapshot, SamplerStats, Heartbeat, Leave,
+                             DisplayJoin, WallLayout, WallCoverage>;
 
 MessageType message_type(const Message& message);
 

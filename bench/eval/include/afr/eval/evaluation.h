@@ -44,6 +44,13 @@ struct EvalConfig {
   bool progress = true;
 };
 
+// How evaluate() splits the cores: runs at a time, and threads per run.
+struct JobSplit {
+  int jobs = 1;
+  int threads_per_run = 1;
+};
+JobSplit job_split(const EvalConfig& config);
+
 struct RunResult {
   std::string animation;
   Method method = Method::kAdaptive;

@@ -13,6 +13,7 @@
 #include <afr/display/service/coordinator.h>
 #include <afr/display/service/metrics.h>
 #include <afr/display/service/wall.h>
+#include <afr/display/service/wall_exchange.h>
 #include <afr/protocol/channels.h>
 
 #include <atomic>
@@ -69,10 +70,13 @@ struct DisplayServiceOptions {
 // check), counting in `metrics`; is_member(sampler id) says whether a batch comes from a known
 // member (for the metrics only: every valid batch goes to the sink). The ingest thread of a
 // display or of a wall's follower.
-// on_tiling, when set, sees every snapshot before the sink does.
+// on_tiling, when set, sees every snapshot before the sink does. A display wall's peers send
+// strays (batches with sampler_id kWallPeerSamplerId: to the sink, counted apart) and
+// coverage (into `coverage`; rejected as unexpected when it is null).
 void run_ingest(protocol::SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metrics,
                 const std::function<bool(uint32_t)>& is_member, const std::atomic<bool>& running,
-                const std::function<void(const TilingSnapshot&)>& on_tiling = {});
+                const std::function<void(const TilingSnapshot&)>& on_tiling = {},
+                WallCoverageInbox* coverage = nullptr);
 
 class DisplayService {
  public:
@@ -95,6 +99,8 @@ class DisplayService {
   // This node's cell of the wall (the whole image without a wall), and the current layout.
   PixelRect cell() const;
   protocol::WallLayout wall_layout() const;
+  // The coverage the wall's other nodes sent this one (WallPeerLinks::apply takes it).
+  WallCoverageInbox& wall_coverage() { return wall_coverage_; }
 
  private:
   void control_loop();
@@ -103,6 +109,7 @@ class DisplayService {
   struct Control;
   DisplayServiceOptions options_;
   SampleSink& sink_;
+  WallCoverageInbox wall_coverage_;
   ServiceMetrics metrics_;
   uint64_t session_ = 0;
   std::chrono::steady_clock::time_point start_;

@@ -96,6 +96,20 @@ struct DisplayMetrics {
   PixelRect wall_cell;
   uint64_t wall_nodes = 1;
   uint64_t wall_epoch = 0;
+  // What this node exchanged with the other nodes of its wall (WallExchange, docs/wall.md
+  // "Seams"): coverage messages and their pixels, stray samples, bytes.
+  struct WallExchange {
+    uint64_t coverage_in = 0;
+    uint64_t coverage_cells_in = 0;
+    uint64_t coverage_cells_applied = 0;  // landed on this node's last grid
+    uint64_t strays_in = 0;
+    uint64_t bytes_in = 0;
+    uint64_t coverage_out = 0;
+    uint64_t coverage_cells_out = 0;
+    uint64_t strays_out = 0;
+    uint64_t bytes_out = 0;
+    uint64_t dropped_out = 0;  // messages the peers' queues had no room for
+  } wall_exchange;
   double latency_p50 = 0.0, latency_p99 = 0.0;  // seconds, since the start
   double window_latency_p50 = 0.0, window_latency_p99 = 0.0;
 };
@@ -106,6 +120,9 @@ class ServiceMetrics {
   void on_batch(const SampleBatch& batch, size_t bytes, bool member);
   void on_tiling(uint32_t sampler_id, size_t bytes);
   void on_rejected_sample_message();
+  // A display wall's peers: coverage (pixels) and strays (samples) that arrived.
+  void on_wall_coverage_in(uint64_t cells, size_t bytes);
+  void on_wall_strays_in(uint64_t samples, size_t bytes);
   // Control thread.
   void on_member(const std::string& name, uint32_t id, const std::string& public_key, int threads);
   void on_member_gone(uint32_t id, bool dead);
@@ -121,6 +138,10 @@ class ServiceMetrics {
   void set_display(uint64_t session, int width, int height, const std::string& backend,
                    const std::string& mode);
   void set_uptime(double seconds);
+  // Display thread: what it applied from and sent to the wall's peers after an image (counts
+  // since the previous call; bytes_out and dropped_out are totals).
+  void on_wall_exchanged(uint64_t cells_applied, uint64_t coverage_out, uint64_t cells_out,
+                         uint64_t strays_out, uint64_t bytes_out_total, uint64_t dropped_out_total);
   // Either thread: the wall as this node knows it.
   void set_wall(uint32_t node_id, const PixelRect& cell, uint64_t nodes, uint64_t epoch);
 

@@ -13,6 +13,7 @@
 #include <afr/common/clock.h>
 #include <afr/common/samples.h>
 #include <afr/display/service/metrics.h>
+#include <afr/display/service/wall_exchange.h>
 #include <afr/protocol/channels.h>
 
 #include <atomic>
@@ -69,6 +70,10 @@ class WallFollower {
   // True once the lead refused this node for good (another protocol version).
   bool failed() const { return failed_.load(); }
   ServiceMetrics& metrics() { return metrics_; }
+  // The coverage the wall's other nodes sent this one (WallPeerLinks::apply takes it).
+  WallCoverageInbox& wall_coverage() { return wall_coverage_; }
+  // The lead's sample endpoint (the layout leaves the lead's own entry empty).
+  std::string lead_samples_endpoint() const;
 
  private:
   void control_loop();
@@ -76,6 +81,7 @@ class WallFollower {
   WallFollowerOptions options_;
   SampleSink& sink_;
   ServiceMetrics metrics_;
+  WallCoverageInbox wall_coverage_;
   RemoteClock clock_;
   protocol::Context context_;
   std::unique_ptr<protocol::SampleReceiver> samples_;
