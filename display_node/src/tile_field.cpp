@@ -129,21 +129,22 @@ bool TileField::update(const PixelGrid& grid) {
     }
   };
   // The lattice cells [k L, (k + 1) L) that the span [a, b) reaches, one axis.
-  const auto cells = [](int32_t a, int32_t b, int32_t* k0, int32_t* k1) {
-    *k0 = a / kRateLattice;
-    *k1 = (b - 1) / kRateLattice + 1;
+  const int32_t lattice = rate_lattice(sx, sy);
+  const auto cells = [lattice](int32_t a, int32_t b, int32_t* k0, int32_t* k1) {
+    *k0 = a / lattice;
+    *k1 = (b - 1) / lattice + 1;
   };
   for (const TilingSnapshot* snap : order) {
     for (const TileInfo& t : snap->tiles) {
       const PixelRect seen = intersect(t.rect, covered);
       if (seen.empty()) continue;
-      if (t.rect.width() <= kRateLattice && t.rect.height() <= kRateLattice) {
+      if (t.rect.width() <= lattice && t.rect.height() <= lattice) {
         add(t, t.rect, snap->sampler_id);
         continue;
       }
       // A larger tile: its pieces in the lattice's cells (an axis the tile spans at most one
       // cell's width of is not cut), those that reach the grid.
-      const bool cut_x = t.rect.width() > kRateLattice, cut_y = t.rect.height() > kRateLattice;
+      const bool cut_x = t.rect.width() > lattice, cut_y = t.rect.height() > lattice;
       int32_t kx0 = 0, kx1 = 1, ky0 = 0, ky1 = 1;
       if (cut_x) cells(seen.x0, seen.x1, &kx0, &kx1);
       if (cut_y) cells(seen.y0, seen.y1, &ky0, &ky1);
@@ -151,12 +152,12 @@ bool TileField::update(const PixelGrid& grid) {
         for (int32_t kx = kx0; kx < kx1; ++kx) {
           PixelRect piece = t.rect;
           if (cut_x) {
-            piece.x0 = std::max(piece.x0, kx * kRateLattice);
-            piece.x1 = std::min(piece.x1, (kx + 1) * kRateLattice);
+            piece.x0 = std::max(piece.x0, kx * lattice);
+            piece.x1 = std::min(piece.x1, (kx + 1) * lattice);
           }
           if (cut_y) {
-            piece.y0 = std::max(piece.y0, ky * kRateLattice);
-            piece.y1 = std::min(piece.y1, (ky + 1) * kRateLattice);
+            piece.y0 = std::max(piece.y0, ky * lattice);
+            piece.y1 = std::min(piece.y1, (ky + 1) * lattice);
           }
           add(t, piece, snap->sampler_id);
         }
@@ -164,6 +165,14 @@ bool TileField::update(const PixelGrid& grid) {
     }
   }
   return true;
+}
+
+int32_t rate_lattice(double scale_x, double scale_y) {
+  const double s = std::min(scale_x, scale_y);
+  int32_t lattice = kRateLattice;
+  // (32768 is the largest image side: one cell then holds a whole axis.)
+  while (s * double(lattice) < double(kRateLattice) && lattice < 32768) lattice *= 2;
+  return lattice;
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -80,6 +80,30 @@ TEST(TileFieldTest, TilesLargerThanTheRateLatticeEnterAsTheirPiecesInItsCells) {
   EXPECT_EQ(got, (std::vector<PixelRect>{{64, 32, 96, 64}}));
 }
 
+TEST(TileFieldTest, AnImageDrawnSmallerCutsOnACoarserLattice) {
+  // At least kRateLattice output pixels a cell, in powers of two.
+  EXPECT_EQ(rate_lattice(1.0, 1.0), 32);
+  EXPECT_EQ(rate_lattice(4.0, 2.0), 32);
+  EXPECT_EQ(rate_lattice(0.5, 0.5), 64);
+  EXPECT_EQ(rate_lattice(0.4, 1.0), 128);  // the smaller axis decides
+  EXPECT_EQ(rate_lattice(1.0 / 64.0, 1.0 / 64.0), 2048);
+  EXPECT_EQ(rate_lattice(1e-9, 1e-9), 32768);
+  // A 256 x 256 tile drawn at half size: 4 x 4 pieces of 64, not 8 x 8 of 32.
+  TileField field(256, 256);
+  field.set_tiling(snapshot(0, 1.0, {0, 0, 256, 256}, {tile(0, 0, 256, 256, 0.1f)}));
+  EXPECT_TRUE(field.update(PixelGrid{128, 128, 0, 0, 0.5, 0.5}));
+  ASSERT_EQ(field.tiles().size(), 1u + 16u);
+  for (size_t i = 1; i < field.tiles().size(); ++i) {
+    EXPECT_EQ(field.tiles()[i].rect.width(), 64);
+    EXPECT_EQ(field.tiles()[i].rect.height(), 64);
+  }
+  // The 32768 x 32768 image drawn at 512 x 512: 16 x 16 pieces of 2048.
+  TileField huge(32768, 32768);
+  huge.set_tiling(snapshot(0, 1.0, {0, 0, 32768, 32768}, {tile(0, 0, 32768, 32768, 0.1f)}));
+  EXPECT_TRUE(huge.update(512, 512));
+  EXPECT_EQ(huge.tiles().size(), 1u + 256u);
+}
+
 TEST(TileFieldTest, NewerSnapshotsReplaceOlderOnesOfTheSameSampler) {
   TileField field(4, 4);
   field.set_tiling(snapshot(0, 2.0, {0, 0, 4, 4}, {tile(0, 0, 4, 4, 0.5f)}));

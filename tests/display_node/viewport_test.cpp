@@ -473,16 +473,19 @@ void expect_bounded_by_the_viewport(const MakeReconstructor& make) {
   draw(kView);
   draw(kView / 4);
   // Only the tiles that overlap the grid are kept (of 1026): the big one at the corner and the
-  // 2 small ones cut from it, the first two as their pieces in the kRateLattice cells that
-  // reach the grid (at most 640 / 32 + 1 = 21 a side).
+  // 2 small ones cut from it, the first two as their pieces in the rate lattice's cells that
+  // reach the grid (drawn at a quarter of the size, 128 px cells: at most 640 / 128 + 1 = 6 a
+  // side; 21 at full size).
+  const int32_t lattice = rate_lattice(rec->frame_grid().scale_x, rec->frame_grid().scale_y);
+  EXPECT_EQ(lattice, 4 * kRateLattice);
   const size_t kept = rec->tile_states().size();
   EXPECT_GE(kept, 1u + 3u);
-  EXPECT_LE(kept, 1u + 21u * 21u + 21u + 1u);
+  EXPECT_LE(kept, 1u + 6u * 6u + 6u + 1u);
   for (size_t i = 1; i < kept; ++i) {
     const PixelRect& r = rec->tile_states()[i].rect;
     EXPECT_GE(r.x0, kSide - 1024);
-    EXPECT_LE(r.width(), kRateLattice);
-    EXPECT_LE(r.height(), kRateLattice);
+    EXPECT_LE(r.width(), lattice);
+    EXPECT_LE(r.height(), lattice);
   }
   // The single-pixel tile holds what was sent there.
   uint64_t at_corner = 0;

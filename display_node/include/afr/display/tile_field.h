@@ -57,7 +57,13 @@ struct PixelGrid {
 // does (docs/reconstruction.md, "Viewports"). The sampler draws a tile's samples uniformly,
 // so its pieces' rates are its own up to counting noise (1.6% at 4 samples per pixel over a
 // 32 x 32 piece).
+// An image drawn smaller than its sampling size (output scale s < 1) cuts on a coarser
+// lattice, kRateLattice x 2^k with k the least for which a cell is at least kRateLattice
+// output pixels: the pieces stay at least as large on screen, so a whole 32768² image drawn at
+// 512² holds 16² pieces of a tile, not 1024² (nodes of a wall share one scale, hence one
+// lattice). rate_lattice gives the side for a grid's scale.
 inline constexpr int32_t kRateLattice = 32;
+int32_t rate_lattice(double scale_x, double scale_y);
 
 class TileField {
  public:
