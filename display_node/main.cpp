@@ -413,7 +413,8 @@ int main(int argc, char** argv) {
           o.keys.secret_key.empty() ? afr::protocol::Security::none()
                                     : afr::protocol::Security::client(o.keys, o.keys.public_key);
       links = std::make_unique<afr::service::WallPeerLinks>(
-          links_context, client, wall_follower ? wall_follower->lead_samples_endpoint() : "");
+          links_context, client, wall_follower ? wall_follower->lead_samples_endpoint() : "",
+          afr::splat_guard_band(rc.splat));
     }
     afr::service::WallCoverageInbox& wall_inbox =
         service ? service->wall_coverage() : wall_follower->wall_coverage();

@@ -37,6 +37,16 @@ class WallSink final : public SampleSink {
       : whole_(whole), layout_(layout), nodes_(nodes) {}
   void on_batch(SampleBatch&& batch) override {
     whole_.add_batch(batch);
+    if (twin_ != nullptr) {
+      // The twin gets the same batches with each pair's order swapped: another arrival order.
+      if (held_.samples.empty()) {
+        held_ = batch;
+      } else {
+        twin_->add_batch(batch);
+        twin_->add_batch(held_);
+        held_.samples.clear();
+      }
+    }
     total_ += batch.samples.size();
     const PixelRect image{0, 0, layout_.width, layout_.height};
     for (size_t i = 0; i < nodes_.size(); ++i) {
@@ -49,12 +59,14 @@ class WallSink final : public SampleSink {
   }
   void on_tiling(TilingSnapshot&& snapshot) override {
     whole_.set_tiling(snapshot);
+    if (twin_ != nullptr) twin_->set_tiling(snapshot);
     for (size_t i = 0; i < nodes_.size(); ++i) {
       protocol::select_tiles(snapshot, protocol::wall_receive_rect(layout_, layout_.nodes[i]),
                              &tiles_);
       nodes_[i]->set_tiling(tiles_);
     }
   }
+  void set_twin(Reconstructor* twin) { twin_ = twin; }
   uint64_t total() const { return total_; }
   uint64_t routed() const { return routed_; }
 
@@ -65,8 +77,33 @@ class WallSink final : public SampleSink {
   SampleBatch part_;
   TilingSnapshot tiles_;
   uint64_t total_ = 0, routed_ = 0;
+  Reconstructor* twin_ = nullptr;
+  SampleBatch held_;
   const bool route_all_ = std::getenv("AFR_SEAM_ROUTE_ALL") != nullptr;
 };
+
+int env_int(const char* name, int fallback) {
+  return std::getenv(name) != nullptr ? std::atoi(std::getenv(name)) : fallback;
+}
+
+// How much an image steps across the vertical line between columns x - 1 and x and the
+// horizontal one between rows x - 1 and x: RMS of the 8-bit differences of the pixels on
+// either side. A seam shows as a larger step in the wall than in the single display there.
+double line_step(const Image& img, int x) {
+  double sum = 0.0;
+  uint64_t n = 0;
+  for (int i = 0; i < img.height; ++i) {
+    for (int k = 0; k < 3; ++k) {
+      const double dv =
+          double(linear_to_srgb8(img.at(x - 1, i)[k])) - double(linear_to_srgb8(img.at(x, i)[k]));
+      const double dh =
+          double(linear_to_srgb8(img.at(i, x - 1)[k])) - double(linear_to_srgb8(img.at(i, x)[k]));
+      sum += dv * dv + dh * dh;
+      n += 2;
+    }
+  }
+  return std::sqrt(sum / double(n));
+}
 
 // Runs the wall and the single display side by side for `frames` refreshes and checks each:
 // RMS <= 1/255 over the image and over the seams, and 8-bit equality for the first
@@ -106,17 +143,24 @@ void expect_seamless(int margin, int frames, int exact_frames, bool exchange) {
   ReconstructorConfig wc = base;
   wc.capacity = size_t(4) * kSide * kSide;
   std::unique_ptr<Reconstructor> whole = make_reconstructor(Backend::kCpu, wc).reconstructor;
+  // AFR_SEAM_TWIN=1: a second single display fed the same batches in another order (each
+  // pair swapped), to compare the wall's difference with what arrival order alone makes.
+  std::unique_ptr<Reconstructor> twin;
+  if (std::getenv("AFR_SEAM_TWIN") != nullptr) {
+    twin = make_reconstructor(Backend::kCpu, wc).reconstructor;
+  }
   std::vector<service::WallExchange> exchanges;
   for (const protocol::WallNode& n : layout.nodes) {
-    exchanges.emplace_back(
-        layout, n.node_id, service::WallExchange::kDefaultLookahead,
-        std::getenv("AFR_SEAM_BAND") ? std::atoi(std::getenv("AFR_SEAM_BAND")) : -1);
+    // AFR_SEAM_BAND: the coverage band (-1: the whole received part of the cell).
+    exchanges.emplace_back(layout, n.node_id, service::WallExchange::kDefaultLookahead,
+                           env_int("AFR_SEAM_BAND", splat_guard_band(SplatSizeRule{})));
   }
   uint64_t strays = 0, coverage_cells = 0;
 
   // The sampler at 2M rays/s of virtual time; frames 1/60 s apart, so the coverage map of
   // each image sizes the splats of the next, as a live display's does.
   WallSink sink(*whole, layout, nodes);
+  sink.set_twin(twin.get());
   Tracer tracer(scene);
   VirtualClock clock(2e6, 2.0);
   SamplerConfig sc;
@@ -180,6 +224,18 @@ void expect_seamless(int margin, int frames, int exact_frames, bool exchange) {
     const double seam_rms = std::sqrt(seam_sum / double(std::max<uint64_t>(seam_n, 1)));
     std::printf("frame %d: wall vs one display RMS %.4f, seams %.4f, max %.0f (0-255)\n", frame,
                 rms, seam_rms, max_diff);
+    if (twin != nullptr) {
+      const Image other = twin->reconstruct(camera, t, kSide, kSide);
+      // The step across the seams (x, y = 512) against interior lines (256, 768), in the wall,
+      // the single display and its twin.
+      std::printf(
+          "  twin vs one display RMS %.4f; step at the seams / interior lines: wall %.2f / %.2f, "
+          "one display %.2f / %.2f, twin %.2f / %.2f\n",
+          rms_error_255(other, expected), line_step(stitched, 512),
+          0.5 * (line_step(stitched, 256) + line_step(stitched, 768)), line_step(expected, 512),
+          0.5 * (line_step(expected, 256) + line_step(expected, 768)), line_step(other, 512),
+          0.5 * (line_step(other, 256) + line_step(other, 768)));
+    }
     if (frame < exact_frames) {
       EXPECT_EQ(max_diff, 0.0) << "frame " << frame;
     }
@@ -203,10 +259,6 @@ void expect_seamless(int margin, int frames, int exact_frames, bool exchange) {
   if (std::getenv("AFR_SEAM_ROUTE_ALL") == nullptr) {
     EXPECT_LT(overhead, 1.05 * side * side);
   }
-}
-
-int env_int(const char* name, int fallback) {
-  return std::getenv(name) != nullptr ? std::atoi(std::getenv(name)) : fallback;
 }
 
 // The wall as display_node runs it: the default margin (99 px) and the nodes exchanging

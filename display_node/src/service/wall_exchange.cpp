@@ -187,10 +187,11 @@ uint64_t WallCoverageInbox::dropped() const {
 // WallPeerLinks
 
 WallPeerLinks::WallPeerLinks(protocol::Context& context, protocol::Security security,
-                             std::string lead_samples, int lookahead)
+                             std::string lead_samples, int coverage_band, int lookahead)
     : context_(context),
       security_(std::move(security)),
       lead_samples_(std::move(lead_samples)),
+      coverage_band_(coverage_band),
       lookahead_(lookahead) {}
 
 WallPeerLinks::~WallPeerLinks() = default;
@@ -209,7 +210,7 @@ void WallPeerLinks::set_layout(const protocol::WallLayout& layout, uint32_t node
   const bool named = std::any_of(layout.nodes.begin(), layout.nodes.end(),
                                  [&](const protocol::WallNode& n) { return n.node_id == node_id; });
   if (layout.nodes.size() < 2 || !named) return;
-  exchange_ = std::make_unique<WallExchange>(layout, node_id, lookahead_);
+  exchange_ = std::make_unique<WallExchange>(layout, node_id, lookahead_, coverage_band_);
   bounds_ = protocol::ImageBounds{layout.width, layout.height};
   for (const WallPeer& p : exchange_->peers()) {
     const auto node =

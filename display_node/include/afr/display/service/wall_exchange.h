@@ -34,7 +34,8 @@ struct WallPeer {
   uint32_t node_id = 0;
   PixelRect cell;
   PixelRect received;  // what the samplers send it: its cell grown by the margin
-  // The part of this node's cell that lies in `received`: the coverage it is sent.
+  // The part of this node's cell within the coverage band of the peer's cell and inside
+  // `received`: the coverage it is sent.
   PixelRect coverage_rect;
 };
 
@@ -60,12 +61,18 @@ class WallExchange {
   // A node forwards to at most this many peers (its neighbours in the grid, diagonal ones
   // included): a per-sample byte marks which were sent a sample.
   static constexpr size_t kMaxPeers = 8;
+  // Coverage is sent for this many pixels around the peer's cell (not the whole margin):
+  // what sizes the splats that reach the peer's cell is the coverage where they land, at most
+  // one splat's reach away, splat_guard_band() = 33 px for the default splat sizes. (Measured
+  // in the seam test: the same images as with the whole margin, at a third of the traffic;
+  // docs/wall.md, "Seams".) -1: the whole part of the cell the peer receives.
+  static constexpr int kDefaultCoverageBand = 33;
 
   // This node is `node_id` of `layout`. Its peers are the nodes whose received regions reach
   // its cell, nearest first (at most kMaxPeers). Throws afr::Error when the layout does not
   // name node_id.
   WallExchange(const protocol::WallLayout& layout, uint32_t node_id,
-               int lookahead = kDefaultLookahead, int coverage_band = -1);
+               int lookahead = kDefaultLookahead, int coverage_band = kDefaultCoverageBand);
 
   const std::vector<WallPeer>& peers() const { return peers_; }
   const PixelRect& cell() const { return cell_; }
@@ -119,6 +126,7 @@ class WallPeerLinks {
   // the display's key pair). `lead_samples`: the lead's sample endpoint, which the layout
   // leaves empty (its own entry); "" on the lead itself.
   WallPeerLinks(protocol::Context& context, protocol::Security security, std::string lead_samples,
+                int coverage_band = WallExchange::kDefaultCoverageBand,
                 int lookahead = WallExchange::kDefaultLookahead);
   ~WallPeerLinks();
 
@@ -139,6 +147,7 @@ class WallPeerLinks {
   protocol::Context& context_;
   protocol::Security security_;
   std::string lead_samples_;
+  int coverage_band_;
   int lookahead_;
   uint64_t epoch_ = 0;
   bool have_epoch_ = false;
