@@ -137,19 +137,25 @@ def run(cfg, a, tmp):
         rss = (half_rss[p.pid], rss_kib(p.pid))
         if name not in first or name not in last:
             gone = f" (exited {p.returncode})" if p.poll() is not None else " (no stats)"
-            rows_out.append((cfg, name + gone, None, hwm_kib(p.pid), rss, 0, 0))
+            rows_out.append((cfg, name + gone, None, hwm_kib(p.pid), rss, 0, 0, (0, 0, 0)))
             continue
         dt = last[name][2] - first[name][2]
+        # What the node exchanged with its peers (coverage and strays, docs/wall.md "Seams").
+        x0 = first[name][3]["display"]["wall"].get("exchange", {})
+        x1 = last[name][3]["display"]["wall"].get("exchange", {})
+        exchange = ((x1.get("bytes_out", 0) - x0.get("bytes_out", 0)) / dt,
+                    (x1.get("strays_in", 0) - x0.get("strays_in", 0)) / dt,
+                    x1.get("dropped_out", 0))
         rows_out.append((cfg, name, last[name][3], hwm_kib(p.pid), rss,
                          (last[name][0] - first[name][0]) / dt,
-                         (last[name][1] - first[name][1]) / dt))
+                         (last[name][1] - first[name][1]) / dt, exchange))
     # What the samplers say they trace, summed (from the lead, which hears every sampler).
     lead_stats = last.get("0,0", (0, 0, 0, None))[3]
     traced = sum(m["reported_samples_per_second"] for m in lead_stats["samplers"]) \
         if lead_stats else 0
     for i, p in enumerate(samplers):
         rows_out.append((cfg, f"sampler {i + 1}", None, hwm_kib(p.pid),
-                         (half_rss[p.pid], rss_kib(p.pid)), traced, 0))
+                         (half_rss[p.pid], rss_kib(p.pid)), traced, 0, (0, 0, 0)))
         p.terminate()
     for _, p, _ in procs:
         p.terminate()
@@ -200,22 +206,24 @@ def main():
         a.member_timeout = max(a.member_timeout, 60.0)
     a.seconds = a.seconds or 12.0
     print("| virtual display | grid | node (cell) | cell px | N (samples kept) | samples/s in | "
-          "MB/s in | reconstruct ms | RSS MiB half / end | peak RSS MiB | model MiB |")
-    print("|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|")
+          "MB/s in | exchange MB/s out | strays/s in | exchange dropped | reconstruct ms | "
+          "RSS MiB half / end | peak RSS MiB | model MiB |")
+    print("|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     samplers_by_size = {}
     with tempfile.TemporaryDirectory() as tmp:
         for cfg in a.configs.split(","):
-            for c, name, s, hwm, rss, sps, bps in run(cfg, a, tmp):
+            for c, name, s, hwm, rss, sps, bps, (xbps, strays, dropped) in run(cfg, a, tmp):
                 size, grid = c.split(":")
                 rss_text = f"{rss[0] / 1024:.0f} / {rss[1] / 1024:.0f}"
                 if s is None:
                     if name.startswith("sampler"):
                         samplers_by_size.setdefault(int(size), []).append(hwm * 1024)
                         print(f"| {size}^2 | {grid} | {name} | - | - | {sps / 1e3:.0f} k traced "
-                              f"by all | - | - | {rss_text} | {hwm / 1024:.0f} | - |", flush=True)
+                              f"by all | - | - | - | - | - | {rss_text} | {hwm / 1024:.0f} | - |",
+                              flush=True)
                     else:
-                        print(f"| {size}^2 | {grid} | {name} | - | - | - | - | - | {rss_text} | "
-                              f"{hwm / 1024:.0f} | - |", flush=True)
+                        print(f"| {size}^2 | {grid} | {name} | - | - | - | - | - | - | - | - | "
+                              f"{rss_text} | {hwm / 1024:.0f} | - |", flush=True)
                     continue
                 d = s["display"]
                 cell = d["wall"]["cell"]
@@ -224,6 +232,7 @@ def main():
                 model = model_mib(n, cell, int(size), a.model_margin)
                 print(f"| {size}^2 | {grid} | {name} | {cell[2] - cell[0]}x{cell[3] - cell[1]} | "
                       f"{d['store_capacity']} | {sps / 1e3:.0f} k | {bps / 1e6:.1f} | "
+                      f"{xbps / 1e6:.2f} | {strays / 1e3:.1f} k | {dropped} | "
                       f"{d['reconstruct_ms_mean']:.0f} | {rss_text} | {hwm / 1024:.0f} | "
                       f"{model:.0f} |", flush=True)
     sizes = sorted(samplers_by_size)

@@ -26,9 +26,24 @@ int64_t center_distance2(const PixelRect& a, const PixelRect& b) {
 }
 
 // Strays of one peer travel in batches of one field set whose times span at most this many
-// seconds, so that the batch encoding's 15-bit time ticks stay under a microsecond
-// (docs/protocol.md, "Sample batch").
-constexpr double kMaxStrayBatchSpan = 0.03;
+// seconds, so that the batch encoding's 15-bit time ticks are at most 2^-17 s (7.6 us; docs/
+// protocol.md, "Sample batch"). Strays are old samples of seconds of the store, so a shorter
+// span would cut an image's strays into dozens of small messages.
+constexpr double kMaxStrayBatchSpan = 0.25;
+// Messages to peers stay small, so that what waits in the queues below stays a few MB per
+// peer: stray batches of at most 8192 samples (350 kB), coverage strips of at most 2^16
+// pixels (512 kB).
+constexpr size_t kMaxStrayBatch = 8192;
+constexpr uint32_t kMaxCoverageStrip = 1u << 16;
+
+// The sample channel's options with a longer queue of the sender's own (64 messages, at most
+// 32 MB per peer): an image's coverage and strays go out as a burst of a few messages per
+// peer, which a busy peer takes only between its own images.
+protocol::ChannelOptions peer_channel() {
+  protocol::ChannelOptions o = protocol::ChannelOptions::samples();
+  o.sender_queue = 64;
+  return o;
+}
 
 }  // namespace
 
@@ -140,7 +155,7 @@ void WallExchange::find_strays(const Reconstructor::StoredSlots& stored, const C
           break;
         }
       }
-      if (b == nullptr || b->samples.size() >= protocol::kMaxSamplesPerBatch ||
+      if (b == nullptr || b->samples.size() >= kMaxStrayBatch ||
           std::abs(s.time - b->samples.front().time) > kMaxStrayBatchSpan) {
         batches.emplace_back();
         b = &batches.back();
@@ -223,7 +238,8 @@ void WallPeerLinks::set_layout(const protocol::WallLayout& layout, uint32_t node
       continue;
     }
     try {
-      senders_.push_back(std::make_unique<protocol::SampleSender>(context_, endpoint, security_));
+      senders_.push_back(
+          std::make_unique<protocol::SampleSender>(context_, endpoint, security_, peer_channel()));
     } catch (const std::exception& e) {
       spdlog::warn("wall exchange: no link to node {} at {}: {}", p.node_id, endpoint, e.what());
       senders_.push_back(nullptr);
@@ -234,6 +250,9 @@ void WallPeerLinks::set_layout(const protocol::WallLayout& layout, uint32_t node
 }
 
 uint64_t WallPeerLinks::apply(WallCoverageInbox& inbox, Reconstructor& recon) {
+  for (const auto& s : senders_) {
+    if (s != nullptr) s->pump();  // what the peers' queues did not take after the last image
+  }
   inbox.take(&arrived_);
   uint64_t applied = 0;
   for (const protocol::WallCoverage& c : arrived_) {
@@ -258,9 +277,9 @@ void WallPeerLinks::send(Reconstructor& recon, const Camera& camera, double time
   for (const WallOutbox::Coverage& c : outbox_.coverage) {
     protocol::SampleSender* sender = senders_[c.peer].get();
     if (sender == nullptr) continue;
-    // In strips of at most kMaxWallCoverageCells pixels.
-    const int32_t rows = std::max<int32_t>(
-        1, int32_t(protocol::kMaxWallCoverageCells / uint32_t(std::max(c.rect.width(), 1))));
+    // In strips of at most kMaxCoverageStrip pixels (a row is at most 32768 < 2^16).
+    const int32_t rows =
+        std::max<int32_t>(1, int32_t(kMaxCoverageStrip / uint32_t(std::max(c.rect.width(), 1))));
     for (int32_t y0 = c.rect.y0; y0 < c.rect.y1; y0 += rows) {
       const int32_t y1 = std::min(c.rect.y1, y0 + rows);
       message_.node_id = self;
@@ -291,11 +310,18 @@ void WallPeerLinks::send(Reconstructor& recon, const Camera& camera, double time
     }
   }
   uint64_t bytes = retired_bytes_, dropped = retired_dropped_;
-  for (const auto& s : senders_) {
+  for (size_t k = 0; k < senders_.size(); ++k) {
+    protocol::SampleSender* s = senders_[k].get();
     if (s == nullptr) continue;
     s->pump();
     bytes += s->counters().bytes_sent;
-    dropped += s->counters().batches_dropped + s->counters().coverage_dropped;
+    const uint64_t d = s->counters().batches_dropped + s->counters().coverage_dropped;
+    dropped += d;
+    if (d > 0 && d >= 2 * warned_drops_) {  // at 1, 2, 4, 8, ... drops
+      warned_drops_ = d;
+      spdlog::warn("wall exchange: node {} takes messages slower than they come: {} dropped",
+                   peers[k].node_id, d);
+    }
   }
   metrics.on_wall_exchanged(applied, coverage_out, cells_out, strays_out, bytes, dropped);
 }

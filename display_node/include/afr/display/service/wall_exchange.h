@@ -159,6 +159,7 @@ class WallPeerLinks {
   std::vector<CoverageCell> cells_;
   protocol::WallCoverage message_;
   uint64_t retired_bytes_ = 0, retired_dropped_ = 0;  // of senders replaced
+  uint64_t warned_drops_ = 0;
 };
 
 }  // namespace afr::service
