@@ -116,10 +116,15 @@ if [ "$check" = 1 ]; then
   joined=$(grep -c "joined:" "$output/logs/display.log" || true)
   nodes=$(grep -c "joined the wall" "$output/logs/display.log" || true)
   images=$(find "$output" -name final.png | wc -l)
+  # A wall's lead received its neighbours' coverage across the namespaces (docs/wall.md).
+  coverage=$(python3 -c 'import json, sys
+s = json.load(open(sys.argv[1]))
+print(s["display"]["wall"].get("exchange", {}).get("coverage_in", 0))' "$output/stats.json" 2>/dev/null || echo 0)
   if [ "$status" -ne 0 ] || [ ! -s "$output/final.png" ] || [ "$joined" -lt "$samplers" ] ||
-     [ "$nodes" -lt "$followers" ] || [ "$images" -lt $((followers + 1)) ]; then
-    echo "lan.sh: CHECK FAILED (exit $status, $joined of $samplers samplers and $nodes of $followers wall nodes joined, $images images)"
+     [ "$nodes" -lt "$followers" ] || [ "$images" -lt $((followers + 1)) ] ||
+     { [ "$followers" -gt 0 ] && [ "$coverage" -eq 0 ]; }; then
+    echo "lan.sh: CHECK FAILED (exit $status, $joined of $samplers samplers and $nodes of $followers wall nodes joined, $images images, $coverage coverage messages at the lead)"
     exit 1
   fi
-  echo "lan.sh: check passed: $joined samplers and $nodes wall nodes joined across namespaces, $images image(s) in $output"
+  echo "lan.sh: check passed: $joined samplers and $nodes wall nodes joined across namespaces, $images image(s) in $output${coverage:+, $coverage coverage messages at the lead}"
 fi
