@@ -111,6 +111,10 @@ double line_step(const Image& img, int x) {
 // every image (coverage and strays), as display_node does; it arrives for their next image.
 void expect_seamless(int margin, int frames, int exact_frames, bool exchange) {
   constexpr int kSide = 1024;
+  // AFR_SEAM_BACKEND=gl: OpenGL reconstructors (each with its own EGL context).
+  const Backend backend = std::getenv("AFR_SEAM_BACKEND")
+                              ? parse_backend(std::getenv("AFR_SEAM_BACKEND"))
+                              : Backend::kCpu;
   const Scene scene = make_builtin_scene();
   ReconstructorConfig base;
   base.image_width = base.image_height = kSide;
@@ -137,17 +141,17 @@ void expect_seamless(int margin, int frames, int exact_frames, bool exchange) {
         rc.capacity =
             size_t(4) * size_t(protocol::wall_receive_rect(layout, layout.nodes.back()).area());
       }
-      nodes.push_back(make_reconstructor(Backend::kCpu, rc).reconstructor);
+      nodes.push_back(make_reconstructor(backend, rc).reconstructor);
     }
   }
   ReconstructorConfig wc = base;
   wc.capacity = size_t(4) * kSide * kSide;
-  std::unique_ptr<Reconstructor> whole = make_reconstructor(Backend::kCpu, wc).reconstructor;
+  std::unique_ptr<Reconstructor> whole = make_reconstructor(backend, wc).reconstructor;
   // AFR_SEAM_TWIN=1: a second single display fed the same batches in another order (each
   // pair swapped), to compare the wall's difference with what arrival order alone makes.
   std::unique_ptr<Reconstructor> twin;
   if (std::getenv("AFR_SEAM_TWIN") != nullptr) {
-    twin = make_reconstructor(Backend::kCpu, wc).reconstructor;
+    twin = make_reconstructor(backend, wc).reconstructor;
   }
   std::vector<service::WallExchange> exchanges;
   for (const protocol::WallNode& n : layout.nodes) {
