@@ -103,10 +103,8 @@ struct GlReconstructor::Impl {
   uint64_t seen = 0;
   size_t stored = 0;
   std::vector<StoredSample> staging;
-  // A CPU copy of the ring, kept once stored_samples() asked for it: from sequence number
-  // mirror_from on.
+  // A CPU copy of the ring, kept once stored_samples() asked for it.
   bool mirrored = false;
-  uint64_t mirror_from = 0;
   std::vector<StoredSample> mirror;
 
   GLuint splat = 0, newest = 0, pyramid = 0, normalise = 0, blit = 0;
@@ -487,13 +485,17 @@ void GlReconstructor::read_coverage(std::vector<CoverageCell>* out) {
 Reconstructor::StoredSlots GlReconstructor::stored_samples() {
   Impl& m = *impl_;
   if (!m.mirrored) {
+    // The first call reads the ring back from the GPU once; every reconstruct() after it
+    // copies its new samples to the copy too.
+    context_->make_current();
     m.mirrored = true;
-    m.mirror_from = m.seen;
     m.mirror.resize(store_.capacity());
+    glBindBuffer(GL_ARRAY_BUFFER, m.samples);
+    glGetBufferSubData(GL_ARRAY_BUFFER, 0, GLsizeiptr(m.mirror.size() * sizeof(StoredSample)),
+                       m.mirror.data());
+    check_gl("stored_samples");
   }
-  const uint64_t kept = m.seen - m.mirror_from;
-  return StoredSlots{m.mirror.data(), m.mirror.size(), m.seen,
-                     size_t(std::min<uint64_t>(kept, m.stored))};
+  return StoredSlots{m.mirror.data(), m.mirror.size(), m.seen, m.stored};
 }
 
 size_t GlReconstructor::write_coverage(const PixelRect& rect,

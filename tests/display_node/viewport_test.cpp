@@ -343,6 +343,15 @@ void expect_coverage_written(const MakeReconstructor& make) {
   r->add_batch(
       test::scene_batch(scene, cam, rng, 3 * kSide * kSide, kSide, kSide, 0.0, 1.0, false));
   r->reconstruct(cam, 1.0, kSide, kSide);
+  // The ring as stored (the GL backend reads it back from the GPU at the first call).
+  const Reconstructor::StoredSlots ring = r->stored_samples();
+  ASSERT_EQ(ring.stored, size_t(3 * kSide * kSide));
+  ASSERT_EQ(ring.end, uint64_t(3 * kSide * kSide));
+  ASSERT_GE(ring.size, ring.stored);
+  for (uint64_t q = 0; q < ring.end; q += 997) {
+    const StoredSample& st = ring.slots[q % ring.size];
+    ASSERT_TRUE(st.x >= 0.0f && st.x < float(kSide) && (st.flags & kStoredHasPosition)) << q;
+  }
   std::vector<CoverageCell> before, after;
   r->read_coverage(&before);
   EXPECT_EQ(r->write_coverage(rect, cells), 24u);

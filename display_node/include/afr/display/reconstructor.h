@@ -126,9 +126,9 @@ class Reconstructor : public SampleSink {
 
   // The samples the last reconstruct() held, as ring slots: the sample with sequence number q
   // (SampleStore's) is slots[q % size] for q in [end - stored, end). The CPU backend's own
-  // copy; the GL backend keeps one from the first call on (its samples live on the GPU), so
-  // its first call returns nothing. Valid until the next reconstruct(). A display wall node
-  // finds the samples it forwards to its peers here (WallExchange).
+  // copy; the GL backend reads its ring back from the GPU at the first call and keeps a copy
+  // from then on. Valid until the next reconstruct(). A display wall node finds the samples
+  // it forwards to its peers here (WallExchange).
   struct StoredSlots {
     const StoredSample* slots = nullptr;
     size_t size = 0;
