@@ -189,6 +189,21 @@ void CpuReconstructor::read_coverage(std::vector<CoverageCell>* out) {
   impl_->crop(impl_->previous.cells(), out);
 }
 
+bool CpuReconstructor::read_coverage(const PixelRect& rect, std::vector<CoverageCell>* out) {
+  out->clear();
+  const Impl& m = *impl_;
+  if (!m.previous.valid() || rect.empty()) return false;
+  const PixelRect part = grid_part(m.previous_grid, rect);
+  if (part.empty() || part.area() != rect.area()) return false;
+  out->resize(size_t(rect.area()));
+  for (int32_t y = part.y0; y < part.y1; ++y) {
+    std::copy_n(
+        m.previous.cells().data() + size_t(y) * size_t(m.previous.width()) + size_t(part.x0),
+        part.width(), out->data() + size_t(y - part.y0) * size_t(rect.width()));
+  }
+  return true;
+}
+
 Reconstructor::StoredSlots CpuReconstructor::stored_samples() {
   const Impl& m = *impl_;
   return StoredSlots{m.mirror.data(), m.mirror.size(), m.seen, m.stored};

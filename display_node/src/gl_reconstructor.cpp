@@ -482,6 +482,22 @@ void GlReconstructor::read_coverage(std::vector<CoverageCell>* out) {
   check_gl("read_coverage");
 }
 
+bool GlReconstructor::read_coverage(const PixelRect& rect, std::vector<CoverageCell>* out) {
+  out->clear();
+  context_->make_current();
+  Impl& m = *impl_;
+  if (!m.have_coverage || rect.empty()) return false;
+  const PixelRect part = grid_part(m.grid, rect);
+  if (part.empty() || part.area() != rect.area()) return false;
+  out->resize(size_t(rect.area()));
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  glGetTextureSubImage(m.coverage[size_t(1 - m.current)], 0, part.x0, part.y0, 0, part.width(),
+                       part.height(), 1, GL_RG, GL_FLOAT,
+                       GLsizei(out->size() * sizeof(CoverageCell)), &(*out)[0].count);
+  check_gl("read_coverage");
+  return true;
+}
+
 Reconstructor::StoredSlots GlReconstructor::stored_samples() {
   Impl& m = *impl_;
   if (!m.mirrored) {

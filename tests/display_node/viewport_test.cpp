@@ -359,6 +359,19 @@ void expect_coverage_written(const MakeReconstructor& make) {
   EXPECT_EQ(r->write_coverage(PixelRect{60, 62, 66, 66}, cells), 8u);
   r->read_coverage(&after);
   ASSERT_EQ(after.size(), before.size());
+  // A rectangle of it reads the same cells; one reaching outside the grid reads nothing.
+  std::vector<CoverageCell> part;
+  ASSERT_TRUE(r->read_coverage(PixelRect{8, 18, 17, 25}, &part));
+  ASSERT_EQ(part.size(), 9u * 7u);
+  for (int y = 18; y < 25; ++y) {
+    for (int x = 8; x < 17; ++x) {
+      const CoverageCell& got = part[size_t(y - 18) * 9 + size_t(x - 8)];
+      ASSERT_EQ(got.count, after[size_t(y) * kSide + size_t(x)].count) << x << "," << y;
+      ASSERT_EQ(got.growth_sum, after[size_t(y) * kSide + size_t(x)].growth_sum) << x << "," << y;
+    }
+  }
+  EXPECT_FALSE(r->read_coverage(PixelRect{60, 60, 66, 64}, &part));
+  EXPECT_TRUE(part.empty());
   for (int y = 0; y < kSide; ++y) {
     for (int x = 0; x < kSide; ++x) {
       const size_t i = size_t(y) * kSide + size_t(x);

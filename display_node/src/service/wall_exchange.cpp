@@ -91,21 +91,11 @@ void WallExchange::collect(Reconstructor& recon, const Camera& camera, double ti
   out->strays.assign(peers_.size(), {});
   if (peers_.empty()) return;
   if (scale_one) {
-    recon.read_coverage(&coverage_);
-    if (coverage_.size() == size_t(cell_.area())) {
-      for (size_t k = 0; k < peers_.size(); ++k) {
-        const PixelRect& r = peers_[k].coverage_rect;
-        WallOutbox::Coverage c;
-        c.peer = k;
-        c.rect = r;
-        c.cells.resize(size_t(r.area()));
-        for (int32_t y = r.y0; y < r.y1; ++y) {
-          std::copy_n(coverage_.data() + size_t(y - cell_.y0) * size_t(cell_.width()) +
-                          size_t(r.x0 - cell_.x0),
-                      r.width(), c.cells.data() + size_t(y - r.y0) * size_t(r.width()));
-        }
-        out->coverage.push_back(std::move(c));
-      }
+    for (size_t k = 0; k < peers_.size(); ++k) {
+      WallOutbox::Coverage c;
+      c.peer = k;
+      c.rect = peers_[k].coverage_rect;
+      if (recon.read_coverage(c.rect, &c.cells)) out->coverage.push_back(std::move(c));
     }
   }
   find_strays(recon.stored_samples(), camera, time, out);

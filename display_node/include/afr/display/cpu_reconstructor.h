@@ -20,6 +20,7 @@ class CpuReconstructor final : public Reconstructor {
   const char* backend_name() const override { return "cpu"; }
   void read_weights(std::vector<float>* out) override;
   void read_coverage(std::vector<CoverageCell>* out) override;
+  bool read_coverage(const PixelRect& rect, std::vector<CoverageCell>* out) override;
   size_t write_coverage(const PixelRect& rect, const std::vector<CoverageCell>& cells) override;
   StoredSlots stored_samples() override;
   int threads() const;

@@ -25,6 +25,7 @@ class GlReconstructor final : public Reconstructor {
   const char* backend_name() const override { return "gl"; }
   void read_weights(std::vector<float>* out) override;
   void read_coverage(std::vector<CoverageCell>* out) override;
+  bool read_coverage(const PixelRect& rect, std::vector<CoverageCell>* out) override;
   size_t write_coverage(const PixelRect& rect, const std::vector<CoverageCell>& cells) override;
   StoredSlots stored_samples() override;
   const std::string& renderer() const { return context_->renderer(); }

@@ -114,6 +114,10 @@ class Reconstructor : public SampleSink {
   // and its coverage map (section 6.2), row 0 at the top.
   virtual void read_weights(std::vector<float>* out) = 0;
   virtual void read_coverage(std::vector<CoverageCell>* out) = 0;
+  // The last image's coverage over `rect`, in output pixels of the whole image (as
+  // write_coverage takes it), row-major. False, with *out empty, unless rect lies inside the
+  // pixels the last image computed (frame_grid(), at a whole-pixel origin).
+  virtual bool read_coverage(const PixelRect& rect, std::vector<CoverageCell>* out) = 0;
   // A display wall's nodes keep their coverage maps equal (docs/wall.md, "Seams"): `cells`
   // (row-major, rect.area() of them) is the coverage another reconstructor of the same image
   // at the same output scale read from its last image (read_coverage of its viewport), and

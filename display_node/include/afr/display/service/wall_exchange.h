@@ -97,7 +97,6 @@ class WallExchange {
   // Per ring slot: bit k set when peers_[k] was sent the sample in that slot.
   std::vector<uint8_t> sent_;
   uint64_t seen_end_ = 0;  // the ring's end at the last collect(): slots after it are new
-  std::vector<CoverageCell> coverage_;
 };
 
 // The coverage that peers sent, from the ingest thread (put) to the display thread (take).
