@@ -78,12 +78,12 @@ def rss_kib(pid):
 
 
 def model_mib(n, cell, size, margin):
-    """docs/wall.md's fit: 180 MiB + 160 B per stored sample + 86 B per computed pixel (the
+    """docs/wall.md's fit: 180 MiB + 160 B per stored sample + 100 B per computed pixel (the
     cell plus the margin, inside the virtual display)."""
     x0, y0, x1, y1 = cell
     w = min(size, x1 + margin) - max(0, x0 - margin)
     h = min(size, y1 + margin) - max(0, y0 - margin)
-    return 180 + (160 * n + 86 * w * h) / 2**20
+    return 180 + (160 * n + 100 * w * h) / 2**20
 
 
 def run(cfg, a, tmp):
