@@ -7,6 +7,7 @@
 #include <afr/common/image.h>
 #include <afr/display/backend.h>
 #include <afr/protocol/channels.h>
+#include <afr/protocol/codec.h>
 #include <afr/sampler/sampler_pool.h>
 
 #include <gtest/gtest.h>
@@ -252,6 +253,15 @@ TEST_F(ServiceTest, MalformedMessagesAreRejectedAndTheOthersKeepServing) {
     push.connect("tcp://127.0.0.1:" + std::to_string(port_ + 2));
     const std::string junk = "AFRP this is not a sample batch";
     for (int i = 0; i < 10; ++i) push.send(zmq::buffer(junk), zmq::send_flags::none);
+    // A well-formed wall_coverage, which only a wall's node takes: this display is none.
+    protocol::WallCoverage coverage;
+    coverage.node_id = 2;
+    coverage.time = 1.0;
+    coverage.rect = PixelRect{0, 0, 4, 4};
+    coverage.cells.assign(32, 1.0f);
+    std::vector<uint8_t> bytes;
+    ASSERT_TRUE(protocol::encode(coverage, &bytes).ok());
+    push.send(zmq::buffer(bytes), zmq::send_flags::none);
     zmq::socket_t dealer(ctx, zmq::socket_type::dealer);
     dealer.set(zmq::sockopt::linger, 1000);
     dealer.connect("tcp://127.0.0.1:" + std::to_string(port_));
@@ -261,7 +271,7 @@ TEST_F(ServiceTest, MalformedMessagesAreRejectedAndTheOthersKeepServing) {
   ASSERT_TRUE(wait_until(
       [&] {
         const auto st = get_stats(metrics_port());
-        return !st.is_null() && st["display"]["rejected_sample_messages"].get<int>() >= 10 &&
+        return !st.is_null() && st["display"]["rejected_sample_messages"].get<int>() >= 11 &&
                st["display"]["rejected_control_messages"].get<int>() >= 1;
       },
       3.0))
@@ -272,6 +282,8 @@ TEST_F(ServiceTest, MalformedMessagesAreRejectedAndTheOthersKeepServing) {
   EXPECT_GT(get_stats(metrics_port())["samplers"][0]["samples"].get<uint64_t>(), samples);
   EXPECT_NE(get_text(metrics_port(), "/metrics").find("afr_display_frames_total"),
             std::string::npos);
+  EXPECT_NE(d->log().find("rejected wall_coverage from node 2"), std::string::npos) << d->log();
+  EXPECT_EQ(get_stats(metrics_port())["display"]["wall"]["exchange"]["coverage_in"].get<int>(), 0);
 }
 
 TEST_F(ServiceTest, SamplerOfAnotherProtocolVersionIsToldWhyAndTheOthersKeepServing) {

@@ -191,7 +191,7 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
                 const std::function<bool(uint32_t)>& is_member, const std::atomic<bool>& running,
                 const std::function<void(const TilingSnapshot&)>& on_tiling,
                 WallCoverageInbox* coverage) {
-  uint64_t rejected = 0;
+  uint64_t rejected = 0, unexpected_coverage = 0;
   while (running.load(std::memory_order_relaxed)) {
     switch (receiver.receive(50)) {
       case SampleReceiver::Got::kNothing:
@@ -211,9 +211,11 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
         WallCoverage& c = receiver.coverage();
         if (coverage == nullptr) {
           metrics.on_rejected_sample_message();
-          if (rejected++ % 1000 == 0) {
-            spdlog::warn("sample channel: wall_coverage from node {} but this node is no wall's",
-                         c.node_id);
+          if (unexpected_coverage++ % 1000 == 0) {
+            spdlog::warn(
+                "sample channel: rejected wall_coverage from node {}: this display is "
+                "not part of a wall",
+                c.node_id);
           }
           break;
         }
@@ -260,7 +262,8 @@ void DisplayService::ingest_loop() {
         std::lock_guard<std::mutex> lock(errors_mutex_);
         tile_errors_[t.sampler_id] = std::move(tiles);
       },
-      &wall_coverage_);
+      // Only a wall's lead takes coverage from peers; a single display refuses it.
+      options_.wall.is_wall() ? &wall_coverage_ : nullptr);
 }
 
 // ---------------------------------------------------------------------------------------------

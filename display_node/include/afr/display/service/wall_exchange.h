@@ -100,11 +100,11 @@ class WallExchange {
 };
 
 // The coverage that peers sent, from the ingest thread (put) to the display thread (take).
-// Holds at most kMaxPending messages; older ones are dropped (a newer image's map replaces
-// them anyway).
+// Holds at most kMaxPending messages (each at most 2 MiB; peers send strips of 512 kB); older
+// ones are dropped (a newer image's map replaces them anyway).
 class WallCoverageInbox {
  public:
-  static constexpr size_t kMaxPending = 256;
+  static constexpr size_t kMaxPending = 64;
   void put(protocol::WallCoverage&& coverage);
   // Moves everything pending into *out (oldest first).
   void take(std::vector<protocol::WallCoverage>* out);
