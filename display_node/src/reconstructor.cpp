@@ -185,9 +185,7 @@ void Reconstructor::prepare_frame(double time, int width, int height,
     setup->filters[i] = make_tile_filter(e, setup->scale_x, setup->scale_y);
     TileState& state = tile_states_[i];
     state.rect = t.rect;
-    state.counted = PixelRect{std::max(t.rect.x0, received_.x0), std::max(t.rect.y0, received_.y0),
-                              std::min(t.rect.x1, received_.x1), std::min(t.rect.y1, received_.y1)};
-    if (state.counted.empty()) state.counted = PixelRect{};
+    state.counted = intersect(t.rect, received_);
     state.stored = inside;
     state.rate = R_l;
     state.extents = e;
@@ -207,9 +205,8 @@ PixelRect grid_part(const PixelGrid& grid, const PixelRect& rect) {
   if (ox != grid.origin_x || oy != grid.origin_y) return PixelRect{};
   // Both in grid pixels; the grid's origin is at most kMaxOutputSide plus a margin.
   const int32_t gx = int32_t(ox), gy = int32_t(oy);
-  PixelRect part{std::max(rect.x0 - gx, 0), std::max(rect.y0 - gy, 0),
-                 std::min(rect.x1 - gx, grid.width), std::min(rect.y1 - gy, grid.height)};
-  return part.empty() ? PixelRect{} : part;
+  return intersect(PixelRect{rect.x0 - gx, rect.y0 - gy, rect.x1 - gx, rect.y1 - gy},
+                   PixelRect{0, 0, grid.width, grid.height});
 }
 
 }  // namespace afr

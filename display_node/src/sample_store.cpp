@@ -17,6 +17,23 @@ bool finite3(const glm::vec3& v) {
 
 }  // namespace
 
+Sample restored_sample(const StoredSample& s) {
+  Sample out;
+  out.time = s.time;
+  out.x = s.x;
+  out.y = s.y;
+  out.color = s.color;
+  out.position = s.position;
+  out.velocity = s.velocity;
+  out.miss = (s.flags & kStoredMiss) != 0;
+  return out;
+}
+
+uint32_t stored_fields(const StoredSample& s) {
+  if (!(s.flags & kStoredHasPosition)) return 0;
+  return kFieldPosition | ((s.flags & kStoredHasVelocity) ? kFieldVelocity : 0u);
+}
+
 bool sanitize_sample(const Sample& in, uint32_t fields, uint32_t sampler_id, StoredSample* out,
                      IngestStats* stats) {
   if (!std::isfinite(in.time)) {

@@ -17,11 +17,6 @@ float sanitized(float v, uint64_t* bad) {
   return 0.0f;
 }
 
-PixelRect intersect(const PixelRect& a, const PixelRect& b) {
-  return PixelRect{std::max(a.x0, b.x0), std::max(a.y0, b.y0), std::min(a.x1, b.x1),
-                   std::min(a.y1, b.y1)};
-}
-
 // The grid pixels whose centers map into [a, b) of the sampling image at `scale` output
 // pixels per sampling pixel, the grid starting at output pixel `origin`: i with
 // a <= (origin + i + 0.5) / scale < b.
@@ -220,7 +215,6 @@ void TileSampleCounts::count_tiles(const std::vector<FieldTile>& tiles) {
     PixelRect r = intersect(
         PixelRect{t.x0 - region_.x0, t.y0 - region_.y0, t.x1 - region_.x0, t.y1 - region_.y0},
         local);
-    if (r.empty()) r = PixelRect{};
     rects_[i] = r;
     if (r.empty()) continue;
     uint64_t count = 0;

@@ -159,5 +159,14 @@ TEST(MassDensityTest, SplitByMassGivesEachPartItsShareOfTheMass) {
             split_region(PixelRect{0, 0, 64, 64}, equal));
 }
 
+TEST(PixelRectTest, IntersectIsTheOverlapOrTheEmptyRectangle) {
+  EXPECT_EQ(intersect(PixelRect{0, 0, 10, 8}, PixelRect{4, -3, 20, 5}), (PixelRect{4, 0, 10, 5}));
+  EXPECT_EQ(intersect(PixelRect{4, -3, 20, 5}, PixelRect{0, 0, 10, 8}), (PixelRect{4, 0, 10, 5}));
+  // Touching edges and disjoint rectangles: {} (not a rectangle with x1 < x0).
+  EXPECT_EQ(intersect(PixelRect{0, 0, 10, 8}, PixelRect{10, 0, 12, 8}), PixelRect{});
+  EXPECT_EQ(intersect(PixelRect{0, 0, 10, 8}, PixelRect{50, 60, 70, 80}), PixelRect{});
+  EXPECT_EQ(intersect(PixelRect{0, 0, 10, 8}, PixelRect{}), PixelRect{});
+}
+
 }  // namespace
 }  // namespace afr

@@ -27,6 +27,37 @@ SampleBatch numbered(int first, int n, uint32_t sampler = 0) {
   return b;
 }
 
+TEST(SampleStoreTest, AStoredSampleRestoresToWhatWasSent) {
+  // A hit with a velocity, a hit without, a miss and one without a world position: what a
+  // display wall forwards as strays is what the sampler sent, with the same fields.
+  const uint32_t field_sets[] = {kFieldPosition | kFieldVelocity, kFieldPosition, kFieldPosition,
+                                 0u};
+  for (int k = 0; k < 4; ++k) {
+    Sample in;
+    in.time = 12.5;
+    in.x = 3.25f;
+    in.y = 700.5f;
+    in.color = glm::vec3(0.1f, 2.0f, 30.0f);
+    if (field_sets[k] & kFieldPosition) {
+      in.miss = k == 2;
+      in.position = in.miss ? glm::vec3(0.0f, 0.0f, 1.0f) : glm::vec3(1.0f, -2.0f, 3.0f);
+    }
+    if (field_sets[k] & kFieldVelocity) in.velocity = glm::vec3(0.5f, 0.0f, -0.25f);
+    StoredSample stored;
+    IngestStats stats;
+    ASSERT_TRUE(sanitize_sample(in, field_sets[k], 7, &stored, &stats)) << k;
+    EXPECT_EQ(stored_fields(stored), field_sets[k]) << k;
+    const Sample out = restored_sample(stored);
+    EXPECT_EQ(out.time, in.time);
+    EXPECT_EQ(out.x, in.x);
+    EXPECT_EQ(out.y, in.y);
+    EXPECT_EQ(out.color, in.color);
+    EXPECT_EQ(out.position, in.position) << k;
+    EXPECT_EQ(out.velocity, in.velocity) << k;
+    EXPECT_EQ(out.miss, in.miss) << k;
+  }
+}
+
 TEST(SampleStoreTest, KeepsTheNewestNInAppendOrder) {
   SampleStore store(10);
   store.append(numbered(0, 3));

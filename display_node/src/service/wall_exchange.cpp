@@ -13,12 +13,6 @@ namespace afr::service {
 
 namespace {
 
-PixelRect intersect(const PixelRect& a, const PixelRect& b) {
-  const PixelRect r{std::max(a.x0, b.x0), std::max(a.y0, b.y0), std::min(a.x1, b.x1),
-                    std::min(a.y1, b.y1)};
-  return r.empty() ? PixelRect{} : r;
-}
-
 // Squared distance between the centers of two rectangles, in doubled pixels (integers).
 int64_t center_distance2(const PixelRect& a, const PixelRect& b) {
   const int64_t dx = int64_t(a.x0) + a.x1 - b.x0 - b.x1, dy = int64_t(a.y0) + a.y1 - b.y0 - b.y1;
@@ -57,7 +51,10 @@ size_t WallOutbox::stray_samples() const {
 
 WallExchange::WallExchange(const protocol::WallLayout& layout, uint32_t node_id, int lookahead,
                            int coverage_band)
-    : layout_(layout), node_id_(node_id), lookahead_(std::max(lookahead, 0)) {
+    : width_(layout.width),
+      height_(layout.height),
+      node_id_(node_id),
+      lookahead_(std::max(lookahead, 0)) {
   const auto self = std::find_if(layout.nodes.begin(), layout.nodes.end(),
                                  [&](const protocol::WallNode& n) { return n.node_id == node_id; });
   if (self == layout.nodes.end()) {
@@ -108,7 +105,7 @@ void WallExchange::find_strays(const Reconstructor::StoredSlots& stored, const C
     sent_.assign(stored.size, 0);
     seen_end_ = stored.end - stored.stored;
   }
-  const Projector projector(camera, layout_.width, layout_.height);
+  const Projector projector(camera, width_, height_);
   const float lo_x = float(cell_.x0), hi_x = float(cell_.x1);
   const float lo_y = float(cell_.y0), hi_y = float(cell_.y1);
   const float look = float(lookahead_);
@@ -135,8 +132,7 @@ void WallExchange::find_strays(const Reconstructor::StoredSlots& stored, const C
         continue;
       }
       sent_[slot] |= bit;
-      const uint32_t fields =
-          kFieldPosition | ((s.flags & kStoredHasVelocity) ? kFieldVelocity : 0u);
+      const uint32_t fields = stored_fields(s);
       std::vector<SampleBatch>& batches = out->strays[k];
       SampleBatch* b = nullptr;
       for (auto it = batches.rbegin(); it != batches.rend(); ++it) {
@@ -152,14 +148,7 @@ void WallExchange::find_strays(const Reconstructor::StoredSlots& stored, const C
         b->sampler_id = protocol::kWallPeerSamplerId;
         b->fields = fields;
       }
-      Sample& out_sample = b->samples.emplace_back();
-      out_sample.time = s.time;
-      out_sample.x = s.x;
-      out_sample.y = s.y;
-      out_sample.color = s.color;
-      out_sample.position = s.position;
-      out_sample.velocity = s.velocity;
-      out_sample.miss = (s.flags & kStoredMiss) != 0;
+      b->samples.push_back(restored_sample(s));
     }
   }
   seen_end_ = stored.end;

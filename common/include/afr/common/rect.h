@@ -18,4 +18,11 @@ struct PixelRect {
   bool operator==(const PixelRect&) const = default;
 };
 
+// The overlap of two rectangles; the empty rectangle {} when they do not overlap.
+inline PixelRect intersect(const PixelRect& a, const PixelRect& b) {
+  const PixelRect r{a.x0 > b.x0 ? a.x0 : b.x0, a.y0 > b.y0 ? a.y0 : b.y0, a.x1 < b.x1 ? a.x1 : b.x1,
+                    a.y1 < b.y1 ? a.y1 : b.y1};
+  return r.empty() ? PixelRect{} : r;
+}
+
 }  // namespace afr

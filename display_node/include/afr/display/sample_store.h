@@ -56,6 +56,10 @@ struct IngestStats {
 // reason in `stats`, when the sample must be dropped.
 bool sanitize_sample(const Sample& in, uint32_t fields, uint32_t sampler_id, StoredSample* out,
                      IngestStats* stats);
+// The other way: a stored sample as a batch carries it (a display wall forwards strays so),
+// and the batch fields it has (kFieldPosition, kFieldVelocity; 0 without a world position).
+Sample restored_sample(const StoredSample& s);
+uint32_t stored_fields(const StoredSample& s);
 
 // A contiguous run of ring slots, for copying new samples to where they live in the ring.
 struct RingRun {

@@ -21,7 +21,6 @@
 #include <afr/protocol/messages.h>
 
 #include <cstdint>
-#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -47,7 +46,8 @@ struct WallOutbox {
     std::vector<CoverageCell> cells;
   };
   std::vector<Coverage> coverage;
-  // strays[peer]: at most one batch per field set (a batch's samples share their fields).
+  // strays[peer]: batches of one field set each (a batch's samples share their fields), cut
+  // by count and time span to keep messages small.
   std::vector<std::vector<SampleBatch>> strays;
   size_t stray_samples() const;
 };
@@ -77,7 +77,6 @@ class WallExchange {
   const std::vector<WallPeer>& peers() const { return peers_; }
   const PixelRect& cell() const { return cell_; }
   uint32_t node_id() const { return node_id_; }
-  const protocol::WallLayout& layout() const { return layout_; }
 
   // After reconstruct(camera, time, ...) of this node's cell at scale 1 (output size = cell
   // size; otherwise no coverage is given, as the peers' pixels would not match): fills *out
@@ -89,7 +88,7 @@ class WallExchange {
   void find_strays(const Reconstructor::StoredSlots& stored, const Camera& camera, double time,
                    WallOutbox* out);
 
-  protocol::WallLayout layout_;
+  int32_t width_ = 0, height_ = 0;  // the virtual display
   uint32_t node_id_ = 0;
   PixelRect cell_;
   int lookahead_ = kDefaultLookahead;
