@@ -167,10 +167,17 @@ int main(int argc, char** argv) {
   app.add_option("--stats-interval", stats_interval, "seconds between stats log lines")
       ->capture_default_str()
       ->check(CLI::Range(0.1, 3600.0));
-  app.add_option("--member-timeout", o.coordinator.member_timeout,
-                 "seconds without a word before a sampler is dead")
+  app.add_option("--member-timeout", o.coordinator.liveness.floor,
+                 "seconds of silence before a sampler or wall node may be declared dead; the "
+                 "failure detector waits longer when its messages came irregularly, up to "
+                 "--member-timeout-max")
       ->capture_default_str()
-      ->check(CLI::Range(0.1, 60.0));
+      ->check(CLI::Range(0.1, 600.0));
+  app.add_option("--member-timeout-max", o.coordinator.liveness.ceiling,
+                 "seconds of silence after which a sampler or wall node is always dead (raised "
+                 "to --member-timeout when below it)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 600.0));
   app.add_option(
          "--wall", wall_text,
          "display wall: COLUMNSxROWS cells over --size, this display leading (docs/wall.md)")
@@ -222,6 +229,8 @@ int main(int argc, char** argv) {
     o.width = size.width;
     o.height = size.height;
     o.refresh_interval = 1.0 / fps;
+    o.coordinator.liveness.ceiling =
+        std::max(o.coordinator.liveness.ceiling, o.coordinator.liveness.floor);  // as documented
     o.preset = preset;
     const afr::Preset* p = &afr::find_preset(preset);
     const afr::Backend backend = afr::parse_backend(backend_text);

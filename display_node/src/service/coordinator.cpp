@@ -8,12 +8,14 @@
 namespace afr::service {
 
 Coordinator::Coordinator(int width, int height, const CoordinatorOptions& options)
-    : width_(width), height_(height), options_(options) {}
+    : width_(width), height_(height), options_(options) {
+  (void)FailureDetector(options_.heartbeat_interval, options_.liveness);  // throws when invalid
+}
 
 Member& Coordinator::join(const std::string& peer, uint32_t requested_id, const std::string& name,
                           const std::string& public_key, int threads, double now, bool* is_new) {
   if (Member* m = find_peer(peer)) {
-    m->last_heard = now;
+    m->liveness.heard(now);
     *is_new = false;
     return *m;
   }
@@ -27,7 +29,8 @@ Member& Coordinator::join(const std::string& peer, uint32_t requested_id, const 
   m.public_key = public_key;
   m.threads = std::max(1, threads);
   m.joined_at = now;
-  m.last_heard = now;
+  m.liveness = FailureDetector(options_.heartbeat_interval, options_.liveness);
+  m.liveness.reset(now);
   dirty_ = true;
   *is_new = true;
   return members_[id] = m;
@@ -46,7 +49,7 @@ Member* Coordinator::find_peer(const std::string& peer) {
 }
 
 void Coordinator::heard(uint32_t id, double now) {
-  if (Member* m = find(id)) m->last_heard = std::max(m->last_heard, now);
+  if (Member* m = find(id)) m->liveness.heard(now);
 }
 
 void Coordinator::report_throughput(uint32_t id, double samples_per_second, double now) {
@@ -66,7 +69,7 @@ bool Coordinator::remove(uint32_t id) {
 std::vector<Member> Coordinator::expire(double now) {
   std::vector<Member> dead;
   for (auto it = members_.begin(); it != members_.end();) {
-    if (now - it->second.last_heard > options_.member_timeout) {
+    if (it->second.liveness.suspect(now)) {
       dead.push_back(it->second);
       it = members_.erase(it);
       dirty_ = true;

@@ -81,7 +81,7 @@ struct DisplayService::Control {
     std::string name;
     int column = 0, row = 0;
     std::string endpoint;
-    double last_heard = 0.0;
+    FailureDetector liveness;
   };
   std::map<std::string, WallMember> wall_nodes;
   uint32_t next_node_id = 2;
@@ -91,6 +91,10 @@ struct DisplayService::Control {
 };
 
 namespace {
+
+// Control messages handled in one pass of the control loop before its timed work (expiry,
+// recuts, heartbeats, views): enough to drain what a few hundred peers send in a pass.
+constexpr int kMaxMessagesPerPass = 1024;
 
 // A routing id (binary) for logs.
 std::string to_hex_peer(const std::string& peer) {
@@ -272,7 +276,7 @@ void DisplayService::ingest_loop() {
 void DisplayService::control_loop() {
   Control& c = *control_;
   Coordinator& co = c.coordinator;
-  const double heartbeat_interval = 0.15;
+  const double heartbeat_interval = kDisplayHeartbeatInterval;
   double last_heartbeat = 0.0, last_expire = 0.0, last_error = 0.0, next_view = now();
   std::optional<MassDensity> error;  // smoothed
   // The image's error from the members' latest tilings, on a grid of at most 64 x 64 cells,
@@ -381,9 +385,12 @@ void DisplayService::control_loop() {
                                                [&](const auto& e) { return e.second.id == id; });
       if (taken) id = c.next_node_id;
       c.next_node_id = std::max(c.next_node_id, id + 1);
+      FailureDetector liveness(options_.coordinator.heartbeat_interval,
+                               options_.coordinator.liveness);
+      liveness.reset(t);
       it = c.wall_nodes
-               .emplace(peer,
-                        Control::WallMember{id, j.name, j.column, j.row, j.samples_endpoint, t})
+               .emplace(peer, Control::WallMember{id, j.name, j.column, j.row, j.samples_endpoint,
+                                                  liveness})
                .first;
       spdlog::info("display node {} joined the wall: {} shows cell {},{}, samples at {}", id,
                    j.name, j.column, j.row, j.samples_endpoint);
@@ -395,7 +402,7 @@ void DisplayService::control_loop() {
       it->second.endpoint = j.samples_endpoint;
       c.wall_changed = true;
     }
-    it->second.last_heard = t;
+    it->second.liveness.heard(t);
     welcome(peer, it->second.id);
     if (!c.wall_changed) send_layout(peer);  // a repeated join; a change is sent to everyone
     return "";
@@ -411,7 +418,7 @@ void DisplayService::control_loop() {
     }
     auto it = c.wall_nodes.find(peer);
     if (it == c.wall_nodes.end()) return false;
-    it->second.last_heard = t;
+    it->second.liveness.heard(t);
     if (const auto* l = std::get_if<Leave>(&msg)) {
       spdlog::info("display node {} ({}) left the wall: {}", it->second.id, it->second.name,
                    l->text);
@@ -423,7 +430,11 @@ void DisplayService::control_loop() {
 
   while (running_.load(std::memory_order_relaxed)) {
     const double wait = std::max(0.0, std::min(next_view - now(), 0.005));
-    if (auto in = c.server.receive(int(wait * 1000.0))) {
+    // Every message already queued is read before anyone is declared dead: when this thread
+    // itself was held up (a loaded machine), the heartbeats that arrived meanwhile count.
+    for (int k = 0; k < kMaxMessagesPerPass; ++k) {
+      auto in = c.server.receive(k == 0 ? int(wait * 1000.0) : 0);
+      if (!in) break;
       const double t = now();
       if (!in->message.ok()) {
         metrics_.on_rejected_control();
@@ -521,16 +532,23 @@ void DisplayService::control_loop() {
     if (t - last_expire >= 0.02) {
       last_expire = t;
       for (const Member& dead : co.expire(t)) {
-        spdlog::warn("sampler {} ({}) lost: no word for {:.2f} s; its region goes to the others",
-                     dead.id, dead.name, t - dead.last_heard);
+        spdlog::warn(
+            "sampler {} ({}) lost: no word for {:.2f} s (suspected after {:.2f} s: its messages "
+            "came every {:.3f} s, deviation {:.3f} s); its region goes to the others",
+            dead.id, dead.name, dead.liveness.silence(t), dead.liveness.suspect_after(),
+            dead.liveness.mean(), dead.liveness.deviation());
         metrics_.on_member_gone(dead.id, true);
         c.transfers.erase(dead.peer);
         send(dead.peer, Leave{dead.id, LeaveReason::kTimeout, "no heartbeat: join again"});
       }
       for (auto it = c.wall_nodes.begin(); it != c.wall_nodes.end();) {
-        if (t - it->second.last_heard > options_.coordinator.member_timeout) {
-          spdlog::warn("display node {} ({}) lost: no word for {:.2f} s; its cell goes dark",
-                       it->second.id, it->second.name, t - it->second.last_heard);
+        const FailureDetector& d = it->second.liveness;
+        if (d.suspect(t)) {
+          spdlog::warn(
+              "display node {} ({}) lost: no word for {:.2f} s (suspected after {:.2f} s: its "
+              "messages came every {:.3f} s, deviation {:.3f} s); its cell goes dark",
+              it->second.id, it->second.name, d.silence(t), d.suspect_after(), d.mean(),
+              d.deviation());
           send(it->first, Leave{it->second.id, LeaveReason::kTimeout, "no heartbeat: join again"});
           it = c.wall_nodes.erase(it);
           c.wall_changed = true;

@@ -1,6 +1,7 @@
 #include <afr/display/service/wall_follower.h>
 
 #include <afr/common/error.h>
+#include <afr/common/failure_detector.h>
 #include <afr/display/service/display_service.h>
 
 #include <fmt/format.h>
@@ -124,7 +125,10 @@ void WallFollower::control_loop() {
     bool joined = false, over = false;
     uint64_t session = 0;
     const double started = steady_seconds();
-    double last_join = -1e9, last_heard = started, last_heartbeat = 0.0;
+    double last_join = -1e9, last_heartbeat = 0.0;
+    FailureDetector lead(kDisplayHeartbeatInterval,
+                         FailureDetectorOptions::with_floor(options_.lead_timeout));
+    lead.reset(started);
     bool warned = false;
     while (running_.load() && !over) {
       const double t = steady_seconds();
@@ -147,8 +151,8 @@ void WallFollower::control_loop() {
                        options_.lead);
         }
         if (t - started > 10.0) break;  // fresh sockets now and then
-      } else if (t - last_heard > options_.lead_timeout) {
-        spdlog::warn("lead display silent for {:.1f} s: joining again", t - last_heard);
+      } else if (lead.suspect(t)) {
+        spdlog::warn("lead display silent for {:.1f} s: joining again", lead.silence(t));
         break;
       }
       zmq::pollitem_t items[] = {{control.socket().handle(), 0, ZMQ_POLLIN, 0},
@@ -163,7 +167,7 @@ void WallFollower::control_loop() {
           spdlog::warn("control channel: rejected a message from the lead: {}", m->error());
           continue;
         }
-        last_heard = steady_seconds();
+        lead.heard(steady_seconds());
         const Message& msg = m->value();
         if (const auto* w = std::get_if<Welcome>(&msg)) {
           if (!joined || w->session != session) {
@@ -205,8 +209,7 @@ void WallFollower::control_loop() {
       }
       while (std::optional<View> v = views.receive(0)) {
         if (!joined) continue;
-        clock_.observe(v->time);
-        last_heard = steady_seconds();
+        clock_.observe(v->time);  // views carry no session: only control messages are life
         std::lock_guard<std::mutex> lock(mutex_);
         camera_ = v->camera;
       }

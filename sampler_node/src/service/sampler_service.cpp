@@ -2,6 +2,7 @@
 
 #include <afr/common/clock.h>
 #include <afr/common/error.h>
+#include <afr/common/failure_detector.h>
 #include <afr/protocol/scene_hash.h>
 #include <afr/sampler/presets.h>
 #include <afr/sampler/sampler_pool.h>
@@ -208,6 +209,7 @@ struct SamplerService::Impl {
   void use_scene(const std::filesystem::path& file, const SceneHash& hash);
   void update_pool();
   void stop_pool();
+  void finish_background_work();
   void send_stats(ControlClient& control);
   SamplerCounters pool_counters() const;
 
@@ -241,6 +243,14 @@ struct SamplerService::Impl {
   PixelRect pool_region;
   std::future<std::unique_ptr<SamplerPool>> building;  // a pool being constructed
   PixelRect building_region;
+  // The control thread never waits for a scene or a pool (its heartbeats would stop): a scene
+  // loads on a helper thread, and a pool whose construction is abandoned (a recut, a new
+  // session) finishes on its own and is dropped here once built. Such pools read `scene`, so
+  // a loaded scene replaces it only when none is left.
+  std::future<std::unique_ptr<Scene>> loading;
+  SceneHash loading_hash{};
+  std::vector<std::future<std::unique_ptr<SamplerPool>>> abandoned_pools;
+  std::vector<std::future<std::unique_ptr<Scene>>> abandoned_scenes;
   SamplerCounters retired;  // counters of pools already stopped
 
   // Stats.
@@ -300,7 +310,13 @@ SessionEnd SamplerService::Impl::run_session(const std::atomic<bool>& stop) {
   session_over = false;
   fetching = false;
   const double started = steady_seconds();
-  double last_join = -1e9, last_heard = started, last_heartbeat = 0.0;
+  double last_join = -1e9, last_heartbeat = 0.0;
+  // Whether the display of this session is gone (failure_detector.h): its control messages
+  // count, views do not. A view carries no session: a restarted display's views would keep a
+  // sampler whose control connection never came back in a session that no longer exists.
+  FailureDetector display(kDisplayHeartbeatInterval,
+                          FailureDetectorOptions::with_floor(options.display_timeout));
+  display.reset(started);
   bool warned_silence = false;
   SessionEnd end = SessionEnd::kRetry;
   bool done = false;
@@ -332,8 +348,8 @@ SessionEnd SamplerService::Impl::run_session(const std::atomic<bool>& stop) {
       }
       // libzmq does not retry a handshake that ZAP refused: fresh sockets now and then.
       if (now - started > 10.0) return SessionEnd::kRetry;
-    } else if (now - last_heard > options.display_timeout) {
-      spdlog::warn("display silent for {:.1f} s: reconnecting", now - last_heard);
+    } else if (display.suspect(now)) {
+      spdlog::warn("display silent for {:.1f} s: reconnecting", display.silence(now));
       break;
     }
 
@@ -352,8 +368,9 @@ SessionEnd SamplerService::Impl::run_session(const std::atomic<bool>& stop) {
         spdlog::warn("control channel: rejected a message from the display: {}", m->error());
         continue;
       }
-      last_heard = steady_seconds();
-      handle(m->value(), control, sender, last_heard, &end);
+      const double heard = steady_seconds();
+      display.heard(heard);
+      handle(m->value(), control, sender, heard, &end);
       if (session_over) {
         done = true;
         break;
@@ -364,7 +381,6 @@ SessionEnd SamplerService::Impl::run_session(const std::atomic<bool>& stop) {
       if (!joined) continue;
       clock.observe(v->time);
       view_camera.observe(*v, scene.get());
-      last_heard = steady_seconds();
     }
     if (views.rejected() > 0 && views.rejection().message().size() && views.rejected() == 1) {
       spdlog::warn("view channel: rejected a view: {}", views.rejection().message());
@@ -456,7 +472,9 @@ void SamplerService::Impl::on_welcome(const Welcome& w, ControlClient& control,
   }
   spdlog::info("joined the display as sampler {} (session {:x}): {}x{}, scene {} ({} bytes)",
                sampler_id, session, w.width, w.height, w.scene_name, w.scene_size);
-  if (scene && scene_hash == w.scene_hash) return;
+  if (loading.valid() ? loading_hash == w.scene_hash : scene && scene_hash == w.scene_hash) {
+    return;
+  }
   if (std::optional<std::filesystem::path> file = cache.find(w.scene_hash)) {
     spdlog::info("scene {} found in the cache: {}", to_hex(w.scene_hash).substr(0, 16),
                  file->string());
@@ -505,10 +523,37 @@ void SamplerService::Impl::on_chunk(const SceneChunk& c, ControlClient& control)
 }
 
 void SamplerService::Impl::use_scene(const std::filesystem::path& file, const SceneHash& hash) {
+  stop_pool();
+  if (loading.valid()) abandoned_scenes.push_back(std::move(loading));
+  loading_hash = hash;
+  loading = std::async(std::launch::async,
+                       [file] { return std::make_unique<Scene>(load_scene_payload(file)); });
+}
+
+// Drops what background threads finished and no one waits for; installs a loaded scene.
+void SamplerService::Impl::finish_background_work() {
+  const auto ready = [](const auto& f) {
+    return f.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
+  };
+  const auto drop_ready = [&](auto* futures) {
+    for (auto it = futures->begin(); it != futures->end();) {
+      if (!ready(*it)) {
+        ++it;
+        continue;
+      }
+      try {
+        it->get();
+      } catch (const std::exception&) {
+      }
+      it = futures->erase(it);
+    }
+  };
+  drop_ready(&abandoned_pools);
+  drop_ready(&abandoned_scenes);
+  if (!loading.valid() || !ready(loading) || !abandoned_pools.empty()) return;
   try {
-    stop_pool();
-    scene = std::make_unique<Scene>(load_scene_payload(file));
-    scene_hash = hash;
+    scene = loading.get();
+    scene_hash = loading_hash;
     spdlog::info("scene {}: {} triangles, {:.2f} s of animation", welcome.scene_name,
                  scene->triangle_count(), scene->duration());
   } catch (const std::exception& e) {
@@ -575,6 +620,7 @@ void SamplerService::Impl::on_wall(const WallLayout& w, SampleSender& sender) {
 // Starts, replaces or keeps the pool so that it runs on the current region. Pools are built on
 // a helper thread (a Tracer per worker thread builds its BVH), so heartbeats go on meanwhile.
 void SamplerService::Impl::update_pool() {
+  finish_background_work();
   if (building.valid()) {
     if (building.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return;
     std::unique_ptr<SamplerPool> built;
@@ -596,7 +642,7 @@ void SamplerService::Impl::update_pool() {
                    pool_region.x1, pool_region.y0, pool_region.y1, pool->regions().size());
     }
   }
-  if (!joined || !scene || !region) return;
+  if (!joined || !scene || loading.valid() || !region) return;
   if (pool && pool_region == region->region) return;
   stop_pool();
 
@@ -630,12 +676,7 @@ void SamplerService::Impl::update_pool() {
 }
 
 void SamplerService::Impl::stop_pool() {
-  if (building.valid()) {
-    try {
-      building.get();  // discard a pool under construction
-    } catch (const std::exception&) {
-    }
-  }
+  if (building.valid()) abandoned_pools.push_back(std::move(building));
   if (!pool) return;
   pool->stop();
   const SamplerCounters c = pool->counters();

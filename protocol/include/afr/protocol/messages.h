@@ -163,6 +163,10 @@ struct SamplerStats {
 };
 
 // Both ways, a few times a second: proof of life, and (session) a way to notice a restart.
+// Each side's failure detector (afr/common/failure_detector.h) starts from these intervals
+// and then learns the ones it actually sees.
+inline constexpr double kDisplayHeartbeatInterval = 0.15;  // display to samplers and nodes
+inline constexpr double kMemberHeartbeatInterval = 0.2;    // samplers and wall nodes to it
 struct Heartbeat {
   uint32_t sampler_id = 0;
   uint64_t session = 0;

@@ -9,8 +9,10 @@
 // decides.
 #pragma once
 
+#include <afr/common/failure_detector.h>
 #include <afr/common/rect.h>
 #include <afr/common/region_split.h>
+#include <afr/protocol/messages.h>
 
 #include <cstdint>
 #include <map>
@@ -21,7 +23,11 @@
 namespace afr::service {
 
 struct CoordinatorOptions {
-  double member_timeout = 0.5;  // seconds without a message before a sampler is dead
+  // When a silent sampler is dead (failure_detector.h): never before liveness.floor seconds
+  // of silence, later when its messages have come irregularly, always after liveness.ceiling.
+  FailureDetectorOptions liveness;
+  // The samplers' and wall followers' heartbeat interval: the detector's first guess.
+  double heartbeat_interval = protocol::kMemberHeartbeatInterval;
   double recut_interval = 1.0;  // seconds between throughput-driven recuts
   double hysteresis =
       0.5;  // relative mismatch of error share and throughput share that triggers one
@@ -35,9 +41,9 @@ struct Member {
   std::string name;        // the sampler's name
   std::string public_key;  // CurveZMQ key, or empty
   int threads = 1;
-  double joined_at = 0.0;   // coordinator time (seconds)
-  double last_heard = 0.0;  // coordinator time
-  double throughput = 0.0;  // samples per second, 0 until measured
+  double joined_at = 0.0;         // coordinator time (seconds)
+  FailureDetector liveness{0.2};  // its messages' arrivals, in coordinator time
+  double throughput = 0.0;        // samples per second, 0 until measured
   PixelRect region;
   double region_since = 0.0;
 };
@@ -60,7 +66,7 @@ class Coordinator {
   void set_error(MassDensity density);
   // A leave. Returns whether it was a member.
   bool remove(uint32_t id);
-  // Removes and returns members not heard from for member_timeout.
+  // Removes and returns the members whose silence the failure detector suspects.
   std::vector<Member> expire(double now);
 
   // Recomputes the regions when membership changed since the last cut, or when throughput

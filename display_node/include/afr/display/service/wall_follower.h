@@ -40,7 +40,7 @@ struct WallFollowerOptions {
   std::string lead_public_key;
   std::vector<std::string> allowed_keys;
   double lead_timeout = 1.5;  // seconds without a word from the lead before joining again
-  double heartbeat_interval = 0.2;
+  double heartbeat_interval = protocol::kMemberHeartbeatInterval;
   std::string metrics_address = "127.0.0.1";
   int metrics_port = 0;
 };

@@ -47,7 +47,7 @@ struct SamplerServiceOptions {
   // Seconds without a word from the display (heartbeat, view, anything) before the sampler
   // drops its connections and joins again.
   double display_timeout = 1.5;
-  double heartbeat_interval = 0.2;
+  double heartbeat_interval = protocol::kMemberHeartbeatInterval;
   double stats_interval = 1.0;
 };
 
