@@ -113,10 +113,10 @@ double line_step(const Image& img, int x) {
 // sample near a band edge can fall in another band of a node's grid. Float sums in another
 // order differ in their last bits, and now and then that moves an 8-bit value across a rounding
 // step. Which frame shows it first depends on the sample stream (Embree picks its code path
-// for the processor, so another machine traces other samples): over sampler seeds 1-10 (the
-// commands in docs/wall.md, "Seams"), no value was more than 1/255 off in the first 35
-// refreshes, and at most 4 of the 3.1 M values differed; without the exchange, seed 5 has one
-// value off at refresh 5. The bound below is 8 times that.
+// for the processor, so another machine traces other samples): over sampler seeds 1-7 (the
+// command in docs/wall.md, "Seams"), no value was more than 1/255 off in the first 35
+// refreshes, and at most 4 of the 3.1 M values differed; without the exchange, seed 5 of 1-10
+// has one value off at refresh 5. The bound below is 8 times that.
 constexpr uint64_t kMaxDifferingValues = 32;
 
 // Runs the wall and the single display side by side for `frames` refreshes and checks each:
