@@ -531,6 +531,8 @@ void DisplayService::control_loop() {
 
     if (t - last_expire >= 0.02) {
       last_expire = t;
+      // Peers told to join again are remembered for the rate limit only: a bounded while.
+      std::erase_if(c.told_unknown, [&](const auto& e) { return t - e.second > 10.0; });
       for (const Member& dead : co.expire(t)) {
         spdlog::warn(
             "sampler {} ({}) lost: no word for {:.2f} s (suspected after {:.2f} s: its messages "

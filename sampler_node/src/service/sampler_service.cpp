@@ -403,12 +403,13 @@ SessionEnd SamplerService::Impl::run_session(const std::atomic<bool>& stop) {
     sink.pump();
   }
 
+  // The pool first: its threads send through the senders, which flush() then uses alone.
+  stop_pool();
   if (end == SessionEnd::kStopped && joined) {
     (void)control.send(Leave{sampler_id, LeaveReason::kShutdown, "sampler stopped"});
     sender.flush(200);
     for (auto& [endpoint, s] : wall_senders) s->flush(200);
   }
-  stop_pool();
   sink.detach();  // before the senders it routes to go away
   wall_senders.clear();
   wall_epoch = 0;

@@ -9,7 +9,7 @@
 // silent), but never before `floor` seconds of silence (a node stopped for a moment, or a
 // steady history whose spread is tiny) and always after `ceiling` (a history made of long
 // gaps must not keep a dead peer a member for ever). On an idle machine, with heartbeats every
-// 0.2 s, that is about 0.77 s of silence; on a loaded one the intervals spread and the
+// 0.2 s, that is about 0.76 s of silence; on a loaded one the intervals spread and the
 // detector waits longer, up to the ceiling. Plain arithmetic on the times it is given: the
 // caller owns the clock.
 #pragma once

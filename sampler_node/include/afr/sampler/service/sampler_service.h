@@ -44,8 +44,10 @@ struct SamplerServiceOptions {
   std::string name;                     // for the display's logs; default: host name + pid
   std::filesystem::path cache_dir;      // received scenes
   protocol::Security security;          // CurveZMQ client keys, or none
-  // Seconds without a word from the display (heartbeat, view, anything) before the sampler
-  // drops its connections and joins again.
+  // Seconds of silence on the display's control channel (heartbeats, anything; views do not
+  // count: they carry no session) before the sampler may drop its connections and join again:
+  // the floor of its failure detector (afr/common/failure_detector.h), which waits longer
+  // when the display's messages have come irregularly.
   double display_timeout = 1.5;
   double heartbeat_interval = protocol::kMemberHeartbeatInterval;
   double stats_interval = 1.0;
