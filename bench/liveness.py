@@ -11,7 +11,7 @@ display restart. Runs display_node and sampler_node as built (use a Release buil
 
 Each figure is the median (and range) over --trials runs. With --load N, N busy processes run
 beside the nodes throughout (a loaded machine). With --write, the table also goes to
-bench/results/liveness.md with the command and commit.
+bench/results/liveness.md (liveness-loadN.md with --load N) with the command and commit.
 
   python3 bench/liveness.py [--build build] [--trials 5] [--load 0] [--write]
 """
@@ -218,7 +218,8 @@ def main():
     if a.write:
         commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
                                 text=True).stdout.strip()
-        path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results", "liveness.md")
+        name = "liveness.md" if a.load == 0 else f"liveness-load{a.load}.md"
+        path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results", name)
         os.makedirs(os.path.dirname(path), exist_ok=True)
         with open(path, "w") as f:
             f.write("# Liveness of the running service\n\n")
