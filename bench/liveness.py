@@ -20,26 +20,14 @@ import datetime
 import os
 import random
 import re
-import socket
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
 
-
-def free_port():
-    while True:
-        p = random.randint(20000, 40000)
-        ok = True
-        for q in range(p, p + 4):
-            with socket.socket() as s:
-                try:
-                    s.bind(("127.0.0.1", q))
-                except OSError:
-                    ok = False
-        if ok:
-            return p
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from nodes import free_port  # noqa: E402
 
 
 def time_of_day():

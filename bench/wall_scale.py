@@ -27,27 +27,14 @@ b = 1):
 import argparse
 import json
 import os
-import random
-import socket
 import subprocess
 import sys
 import tempfile
 import time
 import urllib.request
 
-
-def free_port():
-    while True:
-        p = random.randint(20000, 40000)
-        ok = True
-        for q in range(p, p + 4):
-            with socket.socket() as s:
-                try:
-                    s.bind(("127.0.0.1", q))
-                except OSError:
-                    ok = False
-        if ok:
-            return p
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from nodes import free_port  # noqa: E402
 
 
 def stats(port):
