@@ -7,10 +7,10 @@
 #include <afr/common/cli.h>
 #include <afr/common/error.h>
 #include <afr/common/log.h>
+#include <afr/common/presets.h>
 #include <afr/eval/evaluation.h>
 #include <afr/eval/report.h>
 #include <afr/eval/sweep.h>
-#include <afr/sampler/presets.h>
 #include <afr/sampler/sampler_flags.h>
 
 #include <fmt/format.h>
@@ -144,7 +144,7 @@ int main(int argc, char** argv) {
     const std::string command = quoted_command(argc, argv);
     if (!preset_name.empty()) {
       const afr::Preset& p = afr::find_preset(preset_name);
-      p.apply(&sampler);
+      afr::apply_preset(p, &sampler);
       capacity_per_pixel = p.reconstruction.samples_per_pixel;
       recon.filter.min_spatial_extent = p.reconstruction.min_spatial_extent;
       recon.filter.max_spatial_extent = p.reconstruction.max_spatial_extent;

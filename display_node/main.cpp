@@ -13,16 +13,17 @@
 #include <afr/common/gltf_loader.h>
 #include <afr/common/image.h>
 #include <afr/common/log.h>
+#include <afr/common/presets.h>
 #include <afr/display/backend.h>
 #include <afr/display/gl_reconstructor.h>
 #include <afr/display/glfw_window.h>
 #include <afr/display/service/display_service.h>
 #include <afr/display/service/fly_camera.h>
+#include <afr/display/service/metrics_exposition.h>
 #include <afr/display/service/overlays.h>
 #include <afr/display/service/wall_follower.h>
 #include <afr/protocol/keys.h>
 #include <afr/protocol/messages.h>
-#include <afr/sampler/presets.h>
 
 #include <GLFW/glfw3.h>
 #include <fmt/format.h>
@@ -555,9 +556,9 @@ int main(int argc, char** argv) {
         metrics.end_period(done - last_stats);
         last_stats = done;
         next_stats = done + stats_interval;
-        spdlog::info("{}", metrics.log_line());
+        spdlog::info("{}", afr::service::stats_line(metrics));
         // The window's heads-up line: the same figures in its title.
-        if (window) window->set_title("afr display | " + metrics.log_line());
+        if (window) window->set_title("afr display | " + afr::service::stats_line(metrics));
       }
     }
 
@@ -569,7 +570,7 @@ int main(int argc, char** argv) {
       afr::write_camera_path(afr::CameraPath(std::move(recorded)), record);
       spdlog::info("recorded the camera path to {}", record);
     }
-    spdlog::info("stopping: {}", metrics.log_line());
+    spdlog::info("stopping: {}", afr::service::stats_line(metrics));
     if (service) service->stop();
     if (wall_follower) wall_follower->stop();
     switch_sink.set(nullptr);

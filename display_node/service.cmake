@@ -8,7 +8,10 @@ add_library(afr_display_service
   ${CMAKE_CURRENT_LIST_DIR}/src/service/coordinator.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/display_service.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/fly_camera.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/service/latency_histogram.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/metrics.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/service/metrics_exposition.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/service/metrics_server.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/overlays.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/wall.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/wall_exchange.cpp
@@ -20,7 +23,4 @@ target_link_libraries(afr_display_service
   PRIVATE PkgConfig::AFR_HTTPLIB nlohmann_json::nlohmann_json)
 
 add_executable(display_node ${CMAKE_CURRENT_LIST_DIR}/main.cpp)
-# The presets are a header of the sampler's part (presets.h: "display_node copies
-# `reconstruction`"); only the header, no link to the sampler (and Embree).
-target_include_directories(display_node PRIVATE ${PROJECT_SOURCE_DIR}/sampler_node/include)
 target_link_libraries(display_node PRIVATE afr_display_service glfw CLI11::CLI11)

@@ -5,8 +5,8 @@
 // The display sends the scene, the image size and the region to sample (docs/service.md).
 #include <afr/common/error.h>
 #include <afr/common/log.h>
+#include <afr/common/presets.h>
 #include <afr/protocol/keys.h>
-#include <afr/sampler/presets.h>
 #include <afr/sampler/sampler_flags.h>
 #include <afr/sampler/service/sampler_service.h>
 #include <afr/sampler/service/scene_cache.h>

@@ -7,6 +7,7 @@
 
 #include <fmt/format.h>
 #include <tiny_gltf.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <array>
@@ -1097,6 +1098,25 @@ Scene load_gltf_bytes(std::span<const uint8_t> bytes, const std::filesystem::pat
 Scene load_scene(const std::filesystem::path& path) {
   if (path.empty()) return make_builtin_scene();
   return load_gltf(path);
+}
+
+std::vector<std::string> gltf_external_uris(std::string_view json_text,
+                                            const std::filesystem::path& path) {
+  const nlohmann::json doc = nlohmann::json::parse(json_text, nullptr, /*allow_exceptions=*/false);
+  if (doc.is_discarded() || !doc.is_object()) {
+    throw Error(fmt::format("{}: invalid glTF: not a JSON object", path.string()));
+  }
+  std::vector<std::string> uris;
+  for (const char* array : {"buffers", "images"}) {
+    const auto it = doc.find(array);
+    if (it == doc.end() || !it->is_array()) continue;
+    for (const nlohmann::json& item : *it) {
+      if (!item.is_object() || !item.contains("uri") || !item["uri"].is_string()) continue;
+      const std::string& uri = item["uri"].get_ref<const std::string&>();
+      if (uri.rfind("data:", 0) != 0) uris.push_back(uri);
+    }
+  }
+  return uris;
 }
 
 }  // namespace afr

@@ -62,30 +62,30 @@ TEST(IdealCacheTest, KeyChangesWithSceneTimeSizeSppAndOptionsOnly) {
 
 TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
   const Scene a = make_builtin_scene(), b = make_builtin_scene();
-  const uint64_t h = scene_hash(a);
-  EXPECT_EQ(h, scene_hash(b));
+  const uint64_t h = render_fingerprint(a);
+  EXPECT_EQ(h, render_fingerprint(b));
   Scene renamed = make_builtin_scene();
   for (Node& n : renamed.nodes) n.name += " (renamed)";
   renamed.source = "elsewhere.gltf";
-  EXPECT_EQ(scene_hash(renamed), h);
+  EXPECT_EQ(render_fingerprint(renamed), h);
 
   Scene moved = make_builtin_scene();
   moved.meshes[0].primitives[0].positions[0].x += 1e-3f;
-  EXPECT_NE(scene_hash(moved), h);
+  EXPECT_NE(render_fingerprint(moved), h);
   Scene recolored = make_builtin_scene();
   recolored.materials[0].base_color_factor.g *= 0.5f;
-  EXPECT_NE(scene_hash(recolored), h);
+  EXPECT_NE(render_fingerprint(recolored), h);
   Scene retimed = make_builtin_scene();
   retimed.channels[0].times.back() += 0.5;
-  EXPECT_NE(scene_hash(retimed), h);
+  EXPECT_NE(render_fingerprint(retimed), h);
   Scene relit = make_builtin_scene();
   relit.lights[0].intensity *= 2.0f;
-  EXPECT_NE(scene_hash(relit), h);
+  EXPECT_NE(render_fingerprint(relit), h);
   Scene with_path = make_builtin_scene();
   CameraKey k;
   k.eye = glm::dvec3(0, 1, 5);
   apply_camera_path(CameraPath({k}), &with_path);
-  EXPECT_NE(scene_hash(with_path), h);
+  EXPECT_NE(render_fingerprint(with_path), h);
 }
 
 TEST(IdealCacheTest, CachedFrameIsTheRenderedFrameAndIsRenderedOnce) {
@@ -93,7 +93,7 @@ TEST(IdealCacheTest, CachedFrameIsTheRenderedFrameAndIsRenderedOnce) {
   Tracer tracer(scene);
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / "afr_ideal_cache_test";
   std::filesystem::remove_all(dir);
-  IdealCache cache(dir, scene_hash(scene));
+  IdealCache cache(dir, render_fingerprint(scene));
   IdealRenderOptions o;
   o.width = 24;
   o.height = 16;

@@ -2,8 +2,9 @@
 // display_node accept.
 #include <afr/common/builtin_scene.h>
 #include <afr/common/error.h>
+#include <afr/common/presets.h>
 #include <afr/eval/scene_setup.h>
-#include <afr/sampler/presets.h>
+#include <afr/sampler/sampler_config.h>
 
 #include <gtest/gtest.h>
 
@@ -53,7 +54,7 @@ TEST(PresetsTest, NamedPresetsSetTheirKnobsAndValidate) {
   for (const char* name : {"fast", "balanced", "accurate"}) {
     const Preset& p = find_preset(name);
     SamplerConfig c;
-    p.apply(&c);
+    apply_preset(p, &c);
     EXPECT_EQ(c.b, p.b);
     EXPECT_EQ(c.r, p.r);
     EXPECT_EQ(c.chunk, p.chunk);
@@ -65,7 +66,7 @@ TEST(PresetsTest, NamedPresetsSetTheirKnobsAndValidate) {
   }
   // Balanced is afr's defaults.
   SamplerConfig defaults, balanced;
-  find_preset("balanced").apply(&balanced);
+  apply_preset(find_preset("balanced"), &balanced);
   EXPECT_EQ(balanced.b, defaults.b);
   EXPECT_EQ(balanced.r, defaults.r);
   EXPECT_EQ(balanced.chunk, defaults.chunk);

@@ -819,5 +819,26 @@ TEST(LoadSceneTest, EmptyPathGivesTheBuiltinScene) {
   EXPECT_FALSE(scene.meshes.empty());
 }
 
+// What a .gltf refers to besides itself: buffers and images by URI, data: URIs excluded; the
+// word "uri" elsewhere (a name, an extras field) is not a reference.
+TEST(GltfExternalUrisTest, BuffersAndImagesThatNameFilesAndNothingElse) {
+  const std::string text = R"({
+    "asset": {"version": "2.0", "extras": {"uri": "not/a/reference.bin"}},
+    "buffers": [{"uri": "data:application/octet-stream;base64,AAAA", "byteLength": 3},
+                {"uri": "mesh.bin", "byteLength": 64, "name": "\"uri\": \"x\""}],
+    "images": [{"uri": "textures/wood.png"}, {"bufferView": 0, "mimeType": "image/png"},
+               {"uri": "data:image/png;base64,iVBORw0KGgo="}]
+  })";
+  EXPECT_EQ(gltf_external_uris(text, "scene.gltf"),
+            (std::vector<std::string>{"mesh.bin", "textures/wood.png"}));
+  EXPECT_TRUE(gltf_external_uris(R"({"asset": {"version": "2.0"}})", "a.gltf").empty());
+  try {
+    (void)gltf_external_uris(R"({"asset": {"version": "2.0"}, "buffers": [)", "cut.gltf");
+    FAIL() << "a truncated document was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("cut.gltf: invalid glTF"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace afr

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <limits>
 
+#include "support/sampler_rig.h"
 #include "support/test_scenes.h"
 #include "support/tile_stats.h"
 
@@ -17,6 +18,7 @@ namespace afr {
 namespace {
 
 using testing::CollectingSink;
+using testing::SamplerRig;
 
 SamplerConfig small_config(int w, int h) {
   SamplerConfig c;
@@ -46,12 +48,9 @@ void expect_close(double incremental, double reference, double rel, const char* 
 }
 
 TEST(SamplerTest, FillCoversTheRegionAndEmitsEverySample) {
-  const Scene scene = testing::edge_scene();
-  Tracer tracer(scene);
-  VirtualClock clock(1e5);
-  CollectingSink sink;
   SamplerConfig config = small_config(32, 16);
-  Sampler sampler(scene, tracer, clock, config, sink);
+  SamplerRig rig(testing::edge_scene(), 1e5, config);
+  auto& [scene, tracer, clock, sink, sampler] = rig;
   sampler.fill();
   // One crosshair every 2 pixels in x and y.
   EXPECT_EQ(sampler.buffer().size(), 16 * 8);
@@ -62,13 +61,10 @@ TEST(SamplerTest, FillCoversTheRegionAndEmitsEverySample) {
 }
 
 TEST(SamplerTest, TilesConcentrateAtAnEdge) {
-  const Scene scene = testing::edge_scene();
-  Tracer tracer(scene);
-  VirtualClock clock(1e5);
-  CollectingSink sink;
   SamplerConfig config = small_config(64, 64);
   config.max_tiles = 128;
-  Sampler sampler(scene, tracer, clock, config, sink);
+  SamplerRig rig(testing::edge_scene(), 1e5, config);
+  auto& [scene, tracer, clock, sink, sampler] = rig;
   sampler.fill();
   // 0.6 s of virtual time: with the default m = 1 the undersampling term keeps more tiles
   // away from the edge early on (3.4x after 20000 steps; m = 2 passed 4x there).
@@ -81,13 +77,10 @@ TEST(SamplerTest, TilesConcentrateAtAnEdge) {
 }
 
 TEST(SamplerTest, SmallTilesFollowAMovingObject) {
-  const Scene scene = testing::moving_scene();
-  Tracer tracer(scene);
-  VirtualClock clock(4e5);
-  CollectingSink sink;
   SamplerConfig config = small_config(64, 64);
   config.max_tiles = 128;
-  Sampler sampler(scene, tracer, clock, config, sink);
+  SamplerRig rig(testing::moving_scene(), 4e5, config);
+  auto& [scene, tracer, clock, sink, sampler] = rig;
   sampler.fill();
   // Stop at two times with the square on opposite sides; the smallest tiles go with it.
   for (double stop : {1.25, 1.75}) {
@@ -106,15 +99,12 @@ TEST(SamplerTest, SmallTilesFollowAMovingObject) {
 }
 
 TEST(SamplerTest, IncrementalStatisticsEqualBruteForceOverHoursOfVirtualTime) {
-  const Scene scene = testing::moving_scene();
-  Tracer tracer(scene);
   // 200 rays per second: a million rays take well over an hour of virtual time, so old
   // weights underflow many times over.
-  VirtualClock clock(200.0);
-  CollectingSink sink;
   SamplerConfig config = small_config(24, 24);
   config.max_tiles = 32;
-  Sampler sampler(scene, tracer, clock, config, sink);
+  SamplerRig rig(testing::moving_scene(), 200.0, config);
+  auto& [scene, tracer, clock, sink, sampler] = rig;
   sampler.fill();
   uint64_t inserted = 0;
   while (inserted < 1000000) {
@@ -180,10 +170,6 @@ TEST(SamplerTest, StatisticsStayExactWhenTheCrosshairHoldingNearlyAllTheWeightLe
   // the sliding wall, and its reprojection carries it out of the region: taking its weight
   // out of the sums leaves 1 + 1e-241 - 1 = 0. The tile must still report, at once, the
   // statistics of the stripes' crosshairs, as a brute-force pass over its block gives them.
-  const Scene scene = stripes_and_sliding_wall_scene();
-  Tracer tracer(scene);
-  VirtualClock clock(0.5);
-  CollectingSink sink;
   SamplerConfig config = small_config(16, 16);
   config.region = PixelRect{6, 6, 10, 10};
   config.fill_step = 1;
@@ -191,7 +177,11 @@ TEST(SamplerTest, StatisticsStayExactWhenTheCrosshairHoldingNearlyAllTheWeightLe
   config.r = 0;                   // reproject only when the test says so
   config.occlusion_rays = false;  // the wall hides the stripes: keep their crosshairs
   config.loop_animation = false;
-  Sampler sampler(scene, tracer, clock, config, sink);
+  SamplerRig rig(stripes_and_sliding_wall_scene(), 0.5, config);
+  // References, not a structured binding: the lambda below captures them (clang 14 cannot
+  // capture a binding).
+  Sampler& sampler = rig.sampler;
+  const VirtualClock& clock = rig.clock;
   sampler.fill();
   ASSERT_EQ(sampler.tiling().tile_count(), 1);
   const int tile = sampler.tiling().tiles()[0];
@@ -327,11 +317,8 @@ TEST(SamplerTest, ReprojectedCrosshairsLandWhereAFreshTraceSeesTheirPoint) {
 }
 
 TEST(SamplerTest, OcclusionRaysCatchAnObjectMovingInFront) {
-  const Scene scene = testing::moving_scene();
-  Tracer tracer(scene);
-  VirtualClock clock(2e5);
-  CollectingSink sink;
-  Sampler sampler(scene, tracer, clock, small_config(64, 64), sink);
+  SamplerRig rig(testing::moving_scene(), 2e5, small_config(64, 64));
+  auto& [scene, tracer, clock, sink, sampler] = rig;
   sampler.fill();
   while (clock.now() < 1.0) sampler.step();
   EXPECT_GT(sampler.counters().occlusion_rays, 0u);
@@ -339,13 +326,10 @@ TEST(SamplerTest, OcclusionRaysCatchAnObjectMovingInFront) {
 }
 
 TEST(SamplerTest, OnePixelRegionWorks) {
-  const Scene scene = testing::edge_scene();
-  Tracer tracer(scene);
-  VirtualClock clock(1e5);
-  CollectingSink sink;
   SamplerConfig config = small_config(64, 64);
   config.region = PixelRect{31, 40, 32, 41};
-  Sampler sampler(scene, tracer, clock, config, sink);
+  SamplerRig rig(testing::edge_scene(), 1e5, config);
+  auto& [scene, tracer, clock, sink, sampler] = rig;
   sampler.fill();
   for (int k = 0; k < 2000; ++k) sampler.step();
   EXPECT_EQ(sampler.tiling().tile_count(), 1);
@@ -359,13 +343,10 @@ TEST(SamplerTest, OnePixelRegionWorks) {
 }
 
 TEST(SamplerTest, HugeImageWithSmallRegionAllocatesForTheRegionOnly) {
-  const Scene scene = testing::edge_scene();
-  Tracer tracer(scene);
-  VirtualClock clock(1e5);
-  CollectingSink sink;
   SamplerConfig config = small_config(32768, 32768);
   config.region = PixelRect{16000, 16000, 16064, 16032};
-  Sampler sampler(scene, tracer, clock, config, sink);
+  SamplerRig rig(testing::edge_scene(), 1e5, config);
+  auto& [scene, tracer, clock, sink, sampler] = rig;
   sampler.fill();
   for (int k = 0; k < 2000; ++k) sampler.step();
   EXPECT_EQ(sampler.buffer().capacity(), 64 * 32 * 4);
@@ -379,13 +360,10 @@ TEST(SamplerTest, HugeImageWithSmallRegionAllocatesForTheRegionOnly) {
 TEST(SamplerTest, SamplesInTheLastPixelOfAHugeImageStayInsideIt) {
   // Near x = 32768 a float's spacing is 1/256 px: a position just short of the image edge
   // rounds up to it unless the sampler keeps it inside (the codec rejects x = width).
-  const Scene scene = testing::edge_scene();
-  Tracer tracer(scene);
-  VirtualClock clock(1e5);
-  CollectingSink sink;
   SamplerConfig config = small_config(32768, 32768);
   config.region = PixelRect{32766, 32766, 32768, 32768};
-  Sampler sampler(scene, tracer, clock, config, sink);
+  SamplerRig rig(testing::edge_scene(), 1e5, config);
+  auto& [scene, tracer, clock, sink, sampler] = rig;
   sampler.fill();
   for (int k = 0; k < 4000; ++k) sampler.step();
   sampler.flush();

@@ -1,4 +1,5 @@
 #include <afr/display/service/metrics.h>
+#include <afr/display/service/metrics_exposition.h>
 
 #include <gtest/gtest.h>
 
@@ -50,7 +51,7 @@ TEST(ServiceMetricsTest, LatencyIsFrameTimeMinusSampleTime) {
   m.on_batch(b, 10, true);
   m.on_frame(5.012, 1.0, 10, 100);
   EXPECT_NEAR(m.display().latency_p50, 0.012, 2 * LatencyHistogram::kBin);
-  const std::string text = m.prometheus();
+  const std::string text = prometheus_text(m);
   EXPECT_NE(text.find("afr_sampler_samples_total{sampler=\"1\"} 10"), std::string::npos);
   EXPECT_NE(text.find("afr_display_sample_latency_seconds_count 10"), std::string::npos);
 }

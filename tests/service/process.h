@@ -2,6 +2,8 @@
 // on scope exit), waiting for conditions, free ports, and HTTP GETs of the display's /stats.
 #pragma once
 
+#include "support/timing.h"
+
 #include <gtest/gtest.h>
 #include <httplib.h>
 #include <netinet/in.h>
@@ -39,22 +41,6 @@ inline size_t count_of(const std::string& text, const std::string& needle) {
 inline double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
-
-// Bounds on time in these tests are the Release build's. Under AddressSanitizer the nodes run
-// 2-3 times slower (their start, a reconstruction, a join), so there each bound and wait is
-// multiplied by this; the product's own figures come from Release (bench/liveness.py).
-#if defined(__SANITIZE_ADDRESS__)
-constexpr double kTimingScale = 3.0;
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-constexpr double kTimingScale = 3.0;
-#else
-constexpr double kTimingScale = 1.0;
-#endif
-#else
-constexpr double kTimingScale = 1.0;
-#endif
-inline double scaled(double seconds) { return seconds * kTimingScale; }
 
 // The local time of day in seconds, as the nodes' log lines give it ("%H:%M:%S.%e").
 inline double time_of_day() {

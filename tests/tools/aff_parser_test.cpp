@@ -1,6 +1,7 @@
 #include "aff_parser.h"
 
 #include "hand_scene.h"
+#include "support/timing.h"
 #include "test_paths.h"
 
 #include <afr/common/error.h>
@@ -279,7 +280,9 @@ TEST(AffParserTest, ParsesTheKitchenQuickly) {
   EXPECT_EQ(s.nodes.size(), 1u + 416u + 7u);
   EXPECT_EQ(s.lights.size(), 6u);
   EXPECT_TRUE(s.warnings.empty());
-  EXPECT_LT(seconds, 5.0);
+  // A guard against a parser gone quadratic, not a speed figure (well under a second in
+  // Release; bench/ measures the converter).
+  EXPECT_LT(seconds, afr::testing::scaled(5.0));
   RecordProperty("parse_seconds", std::to_string(seconds));
 }
 

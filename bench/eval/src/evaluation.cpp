@@ -36,7 +36,7 @@ std::vector<Image> ideal_frames(const Scene& scene, Tracer& tracer, const EvalCo
     throw Error(fmt::format("ideal spp {} is not a square (1, 4, 9, 16, ...)", config.ideal_spp));
   }
   std::optional<IdealCache> cache;
-  if (!config.cache.empty()) cache.emplace(config.cache, scene_hash(scene));
+  if (!config.cache.empty()) cache.emplace(config.cache, render_fingerprint(scene));
   IdealRenderOptions o;
   o.width = config.base.width;
   o.height = config.base.height;

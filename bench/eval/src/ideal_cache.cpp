@@ -30,7 +30,7 @@ uint64_t mix(uint64_t h, const T& v) {
 
 }  // namespace
 
-std::string ideal_cache_key(uint64_t scene_hash, const IdealRenderOptions& o,
+std::string ideal_cache_key(uint64_t fingerprint, const IdealRenderOptions& o,
                             const TracerOptions& t) {
   uint64_t h = 0xcbf29ce484222325ULL;
   h = mix(h, o.seed);
@@ -40,16 +40,16 @@ std::string ideal_cache_key(uint64_t scene_hash, const IdealRenderOptions& o,
   h = mix(h, t.shadows);
   h = mix(h, t.mirror_roughness);
   // packet_crosshair and threads change nothing in the picture.
-  return fmt::format("{:016x}-{}x{}-spp{}-t{}-o{:08x}", scene_hash, o.width, o.height,
+  return fmt::format("{:016x}-{}x{}-spp{}-t{}-o{:08x}", fingerprint, o.width, o.height,
                      o.strata * o.strata, o.time, uint32_t(h ^ (h >> 32)));
 }
 
-IdealCache::IdealCache(std::filesystem::path folder, uint64_t scene_hash)
-    : folder_(std::move(folder)), scene_hash_(scene_hash) {}
+IdealCache::IdealCache(std::filesystem::path folder, uint64_t fingerprint)
+    : folder_(std::move(folder)), fingerprint_(fingerprint) {}
 
 std::filesystem::path IdealCache::path_of(const IdealRenderOptions& options,
                                           const TracerOptions& tracer_options) const {
-  return folder_ / (ideal_cache_key(scene_hash_, options, tracer_options) + ".exr");
+  return folder_ / (ideal_cache_key(fingerprint_, options, tracer_options) + ".exr");
 }
 
 Image IdealCache::frame(Tracer& tracer, const IdealRenderOptions& options) {

@@ -79,7 +79,7 @@ class Fnv1a {
 
 }  // namespace
 
-uint64_t scene_hash(const Scene& scene) {
+uint64_t render_fingerprint(const Scene& scene) {
   Fnv1a h;
   h.value(uint64_t(scene.meshes.size()));
   for (const Mesh& m : scene.meshes) {

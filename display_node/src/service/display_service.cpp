@@ -1,6 +1,7 @@
 #include <afr/display/service/display_service.h>
 
 #include <afr/common/error.h>
+#include <afr/common/gltf_loader.h>
 #include <afr/protocol/scene_hash.h>
 
 #include <fmt/format.h>
@@ -38,21 +39,14 @@ ScenePayload read_scene_payload(const std::string& path) {
     p.name = std::filesystem::path(path).filename().string();
     if (p.name.size() > kMaxNameBytes) p.name = p.name.substr(p.name.size() - kMaxNameBytes);
     // Only this one file travels: external buffers or images would be missing on the samplers.
-    const std::string ext = std::filesystem::path(path).extension().string();
-    if (ext == ".gltf") {
-      const std::string text(p.bytes.begin(), p.bytes.end());
-      if (text.find("\"uri\"") != std::string::npos) {
-        size_t pos = 0;
-        while ((pos = text.find("\"uri\"", pos)) != std::string::npos) {
-          const size_t q = text.find('"', text.find(':', pos) + 1);
-          if (q == std::string::npos || text.compare(q + 1, 5, "data:") != 0) {
-            throw Error(fmt::format(
-                "{}: refers to external files (a \"uri\" that is not a data: URI); samplers "
-                "receive only this file: convert it to .glb or embed its buffers",
-                path));
-          }
-          pos = q;
-        }
+    if (std::filesystem::path(path).extension() == ".gltf") {
+      const std::vector<std::string> external = gltf_external_uris(
+          std::string_view(reinterpret_cast<const char*>(p.bytes.data()), p.bytes.size()), path);
+      if (!external.empty()) {
+        throw Error(fmt::format(
+            "{}: refers to {} external file(s) ({}{}); samplers receive only this file: convert "
+            "it to .glb or embed its buffers and images",
+            path, external.size(), external.front(), external.size() > 1 ? ", ..." : ""));
       }
     }
   }
@@ -61,20 +55,53 @@ ScenePayload read_scene_payload(const std::string& path) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The control thread's state
+// The control thread: membership, the wall, scene transfer, regions, heartbeats and views.
+// run() loops over passes; each pass reads every queued message, then does the timed work,
+// one member per concern, in the order below.
+class DisplayService::Control {
+ public:
+  Control(DisplayService& service, const Security& sec)
+      : service_(service),
+        options_(service.options_),
+        server_(service.context_, service.endpoints_.control, sec),
+        views_(service.context_, service.endpoints_.views, sec),
+        coordinator_(options_.width, options_.height, options_.coordinator) {}
 
-struct DisplayService::Control {
-  Control(Context& ctx, const ServiceEndpoints& ep, const Security& sec, int w, int h,
-          const CoordinatorOptions& co)
-      : server(ctx, ep.control, sec), views(ctx, ep.views, sec), coordinator(w, h, co) {}
-  ControlServer server;
-  ViewPublisher views;
-  Coordinator coordinator;
+  void run();
+
+ private:
+  // Messages.
+  void receive_pending(double wait);
+  void on_message(const ControlServer::Incoming& in, double t);
+  bool on_wall_message(const std::string& peer, const Message& msg, double t);
+  std::string admit_display(const std::string& peer, const DisplayJoin& j, double t);
+  void on_join(const ControlServer::Incoming& in, const Join& j, double t);
+  void on_member_message(Member& m, const std::string& peer, const Message& msg, double t);
+  // Timed work of a pass.
+  void send_scene_chunks();
+  void expire_silent(double t);
+  void publish_layout();
+  void update_error(double t);
+  void send_regions();
+  void send_heartbeats(double t);
+  void publish_view(double t);
+  void say_goodbye();
+  // Helpers.
+  bool send(const std::string& peer, const Message& m);
+  void welcome(const std::string& peer, uint32_t id);
+  void send_layout(const std::string& peer);
+  MassDensity error_density();
+
+  DisplayService& service_;
+  const DisplayServiceOptions& options_;
+  ControlServer server_;
+  ViewPublisher views_;
+  Coordinator coordinator_;
   struct Transfer {
     uint32_t next_chunk = 0;
   };
-  std::map<std::string, Transfer> transfers;   // by peer
-  std::map<std::string, double> told_unknown;  // peers told to join again, when
+  std::map<std::string, Transfer> transfers_;   // by peer
+  std::map<std::string, double> told_unknown_;  // peers told to join again, when
   // The wall's follower displays, by peer (docs/wall.md); the lead is node 1.
   struct WallMember {
     uint32_t id = 0;
@@ -83,11 +110,13 @@ struct DisplayService::Control {
     std::string endpoint;
     FailureDetector liveness;
   };
-  std::map<std::string, WallMember> wall_nodes;
-  uint32_t next_node_id = 2;
-  bool wall_changed = false;
-  uint64_t view_sequence = 0;
-  uint64_t heartbeat_sequence = 0;
+  std::map<std::string, WallMember> wall_nodes_;
+  uint32_t next_node_id_ = 2;
+  bool wall_changed_ = false;
+  uint64_t view_sequence_ = 0;
+  uint64_t heartbeat_sequence_ = 0;
+  double last_heartbeat_ = 0.0, last_expire_ = 0.0, last_error_ = 0.0, next_view_ = 0.0;
+  std::optional<MassDensity> error_;  // smoothed
 };
 
 namespace {
@@ -127,8 +156,7 @@ DisplayService::DisplayService(DisplayServiceOptions options, SampleSink& sink)
   }
   const Security sec = server_security(options_);
   try {
-    control_ = std::make_unique<Control>(context_, endpoints_, sec, options_.width, options_.height,
-                                         options_.coordinator);
+    control_ = std::make_unique<Control>(*this, sec);
     samples_ = std::make_unique<SampleReceiver>(context_, endpoints_.samples, sec);
   } catch (const zmq::error_t& e) {
     throw Error(fmt::format("cannot bind {} (ports {}, +1, +2): {}", options_.bind,
@@ -273,344 +301,390 @@ void DisplayService::ingest_loop() {
 // ---------------------------------------------------------------------------------------------
 // Control: membership, regions, scene, heartbeats, views
 
-void DisplayService::control_loop() {
-  Control& c = *control_;
-  Coordinator& co = c.coordinator;
-  const double heartbeat_interval = kDisplayHeartbeatInterval;
-  double last_heartbeat = 0.0, last_expire = 0.0, last_error = 0.0, next_view = now();
-  std::optional<MassDensity> error;  // smoothed
-  // The image's error from the members' latest tilings, on a grid of at most 64 x 64 cells,
-  // with a floor of 1% of the mean so that no part of the image weighs nothing.
-  auto error_density = [&] {
-    MassDensity d(options_.width, options_.height, std::min(64, options_.width),
-                  std::min(64, options_.height));
-    std::lock_guard<std::mutex> lock(errors_mutex_);
-    for (auto it = tile_errors_.begin(); it != tile_errors_.end();) {
-      if (!co.members().count(it->first)) {
-        it = tile_errors_.erase(it);
-        continue;
-      }
-      for (const auto& [rect, mass] : it->second) d.add(rect, mass);
-      ++it;
-    }
-    d.add_uniform(0.01 * d.total() / (double(options_.width) * double(options_.height)));
-    return d;
-  };
+void DisplayService::control_loop() { control_->run(); }
 
-  auto send = [&](const std::string& peer, const Message& m) {
-    Status s = c.server.send(peer, m);
-    if (!s.ok())
-      spdlog::debug("control: cannot send {}: {}", message_type_name(message_type(m)), s.message());
-    return s.ok();
-  };
-  auto send_regions = [&](double t) {
-    std::vector<std::pair<uint32_t, PixelRect>> regions;
-    for (const auto& [id, m] : co.members()) {
-      RegionAssignment ra{id, co.epoch(), options_.width, options_.height, m.region};
-      send(m.peer, ra);
-      metrics_.on_region(id, m.region, co.epoch(), co.recuts());
-      regions.emplace_back(id, m.region);
-      spdlog::info("region epoch {}: sampler {} ({}) gets [{}, {}) x [{}, {}) ({:.0f}%)",
-                   co.epoch(), id, m.name, m.region.x0, m.region.x1, m.region.y0, m.region.y1,
-                   100.0 * double(m.region.area()) / (double(options_.width) * options_.height));
-    }
-    std::lock_guard<std::mutex> lock(regions_mutex_);
-    regions_ = std::move(regions);
-  };
-  // The answer to a sampler's join, and to a follower display's (id: its node id).
-  auto welcome = [&](const std::string& peer, uint32_t id) {
-    Welcome w;
-    w.sampler_id = id;
-    w.session = session_;
-    w.width = options_.width;
-    w.height = options_.height;
-    w.display_time = now();
-    w.refresh_interval = options_.refresh_interval;
-    w.scene_hash = options_.scene.hash;
-    w.scene_size = options_.scene.bytes.size();
-    w.scene_name = options_.scene.name;
-    w.presets = options_.preset;
-    send(peer, w);
-  };
-  // The wall: the layout every sampler routes by, sent on every change and to each newcomer.
-  auto send_layout = [&](const std::string& peer) {
-    WallLayout l;
-    {
-      std::lock_guard<std::mutex> lock(regions_mutex_);
-      l = layout_;
-    }
-    send(peer, l);
-  };
-  auto publish_layout = [&] {
-    WallLayout l;
-    l.width = options_.width;
-    l.height = options_.height;
-    l.margin = options_.wall.margin;
-    l.nodes.push_back(WallNode{1, cell(), ""});
-    for (const auto& [peer, n] : c.wall_nodes) {
-      l.nodes.push_back(WallNode{
-          n.id, options_.wall.cell(n.column, n.row, options_.width, options_.height), n.endpoint});
-    }
-    {
-      std::lock_guard<std::mutex> lock(regions_mutex_);
-      l.epoch = layout_.epoch + 1;
-      layout_ = l;
-    }
-    metrics_.set_wall(1, cell(), l.nodes.size(), l.epoch);
-    spdlog::info("wall layout {}: {} display node(s)", l.epoch, l.nodes.size());
-    for (const auto& [id, m] : co.members()) send(m.peer, l);
-    for (const auto& [peer, n] : c.wall_nodes) send(peer, l);
-  };
-  // A follower display asks for a cell. Returns the refusal, or "" when admitted.
-  auto admit_display = [&](const std::string& peer, const DisplayJoin& j, double t) -> std::string {
-    if (!options_.wall.is_wall()) {
-      return "this display is not a wall: start it with --wall COLUMNSxROWS";
-    }
-    if (j.column >= options_.wall.columns || j.row >= options_.wall.rows) {
-      return fmt::format("cell {},{} is outside the {}x{} wall", j.column, j.row,
-                         options_.wall.columns, options_.wall.rows);
-    }
-    if (j.column == options_.wall_column && j.row == options_.wall_row) {
-      return fmt::format("cell {},{} is the lead display's own", j.column, j.row);
-    }
-    for (const auto& [other, n] : c.wall_nodes) {
-      if (other != peer && n.column == j.column && n.row == j.row) {
-        return fmt::format("cell {},{} is shown by node {} ({})", j.column, j.row, n.id, n.name);
-      }
-    }
-    auto it = c.wall_nodes.find(peer);
-    if (it == c.wall_nodes.end()) {
-      uint32_t id = j.node_id;
-      const bool taken = id < 2 || std::any_of(c.wall_nodes.begin(), c.wall_nodes.end(),
-                                               [&](const auto& e) { return e.second.id == id; });
-      if (taken) id = c.next_node_id;
-      c.next_node_id = std::max(c.next_node_id, id + 1);
-      FailureDetector liveness(options_.coordinator.heartbeat_interval,
-                               options_.coordinator.liveness);
-      liveness.reset(t);
-      it = c.wall_nodes
-               .emplace(peer, Control::WallMember{id, j.name, j.column, j.row, j.samples_endpoint,
-                                                  liveness})
-               .first;
-      spdlog::info("display node {} joined the wall: {} shows cell {},{}, samples at {}", id,
-                   j.name, j.column, j.row, j.samples_endpoint);
-      c.wall_changed = true;
-    } else if (it->second.column != j.column || it->second.row != j.row ||
-               it->second.endpoint != j.samples_endpoint) {
-      it->second.column = j.column;
-      it->second.row = j.row;
-      it->second.endpoint = j.samples_endpoint;
-      c.wall_changed = true;
-    }
-    it->second.liveness.heard(t);
-    welcome(peer, it->second.id);
-    if (!c.wall_changed) send_layout(peer);  // a repeated join; a change is sent to everyone
-    return "";
-  };
-  // Messages of a wall follower (or a follower's join). Returns whether it was one.
-  auto handle_wall = [&](const std::string& peer, const Message& msg, double t) {
-    if (const auto* j = std::get_if<DisplayJoin>(&msg)) {
-      if (std::string refusal = admit_display(peer, *j, t); !refusal.empty()) {
-        spdlog::warn("display {} refused: {}", j->name, refusal);
-        send(peer, Leave{0, LeaveReason::kRefused, refusal});
-      }
-      return true;
-    }
-    auto it = c.wall_nodes.find(peer);
-    if (it == c.wall_nodes.end()) return false;
-    it->second.liveness.heard(t);
-    if (const auto* l = std::get_if<Leave>(&msg)) {
-      spdlog::info("display node {} ({}) left the wall: {}", it->second.id, it->second.name,
-                   l->text);
-      c.wall_nodes.erase(it);
-      c.wall_changed = true;
-    }
-    return true;
-  };
-
-  while (running_.load(std::memory_order_relaxed)) {
-    const double wait = std::max(0.0, std::min(next_view - now(), 0.005));
-    // Every message already queued is read before anyone is declared dead: when this thread
-    // itself was held up (a loaded machine), the heartbeats that arrived meanwhile count.
-    for (int k = 0; k < kMaxMessagesPerPass; ++k) {
-      auto in = c.server.receive(k == 0 ? int(wait * 1000.0) : 0);
-      if (!in) break;
-      const double t = now();
-      if (!in->message.ok()) {
-        metrics_.on_rejected_control();
-        spdlog::warn("control: rejected a message from peer {}{}: {}", to_hex_peer(in->peer),
-                     in->public_key.empty() ? "" : " key " + in->public_key, in->message.error());
-        if (in->message.error().find("version") != std::string::npos) {
-          send(in->peer,
-               Leave{0, LeaveReason::kVersionMismatch,
-                     fmt::format("this display speaks protocol version {}", kProtocolVersion)});
-        }
-      } else {
-        const Message& msg = in->message.value();
-        Member* m = co.find_peer(in->peer);
-        if (handle_wall(in->peer, msg, t)) {
-          // a follower display of the wall
-        } else if (const auto* j = std::get_if<Join>(&msg)) {
-          bool is_new = false;
-          Member& mm =
-              co.join(in->peer, j->sampler_id, j->name, in->public_key, j->threads, t, &is_new);
-          if (is_new) {
-            spdlog::info("sampler {} joined: {} ({} thread(s){})", mm.id, j->name, j->threads,
-                         in->public_key.empty() ? "" : ", key " + in->public_key);
-            metrics_.on_member(j->name, mm.id, in->public_key, j->threads);
-          }
-          welcome(mm.peer, mm.id);
-          send_layout(mm.peer);
-          if (!is_new) {  // a repeated join: the region it may have missed
-            send(mm.peer,
-                 RegionAssignment{mm.id, co.epoch(), options_.width, options_.height, mm.region});
-          }
-        } else if (!m) {
-          // Not a member: a sampler of a previous session (this display restarted) or one
-          // declared dead. Tell it to join (at most twice a second per peer).
-          if (!std::holds_alternative<Leave>(msg)) {
-            double& told = c.told_unknown[in->peer];
-            if (t - told > 0.5) {
-              told = t;
-              send(in->peer, Leave{0, LeaveReason::kTimeout, "not a member of this session: join"});
-            }
-          }
-        } else {
-          co.heard(m->id, t);
-          if (const auto* r = std::get_if<SceneRequest>(&msg)) {
-            if (r->scene_hash != options_.scene.hash) {
-              spdlog::warn("sampler {} asked for scene {}, not this session's: ignored", m->id,
-                           to_hex(r->scene_hash).substr(0, 16));
-            } else {
-              c.transfers[in->peer].next_chunk = r->first_chunk;
-            }
-          } else if (const auto* s = std::get_if<SamplerStats>(&msg)) {
-            metrics_.on_reported(*s);
-            co.report_throughput(m->id, s->samples_per_second, t);
-          } else if (const auto* l = std::get_if<Leave>(&msg)) {
-            spdlog::info("sampler {} ({}) left: {}", m->id, m->name, l->text);
-            metrics_.on_member_gone(m->id, false);
-            c.transfers.erase(m->peer);
-            co.remove(m->id);
-          }
-        }
-      }
-    }
-
-    const double t = now();
-    // Scene transfers: a few chunks per pass, resumed when the peer's queue has room.
-    const uint64_t size = options_.scene.bytes.size();
-    const uint32_t count = uint32_t((size + options_.chunk_bytes - 1) / options_.chunk_bytes);
-    for (auto it = c.transfers.begin(); it != c.transfers.end();) {
-      uint64_t sent = 0;
-      bool stalled = false;
-      for (int k = 0; k < 4 && it->second.next_chunk < count; ++k) {
-        SceneChunk ch;
-        ch.scene_hash = options_.scene.hash;
-        ch.scene_size = size;
-        ch.index = it->second.next_chunk;
-        ch.count = count;
-        ch.offset = uint64_t(ch.index) * options_.chunk_bytes;
-        const uint64_t n = std::min<uint64_t>(options_.chunk_bytes, size - ch.offset);
-        ch.bytes.assign(options_.scene.bytes.begin() + ch.offset,
-                        options_.scene.bytes.begin() + ch.offset + n);
-        if (!send(it->first, ch)) {
-          stalled = true;
-          break;
-        }
-        ++it->second.next_chunk;
-        ++sent;
-      }
-      metrics_.on_chunks_sent(sent);
-      if (!stalled && it->second.next_chunk >= count) {
-        it = c.transfers.erase(it);
-      } else {
-        ++it;
-      }
-    }
-
-    if (t - last_expire >= 0.02) {
-      last_expire = t;
-      // Peers told to join again are remembered for the rate limit only: a bounded while.
-      std::erase_if(c.told_unknown, [&](const auto& e) { return t - e.second > 10.0; });
-      for (const Member& dead : co.expire(t)) {
-        spdlog::warn(
-            "sampler {} ({}) lost: no word for {:.2f} s (suspected after {:.2f} s: its messages "
-            "came every {:.3f} s, deviation {:.3f} s); its region goes to the others",
-            dead.id, dead.name, dead.liveness.silence(t), dead.liveness.suspect_after(),
-            dead.liveness.mean(), dead.liveness.deviation());
-        metrics_.on_member_gone(dead.id, true);
-        c.transfers.erase(dead.peer);
-        send(dead.peer, Leave{dead.id, LeaveReason::kTimeout, "no heartbeat: join again"});
-      }
-      for (auto it = c.wall_nodes.begin(); it != c.wall_nodes.end();) {
-        const FailureDetector& d = it->second.liveness;
-        if (d.suspect(t)) {
-          spdlog::warn(
-              "display node {} ({}) lost: no word for {:.2f} s (suspected after {:.2f} s: its "
-              "messages came every {:.3f} s, deviation {:.3f} s); its cell goes dark",
-              it->second.id, it->second.name, d.silence(t), d.suspect_after(), d.mean(),
-              d.deviation());
-          send(it->first, Leave{it->second.id, LeaveReason::kTimeout, "no heartbeat: join again"});
-          it = c.wall_nodes.erase(it);
-          c.wall_changed = true;
-        } else {
-          ++it;
-        }
-      }
-    }
-    if (c.wall_changed) {
-      c.wall_changed = false;
+void DisplayService::Control::run() {
+  next_view_ = service_.now();
+  while (service_.running_.load(std::memory_order_relaxed)) {
+    receive_pending(std::max(0.0, std::min(next_view_ - service_.now(), 0.005)));
+    const double t = service_.now();
+    send_scene_chunks();
+    expire_silent(t);
+    if (wall_changed_) {
+      wall_changed_ = false;
       publish_layout();
     }
-    // The error as the tilings say it, once every member has settled in its region (its
-    // tiles then describe its region, not the one before or its pool's first fill).
-    const bool settled = std::all_of(co.members().begin(), co.members().end(), [&](const auto& e) {
-      return t - e.second.region_since >= options_.coordinator.settle_seconds;
-    });
-    if (settled && t - last_error >= options_.coordinator.recut_interval) {
-      last_error = t;
-      // Smoothed over about three readings: one snapshot's variances are noisy, and a cut
-      // that follows the noise restarts the samplers for nothing.
-      if (error) {
-        error->blend(error_density(), 0.3);
-      } else {
-        error = error_density();
-      }
-      co.set_error(*error);
-    }
-    if (co.maybe_recut(t)) send_regions(t);
+    update_error(t);
+    if (coordinator_.maybe_recut(t)) send_regions();
+    send_heartbeats(t);
+    publish_view(t);
+  }
+  say_goodbye();
+}
 
-    if (t - last_heartbeat >= heartbeat_interval) {
-      last_heartbeat = t;
-      for (const auto& [id, m] : co.members()) {
-        send(m.peer, Heartbeat{id, session_, c.heartbeat_sequence, t});
-      }
-      for (const auto& [peer, n] : c.wall_nodes) {
-        send(peer, Heartbeat{n.id, session_, c.heartbeat_sequence, t});
-      }
-      ++c.heartbeat_sequence;
-      if (context_.zap()) metrics_.set_zap(context_.zap()->accepted(), context_.zap()->refused());
+// ---------------------------------------------------------------------------------------------
+// Messages
+
+// Every message already queued is read before anyone is declared dead: when this thread
+// itself was held up (a loaded machine), the heartbeats that arrived meanwhile count.
+void DisplayService::Control::receive_pending(double wait) {
+  for (int k = 0; k < kMaxMessagesPerPass; ++k) {
+    std::optional<ControlServer::Incoming> in = server_.receive(k == 0 ? int(wait * 1000.0) : 0);
+    if (!in) break;
+    on_message(*in, service_.now());
+  }
+}
+
+void DisplayService::Control::on_message(const ControlServer::Incoming& in, double t) {
+  if (!in.message.ok()) {
+    service_.metrics_.on_rejected_control();
+    spdlog::warn("control: rejected a message from peer {}{}: {}", to_hex_peer(in.peer),
+                 in.public_key.empty() ? "" : " key " + in.public_key, in.message.error());
+    if (in.message.error().find("version") != std::string::npos) {
+      send(in.peer,
+           Leave{0, LeaveReason::kVersionMismatch,
+                 fmt::format("this display speaks protocol version {}", kProtocolVersion)});
     }
-    if (t >= next_view) {
-      View v;
-      v.sequence = c.view_sequence++;
-      v.time = t;
-      v.camera = options_.camera_at(t);
-      if (Status s = c.views.publish(v); !s.ok()) {
-        spdlog::error("view {}: {}", v.sequence, s.message());
-      }
-      metrics_.on_view();
-      next_view += options_.refresh_interval;
-      if (next_view < t) next_view = t + options_.refresh_interval;
+    return;
+  }
+  const Message& msg = in.message.value();
+  if (on_wall_message(in.peer, msg, t)) return;  // a follower display of the wall
+  if (const auto* j = std::get_if<Join>(&msg)) {
+    on_join(in, *j, t);
+  } else if (Member* m = coordinator_.find_peer(in.peer)) {
+    on_member_message(*m, in.peer, msg, t);
+  } else if (!std::holds_alternative<Leave>(msg)) {
+    // Not a member: a sampler of a previous session (this display restarted) or one declared
+    // dead. Tell it to join (at most twice a second per peer).
+    double& told = told_unknown_[in.peer];
+    if (t - told > 0.5) {
+      told = t;
+      send(in.peer, Leave{0, LeaveReason::kTimeout, "not a member of this session: join"});
     }
   }
-  for (const auto& [id, m] : co.members()) {
+}
+
+// Messages of a wall follower (or a follower's join). Returns whether it was one.
+bool DisplayService::Control::on_wall_message(const std::string& peer, const Message& msg,
+                                              double t) {
+  if (const auto* j = std::get_if<DisplayJoin>(&msg)) {
+    if (std::string refusal = admit_display(peer, *j, t); !refusal.empty()) {
+      spdlog::warn("display {} refused: {}", j->name, refusal);
+      send(peer, Leave{0, LeaveReason::kRefused, refusal});
+    }
+    return true;
+  }
+  auto it = wall_nodes_.find(peer);
+  if (it == wall_nodes_.end()) return false;
+  it->second.liveness.heard(t);
+  if (const auto* l = std::get_if<Leave>(&msg)) {
+    spdlog::info("display node {} ({}) left the wall: {}", it->second.id, it->second.name, l->text);
+    wall_nodes_.erase(it);
+    wall_changed_ = true;
+  }
+  return true;
+}
+
+// A follower display asks for a cell. Returns the refusal, or "" when admitted.
+std::string DisplayService::Control::admit_display(const std::string& peer, const DisplayJoin& j,
+                                                   double t) {
+  const WallGrid& wall = options_.wall;
+  if (!wall.is_wall()) return "this display is not a wall: start it with --wall COLUMNSxROWS";
+  if (j.column >= wall.columns || j.row >= wall.rows) {
+    return fmt::format("cell {},{} is outside the {}x{} wall", j.column, j.row, wall.columns,
+                       wall.rows);
+  }
+  if (j.column == options_.wall_column && j.row == options_.wall_row) {
+    return fmt::format("cell {},{} is the lead display's own", j.column, j.row);
+  }
+  for (const auto& [other, n] : wall_nodes_) {
+    if (other != peer && n.column == j.column && n.row == j.row) {
+      return fmt::format("cell {},{} is shown by node {} ({})", j.column, j.row, n.id, n.name);
+    }
+  }
+  auto it = wall_nodes_.find(peer);
+  if (it == wall_nodes_.end()) {
+    uint32_t id = j.node_id;
+    const bool taken = id < 2 || std::any_of(wall_nodes_.begin(), wall_nodes_.end(),
+                                             [&](const auto& e) { return e.second.id == id; });
+    if (taken) id = next_node_id_;
+    next_node_id_ = std::max(next_node_id_, id + 1);
+    FailureDetector liveness(options_.coordinator.heartbeat_interval,
+                             options_.coordinator.liveness);
+    liveness.reset(t);
+    it = wall_nodes_
+             .emplace(peer, WallMember{id, j.name, j.column, j.row, j.samples_endpoint, liveness})
+             .first;
+    spdlog::info("display node {} joined the wall: {} shows cell {},{}, samples at {}", id, j.name,
+                 j.column, j.row, j.samples_endpoint);
+    wall_changed_ = true;
+  } else if (it->second.column != j.column || it->second.row != j.row ||
+             it->second.endpoint != j.samples_endpoint) {
+    it->second.column = j.column;
+    it->second.row = j.row;
+    it->second.endpoint = j.samples_endpoint;
+    wall_changed_ = true;
+  }
+  it->second.liveness.heard(t);
+  welcome(peer, it->second.id);
+  if (!wall_changed_) send_layout(peer);  // a repeated join; a change is sent to everyone
+  return "";
+}
+
+void DisplayService::Control::on_join(const ControlServer::Incoming& in, const Join& j, double t) {
+  bool is_new = false;
+  Member& m =
+      coordinator_.join(in.peer, j.sampler_id, j.name, in.public_key, j.threads, t, &is_new);
+  if (is_new) {
+    spdlog::info("sampler {} joined: {} ({} thread(s){})", m.id, j.name, j.threads,
+                 in.public_key.empty() ? "" : ", key " + in.public_key);
+    service_.metrics_.on_member(j.name, m.id, in.public_key, j.threads);
+  }
+  welcome(m.peer, m.id);
+  send_layout(m.peer);
+  if (!is_new) {  // a repeated join: the region it may have missed
+    send(m.peer,
+         RegionAssignment{m.id, coordinator_.epoch(), options_.width, options_.height, m.region});
+  }
+}
+
+void DisplayService::Control::on_member_message(Member& m, const std::string& peer,
+                                                const Message& msg, double t) {
+  coordinator_.heard(m.id, t);
+  if (const auto* r = std::get_if<SceneRequest>(&msg)) {
+    if (r->scene_hash != options_.scene.hash) {
+      spdlog::warn("sampler {} asked for scene {}, not this session's: ignored", m.id,
+                   to_hex(r->scene_hash).substr(0, 16));
+    } else {
+      transfers_[peer].next_chunk = r->first_chunk;
+    }
+  } else if (const auto* s = std::get_if<SamplerStats>(&msg)) {
+    service_.metrics_.on_reported(*s);
+    coordinator_.report_throughput(m.id, s->samples_per_second, t);
+  } else if (const auto* l = std::get_if<Leave>(&msg)) {
+    spdlog::info("sampler {} ({}) left: {}", m.id, m.name, l->text);
+    service_.metrics_.on_member_gone(m.id, false);
+    transfers_.erase(m.peer);
+    coordinator_.remove(m.id);  // m is gone from here on
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Timed work of a pass
+
+// Scene transfers: a few chunks per pass, resumed when the peer's queue has room.
+void DisplayService::Control::send_scene_chunks() {
+  const ScenePayload& scene = options_.scene;
+  const uint64_t size = scene.bytes.size();
+  const uint32_t count = uint32_t((size + options_.chunk_bytes - 1) / options_.chunk_bytes);
+  for (auto it = transfers_.begin(); it != transfers_.end();) {
+    uint64_t sent = 0;
+    bool stalled = false;
+    for (int k = 0; k < 4 && it->second.next_chunk < count; ++k) {
+      SceneChunk ch;
+      ch.scene_hash = scene.hash;
+      ch.scene_size = size;
+      ch.index = it->second.next_chunk;
+      ch.count = count;
+      ch.offset = uint64_t(ch.index) * options_.chunk_bytes;
+      const uint64_t n = std::min<uint64_t>(options_.chunk_bytes, size - ch.offset);
+      ch.bytes.assign(scene.bytes.begin() + ch.offset, scene.bytes.begin() + ch.offset + n);
+      if (!send(it->first, ch)) {
+        stalled = true;
+        break;
+      }
+      ++it->second.next_chunk;
+      ++sent;
+    }
+    service_.metrics_.on_chunks_sent(sent);
+    if (!stalled && it->second.next_chunk >= count) {
+      it = transfers_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+
+// Members and wall nodes the failure detector suspects are dropped and told so.
+void DisplayService::Control::expire_silent(double t) {
+  if (t - last_expire_ < 0.02) return;
+  last_expire_ = t;
+  // Peers told to join again are remembered for the rate limit only: a bounded while.
+  std::erase_if(told_unknown_, [&](const auto& e) { return t - e.second > 10.0; });
+  for (const Member& dead : coordinator_.expire(t)) {
+    spdlog::warn(
+        "sampler {} ({}) lost: no word for {:.2f} s (suspected after {:.2f} s: its messages "
+        "came every {:.3f} s, deviation {:.3f} s); its region goes to the others",
+        dead.id, dead.name, dead.liveness.silence(t), dead.liveness.suspect_after(),
+        dead.liveness.mean(), dead.liveness.deviation());
+    service_.metrics_.on_member_gone(dead.id, true);
+    transfers_.erase(dead.peer);
+    send(dead.peer, Leave{dead.id, LeaveReason::kTimeout, "no heartbeat: join again"});
+  }
+  for (auto it = wall_nodes_.begin(); it != wall_nodes_.end();) {
+    const FailureDetector& d = it->second.liveness;
+    if (!d.suspect(t)) {
+      ++it;
+      continue;
+    }
+    spdlog::warn(
+        "display node {} ({}) lost: no word for {:.2f} s (suspected after {:.2f} s: its "
+        "messages came every {:.3f} s, deviation {:.3f} s); its cell goes dark",
+        it->second.id, it->second.name, d.silence(t), d.suspect_after(), d.mean(), d.deviation());
+    send(it->first, Leave{it->second.id, LeaveReason::kTimeout, "no heartbeat: join again"});
+    it = wall_nodes_.erase(it);
+    wall_changed_ = true;
+  }
+}
+
+// The wall: the layout every sampler routes by, sent to everyone on every change.
+void DisplayService::Control::publish_layout() {
+  WallLayout l;
+  l.width = options_.width;
+  l.height = options_.height;
+  l.margin = options_.wall.margin;
+  l.nodes.push_back(WallNode{1, service_.cell(), ""});
+  for (const auto& [peer, n] : wall_nodes_) {
+    l.nodes.push_back(WallNode{
+        n.id, options_.wall.cell(n.column, n.row, options_.width, options_.height), n.endpoint});
+  }
+  {
+    std::lock_guard<std::mutex> lock(service_.regions_mutex_);
+    l.epoch = service_.layout_.epoch + 1;
+    service_.layout_ = l;
+  }
+  service_.metrics_.set_wall(1, service_.cell(), l.nodes.size(), l.epoch);
+  spdlog::info("wall layout {}: {} display node(s)", l.epoch, l.nodes.size());
+  for (const auto& [id, m] : coordinator_.members()) send(m.peer, l);
+  for (const auto& [peer, n] : wall_nodes_) send(peer, l);
+}
+
+// The error as the tilings say it, once every member has settled in its region (its tiles then
+// describe its region, not the one before or its pool's first fill).
+void DisplayService::Control::update_error(double t) {
+  const CoordinatorOptions& o = options_.coordinator;
+  const bool settled =
+      std::all_of(coordinator_.members().begin(), coordinator_.members().end(),
+                  [&](const auto& e) { return t - e.second.region_since >= o.settle_seconds; });
+  if (!settled || t - last_error_ < o.recut_interval) return;
+  last_error_ = t;
+  // Smoothed over about three readings: one snapshot's variances are noisy, and a cut that
+  // follows the noise restarts the samplers for nothing.
+  if (error_) {
+    error_->blend(error_density(), 0.3);
+  } else {
+    error_ = error_density();
+  }
+  coordinator_.set_error(*error_);
+}
+
+void DisplayService::Control::send_regions() {
+  std::vector<std::pair<uint32_t, PixelRect>> regions;
+  for (const auto& [id, m] : coordinator_.members()) {
+    send(m.peer,
+         RegionAssignment{id, coordinator_.epoch(), options_.width, options_.height, m.region});
+    service_.metrics_.on_region(id, m.region, coordinator_.epoch(), coordinator_.recuts());
+    regions.emplace_back(id, m.region);
+    spdlog::info("region epoch {}: sampler {} ({}) gets [{}, {}) x [{}, {}) ({:.0f}%)",
+                 coordinator_.epoch(), id, m.name, m.region.x0, m.region.x1, m.region.y0,
+                 m.region.y1,
+                 100.0 * double(m.region.area()) / (double(options_.width) * options_.height));
+  }
+  std::lock_guard<std::mutex> lock(service_.regions_mutex_);
+  service_.regions_ = std::move(regions);
+}
+
+void DisplayService::Control::send_heartbeats(double t) {
+  if (t - last_heartbeat_ < kDisplayHeartbeatInterval) return;
+  last_heartbeat_ = t;
+  const uint64_t session = service_.session_;
+  for (const auto& [id, m] : coordinator_.members()) {
+    send(m.peer, Heartbeat{id, session, heartbeat_sequence_, t});
+  }
+  for (const auto& [peer, n] : wall_nodes_) {
+    send(peer, Heartbeat{n.id, session, heartbeat_sequence_, t});
+  }
+  ++heartbeat_sequence_;
+  if (const ZapHandler* zap = service_.context_.zap()) {
+    service_.metrics_.set_zap(zap->accepted(), zap->refused());
+  }
+}
+
+// A view at every refresh tick: the camera at display time t.
+void DisplayService::Control::publish_view(double t) {
+  if (t < next_view_) return;
+  View v;
+  v.sequence = view_sequence_++;
+  v.time = t;
+  v.camera = options_.camera_at(t);
+  if (Status s = views_.publish(v); !s.ok()) spdlog::error("view {}: {}", v.sequence, s.message());
+  service_.metrics_.on_view();
+  next_view_ += options_.refresh_interval;
+  if (next_view_ < t) next_view_ = t + options_.refresh_interval;
+}
+
+void DisplayService::Control::say_goodbye() {
+  for (const auto& [id, m] : coordinator_.members()) {
     send(m.peer, Leave{id, LeaveReason::kShutdown, "display shutting down"});
   }
-  for (const auto& [peer, n] : c.wall_nodes) {
+  for (const auto& [peer, n] : wall_nodes_) {
     send(peer, Leave{n.id, LeaveReason::kShutdown, "display shutting down"});
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Helpers
+
+bool DisplayService::Control::send(const std::string& peer, const Message& m) {
+  Status s = server_.send(peer, m);
+  if (!s.ok()) {
+    spdlog::debug("control: cannot send {}: {}", message_type_name(message_type(m)), s.message());
+  }
+  return s.ok();
+}
+
+// The answer to a sampler's join, and to a follower display's (id: its node id).
+void DisplayService::Control::welcome(const std::string& peer, uint32_t id) {
+  Welcome w;
+  w.sampler_id = id;
+  w.session = service_.session_;
+  w.width = options_.width;
+  w.height = options_.height;
+  w.display_time = service_.now();
+  w.refresh_interval = options_.refresh_interval;
+  w.scene_hash = options_.scene.hash;
+  w.scene_size = options_.scene.bytes.size();
+  w.scene_name = options_.scene.name;
+  w.presets = options_.preset;
+  send(peer, w);
+}
+
+void DisplayService::Control::send_layout(const std::string& peer) {
+  WallLayout l;
+  {
+    std::lock_guard<std::mutex> lock(service_.regions_mutex_);
+    l = service_.layout_;
+  }
+  send(peer, l);
+}
+
+// The image's error from the members' latest tilings, on a grid of at most 64 x 64 cells, with
+// a floor of 1% of the mean so that no part of the image weighs nothing.
+MassDensity DisplayService::Control::error_density() {
+  const int w = options_.width, h = options_.height;
+  MassDensity d(w, h, std::min(64, w), std::min(64, h));
+  std::lock_guard<std::mutex> lock(service_.errors_mutex_);
+  auto& errors = service_.tile_errors_;
+  for (auto it = errors.begin(); it != errors.end();) {
+    if (!coordinator_.members().count(it->first)) {
+      it = errors.erase(it);
+      continue;
+    }
+    for (const auto& [rect, mass] : it->second) d.add(rect, mass);
+    ++it;
+  }
+  d.add_uniform(0.01 * d.total() / (double(w) * double(h)));
+  return d;
 }
 
 }  // namespace afr::service

@@ -3,8 +3,8 @@
 #include <afr/common/clock.h>
 #include <afr/common/error.h>
 #include <afr/common/failure_detector.h>
+#include <afr/common/presets.h>
 #include <afr/protocol/scene_hash.h>
-#include <afr/sampler/presets.h>
 #include <afr/sampler/sampler_pool.h>
 #include <afr/sampler/service/scene_cache.h>
 
@@ -651,7 +651,7 @@ void SamplerService::Impl::update_pool() {
   const std::string preset_name = options.preset.empty() ? welcome.presets : options.preset;
   if (!preset_name.empty()) {
     try {
-      find_preset(preset_name).apply(&config);
+      apply_preset(find_preset(preset_name), &config);
       options.overrides.apply(&config);
     } catch (const Error& e) {
       spdlog::warn("display's preset: {}; using the sampler's flags", e.what());

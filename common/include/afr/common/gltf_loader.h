@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace afr {
@@ -26,5 +27,11 @@ Scene load_gltf_bytes(std::span<const uint8_t> bytes, const std::filesystem::pat
 
 // A scene from a file, or the built-in scene when `path` is empty.
 Scene load_scene(const std::filesystem::path& path);
+
+// The files a .gltf (JSON text) refers to: the URIs of its buffers and images that are not
+// data: URIs, buffers first, each in document order. Throws afr::Error ("PATH: invalid glTF:
+// ...", as load_gltf words it) when the text is not a JSON object.
+std::vector<std::string> gltf_external_uris(std::string_view json_text,
+                                            const std::filesystem::path& path);
 
 }  // namespace afr

@@ -1,6 +1,7 @@
 // Every knob of the sampler, with the defaults afr uses and the ranges it accepts.
 #pragma once
 
+#include <afr/common/presets.h>
 #include <afr/sampler/tiling.h>
 
 #include <cstdint>
@@ -52,5 +53,14 @@ struct SamplerConfig {
   // Throws afr::Error naming the first field out of range.
   void validate() const;
 };
+
+// A preset's sampler knobs (afr/common/presets.h) set in `config`; the rest is left as it is.
+inline void apply_preset(const Preset& preset, SamplerConfig* config) {
+  config->b = preset.b;
+  config->r = preset.r;
+  config->chunk = preset.chunk;
+  config->min_tiles = preset.min_tiles;
+  config->max_tiles = preset.max_tiles;
+}
 
 }  // namespace afr

@@ -14,12 +14,12 @@
 
 namespace afr::eval {
 
-// The cache key of one ideal frame: the scene's hash (scene_hash), the frame's size, samples
+// The cache key of one ideal frame: the scene's render_fingerprint, the frame's size, samples
 // per pixel and time, and a hash of the remaining render options (seed, pixel filter) and of
 // the tracer's options. The text is a file name:
 //   <scene hash, 16 hex>-<W>x<H>-spp<S*S>-t<time>-o<options hash, 8 hex>
 // with the time written so that it reads back as the same double.
-std::string ideal_cache_key(uint64_t scene_hash, const IdealRenderOptions& options,
+std::string ideal_cache_key(uint64_t fingerprint, const IdealRenderOptions& options,
                             const TracerOptions& tracer_options);
 
 struct IdealCacheStats {
@@ -30,9 +30,9 @@ struct IdealCacheStats {
 
 class IdealCache {
  public:
-  // `folder` is created when the first frame is stored. `scene_hash` identifies the scene the
-  // tracers given to frame() were built from.
-  IdealCache(std::filesystem::path folder, uint64_t scene_hash);
+  // `folder` is created when the first frame is stored. `fingerprint` (render_fingerprint)
+  // identifies the scene the tracers given to frame() were built from.
+  IdealCache(std::filesystem::path folder, uint64_t fingerprint);
 
   // The ideal frame for `options` (its time, size, strata, seed, filter): read from the cache,
   // or rendered with `tracer` and stored (written to a temporary name, then renamed, so a
@@ -46,7 +46,7 @@ class IdealCache {
 
  private:
   std::filesystem::path folder_;
-  uint64_t scene_hash_;
+  uint64_t fingerprint_;
   IdealCacheStats stats_;
 };
 

@@ -16,9 +16,10 @@ namespace afr::eval {
 // yfov must be the same at every key; otherwise throws afr::Error. Calls scene->finalize().
 void apply_camera_path(const CameraPath& path, Scene* scene);
 
-// A 64-bit hash (FNV-1a) of the scene's geometry, materials, textures, lights, cameras, node
-// graph, animation and background: two scenes with the same hash render the same images.
-// Names and the source file name are left out.
-uint64_t scene_hash(const Scene& scene);
+// A 64-bit hash (FNV-1a) of what the scene renders: its geometry, materials, textures,
+// lights, cameras, node graph, animation and background; two scenes with the same fingerprint
+// render the same images. Names and the source file name are left out. (Not the service's
+// protocol::scene_hash, which identifies a scene file's bytes.)
+uint64_t render_fingerprint(const Scene& scene);
 
 }  // namespace afr::eval

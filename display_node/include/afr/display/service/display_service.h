@@ -12,6 +12,7 @@
 #include <afr/common/samples.h>
 #include <afr/display/service/coordinator.h>
 #include <afr/display/service/metrics.h>
+#include <afr/display/service/metrics_server.h>
 #include <afr/display/service/wall.h>
 #include <afr/display/service/wall_exchange.h>
 #include <afr/protocol/channels.h>
@@ -106,7 +107,7 @@ class DisplayService {
   void control_loop();
   void ingest_loop();
 
-  struct Control;
+  class Control;  // the control thread (display_service.cpp)
   DisplayServiceOptions options_;
   SampleSink& sink_;
   WallCoverageInbox wall_coverage_;

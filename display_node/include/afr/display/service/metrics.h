@@ -1,7 +1,7 @@
 // What the display node measures, shared by its threads: per sampler (samples, bytes, batches,
 // sequence gaps, what the sampler reports about itself, its region) and for the display
-// (reconstruction time, refresh rate, store fill, sample-to-display latency). Rendered as the
-// Prometheus text format (/metrics), as JSON (/stats) and as one log line.
+// (reconstruction time, refresh rate, store fill, sample-to-display latency). Written out by
+// metrics_exposition.h, served by metrics_server.h.
 //
 // Thread-safety: every method may be called from any thread (one mutex; the ingest thread
 // takes it once per batch).
@@ -9,6 +9,7 @@
 
 #include <afr/common/rect.h>
 #include <afr/common/samples.h>
+#include <afr/display/service/latency_histogram.h>
 #include <afr/protocol/messages.h>
 
 #include <cstdint>
@@ -19,26 +20,6 @@
 #include <vector>
 
 namespace afr::service {
-
-// Sample-to-display latency in 0.1 ms bins up to 2 s (and one bin beyond).
-class LatencyHistogram {
- public:
-  static constexpr double kBin = 1e-4;
-  static constexpr size_t kBins = 20000;
-  void add(double seconds, uint64_t weight);
-  // The q-quantile (0..1) in seconds; 0 when empty.
-  double quantile(double q) const;
-  uint64_t count() const { return count_; }
-  double sum() const { return sum_; }
-  // Samples at or below `seconds`.
-  uint64_t count_at_most(double seconds) const;
-  void clear();
-
- private:
-  std::vector<uint64_t> bins_ = std::vector<uint64_t>(kBins + 1, 0);
-  uint64_t count_ = 0;
-  double sum_ = 0.0;
-};
 
 struct SamplerMetrics {
   uint32_t id = 0;
@@ -152,10 +133,6 @@ class ServiceMetrics {
   std::vector<SamplerMetrics> samplers() const;
   LatencyHistogram latency() const;
 
-  std::string prometheus() const;
-  std::string json() const;
-  std::string log_line() const;
-
  private:
   mutable std::mutex mutex_;
   DisplayMetrics display_;
@@ -165,23 +142,6 @@ class ServiceMetrics {
   LatencyHistogram latency_, window_latency_;
   uint64_t period_frames_ = 0;
   double reconstruct_ms_sum_ = 0.0;
-};
-
-// Serves a ServiceMetrics over HTTP: /metrics (Prometheus text) and /stats (JSON), on its own
-// thread from start() to stop() (or destruction).
-class MetricsServer {
- public:
-  // Binds now; throws afr::Error naming the address when it cannot.
-  MetricsServer(const ServiceMetrics& metrics, const std::string& address, int port);
-  ~MetricsServer();
-  MetricsServer(const MetricsServer&) = delete;
-  MetricsServer& operator=(const MetricsServer&) = delete;
-  void start();
-  void stop();
-
- private:
-  struct Impl;
-  std::unique_ptr<Impl> impl_;
 };
 
 }  // namespace afr::service

@@ -13,6 +13,7 @@
 #include <afr/common/clock.h>
 #include <afr/common/samples.h>
 #include <afr/display/service/metrics.h>
+#include <afr/display/service/metrics_server.h>
 #include <afr/display/service/wall_exchange.h>
 #include <afr/protocol/channels.h>
 

@@ -21,8 +21,8 @@
 
 namespace afr::service {
 
-// Knobs a preset sets (presets.h) that the user gave explicitly: they win over the preset
-// the display names.
+// Knobs a preset sets (afr/common/presets.h) that the user gave explicitly: they win over the
+// preset the display names.
 struct PresetOverrides {
   std::optional<int> b, r, chunk, min_tiles, max_tiles;
   void apply(SamplerConfig* c) const {

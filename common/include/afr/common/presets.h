@@ -1,13 +1,14 @@
 // Named speed/accuracy presets: fast, balanced, accurate. Each sets the sampler's knobs and the
 // reconstructor's settings that the evaluation's sweeps found on or next to the Pareto front of
-// RMS error against wall-clock cost (docs/tradeoffs.md says how, with the commands). sampler_node
-// applies `apply(SamplerConfig*)`; display_node copies `reconstruction` into its
-// ReconstructorConfig (capacity = samples_per_pixel x width x height, and the FilterLimits
-// fields of the same names). A preset leaves everything it does not name at its default.
+// RMS error against wall-clock cost (docs/tradeoffs.md says how, with the commands). Plain
+// numbers, so that both nodes stand on them without knowing each other: sampler_node applies
+// the knobs with apply_preset (afr/sampler/sampler_config.h); display_node copies
+// `reconstruction` into its ReconstructorConfig (capacity = samples_per_pixel x width x
+// height, and the FilterLimits fields of the same names). A preset leaves everything it does
+// not name at its default.
 #pragma once
 
 #include <afr/common/error.h>
-#include <afr/sampler/sampler_config.h>
 
 #include <array>
 #include <span>
@@ -16,8 +17,7 @@
 
 namespace afr {
 
-// The reconstructor's side of a preset, in plain numbers (sampler_node does not know
-// display_node's types).
+// The reconstructor's side of a preset.
 struct ReconstructionPreset {
   double samples_per_pixel = 4.0;   // N = this x width x height (section 5.2: at least 4)
   float min_spatial_extent = 0.3f;  // FilterLimits, pixels
@@ -28,21 +28,13 @@ struct ReconstructionPreset {
 struct Preset {
   std::string_view name;
   std::string_view summary;
-  // Sampler knobs (sampler_config.h).
+  // The sampler's knobs (SamplerConfig's fields of the same names).
   int b = 4;
   int r = 5;
   int chunk = 25;
   int min_tiles = 16;
   int max_tiles = 1024;
   ReconstructionPreset reconstruction;
-
-  void apply(SamplerConfig* config) const {
-    config->b = b;
-    config->r = r;
-    config->chunk = chunk;
-    config->min_tiles = min_tiles;
-    config->max_tiles = max_tiles;
-  }
 };
 
 // From the 256 x 256 sweeps of docs/tradeoffs.md: R is the knob that matters; r = 0 is the

@@ -1,6 +1,7 @@
-// Multi-process tests of the afr service on loopback: display_node and sampler_node as built,
-// started as child processes, observed through the display's /stats and its images.
-#include "process.h"
+// display_node as a service, with sampler_node processes to serve: convergence to the image the
+// libraries give in one process, membership under kill -9, stops and load, CurveZMQ admission,
+// and bad input (malformed messages, another protocol version, scene files, flags).
+#include "service_fixture.h"
 
 #include <afr/common/clock.h>
 #include <afr/common/gltf_loader.h>
@@ -18,49 +19,6 @@
 
 namespace afr::testing {
 namespace {
-
-namespace fs = std::filesystem;
-
-const std::string kDisplay = AFR_DISPLAY_NODE;
-const std::string kSampler = AFR_SAMPLER_NODE;
-const std::string kStaticScene = AFR_STATIC_SCENE;
-
-class ServiceTest : public ProcessTest {
- protected:
-  ServiceTest() : ProcessTest("afr-service-") {}
-  using ProcessTest::endpoint;
-  std::string endpoint() const { return endpoint(port_); }
-  int metrics_port() const { return port_ + 3; }
-
-  std::unique_ptr<Process> display(std::vector<std::string> extra, const std::string& log) {
-    std::vector<std::string> argv = {kDisplay,           "--headless",
-                                     "--bind",           endpoint(),
-                                     "--metrics-port",   std::to_string(metrics_port()),
-                                     "--backend",        "cpu",
-                                     "--output",         path("out"),
-                                     "--stats-interval", "1"};
-    argv.insert(argv.end(), extra.begin(), extra.end());
-    return std::make_unique<Process>(argv, path(log));
-  }
-  std::unique_ptr<Process> sampler(std::vector<std::string> extra, const std::string& log) {
-    std::vector<std::string> argv = {kSampler, "--display", endpoint(), "--cache", path("cache")};
-    argv.insert(argv.end(), extra.begin(), extra.end());
-    return std::make_unique<Process>(argv, path(log));
-  }
-  bool wait_members(int n, double timeout) {
-    return wait_until([&] { return members(get_stats(metrics_port())) == n; }, timeout);
-  }
-  // Region of a member sampler (x0, y0, x1, y1), by position in /stats among members.
-  std::vector<std::array<int, 4>> member_regions() {
-    std::vector<std::array<int, 4>> out;
-    const nlohmann::json s = get_stats(metrics_port());
-    if (s.is_null() || s.is_discarded()) return out;
-    for (const auto& m : s["samplers"]) {
-      if (m["member"].get<bool>()) out.push_back(m["region"].get<std::array<int, 4>>());
-    }
-    return out;
-  }
-};
 
 // ---------------------------------------------------------------------------------------------
 // Convergence: the service gives the image the libraries give in one process
@@ -204,33 +162,6 @@ TEST_F(ServiceTest, StoppedOrStarvedSamplersAreNotDropped) {
   }
 }
 
-TEST_F(ServiceTest, SamplersAreBackWithinTwoSecondsOfADisplayRestart) {
-  auto d = display({"--size", "64x64", "--fps", "20"}, "display1.log");
-  auto s1 = sampler({"--max-samples-per-second", "50000"}, "s1.log");
-  auto s2 = sampler({"--max-samples-per-second", "50000"}, "s2.log");
-  ASSERT_TRUE(wait_members(2, 5.0)) << d->log();
-  const std::string session = get_stats(metrics_port())["display"]["session"];
-  d->signal(SIGKILL);
-  d->wait(2.0);
-  auto d2 = display({"--size", "64x64", "--fps", "20"}, "display2.log");
-  ASSERT_TRUE(wait_members(2, scaled(4.0))) << d2->log() << s1->log() << s2->log();
-  // From the new display's bind (its first log line about its sockets) to its second join.
-  const double bound = log_time(d2->log(), "display session");
-  const double back = log_time(d2->log(), " joined: ", 2);
-  ASSERT_GE(bound, 0.0) << d2->log();
-  ASSERT_GE(back, 0.0) << d2->log();
-  const double took = seconds_between(bound, back);
-  std::printf("samplers back %.3f s after the display bound its sockets\n", took);
-  EXPECT_LT(took, scaled(2.0)) << d2->log() << s1->log() << s2->log();
-  EXPECT_NE(get_stats(metrics_port())["display"]["session"], session);
-  // The scene was loaded once, before the restart: sent by the display, or found in the cache
-  // the other sampler filled. After the restart the sampler kept it (same hash).
-  for (const auto* s : {s1.get(), s2.get()}) {
-    const std::string log = s->log();
-    EXPECT_EQ(count_of(log, "scene received") + count_of(log, "found in the cache"), 1u) << log;
-  }
-}
-
 TEST_F(ServiceTest, SamplerWithAnUnknownKeyIsRefusedAndLogged) {
   Process keygen({kDisplay, "keygen", path("keys"), "--samplers", "1"}, path("keygen.log"));
   ASSERT_EQ(keygen.wait(10.0), 0) << keygen.log();
@@ -255,35 +186,6 @@ TEST_F(ServiceTest, SamplerWithAnUnknownKeyIsRefusedAndLogged) {
   EXPECT_EQ(members(get_stats(metrics_port())), 1);
   EXPECT_NE(d->log().find("REFUSED CURVE key"), std::string::npos) << d->log();
   EXPECT_EQ(bad->log().find("joined the display"), std::string::npos);
-}
-
-TEST_F(ServiceTest, StalledDisplayKeepsSamplerMemoryBoundedAndCountsDrops) {
-  auto d = display({"--size", "64x64", "--fps", "20"}, "display.log");
-  auto s = sampler({}, "s1.log");
-  ASSERT_TRUE(wait_members(1, 5.0)) << d->log();
-  std::this_thread::sleep_for(std::chrono::seconds(1));
-  const long rss0 = s->rss_kb();
-  d->signal(SIGSTOP);  // the display stops reading: its socket buffers and queues fill
-  long rss_max = rss0;
-  for (int i = 0; i < 30; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    rss_max = std::max(rss_max, s->rss_kb());
-  }
-  d->signal(SIGCONT);
-  std::printf("sampler RSS %ld kB before the stall, at most %ld kB during 3 s of it\n", rss0,
-              rss_max);
-  EXPECT_LT(rss_max - rss0, 64 * 1024) << "sampler memory grew while the display was stalled";
-  const bool counted = wait_until(
-      [&] {
-        const auto st = get_stats(metrics_port());
-        if (st.is_null() || st.is_discarded()) return false;
-        for (const auto& m : st["samplers"]) {
-          if (m["batches_dropped"].get<uint64_t>() > 0) return true;
-        }
-        return false;
-      },
-      5.0);
-  EXPECT_TRUE(counted) << d->log() << s->log();
 }
 
 TEST_F(ServiceTest, MalformedMessagesAreRejectedAndTheOthersKeepServing) {
@@ -369,16 +271,6 @@ TEST_F(ServiceTest, SamplerOfAnotherProtocolVersionIsToldWhyAndTheOthersKeepServ
   EXPECT_GT(get_stats(metrics_port())["samplers"][0]["samples"].get<uint64_t>(), samples);
 }
 
-TEST_F(ServiceTest, SamplerFlagOutOfRangeIsNamedAndTheDisplayKeepsServing) {
-  auto d = display({"--size", "64x64", "--fps", "20"}, "display.log");
-  auto s = sampler({"--max-samples-per-second", "50000"}, "s1.log");
-  ASSERT_TRUE(wait_members(1, 5.0)) << d->log();
-  auto bad = sampler({"--kappa", "2"}, "bad.log");
-  EXPECT_NE(bad->wait(10.0), 0);
-  EXPECT_NE(bad->log().find("kappa = 2 is outside [0, 1]"), std::string::npos) << bad->log();
-  EXPECT_EQ(members(get_stats(metrics_port())), 1);
-}
-
 TEST_F(ServiceTest, MissingAndBrokenSceneFilesAreNamed) {
   const std::string broken = path("broken.gltf");
   std::ofstream(broken) << R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":64)";
@@ -389,17 +281,17 @@ TEST_F(ServiceTest, MissingAndBrokenSceneFilesAreNamed) {
   EXPECT_NE(truncated->wait(10.0), 0);
   EXPECT_NE(truncated->log().find("broken.gltf: invalid glTF"), std::string::npos)
       << truncated->log();
-}
-
-TEST_F(ServiceTest, UnreachableDisplayIsReportedAndTheSamplerKeepsTrying) {
-  auto s = sampler({"--max-samples-per-second", "50000"}, "s1.log");
-  ASSERT_TRUE(wait_until(
-      [&] { return s->log().find("no answer from the display") != std::string::npos; }, 10.0))
-      << s->log();
-  EXPECT_TRUE(s->alive());
-  // The display comes up late: the sampler joins it.
-  auto d = display({"--size", "64x64", "--fps", "20"}, "display.log");
-  EXPECT_TRUE(wait_members(1, 15.0)) << d->log() << s->log();
+  // Only the one file travels to the samplers: a .gltf that names others is refused, though
+  // it loads here beside them.
+  const std::string external = path("external.gltf");
+  std::ofstream(external)
+      << R"({"asset":{"version":"2.0"},"buffers":[{"uri":"mesh.bin","byteLength":64}]})";
+  std::ofstream(path("mesh.bin")) << std::string(64, '\0');
+  auto refused = display({external, "--seconds", "1"}, "external.log");
+  EXPECT_NE(refused->wait(10.0), 0);
+  EXPECT_NE(refused->log().find("external.gltf: refers to 1 external file(s) (mesh.bin)"),
+            std::string::npos)
+      << refused->log();
 }
 
 TEST_F(ServiceTest, NonLoopbackBindWithoutKeysIsRefused) {
@@ -409,17 +301,6 @@ TEST_F(ServiceTest, NonLoopbackBindWithoutKeysIsRefused) {
                                 path("display.log"));
   EXPECT_EQ(d->wait(10.0), 1);
   EXPECT_NE(d->log().find("reachable from other machines"), std::string::npos) << d->log();
-}
-
-TEST_F(ServiceTest, SamplerFlagsGivenExplicitlyWinOverTheDisplaysPreset) {
-  // The display names the fast preset (r = 2, chunk 100); the sampler is given --b 1 and
-  // --chunk 50 and keeps those, taking the rest (r) from the preset.
-  auto d = display({"--size", "64x64", "--preset", "fast"}, "display.log");
-  auto s = sampler({"--b", "1", "--chunk", "50", "--max-samples-per-second", "20000"}, "s.log");
-  ASSERT_TRUE(wait_until([&] { return s->log().find("sampler knobs:") != std::string::npos; }, 5.0))
-      << s->log();
-  const std::string log = s->log();
-  EXPECT_NE(log.find("preset fast, b = 1, r = 2, chunk = 50"), std::string::npos) << log;
 }
 
 TEST_F(ServiceTest, InteractiveCameraWithoutAWindowIsRefusedWithTheReason) {

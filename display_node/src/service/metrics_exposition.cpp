@@ -1,0 +1,191 @@
+#include <afr/display/service/metrics_exposition.h>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+namespace afr::service {
+
+std::string prometheus_text(const ServiceMetrics& metrics) {
+  const DisplayMetrics d = metrics.display();
+  const std::vector<SamplerMetrics> ss = metrics.samplers();
+  const LatencyHistogram lat = metrics.latency();
+  std::string o;
+  auto metric = [&](const char* name, const char* type, const char* help) {
+    o += fmt::format("# HELP {} {}\n# TYPE {} {}\n", name, help, name, type);
+  };
+  auto per_sampler = [&](const char* name, const char* type, const char* help, auto value) {
+    metric(name, type, help);
+    for (const SamplerMetrics& s : ss) {
+      o += fmt::format("{}{{sampler=\"{}\"}} {}\n", name, s.id, value(s));
+    }
+  };
+  per_sampler("afr_sampler_member", "gauge", "1 while the sampler is a member",
+              [](const SamplerMetrics& s) { return int(s.member); });
+  per_sampler("afr_sampler_samples_total", "counter", "samples received",
+              [](const SamplerMetrics& s) { return s.samples; });
+  per_sampler("afr_sampler_samples_per_second", "gauge", "samples received per second",
+              [](const SamplerMetrics& s) { return s.samples_per_second; });
+  per_sampler("afr_sampler_bytes_total", "counter", "bytes received on the sample channel",
+              [](const SamplerMetrics& s) { return s.bytes; });
+  per_sampler("afr_sampler_bytes_per_second", "gauge", "bytes received per second",
+              [](const SamplerMetrics& s) { return s.bytes_per_second; });
+  per_sampler("afr_sampler_batches_total", "counter", "batches received",
+              [](const SamplerMetrics& s) { return s.batches; });
+  per_sampler("afr_sampler_batches_dropped_total", "counter",
+              "batches the sampler dropped (its queue was full), as it reports",
+              [](const SamplerMetrics& s) { return s.reported.batches_dropped; });
+  per_sampler("afr_sampler_sequence_gaps_total", "counter",
+              "batches missing from the sequence numbers received",
+              [](const SamplerMetrics& s) { return s.sequence_gaps; });
+  per_sampler("afr_sampler_reported_samples_per_second", "gauge",
+              "samples per second the sampler reports",
+              [](const SamplerMetrics& s) { return s.reported.samples_per_second; });
+  per_sampler("afr_sampler_region_pixels", "gauge", "pixels of the sampler's region",
+              [](const SamplerMetrics& s) { return s.region.area(); });
+  metric("afr_sampler_region", "gauge", "the sampler's region, labels x0 y0 x1 y1");
+  for (const SamplerMetrics& s : ss) {
+    o += fmt::format(
+        "afr_sampler_region{{sampler=\"{}\",x0=\"{}\",y0=\"{}\",x1=\"{}\",y1=\"{}\"}} 1\n", s.id,
+        s.region.x0, s.region.y0, s.region.x1, s.region.y1);
+  }
+  auto scalar = [&](const char* name, const char* type, const char* help, auto value) {
+    metric(name, type, help);
+    o += fmt::format("{} {}\n", name, value);
+  };
+  scalar("afr_display_members", "gauge", "samplers in the session", d.members);
+  scalar("afr_display_frames_total", "counter", "images reconstructed", d.frames);
+  scalar("afr_display_reconstruct_ms", "gauge", "wall time of the last reconstruction",
+         d.reconstruct_ms);
+  scalar("afr_display_refresh_hz", "gauge", "images per second", d.refresh_hz);
+  scalar("afr_display_store_samples", "gauge", "samples in the store", d.store_stored);
+  scalar("afr_display_store_capacity", "gauge", "capacity of the store", d.store_capacity);
+  scalar("afr_display_recuts_total", "counter", "region recuts", d.recuts);
+  scalar("afr_display_deaths_total", "counter", "samplers declared dead", d.deaths);
+  scalar("afr_display_rejected_messages_total", "counter",
+         "messages rejected on the sample and control channels",
+         d.rejected_samples_channel + d.rejected_control);
+  scalar("afr_display_zap_refused_total", "counter", "CurveZMQ clients refused", d.zap_refused);
+  scalar("afr_display_wall_nodes", "gauge", "display nodes in the wall (1: no wall)", d.wall_nodes);
+  metric("afr_display_wall_cell", "gauge",
+         "this node's part of the virtual display, labels node x0 y0 x1 y1");
+  o += fmt::format(
+      "afr_display_wall_cell{{node=\"{}\",x0=\"{}\",y0=\"{}\",x1=\"{}\",y1=\"{}\"}} 1\n",
+      d.wall_node, d.wall_cell.x0, d.wall_cell.y0, d.wall_cell.x1, d.wall_cell.y1);
+  const DisplayMetrics::WallExchange& w = d.wall_exchange;
+  scalar("afr_display_wall_coverage_in_total", "counter",
+         "coverage messages from the wall's other nodes", w.coverage_in);
+  scalar("afr_display_wall_coverage_applied_pixels_total", "counter",
+         "pixels of this node's coverage map replaced by its peers'", w.coverage_cells_applied);
+  scalar("afr_display_wall_strays_in_total", "counter",
+         "samples forwarded by the wall's other nodes", w.strays_in);
+  scalar("afr_display_wall_coverage_out_total", "counter",
+         "coverage messages sent to the wall's other nodes", w.coverage_out);
+  scalar("afr_display_wall_strays_out_total", "counter",
+         "samples forwarded to the wall's other nodes", w.strays_out);
+  scalar("afr_display_wall_exchange_bytes_in_total", "counter",
+         "bytes of coverage and strays from the wall's other nodes", w.bytes_in);
+  scalar("afr_display_wall_exchange_bytes_out_total", "counter",
+         "bytes of coverage and strays to the wall's other nodes", w.bytes_out);
+  scalar("afr_display_wall_exchange_dropped_total", "counter",
+         "coverage and stray messages the peers' queues had no room for", w.dropped_out);
+  metric("afr_display_sample_latency_seconds", "histogram",
+         "sample-to-display latency: display time of the frame that first shows a sample "
+         "minus the sample's time");
+  for (double le : {0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0}) {
+    o += fmt::format("afr_display_sample_latency_seconds_bucket{{le=\"{}\"}} {}\n", le,
+                     lat.count_at_most(le));
+  }
+  o += fmt::format("afr_display_sample_latency_seconds_bucket{{le=\"+Inf\"}} {}\n", lat.count());
+  o += fmt::format("afr_display_sample_latency_seconds_sum {}\n", lat.sum());
+  o += fmt::format("afr_display_sample_latency_seconds_count {}\n", lat.count());
+  return o;
+}
+
+std::string stats_json(const ServiceMetrics& metrics) {
+  const DisplayMetrics d = metrics.display();
+  nlohmann::json j;
+  j["display"] = {{"session", fmt::format("{:x}", d.session)},
+                  {"uptime", d.uptime},
+                  {"width", d.width},
+                  {"height", d.height},
+                  {"backend", d.backend},
+                  {"mode", d.mode},
+                  {"frames", d.frames},
+                  {"reconstruct_ms", d.reconstruct_ms},
+                  {"reconstruct_ms_mean", d.reconstruct_ms_mean},
+                  {"refresh_hz", d.refresh_hz},
+                  {"store_samples", d.store_stored},
+                  {"store_capacity", d.store_capacity},
+                  {"members", d.members},
+                  {"joins", d.joins},
+                  {"deaths", d.deaths},
+                  {"leaves", d.leaves},
+                  {"recuts", d.recuts},
+                  {"region_epoch", d.region_epoch},
+                  {"views", d.views},
+                  {"scene_chunks_sent", d.scene_chunks_sent},
+                  {"rejected_sample_messages", d.rejected_samples_channel},
+                  {"rejected_control_messages", d.rejected_control},
+                  {"unknown_sampler_batches", d.unknown_sampler_batches},
+                  {"zap_accepted", d.zap_accepted},
+                  {"zap_refused", d.zap_refused},
+                  {"latency_p50", d.latency_p50},
+                  {"latency_p99", d.latency_p99},
+                  {"window_latency_p50", d.window_latency_p50},
+                  {"window_latency_p99", d.window_latency_p99},
+                  {"wall",
+                   {{"node", d.wall_node},
+                    {"cell", {d.wall_cell.x0, d.wall_cell.y0, d.wall_cell.x1, d.wall_cell.y1}},
+                    {"nodes", d.wall_nodes},
+                    {"epoch", d.wall_epoch},
+                    {"exchange",
+                     {{"coverage_in", d.wall_exchange.coverage_in},
+                      {"coverage_cells_in", d.wall_exchange.coverage_cells_in},
+                      {"coverage_cells_applied", d.wall_exchange.coverage_cells_applied},
+                      {"strays_in", d.wall_exchange.strays_in},
+                      {"bytes_in", d.wall_exchange.bytes_in},
+                      {"coverage_out", d.wall_exchange.coverage_out},
+                      {"coverage_cells_out", d.wall_exchange.coverage_cells_out},
+                      {"strays_out", d.wall_exchange.strays_out},
+                      {"bytes_out", d.wall_exchange.bytes_out},
+                      {"dropped_out", d.wall_exchange.dropped_out}}}}}};
+  j["samplers"] = nlohmann::json::array();
+  for (const SamplerMetrics& s : metrics.samplers()) {
+    j["samplers"].push_back({{"id", s.id},
+                             {"name", s.name},
+                             {"member", s.member},
+                             {"threads", s.threads},
+                             {"region", {s.region.x0, s.region.y0, s.region.x1, s.region.y1}},
+                             {"samples", s.samples},
+                             {"bytes", s.bytes},
+                             {"batch_bytes", s.batch_bytes},
+                             {"batches", s.batches},
+                             {"tilings", s.tilings},
+                             {"sequence_gaps", s.sequence_gaps},
+                             {"samples_per_second", s.samples_per_second},
+                             {"bytes_per_second", s.bytes_per_second},
+                             {"reported_samples", s.reported.samples},
+                             {"reported_samples_per_second", s.reported.samples_per_second},
+                             {"batches_dropped", s.reported.batches_dropped},
+                             {"bytes_sent", s.reported.bytes_sent}});
+  }
+  return j.dump(1);
+}
+
+std::string stats_line(const ServiceMetrics& metrics) {
+  const DisplayMetrics d = metrics.display();
+  std::string o = fmt::format(
+      "t={:.1f}s {} sampler(s) | display {:.1f} Hz, reconstruct {:.1f} ms, store {:.0f}%, "
+      "latency p50 {:.1f} ms p99 {:.1f} ms",
+      d.uptime, d.members, d.refresh_hz, d.reconstruct_ms,
+      d.store_capacity ? 100.0 * double(d.store_stored) / double(d.store_capacity) : 0.0,
+      d.window_latency_p50 * 1e3, d.window_latency_p99 * 1e3);
+  for (const SamplerMetrics& s : metrics.samplers()) {
+    if (!s.member) continue;
+    o += fmt::format(" | #{} {:.0f} k/s dropped {} gaps {}", s.id, s.samples_per_second * 1e-3,
+                     s.reported.batches_dropped, s.sequence_gaps);
+  }
+  return o;
+}
+
+}  // namespace afr::service
