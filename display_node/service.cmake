@@ -6,6 +6,7 @@ pkg_check_modules(AFR_HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
 
 add_library(afr_display_service
   ${CMAKE_CURRENT_LIST_DIR}/src/service/coordinator.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/service/display_app.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/display_service.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/fly_camera.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/latency_histogram.cpp
@@ -20,7 +21,7 @@ add_library(afr_display_service
 target_include_directories(afr_display_service PUBLIC ${CMAKE_CURRENT_LIST_DIR}/include)
 target_link_libraries(afr_display_service
   PUBLIC afr_display afr_protocol Threads::Threads
-  PRIVATE PkgConfig::AFR_HTTPLIB nlohmann_json::nlohmann_json)
+  PRIVATE PkgConfig::AFR_HTTPLIB nlohmann_json::nlohmann_json glfw)
 
 add_executable(display_node ${CMAKE_CURRENT_LIST_DIR}/main.cpp)
-target_link_libraries(display_node PRIVATE afr_display_service glfw CLI11::CLI11)
+target_link_libraries(display_node PRIVATE afr_display_service CLI11::CLI11)

@@ -8,6 +8,7 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
+#include <thread>
 
 namespace afr::service {
 
@@ -100,6 +101,34 @@ PixelRect WallFollower::cell() const {
     }
   }
   return {};
+}
+
+Camera WallFollower::camera_at(double) const {
+  const std::optional<Camera> c = camera();
+  if (!c) throw Error("wall follower: no view from the lead yet (wait_until_admitted first)");
+  return *c;
+}
+
+std::optional<WallPosition> WallFollower::wall_position() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!layout_) return std::nullopt;
+  return WallPosition{*layout_, node_id_};
+}
+
+bool WallFollower::wait_until_admitted(const std::atomic<bool>& stop) {
+  const double started = steady_seconds();
+  double next_note = 5.0;
+  while (!stop.load() && !failed()) {
+    if (layout() && !cell().empty() && camera()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    const double waited = steady_seconds() - started;
+    if (waited > next_note) {
+      spdlog::info("waiting for the lead display {} to admit cell {},{} ({:.0f} s)", options_.lead,
+                   options_.column, options_.row, waited);
+      next_note += 5.0;
+    }
+  }
+  return false;
 }
 
 std::string WallFollower::preset() const {

@@ -11,6 +11,7 @@
 #include <afr/common/camera.h>
 #include <afr/common/samples.h>
 #include <afr/display/service/coordinator.h>
+#include <afr/display/service/display_role.h>
 #include <afr/display/service/metrics.h>
 #include <afr/display/service/metrics_server.h>
 #include <afr/display/service/wall.h>
@@ -79,29 +80,37 @@ void run_ingest(protocol::SampleReceiver& receiver, SampleSink& sink, ServiceMet
                 const std::function<void(const TilingSnapshot&)>& on_tiling = {},
                 WallCoverageInbox* coverage = nullptr);
 
-class DisplayService {
+class DisplayService final : public DisplayRole {
  public:
   // Binds everything (throws afr::Error naming the endpoint on failure, e.g. a port in use).
   DisplayService(DisplayServiceOptions options, SampleSink& sink);
-  ~DisplayService();
+  ~DisplayService() override;
   DisplayService(const DisplayService&) = delete;
   DisplayService& operator=(const DisplayService&) = delete;
 
   void start();
   // Tells the samplers (leave: shutdown) and joins the threads.
-  void stop();
+  void stop() override;
 
   // The display clock: seconds since the session started.
-  double now() const;
-  uint64_t session() const { return session_; }
-  ServiceMetrics& metrics() { return metrics_; }
+  double now() const override;
+  // The views' camera: the options' camera function.
+  Camera camera_at(double t) const override { return options_.camera_at(t); }
+  uint64_t session() const override { return session_; }
+  ServiceMetrics& metrics() override { return metrics_; }
   // The current regions by sampler id (for overlays).
-  std::vector<std::pair<uint32_t, PixelRect>> regions() const;
+  std::vector<std::pair<uint32_t, PixelRect>> regions() const override;
   // This node's cell of the wall (the whole image without a wall), and the current layout.
-  PixelRect cell() const;
+  PixelRect cell() const override;
   protocol::WallLayout wall_layout() const;
+  // The lead is node 1 of every layout it makes.
+  std::optional<WallPosition> wall_position() const override {
+    return WallPosition{wall_layout(), 1};
+  }
   // The coverage the wall's other nodes sent this one (WallPeerLinks::apply takes it).
-  WallCoverageInbox& wall_coverage() { return wall_coverage_; }
+  WallCoverageInbox& wall_coverage() override { return wall_coverage_; }
+  std::string lead_samples_endpoint() const override { return ""; }
+  bool failed() const override { return false; }
 
  private:
   void control_loop();

@@ -12,6 +12,7 @@
 #include <afr/common/camera.h>
 #include <afr/common/clock.h>
 #include <afr/common/samples.h>
+#include <afr/display/service/display_role.h>
 #include <afr/display/service/metrics.h>
 #include <afr/display/service/metrics_server.h>
 #include <afr/display/service/wall_exchange.h>
@@ -46,35 +47,43 @@ struct WallFollowerOptions {
   int metrics_port = 0;
 };
 
-class WallFollower {
+class WallFollower final : public DisplayRole {
  public:
   // Binds the sample channel and the metrics port (throws afr::Error naming what failed).
   WallFollower(WallFollowerOptions options, SampleSink& sink);
-  ~WallFollower();
+  ~WallFollower() override;
   WallFollower(const WallFollower&) = delete;
   WallFollower& operator=(const WallFollower&) = delete;
 
   void start();
-  void stop();
+  void stop() override;
+  // Waits until the lead has admitted this node (a layout naming it, and a view), logging
+  // every 5 s. False when `stop` turned true or the lead refused the node for good first.
+  bool wait_until_admitted(const std::atomic<bool>& stop);
 
   // The lead's clock (display time, seconds) and the camera of its latest view.
-  double now() const { return clock_.now(); }
+  double now() const override { return clock_.now(); }
   std::optional<Camera> camera() const;
+  // The image of a follower shows the lead's latest view, whatever the time.
+  Camera camera_at(double) const override;
   // The layout once admitted, and this node's id and cell in it.
   std::optional<protocol::WallLayout> layout() const;
   uint32_t node_id() const;
-  PixelRect cell() const;
+  PixelRect cell() const override;
+  std::optional<WallPosition> wall_position() const override;
   // The preset the lead names (its welcome), "" before joining.
   std::string preset() const;
   // The sample endpoint as bound (the port resolved for "tcp://HOST:*").
   std::string endpoint() const;
   // True once the lead refused this node for good (another protocol version).
-  bool failed() const { return failed_.load(); }
-  ServiceMetrics& metrics() { return metrics_; }
+  bool failed() const override { return failed_.load(); }
+  ServiceMetrics& metrics() override { return metrics_; }
+  uint64_t session() const override { return 0; }
+  std::vector<std::pair<uint32_t, PixelRect>> regions() const override { return {}; }
   // The coverage the wall's other nodes sent this one (WallPeerLinks::apply takes it).
-  WallCoverageInbox& wall_coverage() { return wall_coverage_; }
+  WallCoverageInbox& wall_coverage() override { return wall_coverage_; }
   // The lead's sample endpoint (the layout leaves the lead's own entry empty).
-  std::string lead_samples_endpoint() const;
+  std::string lead_samples_endpoint() const override;
 
  private:
   void control_loop();

@@ -1,0 +1,321 @@
+#include <afr/display/service/display_app.h>
+
+#include <afr/common/camera_path.h>
+#include <afr/common/error.h>
+#include <afr/common/image.h>
+#include <afr/display/backend.h>
+#include <afr/display/coverage_map.h>
+#include <afr/display/gl_reconstructor.h>
+#include <afr/display/glfw_window.h>
+#include <afr/display/service/fly_camera.h>
+#include <afr/display/service/metrics.h>
+#include <afr/display/service/metrics_exposition.h>
+#include <afr/display/service/overlays.h>
+#include <afr/display/service/wall.h>
+#include <afr/display/service/wall_exchange.h>
+
+#include <GLFW/glfw3.h>
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <thread>
+#include <vector>
+
+namespace afr::service {
+
+namespace fs = std::filesystem;
+
+void SwitchSink::set(SampleSink* target) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  target_ = target;
+}
+
+void SwitchSink::on_batch(SampleBatch&& batch) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (target_) target_->on_batch(std::move(batch));
+}
+
+void SwitchSink::on_tiling(TilingSnapshot&& snapshot) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (target_) target_->on_tiling(std::move(snapshot));
+}
+
+ReconstructorConfig display_reconstructor_config(const Preset& preset, ReconstructionMode mode,
+                                                 int width, int height, PixelRect cell, int margin,
+                                                 size_t capacity) {
+  ReconstructorConfig rc;
+  rc.mode = mode;
+  rc.image_width = width;
+  rc.image_height = height;
+  rc.viewport = cell;
+  rc.viewport_margin = margin;
+  rc.filter.min_spatial_extent = preset.reconstruction.min_spatial_extent;
+  rc.filter.max_spatial_extent = preset.reconstruction.max_spatial_extent;
+  rc.filter.max_temporal_extent = preset.reconstruction.max_temporal_extent;
+  protocol::WallLayout shape;
+  shape.width = width;
+  shape.height = height;
+  shape.margin = margin;
+  protocol::WallNode self;
+  self.cell = cell;
+  const PixelRect received = protocol::wall_receive_rect(shape, self);
+  rc.capacity = capacity > 0 ? capacity
+                             : size_t(std::max(1.0, preset.reconstruction.samples_per_pixel *
+                                                        double(received.area())));
+  rc.capacity = std::min(rc.capacity, kMaxCapacity);
+  return rc;
+}
+
+// What the window's keyboard and mouse did since the last frame.
+struct WindowInput {
+  bool key_down[3] = {false, false, false};  // M, S, Q: act on the press, not while held
+  bool dragging = false;
+  double drag_x = 0.0, drag_y = 0.0;
+  int overlay = 0;  // 0 the image, 1 tiling, 2 gradients, 3 density
+};
+
+struct DisplayApp::State {
+  DisplayAppOptions options;
+  DisplayRole& role;
+  SwitchSink& ingest;
+  FlyCamera* fly;
+  std::shared_ptr<GlfwWindow> window;
+  std::unique_ptr<Reconstructor> recon;
+  GlReconstructor* gl = nullptr;  // recon, when it draws into the window
+  std::unique_ptr<OverlaySink> tee;
+  PixelRect cell;
+  int out_w = 0, out_h = 0;
+  bool whole = true;  // the cell is the whole image (no wall)
+  protocol::Context links_context;
+  std::unique_ptr<WallPeerLinks> links;
+  WindowInput input;
+  std::vector<CameraKey> recorded;
+  Image image;
+  uint64_t frame = 0;
+  double last_input = 0.0, last_stats = 0.0, next_stats = 0.0;
+
+  State(DisplayAppOptions o, DisplayRole& r, SwitchSink& s, FlyCamera* f)
+      : options(std::move(o)), role(r), ingest(s), fly(f) {}
+
+  void make_reconstructor(const ReconstructorConfig& rc);
+  // One image: the peers' coverage in, reconstruct (and show), the own coverage out.
+  void frame_at(double t, std::atomic<bool>& stop);
+  // The window's frame: the image (or an overlay) drawn and shown, then the input read.
+  // Returns whether the image is the cell at its own size (the wall exchange's scale).
+  bool show_in_window(const Camera& camera, double t);
+  void read_input(const Camera& camera, double t, std::atomic<bool>& stop);
+  void save(const std::string& stem, double t);
+  void report_stats(double t);
+};
+
+void DisplayApp::State::make_reconstructor(const ReconstructorConfig& rc) {
+  cell = rc.viewport;
+  out_w = cell.width();
+  out_h = cell.height();
+  whole = cell == PixelRect{0, 0, rc.image_width, rc.image_height};
+  if (!options.headless) {
+    std::string error;
+    window = GlfwWindow::create(out_w, out_h, "afr display", &error);
+    if (window) {
+      auto g = std::make_unique<GlReconstructor>(rc, window);
+      gl = g.get();
+      recon = std::move(g);
+    } else {
+      spdlog::warn("no window ({}): running headless", error);
+      options.headless = true;
+    }
+  }
+  if (!recon) recon = afr::make_reconstructor(options.backend, rc).reconstructor;
+  tee = std::make_unique<OverlaySink>(*recon);
+  ingest.set(tee.get());
+  if (options.exchange) {
+    links =
+        std::make_unique<WallPeerLinks>(links_context, options.peer_security,
+                                        role.lead_samples_endpoint(), splat_guard_band(rc.splat));
+  }
+}
+
+DisplayApp::DisplayApp(DisplayAppOptions options, DisplayRole& role,
+                       const ReconstructorConfig& config, SwitchSink& ingest, FlyCamera* fly)
+    : state_(std::make_unique<State>(std::move(options), role, ingest, fly)) {
+  State& s = *state_;
+  s.make_reconstructor(config);
+  s.role.metrics().set_display(s.role.session(), s.out_w, s.out_h, s.recon->backend_name(),
+                               mode_name(s.recon->mode()));
+  if (!s.whole) {
+    spdlog::info("wall cell [{}, {}) x [{}, {}) of the {}x{} display, margin {} px, N = {}",
+                 s.cell.x0, s.cell.x1, s.cell.y0, s.cell.y1, config.image_width,
+                 config.image_height, config.viewport_margin, s.recon->capacity());
+  }
+  if (!s.options.output.empty()) fs::create_directories(s.options.output);
+}
+
+DisplayApp::~DisplayApp() { state_->ingest.set(nullptr); }
+
+Reconstructor& DisplayApp::reconstructor() { return *state_->recon; }
+
+int DisplayApp::run(std::atomic<bool>& stop) {
+  State& s = *state_;
+  const double period = 1.0 / s.options.fps;
+  const double started = s.role.now();
+  double next_frame = started;
+  s.last_input = s.last_stats = started;
+  s.next_stats = started + s.options.stats_interval;
+  while (!stop.load()) {
+    const double t = s.role.now();
+    if (s.options.seconds > 0.0 && t - started >= s.options.seconds) break;
+    if (s.window && s.window->should_close()) break;
+    if (s.role.failed()) break;
+    if (!s.window && t < next_frame) {  // headless: at the refresh rate; a window: at vsync
+      std::this_thread::sleep_for(std::chrono::duration<double>(std::min(next_frame - t, 0.05)));
+      continue;
+    }
+    next_frame += period;
+    if (next_frame < t) next_frame = t + period;
+    s.frame_at(t, stop);
+  }
+
+  const double t = s.role.now();
+  s.recon->reconstruct(s.role.camera_at(t), t, s.out_w, s.out_h, &s.image);
+  s.role.metrics().set_uptime(t);
+  if (!s.options.output.empty()) s.save("final", t);
+  if (!s.options.record.empty() && !s.recorded.empty()) {
+    write_camera_path(CameraPath(std::move(s.recorded)), s.options.record);
+    spdlog::info("recorded the camera path to {}", s.options.record);
+  }
+  spdlog::info("stopping: {}", stats_line(s.role.metrics()));
+  return s.role.failed() ? 2 : 0;
+}
+
+void DisplayApp::State::frame_at(double t, std::atomic<bool>& stop) {
+  const Camera camera = role.camera_at(t);
+  if (!options.record.empty()) recorded.push_back(camera_key(t, camera));
+  // Before the image: the current layout, and the peers' coverage into the reconstructor.
+  uint64_t coverage_applied = 0;
+  if (links) {
+    if (const std::optional<WallPosition> w = role.wall_position()) {
+      links->set_layout(w->layout, w->node_id);
+    }
+    coverage_applied = links->apply(role.wall_coverage(), *recon);
+  }
+  bool cell_sized = true;  // headless: the image is the cell at its own size
+  if (window) {
+    cell_sized = show_in_window(camera, t);
+    read_input(camera, t, stop);
+  } else {
+    recon->reconstruct(camera, t, out_w, out_h, &image);
+  }
+  ServiceMetrics& metrics = role.metrics();
+  if (links) links->send(*recon, camera, t, cell_sized, coverage_applied, metrics);
+  const double done = role.now();
+  metrics.on_frame(done, recon->frame_stats().milliseconds, recon->frame_stats().stored,
+                   recon->capacity());
+  if (!window && options.screenshot_every > 0 && frame > 0 &&
+      frame % uint64_t(options.screenshot_every) == 0) {
+    save(fmt::format("frame_{:06d}", frame), t);
+  }
+  ++frame;
+  if (done >= next_stats) report_stats(done);
+}
+
+bool DisplayApp::State::show_in_window(const Camera& camera, double t) {
+  bool cell_sized = false;
+  if (input.overlay == 0 || !whole) {
+    int fw = 0, fh = 0;
+    window->framebuffer_size(&fw, &fh);
+    recon->reconstruct(camera, t, std::max(1, fw), std::max(1, fh), nullptr);
+    cell_sized = fw == out_w && fh == out_h;
+    window->draw(*gl);
+  } else {
+    // An overlay: the image read back at the sampling size, drawn over, scaled up.
+    recon->reconstruct(camera, t, out_w, out_h, &image);
+    const auto tilings = tee->tilings();
+    if (input.overlay == 1) {
+      window->draw_image(tiling_overlay(image, tilings, role.regions()));
+    } else if (input.overlay == 2) {
+      window->draw_image(gradient_overlay(tilings, out_w, out_h));
+    } else {
+      std::vector<float> weights;
+      recon->read_weights(&weights);
+      window->draw_image(density_overlay(weights, out_w, out_h));
+    }
+  }
+  window->swap();
+  window->poll_events();
+  return cell_sized;
+}
+
+// Keys: M cycles the reconstruction mode, S writes a screenshot, Q/Esc quits; 1, 2, 3 show the
+// tiling (the paper's Figure 3), the gradients (Figure 4) and the sample density (Figure 7)
+// over the image, 0 the image alone. With --interactive a left-button drag looks around, the
+// arrows and Page Up/Down move.
+void DisplayApp::State::read_input(const Camera& camera, double t, std::atomic<bool>& stop) {
+  GLFWwindow* w = glfwGetCurrentContext();
+  if (!w) return;
+  const auto pressed = [w](int key) { return glfwGetKey(w, key) == GLFW_PRESS; };
+  for (int k = 0; k < 4; ++k) {
+    if (pressed(GLFW_KEY_0 + k)) input.overlay = k;
+  }
+  if (fly) {
+    double cx = 0.0, cy = 0.0;
+    glfwGetCursorPos(w, &cx, &cy);
+    const bool button = glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
+    if (button && input.dragging) fly->look(cx - input.drag_x, cy - input.drag_y);
+    input.dragging = button;
+    input.drag_x = cx;
+    input.drag_y = cy;
+    const auto axis = [&](int plus, int minus) {
+      return (pressed(plus) ? 1.0 : 0.0) - (pressed(minus) ? 1.0 : 0.0);
+    };
+    const glm::dvec3 move(axis(GLFW_KEY_RIGHT, GLFW_KEY_LEFT),
+                          axis(GLFW_KEY_PAGE_UP, GLFW_KEY_PAGE_DOWN),
+                          axis(GLFW_KEY_UP, GLFW_KEY_DOWN));
+    fly->move(move, std::min(t - last_input, 0.1));
+  }
+  last_input = t;
+  const int keys[3] = {GLFW_KEY_M, GLFW_KEY_S, GLFW_KEY_Q};
+  for (int k = 0; k < 3; ++k) {
+    const bool down = pressed(keys[k]);
+    if (down && !input.key_down[k]) {
+      if (k == 0) {
+        const ReconstructionMode next = ReconstructionMode((int(recon->mode()) + 1) % 3);
+        recon->set_mode(next);
+        spdlog::info("reconstruction mode: {}", mode_name(next));
+      } else if (k == 1) {
+        recon->reconstruct(camera, t, out_w, out_h, &image);
+        save(fmt::format("screenshot_{:06d}", frame), t);
+      } else {
+        stop.store(true);
+      }
+    }
+    input.key_down[k] = down;
+  }
+  if (pressed(GLFW_KEY_ESCAPE)) stop.store(true);
+}
+
+void DisplayApp::State::save(const std::string& stem, double t) {
+  if (whole) {
+    write_images(*recon, image, *tee, role.regions(), fs::path(options.output) / stem);
+    spdlog::info("wrote {}/{}.png (t={:.2f}s) with _tiling and _density overlays", options.output,
+                 stem, t);
+  } else {  // the overlays draw whole-image coordinates: the cell's image alone
+    write_image(image, fs::path(options.output) / (stem + ".png"));
+    write_image(image, fs::path(options.output) / (stem + ".exr"));
+    spdlog::info("wrote {}/{}.png and .exr (t={:.2f}s)", options.output, stem, t);
+  }
+}
+
+void DisplayApp::State::report_stats(double t) {
+  ServiceMetrics& metrics = role.metrics();
+  metrics.set_uptime(t);
+  metrics.end_period(t - last_stats);
+  last_stats = t;
+  next_stats = t + options.stats_interval;
+  spdlog::info("{}", stats_line(metrics));
+  // The window's heads-up line: the same figures in its title.
+  if (window) window->set_title("afr display | " + stats_line(metrics));
+}
+
+}  // namespace afr::service
