@@ -1,0 +1,230 @@
+#!/usr/bin/env bash
+# Regenerates the measured figures in bench/results/ (bench/results/README.md lists them).
+# Each result has a name; the script runs the named results' commands and writes each file
+# with a header: what it measures, the command, the commit (and whether the tree had
+# uncommitted changes), the date, the cores and the load average at the start. A file is
+# replaced only when its command succeeded.
+#
+#   bench/refresh_results.sh --list                 every result, its file and its command
+#   bench/refresh_results.sh liveness protocol      run those two
+#   bench/refresh_results.sh --build build-rel tracer
+#   bench/refresh_results.sh all                    every result (many hours; root ones need root)
+#
+# Use a Release build (default build/). The commands are the ones the docs name; results that
+# need the BART kitchen convert it first into out/kitchen/ (../shared/scenes must exist).
+# goodput and lossy need root (network namespaces) and are skipped without it. Run one
+# benchmark at a time on an otherwise quiet machine: the figures move with the load.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$PWD
+BUILD=build
+
+names=()
+declare -A FILE TITLE WHAT CMD FLAGS
+# add NAME FILE TITLE WHAT CMD [FLAGS]: a result whose body is the command's standard output
+# (CMD is evaluated by bash with $BUILD set; it may be several commands). FLAGS: "root" (needs
+# root), "self" (the command writes its result file itself, with its own header).
+add() {
+  names+=("$1")
+  FILE[$1]=$2 TITLE[$1]=$3 WHAT[$1]=$4 CMD[$1]=$5 FLAGS[$1]=${6:-}
+}
+
+add liveness liveness.md "Liveness of the running service" \
+  "Detection of a kill -9, stops that must not count as deaths, samplers back after a display restart (docs/service.md, \"Liveness\")." \
+  'python3 bench/liveness.py --build "$BUILD" --trials 5 --load 0 --write' \
+  self
+add liveness-load4 liveness-load4.md "Liveness of the running service, four busy processes beside" \
+  "As liveness.md with four busy processes beside the nodes (docs/service.md, \"Liveness\")." \
+  'python3 bench/liveness.py --build "$BUILD" --trials 5 --load 4 --write' \
+  self
+add tracer tracer.md "Tracer throughput" \
+  "Shaded samples per second of the Embree tracer on the built-in scene and the BART kitchen (docs/benchmarks.md, \"Tracer\")." \
+  'need_kitchen && "$BUILD"/bench/afr-bench-tracer --scene out/kitchen/kitchen.gltf'
+add ideal-render ideal-render.md "Ideal renderer" \
+  "Wall time and rays per second of the ideal renderer for one 256x256 frame of the kitchen at 16 spp (docs/benchmarks.md, \"Ideal renderer\")." \
+  'need_kitchen && "$BUILD"/bench/afr-render out/kitchen/kitchen.gltf --time 6 --size 256x256 --spp 16 -o out/kitchen_t6.png'
+add sampler-control sampler-control.md "Cost of the sampler's adaptive control" \
+  "Adaptive and uniform samples per CPU-second on one thread, their ratio (goal >= 0.90), reprojection and occlusion per new crosshair (goal <= 1/50), pool samples/s (docs/benchmarks.md, \"Sampler control\")." \
+  'need_kitchen && "$BUILD"/bench/afr-bench-sampler --scene out/kitchen/kitchen.gltf --seconds 1 --repeats 5'
+add sampler-instructions sampler-instructions.md "Instructions per step of the adaptive sampler" \
+  "Callgrind's instruction totals of fixed, seeded runs of each sampler mode, with the step counts the program prints (docs/benchmarks.md, \"Sampler control\"); divide the totals by the counts for per-step figures." \
+  'need_kitchen && mkdir -p out/callgrind && for scene in "" out/kitchen/kitchen.gltf; do for ms in "adaptive 5000" "uniform 30000" "crosshair 3000" "reproject 20000"; do set -- $ms; echo "### --profile $1 --steps $2 ${scene:+--scene $scene}"; echo; valgrind --tool=callgrind --callgrind-out-file=out/callgrind/%p --toggle-collect="*profile_steps*" "$BUILD"/bench/afr-bench-sampler --profile "$1" --steps "$2" ${scene:+--scene "$scene"} 2>&1 | grep -E "steps:|Collected" | sed "s/^==[0-9]*== //;s/^/    /" || exit 1; echo; done; done'
+add sampler-memory sampler-memory.md "Sampler heap per region pixel" \
+  "Heap a sampler takes per pixel of its region, with a crosshair in every pixel and with one pixel in 64 holding one, b = 1 and 4 (docs/sampler.md, \"Memory\")." \
+  '"$BUILD"/tests/sampler_node/afr_sampler_memory_test --gtest_filter="*HeapPerRegionPixel*"'
+add reconstruct reconstruct.md "Reconstruction time by resolution and backend" \
+  "Wall time of one live refresh (1/60 of N new samples and a tiling, then reconstruct with reprojection of N = 4 x pixels samples) for the CPU and OpenGL backends, with the naive 3x3 splat as yardstick (docs/reconstruction.md, \"Benchmark\")." \
+  '"$BUILD"/bench/afr-bench-reconstruct --sizes 256,512,1024 --backends cpu,gl --threads 1,2 --repeats 11 --gl-repeats 3 --warmup 8'
+add reconstruct-goal reconstruct-goal.md "Reconstruction at 256 x 256: the 60 Hz goal" \
+  "The CPU backend at 256x256, N = 262 144, on 1 and 2 threads; the goal is <= 16.7 ms per refresh on 2 threads (docs/reconstruction.md, \"Benchmark\")." \
+  '"$BUILD"/bench/afr-bench-reconstruct --sizes 256 --backends cpu --threads 1,2 --repeats 31 --warmup 10'
+add service-cap40k service-cap40k.md "Service on loopback: k samplers capped at 40 000 samples/s" \
+  "k = 1..4 capped samplers and a headless display (128x128, CPU backend, 60 Hz): received / sum of caps (goal >= 0.95), latency p50 / p99 (goal p50 <= 18.7 ms), batch bytes per sample (docs/service.md, \"Figures\")." \
+  'deploy/lan/bench.sh --build "$BUILD" --cap 40000'
+add service-cap100k service-cap100k.md "Service on loopback: k samplers capped at 100 000 samples/s" \
+  "As service-cap40k.md with caps of 100 000 samples/s (docs/service.md, \"Figures\")." \
+  'deploy/lan/bench.sh --build "$BUILD" --cap 100000'
+add ingest ingest.md "Display ingest" \
+  "BM_Ingest: the display's ingest thread's CPU time per sample and the rate that arrives over TCP loopback, with and without the sample store; BM_StoreAppend: the store alone (docs/service.md, \"Figures\")." \
+  '"$BUILD"/bench/afr-bench-service 2>&1'
+add goodput goodput.md "Goodput of sample batches across a 1 Gbit link" \
+  "Afr batch bytes received per second over a tbf-limited 1 Gbit link between two network namespaces, over the link rate (ceiling 0.954, goal >= 0.90) (docs/service.md, \"Figures\")." \
+  'for args in "--seconds 8 --repeats 5 --receiver ingest --mode flush" "--seconds 8 --repeats 5 --receiver display --mode drop" "--seconds 6 --repeats 1 --receiver ingest --mode drop -- --sndhwm 1000"; do echo "### deploy/lan/goodput.sh --build $BUILD $args"; echo; deploy/lan/goodput.sh --build "$BUILD" $args || exit 1; echo; done' \
+  root
+add protocol protocol.md "Protocol: codec cost and loopback throughput" \
+  "Encode and decode cost per sample, tiling decode, PUSH/PULL throughput over TCP loopback with and without CurveZMQ, a non-blocking sender with and without the ZMQ_EVENTS check (docs/protocol.md, \"Figures\")." \
+  '"$BUILD"/bench/afr-bench-protocol --benchmark_min_time=1 2>&1'
+add eval-256 eval-table-256.md "Table 1 at 256 x 256" \
+  "Mean RMS error (0-255) against the ideal renderer of every method at 100K, 400K and 800K primary rays/s on the four animations, and the wall time of each run (docs/evaluation.md); the program's table.md." \
+  'need_kitchen && "$BUILD"/bench/afr-eval --size 256x256 --seconds 3 --spp 9 --out out/eval/table-256 >&2 && cat out/eval/table-256/table.md'
+add eval-512 eval-table-512.md "Table 1 at 512 x 512" \
+  "Mean RMS error of every method at 400K and 1.6M primary rays/s on the three kitchen animations at 512 x 512 (docs/evaluation.md); the program's table.md." \
+  'need_kitchen && "$BUILD"/bench/afr-eval --size 512x512 --seconds 1 --spp 4 --animations bart,toycar,interactive --rates 400K,1.6M --out out/eval/table-512 >&2 && cat out/eval/table-512/table.md'
+add eval-timing eval-timing.md "Cost of a full Table 1 run" \
+  "Wall minutes of a Table-1 run of 20 s per kitchen animation at 256 x 256 with 1-spp ideal frames and no cache; the target is 30 minutes of method runs (docs/evaluation.md, \"Cost of a full Table 1 run\"); the program's table.md." \
+  'need_kitchen && "$BUILD"/bench/afr-eval --size 256x256 --seconds 20 --spp 1 --no-cache --animations bart,toycar,interactive --out out/eval/table1-timing >&2 && cat out/eval/table1-timing/table.md'
+add sweep sweep-256.md "Speed/accuracy sweep at 256 x 256" \
+  "Mean RMS and wall-clock cost of one knob at a time and of the baselines, Pareto fronts marked (docs/tradeoffs.md); the program's sweep.md." \
+  'need_kitchen && "$BUILD"/bench/afr-eval --sweep --size 256x256 --seconds 2 --spp 9 --out out/eval/sweep-256 >&2 && cat out/eval/sweep-256/sweep.md'
+add presets presets.md "Presets at 400K" \
+  "Mean RMS per animation and wall seconds of each preset at 400K on the four animations (docs/tradeoffs.md, \"Presets\"); the three runs' table.md." \
+  'need_kitchen && for p in fast balanced accurate; do "$BUILD"/bench/afr-eval --methods adaptive --rates 400K --seconds 2 --spp 9 --preset $p --out out/eval/preset-$p >&2 || exit 1; echo "## --preset $p"; echo; cat out/eval/preset-$p/table.md; echo; done'
+add control-weights control-weights.md "The sampler's control weights: kappa, lambda, m, i" \
+  "Mean RMS (0-255) over sampler seeds, with the lowest and highest seed, of adaptive at 400K with one control weight changed at a time, four animations at 128 x 128 (docs/sampler.md, \"How kappa, lambda, m and i were chosen\")." \
+  'need_kitchen && for s in 1 2 3 4 5; do "$BUILD"/bench/afr-eval --m 2 --sweep --knobs kappa,lambda,m,i --animations builtin --size 128x128 --seconds 2 --spp 9 --seed $s --out out/eval/ctl-builtin-s$s >&2 || exit 1; done && for s in 1 2; do "$BUILD"/bench/afr-eval --m 2 --sweep --knobs kappa,lambda,m,i --animations bart,toycar,interactive --size 128x128 --seconds 2 --spp 9 --seed $s --out out/eval/ctl-kitchen-s$s >&2 || exit 1; done && for s in 1 2; do "$BUILD"/bench/afr-eval --sweep --knobs kappa,lambda --animations bart,toycar,interactive,builtin --size 128x128 --seconds 2 --spp 9 --seed $s --out out/eval/ctl-m1-s$s >&2 || exit 1; done && seed_means "around the former defaults (m = 2)" out/eval/ctl-builtin-s{1..5} out/eval/ctl-kitchen-s{1,2} && seed_means "around the chosen defaults (m = 1)" out/eval/ctl-m1-s{1,2}'
+add fuzz fuzz.md "Long fuzzing runs" \
+  "Executions, speed and crashes of 10 million executions of each libFuzzer target in the asan build (docs/robustness.md, \"Fuzzing\")." \
+  'for t in protocol aff gltf camera_path; do AFR_BUILD_DIR=build-asan AFR_FUZZ_KEEP=1 bench/fuzz.sh $t 0 -runs=10000000 | grep "^afr_fuzz_" | sed "s/^/    /" || exit 1; done'
+add soak soak.md "Soak run" \
+  "Ten minutes of 4 samplers and a headless display with a sampler killed every 30 s: RSS, store, queues, errors, image error (docs/robustness.md, \"Soak\"); the script's report." \
+  'python3 deploy/soak.py --build "$BUILD" --minutes 10 --samplers 4 --kill-every 30'
+add lossy lossy-lan.md "Lossy LAN" \
+  "The service across network namespaces on clean links and on 100 mbit links with 5% drops, 3 runs each, image error against the ideal render (docs/robustness.md, \"Lossy LAN\")." \
+  'deploy/lan/lossy.sh --build "$BUILD" --repeats 3' \
+  root
+
+# The BART kitchen in glTF, for the results that use it (docs/benchmarks.md).
+need_kitchen() {
+  [ -f out/kitchen/kitchen.gltf ] && return 0
+  "$BUILD"/tools/aff2gltf/aff2gltf ../shared/scenes/bart-kitchen/aff/kitchen.aff \
+    -o out/kitchen/kitchen.gltf >&2
+}
+
+# seed_means LABEL DIR...: the mean and range over the seeds of mean_rms in the DIRs'
+# sweep.csv, per knob value and animation, as a markdown table.
+seed_means() {
+  local label=$1
+  shift
+  python3 - "$label" "$@" <<'PY'
+import csv, statistics, sys
+label, dirs = sys.argv[1], sys.argv[2:]
+runs = {}  # (value, animation) -> [mean_rms per seed]
+order = []
+for d in dirs:
+    with open(f"{d}/sweep.csv") as f:
+        for row in csv.DictReader(f):
+            key = (row["value"], row["animation"])
+            if row["value"] not in order:
+                order.append(row["value"])
+            runs.setdefault(key, []).append(float(row["mean_rms"]))
+animations = [a for a in ("bart", "toycar", "interactive", "builtin")
+              if any(k[1] == a for k in runs)]
+print(f"### {label}\n")
+print("| value | " + " | ".join(animations) + " | mean of the animations |")
+print("|---|" + "---:|" * (len(animations) + 1))
+for value in order:
+    cells, means = [], []
+    for a in animations:
+        v = runs.get((value, a))
+        if not v:
+            cells.append("")
+            continue
+        m = statistics.mean(v)
+        means.append(m)
+        cells.append(f"{m:.2f} ({min(v):.1f}-{max(v):.1f})")
+    total = f"{statistics.mean(means):.2f}" if len(means) == len(animations) else ""
+    print(f"| {value} | " + " | ".join(cells) + f" | {total} |")
+print()
+PY
+}
+
+usage() { sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; }
+
+list() {
+  local n
+  for n in "${names[@]}"; do
+    local note=""
+    [ "${FLAGS[$n]}" = root ] && note=" (needs root)"
+    [ "${FLAGS[$n]}" = self ] && note=" (the command writes it)"
+    printf '%s -> bench/results/%s%s\n' "$n" "${FILE[$n]}" "$note"
+    printf '    %s\n' "${CMD[$n]//\$BUILD/$BUILD}"
+  done
+  echo "Recorded by hand, not run here: test-times.md, still-scene-reconstruction.md (bench/results/README.md)."
+}
+
+run_one() {
+  local n=$1 out=bench/results/${FILE[$1]} body commit dirty load
+  if [ "${FLAGS[$n]}" = root ] && [ "$(id -u)" -ne 0 ]; then
+    echo "refresh_results.sh: $n needs root (network namespaces): skipped" >&2
+    return 2
+  fi
+  commit=$(git rev-parse --short HEAD)
+  dirty=$(git status --porcelain --untracked-files=no | head -1)
+  load=$(cut -d' ' -f1-3 /proc/loadavg)
+  echo "== $n: ${CMD[$n]//\$BUILD/$BUILD}" >&2
+  if [ "${FLAGS[$n]}" = self ]; then
+    (eval "${CMD[$n]}") || return 1
+    return 0
+  fi
+  body=$(mktemp)
+  if ! (eval "${CMD[$n]}") >"$body"; then
+    rm -f "$body"
+    return 1
+  fi
+  {
+    echo "# ${TITLE[$n]}"
+    echo
+    echo "${WHAT[$n]}"
+    echo
+    echo "- Command: \`${CMD[$n]//\$BUILD/$BUILD}\`"
+    echo "- Generated by \`bench/refresh_results.sh $n\` at commit $commit${dirty:+ (with uncommitted changes)}," \
+      "$(date -u +%Y-%m-%d), on $(nproc) cores, load average $load at the start; build folder $BUILD."
+    echo
+    cat "$body"
+  } >"$out.tmp"
+  mv "$out.tmp" "$out"
+  rm -f "$body"
+}
+
+wanted=() list_only=0
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --list) list_only=1; shift ;;
+    --build) BUILD=$2; shift 2 ;;
+    -h|--help) usage; exit 0 ;;
+    all) wanted+=("${names[@]}"); shift ;;
+    -*) echo "refresh_results.sh: unknown option '$1'" >&2; exit 2 ;;
+    *)
+      [ -n "${FILE[$1]+x}" ] || { echo "refresh_results.sh: unknown result '$1' (--list names them)" >&2; exit 2; }
+      wanted+=("$1"); shift ;;
+  esac
+done
+if [ $list_only = 1 ]; then
+  list
+  exit 0
+fi
+if [ ${#wanted[@]} -eq 0 ]; then
+  usage
+  exit 2
+fi
+export BUILD
+status=0
+for n in "${wanted[@]}"; do
+  if run_one "$n"; then
+    echo "== $n: bench/results/${FILE[$n]} written" >&2
+  else
+    rc=$?
+    [ $rc -eq 2 ] || { echo "== $n: FAILED, bench/results/${FILE[$n]} left as it was" >&2; status=1; }
+  fi
+done
+exit $status
