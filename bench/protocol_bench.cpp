@@ -10,6 +10,7 @@
 #include <afr/protocol/codec.h>
 
 #include <benchmark/benchmark.h>
+#include <zmq.hpp>
 
 #include <atomic>
 #include <chrono>

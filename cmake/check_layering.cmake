@@ -2,7 +2,8 @@
 # "Who may know whom"): common stands on nothing of afr; protocol on common; sampler_node and
 # display_node each on common and protocol, side by side, neither including the other.
 #   cmake -DSOURCE_DIR=<repo> -P cmake/check_layering.cmake
-# (protocol's public headers still include ZeroMQ: channels.h hands out sockets.)
+# ZeroMQ is protocol's own: no public header of protocol includes it (the channels expose
+# send, receive and wait, not sockets), and neither node's sources include it.
 
 # folder, then the parts (include prefix afr/<part>/, folder <folder of part>) it must not know.
 set(must_not_know_common protocol:protocol sampler:sampler_node display:display_node)
@@ -37,6 +38,19 @@ foreach(folder common protocol sampler_node display_node)
     endforeach()
   endforeach()
 endforeach()
+# ZeroMQ behind protocol's public headers.
+file(GLOB_RECURSE sealed "${SOURCE_DIR}/protocol/include/*.h" "${SOURCE_DIR}/common/*.h"
+     "${SOURCE_DIR}/common/*.cpp" "${SOURCE_DIR}/sampler_node/*.h" "${SOURCE_DIR}/sampler_node/*.cpp"
+     "${SOURCE_DIR}/display_node/*.h" "${SOURCE_DIR}/display_node/*.cpp")
+foreach(f IN LISTS sealed)
+  file(STRINGS "${f}" hits REGEX "#include [<\"]zmq(\\.h|\\.hpp|_addon\\.hpp)[>\"]|zmq::")
+  foreach(hit IN LISTS hits)
+    file(RELATIVE_PATH rel "${SOURCE_DIR}" "${f}")
+    message(SEND_ERROR "${rel}: ZeroMQ is afr_protocol's own (use the channels): ${hit}")
+    set(failed TRUE)
+  endforeach()
+endforeach()
 if(NOT failed)
-  message(STATUS "layering holds: common < protocol < sampler_node | display_node")
+  message(STATUS 
+    "layering holds: common < protocol < sampler_node | display_node; ZeroMQ inside protocol")
 endif()

@@ -3,6 +3,7 @@
 #include <afr/common/check.h>
 #include <afr/common/error.h>
 
+#include "zmq_state.h"
 #include "zmq_util.h"
 
 #include <zmq.h>
@@ -138,7 +139,7 @@ void apply_security(zmq::socket_t& s, const Security& security, const Context& c
   }
   if (security.is_server()) {
     // Without a ZAP handler libzmq admits every client key: refuse to run like that.
-    if (!context.zap()) {
+    if (!context.state().zap) {
       throw Error(endpoint +
                   ": a CurveZMQ server needs an allow-list of client keys "
                   "(Context::allow_curve_clients)");
@@ -201,15 +202,17 @@ Status type_error(MessageType type, const char* channel) {
 
 SampleSender::SampleSender(Context& context, const std::string& endpoint, const Security& security,
                            const ChannelOptions& options)
-    : socket_(context.zmq(), zmq::socket_type::push),
+    : socket_(std::make_unique<detail::Socket>(context, zmq::socket_type::push)),
       slots_(size_t(std::max(1, options.sender_queue)) + 1) {
-  apply_options(socket_, options);
+  apply_options(socket_->socket, options);
   // Queue only to completed connections: with no display, messages wait in our queue (which
   // drops the oldest) instead of in a pipe that would deliver them stale after a reconnect.
-  set_int(socket_, ZMQ_IMMEDIATE, 1);
-  apply_security(socket_, security, context, endpoint);
-  connect(socket_, endpoint);
+  set_int(socket_->socket, ZMQ_IMMEDIATE, 1);
+  apply_security(socket_->socket, security, context, endpoint);
+  connect(socket_->socket, endpoint);
 }
+
+SampleSender::~SampleSender() = default;
 
 SampleSender::Slot& SampleSender::push_slot() {
   // One physical slot more than the queue holds: the tail is always free to encode into.
@@ -266,7 +269,7 @@ size_t SampleSender::pump() {
   while (size_ > 0) {
     Slot& slot = slots_[head_];
     zmq::message_t m(slot.bytes.data(), slot.bytes.size());
-    if (!send_retry(socket_, m, zmq::send_flags::dontwait)) break;
+    if (!send_retry(socket_->socket, m, zmq::send_flags::dontwait)) break;
     ++sent_counter(slot.kind);
     counters_.bytes_sent += slot.bytes.size();
     pop_slot();
@@ -284,7 +287,7 @@ bool SampleSender::flush(int timeout_ms) {
           std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count());
       if (wait <= 0) return false;
     }
-    detail::wait_writable(socket_, wait);
+    detail::wait_writable(socket_->socket, wait);
   }
   return true;
 }
@@ -294,19 +297,21 @@ bool SampleSender::flush(int timeout_ms) {
 
 SampleReceiver::SampleReceiver(Context& context, const std::string& endpoint,
                                const Security& security, const ChannelOptions& options)
-    : socket_(context.zmq(), zmq::socket_type::pull) {
-  apply_options(socket_, options);
-  apply_security(socket_, security, context, endpoint);
-  bind(socket_, endpoint);
+    : socket_(std::make_unique<detail::Socket>(context, zmq::socket_type::pull)) {
+  apply_options(socket_->socket, options);
+  apply_security(socket_->socket, security, context, endpoint);
+  bind(socket_->socket, endpoint);
 }
 
-std::string SampleReceiver::endpoint() const { return last_endpoint(socket_); }
+SampleReceiver::~SampleReceiver() = default;
+
+std::string SampleReceiver::endpoint() const { return last_endpoint(socket_->socket); }
 
 SampleReceiver::Got SampleReceiver::receive(int timeout_ms) {
-  if (timeout_ms != 0 && !wait_readable(socket_, timeout_ms)) return Got::kNothing;
-  const Frame frame = receive_one(socket_, message_);
+  if (timeout_ms != 0 && !wait_readable(socket_->socket, timeout_ms)) return Got::kNothing;
+  const Frame frame = receive_one(socket_->socket, socket_->message);
   if (frame == Frame::kNone) return Got::kNothing;
-  counters_.bytes += message_.size();
+  counters_.bytes += socket_->message.size();
   const auto reject = [&](Status s) {
     rejection_ = std::move(s);
     ++counters_.rejected;
@@ -315,7 +320,7 @@ SampleReceiver::Got SampleReceiver::receive(int timeout_ms) {
   if (frame == Frame::kMultipart) {
     return reject(Status::error("message: multipart messages are not part of the protocol"));
   }
-  const Bytes bytes = bytes_of(message_);
+  const Bytes bytes = bytes_of(socket_->message);
   Result<Header> header = peek_header(bytes);
   if (!header) return reject(header.status());
   if (header->type == MessageType::kSampleBatch) {
@@ -342,38 +347,42 @@ SampleReceiver::Got SampleReceiver::receive(int timeout_ms) {
 
 ViewPublisher::ViewPublisher(Context& context, const std::string& endpoint,
                              const Security& security, const ChannelOptions& options)
-    : socket_(context.zmq(), zmq::socket_type::pub) {
-  apply_options(socket_, options);
+    : socket_(std::make_unique<detail::Socket>(context, zmq::socket_type::pub)) {
+  apply_options(socket_->socket, options);
   // A PUB socket drops the NEWEST message when a subscriber's queue is full; conflating keeps
   // one message per subscriber instead, and it is always the latest view.
-  set_int(socket_, ZMQ_CONFLATE, 1);
-  apply_security(socket_, security, context, endpoint);
-  bind(socket_, endpoint);
+  set_int(socket_->socket, ZMQ_CONFLATE, 1);
+  apply_security(socket_->socket, security, context, endpoint);
+  bind(socket_->socket, endpoint);
 }
 
-std::string ViewPublisher::endpoint() const { return last_endpoint(socket_); }
+ViewPublisher::~ViewPublisher() = default;
+
+std::string ViewPublisher::endpoint() const { return last_endpoint(socket_->socket); }
 
 Status ViewPublisher::publish(const View& view) {
   if (Status s = encode(view, &buffer_); !s) return s;
   zmq::message_t m(buffer_.data(), buffer_.size());
-  send_retry(socket_, m, zmq::send_flags::dontwait);  // PUB never blocks; it drops
+  send_retry(socket_->socket, m, zmq::send_flags::dontwait);  // PUB never blocks; it drops
   return {};
 }
 
 ViewSubscriber::ViewSubscriber(Context& context, const std::string& endpoint,
                                const Security& security, const ChannelOptions& options)
-    : socket_(context.zmq(), zmq::socket_type::sub) {
-  apply_options(socket_, options);
-  set_int(socket_, ZMQ_CONFLATE, 1);  // keep only the latest view
-  set_string(socket_, ZMQ_SUBSCRIBE, "");
-  apply_security(socket_, security, context, endpoint);
-  connect(socket_, endpoint);
+    : socket_(std::make_unique<detail::Socket>(context, zmq::socket_type::sub)) {
+  apply_options(socket_->socket, options);
+  set_int(socket_->socket, ZMQ_CONFLATE, 1);  // keep only the latest view
+  set_string(socket_->socket, ZMQ_SUBSCRIBE, "");
+  apply_security(socket_->socket, security, context, endpoint);
+  connect(socket_->socket, endpoint);
 }
 
+ViewSubscriber::~ViewSubscriber() = default;
+
 std::optional<View> ViewSubscriber::receive(int timeout_ms) {
-  if (timeout_ms != 0 && !wait_readable(socket_, timeout_ms)) return std::nullopt;
+  if (timeout_ms != 0 && !wait_readable(socket_->socket, timeout_ms)) return std::nullopt;
   zmq::message_t m;
-  const Frame frame = receive_one(socket_, m);
+  const Frame frame = receive_one(socket_->socket, m);
   if (frame == Frame::kNone) return std::nullopt;
   View view;
   Status s = frame == Frame::kMultipart
@@ -416,26 +425,28 @@ Result<Message> decode_control(Bytes bytes, bool (*allowed)(MessageType)) {
 
 ControlServer::ControlServer(Context& context, const std::string& endpoint,
                              const Security& security, const ChannelOptions& options)
-    : socket_(context.zmq(), zmq::socket_type::router) {
-  apply_options(socket_, options);
+    : socket_(std::make_unique<detail::Socket>(context, zmq::socket_type::router)) {
+  apply_options(socket_->socket, options);
   // Sending to an unknown peer fails instead of vanishing.
-  set_int(socket_, ZMQ_ROUTER_MANDATORY, 1);
-  apply_security(socket_, security, context, endpoint);
-  bind(socket_, endpoint);
+  set_int(socket_->socket, ZMQ_ROUTER_MANDATORY, 1);
+  apply_security(socket_->socket, security, context, endpoint);
+  bind(socket_->socket, endpoint);
 }
 
-std::string ControlServer::endpoint() const { return last_endpoint(socket_); }
+ControlServer::~ControlServer() = default;
+
+std::string ControlServer::endpoint() const { return last_endpoint(socket_->socket); }
 
 std::optional<ControlServer::Incoming> ControlServer::receive(int timeout_ms) {
-  if (timeout_ms != 0 && !wait_readable(socket_, timeout_ms)) return std::nullopt;
+  if (timeout_ms != 0 && !wait_readable(socket_->socket, timeout_ms)) return std::nullopt;
   zmq::message_t id;
-  if (!recv_retry(socket_, id, zmq::recv_flags::dontwait)) return std::nullopt;
+  if (!recv_retry(socket_->socket, id, zmq::recv_flags::dontwait)) return std::nullopt;
   std::string peer(static_cast<const char*>(id.data()), id.size());
   if (!id.more()) {  // a ROUTER always prefixes the routing id; nothing follows: malformed
     return Incoming{peer, "", Status::error("message: empty")};
   }
   zmq::message_t m;
-  const Frame frame = receive_one(socket_, m);
+  const Frame frame = receive_one(socket_->socket, m);
   if (frame == Frame::kNone) return std::nullopt;
   const char* user = zmq_msg_gets(m.handle(), "User-Id");
   std::string key = user ? user : "";
@@ -454,8 +465,9 @@ Status ControlServer::send(const std::string& peer, const Message& message) {
   zmq::message_t id(peer.data(), peer.size());
   zmq::message_t m(buffer_.data(), buffer_.size());
   int error = 0;
-  if (!send_retry(socket_, id, zmq::send_flags::sndmore | zmq::send_flags::dontwait, &error) ||
-      !send_retry(socket_, m, zmq::send_flags::dontwait, &error)) {
+  if (!send_retry(socket_->socket, id, zmq::send_flags::sndmore | zmq::send_flags::dontwait,
+                  &error) ||
+      !send_retry(socket_->socket, m, zmq::send_flags::dontwait, &error)) {
     return Status::error(
         std::string(message_type_name(message_type(message))) + ": " +
         (error == EHOSTUNREACH ? "peer is not connected" : "peer's queue is full"));
@@ -465,16 +477,18 @@ Status ControlServer::send(const std::string& peer, const Message& message) {
 
 ControlClient::ControlClient(Context& context, const std::string& endpoint,
                              const Security& security, const ChannelOptions& options)
-    : socket_(context.zmq(), zmq::socket_type::dealer) {
-  apply_options(socket_, options);
-  apply_security(socket_, security, context, endpoint);
-  connect(socket_, endpoint);
+    : socket_(std::make_unique<detail::Socket>(context, zmq::socket_type::dealer)) {
+  apply_options(socket_->socket, options);
+  apply_security(socket_->socket, security, context, endpoint);
+  connect(socket_->socket, endpoint);
 }
 
+ControlClient::~ControlClient() = default;
+
 std::optional<Result<Message>> ControlClient::receive(int timeout_ms) {
-  if (timeout_ms != 0 && !wait_readable(socket_, timeout_ms)) return std::nullopt;
+  if (timeout_ms != 0 && !wait_readable(socket_->socket, timeout_ms)) return std::nullopt;
   zmq::message_t m;
-  const Frame frame = receive_one(socket_, m);
+  const Frame frame = receive_one(socket_->socket, m);
   if (frame == Frame::kNone) return std::nullopt;
   if (frame == Frame::kMultipart) {
     return Result<Message>(
@@ -489,7 +503,7 @@ Status ControlClient::send(const Message& message) {
   }
   if (Status s = encode(message, &buffer_); !s) return s;
   zmq::message_t m(buffer_.data(), buffer_.size());
-  if (!send_retry(socket_, m, zmq::send_flags::dontwait)) {
+  if (!send_retry(socket_->socket, m, zmq::send_flags::dontwait)) {
     return Status::error(std::string(message_type_name(message_type(message))) + ": queue is full");
   }
   return {};

@@ -3,6 +3,7 @@
 #include <afr/common/error.h>
 #include <afr/protocol/keys.h>
 
+#include "zmq_state.h"
 #include "zmq_util.h"
 
 #include <zmq.h>
@@ -12,6 +13,8 @@
 #include <cstdio>
 
 namespace afr::protocol {
+
+using detail::ZapHandler;
 
 namespace {
 
@@ -24,8 +27,10 @@ std::string frame_text(const zmq::message_t& m) { return std::string(m.to_string
 // ---------------------------------------------------------------------------------------------
 // ZapHandler
 
+namespace detail {
+
 ZapHandler::ZapHandler(zmq::context_t& context, std::vector<std::string> allowed_keys,
-                       Callback on_decision)
+                       Context::ZapCallback on_decision)
     : handler_(context, zmq::socket_type::rep),
       stop_rx_(context, zmq::socket_type::pair),
       stop_tx_(context, zmq::socket_type::pair),
@@ -122,26 +127,33 @@ void ZapHandler::handle_request() {
   }
 }
 
+}  // namespace detail
+
 // ---------------------------------------------------------------------------------------------
 // Context
 
-Context::Context(int io_threads) : context_(io_threads) {}
+Context::Context(int io_threads) : state_(std::make_unique<detail::ContextState>(io_threads)) {}
 
 Context::~Context() {
-  zap_.reset();  // before the context, whose termination waits for the handler's sockets
+  state_->zap.reset();  // before the context, whose termination waits for the handler's sockets
 }
 
-void Context::allow_curve_clients(std::vector<std::string> public_keys,
-                                  ZapHandler::Callback on_decision) {
+void Context::allow_curve_clients(std::vector<std::string> public_keys, ZapCallback on_decision) {
   for (const std::string& key : public_keys) {
     if (!is_curve_key(key)) throw Error("allow-list: malformed CurveZMQ public key '" + key + "'");
   }
   if (!curve_available()) throw Error("this libzmq was built without CurveZMQ");
-  if (zap_) {
-    zap_->set_allowed_keys(std::move(public_keys));
+  if (state_->zap) {
+    state_->zap->set_allowed_keys(std::move(public_keys));
     return;
   }
-  zap_ = std::make_unique<ZapHandler>(context_, std::move(public_keys), std::move(on_decision));
+  state_->zap =
+      std::make_unique<ZapHandler>(state_->context, std::move(public_keys), std::move(on_decision));
+}
+
+std::optional<ZapCounts> Context::zap() const {
+  if (!state_->zap) return std::nullopt;
+  return ZapCounts{state_->zap->accepted(), state_->zap->refused()};
 }
 
 }  // namespace afr::protocol

@@ -57,8 +57,8 @@ TEST_F(CurveTest, AllowedKeyConnectsAndIsIdentified) {
   ASSERT_TRUE(in->message.ok()) << in->message.error();
   EXPECT_EQ(std::get<Join>(*in->message), join);
   EXPECT_EQ(in->public_key, allowed_.public_key);  // the ZAP user id
-  EXPECT_GE(context_.zap()->accepted(), 1u);
-  EXPECT_EQ(context_.zap()->refused(), 0u);
+  EXPECT_GE(context_.zap()->accepted, 1u);
+  EXPECT_EQ(context_.zap()->refused, 0u);
 
   const Welcome welcome = random_welcome(rng);
   ASSERT_TRUE(server.send(in->peer, welcome).ok());
@@ -75,8 +75,8 @@ TEST_F(CurveTest, UnknownKeyIsRefusedAndReported) {
   Pcg32 rng(2);
   ASSERT_TRUE(stranger.send(random_join(rng)).ok());
   EXPECT_FALSE(server.receive(1000).has_value());
-  ASSERT_GE(context_.zap()->refused(), 1u);
-  EXPECT_EQ(context_.zap()->accepted(), 0u);
+  ASSERT_GE(context_.zap()->refused, 1u);
+  EXPECT_EQ(context_.zap()->accepted, 0u);
   const std::vector<ZapDecision> d = decisions();
   ASSERT_FALSE(d.empty());
   EXPECT_FALSE(d[0].accepted);
@@ -87,7 +87,7 @@ TEST_F(CurveTest, UnknownKeyIsRefusedAndReported) {
   // libzmq ends a session refused by ZAP for good (no reconnection), so the decision is made
   // once per socket.
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
-  EXPECT_EQ(context_.zap()->refused(), 1u);
+  EXPECT_EQ(context_.zap()->refused, 1u);
 
   // The allow-list can change while running: a new socket with the same key is admitted.
   context_.allow_curve_clients({allowed_.public_key, stranger_.public_key});
@@ -107,7 +107,7 @@ TEST_F(CurveTest, ClientWithTheWrongServerKeyGetsNowhere) {
   Pcg32 rng(3);
   ASSERT_TRUE(client.send(random_join(rng)).ok());
   EXPECT_FALSE(server.receive(1000).has_value());
-  EXPECT_EQ(context_.zap()->accepted(), 0u);
+  EXPECT_EQ(context_.zap()->accepted, 0u);
 }
 
 TEST_F(CurveTest, InsecureClientCannotTalkToACurveServer) {

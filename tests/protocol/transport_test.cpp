@@ -14,6 +14,7 @@
 #include <signal.h>
 #include <sys/socket.h>
 #include <unistd.h>
+#include <zmq.hpp>
 
 #include <atomic>
 #include <chrono>
@@ -279,10 +280,11 @@ TEST(TransportTest, SenderMemoryStaysBoundedWhenTheDisplayStalls) {
 
 TEST(TransportTest, ReceiverRejectsWhatIsNotASampleMessage) {
   Context context;
-  SampleReceiver receiver(context, "inproc://reject-test");
-  zmq::socket_t raw(context.zmq(), zmq::socket_type::push);
+  SampleReceiver receiver(context, "tcp://127.0.0.1:*");
+  zmq::context_t raw_context;  // a peer that speaks ZeroMQ, not afr
+  zmq::socket_t raw(raw_context, zmq::socket_type::push);
   raw.set(zmq::sockopt::linger, 0);
-  raw.connect("inproc://reject-test");
+  raw.connect(receiver.endpoint());
   raw.send(zmq::str_buffer("garbage"), zmq::send_flags::none);
   Pcg32 rng(5);
   const std::vector<uint8_t> view = encoded(random_view(rng));
@@ -382,10 +384,11 @@ TEST(TransportTest, ControlChannelAddressesPeers) {
 
 TEST(TransportTest, ControlServerRejectsMessagesMeantForSamplers) {
   Context context;
-  ControlServer server(context, "inproc://control-test");
-  zmq::socket_t raw(context.zmq(), zmq::socket_type::dealer);
+  ControlServer server(context, "tcp://127.0.0.1:*");
+  zmq::context_t raw_context;  // a peer that speaks ZeroMQ, not afr
+  zmq::socket_t raw(raw_context, zmq::socket_type::dealer);
   raw.set(zmq::sockopt::linger, 0);
-  raw.connect("inproc://control-test");
+  raw.connect(server.endpoint());
   Pcg32 rng(8);
   const std::vector<uint8_t> welcome = encoded(random_welcome(rng));
   raw.send(zmq::buffer(welcome), zmq::send_flags::none);

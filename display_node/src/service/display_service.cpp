@@ -158,8 +158,8 @@ DisplayService::DisplayService(DisplayServiceOptions options, SampleSink& sink)
   try {
     control_ = std::make_unique<Control>(*this, sec);
     samples_ = std::make_unique<SampleReceiver>(context_, endpoints_.samples, sec);
-  } catch (const zmq::error_t& e) {
-    throw Error(fmt::format("cannot bind {} (ports {}, +1, +2): {}", options_.bind,
+  } catch (const Error& e) {
+    throw Error(fmt::format("--bind {} (three ports from {}): {}", options_.bind,
                             endpoints_.control, e.what()));
   }
   samples_->set_image_bounds({options_.width, options_.height});
@@ -605,8 +605,8 @@ void DisplayService::Control::send_heartbeats(double t) {
     send(peer, Heartbeat{n.id, session, heartbeat_sequence_, t});
   }
   ++heartbeat_sequence_;
-  if (const ZapHandler* zap = service_.context_.zap()) {
-    service_.metrics_.set_zap(zap->accepted(), zap->refused());
+  if (const std::optional<ZapCounts> zap = service_.context_.zap()) {
+    service_.metrics_.set_zap(zap->accepted, zap->refused);
   }
 }
 

@@ -1,8 +1,8 @@
 #include <afr/display/service/wall_follower.h>
 
 #include <afr/common/error.h>
-#include <afr/common/failure_detector.h>
 #include <afr/display/service/display_service.h>
+#include <afr/protocol/display_link.h>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -40,8 +40,8 @@ WallFollower::WallFollower(WallFollowerOptions options, SampleSink& sink)
   try {
     samples_ = std::make_unique<SampleReceiver>(
         context_, options_.bind, curve ? Security::server(options_.keys) : Security::none());
-  } catch (const zmq::error_t& e) {
-    throw Error(fmt::format("cannot bind the sample channel {}: {}", options_.bind, e.what()));
+  } catch (const Error& e) {
+    throw Error(fmt::format("the sample channel: {}", e.what()));
   }
   if (options_.advertise.empty()) options_.advertise = samples_->endpoint();
   if (options_.name.empty()) {
@@ -138,74 +138,60 @@ std::string WallFollower::preset() const {
 
 std::string WallFollower::endpoint() const { return samples_->endpoint(); }
 
-// One loop over sessions: fresh sockets, join until welcomed, then heartbeats, views and
-// layouts until the lead falls silent, restarts or asks this node to go.
+// One loop over links to the lead: fresh sockets, join until welcomed, then heartbeats, views
+// and layouts until the lead falls silent, restarts or asks this node to go.
 void WallFollower::control_loop() {
-  const ServiceEndpoints ep = service_endpoints(options_.lead);
-  const Security client = options_.keys.secret_key.empty()
-                              ? Security::none()
-                              : Security::client(options_.keys, options_.lead_public_key.empty()
-                                                                    ? options_.keys.public_key
-                                                                    : options_.lead_public_key);
+  DisplayLinkOptions lo;
+  lo.display = options_.lead;
+  lo.security = options_.keys.secret_key.empty()
+                    ? Security::none()
+                    : Security::client(options_.keys, options_.lead_public_key.empty()
+                                                          ? options_.keys.public_key
+                                                          : options_.lead_public_key);
+  lo.silence_floor = options_.lead_timeout;
+  lo.heartbeat_interval = options_.heartbeat_interval;
   uint64_t heartbeat_sequence = 0;
   while (running_.load() && !failed_.load()) {
-    ControlClient control(context_, ep.control, client);
-    ViewSubscriber views(context_, ep.views, client);
-    bool joined = false, over = false;
+    DisplayLink link(context_, lo);
+    bool over = false;
     uint64_t session = 0;
-    const double started = steady_seconds();
-    double last_join = -1e9, last_heartbeat = 0.0;
-    FailureDetector lead(kDisplayHeartbeatInterval,
-                         FailureDetectorOptions::with_floor(options_.lead_timeout));
-    lead.reset(started);
-    bool warned = false;
     while (running_.load() && !over) {
-      const double t = steady_seconds();
-      if (!joined) {
-        if (t - last_join >= 0.5) {
-          DisplayJoin j;
-          j.node_id = node_id();
-          j.column = uint16_t(options_.column);
-          j.row = uint16_t(options_.row);
-          j.samples_endpoint = options_.advertise;
-          j.name = options_.name;
-          if (Status s = control.send(j); !s.ok() && !warned) {
-            spdlog::warn("cannot ask the lead to join: {}", s.message());
-          }
-          last_join = t;
-        }
-        if (!warned && t - started > 5.0) {
-          warned = true;
-          spdlog::warn("no answer from the lead display at {} after 5 s (is it running?)",
-                       options_.lead);
-        }
-        if (t - started > 10.0) break;  // fresh sockets now and then
-      } else if (lead.suspect(t)) {
-        spdlog::warn("lead display silent for {:.1f} s: joining again", lead.silence(t));
+      const DisplayLink::State state = link.state();
+      if (state == DisplayLink::State::kGiveUp) break;  // fresh sockets now and then
+      if (state == DisplayLink::State::kSilent) {
+        spdlog::warn("lead display silent for {:.1f} s: joining again", link.silence());
         break;
       }
-      zmq::pollitem_t items[] = {{control.socket().handle(), 0, ZMQ_POLLIN, 0},
-                                 {views.socket().handle(), 0, ZMQ_POLLIN, 0}};
-      try {
-        zmq::poll(items, 2, std::chrono::milliseconds(10));
-      } catch (const zmq::error_t& e) {
-        if (e.num() != EINTR) throw;
+      if (state == DisplayLink::State::kUnanswered) {
+        spdlog::warn("no answer from the lead display at {} after 5 s (is it running?)",
+                     options_.lead);
       }
-      while (std::optional<Result<Message>> m = control.receive(0)) {
+      if (link.join_due()) {
+        DisplayJoin j;
+        j.node_id = node_id();
+        j.column = uint16_t(options_.column);
+        j.row = uint16_t(options_.row);
+        j.samples_endpoint = options_.advertise;
+        j.name = options_.name;
+        if (Status s = link.send(j); !s.ok()) {
+          spdlog::debug("cannot ask the lead to join: {}", s.message());
+        }
+      }
+      link.wait(10);
+      while (std::optional<Result<Message>> m = link.receive_control()) {
         if (!m->ok()) {
           spdlog::warn("control channel: rejected a message from the lead: {}", m->error());
           continue;
         }
-        lead.heard(steady_seconds());
         const Message& msg = m->value();
         if (const auto* w = std::get_if<Welcome>(&msg)) {
-          if (!joined || w->session != session) {
+          if (!link.joined() || w->session != session) {
             spdlog::info("joined the wall as display node {} (session {:x}): {}x{} virtual display",
                          w->sampler_id, w->session, w->width, w->height);
           }
           std::lock_guard<std::mutex> lock(mutex_);
           if (w->session != session) layout_.reset();  // a new session numbers layouts anew
-          joined = true;
+          link.welcomed();
           session = w->session;
           clock_.reset_to(w->display_time);
           node_id_ = w->sampler_id;
@@ -221,7 +207,7 @@ void WallFollower::control_loop() {
             }
           }
         } else if (const auto* hb = std::get_if<Heartbeat>(&msg)) {
-          if (joined && hb->session != session) {
+          if (link.joined() && hb->session != session) {
             spdlog::info("the lead display restarted: joining again");
             over = true;
           }
@@ -236,19 +222,18 @@ void WallFollower::control_loop() {
           over = true;
         }
       }
-      while (std::optional<View> v = views.receive(0)) {
-        if (!joined) continue;
+      while (std::optional<View> v = link.receive_view()) {
+        if (!link.joined()) continue;
         clock_.observe(v->time);  // views carry no session: only control messages are life
         std::lock_guard<std::mutex> lock(mutex_);
         camera_ = v->camera;
       }
-      if (joined && t - last_heartbeat >= options_.heartbeat_interval) {
-        last_heartbeat = t;
-        (void)control.send(Heartbeat{node_id(), session, heartbeat_sequence++, clock_.now()});
+      if (link.heartbeat_due()) {
+        (void)link.send(Heartbeat{node_id(), session, heartbeat_sequence++, clock_.now()});
       }
     }
-    if (joined && !running_.load() && !failed_.load()) {
-      (void)control.send(Leave{node_id(), LeaveReason::kShutdown, "display node stopped"});
+    if (link.joined() && !running_.load() && !failed_.load()) {
+      (void)link.send(Leave{node_id(), LeaveReason::kShutdown, "display node stopped"});
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
     if (!running_.load() || failed_.load()) break;

@@ -2,8 +2,8 @@
 
 #include <afr/common/clock.h>
 #include <afr/common/error.h>
-#include <afr/common/failure_detector.h>
 #include <afr/common/presets.h>
+#include <afr/protocol/display_link.h>
 #include <afr/protocol/scene_hash.h>
 #include <afr/sampler/sampler_pool.h>
 #include <afr/sampler/service/scene_cache.h>
@@ -200,17 +200,17 @@ struct SamplerService::Impl {
   explicit Impl(SamplerServiceOptions o) : options(std::move(o)), cache(options.cache_dir) {}
 
   SessionEnd run_session(const std::atomic<bool>& stop);
-  void handle(const Message& m, ControlClient& control, SampleSender& sender, double now,
+  void handle(const Message& m, DisplayLink& control, SampleSender& sender, double now,
               SessionEnd* end);
-  void on_welcome(const Welcome& w, ControlClient& control, SampleSender& sender);
-  void on_chunk(const SceneChunk& c, ControlClient& control);
+  void on_welcome(const Welcome& w, DisplayLink& control, SampleSender& sender);
+  void on_chunk(const SceneChunk& c, DisplayLink& control);
   void on_region(const RegionAssignment& r);
   void on_wall(const WallLayout& w, SampleSender& sender);
   void use_scene(const std::filesystem::path& file, const SceneHash& hash);
   void update_pool();
   void stop_pool();
   void finish_background_work();
-  void send_stats(ControlClient& control);
+  void send_stats(DisplayLink& control);
   SamplerCounters pool_counters() const;
 
   SamplerServiceOptions options;
@@ -301,96 +301,76 @@ int SamplerService::run(const std::atomic<bool>& stop) {
 // One session: from fresh sockets to the loss of the display (or a stop)
 
 SessionEnd SamplerService::Impl::run_session(const std::atomic<bool>& stop) {
-  const ServiceEndpoints ep = service_endpoints(options.display);
-  ControlClient control(context, ep.control, options.security);
-  ViewSubscriber views(context, ep.views, options.security);
-  SampleSender sender(context, ep.samples, options.security);
+  DisplayLinkOptions lo;
+  lo.display = options.display;
+  lo.security = options.security;
+  lo.silence_floor = options.display_timeout;
+  lo.heartbeat_interval = options.heartbeat_interval;
+  DisplayLink control(context, lo);
+  SampleSender sender(context, service_endpoints(options.display).samples, options.security);
 
   joined = false;
   session_over = false;
   fetching = false;
-  const double started = steady_seconds();
-  double last_join = -1e9, last_heartbeat = 0.0;
-  // Whether the display of this session is gone (failure_detector.h): its control messages
-  // count, views do not. A view carries no session: a restarted display's views would keep a
-  // sampler whose control connection never came back in a session that no longer exists.
-  FailureDetector display(kDisplayHeartbeatInterval,
-                          FailureDetectorOptions::with_floor(options.display_timeout));
-  display.reset(started);
-  bool warned_silence = false;
   SessionEnd end = SessionEnd::kRetry;
   bool done = false;
 
   while (!done) {
-    const double now = steady_seconds();
     if (stop.load()) {
       end = SessionEnd::kStopped;
       break;
     }
-    if (!joined) {
-      if (now - last_join >= 0.5) {
-        Join j;
-        j.sampler_id = sampler_id;
-        j.threads = uint16_t(options.threads);
-        j.capabilities = kCapWorldPosition | kCapVelocity | kCapTilings | kCapSceneCache;
-        j.name = options.name;
-        (void)control.send(j);  // queued until connected; resent until welcomed
-        last_join = now;
-        std::lock_guard<std::mutex> lock(counters_mutex);
-        ++counters.joins_sent;
-      }
-      if (!warned_silence && now - started > 5.0) {
-        warned_silence = true;
-        spdlog::warn(
-            "no answer from the display at {} after 5 s (is it running? with CurveZMQ: is this "
-            "sampler's public key on its allow-list, and --server-key its public key?)",
-            options.display);
-      }
-      // libzmq does not retry a handshake that ZAP refused: fresh sockets now and then.
-      if (now - started > 10.0) return SessionEnd::kRetry;
-    } else if (display.suspect(now)) {
-      spdlog::warn("display silent for {:.1f} s: reconnecting", display.silence(now));
+    const DisplayLink::State state = control.state();
+    if (state == DisplayLink::State::kGiveUp) return SessionEnd::kRetry;
+    if (state == DisplayLink::State::kSilent) {
+      spdlog::warn("display silent for {:.1f} s: reconnecting", control.silence());
       break;
     }
-
-    zmq::pollitem_t items[] = {{control.socket().handle(), 0, ZMQ_POLLIN, 0},
-                               {views.socket().handle(), 0, ZMQ_POLLIN, 0}};
-    try {
-      zmq::poll(items, 2, std::chrono::milliseconds(5));
-    } catch (const zmq::error_t& e) {
-      if (e.num() != EINTR) throw;
+    if (state == DisplayLink::State::kUnanswered) {
+      spdlog::warn(
+          "no answer from the display at {} after 5 s (is it running? with CurveZMQ: is this "
+          "sampler's public key on its allow-list, and --server-key its public key?)",
+          options.display);
+    }
+    if (control.join_due()) {
+      Join j;
+      j.sampler_id = sampler_id;
+      j.threads = uint16_t(options.threads);
+      j.capabilities = kCapWorldPosition | kCapVelocity | kCapTilings | kCapSceneCache;
+      j.name = options.name;
+      (void)control.send(j);  // queued until connected; resent until welcomed
+      std::lock_guard<std::mutex> lock(counters_mutex);
+      ++counters.joins_sent;
     }
 
-    while (std::optional<Result<Message>> m = control.receive(0)) {
+    control.wait(5);
+    while (std::optional<Result<Message>> m = control.receive_control()) {
       if (!m->ok()) {
         std::lock_guard<std::mutex> lock(counters_mutex);
         ++counters.rejected_messages;
         spdlog::warn("control channel: rejected a message from the display: {}", m->error());
         continue;
       }
-      const double heard = steady_seconds();
-      display.heard(heard);
-      handle(m->value(), control, sender, heard, &end);
+      handle(m->value(), control, sender, steady_seconds(), &end);
       if (session_over) {
         done = true;
         break;
       }
     }
     if (done) break;
-    while (std::optional<View> v = views.receive(0)) {
+    while (std::optional<View> v = control.receive_view()) {
       if (!joined) continue;
       clock.observe(v->time);
       view_camera.observe(*v, scene.get());
     }
-    if (views.rejected() > 0 && views.rejection().message().size() && views.rejected() == 1) {
-      spdlog::warn("view channel: rejected a view: {}", views.rejection().message());
+    if (control.views().rejected() == 1 && control.views().rejection().message().size()) {
+      spdlog::warn("view channel: rejected a view: {}", control.views().rejection().message());
     }
 
     if (joined) {
-      if (now - last_heartbeat >= options.heartbeat_interval) {
-        last_heartbeat = now;
-        Heartbeat hb{sampler_id, session, heartbeat_sequence++, clock.now()};
-        (void)control.send(hb);
+      const double now = steady_seconds();
+      if (control.heartbeat_due()) {
+        (void)control.send(Heartbeat{sampler_id, session, heartbeat_sequence++, clock.now()});
       }
       if (now - last_stats_time >= options.stats_interval) send_stats(control);
       if (fetching && now - last_chunk_time > 3.0) {
@@ -417,7 +397,7 @@ SessionEnd SamplerService::Impl::run_session(const std::atomic<bool>& stop) {
   return end;
 }
 
-void SamplerService::Impl::handle(const Message& m, ControlClient& control, SampleSender& sender,
+void SamplerService::Impl::handle(const Message& m, DisplayLink& control, SampleSender& sender,
                                   double now, SessionEnd* end) {
   if (const auto* w = std::get_if<Welcome>(&m)) {
     on_welcome(*w, control, sender);
@@ -452,7 +432,7 @@ void SamplerService::Impl::handle(const Message& m, ControlClient& control, Samp
   }
 }
 
-void SamplerService::Impl::on_welcome(const Welcome& w, ControlClient& control,
+void SamplerService::Impl::on_welcome(const Welcome& w, DisplayLink& control,
                                       SampleSender& sender) {
   const bool same_session = joined && w.session == session && w.sampler_id == sampler_id;
   clock.reset_to(w.display_time);
@@ -463,6 +443,7 @@ void SamplerService::Impl::on_welcome(const Welcome& w, ControlClient& control,
     epoch = 0;
   }
   joined = true;
+  control.welcomed();
   session = w.session;
   sampler_id = w.sampler_id;
   welcome = w;
@@ -492,7 +473,7 @@ void SamplerService::Impl::on_welcome(const Welcome& w, ControlClient& control,
   (void)control.send(SceneRequest{sampler_id, w.scene_hash, 0});
 }
 
-void SamplerService::Impl::on_chunk(const SceneChunk& c, ControlClient& control) {
+void SamplerService::Impl::on_chunk(const SceneChunk& c, DisplayLink& control) {
   if (!fetching) return;  // a late chunk of a transfer already done
   if (std::string err = assembler.add(c); !err.empty()) {
     spdlog::warn("scene transfer: {}", err);
@@ -599,9 +580,8 @@ void SamplerService::Impl::on_wall(const WallLayout& w, SampleSender& sender) {
         try {
           kept[n.samples_endpoint] =
               std::make_unique<SampleSender>(context, n.samples_endpoint, options.security);
-        } catch (const zmq::error_t& e) {
-          spdlog::error("wall node {}: cannot connect to {}: {}", n.node_id, n.samples_endpoint,
-                        e.what());
+        } catch (const Error& e) {
+          spdlog::error("wall node {}: {}", n.node_id, e.what());
           continue;
         }
       }
@@ -708,7 +688,7 @@ SamplerCounters SamplerService::Impl::pool_counters() const {
   return c;
 }
 
-void SamplerService::Impl::send_stats(ControlClient& control) {
+void SamplerService::Impl::send_stats(DisplayLink& control) {
   const double now = steady_seconds();
   const SamplerCounters c = pool_counters();
   const SampleSender::Counters net = sink.counters();

@@ -16,7 +16,9 @@
 //
 // None of the classes is thread-safe: each belongs to one thread (ZeroMQ sockets may move
 // between threads, but not be shared). All hold a reference to their Context, which must
-// outlive them.
+// outlive them. They expose sending, receiving and waiting, never the socket: ZeroMQ stays
+// inside afr_protocol (display_link.h waits on a client's two channels at once). A channel
+// that cannot bind or connect throws afr::Error naming the endpoint.
 #pragma once
 
 #include <afr/protocol/codec.h>
@@ -25,15 +27,19 @@
 #include <afr/protocol/messages.h>
 #include <afr/protocol/result.h>
 
-#include <zmq.hpp>
-
 #include <atomic>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 namespace afr::protocol {
+
+namespace detail {
+struct Socket;        // the ZeroMQ socket of a channel (zmq_state.h)
+struct SocketAccess;  // afr_protocol's own way to it
+}  // namespace detail
 
 // ---------------------------------------------------------------------------------------------
 // Endpoints and security
@@ -109,6 +115,9 @@ class SampleSender {
 
   SampleSender(Context& context, const std::string& endpoint, const Security& security = {},
                const ChannelOptions& options = ChannelOptions::samples());
+  ~SampleSender();
+  SampleSender(const SampleSender&) = delete;
+  SampleSender& operator=(const SampleSender&) = delete;
 
   // Encode (an error means the contents break the protocol's rules: nothing is queued), queue
   // and hand as much of the queue to ZeroMQ as it takes.
@@ -123,7 +132,6 @@ class SampleSender {
   bool flush(int timeout_ms);
 
   const Counters& counters() const { return counters_; }
-  zmq::socket_t& socket() { return socket_; }
 
  private:
   // What a queued message is, so that sends and drops are counted per kind.
@@ -140,7 +148,8 @@ class SampleSender {
   uint64_t& sent_counter(Kind kind);
   uint64_t& dropped_counter(Kind kind);
 
-  zmq::socket_t socket_;
+  friend struct detail::SocketAccess;
+  std::unique_ptr<detail::Socket> socket_;
   std::vector<Slot> slots_;  // ring buffer of encoded messages
   size_t head_ = 0, size_ = 0;
   Counters counters_;
@@ -162,6 +171,9 @@ class SampleReceiver {
 
   SampleReceiver(Context& context, const std::string& endpoint, const Security& security = {},
                  const ChannelOptions& options = ChannelOptions::samples());
+  ~SampleReceiver();
+  SampleReceiver(const SampleReceiver&) = delete;
+  SampleReceiver& operator=(const SampleReceiver&) = delete;
 
   // Waits up to timeout_ms (0: only what is there; -1: forever) for one message and decodes
   // it. After kBatch read batch(), after kTiling tiling(), after kCoverage coverage(), after
@@ -189,11 +201,10 @@ class SampleReceiver {
   const Counters& counters() const { return counters_; }
   // The endpoint as bound ("tcp://127.0.0.1:41234" for "tcp://127.0.0.1:*").
   std::string endpoint() const;
-  zmq::socket_t& socket() { return socket_; }
 
  private:
-  zmq::socket_t socket_;
-  zmq::message_t message_;
+  friend struct detail::SocketAccess;
+  std::unique_ptr<detail::Socket> socket_;
   SampleBatch batch_;
   TilingSnapshot tiling_;
   WallCoverage coverage_;
@@ -211,14 +222,17 @@ class ViewPublisher {
  public:
   ViewPublisher(Context& context, const std::string& endpoint, const Security& security = {},
                 const ChannelOptions& options = ChannelOptions::views());
+  ~ViewPublisher();
+  ViewPublisher(const ViewPublisher&) = delete;
+  ViewPublisher& operator=(const ViewPublisher&) = delete;
   // Sends to every connected subscriber; a subscriber whose queue is full misses it (it has a
   // newer one by then or will get the next).
   Status publish(const View& view);
   std::string endpoint() const;
-  zmq::socket_t& socket() { return socket_; }
 
  private:
-  zmq::socket_t socket_;
+  friend struct detail::SocketAccess;
+  std::unique_ptr<detail::Socket> socket_;
   std::vector<uint8_t> buffer_;
 };
 
@@ -227,15 +241,18 @@ class ViewSubscriber {
  public:
   ViewSubscriber(Context& context, const std::string& endpoint, const Security& security = {},
                  const ChannelOptions& options = ChannelOptions::views());
+  ~ViewSubscriber();
+  ViewSubscriber(const ViewSubscriber&) = delete;
+  ViewSubscriber& operator=(const ViewSubscriber&) = delete;
   // The latest view, waiting up to timeout_ms; nothing on timeout or when the message was
   // rejected (then rejection() says why and rejected() counts it).
   std::optional<View> receive(int timeout_ms);
   const Status& rejection() const { return rejection_; }
   uint64_t rejected() const { return rejected_; }
-  zmq::socket_t& socket() { return socket_; }
 
  private:
-  zmq::socket_t socket_;
+  friend struct detail::SocketAccess;
+  std::unique_ptr<detail::Socket> socket_;
   Status rejection_;
   uint64_t rejected_ = 0;
 };
@@ -261,15 +278,18 @@ class ControlServer {
 
   ControlServer(Context& context, const std::string& endpoint, const Security& security = {},
                 const ChannelOptions& options = ChannelOptions::control());
+  ~ControlServer();
+  ControlServer(const ControlServer&) = delete;
+  ControlServer& operator=(const ControlServer&) = delete;
   std::optional<Incoming> receive(int timeout_ms);
   // Fails for messages not allowed towards a sampler, for an unknown or disconnected peer,
   // and when the peer's queue is full.
   Status send(const std::string& peer, const Message& message);
   std::string endpoint() const;
-  zmq::socket_t& socket() { return socket_; }
 
  private:
-  zmq::socket_t socket_;
+  friend struct detail::SocketAccess;
+  std::unique_ptr<detail::Socket> socket_;
   std::vector<uint8_t> buffer_;
 };
 
@@ -278,14 +298,17 @@ class ControlClient {
  public:
   ControlClient(Context& context, const std::string& endpoint, const Security& security = {},
                 const ChannelOptions& options = ChannelOptions::control());
+  ~ControlClient();
+  ControlClient(const ControlClient&) = delete;
+  ControlClient& operator=(const ControlClient&) = delete;
   std::optional<Result<Message>> receive(int timeout_ms);
   // Fails for messages not allowed towards the display and when the queue is full (no
   // connection yet: ZeroMQ queues until the high-water mark).
   Status send(const Message& message);
-  zmq::socket_t& socket() { return socket_; }
 
  private:
-  zmq::socket_t socket_;
+  friend struct detail::SocketAccess;
+  std::unique_ptr<detail::Socket> socket_;
   std::vector<uint8_t> buffer_;
 };
 
