@@ -315,7 +315,9 @@ void Sampler::step_framed() {
 }
 
 // Section 6.1: relocates the newest crosshair of a random pixel of the tile to where the
-// current view and its velocity put it, and tests that it is still visible.
+// current view and its velocity put it, and tests that it is still visible. A crosshair keeps
+// the world positions and the time it was traced at: every move extrapolates from them,
+// v (now - time), so moving it again never adds motion already counted.
 void Sampler::reproject(int tile) {
   const PixelRect rect = tiling_.node(tile).rect;
   const int32_t px = rect.x0 + int32_t(rng_.next_below(uint32_t(rect.width())));
@@ -330,14 +332,16 @@ void Sampler::reproject(int tile) {
   const double now = clock_.now();
   const double dt = now - c.time;
   const glm::dvec3 motion = glm::dvec3(c.velocity) * dt;
-  const auto project = [&](const glm::vec3& position, bool hit, glm::dvec2* xy) {
-    const glm::dvec3 p = hit ? glm::dvec3(position) + motion
-                             : camera_.eye + glm::dvec3(position) * (1e3 * (1.0 + camera_.znear));
-    return project_point(p, xy);
+  // Where a traced point is now: moved by the motion since it was traced; a miss stays a
+  // direction far away.
+  const auto now_at = [&](const glm::vec3& position, bool hit) {
+    return hit ? glm::dvec3(position) + motion
+               : camera_.eye + glm::dvec3(position) * (1e3 * (1.0 + camera_.znear));
   };
   glm::dvec2 xy;
   const bool hit = c.has(Crosshair::kCenterHit);
-  if (!project(c.position, hit, &xy) ||
+  const glm::dvec3 center = now_at(c.position, hit);
+  if (!project_point(center, &xy) ||
       !region_.contains(int32_t(std::floor(xy.x)), int32_t(std::floor(xy.y)))) {
     ++counters_.reprojections_dropped;  // left the region or went behind the camera
     return;
@@ -345,19 +349,17 @@ void Sampler::reproject(int tile) {
   const double moved = glm::length(xy - glm::dvec2(c.x, c.y));
   c.x = float(xy.x);
   c.y = float(xy.y);
-  if (hit) c.position = glm::vec3(glm::dvec3(c.position) + motion);
 
   // Spatial gradients from the neighbours' new positions.
   double g[4];
   for (int k = 0; k < 4; ++k) {
     glm::dvec2 nxy;
     const double dl = std::abs(double(c.luminance) - c.neighbor_luminance[k]);
-    if (project(c.neighbor_position[k], c.neighbor_hit(k), &nxy)) {
+    if (project_point(now_at(c.neighbor_position[k], c.neighbor_hit(k)), &nxy)) {
       g[k] = dl / std::max(glm::length(nxy - xy), kMinPixelDistance);
     } else {
       g[k] = dl;  // the neighbour went behind the camera: keep its one-pixel estimate
     }
-    if (c.neighbor_hit(k)) c.neighbor_position[k] += glm::vec3(motion);
   }
   c.G_x = float(0.5 * (g[Crosshair::kLeft] + g[Crosshair::kRight]));
   c.G_y = float(0.5 * (g[Crosshair::kUp] + g[Crosshair::kDown]));
@@ -384,16 +386,15 @@ void Sampler::reproject(int tile) {
   // Occlusion: is the center's surface point still visible from the eye?
   if (hit && config_.occlusion_rays) {
     ++counters_.occlusion_rays;
-    const glm::dvec3 to_eye = camera_.eye - glm::dvec3(c.position);
+    const glm::dvec3 to_eye = camera_.eye - center;
     const double len = glm::length(to_eye);
     if (len > 0.0) {
       const glm::dvec3 dir = to_eye / len;
       // Off the surface by a fraction of the way to the eye, plus some float spacings of the
       // point's coordinates: relative to the scene's scale, so that in a scene in micrometres
       // the ray still starts between the point and the eye.
-      const double eps =
-          std::min(1e-4 * len + 1e-6 * glm::length(glm::dvec3(c.position)), 0.5 * len);
-      const glm::vec3 from(glm::dvec3(c.position) + eps * dir);
+      const double eps = std::min(1e-4 * len + 1e-6 * glm::length(center), 0.5 * len);
+      const glm::vec3 from(center + eps * dir);
       if (tracer_.occluded(from, glm::vec3(camera_.eye), &trace_stats_)) {
         // Replace it by a new crosshair at the same image location; the hidden sample is its
         // old sample, so the occlusion shows as a temporal edge.

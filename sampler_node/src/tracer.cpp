@@ -405,9 +405,19 @@ void Tracer::Impl::set_time(double t) {
   scene_.evaluate(t, &state_);
   const bool moving =
       std::any_of(instances_.begin(), instances_.end(), [](const Instance& i) { return i.moves; });
+  // The velocity's difference quotient: central, except at the ends of the keyframe range
+  // [0, duration], where a central difference would straddle a clamped state and halve the
+  // velocity (at t = 0, where every run starts): one-sided there.
+  double before = t - kVelocityDt, after = t + kVelocityDt;
+  if (t >= 0.0 && before < 0.0) before = 0.0;
+  if (t <= scene_.duration() && after > scene_.duration()) after = scene_.duration();
+  if (after <= before) {  // a range shorter than the step: central
+    before = t - kVelocityDt;
+    after = t + kVelocityDt;
+  }
   if (moving) {
-    scene_.evaluate(t - kVelocityDt, &state_minus_);
-    scene_.evaluate(t + kVelocityDt, &state_plus_);
+    scene_.evaluate(before, &state_minus_);
+    scene_.evaluate(after, &state_plus_);
   }
   for (Instance& inst : instances_) {
     if (!inst.moves) continue;
@@ -421,10 +431,10 @@ void Tracer::Impl::set_time(double t) {
       to_float3x4(m, xfm);
       rtcSetGeometryTransform(inst.geom, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm);
       inst.normal_matrix = glm::mat3(glm::transpose(glm::inverse(glm::dmat3(m))));
-      // v(p) = dM/dt M^-1 p, with dM/dt from a central difference.
+      // v(p) = dM/dt M^-1 p, with dM/dt from the difference quotient above.
       const glm::dmat4 dm =
           (state_plus_.world[size_t(inst.node)] - state_minus_.world[size_t(inst.node)]) *
-          (1.0 / (2.0 * kVelocityDt));
+          (1.0 / (after - before));
       inst.velocity = glm::mat4(dm * glm::inverse(m));
     }
     if (ok != inst.enabled) {

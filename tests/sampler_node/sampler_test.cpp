@@ -316,6 +316,99 @@ TEST(SamplerTest, ReprojectedCrosshairsLandWhereAFreshTraceSeesTheirPoint) {
   EXPECT_GT(checked, 50);
 }
 
+// A plane of kStrips vertical strips, strip i glowing i / kStrips, wider than the view at
+// every time of the test, sliding right at `speed` units per second one unit in front of the
+// camera: a point's luminance names the strip it belongs to, so a fresh trace says where on
+// the plane an image position is.
+Scene sliding_strips_scene(int strips, float strip_width, double speed) {
+  Scene s = testing::camera_scene();
+  Mesh mesh{"strips", {}};
+  for (int i = 0; i < strips; ++i) {
+    Material m;
+    m.base_color_factor = glm::vec4(0, 0, 0, 1);
+    m.metallic = 0.0f;
+    m.emissive = glm::vec3(float(i) / float(strips));
+    s.materials.push_back(m);
+    const float x0 = (float(i) - 0.5f * float(strips)) * strip_width, x1 = x0 + strip_width;
+    Primitive p;
+    p.positions = {{x0, -10, -1}, {x1, -10, -1}, {x1, 10, -1}, {x0, 10, -1}};
+    p.indices = {0, 1, 2, 0, 2, 3};
+    p.material = int(s.materials.size()) - 1;
+    mesh.primitives.push_back(p);
+  }
+  s.meshes.push_back(mesh);
+  Node n;
+  n.mesh = 0;
+  s.nodes.push_back(n);
+  AnimationChannel ch;
+  ch.node = int(s.nodes.size()) - 1;
+  ch.path = AnimatedPath::kTranslation;
+  ch.interpolation = Interpolation::kLinear;
+  ch.times = {0.0, 10.0};
+  ch.values = {{0, 0, 0, 0}, {10.0 * speed, 0, 0, 0}};
+  s.channels.push_back(ch);
+  s.finalize();
+  return s;
+}
+
+TEST(SamplerTest, CrosshairsMovedManyTimesSitWhereTheObjectIsNotFurther) {
+  // Every crosshair lies on the sliding plane. It is moved at t1 = 1 s, then at t2 = 1.5 s,
+  // many times each (reprojection picks pixels at random), so most are moved twice or more.
+  // A move may only put it where its point is at the time of that move: wherever it was last
+  // moved, a fresh trace through its image position at the time it was traced, at t1 or at t2
+  // sees its own strip. Counting the motion again on a second move would carry it 2 v t1 or
+  // more from where it was traced, past anything a single move reaches (v t2): 5 pixels, 2.7
+  // strips beyond.
+  constexpr int kStrips = 200;
+  constexpr int kSize = 64;
+  const double speed = 0.2, t1 = 1.0, t2 = 1.5;
+  SamplerConfig config = small_config(kSize, kSize);
+  config.fill_step = 2;
+  config.min_tiles = config.max_tiles = 1;
+  config.r = 0;                   // moves only when the test says so
+  config.occlusion_rays = false;  // nothing hides anything
+  config.loop_animation = false;
+  SamplerRig rig(sliding_strips_scene(kStrips, 0.036f, speed), 2e5, config);
+  Sampler& sampler = rig.sampler;
+  VirtualClock& clock = rig.clock;
+  Tracer& tracer = rig.tracer;
+  sampler.fill();
+  ASSERT_LT(clock.now(), 0.1);
+  const int tile = sampler.tiling().tiles()[0];
+  for (const double t : {t1, t2}) {
+    clock.primary_rays_traced(uint64_t((t - clock.now()) * clock.rate()));
+    for (int k = 0; k < 8 * kSize * kSize; ++k) sampler.reproject(tile);
+  }
+  EXPECT_GT(sampler.counters().reprojections, uint64_t(2 * kSize * kSize));
+
+  // The strip a fresh trace at display time t sees through image position (x, y).
+  const auto strip_at = [&](double t, double x, double y) {
+    tracer.set_time(t);
+    TraceStats stats;
+    const ShadedSample fresh = tracer.trace(tracer.camera().ray(x, y, kSize, kSize), &stats);
+    return fresh.hit ? int(std::lround(luminance(fresh.color) * kStrips)) : -1000;
+  };
+  int checked = 0, misplaced = 0;
+  const PixelRect r = sampler.tiling().region();
+  for (int32_t y = r.y0; y < r.y1; ++y) {
+    for (int32_t x = r.x0; x < r.x1; ++x) {
+      for (int k = 0; k < sampler.buffer().count(x, y); ++k) {
+        const Crosshair& c = sampler.buffer().at(x, y, k);
+        ASSERT_TRUE(c.has(Crosshair::kCenterHit));
+        const int own = int(std::lround(c.luminance * kStrips));
+        bool placed = false;
+        for (const double t : {c.time, t1, t2}) {
+          placed = placed || std::abs(strip_at(t, c.x, c.y) - own) <= 1;
+        }
+        misplaced += placed ? 0 : 1;
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GT(checked, kSize * kSize / 8);
+  EXPECT_EQ(misplaced, 0) << "of " << checked << " crosshairs";
+}
+
 TEST(SamplerTest, OcclusionRaysCatchAnObjectMovingInFront) {
   SamplerRig rig(testing::moving_scene(), 2e5, small_config(64, 64));
   auto& [scene, tracer, clock, sink, sampler] = rig;
