@@ -26,7 +26,7 @@ At the end it prints a report and exits non-zero when a check fails:
     out: screenshots written within --recovery seconds after a change of membership, a kill or
     a "lost" or "joined" line of the display's log (on a loaded machine a live sampler that
     stays silent for the member timeout is declared lost too). A lost sampler's region gets no
-    fresh samples until the display declares it lost (0.5 s without a message), and a region
+    fresh samples until the display declares it lost (its failure detector: at least --member-timeout, 1.5 s by default, of silence), and a region
     cut for a joining sampler none until its pool has filled it. Those screenshots are reported,
     and at least half the screenshots after warm-up must lie outside the recovery windows.
 
