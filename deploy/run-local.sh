@@ -61,7 +61,8 @@ echo "run-local: display on tcp://127.0.0.1:$port (metrics http://127.0.0.1:$met
 display_pid=$!
 pids+=("$display_pid")
 for i in $(seq 1 "$n"); do
-  "$build/sampler_node/sampler_node" --display "tcp://127.0.0.1:$port" --threads "$threads" \
+  # Samplers at a lower priority: the display keeps its refresh when they share its cores.
+  nice -n 10 "$build/sampler_node/sampler_node" --display "tcp://127.0.0.1:$port" --threads "$threads" \
     --name "local-$i" --cache "$output/scene-cache" >"$output/logs/sampler-$i.log" 2>&1 &
   pids+=("$!")
 done

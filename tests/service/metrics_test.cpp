@@ -56,5 +56,35 @@ TEST(ServiceMetricsTest, LatencyIsFrameTimeMinusSampleTime) {
   EXPECT_NE(text.find("afr_display_sample_latency_seconds_count 10"), std::string::npos);
 }
 
+TEST(ServiceMetricsTest, RefreshAndReconstructionFiguresCoverTheWholeStatsPeriod) {
+  // 200 images in one period: 199 of 10 ms every 20 ms, then one of 50 ms after a 70 ms stall.
+  // The period's figures see the whole interval, not the last frame; the next period starts
+  // afresh.
+  ServiceMetrics m;
+  double t = 0.0;
+  for (int i = 0; i < 199; ++i) {
+    m.on_frame(t, 10.0, 0, 1);
+    t += 0.02;
+  }
+  t += 0.05;
+  m.on_frame(t, 50.0, 0, 1);
+  m.end_period(4.0);
+  DisplayMetrics d = m.display();
+  EXPECT_NEAR(d.refresh_hz, 50.0, 1e-9);
+  EXPECT_NEAR(d.period_reconstruct_ms_mean, (199 * 10.0 + 50.0) / 200.0, 1e-9);
+  EXPECT_NEAR(d.period_reconstruct_ms_p99, 10.0, 0.2);  // 1 of 200 is above the 99th
+  EXPECT_NEAR(d.period_frame_interval_ms_p99, 20.0, 0.2);
+  EXPECT_NEAR(d.reconstruct_ms, 50.0, 1e-9);  // the last frame alone
+  EXPECT_NE(stats_line(m).find("reconstruct mean 10.2 ms"), std::string::npos) << stats_line(m);
+  for (int i = 0; i < 10; ++i) {
+    t += 0.1;
+    m.on_frame(t, 30.0, 0, 1);
+  }
+  m.end_period(1.0);
+  d = m.display();
+  EXPECT_NEAR(d.period_reconstruct_ms_mean, 30.0, 0.2);
+  EXPECT_NEAR(d.period_frame_interval_ms_p99, 100.0, 0.2);
+}
+
 }  // namespace
 }  // namespace afr::service

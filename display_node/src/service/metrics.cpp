@@ -144,6 +144,11 @@ void ServiceMetrics::on_frame(double time, double ms, uint64_t stored, uint64_t 
   pending_.clear();
   ++display_.frames;
   ++period_frames_;
+  period_reconstruct_.add(ms * 1e-3, 1);
+  if (last_frame_time_ >= 0.0 && time >= last_frame_time_) {
+    period_interval_.add(time - last_frame_time_, 1);
+  }
+  last_frame_time_ = time;
   display_.reconstruct_ms = ms;
   reconstruct_ms_sum_ += ms;
   display_.reconstruct_ms_mean = reconstruct_ms_sum_ / double(display_.frames);
@@ -185,6 +190,14 @@ void ServiceMetrics::end_period(double seconds) {
   }
   display_.refresh_hz = double(period_frames_) / seconds;
   period_frames_ = 0;
+  display_.period_reconstruct_ms_mean =
+      period_reconstruct_.count() > 0
+          ? 1e3 * period_reconstruct_.sum() / double(period_reconstruct_.count())
+          : 0.0;
+  display_.period_reconstruct_ms_p99 = 1e3 * period_reconstruct_.quantile(0.99);
+  display_.period_frame_interval_ms_p99 = 1e3 * period_interval_.quantile(0.99);
+  period_reconstruct_.clear();
+  period_interval_.clear();
   display_.window_latency_p50 = window_latency_.quantile(0.5);
   display_.window_latency_p99 = window_latency_.quantile(0.99);
   window_latency_.clear();

@@ -57,6 +57,14 @@ std::string prometheus_text(const ServiceMetrics& metrics) {
   scalar("afr_display_reconstruct_ms", "gauge", "wall time of the last reconstruction",
          d.reconstruct_ms);
   scalar("afr_display_refresh_hz", "gauge", "images per second", d.refresh_hz);
+  scalar("afr_display_period_reconstruct_ms_mean", "gauge",
+         "mean reconstruction time over the last stats period", d.period_reconstruct_ms_mean);
+  scalar("afr_display_period_reconstruct_ms_p99", "gauge",
+         "99th percentile of the reconstruction time over the last stats period",
+         d.period_reconstruct_ms_p99);
+  scalar("afr_display_period_frame_interval_ms_p99", "gauge",
+         "99th percentile of the time between images over the last stats period",
+         d.period_frame_interval_ms_p99);
   scalar("afr_display_store_samples", "gauge", "samples in the store", d.store_stored);
   scalar("afr_display_store_capacity", "gauge", "capacity of the store", d.store_capacity);
   scalar("afr_display_recuts_total", "counter", "region recuts", d.recuts);
@@ -114,6 +122,9 @@ std::string stats_json(const ServiceMetrics& metrics) {
                   {"reconstruct_ms", d.reconstruct_ms},
                   {"reconstruct_ms_mean", d.reconstruct_ms_mean},
                   {"refresh_hz", d.refresh_hz},
+                  {"period_reconstruct_ms_mean", d.period_reconstruct_ms_mean},
+                  {"period_reconstruct_ms_p99", d.period_reconstruct_ms_p99},
+                  {"period_frame_interval_ms_p99", d.period_frame_interval_ms_p99},
                   {"store_samples", d.store_stored},
                   {"store_capacity", d.store_capacity},
                   {"members", d.members},
@@ -175,9 +186,10 @@ std::string stats_json(const ServiceMetrics& metrics) {
 std::string stats_line(const ServiceMetrics& metrics) {
   const DisplayMetrics d = metrics.display();
   std::string o = fmt::format(
-      "t={:.1f}s {} sampler(s) | display {:.1f} Hz, reconstruct {:.1f} ms, store {:.0f}%, "
-      "latency p50 {:.1f} ms p99 {:.1f} ms",
-      d.uptime, d.members, d.refresh_hz, d.reconstruct_ms,
+      "t={:.1f}s {} sampler(s) | display {:.1f} Hz (interval p99 {:.1f} ms), reconstruct mean "
+      "{:.1f} ms p99 {:.1f} ms, store {:.0f}%, latency p50 {:.1f} ms p99 {:.1f} ms",
+      d.uptime, d.members, d.refresh_hz, d.period_frame_interval_ms_p99,
+      d.period_reconstruct_ms_mean, d.period_reconstruct_ms_p99,
       d.store_capacity ? 100.0 * double(d.store_stored) / double(d.store_capacity) : 0.0,
       d.window_latency_p50 * 1e3, d.window_latency_p99 * 1e3);
   for (const SamplerMetrics& s : metrics.samplers()) {

@@ -53,9 +53,13 @@ struct DisplayMetrics {
   std::string backend;
   std::string mode;
   uint64_t frames = 0;
-  double reconstruct_ms = 0.0;  // last frame
-  double reconstruct_ms_mean = 0.0;
-  double refresh_hz = 0.0;  // frames per second over the last stats period
+  double reconstruct_ms = 0.0;       // last frame
+  double reconstruct_ms_mean = 0.0;  // over the whole run
+  double refresh_hz = 0.0;           // frames per second over the last stats period
+  // Over the last stats period: the reconstruction time's mean and 99th percentile, and the
+  // 99th percentile of the time between consecutive images (the refresh's worst stalls).
+  double period_reconstruct_ms_mean = 0.0, period_reconstruct_ms_p99 = 0.0;
+  double period_frame_interval_ms_p99 = 0.0;
   uint64_t store_stored = 0;
   uint64_t store_capacity = 0;
   uint64_t members = 0;
@@ -140,6 +144,8 @@ class ServiceMetrics {
   // Batches received since the last frame: (mean sample time, count).
   std::vector<std::pair<double, uint64_t>> pending_;
   LatencyHistogram latency_, window_latency_;
+  LatencyHistogram period_reconstruct_, period_interval_;  // seconds, this stats period
+  double last_frame_time_ = -1.0;
   uint64_t period_frames_ = 0;
   double reconstruct_ms_sum_ = 0.0;
 };
