@@ -195,10 +195,10 @@ INSTANTIATE_TEST_SUITE_P(
                   "unknown keyframe type 'wobble'"},
         Malformed{"too few rotation keys", "k a {\n rot 2\n 0 0 1 0 0 0 0 0\n}\n", 2,
                   "at least 4 keys"},
-        Malformed{"decreasing key times",
-                  "k a { transl 4\n 0 0 0 0 0 0 0\n 2 0 0 0 0 0 0\n 1 0 0 0 0 0 0\n"
-                  " 3 0 0 0 0 0 0 }\n",
-                  4, "must not decrease"},
+        Malformed{"too few distinct key times once sorted",
+                  "k a {\n transl 4\n 1 0 0 0 0 0 0\n 0 0 0 0 0 0 0\n 1 0 0 0 0 0 0\n"
+                  " 0 0 0 0 0 0 0 }\n",
+                  2, "2 keys at distinct times once sorted; it needs 4"},
         Malformed{"view keyword out of order", "v\nfrom 0 0 0\nup 0 1 0\n", 3, "expected 'at'"},
         Malformed{"missing texture", "m vertices 1 0 0 0\ntexturecoords 1 nope.ppm\n", 2,
                   "texture 'nope.ppm' not found"},
@@ -265,6 +265,45 @@ TEST(AffParserTest, TheLastDefinitionOfAKeyframeNameWins) {
                                  "main.aff", dir);
   ASSERT_EQ(s.keyframes.at("a").visibility.size(), 1u);
   EXPECT_TRUE(s.keyframes.at("a").visibility[0].visible);
+  std::filesystem::remove_all(dir);
+}
+
+// BART's robots (Robot1.aff, k gun_rot1) hold a channel whose second run of keys starts
+// before the first one ends: it is sorted, the later key in the file kept at a shared time.
+TEST(AffParserTest, KeyTimesThatGoBackwardsAreSortedWithAWarning) {
+  const auto dir = test::fresh_temp_dir("aff-backwards");
+  const Scene s = parse_aff_text(
+      "x a { }\n"
+      "k a {\n"
+      " transl 7\n"
+      " 0 0 0 0 0 0 0\n"
+      " 1 1 0 0 0 0 0\n"
+      " 2 2 0 0 0 0 0\n"
+      " 3 3 0 0 0 0 0\n"
+      " 1.5 9 0 0 0 0 0\n"
+      " 2 7 0 0 0 0 0\n"
+      " 4 4 0 0 0 0 0\n"
+      " rot 4\n"
+      " 0 0 1 0 0 0 0 0\n"
+      " 0 0 1 0 0 0 0 0\n"
+      " 1 0 1 0 90 0 0 0\n"
+      " 1 0 1 0 90 0 0 0\n"
+      "}\n",
+      "main.aff", dir);
+  const Keyframes& k = s.keyframes.at("a");
+  std::vector<double> times, xs;
+  for (const TcbKey& key : k.translation) {
+    times.push_back(key.t);
+    xs.push_back(key.value.x);
+  }
+  EXPECT_EQ(times, (std::vector<double>{0, 1, 1.5, 2, 3, 4}));
+  EXPECT_EQ(xs, (std::vector<double>{0, 1, 9, 7, 3, 4}));
+  // An ordered channel keeps its repeated times (they shape KB tangents).
+  EXPECT_EQ(k.rotation.size(), 4u);
+  ASSERT_EQ(s.warnings.size(), 1u);
+  EXPECT_EQ(s.warnings[0],
+            "main.aff:3: k a: transl key times go backwards (3 then 1.5 at main.aff:8); keys "
+            "sorted by time, 1 of 7 dropped where a later key in the file has the same time");
   std::filesystem::remove_all(dir);
 }
 

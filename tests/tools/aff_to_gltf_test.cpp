@@ -441,6 +441,30 @@ TEST_F(KitchenGltfTest, TexturesArePngsWithThePpmPixels) {
   }
 }
 
+// ---- BART's robots ------------------------------------------------------------------------
+
+// The robots convert: one key block of Robot1.aff (k gun_rot1, rot) goes backwards in time and
+// is repaired with a warning; nothing else is.
+TEST(RobotsGltfTest, ConvertsWithTheOneBackwardsKeyBlockRepaired) {
+  const auto aff = test::robots_aff();
+  if (aff.empty()) GTEST_SKIP() << "BART robots not found (AFR_SHARED_DIR)";
+  const auto dir = test::fresh_temp_dir("aff-robots");
+  const ConvertReport report = convert_aff_to_gltf(aff, dir / "robots.gltf");
+  std::vector<std::string> repaired;
+  for (const std::string& w : report.warnings) {
+    if (w.find("go backwards") != std::string::npos) repaired.push_back(w);
+  }
+  ASSERT_EQ(repaired.size(), 1u);
+  EXPECT_NE(repaired[0].find("Robot1.aff:265: k gun_rot1: rot key times go backwards (48 then 42"),
+            std::string::npos)
+      << repaired[0];
+  EXPECT_GT(report.triangles, 50000u);
+  EXPECT_GT(report.animation_channels, 100u);
+  const tinygltf::Model model = test::load_gltf((dir / "robots.gltf").string());
+  EXPECT_EQ(model.cameras.size(), 1u);
+  std::filesystem::remove_all(dir);
+}
+
 // ---- The program --------------------------------------------------------------------------
 
 TEST(Aff2GltfProgramTest, PrintsFileAndLineAndExitsOneOnMalformedInput) {

@@ -10,6 +10,7 @@
 #include <map>
 #include <memory>
 #include <numbers>
+#include <optional>
 #include <set>
 #include <tuple>
 
@@ -620,6 +621,7 @@ class Parser {
       }
       const Location count_at = (in.skip_space(), in.here());
       const int n = in.count("a key count");
+      backwards_ = std::nullopt;
       if (type == "transl" || type == "scale") {
         if (n < 4) throw Error(type_at.str() + ": " + type + " needs at least 4 keys");
         in.expect_room(n, 14, count_at, "a key count");  // 7 numbers a key
@@ -632,6 +634,7 @@ class Parser {
           key.continuity = in.real("a continuity");
           key.bias = in.real("a bias");
         }
+        repair_key_order(&keys, k.name, type, type_at, 4);
       } else if (type == "rot") {
         if (n < 4) throw Error(type_at.str() + ": rot needs at least 4 keys");
         in.expect_room(n, 16, count_at, "a key count");  // 8 numbers a key
@@ -644,6 +647,7 @@ class Parser {
           key.continuity = in.real("a continuity");
           key.bias = in.real("a bias");
         }
+        repair_key_order(&k.rotation, k.name, type, type_at, 4);
       } else if (type == "visibility") {
         if (n < 1) throw Error(type_at.str() + ": visibility needs at least 1 key");
         in.expect_room(n, 4, count_at, "a key count");  // 2 numbers a key
@@ -652,6 +656,7 @@ class Parser {
           key.t = key_time(in, &k.visibility.front(), &key);
           key.visible = in.integer("a visibility flag") != 0;
         }
+        repair_key_order(&k.visibility, k.name, type, type_at, 1);
       } else {
         throw Error(type_at.str() + ": unknown keyframe type '" + type + "' in k " + k.name +
                     " (expected transl, rot, scale or visibility)");
@@ -660,14 +665,55 @@ class Parser {
     scene_->keyframes[k.name] = std::move(k);
   }
 
-  // Reads the time of `key`, which must not be earlier than the key before it.
+  // Reads the time of `key`; notes where the first key earlier than the one before it is.
   template <typename Key>
   double key_time(Cursor& in, const Key* first, const Key* key) {
     in.skip_space();
     const Location at = in.here();
     const double t = in.real("a key time");
-    if (key != first && t < key[-1].t) throw Error(at.str() + ": key times must not decrease");
+    if (key != first && t < key[-1].t && !backwards_) backwards_ = Backwards{at, key[-1].t, t};
     return t;
+  }
+
+  // A channel whose key times go backwards (BART's robots: one block of Robot1.aff holds a
+  // second run of keys that starts before the first one ends) is repaired with a warning:
+  // keys sorted by time (stable), and of the keys that share a time only the last in the
+  // file is kept, as of two `k` blocks with one name the last is. An ordered channel is left
+  // as it is, repeated times included (they shape KB tangents and jumps).
+  template <typename Key>
+  void repair_key_order(std::vector<Key>* keys, const std::string& name, const std::string& type,
+                        const Location& at, size_t min_keys) {
+    if (!backwards_) return;
+    const size_t before = keys->size();
+    std::stable_sort(keys->begin(), keys->end(),
+                     [](const Key& a, const Key& b) { return a.t < b.t; });
+    std::vector<Key> kept;
+    for (const Key& key : *keys) {
+      if (!kept.empty() && kept.back().t == key.t) {
+        kept.back() = key;  // the later in the file
+      } else {
+        kept.push_back(key);
+      }
+    }
+    if (kept.size() < min_keys) {
+      throw Error(at.str() + ": " + type + " of k " + name + " has " + std::to_string(kept.size()) +
+                  " keys at distinct times once sorted; it needs " + std::to_string(min_keys));
+    }
+    *keys = std::move(kept);
+    scene_->warnings.push_back(
+        at.str() + ": k " + name + ": " + type + " key times go backwards (" +
+        format_time(backwards_->previous) + " then " + format_time(backwards_->time) + " at " +
+        backwards_->at.str() + "); keys sorted by time, " + std::to_string(before - keys->size()) +
+        " of " + std::to_string(before) +
+        " dropped where a later key in the file has the same time");
+    backwards_ = std::nullopt;
+  }
+
+  static std::string format_time(double t) {
+    std::string s = std::to_string(t);
+    while (s.size() > 1 && s.back() == '0') s.pop_back();
+    if (!s.empty() && s.back() == '.') s.pop_back();
+    return s;
   }
 
   void include(Cursor& in, const Location& at, const std::filesystem::path& dir, int depth) {
@@ -722,6 +768,13 @@ class Parser {
   int detail_level_;
   std::vector<OpenNode> stack_;
   std::vector<std::map<MergeKey, size_t>> merged_;  // per node
+  // The first backwards key time of the channel being read.
+  struct Backwards {
+    Location at;
+    double previous = 0.0;
+    double time = 0.0;
+  };
+  std::optional<Backwards> backwards_;
   Material material_;
   bool material_defined_ = false;
   bool warned_undefined_material_ = false;
