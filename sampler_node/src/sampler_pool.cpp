@@ -83,10 +83,11 @@ void SamplerPool::stop() {
 
 void SamplerPool::run(Worker* w) {
   Sampler& s = *w->sampler;
-  s.fill();
+  // The fill's samples count against the cap like any others: the loop below waits them off.
   const double cap = options_.max_samples_per_second / double(workers_.size());
   const auto start = std::chrono::steady_clock::now();
   const uint64_t start_samples = s.counters().samples;
+  s.fill();
   int since_copy = 0;
   while (running_.load(std::memory_order_relaxed)) {
     s.step();

@@ -89,6 +89,34 @@ TEST(CoordinatorTest, AreasFollowThroughputWithHysteresis) {
   EXPECT_FALSE(c.maybe_recut(2.5));
 }
 
+TEST(CoordinatorTest, OnlyAnOverloadedMemberIsReasonToRecut) {
+  // Regions cut for throughputs 9:91; then the throughputs become 20:80. Sampler 1 now has
+  // less than half of what it could take, but sampler 2, which finishes last, carries 0.91
+  // against 0.80 of its share: 14% over, inside the hysteresis. A recut (two pool restarts)
+  // would gain less than it costs. At 40:60, sampler 2 carries 0.91 / 0.60 = 1.5x: recut.
+  CoordinatorOptions o;
+  o.settle_seconds = 0.0;
+  Coordinator c(200, 100, o);
+  join_two(&c);
+  c.report_throughput(1, 90000.0, 0.5);
+  c.report_throughput(2, 910000.0, 0.5);
+  c.report_throughput(1, 90000.0, 0.6);
+  c.report_throughput(2, 910000.0, 0.6);
+  ASSERT_TRUE(c.maybe_recut(1.1));
+  ASSERT_NEAR(double(c.members().at(1).region.area()) / 20000.0, 0.09, 0.01);
+  for (double t = 1.2; t < 3.0; t += 0.2) {  // the running mean settles on the new figures
+    c.report_throughput(1, 200000.0, t);
+    c.report_throughput(2, 800000.0, t);
+  }
+  EXPECT_FALSE(c.maybe_recut(3.0));
+  for (double t = 3.2; t < 5.0; t += 0.2) {
+    c.report_throughput(1, 400000.0, t);
+    c.report_throughput(2, 600000.0, t);
+  }
+  EXPECT_TRUE(c.maybe_recut(5.0));
+  EXPECT_NEAR(double(c.members().at(1).region.area()) / 20000.0, 0.4, 0.02);
+}
+
 TEST(CoordinatorTest, NoDriftRecutUntilEveryRegionHasSettled) {
   // A new region restarts the sampler's pool: for settle_seconds its figures are not used.
   CoordinatorOptions o;

@@ -109,7 +109,22 @@ class NetworkSink final : public SampleSink {
     retire_locked();
   }
 
+  // Flow control: a batch waits (up to kMaxWait, without the lock) until ZeroMQ has taken
+  // everything queued before it on its routes, so a worker traces no faster than the link and
+  // the display absorb, and what is traced is sent rather than dropped. The wait adds no
+  // latency beyond ZeroMQ's own small queue (ChannelOptions::samples). A display that stays
+  // away is not waited for longer: then the sender drops the oldest, as before.
   void on_batch(SampleBatch&& batch) override {
+    const auto deadline = std::chrono::steady_clock::now() + kMaxWait;
+    for (;;) {
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        bool clear = true;
+        for (SampleRoute& r : routes_) clear = r.sender->pump() == 0 && clear;
+        if (clear || std::chrono::steady_clock::now() >= deadline) break;
+      }
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
     std::lock_guard<std::mutex> lock(mutex_);
     if (routes_.empty()) {
       ++unsent_;
@@ -179,6 +194,7 @@ class NetworkSink final : public SampleSink {
     }
   }
 
+  static constexpr std::chrono::milliseconds kMaxWait{50};
   mutable std::mutex mutex_;
   std::vector<SampleRoute> routes_;
   uint32_t sampler_id_ = 0;

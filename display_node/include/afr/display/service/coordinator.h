@@ -4,8 +4,8 @@
 // image's error proportional to that sampler's measured throughput (DESIGN.md: the error is
 // what the samplers' tiling snapshots say, set with set_error(); before any, the area); the
 // cut is redone at once when a sampler joins, leaves or dies, and at most once per
-// recut_interval when the regions' error shares drift further than the hysteresis from the
-// throughput shares. Plain logic, no I/O: the display service feeds it and sends what it
+// recut_interval when a member's part of the error grows beyond its throughput share by more
+// than the hysteresis. Plain logic, no I/O: the display service feeds it and sends what it
 // decides.
 #pragma once
 
@@ -29,8 +29,9 @@ struct CoordinatorOptions {
   // The samplers' and wall followers' heartbeat interval: the detector's first guess.
   double heartbeat_interval = protocol::kMemberHeartbeatInterval;
   double recut_interval = 1.0;  // seconds between throughput-driven recuts
-  double hysteresis =
-      0.5;  // relative mismatch of error share and throughput share that triggers one
+  // A recut happens when a member's part of the error exceeds (1 + hysteresis) times its
+  // share of the throughput.
+  double hysteresis = 0.5;
   // Throughput reports this soon after a region change are ignored (the pool restarts).
   double settle_seconds = 2.0;
 };
