@@ -49,7 +49,8 @@ TEST(FramedTest, FrameShownAtTjWasTracedWithTheInputOfTjMinus1) {
     s.rate = 60.0 * s.width * s.height;  // framed 60 Hz at full resolution: no upsampling
     std::vector<Image> shown;
     const RunStats stats =
-        run_method(scene, tracer, s, [&](int, const Image& image) { shown.push_back(image); });
+        run_method(scene, tracer, s,
+                   [&](int, const Image& image, const FrameInput&) { shown.push_back(image); });
     EXPECT_EQ(stats.frame_width, s.width);
     EXPECT_EQ(stats.frames_traced, uint64_t(s.frames));
     EXPECT_EQ(stats.primary_rays, uint64_t(s.frames) * s.width * s.height);
@@ -60,6 +61,54 @@ TEST(FramedTest, FrameShownAtTjWasTracedWithTheInputOfTjMinus1) {
       const Image current = reference_frame(tracer, t, s.width, s.height);
       EXPECT_EQ(shown[size_t(j)].pixels, previous.pixels) << method_name(method) << " frame " << j;
       EXPECT_NE(shown[size_t(j)].pixels, current.pixels) << method_name(method) << " frame " << j;
+    }
+  }
+}
+
+TEST(FrameScheduleTest, ShowsNoFrameWhoseInputIsNewerThanTheLatencyAllows) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-5.0, 5.0);
+  for (double period : {1.0 / 60.0, 0.16384}) {
+    for (double latency : {0.0, 0.5 / 60.0, 1.0 / 60.0, 2.5 / 60.0, 0.4}) {
+      const FrameSchedule s{0.25, period, latency};
+      for (int i = 0; i < 1000; ++i) {
+        const double t = u(rng);
+        const int64_t k = s.frame_shown_at(t);
+        const double slack = 1e-9 * period;
+        // Done, and old enough ...
+        EXPECT_LE(s.input_time(k + 1), t + slack);
+        EXPECT_LE(s.input_time(k), t - latency + slack);
+        // ... and the newest frame that is both.
+        EXPECT_TRUE(s.input_time(k + 2) > t || s.input_time(k + 1) > t - latency)
+            << "period " << period << " latency " << latency << " t " << t;
+      }
+    }
+  }
+}
+
+TEST(FramedTest, FrameShownAtTjWasTracedWithTheInputOfTjMinus2AtALatencyOfTwoRefreshes) {
+  const Scene scene = testing::sliding_quad_scene(8.0);
+  Tracer tracer(scene);
+  RunSettings s;
+  s.width = 48;
+  s.height = 32;
+  s.first_time = 0.2;
+  s.frames = 8;
+  s.threads = 2;
+  s.latency = 2.0 / 60.0;
+  for (Method method : {Method::kFullRes60, Method::kFramed60}) {
+    s.method = method;
+    s.rate = 60.0 * s.width * s.height;
+    std::vector<Image> shown;
+    run_method(scene, tracer, s,
+               [&](int, const Image& image, const FrameInput&) { shown.push_back(image); });
+    ASSERT_EQ(shown.size(), size_t(s.frames));
+    for (int j = 0; j < s.frames; ++j) {
+      const double t = frame_time(s, j);
+      const Image two_old = reference_frame(tracer, t - 2.0 / 60.0, s.width, s.height);
+      const Image one_old = reference_frame(tracer, t - 1.0 / 60.0, s.width, s.height);
+      EXPECT_EQ(shown[size_t(j)].pixels, two_old.pixels) << method_name(method) << " frame " << j;
+      EXPECT_NE(shown[size_t(j)].pixels, one_old.pixels) << method_name(method) << " frame " << j;
     }
   }
 }
@@ -76,7 +125,8 @@ TEST(FramedTest, FullResolutionFramesAreAsOldAsTheRateMakesThem) {
   s.frames = 30;
   std::vector<Image> shown;
   const RunStats stats =
-      run_method(scene, tracer, s, [&](int, const Image& image) { shown.push_back(image); });
+      run_method(scene, tracer, s,
+                 [&](int, const Image& image, const FrameInput&) { shown.push_back(image); });
   EXPECT_NEAR(stats.frame_period, 0.1, 1e-12);
   // 30 display frames span 0.5 s: 5 or 6 frames shown.
   EXPECT_GE(stats.frames_traced, 5u);

@@ -28,6 +28,20 @@ Scene load_animation_scene(const AnimationSpec& spec) {
   return scene;
 }
 
+namespace {
+
+// A window past the end of the animation shows its last pose: legal, but rarely meant.
+void warn_about_window(const AnimationSpec& spec, const Scene& scene, double seconds) {
+  if (!scene.is_animated()) {
+    spdlog::warn("{}: the scene does not move (no animation channels)", spec.name);
+  } else if (spec.start + seconds > scene.duration() + 1e-9) {
+    spdlog::warn("{}: frames after {:.3f} s show the animation's last pose (its keys end there)",
+                 spec.name, scene.duration());
+  }
+}
+
+}  // namespace
+
 std::vector<Image> ideal_frames(const Scene& scene, Tracer& tracer, const EvalConfig& config,
                                 double first_time, int frames, Progress* progress,
                                 AnimationResult* result) {
@@ -75,16 +89,20 @@ RunResult run_and_compare(const Scene& scene, Tracer& tracer, const RunSettings&
   r.rate = method_uses_rate(settings.method)
                ? settings.rate
                : double(settings.width) * settings.height * settings.fps;
+  r.seed = settings.seed;
   r.rms.resize(size_t(settings.frames));
   r.frame_times.resize(size_t(settings.frames));
-  r.stats = run_method(scene, tracer, settings, [&](int j, const Image& image) {
-    r.rms[size_t(j)] = rms_error_255(image, ideal[size_t(j)]);
-    r.frame_times[size_t(j)] = frame_time(settings, j);
-    for (int f : strip_frames) {
-      if (f == j) r.strip_images[j] = image;
-    }
-    if (progress) progress->advance();
-  });
+  r.inputs.resize(size_t(settings.frames));
+  r.stats =
+      run_method(scene, tracer, settings, [&](int j, const Image& image, const FrameInput& in) {
+        r.rms[size_t(j)] = rms_error_255(image, ideal[size_t(j)]);
+        r.frame_times[size_t(j)] = frame_time(settings, j);
+        r.inputs[size_t(j)] = in;
+        for (int f : strip_frames) {
+          if (f == j) r.strip_images[j] = image;
+        }
+        if (progress) progress->advance();
+      });
   r.mean_rms = std::accumulate(r.rms.begin(), r.rms.end(), 0.0) / double(r.rms.size());
   return r;
 }
@@ -106,9 +124,13 @@ std::vector<AnimationResult> evaluate(const EvalConfig& config) {
   std::vector<int> strips;
   for (int f : config.strip_frames) strips.push_back(std::clamp(f, 0, frames - 1));
 
+  const int seeds = std::max(1, config.seeds);
   // Units: ideal frames, then every compared frame of every run.
   uint64_t runs_per_animation = 0;
-  for (Method m : methods) runs_per_animation += method_uses_rate(m) ? config.rates.size() : 1;
+  for (Method m : methods) {
+    runs_per_animation +=
+        (method_uses_rate(m) ? config.rates.size() : 1) * (method_uses_seed(m) ? seeds : 1);
+  }
   Progress progress(config.animations.size() * uint64_t(frames) * (1 + runs_per_animation),
                     config.progress);
 
@@ -120,25 +142,29 @@ std::vector<AnimationResult> evaluate(const EvalConfig& config) {
     ar.spec = spec;
     progress.set_task(fmt::format("{}: loading", spec.name));
     const Scene scene = load_animation_scene(spec);
+    warn_about_window(spec, scene, config.seconds);
     Tracer tracer(scene);
     progress.set_task(fmt::format("{}: ideal frames ({} spp)", spec.name, config.ideal_spp));
     const std::vector<Image> ideal =
         ideal_frames(scene, tracer, config, spec.start, frames, &progress, &ar);
     for (int j = 0; j < frames; ++j) ar.frame_times.push_back(spec.start + j / config.base.fps);
     for (int f : strips) ar.ideal_strip_images[f] = ideal[size_t(f)];
-    // Every (method, rate) run of the animation, in table order.
+    // Every (method, rate, seed) run of the animation, in table order.
     std::vector<RunSettings> runs;
     for (Method m : methods) {
       const std::vector<double> rates =
           method_uses_rate(m) ? config.rates : std::vector<double>{0.0};
       for (double rate : rates) {
-        RunSettings s = config.base;
-        s.method = m;
-        s.rate = method_uses_rate(m) ? rate : double(s.width) * s.height * s.fps;
-        s.first_time = spec.start;
-        s.frames = frames;
-        s.threads = split.threads_per_run;
-        runs.push_back(s);
+        for (int k = 0; k < (method_uses_seed(m) ? seeds : 1); ++k) {
+          RunSettings s = config.base;
+          s.method = m;
+          s.rate = method_uses_rate(m) ? rate : double(s.width) * s.height * s.fps;
+          s.seed = config.base.seed + uint64_t(k);
+          s.first_time = spec.start;
+          s.frames = frames;
+          s.threads = split.threads_per_run;
+          runs.push_back(s);
+        }
       }
     }
     // Started costliest first (cost ~ rays per second), so that the last ones to end are short.
@@ -154,11 +180,15 @@ std::vector<AnimationResult> evaluate(const EvalConfig& config) {
       for (size_t k = next++; k < order.size(); k = next++) {
         const RunSettings& s = runs[order[k]];
         try {
-          RunResult r = run_and_compare(scene, *own, s, ideal, strips, &progress);
+          // Strips show the first seed's images.
+          const std::vector<int> none;
+          RunResult r = run_and_compare(scene, *own, s, ideal,
+                                        s.seed == config.base.seed ? strips : none, &progress);
           r.animation = spec.name;
-          spdlog::debug("{} {} {:.0f}: mean RMS {:.2f}, {:.1f} s sampling, {:.1f} s reconstruction",
-                        spec.name, method_name(s.method), r.rate, r.mean_rms,
-                        r.stats.sample_seconds, r.stats.reconstruct_seconds);
+          spdlog::debug(
+              "{} {} {:.0f} seed {}: mean RMS {:.2f}, {:.1f} s sampling, {:.1f} s reconstruction",
+              spec.name, method_name(s.method), r.rate, s.seed, r.mean_rms, r.stats.sample_seconds,
+              r.stats.reconstruct_seconds);
           done[order[k]] = std::move(r);
         } catch (...) {
           std::lock_guard<std::mutex> lock(error_mutex);
@@ -185,6 +215,23 @@ std::vector<AnimationResult> evaluate(const EvalConfig& config) {
   }
   progress.finish();
   return results;
+}
+
+void render_ideal_only(const EvalConfig& config) {
+  const int frames = std::max(1, int(std::lround(config.seconds * config.base.fps)));
+  Progress progress(config.animations.size() * uint64_t(frames), config.progress);
+  for (const AnimationSpec& spec : config.animations) {
+    progress.set_task(fmt::format("{}: loading", spec.name));
+    const Scene scene = load_animation_scene(spec);
+    warn_about_window(spec, scene, config.seconds);
+    Tracer tracer(scene);
+    progress.set_task(fmt::format("{}: ideal frames ({} spp)", spec.name, config.ideal_spp));
+    AnimationResult ar;
+    ideal_frames(scene, tracer, config, spec.start, frames, &progress, &ar);
+    spdlog::info("{}: {} ideal frames rendered ({:.0f} s), {} from the cache", spec.name,
+                 ar.ideal_rendered, ar.ideal_seconds, ar.ideal_cached);
+  }
+  progress.finish();
 }
 
 }  // namespace afr::eval

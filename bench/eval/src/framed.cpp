@@ -10,7 +10,9 @@
 namespace afr::eval {
 
 int64_t FrameSchedule::frame_shown_at(double t) const {
-  return int64_t(std::floor((t - origin) / period + 1e-9)) - 1;
+  const int64_t done = int64_t(std::floor((t - origin) / period + 1e-9)) - 1;
+  const int64_t old_enough = int64_t(std::floor((t - latency - origin) / period + 1e-9));
+  return std::min(done, old_enough);
 }
 
 void framed_resolution(double samples_per_frame, int width, int height, int* w, int* h) {

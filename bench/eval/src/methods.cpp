@@ -78,4 +78,8 @@ bool method_is_frameless(Method method) {
          method == Method::kAdaptiveNoReprojection;
 }
 
+bool method_uses_seed(Method method) {
+  return method != Method::kFramed60 && method != Method::kFullRes60;
+}
+
 }  // namespace afr::eval

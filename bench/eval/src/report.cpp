@@ -7,8 +7,11 @@
 #include <OpenImageIO/imagebufalgo.h>
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
+#include <optional>
 #include <set>
 
 namespace afr::eval {
@@ -47,16 +50,51 @@ std::vector<double> rates_of(const AnimationResult& a) {
   return {rates.begin(), rates.end()};
 }
 
-// The run of `method` at `rate` (any rate for the fixed-rate reference), or nullptr.
-const RunResult* find_run(const AnimationResult& a, Method method, double rate) {
+// The runs of `method` at `rate` (any rate for the fixed-rate reference), seeds ascending.
+std::vector<const RunResult*> find_runs(const AnimationResult& a, Method method, double rate) {
+  std::vector<const RunResult*> out;
   for (const RunResult& r : a.runs) {
-    if (r.method == method && (!method_uses_rate(method) || r.rate == rate)) return &r;
+    if (r.method == method && (!method_uses_rate(method) || r.rate == rate)) out.push_back(&r);
   }
-  return nullptr;
+  return out;
 }
 
-std::string table(const std::vector<AnimationResult>& results, double (*value)(const RunResult&),
-                  const char* format) {
+// The first seed's run, or nullptr.
+const RunResult* find_run(const AnimationResult& a, Method method, double rate) {
+  const std::vector<const RunResult*> runs = find_runs(a, method, rate);
+  return runs.empty() ? nullptr : runs.front();
+}
+
+std::optional<Cell> cell_of(const AnimationResult& a, Method method, double rate) {
+  const std::vector<const RunResult*> runs = find_runs(a, method, rate);
+  if (runs.empty()) return std::nullopt;
+  Cell c;
+  c.method = method;
+  c.rate = runs.front()->rate;
+  c.runs = int(runs.size());
+  c.min = c.max = runs.front()->mean_rms;
+  for (const RunResult* r : runs) {
+    c.mean += r->mean_rms;
+    c.min = std::min(c.min, r->mean_rms);
+    c.max = std::max(c.max, r->mean_rms);
+    c.wall_seconds += r->stats.sample_seconds + r->stats.reconstruct_seconds;
+    c.primary_rays += double(r->stats.primary_rays);
+    c.occlusion_rays += double(r->stats.occlusion_rays);
+    c.charged_rays += r->stats.charged_rays;
+  }
+  const double n = double(runs.size());
+  c.mean /= n;
+  c.wall_seconds /= n;
+  c.primary_rays /= n;
+  c.occlusion_rays /= n;
+  c.charged_rays /= n;
+  return c;
+}
+
+// One row per method, one column per animation and rate; `text` makes a cell's text (empty
+// cells show "-").
+std::string table(const std::vector<AnimationResult>& results, const std::vector<Method>& rows,
+                  const std::function<std::string(const AnimationResult&, Method, double)>& text) {
   std::string header = "| Method |", rule = "|---|";
   for (const AnimationResult& a : results) {
     for (double rate : rates_of(a)) {
@@ -65,13 +103,12 @@ std::string table(const std::vector<AnimationResult>& results, double (*value)(c
     }
   }
   std::string out = header + "\n" + rule + "\n";
-  for (Method m : methods_of(results)) {
+  for (Method m : rows) {
     out += fmt::format("| {} |", method_label(m));
     for (const AnimationResult& a : results) {
       for (double rate : rates_of(a)) {
-        const RunResult* r = find_run(a, m, rate);
-        out += r ? fmt::format(fmt::runtime(std::string(" ") + format + " |"), value(*r))
-                 : std::string(" - |");
+        const std::string cell = text(a, m, rate);
+        out += " " + (cell.empty() ? std::string("-") : cell) + " |";
       }
     }
     out += "\n";
@@ -106,31 +143,89 @@ std::string rate_label(double rate) {
   return fmt::format("{:.3g}K", rate / 1e3);
 }
 
+std::vector<Cell> cells_of(const AnimationResult& animation) {
+  std::vector<Cell> out;
+  for (Method m : all_methods()) {
+    if (!method_uses_rate(m)) {
+      if (std::optional<Cell> c = cell_of(animation, m, 0.0)) out.push_back(*c);
+      continue;
+    }
+    for (double rate : rates_of(animation)) {
+      if (std::optional<Cell> c = cell_of(animation, m, rate)) out.push_back(*c);
+    }
+  }
+  return out;
+}
+
+Comparison compare(const Cell& a, const Cell& b) {
+  if (a.max < b.min) return Comparison::kLower;
+  if (a.min > b.max) return Comparison::kHigher;
+  return Comparison::kWithinSpread;
+}
+
 std::string rms_table_markdown(const std::vector<AnimationResult>& results) {
-  return table(
-      results, [](const RunResult& r) { return r.mean_rms; }, "{:.1f}");
+  return table(results, methods_of(results),
+               [](const AnimationResult& a, Method m, double rate) -> std::string {
+                 const std::optional<Cell> c = cell_of(a, m, rate);
+                 if (!c) return "";
+                 if (c->runs == 1) return fmt::format("{:.1f}", c->mean);
+                 return fmt::format("{:.1f} ({:.1f}-{:.1f})", c->mean, c->min, c->max);
+               });
 }
 
 std::string wall_table_markdown(const std::vector<AnimationResult>& results) {
-  return table(
-      results,
-      [](const RunResult& r) { return r.stats.sample_seconds + r.stats.reconstruct_seconds; },
-      "{:.1f}");
+  return table(results, methods_of(results),
+               [](const AnimationResult& a, Method m, double rate) -> std::string {
+                 const std::optional<Cell> c = cell_of(a, m, rate);
+                 return c ? fmt::format("{:.1f}", c->wall_seconds) : "";
+               });
+}
+
+std::string comparison_markdown(const std::vector<AnimationResult>& results, Method method) {
+  std::vector<Method> rows;
+  for (Method m : methods_of(results)) {
+    if (m != method) rows.push_back(m);
+  }
+  return table(results, rows, [&](const AnimationResult& a, Method m, double rate) -> std::string {
+    const std::optional<Cell> mine = cell_of(a, method, rate), theirs = cell_of(a, m, rate);
+    if (!mine || !theirs) return "";
+    static constexpr const char* kWords[] = {"lower", "higher", "within spread"};
+    const Comparison c = compare(*mine, *theirs);
+    const std::string words = kWords[int(c)];
+    return fmt::format("{} ({:.1f} vs {:.1f})",
+                       c == Comparison::kWithinSpread ? words : "**" + words + "**", mine->mean,
+                       theirs->mean);
+  });
 }
 
 void write_summary_csv(const std::vector<AnimationResult>& results,
                        const std::filesystem::path& file) {
   std::ofstream out = open_out(file);
-  out << "animation,method,rate,mean_rms,frames,primary_rays,occlusion_rays,virtual_seconds,"
-         "sample_wall_s,reconstruct_wall_s,frame_width,frame_height,frame_period_s,"
-         "frames_traced\n";
+  out << "animation,method,rate,seed,mean_rms,frames,primary_rays,occlusion_rays,charged_rays,"
+         "virtual_seconds,sample_wall_s,reconstruct_wall_s,frame_width,frame_height,"
+         "frame_period_s,frames_traced\n";
   for (const AnimationResult& a : results) {
     for (const RunResult& r : a.runs) {
-      out << fmt::format("{},{},{},{:.4f},{},{},{},{:.4f},{:.3f},{:.3f},{},{},{:.6f},{}\n",
-                         a.spec.name, method_name(r.method), r.rate, r.mean_rms, r.rms.size(),
-                         r.stats.primary_rays, r.stats.occlusion_rays, r.stats.virtual_seconds,
-                         r.stats.sample_seconds, r.stats.reconstruct_seconds, r.stats.frame_width,
-                         r.stats.frame_height, r.stats.frame_period, r.stats.frames_traced);
+      out << fmt::format(
+          "{},{},{},{},{:.4f},{},{},{},{:.0f},{:.4f},{:.3f},{:.3f},{},{},{:.6f},{}\n", a.spec.name,
+          method_name(r.method), r.rate, r.seed, r.mean_rms, r.rms.size(), r.stats.primary_rays,
+          r.stats.occlusion_rays, r.stats.charged_rays, r.stats.virtual_seconds,
+          r.stats.sample_seconds, r.stats.reconstruct_seconds, r.stats.frame_width,
+          r.stats.frame_height, r.stats.frame_period, r.stats.frames_traced);
+    }
+  }
+}
+
+void write_cells_csv(const std::vector<AnimationResult>& results,
+                     const std::filesystem::path& file) {
+  std::ofstream out = open_out(file);
+  out << "animation,method,rate,runs,mean_rms,min_rms,max_rms,wall_s,primary_rays,"
+         "occlusion_rays,charged_rays\n";
+  for (const AnimationResult& a : results) {
+    for (const Cell& c : cells_of(a)) {
+      out << fmt::format("{},{},{},{},{:.4f},{:.4f},{:.4f},{:.3f},{:.0f},{:.0f},{:.0f}\n",
+                         a.spec.name, method_name(c.method), c.rate, c.runs, c.mean, c.min, c.max,
+                         c.wall_seconds, c.primary_rays, c.occlusion_rays, c.charged_rays);
     }
   }
 }
@@ -138,12 +233,13 @@ void write_summary_csv(const std::vector<AnimationResult>& results,
 void write_frames_csv(const std::vector<AnimationResult>& results,
                       const std::filesystem::path& file) {
   std::ofstream out = open_out(file);
-  out << "animation,method,rate,frame,time,rms\n";
+  out << "animation,method,rate,seed,frame,time,input_time,newest_sample,rms\n";
   for (const AnimationResult& a : results) {
     for (const RunResult& r : a.runs) {
       for (size_t j = 0; j < r.rms.size(); ++j) {
-        out << fmt::format("{},{},{},{},{:.6f},{:.4f}\n", a.spec.name, method_name(r.method),
-                           r.rate, j, r.frame_times[j], r.rms[j]);
+        out << fmt::format("{},{},{},{},{},{:.6f},{:.6f},{:.6f},{:.4f}\n", a.spec.name,
+                           method_name(r.method), r.rate, r.seed, j, r.frame_times[j],
+                           r.inputs[j].input_time, r.inputs[j].newest_sample, r.rms[j]);
       }
     }
   }
@@ -171,21 +267,30 @@ std::vector<std::filesystem::path> write_frame_plots(const std::vector<Animation
   std::filesystem::create_directories(folder);
   for (const AnimationResult& a : results) {
     for (double rate : rates_of(a)) {
-      std::vector<const RunResult*> runs;
+      // Per method, the mean over its seeds of each frame's RMS.
+      std::vector<Method> methods;
+      std::vector<std::vector<double>> curves;
       for (Method m : all_methods()) {
-        if (const RunResult* r = find_run(a, m, rate)) runs.push_back(r);
+        const std::vector<const RunResult*> seeds = find_runs(a, m, rate);
+        if (seeds.empty()) continue;
+        std::vector<double> mean(a.frame_times.size(), 0.0);
+        for (const RunResult* r : seeds) {
+          for (size_t j = 0; j < mean.size(); ++j) mean[j] += r->rms[j] / double(seeds.size());
+        }
+        methods.push_back(m);
+        curves.push_back(std::move(mean));
       }
-      if (runs.empty()) continue;
+      if (methods.empty()) continue;
       const std::string stem = fmt::format("{}-{}", safe(a.spec.name), rate_label(rate));
       const std::filesystem::path dat = folder / ("frames-" + stem + ".dat");
       {
         std::ofstream out = open_out(dat);
         out << "# time";
-        for (const RunResult* r : runs) out << ' ' << method_name(r->method);
+        for (Method m : methods) out << ' ' << method_name(m);
         out << '\n';
         for (size_t j = 0; j < a.frame_times.size(); ++j) {
           out << fmt::format("{:.6f}", a.frame_times[j]);
-          for (const RunResult* r : runs) out << fmt::format(" {:.4f}", r->rms[j]);
+          for (const std::vector<double>& curve : curves) out << fmt::format(" {:.4f}", curve[j]);
           out << '\n';
         }
       }
@@ -195,14 +300,15 @@ std::vector<std::filesystem::path> write_frame_plots(const std::vector<Animation
         std::ofstream out = open_out(gp);
         out << "set terminal pngcairo noenhanced size 900,420 font 'DejaVu Sans,10'\n"
             << fmt::format("set output '{}'\n", png.string())
-            << fmt::format("set title '{}, {} primary rays/s, {} frames at 60 Hz'\n", a.spec.name,
-                           rate_label(rate), a.frame_times.size())
+            << fmt::format(
+                   "set title '{}, {} rays/s, {} frames at 60 Hz, each the mean over the seeds'\n",
+                   a.spec.name, rate_label(rate), a.frame_times.size())
             << "set xlabel 'display time (s)'\nset ylabel 'RMS error (0-255)'\n"
             << "set key outside right top\nset grid\nset yrange [0:*]\n"
             << "plot";
-        for (size_t c = 0; c < runs.size(); ++c) {
+        for (size_t c = 0; c < methods.size(); ++c) {
           out << fmt::format("{} '{}' using 1:{} with lines lw 1.5 title '{}'", c ? "," : "",
-                             dat.string(), c + 2, method_label(runs[c]->method));
+                             dat.string(), c + 2, method_label(methods[c]));
         }
         out << '\n';
       }

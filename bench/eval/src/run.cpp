@@ -1,14 +1,15 @@
 #include <afr/eval/run.h>
 
 #include <afr/common/check.h>
-#include <afr/common/clock.h>
 #include <afr/common/error.h>
 #include <afr/display/cpu_reconstructor.h>
 #include <afr/eval/framed.h>
+#include <afr/eval/ray_budget.h>
 #include <afr/sampler/sampler.h>
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -38,7 +39,30 @@ void validate(const RunSettings& s) {
   if (s.frames < 1 || !(s.fps > 0.0) || !(s.warmup >= 0.0) || !std::isfinite(s.first_time)) {
     throw Error("run: frames, fps, warmup or first time out of range");
   }
+  if (!(s.latency >= 0.0 && s.latency <= 60.0)) {
+    throw Error(fmt::format("latency {} s is outside 0..60 s", s.latency));
+  }
+  if (!(s.occlusion_ray_cost >= 0.0 && s.occlusion_ray_cost <= 1000.0)) {
+    throw Error(fmt::format("occlusion ray cost {} is outside 0..1000 rays", s.occlusion_ray_cost));
+  }
 }
+
+// Between the sampler and the reconstructor: passes everything on and keeps the time of the
+// newest sample passed, which is what the next image can show.
+class NewestSampleSink final : public SampleSink {
+ public:
+  explicit NewestSampleSink(SampleSink& next) : next_(next) {}
+  void on_batch(SampleBatch&& batch) override {
+    for (const Sample& sample : batch.samples) newest_ = std::max(newest_, sample.time);
+    next_.on_batch(std::move(batch));
+  }
+  void on_tiling(TilingSnapshot&& snapshot) override { next_.on_tiling(std::move(snapshot)); }
+  double newest() const { return newest_; }
+
+ private:
+  SampleSink& next_;
+  double newest_ = -std::numeric_limits<double>::infinity();
+};
 
 // The sampler and the reconstructor, joined under a virtual clock.
 RunStats run_frameless(const Scene& scene, Tracer& tracer, const RunSettings& s,
@@ -80,42 +104,48 @@ RunStats run_frameless(const Scene& scene, Tracer& tracer, const RunSettings& s,
   const double warmup = std::max(s.warmup, 2.0 * fill_rays / s.rate);
 
   CpuReconstructor reconstructor(rc);
-  VirtualClock clock(s.rate, s.first_time - warmup);
+  NewestSampleSink sink_to_display(reconstructor);
+  // The sampler runs from `warmup` before the first image's input time, so that the first
+  // compared image has the same history at every latency.
+  BudgetClock clock(s.rate, input_time(s, 0) - warmup, s.occlusion_ray_cost);
   RunStats stats;
   auto start = Steady::now();
-  Sampler sampler(scene, tracer, clock, config, reconstructor);
+  Sampler sampler(scene, tracer, clock, config, sink_to_display);
   sampler.fill();
 
   Image image(s.width, s.height);
   SceneState state;
+  // The display stage of frame j: the samples traced until t_in = t_j - latency and the
+  // camera of t_in make the image shown at t_j; the sampler traces on meanwhile (frame j + 1
+  // takes the samples up to its own t_in).
+  const auto make_image = [&](int j) {
+    const double t_in = input_time(s, j);
+    sample_until(sampler, clock, t_in);
+    sampler.flush();
+    stats.sample_seconds += seconds_since(start);
+    start = Steady::now();
+    scene.evaluate(t_in, &state);
+    reconstructor.reconstruct(scene.camera_at(state), t_in, s.width, s.height, &image);
+    return FrameInput{t_in, sink_to_display.newest()};
+  };
   // A live display reconstructs at every refresh, and its coverage map (section 6.2) adapts
   // splat sizes from one image to the next: the display also runs during the last half second
   // of the warm-up (images not compared, time not counted).
   const int warm_frames = int(std::floor(std::min(warmup, 0.5) * s.fps));
   for (int j = -warm_frames; j < 0; ++j) {
-    const double t = frame_time(s, j);
-    while (clock.now() < t) sampler.step();
-    sampler.flush();
-    stats.sample_seconds += seconds_since(start);
-    scene.evaluate(t, &state);
-    reconstructor.reconstruct(scene.camera_at(state), t, s.width, s.height, &image);
+    make_image(j);
     start = Steady::now();
   }
   for (int j = 0; j < s.frames; ++j) {
-    const double t = frame_time(s, j);
-    if (j > 0 || warm_frames > 0) start = Steady::now();
-    while (clock.now() < t) sampler.step();
-    sampler.flush();
-    stats.sample_seconds += seconds_since(start);
-    start = Steady::now();
-    scene.evaluate(t, &state);
-    reconstructor.reconstruct(scene.camera_at(state), t, s.width, s.height, &image);
+    const FrameInput input = make_image(j);
     stats.reconstruct_seconds += seconds_since(start);
-    sink(j, image);
+    sink(j, image, input);
+    start = Steady::now();
   }
-  stats.primary_rays = clock.rays();
-  stats.occlusion_rays = sampler.counters().occlusion_rays;
-  stats.virtual_seconds = double(clock.rays()) / s.rate;
+  stats.primary_rays = clock.primary_rays();
+  stats.occlusion_rays = clock.occlusion_rays();
+  stats.charged_rays = clock.charged_rays();
+  stats.virtual_seconds = clock.charged_rays() / s.rate;
   return stats;
 }
 
@@ -126,6 +156,7 @@ RunStats run_framed(const Scene& scene, Tracer& tracer, const RunSettings& s,
   RunStats stats;
   FrameSchedule schedule;
   schedule.origin = s.first_time;
+  schedule.latency = s.latency;
   int w = s.width, h = s.height;
   switch (s.method) {
     case Method::kFramed60:
@@ -134,6 +165,9 @@ RunStats run_framed(const Scene& scene, Tracer& tracer, const RunSettings& s,
       break;
     case Method::kFramedFullRes:
       schedule.period = double(s.width) * double(s.height) / s.rate;
+      // Its frames do not keep step with the display: where the frames start relative to the
+      // animation is the seed's.
+      schedule.origin += schedule_phase(s.seed) * schedule.period;
       break;
     case Method::kFullRes60:
       schedule.period = 1.0 / s.fps;
@@ -150,9 +184,10 @@ RunStats run_framed(const Scene& scene, Tracer& tracer, const RunSettings& s,
   Image frame, shown;
   for (int j = 0; j < s.frames; ++j) {
     const int64_t k = schedule.frame_shown_at(frame_time(s, j));
+    const double t_in = schedule.input_time(k);
     if (k != shown_k) {
       auto start = Steady::now();
-      frame = trace_frame(tracer, schedule.input_time(k), w, h, threads, &ts);
+      frame = trace_frame(tracer, t_in, w, h, threads, &ts);
       stats.sample_seconds += seconds_since(start);
       ++stats.frames_traced;
       start = Steady::now();
@@ -160,16 +195,18 @@ RunStats run_framed(const Scene& scene, Tracer& tracer, const RunSettings& s,
       stats.reconstruct_seconds += seconds_since(start);
       shown_k = k;
     }
-    sink(j, shown);
+    sink(j, shown, FrameInput{t_in, t_in});
   }
   stats.primary_rays = ts.primary_rays;
   stats.shadow_rays = ts.shadow_rays;
+  stats.charged_rays = double(ts.primary_rays);
   stats.virtual_seconds = double(stats.frames_traced) * schedule.period;
   return stats;
 }
 
 // Framed 60 Hz with temporal accumulation (taa.h), double buffered like framed 60 Hz: the
-// frame shown at t_j is frame j - 1, traced with the input of t_(j-1).
+// frame shown at t_j is frame j - 1, traced with the input of t_(j-1) (or older, with a
+// latency above one refresh).
 RunStats run_taa(const Scene& scene, Tracer& tracer, const RunSettings& s, const FrameSink& sink) {
   RunStats stats;
   int w, h;
@@ -177,23 +214,28 @@ RunStats run_taa(const Scene& scene, Tracer& tracer, const RunSettings& s, const
   stats.frame_width = w;
   stats.frame_height = h;
   stats.frame_period = 1.0 / s.fps;
-  FrameSchedule schedule{s.first_time, 1.0 / s.fps};
+  FrameSchedule schedule{s.first_time, 1.0 / s.fps, s.latency};
   TemporalAccumulator taa(s.width, s.height, w, h, s.taa);
   const int threads = thread_count(s.threads);
   TraceStats ts;
-  const int64_t first_k = -int64_t(std::ceil(s.warmup * s.fps)) - 1;
+  // The seed moves where in the 16-frame jitter sequence the run starts.
+  const int64_t jitter_offset = int64_t((s.seed - 1) % 16) * 7;
+  const int64_t first_k =
+      schedule.frame_shown_at(frame_time(s, 0)) - int64_t(std::ceil(s.warmup * s.fps));
   const Image* shown = nullptr;
   int64_t k = first_k;
   for (int j = 0; j < s.frames; ++j) {
     const int64_t want = schedule.frame_shown_at(frame_time(s, j));
     for (; k <= want; ++k) {
-      shown = &taa.render(tracer, k, schedule.input_time(k), threads, &ts);
+      shown = &taa.render(tracer, k + jitter_offset, schedule.input_time(k), threads, &ts);
       ++stats.frames_traced;
     }
-    sink(j, *shown);
+    const double t_in = schedule.input_time(want);
+    sink(j, *shown, FrameInput{t_in, t_in});
   }
   stats.primary_rays = ts.primary_rays;
   stats.shadow_rays = ts.shadow_rays;
+  stats.charged_rays = double(ts.primary_rays);
   stats.virtual_seconds = double(stats.frames_traced) * schedule.period;
   stats.sample_seconds = taa.trace_seconds();
   stats.reconstruct_seconds = taa.resolve_seconds();
@@ -201,6 +243,12 @@ RunStats run_taa(const Scene& scene, Tracer& tracer, const RunSettings& s, const
 }
 
 }  // namespace
+
+double schedule_phase(uint64_t seed) {
+  const double golden = 0.6180339887498949;
+  const double x = double((seed - 1) % 1000003) * golden;
+  return x - std::floor(x);
+}
 
 RunStats run_method(const Scene& scene, Tracer& tracer, const RunSettings& settings,
                     const FrameSink& sink) {

@@ -4,6 +4,7 @@
 // plots and image strips of report.h.
 #pragma once
 
+#include <afr/eval/animations.h>
 #include <afr/eval/methods.h>
 #include <afr/eval/progress.h>
 #include <afr/eval/run.h>
@@ -15,15 +16,6 @@
 
 namespace afr::eval {
 
-// One animation: a scene, optionally a camera path in place of its camera, and the display
-// time of the first evaluated frame.
-struct AnimationSpec {
-  std::string name;
-  std::filesystem::path scene;        // empty: the built-in scene
-  std::filesystem::path camera_path;  // empty: the scene's own camera
-  double start = 0.0;                 // seconds
-};
-
 struct EvalConfig {
   std::vector<AnimationSpec> animations;
   std::vector<double> rates{1e5, 4e5, 8e5};
@@ -33,9 +25,12 @@ struct EvalConfig {
   std::filesystem::path cache;  // ideal frames; empty: no cache
   // Frame indices kept for the image strips (clamped to the run's frames).
   std::vector<int> strip_frames;
-  // Everything else of a run: size, fps, warm-up, knobs, seed, threads (method, rate,
-  // first_time and frames are set per run).
+  // Everything else of a run: size, fps, latency, occlusion ray cost, warm-up, knobs, first
+  // seed, threads (method, rate, seed, first_time and frames are set per run).
   RunSettings base;
+  // Runs per (method, rate) with seeds base.seed, base.seed + 1, ...: the tables give their
+  // mean and range. Methods no seed changes (method_uses_seed) run once.
+  int seeds = 3;
   // Runs of an animation done at the same time, each with base.threads / jobs threads (at
   // least 1); 0: one per core. Results do not depend on it (each run has its own sampler,
   // reconstructor and seed, and the CPU reconstructor's image does not depend on its thread
@@ -55,9 +50,11 @@ struct RunResult {
   std::string animation;
   Method method = Method::kAdaptive;
   double rate = 0.0;  // the R of the run (W x H x fps for full-res 60 Hz)
+  uint64_t seed = 1;
   RunStats stats;
   std::vector<double> frame_times;
-  std::vector<double> rms;  // per frame
+  std::vector<FrameInput> inputs;  // per frame: what its image was made from
+  std::vector<double> rms;         // per frame
   double mean_rms = 0.0;
   std::map<int, Image> strip_images;  // frame index -> image, for strip_frames
 };
@@ -80,9 +77,14 @@ std::vector<Image> ideal_frames(const Scene& scene, Tracer& tracer, const EvalCo
                                 double first_time, int frames, Progress* progress,
                                 AnimationResult* result);
 
-// Runs every (method, rate) of `config` on every animation. The full-res 60 Hz reference runs
-// once per animation (its rate is fixed).
+// Runs every (method, rate, seed) of `config` on every animation. The full-res 60 Hz
+// reference runs once per animation and seed (its rate is fixed). Runs are in table order,
+// the seeds of one (method, rate) after each other.
 std::vector<AnimationResult> evaluate(const EvalConfig& config);
+
+// Renders (or finds in the cache) the ideal frames of every animation and nothing else: a
+// cold cache made warm before a timed run.
+void render_ideal_only(const EvalConfig& config);
 
 // One run, compared with ideal frames (the frames of `settings`). Keeps the images of
 // `strip_frames`.

@@ -15,15 +15,19 @@ namespace afr::eval {
 // When framed rendering starts and shows frames. Frame k takes the input of
 // input_time(k) = origin + k period, is traced during [input_time(k), input_time(k + 1)) and is
 // shown from input_time(k + 1) until the next frame is done. The renderer is taken to have
-// run for ever, so every display time has a frame (k may be negative).
+// run for ever, so every display time has a frame (k may be negative). With a display
+// latency L (RunSettings::latency) a frame is also shown no earlier than input_time(k) + L:
+// the display rule every method follows; for L <= period it changes nothing.
 struct FrameSchedule {
   double origin = 0.0;
   double period = 1.0 / 60.0;
+  double latency = 0.0;
 
   double input_time(int64_t k) const { return origin + double(k) * period; }
-  // The newest frame done at display time t: the largest k with input_time(k + 1) <= t. A
-  // display time within 1e-9 periods of a completion counts as after it (display times and
-  // completions of 60 Hz frames coincide, but are computed in floating point).
+  // The frame shown at display time t: the largest k with input_time(k + 1) <= t (done) and
+  // input_time(k) <= t - latency. A display time within 1e-9 periods of a bound counts as
+  // after it (display times and completions of 60 Hz frames coincide, but are computed in
+  // floating point).
   int64_t frame_shown_at(double t) const;
 };
 

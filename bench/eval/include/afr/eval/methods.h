@@ -31,5 +31,8 @@ Method parse_method(std::string_view name);
 bool method_uses_rate(Method method);
 // True for the methods that run the sampler and reconstructor libraries.
 bool method_is_frameless(Method method);
+// False for the methods whose images no seed changes (framed 60 Hz and full res 60 Hz trace
+// pixel centers at refresh-locked times): one run of them stands for every seed.
+bool method_uses_seed(Method method);
 
 }  // namespace afr::eval

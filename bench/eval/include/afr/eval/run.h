@@ -1,10 +1,14 @@
 // One run of one method: the method renders the frames shown at display times
-// first_time + j / fps (j = 0 .. frames - 1) at a simulated rate of R primary rays per second.
+// t_j = first_time + j / fps (j = 0 .. frames - 1) with a budget of R rays per second.
 // Frameless methods run the real sampler and reconstructor libraries in this process under a
-// VirtualClock (time advances 1/R per primary ray); framed methods trace whole frames with the
-// same tracer and count their primary rays the same way. Occlusion rays of the sampler's
-// reprojection are counted apart and do not advance the clock (the paper's rates count
-// primary rays only).
+// BudgetClock (time advances 1/R per primary ray and occlusion_ray_cost / R per occlusion ray
+// of the sampler's reprojection); framed methods trace whole frames with the same tracer and
+// count their rays the same way.
+//
+// One display rule for every method (docs/evaluation.md, "What is compared"): the image shown
+// at t_j is made from input (camera, scene time, samples) no newer than t_j - latency, and no
+// newer than the method's own pipeline allows: a framed renderer shows a frame only once its
+// rays are traced, a frame period after the input it was started with.
 #pragma once
 
 #include <afr/common/image.h>
@@ -27,6 +31,14 @@ struct RunSettings {
   double first_time = 0.0;  // display time of frame 0, seconds (scene time)
   int frames = 60;
   double fps = 60.0;
+  // Seconds between the input an image is made from and the display time it is shown at:
+  // the display stage of the pipeline (a reconstruction that takes a refresh: 1 / fps). 0 is
+  // the former accounting, where the frameless methods showed at t_j an image made from the
+  // samples and camera of t_j itself.
+  double latency = 1.0 / 60.0;
+  // Rays charged to the budget per occlusion ray of the sampler (1: one ray; 0: free, the
+  // former accounting).
+  double occlusion_ray_cost = 1.0;
   // Virtual seconds the frameless samplers and TAA run before frame 0, so that deep buffers
   // and histories are full when the comparison starts (framed renderers have run for ever).
   double warmup = 1.0;
@@ -36,15 +48,19 @@ struct RunSettings {
   // Reconstructor settings (image size and mode are set by the run).
   ReconstructorConfig reconstructor;
   TaaOptions taa;
+  // The sampler's seed; for framed full res also the phase of its frame schedule and for TAA
+  // the start of its jitter sequence (seed 1: phase 0, sequence from its start). Framed 60 Hz
+  // and full res 60 Hz do not depend on it (method_uses_seed).
   uint64_t seed = 1;
   int threads = 0;  // tracing threads of framed methods and reconstructor threads; 0 = all
 };
 
 struct RunStats {
-  uint64_t primary_rays = 0;         // what the rate counts
-  uint64_t occlusion_rays = 0;       // sampler reprojection's visibility tests, apart
-  uint64_t shadow_rays = 0;          // shading's rays, for the record
-  double virtual_seconds = 0.0;      // of sampling: primary_rays / R for frameless methods
+  uint64_t primary_rays = 0;         // traced primary rays
+  uint64_t occlusion_rays = 0;       // sampler reprojection's visibility tests
+  uint64_t shadow_rays = 0;          // shading's rays, part of a shaded ray's cost, not counted
+  double charged_rays = 0.0;         // what the budget paid: primary + cost x occlusion
+  double virtual_seconds = 0.0;      // of sampling: charged_rays / R
   double sample_seconds = 0.0;       // wall time tracing and controlling (sampler or frames)
   double reconstruct_seconds = 0.0;  // wall time making images (reconstructor, upsampling, TAA)
   int frame_width = 0;               // framed methods: the resolution of a frame
@@ -53,8 +69,18 @@ struct RunStats {
   uint64_t frames_traced = 0;  // framed methods: frames traced
 };
 
-// Called with each frame index j and its image (width x height), in order.
-using FrameSink = std::function<void(int j, const Image& image)>;
+// What the image shown at t_j was made from.
+struct FrameInput {
+  // The scene time and camera the image was made with (reconstruction, or the frame's
+  // trace; TAA: the newest frame accumulated).
+  double input_time = 0.0;
+  // The newest sample time in it: frameless methods, the newest sample that had reached the
+  // reconstructor; framed methods, input_time.
+  double newest_sample = 0.0;
+};
+
+// Called with each frame index j, its image (width x height) and its input, in order.
+using FrameSink = std::function<void(int j, const Image& image, const FrameInput& input)>;
 
 // Runs settings.method on `scene` (finalized) with `tracer` (built from it). The tracer's
 // time is changed. Throws afr::Error for settings out of range.
@@ -63,5 +89,12 @@ RunStats run_method(const Scene& scene, Tracer& tracer, const RunSettings& setti
 
 // The display time of frame j.
 inline double frame_time(const RunSettings& s, int j) { return s.first_time + double(j) / s.fps; }
+
+// The newest input the display stage may use for frame j: t_j - latency.
+inline double input_time(const RunSettings& s, int j) { return frame_time(s, j) - s.latency; }
+
+// The phase, in frame periods, of framed full res's schedule for a seed: 0 for seed 1, then
+// the golden-ratio sequence (0.618, 0.236, 0.854, ...), so that seeds spread over [0, 1).
+double schedule_phase(uint64_t seed);
 
 }  // namespace afr::eval
