@@ -8,6 +8,7 @@
 #   bench/refresh_results.sh --list                 every result, its file and its command
 #   bench/refresh_results.sh liveness protocol      run those two
 #   bench/refresh_results.sh --build build-rel tracer
+#   bench/refresh_results.sh eval-256 eval-timing results-doc   Table 1, its cost, docs/results.md
 #   bench/refresh_results.sh all                    every result (many hours; root ones need root)
 #
 # Use a Release build (default build/). The commands are the ones the docs name; results that
@@ -75,14 +76,18 @@ add protocol protocol.md "Protocol: codec cost and loopback throughput" \
   "Encode and decode cost per sample, tiling decode, PUSH/PULL throughput over TCP loopback with and without CurveZMQ, a non-blocking sender with and without the ZMQ_EVENTS check (docs/protocol.md, \"Figures\")." \
   '"$BUILD"/bench/afr-bench-protocol --benchmark_min_time=1 2>&1'
 add eval-256 eval-table-256.md "Table 1 at 256 x 256" \
-  "Mean RMS error (0-255) against the ideal renderer of every method at 100K, 400K and 800K primary rays/s on the four animations, and the wall time of each run (docs/evaluation.md); the program's table.md." \
+  "Mean RMS error (0-255) against the ideal renderer of every method at 100K, 400K and 800K rays/s on the four animations, mean and range over 3 seeds, latency one refresh for every method, occlusion rays charged; adaptive against every other method beyond the spread; the wall time of each run (docs/evaluation.md); the program's table.md." \
   'need_kitchen && "$BUILD"/bench/afr-eval --size 256x256 --seconds 3 --spp 9 --out out/eval/table-256 >&2 && cat out/eval/table-256/table.md'
 add eval-512 eval-table-512.md "Table 1 at 512 x 512" \
   "Mean RMS error of every method at 400K and 1.6M primary rays/s on the three kitchen animations at 512 x 512 (docs/evaluation.md); the program's table.md." \
   'need_kitchen && "$BUILD"/bench/afr-eval --size 512x512 --seconds 1 --spp 4 --animations bart,toycar,interactive --rates 400K,1.6M --out out/eval/table-512 >&2 && cat out/eval/table-512/table.md'
 add eval-timing eval-timing.md "Cost of a full Table 1 run" \
-  "Wall minutes of a Table-1 run of 20 s per kitchen animation at 256 x 256 with 1-spp ideal frames and no cache; the target is 30 minutes of method runs (docs/evaluation.md, \"Cost of a full Table 1 run\"); the program's table.md." \
-  'need_kitchen && "$BUILD"/bench/afr-eval --size 256x256 --seconds 20 --spp 1 --no-cache --animations bart,toycar,interactive --out out/eval/table1-timing >&2 && cat out/eval/table1-timing/table.md'
+  "Wall minutes of a whole Table-1 run of 20 s per kitchen animation at 256 x 256, every method at 100K, 400K and 800K, 3 seeds, with the 9-spp ideal frames read from a warm cache (the first command renders any that are missing); the target is 30 minutes (docs/evaluation.md, \"Cost of a full Table 1 run\"); the program's table.md." \
+  'need_kitchen && "$BUILD"/bench/afr-eval --ideal-only --size 256x256 --seconds 20 --spp 9 --animations bart,toycar,interactive >&2 && "$BUILD"/bench/afr-eval --size 256x256 --seconds 20 --spp 9 --animations bart,toycar,interactive --out out/eval/table1-timing >&2 && cat out/eval/table1-timing/table.md'
+add results-doc ../../docs/results.md "The tables of docs/results.md" \
+  "The targets and timing tables of docs/results.md, made by bench/eval_tables.py from the outputs of eval-256 and eval-timing (run those first)." \
+  'python3 bench/eval_tables.py --table out/eval/table-256 --timing out/eval/table1-timing --write docs/results.md' \
+  self
 add sweep sweep-256.md "Speed/accuracy sweep at 256 x 256" \
   "Mean RMS and wall-clock cost of one knob at a time and of the baselines, Pareto fronts marked (docs/tradeoffs.md); the program's sweep.md." \
   'need_kitchen && "$BUILD"/bench/afr-eval --sweep --size 256x256 --seconds 2 --spp 9 --out out/eval/sweep-256 >&2 && cat out/eval/sweep-256/sweep.md'
@@ -148,7 +153,7 @@ print()
 PY
 }
 
-usage() { sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; }
 
 list() {
   local n
@@ -156,7 +161,7 @@ list() {
     local note=""
     [ "${FLAGS[$n]}" = root ] && note=" (needs root)"
     [ "${FLAGS[$n]}" = self ] && note=" (the command writes it)"
-    printf '%s -> bench/results/%s%s\n' "$n" "${FILE[$n]}" "$note"
+    printf '%s -> %s%s\n' "$n" "$(realpath -m --relative-to=. "bench/results/${FILE[$n]}")" "$note"
     printf '    %s\n' "${CMD[$n]//\$BUILD/$BUILD}"
   done
   echo "Recorded by hand, not run here: test-times.md, still-scene-reconstruction.md (bench/results/README.md)."
@@ -221,7 +226,7 @@ export BUILD
 status=0
 for n in "${wanted[@]}"; do
   if run_one "$n"; then
-    echo "== $n: bench/results/${FILE[$n]} written" >&2
+    echo "== $n: $(realpath -m --relative-to=. "bench/results/${FILE[$n]}") written" >&2
   else
     rc=$?
     [ $rc -eq 2 ] || { echo "== $n: FAILED, bench/results/${FILE[$n]} left as it was" >&2; status=1; }
