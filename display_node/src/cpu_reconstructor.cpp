@@ -44,9 +44,9 @@ struct alignas(64) Counts {
 
 constexpr uint16_t kNoBand = 0xffff;
 
-// Rows per band of pass D, whatever the thread count (so that the image does not depend on it):
-// tall enough that few splats reach beyond the next band, short enough that bands outnumber
-// threads several times over (for balance).
+// Rows per band of splat_bands, whatever the thread count (so that the image does not depend
+// on it): tall enough that few splats reach beyond the next band, short enough that bands
+// outnumber threads several times over (for balance).
 int band_height_for(int height) { return std::clamp(height / 32, 8, 64); }
 
 // floor and ceil to int without a libm call (the baseline x86-64 target has no roundss);
@@ -83,22 +83,64 @@ int default_threads(int requested) {
   return std::clamp(int(std::thread::hardware_concurrency()), 1, 256);
 }
 
+// The pixels an image computes (FrameSetup::grid: the viewport with its margin, or the whole
+// image), as the phases below use them.
+struct Grid {
+  int width = 0, height = 0;
+  float origin_x = 0.0f, origin_y = 0.0f;  // its first pixel, in the whole image's pixels
+  size_t pixels() const { return size_t(width) * size_t(height); }
+};
+
+// The horizontal bands of rows that samples are binned into and splatted by. They are rows of
+// the whole image's lattice (their height from the whole image's, band k its rows
+// [k h, (k + 1) h)), and the splat rounds go by the whole image's band index: a viewport's grid
+// then adds each pixel's splats in the order the whole image's reconstruction does, so its sums
+// are the same bit for bit (docs/reconstruction.md, "Viewports").
+struct Bands {
+  int height = 0;  // rows per band
+  int first = 0;   // the whole image's index of the band holding grid row 0
+  int offset = 0;  // grid row 0's row in that band
+  int count = 0;   // bands over the grid; index `count` is the oversize bucket
+  // Entries per chunk in the binning counts and cursors: count + 1 padded to whole cache lines
+  // (chunks run on different threads).
+  size_t count_stride = 0;
+};
+
+Bands bands_for(const PixelGrid& grid, double image_height, int grid_height) {
+  Bands b;
+  b.height = std::max(band_height_for(int(std::min(image_height, 1e9))),
+                      (grid_height + kNoBand - 2) / (kNoBand - 2));
+  const int first_row = int(std::floor(grid.origin_y));
+  b.first = first_row / b.height;
+  b.offset = first_row - b.first * b.height;
+  b.count = (b.offset + grid_height + b.height - 1) / b.height;
+  b.count_stride = (size_t(b.count) + 1 + 15) / 16 * 16;
+  return b;
+}
+
+// Chunks of the ring for binning: about 8192 samples or more each, at most 4 per thread.
+int chunks_for(size_t samples, int threads) {
+  return int(std::clamp<size_t>(samples / 8192, 1, size_t(threads) * 4));
+}
+
 }  // namespace
 
-// The adaptive modes run in four passes, each touching memory in order where it can:
-//   C. (per pixel) the splat shape every pixel would give a sample: tile filter and coverage;
-//   A. (chunks of the ring) reproject each sample, note its home band (the band of horizontal
-//      rows its center falls in, or the oversize bucket for a splat taller than a band) and
-//      count samples per chunk and home band;
-//   B. (chunks) copy the projected samples into home-band order (stable: sample order within
-//      a band, whatever the thread count);
-//   D. (home bands) look up each sample's shape and splat it. A splat in a band reaches only
-//      its home band and the two next to it (taller ones went to the oversize bucket); bands
-//      are done in three rounds (home band index mod 3), and within a round no two bands reach
-//      the same row: no two threads ever write the same pixel. Then the oversize bucket, on
-//      one thread (well under 1% of samples: grown splats in undersampled regions). The shape
-//      table and the accumulation rows a band touches stay in cache, which random sample order
-//      would not.
+// The adaptive modes run in four phases, each touching memory in order where it can:
+//   shape_splats_and_clear_sums (rows of pixels): the splat shape every pixel would give a
+//     sample, from its tile's filter and the coverage; first, since binning needs its reach;
+//   reproject_and_bin (chunks of the ring): reproject each sample, note its home band (the
+//     band of horizontal rows its center falls in, or the oversize bucket for a splat taller
+//     than a band) and count samples per chunk and home band;
+//   sort_by_home_band (chunks): copy the projected samples into home-band order (stable:
+//     sample order within a band, whatever the thread count);
+//   splat_bands (home bands): look up each sample's shape and splat it. A splat in a band
+//     reaches only its home band and the two next to it (taller ones went to the oversize
+//     bucket); bands are done in three rounds (home band index mod 3), and within a round no
+//     two bands reach the same row: no two threads ever write the same pixel. Then the
+//     oversize bucket, on one thread (well under 1% of samples: grown splats in undersampled
+//     regions). The shape table and the accumulation rows a band touches stay in cache, which
+//     random sample order would not.
+// Every mode ends with normalize_and_fill_holes (rows of the output).
 struct CpuReconstructor::Impl {
   explicit Impl(int threads, size_t capacity) : pool(threads) { mirror.resize(capacity); }
 
@@ -109,14 +151,14 @@ struct CpuReconstructor::Impl {
   uint64_t seen = 0;
   size_t stored = 0;
 
-  std::vector<Projected> projected;  // per stored sample (pass A)
+  std::vector<Projected> projected;  // per stored sample (reproject_and_bin)
   std::vector<uint16_t> home;        // per stored sample: home band or kNoBand
-  std::vector<uint32_t> counts;      // [chunk * bands + band]
-  std::vector<size_t> cursor;        // [chunk * bands + band]: write positions of pass B
-  std::vector<size_t> band_start;    // bands + 1
-  std::vector<Projected> sorted;     // in home-band order (pass B)
-  std::vector<PixelShape> shapes;    // per pixel (pass C)
-  std::vector<uint8_t> reach;        // per pixel: ceil(shape.r_y), at most 255 (pass C)
+  std::vector<uint32_t> counts;      // [chunk * count_stride + band]
+  std::vector<size_t> cursor;        // [chunk * count_stride + band]: write positions
+  std::vector<size_t> band_start;    // bands + 2
+  std::vector<Projected> sorted;     // in home-band order (sort_by_home_band)
+  std::vector<PixelShape> shapes;    // per pixel (shape_splats_and_clear_sums)
+  std::vector<uint8_t> reach;        // per pixel: ceil(shape.r_y), at most 255 (likewise)
   std::vector<Counts> task_counts;
   std::vector<glm::vec4> accum;             // (sum w c, sum w) per grid pixel
   std::vector<CoverageCell> coverage_next;  // this image's coverage
@@ -167,6 +209,326 @@ struct CpuReconstructor::Impl {
       total.nonfinite += c.nonfinite;
     }
     return total;
+  }
+
+  // Notes where this image's pixels lie (read_weights, read_coverage), forgets the previous
+  // coverage when the grid moved (its cells would be other pixels') and sizes the sums.
+  Grid fit_buffers_to_grid(const FrameSetup& setup, int width, int height) {
+    Grid grid;
+    grid.width = setup.grid.width;
+    grid.height = setup.grid.height;
+    grid.origin_x = float(setup.grid.origin_x);
+    grid.origin_y = float(setup.grid.origin_y);
+    grid_width = grid.width;
+    view_x = setup.view_x;
+    view_y = setup.view_y;
+    out_width = width;
+    out_height = height;
+    if (!(previous_grid == setup.grid)) {
+      previous.reset(grid.width, grid.height);
+      previous_grid = setup.grid;
+    }
+    accum.resize(grid.pixels());
+    coverage_next.resize(grid.pixels());
+    return grid;
+  }
+
+  // [BFMS94]: the newest sample at each pixel, at its original position. Counts the samples
+  // placed (splatted), stamped too far ahead (future) and outside the grid (off_screen).
+  Counts keep_newest_samples(const FrameSetup& setup, const Grid& grid, double time,
+                             double max_future) {
+    const int width = grid.width, height = grid.height;
+    const float origin_x = grid.origin_x, origin_y = grid.origin_y;
+    Counts c;
+    newest_age.assign(grid.pixels(), std::numeric_limits<double>::infinity());
+    std::fill(accum.begin(), accum.end(), glm::vec4(0.0f));
+    for (size_t i = 0; i < stored; ++i) {
+      const StoredSample& s = mirror[i];
+      const double age = time - s.time;
+      if (age < -max_future) {
+        ++c.future;
+        continue;
+      }
+      const float x = s.x * setup.scale_x - origin_x, y = s.y * setup.scale_y - origin_y;
+      if (!(x >= 0.0f && x < float(width) && y >= 0.0f && y < float(height))) {
+        ++c.off_screen;
+        continue;
+      }
+      const size_t p = size_t(int(y)) * size_t(width) + size_t(int(x));
+      ++c.splatted;
+      const double a = std::max(age, 0.0);
+      if (a < newest_age[p]) {
+        newest_age[p] = a;
+        accum[p] = glm::vec4(s.color, 1.0f);
+      }
+    }
+    previous.reset(width, height);  // no splat sizes to remember
+    std::fill(coverage_next.begin(), coverage_next.end(), CoverageCell{});
+    return c;
+  }
+
+  // Per pixel, what a splat landing there gets (shapes, and reach for binning): its tile's
+  // filter and, section 6.2, the size from the previous image's coverage there. Clears this
+  // image's sums and coverage while here.
+  void shape_splats_and_clear_sums(const FrameSetup& setup, const Grid& grid,
+                                   const FilterLimits& limits, const SplatSizeRule& rule,
+                                   const std::vector<uint32_t>& index_map) {
+    const int width = grid.width, height = grid.height;
+    const float cutoff = limits.cutoff;
+    shapes.resize(grid.pixels());
+    reach.resize(grid.pixels());
+    // Tasks over rows of pixels.
+    const int row_tasks = std::min(height, pool.size() * 4);
+    pool.run(row_tasks, [&](int task) {
+      const size_t p0 = size_t(height * task / row_tasks) * size_t(width);
+      const size_t p1 = size_t(height * (task + 1) / row_tasks) * size_t(width);
+      const CoverageCell* cells = previous.valid() ? previous.cells().data() : nullptr;
+      for (size_t p = p0; p < p1; ++p) {
+        const TileFilter& f = setup.filters[index_map[p]];
+        const float r_filter = cutoff * std::max(f.sigma_x, f.sigma_y);
+        const float r = splat_radius(cells != nullptr ? cells + p : nullptr, r_filter, rule);
+        // A splat the coverage map grew beyond the filter's radius widens its Gaussian by the
+        // same factor (keeping its shape); a shrunk one cuts the Gaussian short.
+        const float grown = std::max(1.0f, r / r_filter);
+        const float sigma_x = f.sigma_x * grown, sigma_y = f.sigma_y * grown;
+        PixelShape& shape = shapes[p];
+        shape.k_x = 0.5f / (sigma_x * sigma_x);
+        shape.k_y = 0.5f / (sigma_y * sigma_y);
+        // The splat is the square of radius r cut to the Gaussian's own cutoff box, rounded
+        // as positions are, so that a splat's pixel range is exact (reprojection.h).
+        shape.r_x = quantize_position(std::min(r, cutoff * sigma_x));
+        shape.r_y = quantize_position(std::min(r, cutoff * sigma_y));
+        shape.off_x = fast_exp(-shape.r_x * shape.r_x * shape.k_x);
+        shape.off_y = fast_exp(-shape.r_y * shape.r_y * shape.k_y);
+        shape.k_t = f.k_t;
+        shape.norm = 1.0f / (sigma_x * sigma_y);
+        shape.r = r;
+        shape.growth = splat_growth(r, r_filter);
+        reach[p] = uint8_t(std::min(ceil_int(shape.r_y), 255));
+      }
+      std::fill(accum.begin() + ptrdiff_t(p0), accum.begin() + ptrdiff_t(p1), glm::vec4(0.0f));
+      std::fill(coverage_next.begin() + ptrdiff_t(p0), coverage_next.begin() + ptrdiff_t(p1),
+                CoverageCell{});
+    });
+  }
+
+  // Reprojects each stored sample into `projected` (with `reproject` and a position; else it
+  // stays where it was traced) and notes its home band in `home` (kNoBand: not splatted),
+  // counting samples per chunk and home band. Counts those stamped too far ahead (future),
+  // behind the camera (behind) and beyond the guard band around the grid (off_screen).
+  Counts reproject_and_bin(const Camera& camera, const FrameSetup& setup, const Grid& grid,
+                           const Bands& bands, int chunks, double time, double max_future,
+                           bool reproject, float guard) {
+    const int width = grid.width, height = grid.height;
+    const float origin_x = grid.origin_x, origin_y = grid.origin_y;
+    const size_t n = stored;
+    const size_t count_stride = bands.count_stride;
+    const Projector projector(camera, setup.image_width, setup.image_height, setup.grid.origin_x,
+                              setup.grid.origin_y);
+    projected.resize(std::max<size_t>(n, 1));
+    home.resize(std::max<size_t>(n, 1));
+    counts.assign(size_t(chunks) * count_stride, 0u);
+    cursor.resize(counts.size());
+    task_counts.assign(size_t(chunks), Counts{});
+    pool.run(chunks, [&](int chunk) {
+      const size_t begin = n * size_t(chunk) / size_t(chunks);
+      const size_t end = n * size_t(chunk + 1) / size_t(chunks);
+      Counts& c = task_counts[size_t(chunk)];
+      uint32_t* chunk_counts = counts.data() + size_t(chunk) * count_stride;
+      for (size_t i = begin; i < end; ++i) {
+        home[i] = kNoBand;
+        const StoredSample& s = mirror[i];
+        const double age_d = time - s.time;
+        if (age_d < -max_future) {
+          ++c.future;
+          continue;
+        }
+        const float age_signed = float(age_d);
+        float x, y;
+        if (reproject && (s.flags & kStoredHasPosition)) {
+          if (!projector.project(s, age_signed, &x, &y)) {
+            ++c.behind;
+            continue;
+          }
+        } else {
+          x = quantize_position(s.x * setup.scale_x) - origin_x;
+          y = quantize_position(s.y * setup.scale_y) - origin_y;
+        }
+        if (!(x > -guard && x < float(width) + guard && y > -guard && y < float(height) + guard)) {
+          ++c.off_screen;
+          continue;
+        }
+        projected[i] = Projected{x, y, std::max(age_signed, 0.0f), s.color};
+        const int py = std::clamp(floor_int(y), 0, height - 1);
+        const int px = std::clamp(floor_int(x), 0, width - 1);
+        const int band = reach[size_t(py) * size_t(width) + size_t(px)] < bands.height
+                             ? (py + bands.offset) / bands.height
+                             : bands.count;
+        home[i] = uint16_t(band);
+        ++chunk_counts[band];
+      }
+    });
+    return sum_counts();
+  }
+
+  // Copies the binned samples into `sorted` in home-band order: band-major, chunk by chunk
+  // inside a band (so in sample order), with `band_start` where each band begins.
+  void sort_by_home_band(const Bands& bands, int chunks) {
+    const size_t n = stored;
+    const size_t count_stride = bands.count_stride;
+    band_start.resize(size_t(bands.count) + 2);
+    size_t total = 0;
+    for (int b = 0; b <= bands.count; ++b) {
+      band_start[size_t(b)] = total;
+      for (int c = 0; c < chunks; ++c) {
+        const size_t k = size_t(c) * count_stride + size_t(b);
+        cursor[k] = total;
+        total += counts[k];
+      }
+    }
+    band_start[size_t(bands.count) + 1] = total;
+    sorted.resize(std::max<size_t>(total, 1));
+    pool.run(chunks, [&](int chunk) {
+      const size_t begin = n * size_t(chunk) / size_t(chunks);
+      const size_t end = n * size_t(chunk + 1) / size_t(chunks);
+      size_t* chunk_cursor = cursor.data() + size_t(chunk) * count_stride;
+      for (size_t i = begin; i < end; ++i) {
+        if (home[i] != kNoBand) sorted[chunk_cursor[home[i]]++] = projected[i];
+      }
+    });
+  }
+
+  // Splats the samples of one home band (or of the oversize bucket) into the sums and this
+  // image's coverage. Counts those splatted and those whose splat covers no pixel (off_screen).
+  void splat_band(int band, const Grid& grid, float min_wt) {
+    const int width = grid.width, height = grid.height;
+    Counts& c = task_counts[size_t(band)];
+    std::array<float, 2 * int(kSplatRadiusLimit) + 4> wx, wy;
+    const size_t q_end = band_start[size_t(band) + 1];
+    for (size_t q = band_start[size_t(band)]; q < q_end; ++q) {
+      const Projected& s = sorted[q];
+      if (q + 8 < q_end) {  // the shape table is read in random order: fetch ahead
+        const Projected& ahead = sorted[q + 8];
+        const int ax = std::clamp(int(ahead.x), 0, width - 1);
+        const int ay = std::clamp(int(ahead.y), 0, height - 1);
+        __builtin_prefetch(&shapes[size_t(ay) * size_t(width) + size_t(ax)]);
+      }
+      const int px = std::clamp(floor_int(s.x), 0, width - 1);
+      const int py = std::clamp(floor_int(s.y), 0, height - 1);
+      const PixelShape& shape = shapes[size_t(py) * size_t(width) + size_t(px)];
+      const float r_x = shape.r_x, r_y = shape.r_y, g = shape.growth;
+      // Pixels i with |i + 0.5 - x| < r_x, rows likewise.
+      const int x0 = std::max(0, floor_int(s.x - r_x - 0.5f) + 1);
+      const int x1 = std::min(width - 1, ceil_int(s.x + r_x - 0.5f) - 1);
+      const int y0 = std::max(0, floor_int(s.y - r_y - 0.5f) + 1);
+      const int y1 = std::min(height - 1, ceil_int(s.y + r_y - 0.5f) - 1);
+      if (x0 > x1 || y0 > y1) {
+        ++c.off_screen;
+        continue;
+      }
+      ++c.splatted;
+      const float w_t = std::max(fast_exp(-s.age * s.age * shape.k_t), min_wt) * shape.norm;
+#if defined(__SSE2__)
+      const __m128 color1 = _mm_setr_ps(s.color.r, s.color.g, s.color.b, 1.0f);
+#endif
+      // The Gaussian of every column and row of the splat.
+      gaussian_row(x0, x1, s.x, shape.k_x, shape.off_x, wx.data());
+      gaussian_row(y0, y1, s.y, shape.k_y, shape.off_y, wy.data());
+      for (int j = y0; j <= y1; ++j) {
+        const float wyj = wy[size_t(j - y0)];
+        if (!(wyj > 0.0f)) continue;
+        const float wyt = wyj * w_t;
+        glm::vec4* acc = accum.data() + size_t(j) * size_t(width);
+        CoverageCell* cov = coverage_next.data() + size_t(j) * size_t(width);
+        int i = x0;
+#if defined(__SSE2__)
+        // Four pixels at a time without a branch per pixel: lanes past x1 or with a weight
+        // at or below kMinSplatWeight add exactly 0 (and nothing to the coverage).
+        const __m128 wyt4 = _mm_set1_ps(wyt);
+        const __m128 one_g = _mm_setr_ps(1.0f, g, 1.0f, g);
+        for (; i + 3 < width && i <= x1; i += 4) {
+          const __m128 lane = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
+          const __m128 inside = _mm_cmplt_ps(lane, _mm_set1_ps(float(x1 - i + 1)));
+          const __m128 w4 = _mm_mul_ps(_mm_loadu_ps(&wx[size_t(i - x0)]), wyt4);
+          const __m128 ok = _mm_and_ps(inside, _mm_cmpgt_ps(w4, _mm_set1_ps(kMinSplatWeight)));
+          const __m128 w = _mm_and_ps(w4, ok);
+          float* a = &acc[i].x;
+          _mm_storeu_ps(
+              a, _mm_add_ps(_mm_loadu_ps(a), _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0x00))));
+          _mm_storeu_ps(a + 4, _mm_add_ps(_mm_loadu_ps(a + 4),
+                                          _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0x55))));
+          _mm_storeu_ps(a + 8, _mm_add_ps(_mm_loadu_ps(a + 8),
+                                          _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0xaa))));
+          _mm_storeu_ps(a + 12, _mm_add_ps(_mm_loadu_ps(a + 12),
+                                           _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0xff))));
+          float* cv = &cov[i].count;
+          _mm_storeu_ps(cv,
+                        _mm_add_ps(_mm_loadu_ps(cv), _mm_and_ps(one_g, _mm_unpacklo_ps(ok, ok))));
+          _mm_storeu_ps(
+              cv + 4, _mm_add_ps(_mm_loadu_ps(cv + 4), _mm_and_ps(one_g, _mm_unpackhi_ps(ok, ok))));
+        }
+#endif
+        for (; i <= x1; ++i) {  // the image's last columns (and builds without SSE2)
+          const float w = wx[size_t(i - x0)] * wyt;
+          if (!(w > kMinSplatWeight)) continue;
+          acc[i] += glm::vec4(s.color * w, w);
+          cov[i].count += 1.0f;
+          cov[i].growth_sum += g;
+        }
+      }
+    }
+  }
+
+  // Splats every binned sample: three rounds of bands (by the whole image's band index mod 3:
+  // the bands of a round reach no common row), then the oversize bucket on this thread.
+  Counts splat_bands(const Grid& grid, const Bands& bands, float min_wt) {
+    task_counts.assign(size_t(bands.count) + 1, Counts{});
+    for (int round = 0; round < 3; ++round) {
+      const int start = ((round - bands.first) % 3 + 3) % 3;  // whole-image band index mod 3
+      pool.run((bands.count - start + 2) / 3,
+               [&](int k) { splat_band(start + 3 * k, grid, min_wt); });
+    }
+    splat_band(bands.count, grid, min_wt);
+    return sum_counts();
+  }
+
+  // The output's pixels into *out (when not nullptr): each grid pixel's sums divided by its
+  // weight; where there is none, a hole filled from wider support over the grid (hole_fill.h);
+  // anything not finite, 0. Counts the holes, the empty pixels and the non-finite ones.
+  Counts normalize_and_fill_holes(const FrameSetup& setup, const Grid& grid, Image* out) {
+    const int width = grid.width;
+    pyramid.build(accum, width, grid.height);
+    const int out_tasks = std::min(out_height, pool.size() * 4);
+    task_counts.assign(size_t(out_tasks), Counts{});
+    pool.run(out_tasks, [&](int task) {
+      Counts& c = task_counts[size_t(task)];
+      for (int v = out_height * task / out_tasks; v < out_height * (task + 1) / out_tasks; ++v) {
+        const int y = v + setup.view_y;
+        const glm::vec4* row = accum.data() + size_t(y) * size_t(width) + size_t(setup.view_x);
+        for (int u = 0; u < out_width; ++u) {
+          const glm::vec4 a = row[u];
+          glm::vec3 color;
+          if (a.w > 0.0f) {
+            color = glm::vec3(a) / a.w;
+          } else {
+            ++c.holes;
+            if (!pyramid.fill(u + setup.view_x, y, &color)) ++c.empty;
+          }
+          if (!std::isfinite(color.x) || !std::isfinite(color.y) || !std::isfinite(color.z)) {
+            ++c.nonfinite;
+            color = glm::vec3(0.0f);
+          }
+          if (out != nullptr) out->pixels[size_t(v) * size_t(out_width) + size_t(u)] = color;
+        }
+      }
+    });
+    return sum_counts();
+  }
+
+  // This image's coverage becomes the map the next image sizes its splats from.
+  void keep_coverage() {
+    previous.cells().swap(coverage_next);
+    previous.set_valid(true);
   }
 };
 
@@ -229,320 +591,53 @@ size_t CpuReconstructor::write_coverage(const PixelRect& rect,
 void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int width, int height,
                                       Image* out) {
   Impl& m = *impl_;
+  // The samples that arrived since the last image join the mirror of the store's ring; the
+  // base class places the grid (viewport and margin) and computes each tile's filter.
   SampleStore::Delta delta;
   m.sync(store_, &delta);
   FrameSetup setup;
   prepare_frame(time, width, height, delta, m.staging, &setup);
-
-  // From here on the image is the grid: the viewport with its margin. The output is its
-  // viewport part (the whole grid when the viewport is the whole image).
-  const int out_width = width, out_height = height;
-  width = setup.grid.width;
-  height = setup.grid.height;
-  const float origin_x = float(setup.grid.origin_x), origin_y = float(setup.grid.origin_y);
-  m.grid_width = width;
-  m.view_x = setup.view_x;
-  m.view_y = setup.view_y;
-  m.out_width = out_width;
-  m.out_height = out_height;
-  const size_t pixels = size_t(width) * size_t(height);
-  if (!(m.previous_grid == setup.grid)) {
-    m.previous.reset(width, height);
-    m.previous_grid = setup.grid;
-  }
-  m.accum.resize(pixels);
-  m.coverage_next.resize(pixels);
+  // From here on the image is the grid; the output (width x height) is its viewport part.
+  const Grid grid = m.fit_buffers_to_grid(setup, width, height);
   const ReconstructionMode current_mode = mode();
   const FilterLimits& limits = config_.filter;
-  const SplatSizeRule& rule = config_.splat;
-  const int threads = m.pool.size();
-  const size_t n = m.stored;
   const double max_future = double(limits.max_future);
-  // Tasks over rows of pixels.
-  const int row_tasks = std::min(height, threads * 4);
-  const auto rows_of = [&](int task, size_t* p0, size_t* p1) {
-    *p0 = size_t(height * task / row_tasks) * size_t(width);
-    *p1 = size_t(height * (task + 1) / row_tasks) * size_t(width);
-  };
 
   if (current_mode == ReconstructionMode::kTraditionalFrameless) {
-    // [BFMS94]: the newest sample at each pixel, at its original position.
-    m.newest_age.assign(pixels, std::numeric_limits<double>::infinity());
-    std::fill(m.accum.begin(), m.accum.end(), glm::vec4(0.0f));
-    for (size_t i = 0; i < n; ++i) {
-      const StoredSample& s = m.mirror[i];
-      const double age = time - s.time;
-      if (age < -max_future) {
-        ++frame_.future;
-        continue;
-      }
-      const float x = s.x * setup.scale_x - origin_x, y = s.y * setup.scale_y - origin_y;
-      if (!(x >= 0.0f && x < float(width) && y >= 0.0f && y < float(height))) {
-        ++frame_.off_screen;
-        continue;
-      }
-      const size_t p = size_t(int(y)) * size_t(width) + size_t(int(x));
-      ++frame_.splatted;
-      const double a = std::max(age, 0.0);
-      if (a < m.newest_age[p]) {
-        m.newest_age[p] = a;
-        m.accum[p] = glm::vec4(s.color, 1.0f);
-      }
-    }
-    m.previous.reset(width, height);  // no splat sizes to remember
-    std::fill(m.coverage_next.begin(), m.coverage_next.end(), CoverageCell{});
-  } else {
-    const bool reproject = current_mode == ReconstructionMode::kAdaptive;
-    const Projector projector(camera, setup.image_width, setup.image_height, setup.grid.origin_x,
-                              setup.grid.origin_y);
-    // Samples are kept while their center is inside the image grown by this (a whole number
-    // of pixels, as the GL backend's viewport): their splats may still reach it.
-    const float guard = float(splat_guard_band(rule));
-    const float min_wt = limits.min_temporal_weight, cutoff = limits.cutoff;
-
-    // ---- C (first: it gives the band height). Per pixel, what a splat landing there gets:
-    // its tile's filter and, section 6.2, the size from the previous image's coverage there.
-    m.shapes.resize(pixels);
-    m.reach.resize(pixels);
-    const std::vector<uint32_t>& index_map = field_.index_map();
-    m.pool.run(row_tasks, [&](int task) {
-      size_t p0, p1;
-      rows_of(task, &p0, &p1);
-      const CoverageCell* previous = m.previous.valid() ? m.previous.cells().data() : nullptr;
-      for (size_t p = p0; p < p1; ++p) {
-        const TileFilter& f = setup.filters[index_map[p]];
-        const float r_filter = cutoff * std::max(f.sigma_x, f.sigma_y);
-        const float r = splat_radius(previous != nullptr ? previous + p : nullptr, r_filter, rule);
-        // A splat the coverage map grew beyond the filter's radius widens its Gaussian by the
-        // same factor (keeping its shape); a shrunk one cuts the Gaussian short.
-        const float grown = std::max(1.0f, r / r_filter);
-        const float sigma_x = f.sigma_x * grown, sigma_y = f.sigma_y * grown;
-        PixelShape& shape = m.shapes[p];
-        shape.k_x = 0.5f / (sigma_x * sigma_x);
-        shape.k_y = 0.5f / (sigma_y * sigma_y);
-        // The splat is the square of radius r cut to the Gaussian's own cutoff box, rounded
-        // as positions are, so that a splat's pixel range is exact (reprojection.h).
-        shape.r_x = quantize_position(std::min(r, cutoff * sigma_x));
-        shape.r_y = quantize_position(std::min(r, cutoff * sigma_y));
-        shape.off_x = fast_exp(-shape.r_x * shape.r_x * shape.k_x);
-        shape.off_y = fast_exp(-shape.r_y * shape.r_y * shape.k_y);
-        shape.k_t = f.k_t;
-        shape.norm = 1.0f / (sigma_x * sigma_y);
-        shape.r = r;
-        shape.growth = splat_growth(r, r_filter);
-        m.reach[p] = uint8_t(std::min(ceil_int(shape.r_y), 255));
-      }
-      // Clear this image's sums while here.
-      std::fill(m.accum.begin() + ptrdiff_t(p0), m.accum.begin() + ptrdiff_t(p1), glm::vec4(0.0f));
-      std::fill(m.coverage_next.begin() + ptrdiff_t(p0), m.coverage_next.begin() + ptrdiff_t(p1),
-                CoverageCell{});
-    });
-    // Bands, and the oversize bucket after them (index `bands`). Bands are rows of the whole
-    // image's lattice (their height from the whole image's, band k its rows [k h, (k + 1) h)),
-    // and the rounds go by the whole image's band index: a viewport's grid then adds each
-    // pixel's splats in the order the whole image's reconstruction does, so its sums are the
-    // same bit for bit (docs/reconstruction.md, "Viewports").
-    const int band_height = std::max(band_height_for(int(std::min(setup.image_height, 1e9))),
-                                     (height + kNoBand - 2) / (kNoBand - 2));
-    const int first_row = int(std::floor(setup.grid.origin_y));
-    const int first_band = first_row / band_height;
-    const int band_offset = first_row - first_band * band_height;  // grid row 0 in its band
-    const int bands = (band_offset + height + band_height - 1) / band_height;
-    // A row of counts per chunk, padded to whole cache lines (chunks run on different threads).
-    const size_t count_stride = (size_t(bands) + 1 + 15) / 16 * 16;
-
-    // ---- A. Reproject; count per chunk and home band.
-    const int chunks = int(std::clamp<size_t>(n / 8192, 1, size_t(threads) * 4));
-    m.projected.resize(std::max<size_t>(n, 1));
-    m.home.resize(std::max<size_t>(n, 1));
-    m.counts.assign(size_t(chunks) * count_stride, 0u);
-    m.cursor.resize(m.counts.size());
-    m.task_counts.assign(size_t(std::max(chunks, bands + 1)), Counts{});
-    m.pool.run(chunks, [&](int chunk) {
-      const size_t begin = n * size_t(chunk) / size_t(chunks);
-      const size_t end = n * size_t(chunk + 1) / size_t(chunks);
-      Counts& c = m.task_counts[size_t(chunk)];
-      uint32_t* counts = m.counts.data() + size_t(chunk) * count_stride;
-      for (size_t i = begin; i < end; ++i) {
-        m.home[i] = kNoBand;
-        const StoredSample& s = m.mirror[i];
-        const double age_d = time - s.time;
-        if (age_d < -max_future) {
-          ++c.future;
-          continue;
-        }
-        const float age_signed = float(age_d);
-        float x, y;
-        if (reproject && (s.flags & kStoredHasPosition)) {
-          if (!projector.project(s, age_signed, &x, &y)) {
-            ++c.behind;
-            continue;
-          }
-        } else {
-          x = quantize_position(s.x * setup.scale_x) - origin_x;
-          y = quantize_position(s.y * setup.scale_y) - origin_y;
-        }
-        if (!(x > -guard && x < float(width) + guard && y > -guard && y < float(height) + guard)) {
-          ++c.off_screen;
-          continue;
-        }
-        m.projected[i] = Projected{x, y, std::max(age_signed, 0.0f), s.color};
-        const int py = std::clamp(floor_int(y), 0, height - 1);
-        const int px = std::clamp(floor_int(x), 0, width - 1);
-        const int band = m.reach[size_t(py) * size_t(width) + size_t(px)] < band_height
-                             ? (py + band_offset) / band_height
-                             : bands;
-        m.home[i] = uint16_t(band);
-        ++counts[band];
-      }
-    });
-
-    // ---- B. Home-band order: band-major, chunk by chunk inside a band (so sample order).
-    m.band_start.resize(size_t(bands) + 2);
-    size_t total = 0;
-    for (int b = 0; b <= bands; ++b) {
-      m.band_start[size_t(b)] = total;
-      for (int c = 0; c < chunks; ++c) {
-        const size_t k = size_t(c) * count_stride + size_t(b);
-        m.cursor[k] = total;
-        total += m.counts[k];
-      }
-    }
-    m.band_start[size_t(bands) + 1] = total;
-    m.sorted.resize(std::max<size_t>(total, 1));
-    m.pool.run(chunks, [&](int chunk) {
-      const size_t begin = n * size_t(chunk) / size_t(chunks);
-      const size_t end = n * size_t(chunk + 1) / size_t(chunks);
-      size_t* cursor = m.cursor.data() + size_t(chunk) * count_stride;
-      for (size_t i = begin; i < end; ++i) {
-        if (m.home[i] != kNoBand) m.sorted[cursor[m.home[i]]++] = m.projected[i];
-      }
-    });
-
-    // ---- D. Splat: three rounds of bands, then the oversize bucket.
-    const auto splat_band = [&](int band) {
-      Counts& c = m.task_counts[size_t(band)];
-      std::array<float, 2 * int(kSplatRadiusLimit) + 4> wx, wy;
-      const size_t q_end = m.band_start[size_t(band) + 1];
-      for (size_t q = m.band_start[size_t(band)]; q < q_end; ++q) {
-        const Projected& s = m.sorted[q];
-        if (q + 8 < q_end) {  // the shape table is read in random order: fetch ahead
-          const Projected& ahead = m.sorted[q + 8];
-          const int ax = std::clamp(int(ahead.x), 0, width - 1);
-          const int ay = std::clamp(int(ahead.y), 0, height - 1);
-          __builtin_prefetch(&m.shapes[size_t(ay) * size_t(width) + size_t(ax)]);
-        }
-        const int px = std::clamp(floor_int(s.x), 0, width - 1);
-        const int py = std::clamp(floor_int(s.y), 0, height - 1);
-        const PixelShape& shape = m.shapes[size_t(py) * size_t(width) + size_t(px)];
-        const float r_x = shape.r_x, r_y = shape.r_y, g = shape.growth;
-        // Pixels i with |i + 0.5 - x| < r_x, rows likewise.
-        const int x0 = std::max(0, floor_int(s.x - r_x - 0.5f) + 1);
-        const int x1 = std::min(width - 1, ceil_int(s.x + r_x - 0.5f) - 1);
-        const int y0 = std::max(0, floor_int(s.y - r_y - 0.5f) + 1);
-        const int y1 = std::min(height - 1, ceil_int(s.y + r_y - 0.5f) - 1);
-        if (x0 > x1 || y0 > y1) {
-          ++c.off_screen;
-          continue;
-        }
-        ++c.splatted;
-        const float w_t = std::max(fast_exp(-s.age * s.age * shape.k_t), min_wt) * shape.norm;
-#if defined(__SSE2__)
-        const __m128 color1 = _mm_setr_ps(s.color.r, s.color.g, s.color.b, 1.0f);
-#endif
-        // The Gaussian of every column and row of the splat.
-        gaussian_row(x0, x1, s.x, shape.k_x, shape.off_x, wx.data());
-        gaussian_row(y0, y1, s.y, shape.k_y, shape.off_y, wy.data());
-        for (int j = y0; j <= y1; ++j) {
-          const float wyj = wy[size_t(j - y0)];
-          if (!(wyj > 0.0f)) continue;
-          const float wyt = wyj * w_t;
-          glm::vec4* acc = m.accum.data() + size_t(j) * size_t(width);
-          CoverageCell* cov = m.coverage_next.data() + size_t(j) * size_t(width);
-          int i = x0;
-#if defined(__SSE2__)
-          // Four pixels at a time without a branch per pixel: lanes past x1 or with a weight
-          // at or below kMinSplatWeight add exactly 0 (and nothing to the coverage).
-          const __m128 wyt4 = _mm_set1_ps(wyt);
-          const __m128 one_g = _mm_setr_ps(1.0f, g, 1.0f, g);
-          for (; i + 3 < width && i <= x1; i += 4) {
-            const __m128 lane = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
-            const __m128 inside = _mm_cmplt_ps(lane, _mm_set1_ps(float(x1 - i + 1)));
-            const __m128 w4 = _mm_mul_ps(_mm_loadu_ps(&wx[size_t(i - x0)]), wyt4);
-            const __m128 ok = _mm_and_ps(inside, _mm_cmpgt_ps(w4, _mm_set1_ps(kMinSplatWeight)));
-            const __m128 w = _mm_and_ps(w4, ok);
-            float* a = &acc[i].x;
-            _mm_storeu_ps(
-                a, _mm_add_ps(_mm_loadu_ps(a), _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0x00))));
-            _mm_storeu_ps(a + 4, _mm_add_ps(_mm_loadu_ps(a + 4),
-                                            _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0x55))));
-            _mm_storeu_ps(a + 8, _mm_add_ps(_mm_loadu_ps(a + 8),
-                                            _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0xaa))));
-            _mm_storeu_ps(a + 12, _mm_add_ps(_mm_loadu_ps(a + 12),
-                                             _mm_mul_ps(color1, _mm_shuffle_ps(w, w, 0xff))));
-            float* cv = &cov[i].count;
-            _mm_storeu_ps(cv,
-                          _mm_add_ps(_mm_loadu_ps(cv), _mm_and_ps(one_g, _mm_unpacklo_ps(ok, ok))));
-            _mm_storeu_ps(cv + 4, _mm_add_ps(_mm_loadu_ps(cv + 4),
-                                             _mm_and_ps(one_g, _mm_unpackhi_ps(ok, ok))));
-          }
-#endif
-          for (; i <= x1; ++i) {  // the image's last columns (and builds without SSE2)
-            const float w = wx[size_t(i - x0)] * wyt;
-            if (!(w > kMinSplatWeight)) continue;
-            acc[i] += glm::vec4(s.color * w, w);
-            cov[i].count += 1.0f;
-            cov[i].growth_sum += g;
-          }
-        }
-      }
-    };
-    for (int round = 0; round < 3; ++round) {
-      const int start = ((round - first_band) % 3 + 3) % 3;  // whole-image band index mod 3
-      m.pool.run((bands - start + 2) / 3, [&](int k) { splat_band(start + 3 * k); });
-    }
-    splat_band(bands);
-    const Counts c = m.sum_counts();
+    // The baseline [BFMS94]: each pixel shows its newest sample; no filter, no splat sizes.
+    const Counts c = m.keep_newest_samples(setup, grid, time, max_future);
     frame_.splatted = c.splatted;
-    frame_.behind_camera = c.behind;
     frame_.off_screen = c.off_screen;
     frame_.future = c.future;
+  } else {
+    // Each pixel's splat shape first: binning needs its reach (a splat taller than a band
+    // goes to the oversize bucket).
+    m.shape_splats_and_clear_sums(setup, grid, limits, config_.splat, field_.index_map());
+    const Bands bands = bands_for(setup.grid, setup.image_height, grid.height);
+    const int chunks = chunks_for(m.stored, m.pool.size());
+    // Where each sample lands now, and its band. Samples within the guard band beyond the grid
+    // (whole pixels, as the GL backend's viewport) are kept: their splats may reach it.
+    const Counts binned = m.reproject_and_bin(camera, setup, grid, bands, chunks, time, max_future,
+                                              current_mode == ReconstructionMode::kAdaptive,
+                                              float(splat_guard_band(config_.splat)));
+    // Stable home-band order: each band is then one task, its rows and shapes in cache.
+    m.sort_by_home_band(bands, chunks);
+    // Sections 5.1 and 6.2: the Gaussian splats, in rounds of bands that share no row: no
+    // locks, and each pixel's sums in an order that does not depend on the thread count.
+    const Counts splats = m.splat_bands(grid, bands, limits.min_temporal_weight);
+    frame_.splatted = splats.splatted;
+    frame_.behind_camera = binned.behind;
+    frame_.off_screen = binned.off_screen + splats.off_screen;
+    frame_.future = binned.future;
   }
 
-  // ---- Normalise the output's pixels; holes from wider support (hole_fill.h) over the grid.
-  m.pyramid.build(m.accum, width, height);
-  const int out_tasks = std::min(out_height, threads * 4);
-  m.task_counts.assign(size_t(out_tasks), Counts{});
-  m.pool.run(out_tasks, [&](int task) {
-    Counts& c = m.task_counts[size_t(task)];
-    for (int v = out_height * task / out_tasks; v < out_height * (task + 1) / out_tasks; ++v) {
-      const int y = v + setup.view_y;
-      const glm::vec4* row = m.accum.data() + size_t(y) * size_t(width) + size_t(setup.view_x);
-      for (int u = 0; u < out_width; ++u) {
-        const glm::vec4 a = row[u];
-        glm::vec3 color;
-        if (a.w > 0.0f) {
-          color = glm::vec3(a) / a.w;
-        } else {
-          ++c.holes;
-          if (!m.pyramid.fill(u + setup.view_x, y, &color)) ++c.empty;
-        }
-        if (!std::isfinite(color.x) || !std::isfinite(color.y) || !std::isfinite(color.z)) {
-          ++c.nonfinite;
-          color = glm::vec3(0.0f);
-        }
-        if (out != nullptr) out->pixels[size_t(v) * size_t(out_width) + size_t(u)] = color;
-      }
-    }
-  });
-  const Counts c = m.sum_counts();
-  frame_.hole_pixels = c.holes;
-  frame_.empty_pixels = c.empty;
-  frame_.nonfinite_pixels = c.nonfinite;
-  if (current_mode != ReconstructionMode::kTraditionalFrameless) {
-    m.previous.cells().swap(m.coverage_next);
-    m.previous.set_valid(true);
-  }
+  // The image: each pixel's weighted mean, holes filled from wider support.
+  const Counts pixels = m.normalize_and_fill_holes(setup, grid, out);
+  frame_.hole_pixels = pixels.holes;
+  frame_.empty_pixels = pixels.empty;
+  frame_.nonfinite_pixels = pixels.nonfinite;
+  // The next image sizes its splats from this one's coverage (the baseline sizes none).
+  if (current_mode != ReconstructionMode::kTraditionalFrameless) m.keep_coverage();
 }
 
 }  // namespace afr
