@@ -217,7 +217,7 @@ int main(int argc, char** argv) {
       recon.filter.max_spatial_extent = p.reconstruction.max_spatial_extent;
       recon.filter.max_temporal_extent = p.reconstruction.max_temporal_extent;
     }
-    const afr::ImageSize size = afr::parse_image_size(size_text);
+    const afr::ImageExtent size = afr::parse_image_size(size_text);
 
     EvalConfig config;
     config.seconds = seconds;
@@ -228,8 +228,7 @@ int main(int argc, char** argv) {
     config.base.height = size.height;
     config.base.warmup = warmup;
     config.base.sampler = sampler;
-    config.base.sampler.width = size.width;
-    config.base.sampler.height = size.height;
+    config.base.sampler.image = size;
     config.base.sampler.validate();
     config.base.reconstructor = recon;
     config.base.reconstructor.capacity =

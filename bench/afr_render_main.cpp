@@ -40,7 +40,7 @@ int main(int argc, char** argv) {
 
   try {
     afr::init_logging(log_level);
-    const afr::ImageSize size = afr::parse_image_size(size_text);
+    const afr::ImageExtent size = afr::parse_image_size(size_text);
     const int strata = int(std::lround(std::sqrt(double(spp))));
     if (strata * strata != spp) {
       throw afr::Error(fmt::format("--spp {} is not a square (use 1, 4, 9, 16, 25, ...)", spp));

@@ -78,9 +78,8 @@ int main(int argc, char** argv) {
 
   try {
     afr::init_logging(log_level);
-    const afr::ImageSize size = afr::parse_image_size(size_text);
-    config.width = size.width;
-    config.height = size.height;
+    const afr::ImageExtent size = afr::parse_image_size(size_text);
+    config.image = size;
     config.validate();
     const afr::Scene scene = afr::load_scene(scene_path);
     afr::Tracer tracer(scene);

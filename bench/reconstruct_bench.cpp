@@ -226,8 +226,8 @@ int main(int argc, char** argv) {
     fmt::print("|---|---|---|---|---|---|---|---|---|\n");
     for (int size : sizes) {
       afr::ReconstructorConfig cfg;
-      cfg.image_width = size;
-      cfg.image_height = size;
+      cfg.image.width = size;
+      cfg.image.height = size;
       cfg.mode = mode;
       const size_t n = 4 * size_t(size) * size_t(size);
       const auto row = [&](const std::string& backend, const std::string& threads, Timing t) {

@@ -180,7 +180,7 @@ void bench_scene(const afr::Scene& scene, const std::string& name, int size, dou
                  int repeats) {
   afr::Tracer tracer(scene);
   afr::SamplerConfig base;
-  base.width = base.height = size;
+  base.image.width = base.image.height = size;
   std::vector<double> adaptive, uniform, ratio, repro_ratio, occl_ratio;
   for (int rep = 0; rep < repeats; ++rep) {
     afr::SamplerConfig u = base;
@@ -233,7 +233,7 @@ void bench_scene(const afr::Scene& scene, const std::string& name, int size, dou
 void profile(const afr::Scene& scene, const std::string& mode, int size, int steps) {
   afr::Tracer tracer(scene);
   afr::SamplerConfig config;
-  config.width = config.height = size;
+  config.image.width = config.image.height = size;
   if (mode == "uniform") config.mode = afr::SamplerMode::kUniformRandom;
   if (mode == "reproject" || mode == "crosshair") config.r = 0;
   if (mode == "reproject") config.occlusion_rays = false;

@@ -331,7 +331,7 @@ int send_main(int argc, char** argv) {
   Context context;
   SampleSender sender(context, service_endpoints(display).samples, Security::none(), options);
   std::vector<SampleBatch> batches = make_batches(fields, batch, width, height, 64, id);
-  const ImageBounds bounds{width, height};
+  const ImageExtent bounds{width, height};
   std::printf("ready\n");
   std::fflush(stdout);
   const auto start = Clock::now();

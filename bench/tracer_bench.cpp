@@ -168,7 +168,7 @@ int main(int argc, char** argv) {
 
   try {
     afr::init_logging(log_level);
-    const afr::ImageSize size = afr::parse_image_size(size_text);
+    const afr::ImageExtent size = afr::parse_image_size(size_text);
     const std::vector<double> times = parse_times(times_text);
 
     std::vector<afr::Scene> scenes;

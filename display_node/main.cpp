@@ -239,9 +239,8 @@ int main(int argc, char** argv) {
     std::signal(SIGTERM, on_signal);
     std::signal(SIGPIPE, SIG_IGN);
     const bool follower = !follow.empty();
-    const afr::ImageSize size = afr::parse_image_size(size_text);
-    o.width = size.width;
-    o.height = size.height;
+    const afr::ImageExtent size = afr::parse_image_size(size_text);
+    o.image = size;
     o.refresh_interval = 1.0 / fps;
     o.coordinator.liveness.ceiling =
         std::max(o.coordinator.liveness.ceiling, o.coordinator.liveness.floor);  // as documented
@@ -286,8 +285,7 @@ int main(int argc, char** argv) {
       // The layout that names this node gives the virtual display and the cell.
       if (!wall_follower->wait_until_admitted(g_stop)) return wall_follower->failed() ? 2 : 0;
       const afr::protocol::WallLayout layout = *wall_follower->layout();
-      o.width = layout.width;
-      o.height = layout.height;
+      o.image = layout.image;
       o.wall.margin = layout.margin;
       // The lead's preset, unless this node was given one.
       if (app.count("--preset") == 0 && !wall_follower->preset().empty()) {
@@ -333,8 +331,8 @@ int main(int argc, char** argv) {
                            : afr::protocol::Security::client(o.keys, o.keys.public_key);
     afr::service::DisplayApp display(
         ao, *role,
-        afr::service::display_reconstructor_config(*p, mode, o.width, o.height, role->cell(),
-                                                   o.wall.margin, capacity),
+        afr::service::display_reconstructor_config(*p, mode, o.image.width, o.image.height,
+                                                   role->cell(), o.wall.margin, capacity),
         ingest, fly.get());
     if (service) service->start();
     const int status = display.run(g_stop);

@@ -8,14 +8,14 @@
 
 namespace afr {
 
-ImageSize parse_image_size(std::string_view text) {
+ImageExtent parse_image_size(std::string_view text) {
   const size_t x = text.find_first_of("xX");
   const auto bad = [&](std::string_view why) {
     return Error(fmt::format("image size '{}': {} (expected WxH, e.g. 256x256)", text, why));
   };
   if (x == std::string_view::npos) throw bad("no 'x' between width and height");
-  ImageSize size;
-  const auto parse = [&](std::string_view part, int* out) {
+  ImageExtent size;
+  const auto parse = [&](std::string_view part, int32_t* out) {
     const auto [end, ec] = std::from_chars(part.data(), part.data() + part.size(), *out);
     if (ec != std::errc() || end != part.data() + part.size() || part.empty()) {
       throw bad(fmt::format("'{}' is not a whole number", part));

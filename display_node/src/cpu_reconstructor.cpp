@@ -106,9 +106,9 @@ struct Bands {
   size_t count_stride = 0;
 };
 
-Bands bands_for(const PixelGrid& grid, double image_height, int grid_height) {
+Bands bands_for(const PixelGrid& grid, double scaled_height, int grid_height) {
   Bands b;
-  b.height = std::max(band_height_for(int(std::min(image_height, 1e9))),
+  b.height = std::max(band_height_for(int(std::min(scaled_height, 1e9))),
                       (grid_height + kNoBand - 2) / (kNoBand - 2));
   const int first_row = int(std::floor(grid.origin_y));
   b.first = first_row / b.height;
@@ -323,7 +323,7 @@ struct CpuReconstructor::Impl {
     const float origin_x = grid.origin_x, origin_y = grid.origin_y;
     const size_t n = stored;
     const size_t count_stride = bands.count_stride;
-    const Projector projector(camera, setup.image_width, setup.image_height, setup.grid.origin_x,
+    const Projector projector(camera, setup.scaled_width, setup.scaled_height, setup.grid.origin_x,
                               setup.grid.origin_y);
     projected.resize(std::max<size_t>(n, 1));
     home.resize(std::max<size_t>(n, 1));
@@ -613,7 +613,7 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
     // Each pixel's splat shape first: binning needs its reach (a splat taller than a band
     // goes to the oversize bucket).
     m.shape_splats_and_clear_sums(setup, grid, limits, config_.splat, field_.index_map());
-    const Bands bands = bands_for(setup.grid, setup.image_height, grid.height);
+    const Bands bands = bands_for(setup.grid, setup.scaled_height, grid.height);
     const int chunks = chunks_for(m.stored, m.pool.size());
     // Where each sample lands now, and its band. Samples within the guard band beyond the grid
     // (whole pixels, as the GL backend's viewport) are kept: their splats may reach it.

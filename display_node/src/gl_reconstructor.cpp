@@ -345,7 +345,7 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
   } else {
     glUseProgram(m.splat);
     const Uniforms u{m.splat};
-    const Projector proj(camera, setup.image_width, setup.image_height, setup.grid.origin_x,
+    const Projector proj(camera, setup.scaled_width, setup.scaled_height, setup.grid.origin_x,
                          setup.grid.origin_y);
     u.set("u_now", time);
     u.set("u_reproject", current_mode == ReconstructionMode::kAdaptive ? 1 : 0);

@@ -15,9 +15,9 @@ namespace {
 // The config with its viewport, margin, splat rule and capacity resolved and checked.
 ReconstructorConfig resolved(const ReconstructorConfig& config) {
   ReconstructorConfig c = config;
-  if (c.image_width < 1 || c.image_height < 1 || c.image_width > 32768 || c.image_height > 32768) {
+  if (c.image.width < 1 || c.image.height < 1 || c.image.width > 32768 || c.image.height > 32768) {
     throw Error(fmt::format("reconstructor: sampling image {}x{} is outside 1..32768 a side",
-                            c.image_width, c.image_height));
+                            c.image.width, c.image.height));
   }
   SplatSizeRule& rule = c.splat;
   rule.max_radius = std::clamp(rule.max_radius, 1.0f, kSplatRadiusLimit);
@@ -25,14 +25,14 @@ ReconstructorConfig resolved(const ReconstructorConfig& config) {
   if (!(c.filter.cutoff >= 1.0f && c.filter.cutoff <= 8.0f)) {
     throw Error("reconstructor: the filter cutoff must be in [1, 8] standard deviations");
   }
-  const PixelRect image{0, 0, c.image_width, c.image_height};
+  const PixelRect image{0, 0, c.image.width, c.image.height};
   if (c.viewport == PixelRect{}) c.viewport = image;
   const PixelRect& v = c.viewport;
   if (v.empty() || v.x0 < 0 || v.y0 < 0 || v.x1 > image.x1 || v.y1 > image.y1) {
     throw Error(
         fmt::format("reconstructor: viewport [{}, {}) x [{}, {}) is empty or not inside "
                     "the {}x{} sampling image",
-                    v.x0, v.x1, v.y0, v.y1, c.image_width, c.image_height));
+                    v.x0, v.x1, v.y0, v.y1, c.image.width, c.image.height));
   }
   if (c.viewport_margin == -1) c.viewport_margin = auto_viewport_margin(rule);
   if (c.viewport_margin < 0 || c.viewport_margin > 32768) {
@@ -45,8 +45,8 @@ ReconstructorConfig resolved(const ReconstructorConfig& config) {
 PixelRect grown(const ReconstructorConfig& c) {
   const int m = c.viewport_margin;
   return PixelRect{std::max(0, c.viewport.x0 - m), std::max(0, c.viewport.y0 - m),
-                   std::min(c.image_width, c.viewport.x1 + m),
-                   std::min(c.image_height, c.viewport.y1 + m)};
+                   std::min(c.image.width, c.viewport.x1 + m),
+                   std::min(c.image.height, c.viewport.y1 + m)};
 }
 
 size_t checked_capacity(const ReconstructorConfig& c) {
@@ -93,7 +93,7 @@ Reconstructor::Reconstructor(const ReconstructorConfig& config)
     : config_(resolved(config)),
       received_(grown(config_)),
       store_(checked_capacity(config_)),
-      field_(config_.image_width, config_.image_height),
+      field_(config_.image.width, config_.image.height),
       mode_(config_.mode),
       counts_(received_, store_.capacity()) {
   config_.capacity = store_.capacity();
@@ -128,15 +128,15 @@ void Reconstructor::place_grid(int width, int height, FrameSetup* setup) const {
   const PixelRect& v = config_.viewport;
   const int margin = config_.viewport_margin;
   PixelGrid& g = setup->grid;
-  place_axis(v.x0, v.x1, config_.image_width, width, margin, kMaxGridMargin, &setup->view_x,
+  place_axis(v.x0, v.x1, config_.image.width, width, margin, kMaxGridMargin, &setup->view_x,
              &g.width, &g.origin_x);
-  place_axis(v.y0, v.y1, config_.image_height, height, margin, kMaxGridMargin, &setup->view_y,
+  place_axis(v.y0, v.y1, config_.image.height, height, margin, kMaxGridMargin, &setup->view_y,
              &g.height, &g.origin_y);
   g.scale_x = double(width) / double(v.width());
   g.scale_y = double(height) / double(v.height());
   // (Exactly width and height for the whole image.)
-  setup->image_width = double(width) * double(config_.image_width) / double(v.width());
-  setup->image_height = double(height) * double(config_.image_height) / double(v.height());
+  setup->scaled_width = double(width) * double(config_.image.width) / double(v.width());
+  setup->scaled_height = double(height) * double(config_.image.height) / double(v.height());
 }
 
 void Reconstructor::prepare_frame(double time, int width, int height,

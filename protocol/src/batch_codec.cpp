@@ -40,7 +40,7 @@ std::string sample_field(size_t i, const char* field) {
 
 // Checks every sample's values (not what packing clamps: colors, velocity magnitudes) and
 // finds the time range.
-Status check_samples(const SampleBatch& m, const ImageBounds& bounds, double* t_min,
+Status check_samples(const SampleBatch& m, const ImageExtent& bounds, double* t_min,
                      double* t_max) {
   if (Status s = check_bounds(kBatch, bounds); !s) return s;
   if (m.fields & ~kKnownSampleFields) {
@@ -181,12 +181,12 @@ int64_t unpack_samples(const uint8_t* p, double base, double tick, uint32_t max_
 // SampleBatch: u32 sampler_id, u32 fields, u64 sequence, f64 base_time, u32 count,
 // i8 tick_exp, u8[3] reserved (0); then count packed samples (docs/protocol.md)
 
-Status validate(const SampleBatch& m, const ImageBounds& bounds) {
+Status validate(const SampleBatch& m, const ImageExtent& bounds) {
   double lo, hi;
   return check_samples(m, bounds, &lo, &hi);
 }
 
-Status encode(const SampleBatch& m, std::vector<uint8_t>* out, const ImageBounds& bounds) {
+Status encode(const SampleBatch& m, std::vector<uint8_t>* out, const ImageExtent& bounds) {
   out->clear();
   double t_min = 0.0, t_max = 0.0;
   if (Status s = check_samples(m, bounds, &t_min, &t_max); !s) return s;
@@ -223,7 +223,7 @@ Status encode(const SampleBatch& m, std::vector<uint8_t>* out, const ImageBounds
   return {};
 }
 
-Status decode(Bytes message, SampleBatch* out, const ImageBounds& bounds) {
+Status decode(Bytes message, SampleBatch* out, const ImageExtent& bounds) {
   if (Status s = check_bounds(kBatch, bounds); !s) return s;
   Result<Bytes> payload = detail::open_message(message, MessageType::kSampleBatch);
   if (!payload) return payload.status();
@@ -320,7 +320,7 @@ Status check_tile(size_t i, const TileInfo& t, const PixelRect& region) {
 
 }  // namespace
 
-Status validate(const TilingSnapshot& m, const ImageBounds& bounds) {
+Status validate(const TilingSnapshot& m, const ImageExtent& bounds) {
   if (Status s = check_bounds(kSnapshot, bounds); !s) return s;
   if (Status s = check_time(kSnapshot, "time", m.time); !s) return s;
   if (Status s = check_rect(kSnapshot, "region", m.region, bounds.width, bounds.height); !s) {
@@ -337,7 +337,7 @@ Status validate(const TilingSnapshot& m, const ImageBounds& bounds) {
   return {};
 }
 
-Status encode(const TilingSnapshot& m, std::vector<uint8_t>* out, const ImageBounds& bounds) {
+Status encode(const TilingSnapshot& m, std::vector<uint8_t>* out, const ImageExtent& bounds) {
   out->clear();
   if (Status s = validate(m, bounds); !s) return s;
   Writer w = wire::begin_message(MessageType::kTilingSnapshot,
@@ -367,7 +367,7 @@ Status encode(const TilingSnapshot& m, std::vector<uint8_t>* out, const ImageBou
   return {};
 }
 
-Status decode(Bytes message, TilingSnapshot* out, const ImageBounds& bounds) {
+Status decode(Bytes message, TilingSnapshot* out, const ImageExtent& bounds) {
   if (Status s = check_bounds(kSnapshot, bounds); !s) return s;
   Result<Bytes> payload = detail::open_message(message, MessageType::kTilingSnapshot);
   if (!payload) return payload.status();
@@ -430,7 +430,7 @@ static_assert(wall_coverage_message_bytes(kMaxWallCoverageCells) <= kMaxSampleCh
 // Everything but the cells: the sender, the time, and a rect inside the image that is small
 // enough for one message.
 Status check_coverage_header(uint32_t node_id, double time, const PixelRect& rect,
-                             const ImageBounds& bounds) {
+                             const ImageExtent& bounds) {
   if (node_id == 0) return field_error(kCoverage, "node_id", "0 is not a node id");
   if (Status s = check_time(kCoverage, "time", time); !s) return s;
   if (Status s = check_rect(kCoverage, "rect", rect, bounds.width, bounds.height); !s) return s;
@@ -457,7 +457,7 @@ Status cell_error(size_t i, float count, float growth_sum) {
 
 }  // namespace
 
-Status validate(const WallCoverage& m, const ImageBounds& bounds) {
+Status validate(const WallCoverage& m, const ImageExtent& bounds) {
   if (Status s = check_bounds(kCoverage, bounds); !s) return s;
   if (Status s = check_coverage_header(m.node_id, m.time, m.rect, bounds); !s) return s;
   const size_t pixels = size_t(m.rect.area());
@@ -475,7 +475,7 @@ Status validate(const WallCoverage& m, const ImageBounds& bounds) {
   return {};
 }
 
-Status encode(const WallCoverage& m, std::vector<uint8_t>* out, const ImageBounds& bounds) {
+Status encode(const WallCoverage& m, std::vector<uint8_t>* out, const ImageExtent& bounds) {
   out->clear();
   if (Status s = validate(m, bounds); !s) return s;
   const size_t pixels = size_t(m.rect.area());
@@ -495,7 +495,7 @@ Status encode(const WallCoverage& m, std::vector<uint8_t>* out, const ImageBound
   return {};
 }
 
-Status decode(Bytes message, WallCoverage* out, const ImageBounds& bounds) {
+Status decode(Bytes message, WallCoverage* out, const ImageExtent& bounds) {
   if (Status s = check_bounds(kCoverage, bounds); !s) return s;
   Result<Bytes> payload = detail::open_message(message, MessageType::kWallCoverage);
   if (!payload) return payload.status();

@@ -247,19 +247,19 @@ void SampleSender::commit_slot(Kind kind) {
   pump();
 }
 
-Status SampleSender::send(const SampleBatch& batch, const ImageBounds& bounds) {
+Status SampleSender::send(const SampleBatch& batch, const ImageExtent& bounds) {
   if (Status s = encode(batch, &push_slot().bytes, bounds); !s) return s;
   commit_slot(Kind::kBatch);
   return {};
 }
 
-Status SampleSender::send(const TilingSnapshot& snapshot, const ImageBounds& bounds) {
+Status SampleSender::send(const TilingSnapshot& snapshot, const ImageExtent& bounds) {
   if (Status s = encode(snapshot, &push_slot().bytes, bounds); !s) return s;
   commit_slot(Kind::kTiling);
   return {};
 }
 
-Status SampleSender::send(const WallCoverage& coverage, const ImageBounds& bounds) {
+Status SampleSender::send(const WallCoverage& coverage, const ImageExtent& bounds) {
   if (Status s = encode(coverage, &push_slot().bytes, bounds); !s) return s;
   commit_slot(Kind::kCoverage);
   return {};

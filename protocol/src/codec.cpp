@@ -234,8 +234,8 @@ Status encode(const Welcome& m, std::vector<uint8_t>* out) {
       out);
   w.u32(m.sampler_id);
   w.u64(m.session);
-  w.u32(uint32_t(m.width));
-  w.u32(uint32_t(m.height));
+  w.u32(uint32_t(m.image.width));
+  w.u32(uint32_t(m.image.height));
   w.f64(m.display_time);
   w.f64(m.refresh_interval);
   write_hash(w, m.scene_hash);
@@ -249,7 +249,7 @@ Status encode(const Welcome& m, std::vector<uint8_t>* out) {
 Status decode(Bytes message, Welcome* out) {
   return decode_with(message, MessageType::kWelcome, out, [&](Reader& r) {
     r.u32(&out->sampler_id, "sampler_id") && r.u64(&out->session, "session") &&
-        r.i32(&out->width, "width") && r.i32(&out->height, "height") &&
+        r.i32(&out->image.width, "width") && r.i32(&out->image.height, "height") &&
         r.f64(&out->display_time, "display_time") &&
         r.f64(&out->refresh_interval, "refresh_interval") &&
         read_hash(r, &out->scene_hash, "scene_hash") && r.u64(&out->scene_size, "scene_size") &&
@@ -325,8 +325,8 @@ Status encode(const RegionAssignment& m, std::vector<uint8_t>* out) {
   Writer w = wire::begin_message(MessageType::kRegionAssignment, 36, out);
   w.u32(m.sampler_id);
   w.u64(m.epoch);
-  w.u32(uint32_t(m.width));
-  w.u32(uint32_t(m.height));
+  w.u32(uint32_t(m.image.width));
+  w.u32(uint32_t(m.image.height));
   w.i32(m.region.x0);
   w.i32(m.region.y0);
   w.i32(m.region.x1);
@@ -338,7 +338,7 @@ Status encode(const RegionAssignment& m, std::vector<uint8_t>* out) {
 Status decode(Bytes message, RegionAssignment* out) {
   return decode_with(message, MessageType::kRegionAssignment, out, [&](Reader& r) {
     r.u32(&out->sampler_id, "sampler_id") && r.u64(&out->epoch, "epoch") &&
-        r.i32(&out->width, "width") && r.i32(&out->height, "height") &&
+        r.i32(&out->image.width, "width") && r.i32(&out->image.height, "height") &&
         r.i32(&out->region.x0, "region.x0") && r.i32(&out->region.y0, "region.y0") &&
         r.i32(&out->region.x1, "region.x1") && r.i32(&out->region.y1, "region.y1");
   });
@@ -502,8 +502,8 @@ Status encode(const WallLayout& m, std::vector<uint8_t>* out) {
   for (const WallNode& n : m.nodes) bytes += 20 + wire::string_bytes(n.samples_endpoint);
   Writer w = wire::begin_message(MessageType::kWallLayout, bytes, out);
   w.u64(m.epoch);
-  w.u32(uint32_t(m.width));
-  w.u32(uint32_t(m.height));
+  w.u32(uint32_t(m.image.width));
+  w.u32(uint32_t(m.image.height));
   w.i32(m.margin);
   w.u32(uint32_t(m.nodes.size()));
   for (const WallNode& n : m.nodes) {
@@ -521,8 +521,8 @@ Status encode(const WallLayout& m, std::vector<uint8_t>* out) {
 Status decode(Bytes message, WallLayout* out) {
   return decode_with(message, MessageType::kWallLayout, out, [&](Reader& r) {
     uint32_t count = 0;
-    if (!(r.u64(&out->epoch, "epoch") && r.i32(&out->width, "width") &&
-          r.i32(&out->height, "height") && r.i32(&out->margin, "margin") &&
+    if (!(r.u64(&out->epoch, "epoch") && r.i32(&out->image.width, "width") &&
+          r.i32(&out->image.height, "height") && r.i32(&out->margin, "margin") &&
           r.u32(&count, "count"))) {
       return;
     }
@@ -555,7 +555,7 @@ Status encode(const Message& m, std::vector<uint8_t>* out) {
   return std::visit([&](const auto& v) { return encode(v, out); }, m);
 }
 
-Result<Message> decode_message(Bytes message, const ImageBounds& bounds) {
+Result<Message> decode_message(Bytes message, const ImageExtent& bounds) {
   Result<Header> h = peek_header(message);
   if (!h) return h.status();
   Message m;

@@ -70,7 +70,7 @@ Status check_rect(const char* message, const char* field, const PixelRect& r, in
   return {};
 }
 
-Status check_bounds(const char* message, const ImageBounds& bounds) {
+Status check_bounds(const char* message, const ImageExtent& bounds) {
   if (bounds.width < 1 || bounds.width > kMaxImageSize || bounds.height < 1 ||
       bounds.height > kMaxImageSize) {
     return field_error(message, "(image bounds)",
@@ -107,7 +107,7 @@ Status validate(const Join& m) {
 Status validate(const Welcome& m) {
   if (m.sampler_id == 0) return field_error("welcome", "sampler_id", "0 is not an assigned id");
   if (m.session == 0) return field_error("welcome", "session", "0 is not a session id");
-  if (Status s = check_image_size("welcome", m.width, m.height); !s) return s;
+  if (Status s = check_image_size("welcome", m.image.width, m.image.height); !s) return s;
   if (Status s = check_time("welcome", "display_time", m.display_time); !s) return s;
   if (!std::isfinite(m.refresh_interval) || !(m.refresh_interval > 0.0) ||
       m.refresh_interval > kMaxRefreshInterval) {
@@ -155,8 +155,8 @@ Status validate(const SceneChunk& m) {
 }
 
 Status validate(const RegionAssignment& m) {
-  if (Status s = check_image_size("region_assignment", m.width, m.height); !s) return s;
-  return check_rect("region_assignment", "region", m.region, m.width, m.height);
+  if (Status s = check_image_size("region_assignment", m.image.width, m.image.height); !s) return s;
+  return check_rect("region_assignment", "region", m.region, m.image.width, m.image.height);
 }
 
 Status validate(const SamplerStats& m) {
@@ -192,7 +192,7 @@ Status validate(const DisplayJoin& m) {
 }
 
 Status validate(const WallLayout& m) {
-  if (Status s = check_image_size("wall_layout", m.width, m.height); !s) return s;
+  if (Status s = check_image_size("wall_layout", m.image.width, m.image.height); !s) return s;
   if (m.margin < 0 || m.margin > kMaxWallMargin) {
     return field_error(
         "wall_layout", "margin",
@@ -207,7 +207,8 @@ Status validate(const WallLayout& m) {
     const WallNode& n = m.nodes[i];
     const std::string at = "nodes[" + std::to_string(i) + "]";
     if (n.node_id == 0) return field_error("wall_layout", at + ".node_id", "0 is not an id");
-    if (Status s = check_rect("wall_layout", "cell", n.cell, m.width, m.height); !s) return s;
+    if (Status s = check_rect("wall_layout", "cell", n.cell, m.image.width, m.image.height); !s)
+      return s;
     if (!n.samples_endpoint.empty()) {
       if (Status s = check_endpoint("wall_layout", "samples_endpoint", n.samples_endpoint); !s) {
         return s;

@@ -19,6 +19,6 @@ Status check_image_size(const char* message, int32_t width, int32_t height);
 // Non-empty, inside [0, width) x [0, height).
 Status check_rect(const char* message, const char* field, const PixelRect& r, int32_t width,
                   int32_t height);
-Status check_bounds(const char* message, const ImageBounds& bounds);
+Status check_bounds(const char* message, const ImageExtent& bounds);
 
 }  // namespace afr::protocol::detail

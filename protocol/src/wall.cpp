@@ -8,8 +8,8 @@ namespace afr::protocol {
 PixelRect wall_receive_rect(const WallLayout& layout, const WallNode& node) {
   return PixelRect{std::max(0, node.cell.x0 - layout.margin),
                    std::max(0, node.cell.y0 - layout.margin),
-                   std::min(layout.width, node.cell.x1 + layout.margin),
-                   std::min(layout.height, node.cell.y1 + layout.margin)};
+                   std::min(layout.image.width, node.cell.x1 + layout.margin),
+                   std::min(layout.image.height, node.cell.y1 + layout.margin)};
 }
 
 void select_samples(const SampleBatch& batch, const PixelRect& rect, SampleBatch* out) {

@@ -178,8 +178,8 @@ Sampler::Sampler(const Scene& scene, Tracer& tracer, Clock& clock, const Sampler
   config_.max_tiles = int(std::max<int64_t>(1, std::min<int64_t>(config_.max_tiles, pixels / 4)));
   config_.min_tiles = std::min(config_.min_tiles, config_.max_tiles);
   target_tiles_ = config_.min_tiles;
-  max_x_ = std::nextafter(float(config_.width), 0.0f);
-  max_y_ = std::nextafter(float(config_.height), 0.0f);
+  max_x_ = std::nextafter(float(config_.image.width), 0.0f);
+  max_y_ = std::nextafter(float(config_.image.height), 0.0f);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -422,10 +422,10 @@ bool Sampler::project_point(const glm::dvec3& p, glm::dvec2* xy) const {
   const double z = glm::dot(d, camera_.forward);
   if (!(z >= camera_.znear)) return false;
   const double tan_half = tan_half_fov_;
-  const double aspect = double(config_.width) / double(config_.height);
+  const double aspect = double(config_.image.width) / double(config_.image.height);
   const double sx = glm::dot(d, camera_.right) / (z * tan_half * aspect);
   const double sy = glm::dot(d, camera_.up) / (z * tan_half);
-  *xy = glm::dvec2((sx + 1.0) * 0.5 * config_.width, (1.0 - sy) * 0.5 * config_.height);
+  *xy = glm::dvec2((sx + 1.0) * 0.5 * config_.image.width, (1.0 - sy) * 0.5 * config_.image.height);
   return true;
 }
 
@@ -434,7 +434,8 @@ bool Sampler::project_point(const glm::dvec3& p, glm::dvec2* xy) const {
 
 void Sampler::trace_crosshair(double x, double y, std::array<ShadedSample, 5>* out) {
   const uint64_t sanitized = trace_stats_.sanitized;
-  tracer_.trace_crosshair(camera_, x, y, config_.width, config_.height, out, &trace_stats_);
+  tracer_.trace_crosshair(camera_, x, y, config_.image.width, config_.image.height, out,
+                          &trace_stats_);
   counters_.sanitized += trace_stats_.sanitized - sanitized;
   clock_.primary_rays_traced(5);
   static constexpr double kOffsets[5][2] = {{0, 0}, {-1, 0}, {1, 0}, {0, -1}, {0, 1}};
@@ -444,7 +445,7 @@ void Sampler::trace_crosshair(double x, double y, std::array<ShadedSample, 5>* o
 ShadedSample Sampler::trace_one(double x, double y) {
   const uint64_t sanitized = trace_stats_.sanitized;
   const ShadedSample s =
-      tracer_.trace(camera_.ray(x, y, config_.width, config_.height), &trace_stats_);
+      tracer_.trace(camera_.ray(x, y, config_.image.width, config_.image.height), &trace_stats_);
   counters_.sanitized += trace_stats_.sanitized - sanitized;
   clock_.primary_rays_traced(1);
   emit(x, y, s);
@@ -454,7 +455,7 @@ ShadedSample Sampler::trace_one(double x, double y) {
 void Sampler::emit(double x, double y, const ShadedSample& s) {
   // Neighbours of a crosshair at the image border can fall outside it: they feed gradients
   // but show nowhere.
-  if (x < 0.0 || y < 0.0 || x >= config_.width || y >= config_.height) return;
+  if (x < 0.0 || y < 0.0 || x >= config_.image.width || y >= config_.image.height) return;
   Sample out;
   out.time = scene_time_;
   // Rounding to float can carry 255.99999999 to 256: keep the sample inside its pixel row.

@@ -8,19 +8,17 @@
 
 namespace afr {
 
-PixelRect SamplerConfig::owned_region() const {
-  return region.empty() ? PixelRect{0, 0, width, height} : region;
-}
+PixelRect SamplerConfig::owned_region() const { return region.empty() ? image.rect() : region; }
 
 void SamplerConfig::validate() const {
   const auto fail = [](const std::string& what) { throw Error("sampler config: " + what); };
-  if (width < 1 || height < 1 || width > (1 << 30) || height > (1 << 30)) {
-    fail(fmt::format("image size {}x{} is outside 1..2^30", width, height));
+  if (image.width < 1 || image.height < 1 || image.width > (1 << 30) || image.height > (1 << 30)) {
+    fail(fmt::format("image size {}x{} is outside 1..2^30", image.width, image.height));
   }
   const PixelRect o = owned_region();
-  if (o.empty() || o.x0 < 0 || o.y0 < 0 || o.x1 > width || o.y1 > height) {
+  if (o.empty() || o.x0 < 0 || o.y0 < 0 || o.x1 > image.width || o.y1 > image.height) {
     fail(fmt::format("region [{},{})x[{},{}) is empty or outside the {}x{} image", o.x0, o.x1, o.y0,
-                     o.y1, width, height));
+                     o.y1, image.width, image.height));
   }
   if (b < 1 || b > 64) fail(fmt::format("b = {} is outside 1..64", b));
   if (r < 0 || r > 64) fail(fmt::format("r = {} is outside 0..64", r));

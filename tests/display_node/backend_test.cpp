@@ -60,8 +60,8 @@ TEST(BackendTest, GlWhenAskedForAndAContextExists) {
   std::string why;
   if (test::shared_gl_context(&why) == nullptr) GTEST_SKIP() << "no EGL/OpenGL context: " << why;
   ReconstructorConfig cfg;
-  cfg.image_width = 32;
-  cfg.image_height = 16;
+  cfg.image.width = 32;
+  cfg.image.height = 16;
   const BackendChoice c = make_reconstructor(Backend::kGl, cfg);
   EXPECT_EQ(c.chosen, Backend::kGl);
   EXPECT_STREQ(c.reconstructor->backend_name(), "gl");

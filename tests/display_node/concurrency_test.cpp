@@ -17,8 +17,8 @@ namespace {
 TEST(ConcurrencyTest, IngestWhileReconstructingLosesNothing) {
   const int W = 64, H = 48;
   ReconstructorConfig cfg;
-  cfg.image_width = W;
-  cfg.image_height = H;
+  cfg.image.width = W;
+  cfg.image.height = H;
   cfg.capacity = 20000;
   cfg.threads = 2;
   // One splat size whatever the coverage map says: the image then depends only on the samples

@@ -22,8 +22,8 @@ const Camera kCamera = Camera::look_at({0, 0, 0}, {0, 0, -1}, {0, 1, 0}, 1.0, 0.
 
 ReconstructorConfig config(int w, int h, int threads = 2) {
   ReconstructorConfig c;
-  c.image_width = w;
-  c.image_height = h;
+  c.image.width = w;
+  c.image.height = h;
   c.threads = threads;
   return c;
 }
@@ -43,10 +43,10 @@ Reference gather(const SampleBatch& batch, const TilingSnapshot* tiling,
   const FilterLimits& lim = cfg.filter;
   const SplatSizeRule& rule = cfg.splat;
   const std::vector<Sample>& samples = batch.samples;
-  const double sx = double(W) / cfg.image_width, sy = double(H) / cfg.image_height;
+  const double sx = double(W) / cfg.image.width, sy = double(H) / cfg.image.height;
   const double depth = std::clamp(now - samples.front().time, double(lim.min_temporal_extent),
                                   double(lim.max_temporal_extent));
-  const double rate = double(samples.size()) / (double(cfg.image_width) * cfg.image_height * depth);
+  const double rate = double(samples.size()) / (double(cfg.image.width) * cfg.image.height * depth);
   struct Splat {
     double x, y, sigma_x, sigma_y, r, growth, r_x, r_y, w_t;
     glm::dvec3 color;

@@ -23,8 +23,8 @@ using test::diff8;
 
 ReconstructorConfig config(int w, int h, ReconstructionMode mode) {
   ReconstructorConfig c;
-  c.image_width = w;
-  c.image_height = h;
+  c.image.width = w;
+  c.image.height = h;
   c.mode = mode;
   c.threads = 2;
   return c;

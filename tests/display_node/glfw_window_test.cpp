@@ -21,8 +21,8 @@ TEST(GlfwWindowTest, ShowsTheReconstructedImageTopUp) {
   ASSERT_EQ(fw, 64);
   ASSERT_EQ(fh, 48);
   ReconstructorConfig cfg;
-  cfg.image_width = 64;
-  cfg.image_height = 48;
+  cfg.image.width = 64;
+  cfg.image.height = 48;
   GlReconstructor gl(cfg, window);
   // Top half red, bottom half blue.
   Pcg32 rng(41);

@@ -32,8 +32,8 @@ using MakeReconstructor = std::function<std::unique_ptr<Reconstructor>(const Rec
 
 ReconstructorConfig config(int w, int h, PixelRect viewport = {}) {
   ReconstructorConfig c;
-  c.image_width = w;
-  c.image_height = h;
+  c.image.width = w;
+  c.image.height = h;
   c.viewport = viewport;
   c.threads = 2;
   return c;

@@ -66,7 +66,7 @@ struct WireSink : SampleSink {
         note(r.message());
       }
     }
-    const protocol::ImageBounds bounds{width, height};
+    const ImageExtent bounds{width, height};
     if (const protocol::Status st = protocol::encode(b, &bytes, bounds); !st) {
       ++refused;
       note(st.message());
@@ -86,7 +86,7 @@ struct WireSink : SampleSink {
       ++bad;
       note(r.message());
     }
-    const protocol::ImageBounds bounds{width, height};
+    const ImageExtent bounds{width, height};
     if (const protocol::Status st = protocol::encode(s, &bytes, bounds); !st) {
       ++refused;
       note(st.message());
@@ -103,8 +103,8 @@ struct WireSink : SampleSink {
 
 ReconstructorConfig rec_config(int w, int h) {
   ReconstructorConfig c;
-  c.image_width = w;
-  c.image_height = h;
+  c.image.width = w;
+  c.image.height = h;
   c.threads = 2;
   return c;
 }
@@ -122,8 +122,8 @@ struct Pipeline {
       : scene(s),
         tracer(s),
         clock(rate, start),
-        rec(rec_config(cfg.width, cfg.height)),
-        sink(cfg.width, cfg.height, &rec),
+        rec(rec_config(cfg.image.width, cfg.image.height)),
+        sink(cfg.image.width, cfg.image.height, &rec),
         sampler(s, tracer, clock, cfg, sink) {
     sampler.fill();
   }
@@ -141,7 +141,7 @@ struct Pipeline {
     return scene.camera_at(scene.evaluate(d > 0.0 ? std::fmod(t, d) : t));
   }
   Image reconstruct() {
-    const int w = sampler.config().width, h = sampler.config().height;
+    const int w = sampler.config().image.width, h = sampler.config().image.height;
     return rec.reconstruct(camera_at(clock.now()), clock.now(), w, h);
   }
   // Everything on the way was finite and accepted, the statistics are exact (unless told
@@ -165,8 +165,8 @@ struct Pipeline {
 
 SamplerConfig sampler_config(int w, int h, uint64_t seed = 3) {
   SamplerConfig c;
-  c.width = w;
-  c.height = h;
+  c.image.width = w;
+  c.image.height = h;
   c.seed = seed;
   return c;
 }

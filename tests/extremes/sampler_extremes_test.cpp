@@ -78,8 +78,8 @@ struct CheckingSink : SampleSink {
 
 SamplerConfig config(int w, int h, uint64_t seed = 11) {
   SamplerConfig c;
-  c.width = w;
-  c.height = h;
+  c.image.width = w;
+  c.image.height = h;
   c.seed = seed;
   return c;
 }

@@ -19,7 +19,7 @@ namespace afr::protocol::fuzz {
 
 namespace {
 
-void check_batch_trip(const SampleBatch& a, const ImageBounds& bounds) {
+void check_batch_trip(const SampleBatch& a, const ImageExtent& bounds) {
   std::vector<uint8_t> bytes;
   AFR_CHECK(encode(a, &bytes, bounds).ok());
   SampleBatch b;
@@ -66,14 +66,14 @@ bool check_one(const uint8_t* data, size_t size) {
     (void)decode(bytes, &d);
     (void)decode(bytes, &e);
     (void)decode(bytes, &f);
-    (void)decode(bytes, &g, ImageBounds{17, 9});
-    (void)decode(bytes, &h, ImageBounds{17, 9});
+    (void)decode(bytes, &g, ImageExtent{17, 9});
+    (void)decode(bytes, &h, ImageExtent{17, 9});
     (void)decode(bytes, &i);
     (void)decode(bytes, &j);
     (void)decode(bytes, &k);
     (void)decode(bytes, &l);
     (void)decode(bytes, &n);
-    (void)decode(bytes, &o, ImageBounds{17, 9});
+    (void)decode(bytes, &o, ImageExtent{17, 9});
   }
   const Result<Message> m = decode_message(bytes);
   const Result<Header> h = peek_header(bytes);
@@ -83,7 +83,7 @@ bool check_one(const uint8_t* data, size_t size) {
       [&](const auto& v) {
         using T = std::decay_t<decltype(v)>;
         if constexpr (std::is_same_v<T, SampleBatch>) {
-          check_batch_trip(v, ImageBounds{});
+          check_batch_trip(v, kMaxImageExtent);
         } else {
           // Exact messages: the encoding of what was decoded is the input, byte for byte.
           std::vector<uint8_t> again;

@@ -45,7 +45,7 @@ void fix_length(std::vector<uint8_t>& b) {
 }
 
 // Decodes as the type in the header and returns the error ("" when accepted).
-std::string error_of(const std::vector<uint8_t>& b, const ImageBounds& bounds = {}) {
+std::string error_of(const std::vector<uint8_t>& b, const ImageExtent& bounds = kMaxImageExtent) {
   Result<Message> m = decode_message(b, bounds);
   return m.ok() ? "" : m.error();
 }
@@ -371,8 +371,8 @@ TEST(CodecRejectTest, SizesAndRectanglesOutsideTheImageAreRejected) {
   EXPECT_REJECTED(b, "welcome.width");
 
   RegionAssignment r;
-  r.width = 100;
-  r.height = 50;
+  r.image.width = 100;
+  r.image.height = 50;
   r.region = PixelRect{10, 10, 20, 20};
   const std::vector<uint8_t> good = encoded(r);
   for (PixelRect bad : {PixelRect{10, 10, 10, 20}, PixelRect{-1, 0, 5, 5}, PixelRect{0, 0, 101, 5},
@@ -386,11 +386,11 @@ TEST(CodecRejectTest, SizesAndRectanglesOutsideTheImageAreRejected) {
   }
 
   // Sample positions beyond the image.
-  SampleBatch batch = random_batch(rng, 0, 4, 0.01, ImageBounds{100, 100});
+  SampleBatch batch = random_batch(rng, 0, 4, 0.01, ImageExtent{100, 100});
   b = encoded(batch);
-  EXPECT_EQ(error_of(b, ImageBounds{100, 100}), "");
+  EXPECT_EQ(error_of(b, ImageExtent{100, 100}), "");
   b[kHeaderBytes + 32 + 12 * 3 + 2] = 0x01;  // sample 3: x code + 65536 (x + 128 px)
-  EXPECT_NE(error_of(b, ImageBounds{100, 100}).find("samples[3].x: outside"), std::string::npos);
+  EXPECT_NE(error_of(b, ImageExtent{100, 100}).find("samples[3].x: outside"), std::string::npos);
   EXPECT_EQ(error_of(b), "");  // inside the protocol's 32768 x 32768 still
 
   // A tile outside its region, and a region outside the bounds.
@@ -399,7 +399,7 @@ TEST(CodecRejectTest, SizesAndRectanglesOutsideTheImageAreRejected) {
   put_u16(b, 24 + kTileBytes + 4, uint16_t(t.region.x1 + 1));  // tile 1's x1
   EXPECT_REJECTED(b, "tiles[1].rect");
   b = encoded(t);
-  EXPECT_NE(error_of(b, ImageBounds{t.region.x1 - 1, 32768}).find("tiling_snapshot.region"),
+  EXPECT_NE(error_of(b, ImageExtent{t.region.x1 - 1, 32768}).find("tiling_snapshot.region"),
             std::string::npos);
 }
 
@@ -460,8 +460,8 @@ TEST(CodecRejectTest, MalformedWallLayoutsAreRejected) {
   };
   WallLayout base;
   base.epoch = 3;
-  base.width = 200;
-  base.height = 100;
+  base.image.width = 200;
+  base.image.height = 100;
   base.margin = 8;
   base.nodes = {WallNode{1, PixelRect{0, 0, 100, 100}, ""},
                 WallNode{2, PixelRect{100, 0, 200, 100}, "tcp://10.0.0.2:7202"}};
@@ -492,7 +492,7 @@ TEST(CodecRejectTest, MalformedWallLayoutsAreRejected) {
   m.nodes[1].samples_endpoint = "http://10.0.0.2:7202";
   refused(m, "samples_endpoint");
   m = base;
-  m.width = kMaxImageSize + 1;
+  m.image.width = kMaxImageSize + 1;
   refused(m, "width");
 
   // A count beyond the limit, or beyond what the bytes hold, is refused before allocating.
@@ -522,7 +522,7 @@ WallCoverage small_coverage() {
 TEST(CodecRejectTest, EncoderRefusesMalformedWallCoverageAndWritesNothing) {
   std::vector<uint8_t> out = {1, 2, 3};
   const auto refused = [&](const WallCoverage& m, const char* text,
-                           const ImageBounds& bounds = {}) {
+                           const ImageExtent& bounds = kMaxImageExtent) {
     const Status s = encode(m, &out, bounds);
     EXPECT_FALSE(s.ok()) << "accepted; expected an error about '" << text << "'";
     EXPECT_NE(s.message().find(text), std::string::npos) << s.message();
@@ -530,7 +530,7 @@ TEST(CodecRejectTest, EncoderRefusesMalformedWallCoverageAndWritesNothing) {
   };
   const WallCoverage base = small_coverage();
   ASSERT_TRUE(encode(base, &out).ok());
-  ASSERT_TRUE(encode(base, &out, ImageBounds{13, 22}).ok());
+  ASSERT_TRUE(encode(base, &out, ImageExtent{13, 22}).ok());
 
   WallCoverage m = base;
   m.node_id = 0;
@@ -553,8 +553,8 @@ TEST(CodecRejectTest, EncoderRefusesMalformedWallCoverageAndWritesNothing) {
   m = base;
   m.rect = PixelRect{kMaxImageSize - 2, 20, kMaxImageSize + 1, 22};
   refused(m, "wall_coverage.rect");
-  refused(base, "wall_coverage.rect", ImageBounds{12, 100});  // outside the receiver's image
-  refused(base, "wall_coverage.rect", ImageBounds{100, 21});
+  refused(base, "wall_coverage.rect", ImageExtent{12, 100});  // outside the receiver's image
+  refused(base, "wall_coverage.rect", ImageExtent{100, 21});
   // One pixel over the limit of a message.
   m = base;
   m.rect = PixelRect{0, 0, 512, 513};
@@ -615,9 +615,9 @@ TEST(CodecRejectTest, MalformedWallCoverageBytesAreRejected) {
     EXPECT_REJECTED(b, "wall_coverage.rect");
   }
   // Outside the receiver's image, which the receiver passes in.
-  EXPECT_EQ(error_of(good, ImageBounds{13, 22}), "");
-  EXPECT_NE(error_of(good, ImageBounds{12, 22}).find("wall_coverage.rect"), std::string::npos);
-  EXPECT_NE(error_of(good, ImageBounds{13, 21}).find("wall_coverage.rect"), std::string::npos);
+  EXPECT_EQ(error_of(good, ImageExtent{13, 22}), "");
+  EXPECT_NE(error_of(good, ImageExtent{12, 22}).find("wall_coverage.rect"), std::string::npos);
+  EXPECT_NE(error_of(good, ImageExtent{13, 21}).find("wall_coverage.rect"), std::string::npos);
   // A rect over the limit is refused for its area, before the count or the bytes are looked
   // at, whatever the count says.
   for (uint32_t count : {6u, 1024u * 1024u, 0xffffffffu}) {

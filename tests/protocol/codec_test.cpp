@@ -69,7 +69,7 @@ TEST(CodecTest, ControlMessagesRoundTripExactly) {
 TEST(CodecTest, LargestWallLayoutFitsTheControlChannelLimit) {
   // 32 x 32 cells, every endpoint as long as the protocol allows.
   WallLayout m;
-  m.width = m.height = kMaxImageSize;
+  m.image.width = m.image.height = kMaxImageSize;
   m.margin = kMaxWallMargin;
   for (int32_t r = 0; r < 32; ++r) {
     for (int32_t c = 0; c < 32; ++c) {
@@ -88,8 +88,8 @@ TEST(CodecTest, LargestWallLayoutFitsTheControlChannelLimit) {
 
 TEST(CodecTest, WallReceiveRectIsTheCellGrownByTheMarginInsideTheImage) {
   WallLayout m;
-  m.width = 100;
-  m.height = 80;
+  m.image.width = 100;
+  m.image.height = 80;
   m.margin = 8;
   m.nodes = {WallNode{1, PixelRect{0, 0, 50, 40}, ""}, WallNode{2, PixelRect{50, 40, 100, 80}, ""}};
   EXPECT_EQ(wall_receive_rect(m, m.nodes[0]), (PixelRect{0, 0, 58, 48}));
@@ -362,7 +362,7 @@ TEST(CodecTest, MissTravelsOnlyWithPositions) {
 
 TEST(CodecTest, SamplesAreCheckedAgainstTheImageBounds) {
   Pcg32 rng(6);
-  const ImageBounds bounds{640, 480};
+  const ImageExtent bounds{640, 480};
   SampleBatch in = random_batch(rng, kFieldPosition, 200, 0.01, bounds);
   std::vector<uint8_t> bytes;
   const SampleBatch out = round_trip(in, &bytes, bounds);
@@ -371,7 +371,7 @@ TEST(CodecTest, SamplesAreCheckedAgainstTheImageBounds) {
     EXPECT_LT(s.y, 480.0f);
   }
   SampleBatch decoded;
-  EXPECT_FALSE(decode(Bytes(bytes), &decoded, ImageBounds{64, 48}).ok());
+  EXPECT_FALSE(decode(Bytes(bytes), &decoded, ImageExtent{64, 48}).ok());
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -435,7 +435,7 @@ TEST(CodecTest, WallCoverageRoundTripsExactly) {
   }
   // Inside a receiver's own image, its right and bottom edges included.
   WallCoverage in = random_wall_coverage(rng);
-  const ImageBounds bounds{in.rect.x1, in.rect.y1};
+  const ImageExtent bounds{in.rect.x1, in.rect.y1};
   EXPECT_EQ(round_trip(in, &bytes, bounds), in);
 }
 
@@ -482,9 +482,9 @@ TEST(CodecTest, WallCoverageDecodesAsAnyMessage) {
   EXPECT_EQ(message_type(*m), MessageType::kWallCoverage);
   EXPECT_STREQ(message_type_name(MessageType::kWallCoverage), "wall_coverage");
   // The bounds reach the coverage decoder, as they reach those of batches and snapshots.
-  const ImageBounds inside{in.rect.x1, in.rect.y1};
+  const ImageExtent inside{in.rect.x1, in.rect.y1};
   EXPECT_TRUE(decode_message(bytes, inside).ok());
-  const ImageBounds outside{in.rect.x1 - 1, in.rect.y1};
+  const ImageExtent outside{in.rect.x1 - 1, in.rect.y1};
   const Result<Message> refused = decode_message(bytes, outside);
   ASSERT_FALSE(refused.ok());
   EXPECT_NE(refused.error().find("wall_coverage.rect"), std::string::npos) << refused.error();

@@ -43,8 +43,8 @@ inline Welcome random_welcome(Pcg32& rng) {
   Welcome m;
   m.sampler_id = 1 + rng.next_below(1000);
   m.session = random_u64(rng) | 1;
-  m.width = int32_t(1 + rng.next_below(kMaxImageSize));
-  m.height = int32_t(1 + rng.next_below(kMaxImageSize));
+  m.image.width = int32_t(1 + rng.next_below(kMaxImageSize));
+  m.image.height = int32_t(1 + rng.next_below(kMaxImageSize));
   m.display_time = random_time(rng);
   m.refresh_interval = 1e-3 + rng.next_double() * 0.1;
   m.scene_hash = random_hash(rng);
@@ -82,9 +82,9 @@ inline RegionAssignment random_region(Pcg32& rng) {
   RegionAssignment m;
   m.sampler_id = rng.next_u32();
   m.epoch = random_u64(rng);
-  m.width = int32_t(1 + rng.next_below(kMaxImageSize));
-  m.height = int32_t(1 + rng.next_below(kMaxImageSize));
-  m.region = random_rect_in(rng, PixelRect{0, 0, m.width, m.height});
+  m.image.width = int32_t(1 + rng.next_below(kMaxImageSize));
+  m.image.height = int32_t(1 + rng.next_below(kMaxImageSize));
+  m.region = random_rect_in(rng, m.image.rect());
   return m;
 }
 
@@ -110,7 +110,7 @@ inline View random_view(Pcg32& rng) {
 
 // Samples within bounds, times within `span` seconds of a random base.
 inline SampleBatch random_batch(Pcg32& rng, uint32_t fields, size_t n, double span = 0.01,
-                                const ImageBounds& bounds = {}) {
+                                const ImageExtent& bounds = kMaxImageExtent) {
   SampleBatch m;
   m.sampler_id = rng.next_u32();
   m.sequence = random_u64(rng);
@@ -200,8 +200,8 @@ inline DisplayJoin random_display_join(Pcg32& rng) {
 inline WallLayout random_wall_layout(Pcg32& rng, uint32_t max_side = 8) {
   WallLayout m;
   m.epoch = random_u64(rng);
-  m.width = int32_t(max_side + rng.next_below(kMaxImageSize - max_side));
-  m.height = int32_t(max_side + rng.next_below(kMaxImageSize - max_side));
+  m.image.width = int32_t(max_side + rng.next_below(kMaxImageSize - max_side));
+  m.image.height = int32_t(max_side + rng.next_below(kMaxImageSize - max_side));
   m.margin = int32_t(rng.next_below(kMaxWallMargin + 1));
   const int32_t columns = int32_t(1 + rng.next_below(max_side));
   const int32_t rows = int32_t(1 + rng.next_below(max_side));
@@ -210,8 +210,8 @@ inline WallLayout random_wall_layout(Pcg32& rng, uint32_t max_side = 8) {
       if (!m.nodes.empty() && rng.next_below(4) == 0) continue;
       WallNode n;
       n.node_id = uint32_t(1 + r * columns + c);
-      n.cell = PixelRect{c * m.width / columns, r * m.height / rows, (c + 1) * m.width / columns,
-                         (r + 1) * m.height / rows};
+      n.cell = PixelRect{c * m.image.width / columns, r * m.image.height / rows,
+                         (c + 1) * m.image.width / columns, (r + 1) * m.image.height / rows};
       if (rng.next_below(3) != 0) n.samples_endpoint = random_endpoint(rng);
       m.nodes.push_back(n);
     }

@@ -124,7 +124,7 @@ TEST(TransportTest, PushPullCarriesWallCoverageAndPeerStrays) {
   for (const char* where : {"inproc://coverage-test", "tcp://127.0.0.1:*"}) {
     Context context;
     SampleReceiver receiver(context, where);
-    const ImageBounds image{1920, 1080};
+    const ImageExtent image{1920, 1080};
     receiver.set_image_bounds(image);
     SampleSender sender(context, receiver.endpoint());
     Pcg32 rng(12);
@@ -159,7 +159,7 @@ TEST(TransportTest, PushPullCarriesWallCoverageAndPeerStrays) {
     EXPECT_EQ(receiver.counters().rejected, 0u);
 
     // A map outside the receiver's image is refused like a sample outside it.
-    receiver.set_image_bounds(ImageBounds{640, 480});
+    receiver.set_image_bounds(ImageExtent{640, 480});
     ASSERT_TRUE(sender.send(coverage).ok());
     ASSERT_EQ(receiver.receive(2000), SampleReceiver::Got::kRejected);
     EXPECT_NE(receiver.rejection().message().find("wall_coverage.rect"), std::string::npos)

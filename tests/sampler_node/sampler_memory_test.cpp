@@ -82,8 +82,8 @@ Heap peak_heap(const Scene& scene, int32_t width, int32_t height, PixelRect regi
   VirtualClock clock(1e5);
   DiscardingSink sink;
   SamplerConfig config;
-  config.width = width;
-  config.height = height;
+  config.image.width = width;
+  config.image.height = height;
   config.region = region;
   config.b = b;
   config.seed = 7;

@@ -34,8 +34,8 @@ TEST(SamplerPoolTest, ThreadsOwnDisjointRegionsAndAllProduce) {
   WallClock clock;
   LockedSink sink;
   SamplerConfig config;
-  config.width = 64;
-  config.height = 32;
+  config.image.width = 64;
+  config.image.height = 32;
   SamplerPoolOptions options;
   options.threads = 2;
   SamplerPool pool(scene, config, options, clock, sink);
@@ -60,8 +60,8 @@ TEST(SamplerPoolTest, RateCapHoldsSamplesBack) {
   WallClock clock;
   LockedSink sink;
   SamplerConfig config;
-  config.width = 32;
-  config.height = 32;
+  config.image.width = 32;
+  config.image.height = 32;
   SamplerPoolOptions options;
   options.threads = 2;
   options.max_samples_per_second = 20000.0;
@@ -83,8 +83,8 @@ TEST(SamplerPoolTest, BadOptionsAreClearErrors) {
   WallClock clock;
   LockedSink sink;
   SamplerConfig config;
-  config.width = 4;
-  config.height = 1;
+  config.image.width = 4;
+  config.image.height = 1;
   SamplerPoolOptions options;
   options.threads = 8;  // more threads than pixels
   EXPECT_THROW(SamplerPool(scene, config, options, clock, sink), Error);

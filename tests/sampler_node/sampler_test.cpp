@@ -22,8 +22,8 @@ using testing::SamplerRig;
 
 SamplerConfig small_config(int w, int h) {
   SamplerConfig c;
-  c.width = w;
-  c.height = h;
+  c.image.width = w;
+  c.image.height = h;
   c.seed = 7;
   return c;
 }

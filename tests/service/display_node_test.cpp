@@ -27,13 +27,13 @@ namespace {
 // threads (two regions, as two nodes get) feeding a CPU reconstructor directly.
 Image in_process_image(const Scene& scene, int w, int h, double seconds) {
   ReconstructorConfig rc;
-  rc.image_width = w;
-  rc.image_height = h;
+  rc.image.width = w;
+  rc.image.height = h;
   rc.capacity = size_t(4) * w * h;
   std::unique_ptr<Reconstructor> recon = make_reconstructor(Backend::kCpu, rc).reconstructor;
   SamplerConfig sc;
-  sc.width = w;
-  sc.height = h;
+  sc.image.width = w;
+  sc.image.height = h;
   sc.seed = 7;
   SamplerPoolOptions po;
   po.threads = 2;

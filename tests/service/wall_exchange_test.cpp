@@ -22,7 +22,7 @@ protocol::WallLayout three_by_three(int margin = 20) {
   WallGrid grid;
   grid.columns = grid.rows = 3;
   protocol::WallLayout layout;
-  layout.width = layout.height = 300;
+  layout.image.width = layout.image.height = 300;
   layout.margin = margin;
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) {
@@ -81,7 +81,7 @@ Sample sample_at(float px, float py, double time) {
 TEST(WallExchangeTest, StraysAreTheCellsSamplesThatNowProjectNearAPeerAndAreSentOnce) {
   const protocol::WallLayout layout = three_by_three();
   ReconstructorConfig rc;
-  rc.image_width = rc.image_height = 300;
+  rc.image.width = rc.image.height = 300;
   rc.viewport = layout.nodes[4].cell;  // the center, [100, 200)^2
   rc.viewport_margin = 20;
   rc.threads = 1;

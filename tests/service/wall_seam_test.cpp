@@ -51,7 +51,7 @@ class WallSink final : public SampleSink {
       }
     }
     total_ += batch.samples.size();
-    const PixelRect image{0, 0, layout_.width, layout_.height};
+    const PixelRect image{0, 0, layout_.image.width, layout_.image.height};
     for (size_t i = 0; i < nodes_.size(); ++i) {
       protocol::select_samples(
           batch, route_all_ ? image : protocol::wall_receive_rect(layout_, layout_.nodes[i]),
@@ -133,14 +133,14 @@ void expect_seamless(int margin, int frames, int close_frames, bool exchange,
   }
   const Scene scene = make_builtin_scene();
   ReconstructorConfig base;
-  base.image_width = base.image_height = kSide;
+  base.image.width = base.image.height = kSide;
   base.threads = 2;
 
   service::WallGrid grid;
   grid.columns = grid.rows = 2;
   grid.margin = margin;
   protocol::WallLayout layout;
-  layout.width = layout.height = kSide;
+  layout.image.width = layout.image.height = kSide;
   layout.margin = margin;
   std::vector<std::unique_ptr<Reconstructor>> nodes;
   for (int r = 0; r < 2; ++r) {
@@ -189,7 +189,7 @@ void expect_seamless(int margin, int frames, int close_frames, bool exchange,
   Tracer tracer(scene);
   VirtualClock clock(2e6, 2.0);
   SamplerConfig sc;
-  sc.width = sc.height = kSide;
+  sc.image.width = sc.image.height = kSide;
   sc.fill_step = 4;
   sc.seed = uint64_t(env_int("AFR_SEAM_SEED", int(sc.seed)));
   Sampler sampler(scene, tracer, clock, sc, sink);

@@ -68,14 +68,12 @@ class NewestSampleSink final : public SampleSink {
 RunStats run_frameless(const Scene& scene, Tracer& tracer, const RunSettings& s,
                        const FrameSink& sink) {
   SamplerConfig config = s.sampler;
-  config.width = s.width;
-  config.height = s.height;
+  config.image = ImageExtent{s.width, s.height};
   config.region = PixelRect{};
   config.seed = s.seed;
   config.loop_animation = false;
   ReconstructorConfig rc = s.reconstructor;
-  rc.image_width = s.width;
-  rc.image_height = s.height;
+  rc.image = ImageExtent{s.width, s.height};
   rc.threads = thread_count(s.threads);
   switch (s.method) {
     case Method::kFrameless:

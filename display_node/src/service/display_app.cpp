@@ -47,16 +47,16 @@ ReconstructorConfig display_reconstructor_config(const Preset& preset, Reconstru
                                                  size_t capacity) {
   ReconstructorConfig rc;
   rc.mode = mode;
-  rc.image_width = width;
-  rc.image_height = height;
+  rc.image.width = width;
+  rc.image.height = height;
   rc.viewport = cell;
   rc.viewport_margin = margin;
   rc.filter.min_spatial_extent = preset.reconstruction.min_spatial_extent;
   rc.filter.max_spatial_extent = preset.reconstruction.max_spatial_extent;
   rc.filter.max_temporal_extent = preset.reconstruction.max_temporal_extent;
   protocol::WallLayout shape;
-  shape.width = width;
-  shape.height = height;
+  shape.image.width = width;
+  shape.image.height = height;
   shape.margin = margin;
   protocol::WallNode self;
   self.cell = cell;
@@ -114,7 +114,7 @@ void DisplayApp::State::make_reconstructor(const ReconstructorConfig& rc) {
   cell = rc.viewport;
   out_w = cell.width();
   out_h = cell.height();
-  whole = cell == PixelRect{0, 0, rc.image_width, rc.image_height};
+  whole = cell == rc.image.rect();
   if (!options.headless) {
     std::string error;
     window = GlfwWindow::create(out_w, out_h, "afr display", &error);
@@ -146,8 +146,8 @@ DisplayApp::DisplayApp(DisplayAppOptions options, DisplayRole& role,
                                mode_name(s.recon->mode()));
   if (!s.whole) {
     spdlog::info("wall cell [{}, {}) x [{}, {}) of the {}x{} display, margin {} px, N = {}",
-                 s.cell.x0, s.cell.x1, s.cell.y0, s.cell.y1, config.image_width,
-                 config.image_height, config.viewport_margin, s.recon->capacity());
+                 s.cell.x0, s.cell.x1, s.cell.y0, s.cell.y1, config.image.width,
+                 config.image.height, config.viewport_margin, s.recon->capacity());
   }
   if (!s.options.output.empty()) fs::create_directories(s.options.output);
 }

@@ -65,7 +65,7 @@ class DisplayService::Control {
         options_(service.options_),
         server_(service.context_, service.endpoints_.control, sec),
         views_(service.context_, service.endpoints_.views, sec),
-        coordinator_(options_.width, options_.height, options_.coordinator) {}
+        coordinator_(options_.image.width, options_.image.height, options_.coordinator) {}
 
   void run();
 
@@ -162,23 +162,22 @@ DisplayService::DisplayService(DisplayServiceOptions options, SampleSink& sink)
     throw Error(fmt::format("--bind {} (three ports from {}): {}", options_.bind,
                             endpoints_.control, e.what()));
   }
-  samples_->set_image_bounds({options_.width, options_.height});
+  samples_->set_image_bounds(options_.image);
   if (options_.metrics_port > 0) {
     http_ =
         std::make_unique<MetricsServer>(metrics_, options_.metrics_address, options_.metrics_port);
   }
-  check_wall_grid(options_.wall, options_.width, options_.height);
+  check_wall_grid(options_.wall, options_.image.width, options_.image.height);
   check_wall_cell(options_.wall, options_.wall_column, options_.wall_row);
-  layout_.width = options_.width;
-  layout_.height = options_.height;
+  layout_.image = options_.image;
   layout_.margin = options_.wall.margin;
   layout_.nodes = {WallNode{1, cell(), ""}};
   metrics_.set_wall(1, cell(), 1, 0);
 }
 
 PixelRect DisplayService::cell() const {
-  return options_.wall.cell(options_.wall_column, options_.wall_row, options_.width,
-                            options_.height);
+  return options_.wall.cell(options_.wall_column, options_.wall_row, options_.image.width,
+                            options_.image.height);
 }
 
 WallLayout DisplayService::wall_layout() const {
@@ -443,8 +442,8 @@ void DisplayService::Control::on_join(const ControlServer::Incoming& in, const J
   welcome(m.peer, m.id);
   send_layout(m.peer);
   if (!is_new) {  // a repeated join: the region it may have missed
-    send(m.peer,
-         RegionAssignment{m.id, coordinator_.epoch(), options_.width, options_.height, m.region});
+    send(m.peer, RegionAssignment{m.id, coordinator_.epoch(), options_.image.width,
+                                  options_.image.height, m.region});
   }
 }
 
@@ -540,13 +539,13 @@ void DisplayService::Control::expire_silent(double t) {
 // The wall: the layout every sampler routes by, sent to everyone on every change.
 void DisplayService::Control::publish_layout() {
   WallLayout l;
-  l.width = options_.width;
-  l.height = options_.height;
+  l.image = options_.image;
   l.margin = options_.wall.margin;
   l.nodes.push_back(WallNode{1, service_.cell(), ""});
   for (const auto& [peer, n] : wall_nodes_) {
     l.nodes.push_back(WallNode{
-        n.id, options_.wall.cell(n.column, n.row, options_.width, options_.height), n.endpoint});
+        n.id, options_.wall.cell(n.column, n.row, options_.image.width, options_.image.height),
+        n.endpoint});
   }
   {
     std::lock_guard<std::mutex> lock(service_.regions_mutex_);
@@ -581,14 +580,14 @@ void DisplayService::Control::update_error(double t) {
 void DisplayService::Control::send_regions() {
   std::vector<std::pair<uint32_t, PixelRect>> regions;
   for (const auto& [id, m] : coordinator_.members()) {
-    send(m.peer,
-         RegionAssignment{id, coordinator_.epoch(), options_.width, options_.height, m.region});
+    send(m.peer, RegionAssignment{id, coordinator_.epoch(), options_.image.width,
+                                  options_.image.height, m.region});
     service_.metrics_.on_region(id, m.region, coordinator_.epoch(), coordinator_.recuts());
     regions.emplace_back(id, m.region);
-    spdlog::info("region epoch {}: sampler {} ({}) gets [{}, {}) x [{}, {}) ({:.0f}%)",
-                 coordinator_.epoch(), id, m.name, m.region.x0, m.region.x1, m.region.y0,
-                 m.region.y1,
-                 100.0 * double(m.region.area()) / (double(options_.width) * options_.height));
+    spdlog::info(
+        "region epoch {}: sampler {} ({}) gets [{}, {}) x [{}, {}) ({:.0f}%)", coordinator_.epoch(),
+        id, m.name, m.region.x0, m.region.x1, m.region.y0, m.region.y1,
+        100.0 * double(m.region.area()) / (double(options_.image.width) * options_.image.height));
   }
   std::lock_guard<std::mutex> lock(service_.regions_mutex_);
   service_.regions_ = std::move(regions);
@@ -648,8 +647,7 @@ void DisplayService::Control::welcome(const std::string& peer, uint32_t id) {
   Welcome w;
   w.sampler_id = id;
   w.session = service_.session_;
-  w.width = options_.width;
-  w.height = options_.height;
+  w.image = options_.image;
   w.display_time = service_.now();
   w.refresh_interval = options_.refresh_interval;
   w.scene_hash = options_.scene.hash;
@@ -671,7 +669,7 @@ void DisplayService::Control::send_layout(const std::string& peer) {
 // The image's error from the members' latest tilings, on a grid of at most 64 x 64 cells, with
 // a floor of 1% of the mean so that no part of the image weighs nothing.
 MassDensity DisplayService::Control::error_density() {
-  const int w = options_.width, h = options_.height;
+  const int w = options_.image.width, h = options_.image.height;
   MassDensity d(w, h, std::min(64, w), std::min(64, h));
   std::lock_guard<std::mutex> lock(service_.errors_mutex_);
   auto& errors = service_.tile_errors_;

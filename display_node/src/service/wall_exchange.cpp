@@ -51,8 +51,8 @@ size_t WallOutbox::stray_samples() const {
 
 WallExchange::WallExchange(const protocol::WallLayout& layout, uint32_t node_id, int lookahead,
                            int coverage_band)
-    : width_(layout.width),
-      height_(layout.height),
+    : width_(layout.image.width),
+      height_(layout.image.height),
       node_id_(node_id),
       lookahead_(std::max(lookahead, 0)) {
   const auto self = std::find_if(layout.nodes.begin(), layout.nodes.end(),
@@ -205,7 +205,7 @@ void WallPeerLinks::set_layout(const protocol::WallLayout& layout, uint32_t node
                                  [&](const protocol::WallNode& n) { return n.node_id == node_id; });
   if (layout.nodes.size() < 2 || !named) return;
   exchange_ = std::make_unique<WallExchange>(layout, node_id, lookahead_, coverage_band_);
-  bounds_ = protocol::ImageBounds{layout.width, layout.height};
+  bounds_ = layout.image;
   for (const WallPeer& p : exchange_->peers()) {
     const auto node =
         std::find_if(layout.nodes.begin(), layout.nodes.end(),

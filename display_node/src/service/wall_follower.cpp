@@ -187,7 +187,7 @@ void WallFollower::control_loop() {
         if (const auto* w = std::get_if<Welcome>(&msg)) {
           if (!link.joined() || w->session != session) {
             spdlog::info("joined the wall as display node {} (session {:x}): {}x{} virtual display",
-                         w->sampler_id, w->session, w->width, w->height);
+                         w->sampler_id, w->session, w->image.width, w->image.height);
           }
           std::lock_guard<std::mutex> lock(mutex_);
           if (w->session != session) layout_.reset();  // a new session numbers layouts anew
@@ -200,7 +200,7 @@ void WallFollower::control_loop() {
           std::lock_guard<std::mutex> lock(mutex_);
           if (layout_ && l->epoch < layout_->epoch) continue;  // an older one, overtaken
           layout_ = *l;
-          samples_->set_image_bounds({l->width, l->height});
+          samples_->set_image_bounds({l->image.width, l->image.height});
           for (const WallNode& n : l->nodes) {
             if (n.node_id == node_id_) {
               metrics_.set_wall(n.node_id, n.cell, l->nodes.size(), l->epoch);

@@ -80,7 +80,7 @@ struct SampleRoute {
 
 class NetworkSink final : public SampleSink {
  public:
-  void attach(SampleSender* sender, uint32_t sampler_id, ImageBounds bounds) {
+  void attach(SampleSender* sender, uint32_t sampler_id, ImageExtent bounds) {
     std::lock_guard<std::mutex> lock(mutex_);
     retire_locked();
     routes_.push_back(SampleRoute{sender, PixelRect{}, 0});
@@ -198,7 +198,7 @@ class NetworkSink final : public SampleSink {
   mutable std::mutex mutex_;
   std::vector<SampleRoute> routes_;
   uint32_t sampler_id_ = 0;
-  ImageBounds bounds_;
+  ImageExtent bounds_ = kMaxImageExtent;
   SampleBatch part_;      // the samples of one route (reused: no allocation per batch)
   TilingSnapshot tiles_;  // the tiles of one route
   uint64_t unsent_ = 0;
@@ -463,13 +463,13 @@ void SamplerService::Impl::on_welcome(const Welcome& w, DisplayLink& control,
   session = w.session;
   sampler_id = w.sampler_id;
   welcome = w;
-  sink.attach(&sender, sampler_id, ImageBounds{w.width, w.height});
+  sink.attach(&sender, sampler_id, w.image);
   {
     std::lock_guard<std::mutex> lock(counters_mutex);
     ++counters.sessions;
   }
   spdlog::info("joined the display as sampler {} (session {:x}): {}x{}, scene {} ({} bytes)",
-               sampler_id, session, w.width, w.height, w.scene_name, w.scene_size);
+               sampler_id, session, w.image.width, w.image.height, w.scene_name, w.scene_size);
   if (loading.valid() ? loading_hash == w.scene_hash : scene && scene_hash == w.scene_hash) {
     return;
   }
@@ -577,9 +577,9 @@ void SamplerService::Impl::on_region(const RegionAssignment& r) {
 // needs (docs/wall.md). The lead display's own node has no endpoint: the session's sender.
 void SamplerService::Impl::on_wall(const WallLayout& w, SampleSender& sender) {
   if (!joined || w.epoch < wall_epoch) return;
-  if (w.width != welcome.width || w.height != welcome.height) {
-    spdlog::warn("wall layout {}x{} does not match the display's image {}x{}: ignored", w.width,
-                 w.height, welcome.width, welcome.height);
+  if (w.image != welcome.image) {
+    spdlog::warn("wall layout {}x{} does not match the display's image {}x{}: ignored",
+                 w.image.width, w.image.height, welcome.image.width, welcome.image.height);
     return;
   }
   wall_epoch = w.epoch;
@@ -603,7 +603,7 @@ void SamplerService::Impl::on_wall(const WallLayout& w, SampleSender& sender) {
       }
       to = kept[n.samples_endpoint].get();
     }
-    const bool whole = n.cell == PixelRect{0, 0, w.width, w.height};
+    const bool whole = n.cell == w.image.rect();
     routes.push_back(SampleRoute{to, whole ? PixelRect{} : wall_receive_rect(w, n), 0});
   }
   sink.route(routes);  // no longer routes to the senders left in wall_senders
@@ -653,8 +653,7 @@ void SamplerService::Impl::update_pool() {
       spdlog::warn("display's preset: {}; using the sampler's flags", e.what());
     }
   }
-  config.width = region->width;
-  config.height = region->height;
+  config.image = ImageExtent{region->image.width, region->image.height};
   config.region = region->region;
   config.sampler_id = sampler_id;
   config.seed = options.config.seed + uint64_t(sampler_id) * 0x9e3779b97f4a7c15ULL;

@@ -18,6 +18,18 @@ struct PixelRect {
   bool operator==(const PixelRect&) const = default;
 };
 
+// The size of an image in pixels: a sampling image, a display's image, a wall's virtual display.
+// Every config and message that carries an image size uses it.
+struct ImageExtent {
+  int32_t width = 0, height = 0;
+
+  int64_t area() const { return int64_t(width) * int64_t(height); }
+  bool empty() const { return width <= 0 || height <= 0; }
+  // The whole image as a rectangle, [0, width) x [0, height).
+  PixelRect rect() const { return PixelRect{0, 0, width, height}; }
+  bool operator==(const ImageExtent&) const = default;
+};
+
 // The overlap of two rectangles; the empty rectangle {} when they do not overlap.
 inline PixelRect intersect(const PixelRect& a, const PixelRect& b) {
   const PixelRect r{a.x0 > b.x0 ? a.x0 : b.x0, a.y0 > b.y0 ? a.y0 : b.y0, a.x1 < b.x1 ? a.x1 : b.x1,

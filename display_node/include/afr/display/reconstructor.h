@@ -33,8 +33,7 @@ namespace afr {
 struct ReconstructorConfig {
   // The sampling image: sample positions and tile rectangles are in its pixels. Outputs of
   // another size are the same image scaled.
-  int image_width = 256;
-  int image_height = 256;
+  ImageExtent image{256, 256};
   // The rectangle of the sampling image that reconstruct() shows, scaled to its output size;
   // empty (the default) means the whole image. Must lie inside the image.
   PixelRect viewport;
@@ -50,7 +49,7 @@ struct ReconstructorConfig {
   // moves (docs/reconstruction.md, "Viewports").
   int viewport_margin = -1;
   // N, the samples kept; 0 means 4 x the pixels of received_region() (section 5.2): with the
-  // default viewport, 4 x image_width x image_height.
+  // default viewport, 4 x image.width x image.height.
   size_t capacity = 0;
   ReconstructionMode mode = ReconstructionMode::kAdaptive;
   FilterLimits filter;
@@ -176,8 +175,8 @@ class Reconstructor : public SampleSink {
     int view_x = 0;
     int view_y = 0;
     // Output pixels of the whole image at this scale, for the projection (Projector's size).
-    double image_width = 0.0;
-    double image_height = 0.0;
+    double scaled_width = 0.0;
+    double scaled_height = 0.0;
     bool field_changed = false;       // the tile index map was rebuilt
     std::vector<TileFilter> filters;  // one per field_.tiles() entry
   };

@@ -121,9 +121,9 @@ class SampleSender {
 
   // Encode (an error means the contents break the protocol's rules: nothing is queued), queue
   // and hand as much of the queue to ZeroMQ as it takes.
-  Status send(const SampleBatch& batch, const ImageBounds& bounds = {});
-  Status send(const TilingSnapshot& snapshot, const ImageBounds& bounds = {});
-  Status send(const WallCoverage& coverage, const ImageBounds& bounds = {});
+  Status send(const SampleBatch& batch, const ImageExtent& bounds = kMaxImageExtent);
+  Status send(const TilingSnapshot& snapshot, const ImageExtent& bounds = kMaxImageExtent);
+  Status send(const WallCoverage& coverage, const ImageExtent& bounds = kMaxImageExtent);
   // Hands queued messages to ZeroMQ; call when idle. Returns the number still queued.
   size_t pump();
   // Waits (up to timeout_ms; -1: forever) until ZeroMQ has taken the whole queue: for a last
@@ -190,13 +190,13 @@ class SampleReceiver {
   // Samples and tiles outside this image are rejected (default: the protocol's limit).
   // Safe from any thread while another receives (a wall's follower learns its image from the
   // control thread): the bounds travel as one atomic word, read once per message.
-  void set_image_bounds(const ImageBounds& bounds) {
+  void set_image_bounds(const ImageExtent& bounds) {
     bounds_.store((uint64_t(uint32_t(bounds.width)) << 32) | uint32_t(bounds.height),
                   std::memory_order_relaxed);
   }
-  ImageBounds image_bounds() const {
+  ImageExtent image_bounds() const {
     const uint64_t b = bounds_.load(std::memory_order_relaxed);
-    return ImageBounds{int32_t(b >> 32), int32_t(b & 0xffffffffu)};
+    return ImageExtent{int32_t(b >> 32), int32_t(b & 0xffffffffu)};
   }
   const Counters& counters() const { return counters_; }
   // The endpoint as bound ("tcp://127.0.0.1:41234" for "tcp://127.0.0.1:*").

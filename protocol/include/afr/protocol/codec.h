@@ -76,10 +76,7 @@ inline constexpr size_t kMaxViewChannelMessage = kHeaderBytes + 128;
 
 // The image that decoded samples and tiles must lie in. Receivers that know the current
 // image size pass it; the default only enforces the protocol's 32768 x 32768.
-struct ImageBounds {
-  int32_t width = kMaxImageSize;
-  int32_t height = kMaxImageSize;
-};
+inline constexpr ImageExtent kMaxImageExtent{kMaxImageSize, kMaxImageSize};
 
 // ---------------------------------------------------------------------------------------------
 // Encoding. `out` is cleared and filled with one message; on error it is left empty.
@@ -95,14 +92,17 @@ Status encode(const View& m, std::vector<uint8_t>* out);
 // (colors and velocities are clamped there). Fails on non-finite or negative times, a span
 // over 32767 s, positions outside the image, non-finite world positions or velocities, and
 // unknown field bits.
-Status encode(const SampleBatch& m, std::vector<uint8_t>* out, const ImageBounds& bounds = {});
-Status encode(const TilingSnapshot& m, std::vector<uint8_t>* out, const ImageBounds& bounds = {});
+Status encode(const SampleBatch& m, std::vector<uint8_t>* out,
+              const ImageExtent& bounds = kMaxImageExtent);
+Status encode(const TilingSnapshot& m, std::vector<uint8_t>* out,
+              const ImageExtent& bounds = kMaxImageExtent);
 Status encode(const SamplerStats& m, std::vector<uint8_t>* out);
 Status encode(const Heartbeat& m, std::vector<uint8_t>* out);
 Status encode(const Leave& m, std::vector<uint8_t>* out);
 Status encode(const DisplayJoin& m, std::vector<uint8_t>* out);
 Status encode(const WallLayout& m, std::vector<uint8_t>* out);
-Status encode(const WallCoverage& m, std::vector<uint8_t>* out, const ImageBounds& bounds = {});
+Status encode(const WallCoverage& m, std::vector<uint8_t>* out,
+              const ImageExtent& bounds = kMaxImageExtent);
 Status encode(const Message& m, std::vector<uint8_t>* out);
 
 // ---------------------------------------------------------------------------------------------
@@ -116,16 +116,16 @@ Status decode(Bytes message, SceneChunk* out);
 Status decode(Bytes message, RegionAssignment* out);
 Status decode(Bytes message, View* out);
 // Reuses out->samples' capacity: no allocation once it has held the largest batch seen.
-Status decode(Bytes message, SampleBatch* out, const ImageBounds& bounds = {});
-Status decode(Bytes message, TilingSnapshot* out, const ImageBounds& bounds = {});
+Status decode(Bytes message, SampleBatch* out, const ImageExtent& bounds = kMaxImageExtent);
+Status decode(Bytes message, TilingSnapshot* out, const ImageExtent& bounds = kMaxImageExtent);
 Status decode(Bytes message, SamplerStats* out);
 Status decode(Bytes message, Heartbeat* out);
 Status decode(Bytes message, Leave* out);
 Status decode(Bytes message, DisplayJoin* out);
 Status decode(Bytes message, WallLayout* out);
-Status decode(Bytes message, WallCoverage* out, const ImageBounds& bounds = {});
+Status decode(Bytes message, WallCoverage* out, const ImageExtent& bounds = kMaxImageExtent);
 // Any type, by its header (allocates a fresh object; for control messages).
-Result<Message> decode_message(Bytes message, const ImageBounds& bounds = {});
+Result<Message> decode_message(Bytes message, const ImageExtent& bounds = kMaxImageExtent);
 
 // ---------------------------------------------------------------------------------------------
 // Validation: the rules decode enforces on values, for senders that want to check before
@@ -137,13 +137,13 @@ Status validate(const SceneRequest& m);
 Status validate(const SceneChunk& m);
 Status validate(const RegionAssignment& m);
 Status validate(const View& m);
-Status validate(const SampleBatch& m, const ImageBounds& bounds = {});
-Status validate(const TilingSnapshot& m, const ImageBounds& bounds = {});
+Status validate(const SampleBatch& m, const ImageExtent& bounds = kMaxImageExtent);
+Status validate(const TilingSnapshot& m, const ImageExtent& bounds = kMaxImageExtent);
 Status validate(const SamplerStats& m);
 Status validate(const Heartbeat& m);
 Status validate(const Leave& m);
 Status validate(const DisplayJoin& m);
 Status validate(const WallLayout& m);
-Status validate(const WallCoverage& m, const ImageBounds& bounds = {});
+Status validate(const WallCoverage& m, const ImageExtent& bounds = kMaxImageExtent);
 
 }  // namespace afr::protocol

@@ -98,10 +98,9 @@ struct Join {
 
 // display -> sampler, the answer to a join.
 struct Welcome {
-  uint32_t sampler_id = 0;  // assigned, >= 1
-  uint64_t session = 0;     // random per display run, != 0; a new value means a restart
-  int32_t width = 0;        // image size, 1..kMaxImageSize
-  int32_t height = 0;
+  uint32_t sampler_id = 0;        // assigned, >= 1
+  uint64_t session = 0;           // random per display run, != 0; a new value means a restart
+  ImageExtent image;              // 1..kMaxImageSize a side
   double display_time = 0.0;      // display clock, seconds, when the welcome was sent
   double refresh_interval = 0.0;  // seconds between tiling snapshots, (0, kMaxRefreshInterval]
   SceneHash scene_hash{};
@@ -135,9 +134,8 @@ struct SceneChunk {
 struct RegionAssignment {
   uint32_t sampler_id = 0;
   uint64_t epoch = 0;  // +1 per recut; a sampler ignores an epoch older than its current one
-  int32_t width = 0;   // image size, 1..kMaxImageSize
-  int32_t height = 0;
-  PixelRect region;  // non-empty, inside the image
+  ImageExtent image;   // 1..kMaxImageSize a side
+  PixelRect region;    // non-empty, inside the image
   bool operator==(const RegionAssignment&) const = default;
 };
 
@@ -239,9 +237,8 @@ struct WallNode {
 // snapshots) to every node whose cell, grown by `margin` pixels and clipped to the image,
 // contains it, and nothing to the others.
 struct WallLayout {
-  uint64_t epoch = 0;  // +1 per change; older epochs are ignored
-  int32_t width = 0;   // the virtual display, 1..kMaxImageSize
-  int32_t height = 0;
+  uint64_t epoch = 0;           // +1 per change; older epochs are ignored
+  ImageExtent image;            // the virtual display, 1..kMaxImageSize a side
   int32_t margin = 0;           // 0..kMaxWallMargin pixels
   std::vector<WallNode> nodes;  // 1..kMaxWallNodes, cells inside the image, not overlapping
   bool operator==(const WallLayout&) const = default;

@@ -17,9 +17,8 @@ enum class SamplerMode {
 
 struct SamplerConfig {
   SamplerMode mode = SamplerMode::kAdaptive;
-  int width = 256;  // the whole image
-  int height = 256;
-  PixelRect region;  // the part this sampler owns; empty = the whole image
+  ImageExtent image{256, 256};  // the whole image
+  PixelRect region;             // the part this sampler owns; empty = the whole image
   uint32_t sampler_id = 0;
   uint64_t seed = 1;
 

@@ -46,8 +46,7 @@ ScenePayload read_scene_payload(const std::string& path);
 
 struct DisplayServiceOptions {
   std::string bind = "tcp://127.0.0.1:7100";  // base endpoint; ports P, P+1, P+2
-  int width = 256;
-  int height = 256;
+  ImageExtent image{256, 256};
   double refresh_interval = 1.0 / 60.0;  // views and samplers' tiling snapshots
   std::string preset = "balanced";       // named to samplers in the welcome
   ScenePayload scene;

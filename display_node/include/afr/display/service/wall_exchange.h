@@ -151,7 +151,7 @@ class WallPeerLinks {
   bool have_epoch_ = false;
   std::unique_ptr<WallExchange> exchange_;
   std::vector<std::unique_ptr<protocol::SampleSender>> senders_;  // per peer
-  protocol::ImageBounds bounds_;
+  ImageExtent bounds_ = protocol::kMaxImageExtent;
   WallOutbox outbox_;
   std::vector<protocol::WallCoverage> arrived_;
   std::vector<CoverageCell> cells_;
