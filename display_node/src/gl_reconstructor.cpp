@@ -369,6 +369,7 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     u.set("u_grow", rule.grow);
     u.set("u_shrink_above", rule.shrink_above);
     u.set("u_shrink", rule.shrink);
+    u.set("u_relax", rule.relax);
     u.set("u_min_radius", rule.min_radius);
     u.set("u_max_radius", rule.max_radius);
     u.set("u_min_weight", kMinSplatWeight);

@@ -35,6 +35,7 @@ uniform bool u_have_coverage;
 uniform float u_grow_below;
 uniform float u_grow;
 uniform float u_shrink_above;
+uniform float u_relax;
 uniform float u_shrink;
 uniform float u_min_radius;
 uniform float u_max_radius;
@@ -63,13 +64,15 @@ float quantize_position(float v) { return abs(v) < 16384.0 ? roundEven(v * 256.0
 float splat_radius(vec2 cell, float filter_radius) {
   float g = 1.0;
   if (u_have_coverage) {
-    if (!(cell.x > 0.0)) {
+    float c = cell.x;
+    if (!(c > 0.0)) {
       g = u_grow;
     } else {
-      float mean = cell.y / cell.x;
-      if (cell.x < u_grow_below) g = u_grow * mean;
-      else if (cell.x > u_shrink_above) g = u_shrink * mean;
-      else g = mean;
+      float mean = cell.y / c;
+      float base = mean + u_relax * (1.0 - mean);
+      if (c < u_grow_below) g = base * min(u_grow, sqrt(u_grow_below / c));
+      else if (c > u_shrink_above) g = base * max(u_shrink, sqrt(sqrt(u_shrink_above / c)));
+      else g = base;
     }
   }
   float r = g * filter_radius;

@@ -22,6 +22,14 @@ ReconstructorConfig resolved(const ReconstructorConfig& config) {
   SplatSizeRule& rule = c.splat;
   rule.max_radius = std::clamp(rule.max_radius, 1.0f, kSplatRadiusLimit);
   rule.min_radius = std::clamp(rule.min_radius, 0.5f, rule.max_radius);
+  if (!(rule.grow >= 1.0f && rule.grow <= 64.0f && rule.shrink > 0.0f && rule.shrink <= 1.0f &&
+        rule.relax >= 0.0f && rule.relax <= 1.0f && rule.grow_below >= 0.0f &&
+        rule.shrink_above >= rule.grow_below)) {
+    throw Error(fmt::format(
+        "reconstructor: splat rule grow {} (1..64), shrink {} ((0, 1]), relax {} ([0, 1]), band "
+        "[{}, {}] is out of range",
+        rule.grow, rule.shrink, rule.relax, rule.grow_below, rule.shrink_above));
+  }
   if (!(c.filter.cutoff >= 1.0f && c.filter.cutoff <= 8.0f)) {
     throw Error("reconstructor: the filter cutoff must be in [1, 8] standard deviations");
   }

@@ -51,14 +51,16 @@ Image in_process_image(const Scene& scene, int w, int h, double seconds) {
 
 // "Close": the RMS difference (0-255 scale of the 8-bit images, the paper's metric) between
 // the service's image and an in-process image is at most kRunToRunFactor times the difference
-// between two in-process runs plus kRmsSlack: the network adds no more difference than two
-// live runs of the libraries already have between them. (Live runs are not bit-reproducible:
-// threads and the wall clock decide which samples exist. On this static scene two in-process
-// runs differ by 10-17 and the service by 18-20 from one of them; docs/service.md, "Tests".
-// Under a heavily loaded machine the service's processes get less CPU than the in-process
-// run, hence a factor of 2.)
+// between two in-process runs (measured by the test itself) plus kRmsSlack: the network adds
+// no more difference than two live runs of the libraries already have between them. Live runs
+// are not bit-reproducible: threads and the wall clock decide which samples exist, and the
+// store keeps the newest N = 4 W H of them, so two runs differ by the Monte Carlo noise of
+// their last samples. Measured on this still scene: two in-process runs 4.8-7.8 apart, the
+// service 6.1-8.4 from one of them (docs/reconstruction.md, "Coverage map", for the same
+// stream in another order: below 1). On a loaded machine the service's processes get less
+// CPU than the in-process run, hence a factor of 2.
 constexpr double kRunToRunFactor = 2.0;
-constexpr double kRmsSlack = 3.0;
+constexpr double kRmsSlack = 1.0;
 
 TEST_F(ServiceTest, TwoSamplersConvergeToTheInProcessImage) {
   const int w = 96, h = 72;

@@ -1,6 +1,6 @@
 // Section 6.2: the coverage map. Every splat of an image adds to the pixels it reaches; the
 // next image sizes each splat from the count and mean splat growth at its pixel, so splats
-// grow fast where samples are sparse (disocclusions, leading edges) and shrink slowly where
+// grow fast where samples are sparse (disocclusions, leading edges) and shrink gradually where
 // they pile up.
 #pragma once
 
@@ -18,12 +18,19 @@ struct CoverageCell {
   float growth_sum = 0.0f;
 };
 
-// The resizing rule and its bounds (radii in output pixels).
+// The resizing rule and its bounds (radii in output pixels). A pixel reached by between
+// grow_below and shrink_above splats is sampled well; fewer: its splats grow, more: they
+// shrink, each image by the factor that would bring the count into the band if the count
+// grows with the splats' area (count ~ r^2), within [shrink, grow]. Growing goes there at once,
+// shrinking half way (in log) per image: fast where undersampled, gradual where oversampled.
+// Every image also pulls the growth a fraction `relax` of the way back to 1 (the filter's own
+// size), so that the map has one fixed point for a given sample density, whatever the history.
 struct SplatSizeRule {
   float grow_below = 4.0f;     // fewer samples than this reached the pixel: undersampled
-  float grow = 4.0f;           // ... and its splats are multiplied by this
+  float grow = 4.0f;           // the most a splat grows per image (and a hole's growth)
   float shrink_above = 32.0f;  // more than this: oversampled
-  float shrink = 0.7f;         // ... multiplied by this
+  float shrink = 0.7f;         // the most it shrinks per image
+  float relax = 0.05f;         // per image, toward growth 1
   float min_radius = 1.0f;     // a splat always reaches the pixel it falls in
   float max_radius = 32.0f;    // bounds cost; GL point sprites are 2 r + 1 <= 65 pixels
 };
@@ -41,30 +48,36 @@ inline int splat_guard_band(const SplatSizeRule& rule) {
 // Section 6.2: the radius of a splat whose filter wants `filter_radius` (cutoff sigmas), given
 // the previous image's cell at its pixel (nullptr when there is no previous image). The map
 // holds growths, radii relative to their own filter's, not radii: a splat takes the mean
-// growth of the splats that reached its pixel, times its own filter radius:
+// growth m of the splats that reached its pixel, pulled toward 1, times a factor of the count
+// c:
 //   no previous image       -> g = 1
-//   count 0 (a hole)        -> g = grow
-//   count < grow_below      -> g = grow * mean growth
-//   count > shrink_above    -> g = shrink * mean growth
-//   otherwise               -> g = mean growth
+//   c = 0 (a hole)          -> g = grow
+//   c < grow_below          -> g = b min(grow, sqrt(grow_below / c))
+//   c > shrink_above        -> g = b max(shrink, sqrt(sqrt(shrink_above / c)))
+//   otherwise               -> g = b,        with b = m + relax (1 - m)
 // and r = g * filter_radius, clamped to [min_radius, max_radius]; NaN or non-positive input
-// gives min_radius. (Averaging absolute radii, as the paper words it, lets the wide splats of
-// a sparse region set the size of the narrow ones of a dense region next to it, which then
-// reach further, raise the mean further and blur across edges image after image.)
+// gives min_radius. The factor is continuous in c (1 at both ends of the band), so a count
+// one splat higher or lower moves a growth a little, not 4x: the map converges to one state
+// for a given sample density instead of amplifying rounding differences image after image
+// (docs/reconstruction.md, "Coverage map"). (Averaging absolute radii, as the paper words it,
+// lets the wide splats of a sparse region set the size of the narrow ones of a dense region
+// next to it, which then reach further and blur across edges.)
 inline float splat_radius(const CoverageCell* previous, float filter_radius,
                           const SplatSizeRule& rule) {
   float g = 1.0f;
   if (previous != nullptr) {
-    if (!(previous->count > 0.0f)) {
+    const float c = previous->count;
+    if (!(c > 0.0f)) {
       g = rule.grow;
     } else {
-      const float mean = previous->growth_sum / previous->count;
-      if (previous->count < rule.grow_below) {
-        g = rule.grow * mean;
-      } else if (previous->count > rule.shrink_above) {
-        g = rule.shrink * mean;
+      const float mean = previous->growth_sum / c;
+      const float base = mean + rule.relax * (1.0f - mean);
+      if (c < rule.grow_below) {
+        g = base * std::fmin(rule.grow, std::sqrt(rule.grow_below / c));
+      } else if (c > rule.shrink_above) {
+        g = base * std::fmax(rule.shrink, std::sqrt(std::sqrt(rule.shrink_above / c)));
       } else {
-        g = mean;
+        g = base;
       }
     }
   }
