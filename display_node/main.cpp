@@ -6,12 +6,10 @@
 //   display_node --wall 2x2 --headless                        (lead of a wall: cell 0,0)
 //   display_node --follow tcp://LEAD:7100 --cell 1,0 --bind tcp://127.0.0.1:7110 --headless
 //                                                             (a follower; docs/wall.md)
-#include <afr/common/builtin_scene.h>
 #include <afr/common/camera_path.h>
 #include <afr/common/cli.h>
 #include <afr/common/error.h>
 #include <afr/common/gltf_loader.h>
-#include <afr/common/image.h>
 #include <afr/common/log.h>
 #include <afr/common/presets.h>
 #include <afr/display/backend.h>
@@ -26,7 +24,6 @@
 #include <CLI/CLI.hpp>
 
 #include <atomic>
-#include <cmath>
 #include <csignal>
 #include <filesystem>
 
@@ -39,90 +36,13 @@ namespace fs = std::filesystem;
 using afr::service::DisplayServiceOptions;
 
 int keygen(const std::string& dir, int samplers) {
-  fs::create_directories(dir);
-  const afr::protocol::CurveKeyPair display = afr::protocol::generate_curve_keypair();
-  afr::protocol::save_curve_keypair((fs::path(dir) / "display.key").string(), display);
-  afr::protocol::save_curve_public_key((fs::path(dir) / "display.pub").string(),
-                                       display.public_key);
-  std::string allow = "# afr: sampler public keys the display admits (one per line)\n";
-  // The display's own key: the follower displays of a wall use the display's key pair.
-  allow += fmt::format("{} display (wall followers)\n", display.public_key);
-  for (int i = 1; i <= samplers; ++i) {
-    const afr::protocol::CurveKeyPair s = afr::protocol::generate_curve_keypair();
-    const std::string name = fmt::format("sampler-{}", i);
-    afr::protocol::save_curve_keypair((fs::path(dir) / (name + ".key")).string(), s);
-    afr::protocol::save_curve_public_key((fs::path(dir) / (name + ".pub")).string(), s.public_key);
-    allow += fmt::format("{} {}\n", s.public_key, name);
-  }
-  const fs::path allow_file = fs::path(dir) / "samplers.allow";
-  FILE* f = std::fopen(allow_file.c_str(), "w");
-  if (!f || std::fputs(allow.c_str(), f) < 0 || std::fclose(f) != 0) {
-    throw afr::Error(fmt::format("{}: cannot write", allow_file.string()));
-  }
+  afr::protocol::write_key_folder(dir, samplers);
   fmt::print(
       "wrote {0}/display.key, {0}/display.pub, {1} sampler key pair(s) and {0}/samplers.allow\n"
       "display: display_node --keys {0} ...   sampler i: sampler_node --key {0}/sampler-i.key "
       "--server-key {0}/display.pub ...\n",
       dir, samplers);
   return 0;
-}
-
-// The view camera at display time t: a replayed path (looping), or the scene's animation
-// (looping over its keyframe range, as the samplers' tracers do).
-std::function<afr::Camera(double)> camera_function(const afr::Scene& scene,
-                                                   const afr::CameraPath* path) {
-  if (path) {
-    return [path](double t) {
-      const double span = path->end_time() - path->start_time();
-      const double u = span > 0.0 ? path->start_time() + std::fmod(t, span) : path->start_time();
-      return path->camera(u);
-    };
-  }
-  return [&scene](double t) {
-    const double d = scene.duration();
-    return scene.camera_at(scene.evaluate(d > 0.0 ? std::fmod(t, d) : t));
-  };
-}
-
-// CurveZMQ from --keys DIR (display.key and samplers.allow in it) or --key and --allow. Without
-// keys loopback may go plain; any other address needs --insecure.
-void configure_security(const std::string& keys_dir, std::string key_file, std::string allow_file,
-                        bool insecure, DisplayServiceOptions* o) {
-  if (!keys_dir.empty()) {
-    if (key_file.empty()) key_file = (fs::path(keys_dir) / "display.key").string();
-    if (allow_file.empty()) allow_file = (fs::path(keys_dir) / "samplers.allow").string();
-  }
-  if (key_file.empty() != allow_file.empty()) {
-    throw afr::Error(
-        "CurveZMQ needs both the display's key pair (--key) and the samplers' "
-        "allow-list (--allow), or --keys DIR with both");
-  }
-  if (!key_file.empty()) {
-    o->keys = afr::protocol::load_curve_keypair(key_file);
-    o->allowed_keys = afr::protocol::load_allowed_keys(allow_file);
-    spdlog::info("CurveZMQ on: display key {}, {} sampler key(s) allowed from {}",
-                 o->keys.public_key, o->allowed_keys.size(), allow_file);
-    return;
-  }
-  if (afr::protocol::is_local_endpoint(afr::protocol::service_endpoints(o->bind).control)) return;
-  if (!insecure) {
-    throw afr::Error(fmt::format(
-        "--bind {} is reachable from other machines: give CurveZMQ keys (--keys DIR, made by "
-        "`display_node keygen DIR --samplers N`) or pass --insecure",
-        o->bind));
-  }
-  spdlog::warn("--insecure: {} accepts any sampler, unencrypted", o->bind);
-}
-
-// --interactive: from where the animation (or path) starts, a tenth of the scene's size per
-// second.
-std::unique_ptr<afr::service::FlyCamera> fly_camera(const afr::Scene& scene,
-                                                    const afr::Camera& start) {
-  glm::dvec3 lo, hi;
-  scene.bounds(scene.evaluate(0.0), &lo, &hi);
-  const double size = glm::length(hi - lo);
-  return std::make_unique<afr::service::FlyCamera>(
-      start, std::isfinite(size) && size > 0.0 ? 0.1 * size : 1.0);
 }
 
 }  // namespace
@@ -257,7 +177,7 @@ int main(int argc, char** argv) {
       throw afr::Error(
           "--follow: the wall's grid, margin and scene are the lead's; give only --cell");
     }
-    configure_security(keys_dir, key_file, allow_file, insecure, &o);
+    afr::service::configure_security(keys_dir, key_file, allow_file, insecure, &o);
 
     // The role: the lead (or only) display, with its scene and coordinator; or a follower of a
     // lead, which learns the virtual display, its cell and the camera from the lead.
@@ -302,10 +222,10 @@ int main(int argc, char** argv) {
             "trace the scene's own camera (docs/service.md, \"Camera paths\")",
             replay);
       }
-      o.camera_at = camera_function(*scene, path.get());
+      o.camera_at = afr::service::view_camera_function(*scene, path.get());
       if (interactive) {
         if (headless) throw afr::Error("--interactive needs a window (drop --headless)");
-        fly = fly_camera(*scene, o.camera_at(0.0));
+        fly = afr::service::FlyCamera::framing(*scene, o.camera_at(0.0));
         o.camera_at = [f = fly.get()](double) { return f->camera(); };
       }
       spdlog::info("scene {}: {} triangles, {:.2f} s of animation, {} bytes to serve", o.scene.name,

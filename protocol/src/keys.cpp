@@ -1,5 +1,8 @@
 #include <afr/protocol/keys.h>
 
+#include <cstdio>
+#include <filesystem>
+
 #include <afr/common/error.h>
 
 #include <zmq.h>
@@ -177,6 +180,28 @@ std::vector<std::string> load_allowed_keys(const std::string& path) {
     keys.push_back(kl.key);
   }
   return keys;
+}
+
+void write_key_folder(const std::string& dir, int samplers) {
+  namespace fs = std::filesystem;
+  fs::create_directories(dir);
+  const CurveKeyPair display = generate_curve_keypair();
+  save_curve_keypair((fs::path(dir) / "display.key").string(), display);
+  save_curve_public_key((fs::path(dir) / "display.pub").string(), display.public_key);
+  std::string allow = "# afr: sampler public keys the display admits (one per line)\n";
+  allow += display.public_key + " display (wall followers)\n";
+  for (int i = 1; i <= samplers; ++i) {
+    const CurveKeyPair s = generate_curve_keypair();
+    const std::string name = "sampler-" + std::to_string(i);
+    save_curve_keypair((fs::path(dir) / (name + ".key")).string(), s);
+    save_curve_public_key((fs::path(dir) / (name + ".pub")).string(), s.public_key);
+    allow += s.public_key + " " + name + "\n";
+  }
+  const fs::path allow_file = fs::path(dir) / "samplers.allow";
+  FILE* f = std::fopen(allow_file.c_str(), "w");
+  if (!f || std::fputs(allow.c_str(), f) < 0 || std::fclose(f) != 0) {
+    throw Error(allow_file.string() + ": cannot write");
+  }
 }
 
 }  // namespace afr::protocol

@@ -111,7 +111,7 @@ TEST_F(ServiceTest, KilledSamplersRegionIsReassignedWithinOneSecond) {
         const auto r = member_regions();
         return r.size() == 1 && r[0] == std::array<int, 4>{0, 0, 64, 64};
       },
-      scaled(3.0), 0.01);
+      3.0, 0.01);
   ASSERT_TRUE(reassigned) << d->log();
   // From the kill to the display's own word (its log), not to when this test's poll saw it.
   const double lost = log_time(d->log(), "lost: no word for");

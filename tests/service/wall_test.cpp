@@ -90,7 +90,7 @@ TEST_F(WallTest, FourNodesEachReceiveTheirCellAndAKilledNodeIsNoticedWithinOneSe
   // four receive about 1.27 x what the samplers send (4 x if every sample went everywhere).
   auto l = lead({"--wall", "2x2", "--margin", "8"});
   const int lead_metrics = port_ + 3;
-  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 1; }, scaled(5.0))) << l->log();
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 1; }, 5.0)) << l->log();
   const int cells[3][2] = {{1, 0}, {0, 1}, {1, 1}};
   int ports[3];
   std::unique_ptr<Process> followers[3];
@@ -98,9 +98,9 @@ TEST_F(WallTest, FourNodesEachReceiveTheirCellAndAKilledNodeIsNoticedWithinOneSe
     ports[i] = free_base_port();
     ASSERT_NE(ports[i], 0);
     followers[i] = follower(cells[i][0], cells[i][1], ports[i]);
-    ASSERT_TRUE(wait_until([&] { return wall_nodes(ports[i] + 3) >= 0; }, scaled(5.0)));
+    ASSERT_TRUE(wait_until([&] { return wall_nodes(ports[i] + 3) >= 0; }, 5.0));
   }
-  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 4; }, scaled(5.0))) << l->log();
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 4; }, 5.0)) << l->log();
   auto s1 = sampler("s1.log");
   auto s2 = sampler("s2.log");
   // Every node receives samples.
@@ -157,8 +157,7 @@ TEST_F(WallTest, FourNodesEachReceiveTheirCellAndAKilledNodeIsNoticedWithinOneSe
   // the lead's log line), and the others keep receiving.
   followers[2]->signal(SIGKILL);
   const double killed = time_of_day();
-  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 3; }, scaled(3.0), 0.01))
-      << l->log();
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 3; }, 3.0, 0.01)) << l->log();
   const double lost = log_time(l->log(), "lost: no word for");
   ASSERT_GE(lost, 0.0) << l->log();
   const double took = seconds_between(killed, lost);
@@ -176,7 +175,7 @@ TEST_F(WallTest, FourNodesEachReceiveTheirCellAndAKilledNodeIsNoticedWithinOneSe
 
   // It comes back on the same cell.
   followers[2] = follower(1, 1, ports[2]);
-  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 4; }, scaled(5.0))) << l->log();
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 4; }, 5.0)) << l->log();
   // Until its first image (a follower reconstructs once the lead's layout and views arrive).
   ASSERT_TRUE(wait_until(
       [&] {

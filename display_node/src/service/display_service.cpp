@@ -1,5 +1,7 @@
 #include <afr/display/service/display_service.h>
 
+#include <afr/common/camera_path.h>
+
 #include <afr/common/error.h>
 #include <afr/common/gltf_loader.h>
 #include <afr/protocol/scene_hash.h>
@@ -137,6 +139,53 @@ Security server_security(const DisplayServiceOptions& o) {
 }
 
 }  // namespace
+
+// The view camera at display time t: a replayed path (looping), or the scene's animation
+// (looping over its keyframe range, as the samplers' tracers do).
+std::function<Camera(double)> view_camera_function(const Scene& scene, const CameraPath* path) {
+  if (path) {
+    return [path](double t) {
+      const double span = path->end_time() - path->start_time();
+      const double u = span > 0.0 ? path->start_time() + std::fmod(t, span) : path->start_time();
+      return path->camera(u);
+    };
+  }
+  return [&scene](double t) {
+    const double d = scene.duration();
+    return scene.camera_at(scene.evaluate(d > 0.0 ? std::fmod(t, d) : t));
+  };
+}
+
+// CurveZMQ from --keys DIR (display.key and samplers.allow in it) or --key and --allow. Without
+// keys loopback may go plain; any other address needs --insecure.
+void configure_security(const std::string& keys_dir, std::string key_file, std::string allow_file,
+                        bool insecure, DisplayServiceOptions* o) {
+  namespace fs = std::filesystem;
+  if (!keys_dir.empty()) {
+    if (key_file.empty()) key_file = (fs::path(keys_dir) / "display.key").string();
+    if (allow_file.empty()) allow_file = (fs::path(keys_dir) / "samplers.allow").string();
+  }
+  if (key_file.empty() != allow_file.empty()) {
+    throw Error(
+        "CurveZMQ needs both the display's key pair (--key) and the samplers' "
+        "allow-list (--allow), or --keys DIR with both");
+  }
+  if (!key_file.empty()) {
+    o->keys = load_curve_keypair(key_file);
+    o->allowed_keys = load_allowed_keys(allow_file);
+    spdlog::info("CurveZMQ on: display key {}, {} sampler key(s) allowed from {}",
+                 o->keys.public_key, o->allowed_keys.size(), allow_file);
+    return;
+  }
+  if (is_local_endpoint(service_endpoints(o->bind).control)) return;
+  if (!insecure) {
+    throw Error(fmt::format(
+        "--bind {} is reachable from other machines: give CurveZMQ keys (--keys DIR, made by "
+        "`display_node keygen DIR --samplers N`) or pass --insecure",
+        o->bind));
+  }
+  spdlog::warn("--insecure: {} accepts any sampler, unencrypted", o->bind);
+}
 
 DisplayService::DisplayService(DisplayServiceOptions options, SampleSink& sink)
     : options_(std::move(options)), sink_(sink), start_(std::chrono::steady_clock::now()) {

@@ -46,4 +46,11 @@ Camera FlyCamera::camera() const {
   return camera_;
 }
 
+std::unique_ptr<FlyCamera> FlyCamera::framing(const Scene& scene, const Camera& start) {
+  glm::dvec3 lo, hi;
+  scene.bounds(scene.evaluate(0.0), &lo, &hi);
+  const double size = glm::length(hi - lo);
+  return std::make_unique<FlyCamera>(start, std::isfinite(size) && size > 0.0 ? 0.1 * size : 1.0);
+}
+
 }  // namespace afr::service

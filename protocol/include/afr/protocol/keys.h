@@ -42,4 +42,10 @@ CurveKeyPair load_curve_keypair(const std::string& path);
 std::string load_curve_public_key(const std::string& path);
 std::vector<std::string> load_allowed_keys(const std::string& path);
 
+// The keys of a display and its samplers, for `display_node keygen DIR --samplers N`: DIR/
+// display.key and display.pub, sampler-i.key and .pub for i = 1..N, and samplers.allow with
+// the samplers' public keys and the display's own (the followers of a wall use the display's
+// key pair). Throws afr::Error naming a file it cannot write.
+void write_key_folder(const std::string& dir, int samplers);
+
 }  // namespace afr::protocol

@@ -9,7 +9,9 @@
 #pragma once
 
 #include <afr/common/camera.h>
+#include <afr/common/camera_path.h>
 #include <afr/common/samples.h>
+#include <afr/common/scene.h>
 #include <afr/display/service/coordinator.h>
 #include <afr/display/service/display_role.h>
 #include <afr/display/service/metrics.h>
@@ -66,6 +68,17 @@ struct DisplayServiceOptions {
   int wall_column = 0;
   int wall_row = 0;
 };
+
+// The views' camera at display time t: a replayed path (looping), or the scene's animation
+// (looping over its keyframe range, as the samplers' tracers do). `scene` and `path` must
+// outlive the function.
+std::function<Camera(double)> view_camera_function(const Scene& scene, const CameraPath* path);
+
+// CurveZMQ from --keys DIR (display.key and samplers.allow in it) or --key and --allow, into
+// o->keys and o->allowed_keys. Without keys, loopback may go plain; any other address needs
+// `insecure` (then a warning). Throws afr::Error saying what is missing.
+void configure_security(const std::string& keys_dir, std::string key_file, std::string allow_file,
+                        bool insecure, DisplayServiceOptions* o);
 
 // Reads the sample channel into `sink` until `running` turns false (waking every 50 ms to
 // check), counting in `metrics`; is_member(sampler id) says whether a batch comes from a known

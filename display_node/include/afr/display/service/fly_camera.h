@@ -5,9 +5,11 @@
 #pragma once
 
 #include <afr/common/camera.h>
+#include <afr/common/scene.h>
 
 #include <glm/glm.hpp>
 
+#include <memory>
 #include <mutex>
 
 namespace afr::service {
@@ -17,6 +19,9 @@ class FlyCamera {
   // Starts at `start`; moves `speed` world units per second (e.g. a tenth of the scene's size
   // per second).
   FlyCamera(const Camera& start, double speed);
+  // From `start` (where the animation or path begins) at a tenth of the scene's size (its
+  // bounds at time 0) per second.
+  static std::unique_ptr<FlyCamera> framing(const Scene& scene, const Camera& start);
 
   // A mouse drag of (dx, dy) pixels: yaw about the world's up (+y) and pitch about the camera's
   // right, `radians_per_pixel` each; pitch stops short of straight up or down.
