@@ -173,29 +173,18 @@ Timing run(afr::Reconstructor& rec, int size, int repeats, int warmup, bool read
   return summarize(ms, cpu);
 }
 
-std::vector<int> parse_ints(const std::string& text) {
-  std::vector<int> v;
-  size_t start = 0;
-  while (start <= text.size()) {
-    const size_t comma = text.find(',', start);
-    const std::string item = text.substr(start, comma - start);
-    if (!item.empty()) v.push_back(std::stoi(item));
-    if (comma == std::string::npos) break;
-    start = comma + 1;
-  }
-  return v;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"afr-bench-reconstruct: reconstruction time vs resolution, CPU and OpenGL"};
-  std::string sizes_text = "256,512,1024", threads_text = "1,2", backends = "cpu,gl";
+  std::vector<int> sizes{256, 512, 1024}, thread_counts{1, 2};
+  std::string backends = "cpu,gl";
   std::string mode_text = "adaptive", log_level = "warn";
   int repeats = 15, warmup = 3, gl_repeats = 7;
   bool readback = true, naive = true;
-  app.add_option("--sizes", sizes_text, "square output sides, comma separated");
-  app.add_option("--threads", threads_text, "CPU backend thread counts, comma separated");
+  app.add_option("--sizes", sizes, "square output sides, comma separated")->delimiter(',');
+  app.add_option("--threads", thread_counts, "CPU backend thread counts, comma separated")
+      ->delimiter(',');
   app.add_option("--backends", backends, "cpu, gl or cpu,gl");
   app.add_option("--mode", mode_text, "adaptive, adaptive-no-reprojection or frameless");
   app.add_option("--repeats", repeats, "timed refreshes per CPU row");
@@ -208,8 +197,6 @@ int main(int argc, char** argv) {
   try {
     afr::init_logging(log_level);
     const afr::ReconstructionMode mode = afr::parse_mode(mode_text);
-    const std::vector<int> sizes = parse_ints(sizes_text);
-    const std::vector<int> thread_counts = parse_ints(threads_text);
     std::string gl_error;
     std::shared_ptr<afr::GlContext> gl;
     if (backends.find("gl") != std::string::npos) {

@@ -51,19 +51,6 @@ std::vector<uint64_t> parse_seeds(const std::string& text) {
   return seeds;
 }
 
-std::vector<int> parse_refreshes(const std::string& text) {
-  std::vector<int> v;
-  size_t start = 0;
-  while (start <= text.size()) {
-    const size_t comma = text.find(',', start);
-    const std::string item = text.substr(start, comma - start);
-    if (!item.empty()) v.push_back(std::stoi(item));
-    if (comma == std::string::npos) break;
-    start = comma + 1;
-  }
-  return v;
-}
-
 // "value (refresh)" of the first refresh where `key` is largest among [0, end), or "-".
 template <typename Key>
 std::string largest(const std::vector<afr::testing::SeamFrame>& frames, size_t end, Key key) {
@@ -81,7 +68,8 @@ std::string largest(const std::vector<afr::testing::SeamFrame>& frames, size_t e
 int main(int argc, char** argv) {
   CLI::App app{"afr-bench-seam: a 2 x 2 wall of 512² nodes against one 1024² display"};
   afr::testing::SeamSettings s;
-  std::string seeds_text = "1", backend_text = "cpu", at_text = "6,12,27,39";
+  std::string seeds_text = "1", backend_text = "cpu";
+  std::vector<int> at_refreshes{6, 12, 27, 39};
   int close = 35, mean_from = -1;
   bool no_exchange = false, no_strays = false, per_frame = false;
   app.add_option("--frames", s.frames, "refreshes, 1/60 s of virtual time apart")
@@ -108,7 +96,8 @@ int main(int argc, char** argv) {
   app.add_option("--close", close, "refreshes the test bounds value by value (first N)")
       ->check(CLI::Range(0, 100000))
       ->capture_default_str();
-  app.add_option("--at", at_text, "refreshes whose RMS the table gives, comma separated")
+  app.add_option("--at", at_refreshes, "refreshes whose RMS the table gives, comma separated")
+      ->delimiter(',')
       ->capture_default_str();
   app.add_option("--mean-from", mean_from, "--twin: means over refreshes from this one (-1: half)");
   app.add_flag("--per-frame", per_frame, "print a line per refresh as it is measured");
@@ -120,7 +109,7 @@ int main(int argc, char** argv) {
     s.backend = afr::parse_backend(backend_text);
     const std::vector<uint64_t> seeds = parse_seeds(seeds_text);
     std::vector<int> at;
-    for (int k : parse_refreshes(at_text)) {
+    for (int k : at_refreshes) {
       if (k >= 0 && k < s.frames) at.push_back(k);
     }
     if (mean_from < 0 || mean_from >= s.frames) mean_from = s.frames / 2;

@@ -8,6 +8,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <vector>
+
 #include "support/order_stability.h"
 #include "support/timing.h"
 
@@ -25,16 +28,21 @@ TEST(ReconstructionStabilityTest, TwoArrivalOrdersEndWithinOneLevelOfEachOther) 
   s.size = ImageExtent{128, 128};
   s.images = 300;
   const Scene scene = make_builtin_scene();
-  double last = 0.0, late_sum = 0.0;
+  // The end: the median of the last 30 images, which a fast turn of a few images (its timing
+  // moves with the sample stream, that is with the processor) cannot decide alone.
+  std::vector<double> rms;
+  double late_sum = 0.0;
   int late = 0;
   testing::run_stability(scene, s, [&](int j, double, const Image& a, const Image& b) {
-    last = rms_error_255(a, b);
+    rms.push_back(rms_error_255(a, b));
     if (j > s.images / 2) {
-      late_sum += last;
+      late_sum += rms.back();
       ++late;
     }
   });
-  EXPECT_LT(last, 1.0);
+  std::vector<double> end(rms.end() - 30, rms.end());
+  std::nth_element(end.begin(), end.begin() + 15, end.end());
+  EXPECT_LT(end[15], 1.0);
   EXPECT_LT(late_sum / late, 1.0);
 }
 
