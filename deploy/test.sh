@@ -3,7 +3,10 @@
 #   release  g++ -O2: every target, every test, the format check included       (build/)
 #   asan     clang, AddressSanitizer + UndefinedBehaviorSanitizer: the programs the tests run
 #            (target afr_tests) and the tests again, plus a 30 s run of each libFuzzer target;
-#            left out: the format check and two resident-memory bounds      (build-asan/)
+#            left out: the format check, two resident-memory bounds and the two largest
+#            seam comparisons (1024-pixel and OpenGL walls: minutes of arithmetic under the
+#            sanitizer, with no memory path the smaller seam and wall tests do not take;
+#            the release build runs them)                                 (build-asan/)
 #   tsan     clang, ThreadSanitizer: the tests of the concurrent parts (sample ingest and
 #            reconstruction, the sampler's worker threads, the channels)       (build-tsan/)
 # The sanitizer builds' test selection and options are the test presets (ctest --preset asan,
