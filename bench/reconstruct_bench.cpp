@@ -10,6 +10,7 @@
 #include <afr/common/error.h>
 #include <afr/common/log.h>
 #include <afr/common/random.h>
+#include <afr/common/rect.h>
 #include <afr/display/cpu_reconstructor.h>
 #include <afr/display/gl_context.h>
 #include <afr/display/gl_reconstructor.h>
@@ -30,12 +31,13 @@ namespace {
 
 // A floor under a sky, sampled with world positions (so the reconstructor reprojects), and
 // colors that vary at several scales.
-afr::Sample make_sample(const afr::Camera& camera, afr::Pcg32& rng, int size, double time) {
+afr::Sample make_sample(const afr::Camera& camera, afr::Pcg32& rng, afr::ImageExtent size,
+                        double time) {
   afr::Sample s;
-  s.x = rng.next_float() * float(size);
-  s.y = rng.next_float() * float(size);
+  s.x = rng.next_float() * float(size.width);
+  s.y = rng.next_float() * float(size.height);
   s.time = time;
-  const afr::Ray ray = camera.ray(s.x, s.y, size, size);
+  const afr::Ray ray = camera.ray(s.x, s.y, size.width, size.height);
   if (ray.direction.y < -1e-6f) {
     const float t = (-1.0f - ray.origin.y) / ray.direction.y;
     s.position = ray.origin + t * ray.direction;
@@ -49,8 +51,8 @@ afr::Sample make_sample(const afr::Camera& camera, afr::Pcg32& rng, int size, do
   return s;
 }
 
-afr::SampleBatch make_batch(const afr::Camera& camera, afr::Pcg32& rng, int size, size_t n,
-                            double t0, double t1) {
+afr::SampleBatch make_batch(const afr::Camera& camera, afr::Pcg32& rng, afr::ImageExtent size,
+                            size_t n, double t0, double t1) {
   afr::SampleBatch b;
   b.fields = afr::kFieldPosition;
   b.samples.reserve(n);
@@ -61,14 +63,14 @@ afr::SampleBatch make_batch(const afr::Camera& camera, afr::Pcg32& rng, int size
 }
 
 // 16 x 16 pixel tiles with gradients like the sampler's: mostly static, some edges and motion.
-afr::TilingSnapshot make_tiling(afr::Pcg32& rng, int size, double time, double rate) {
+afr::TilingSnapshot make_tiling(afr::Pcg32& rng, afr::ImageExtent size, double time, double rate) {
   afr::TilingSnapshot s;
   s.time = time;
-  s.region = afr::PixelRect{0, 0, size, size};
-  for (int y = 0; y < size; y += 16) {
-    for (int x = 0; x < size; x += 16) {
+  s.region = size.rect();
+  for (int y = 0; y < size.height; y += 16) {
+    for (int x = 0; x < size.width; x += 16) {
       afr::TileInfo t;
-      t.rect = afr::PixelRect{x, y, std::min(x + 16, size), std::min(y + 16, size)};
+      t.rect = afr::PixelRect{x, y, std::min(x + 16, size.width), std::min(y + 16, size.height)};
       t.G_x = 0.1f * rng.next_float();
       t.G_y = 0.1f * rng.next_float();
       t.G_t = rng.next_float() < 0.2f ? 2.0f * rng.next_float() : 0.01f * rng.next_float();
@@ -81,7 +83,9 @@ afr::TilingSnapshot make_tiling(afr::Pcg32& rng, int size, double time, double r
 
 struct Timing {
   double median = 0.0, p10 = 0.0, p90 = 0.0;
-  double cpu = 0.0;  // median CPU time of the whole process (all its threads) per refresh
+  double cpu = 0.0;      // median CPU time of the whole process (all its threads) per refresh
+  double gpu = 0.0;      // median GPU time per refresh (timer queries); 0 for the CPU backend
+  afr::GpuTimes passes;  // median of each pass
 };
 
 double median_of(std::vector<double> v) {
@@ -111,16 +115,16 @@ double process_cpu_ms() {
 
 // The yardstick of the issue: a naive single-threaded splat of every sample into its 3 x 3
 // pixels with std::exp weights, no filter adaptation, reprojection or coverage.
-Timing naive_splat(int size, int repeats) {
+Timing naive_splat(afr::ImageExtent size, int repeats) {
   afr::Pcg32 rng(5);
-  const size_t n = 4 * size_t(size) * size_t(size);
+  const size_t n = 4 * size_t(size.area());
   std::vector<glm::vec2> xy(n);
   std::vector<glm::vec3> color(n);
   for (size_t i = 0; i < n; ++i) {
-    xy[i] = glm::vec2(rng.next_float(), rng.next_float()) * float(size);
+    xy[i] = glm::vec2(rng.next_float() * float(size.width), rng.next_float() * float(size.height));
     color[i] = glm::vec3(rng.next_float(), rng.next_float(), rng.next_float());
   }
-  std::vector<glm::vec4> acc(size_t(size) * size_t(size));
+  std::vector<glm::vec4> acc(size_t(size.area()));
   std::vector<double> ms, cpu;
   for (int r = 0; r < repeats; ++r) {
     const double c0 = process_cpu_ms();
@@ -128,11 +132,11 @@ Timing naive_splat(int size, int repeats) {
     std::fill(acc.begin(), acc.end(), glm::vec4(0.0f));
     for (size_t i = 0; i < n; ++i) {
       const int cx = int(xy[i].x), cy = int(xy[i].y);
-      for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, size - 1); ++y) {
-        for (int x = std::max(cx - 1, 0); x <= std::min(cx + 1, size - 1); ++x) {
+      for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, size.height - 1); ++y) {
+        for (int x = std::max(cx - 1, 0); x <= std::min(cx + 1, size.width - 1); ++x) {
           const glm::vec2 d = glm::vec2(float(x) + 0.5f, float(y) + 0.5f) - xy[i];
           const float w = std::exp(-2.0f * glm::dot(d, d));
-          acc[size_t(y) * size_t(size) + size_t(x)] += glm::vec4(color[i] * w, w);
+          acc[size_t(y) * size_t(size.width) + size_t(x)] += glm::vec4(color[i] * w, w);
         }
       }
     }
@@ -144,18 +148,26 @@ Timing naive_splat(int size, int repeats) {
   return summarize(ms, cpu);
 }
 
+// Keeps each timed image's GPU times once (they arrive a few refreshes late).
+void collect(const afr::GpuTimes& g, int warmup, std::vector<afr::GpuTimes>* out) {
+  if (g.image > uint64_t(warmup) && (out->empty() || out->back().image < g.image)) {
+    out->push_back(g);
+  }
+}
+
 // Fills the store, then times `repeats` refreshes after `warmup` untimed ones.
-Timing run(afr::Reconstructor& rec, int size, int repeats, int warmup, bool readback,
+Timing run(afr::Reconstructor& rec, afr::ImageExtent size, int repeats, int warmup, bool readback,
            uint64_t seed) {
   afr::Pcg32 rng(afr::mix_seed(seed));
   const size_t n = rec.capacity();
-  const double rate = double(n) / (double(size) * double(size));  // per pixel per second
+  const double rate = double(n) / double(size.area());  // per pixel per second
   const afr::Camera start =
       afr::Camera::look_at({0.0, 0.5, 0.0}, {0.0, 0.0, -5.0}, {0, 1, 0}, 1.0, 0.01);
   rec.add_batch(make_batch(start, rng, size, n, 0.0, 1.0));  // one second of samples
   double t = 1.0;
   const size_t per_frame = n / 60;
   std::vector<double> ms, cpu;
+  std::vector<afr::GpuTimes> gpu;
   afr::Image image;
   for (int frame = 0; frame < warmup + repeats; ++frame) {
     const afr::Camera cam = afr::Camera::look_at({0.01 * frame, 0.5, -0.01 * frame},
@@ -164,63 +176,106 @@ Timing run(afr::Reconstructor& rec, int size, int repeats, int warmup, bool read
     t += 1.0 / 60.0;
     rec.set_tiling(make_tiling(rng, size, t, rate));
     const double c0 = process_cpu_ms();
-    rec.reconstruct(cam, t, size, size, readback ? &image : nullptr);
+    rec.reconstruct(cam, t, size.width, size.height, readback ? &image : nullptr);
     if (frame >= warmup) {
       ms.push_back(rec.frame_stats().milliseconds);
       cpu.push_back(process_cpu_ms() - c0);
     }
+    collect(rec.frame_stats().gpu, warmup, &gpu);
   }
-  return summarize(ms, cpu);
+  rec.finish();
+  collect(rec.frame_stats().gpu, warmup, &gpu);
+  Timing timing = summarize(ms, cpu);
+  if (!gpu.empty()) {
+    const auto median_pass = [&](double afr::GpuTimes::*pass) {
+      std::vector<double> v;
+      for (const afr::GpuTimes& g : gpu) v.push_back(g.*pass);
+      return median_of(v);
+    };
+    std::vector<double> totals;
+    for (const afr::GpuTimes& g : gpu) totals.push_back(g.total());
+    timing.gpu = median_of(totals);
+    timing.passes.upload = median_pass(&afr::GpuTimes::upload);
+    timing.passes.bin = median_pass(&afr::GpuTimes::bin);
+    timing.passes.splat = median_pass(&afr::GpuTimes::splat);
+    timing.passes.fill = median_pass(&afr::GpuTimes::fill);
+    timing.passes.readback = median_pass(&afr::GpuTimes::readback);
+  }
+  return timing;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"afr-bench-reconstruct: reconstruction time vs resolution, CPU and OpenGL"};
-  std::vector<int> sizes{256, 512, 1024}, thread_counts{1, 2};
+  std::vector<std::string> size_texts{"256", "512", "1024"};
+  std::vector<int> thread_counts{1, 2};
+  std::vector<std::string> splat_texts{"gather", "raster"};
+  std::vector<int> tiles{16};
   std::string backends = "cpu,gl";
   std::string mode_text = "adaptive", log_level = "warn";
-  int repeats = 15, warmup = 3, gl_repeats = 7;
+  int repeats = 15, warmup = 3, gl_repeats = 7, gpu = -1;
   bool readback = true, naive = true;
-  app.add_option("--sizes", sizes, "square output sides, comma separated")->delimiter(',');
+  app.add_option("--sizes", size_texts, "outputs, comma separated: S (square) or WxH")
+      ->delimiter(',');
   app.add_option("--threads", thread_counts, "CPU backend thread counts, comma separated")
       ->delimiter(',');
   app.add_option("--backends", backends, "cpu, gl or cpu,gl");
   app.add_option("--mode", mode_text, "adaptive, adaptive-no-reprojection or frameless");
-  app.add_option("--repeats", repeats, "timed refreshes per CPU row");
-  app.add_option("--gl-repeats", gl_repeats, "timed refreshes per GL row");
-  app.add_option("--warmup", warmup, "untimed refreshes first");
+  app.add_option("--repeats", repeats, "timed refreshes per CPU row")->check(CLI::Range(1, 10000));
+  app.add_option("--gl-repeats", gl_repeats, "timed refreshes per GL row")
+      ->check(CLI::Range(1, 10000));
+  app.add_option("--warmup", warmup, "untimed refreshes first")->check(CLI::Range(0, 10000));
   app.add_option("--readback", readback, "read the image back to memory (GL) / fill it (CPU)");
   app.add_option("--naive", naive, "also time the naive 3x3 splat yardstick");
+  app.add_option("--gpu", gpu, "EGL device for the GL backend (-1: hardware first)")
+      ->check(CLI::Range(-1, 63));
+  app.add_option("--gl-splat", splat_texts, "GL splat passes to time: gather, raster or both")
+      ->delimiter(',');
+  app.add_option("--gl-tiles", tiles, "gather tile sides to time, comma separated (4..16)")
+      ->delimiter(',');
   app.add_option("--log", log_level, "log level");
   CLI11_PARSE(app, argc, argv);
   try {
     afr::init_logging(log_level);
     const afr::ReconstructionMode mode = afr::parse_mode(mode_text);
+    std::vector<afr::ImageExtent> sizes;
+    for (const std::string& text : size_texts) {
+      sizes.push_back(text.find('x') == std::string::npos ? afr::parse_image_size(text + "x" + text)
+                                                          : afr::parse_image_size(text));
+    }
     std::string gl_error;
-    std::shared_ptr<afr::GlContext> gl;
+    std::shared_ptr<afr::EglContext> gl;
     if (backends.find("gl") != std::string::npos) {
-      gl = afr::EglContext::create_headless(&gl_error);
+      gl = afr::EglContext::create_headless(afr::HeadlessGlOptions{gpu}, &gl_error);
       if (!gl) fmt::print(stderr, "OpenGL backend skipped: {}\n", gl_error);
     }
     fmt::print(
         "Reconstruction, mode {}, N = 4 x pixels, 1/60 of N new samples per refresh, "
-        "median of {} (CPU) / {} (GL) refreshes\n\n",
-        afr::mode_name(mode), repeats, gl_repeats);
+        "median of {} (CPU) / {} (GL) refreshes{}\n",
+        afr::mode_name(mode), repeats, gl_repeats, readback ? ", image read back" : "");
+    if (gl) {
+      fmt::print("OpenGL: {} on {}, {}\n", gl->renderer(), gl->device(), gl->version());
+    }
     fmt::print(
-        "| backend | threads | resolution | N | median ms | p10 ms | p90 ms | refreshes/s | "
-        "CPU ms |\n");
-    fmt::print("|---|---|---|---|---|---|---|---|---|\n");
-    for (int size : sizes) {
+        "\n| backend | threads | resolution | N | call ms | p10 ms | p90 ms | CPU ms | GPU ms | "
+        "refreshes/s |\n");
+    fmt::print("|---|---|---|---|---|---|---|---|---|---|\n");
+    std::vector<afr::GlSplat> splats;
+    for (const std::string& text : splat_texts) splats.push_back(afr::parse_gl_splat(text));
+    std::vector<std::string> passes;
+    for (const afr::ImageExtent size : sizes) {
       afr::ReconstructorConfig cfg;
-      cfg.image.width = size;
-      cfg.image.height = size;
+      cfg.image = size;
       cfg.mode = mode;
-      const size_t n = 4 * size_t(size) * size_t(size);
+      const size_t n = 4 * size_t(size.area());
       const auto row = [&](const std::string& backend, const std::string& threads, Timing t) {
-        fmt::print("| {} | {} | {}x{} | {} | {:.2f} | {:.2f} | {:.2f} | {:.0f} | {:.2f} |\n",
-                   backend, threads, size, size, n, t.median, t.p10, t.p90, 1000.0 / t.median,
-                   t.cpu);
+        // A GPU backend's call returns before the GPU is done (unless it reads the image
+        // back): the refresh rate is bounded by the slower of the two.
+        const double bound = std::max(t.median, t.gpu);
+        fmt::print("| {} | {} | {}x{} | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {} | {:.0f} |\n",
+                   backend, threads, size.width, size.height, n, t.median, t.p10, t.p90, t.cpu,
+                   t.gpu > 0.0 ? fmt::format("{:.2f}", t.gpu) : std::string("-"), 1000.0 / bound);
         std::fflush(stdout);
       };
       if (naive) row("naive 3x3 splat (yardstick)", "1", naive_splat(size, repeats));
@@ -232,9 +287,27 @@ int main(int argc, char** argv) {
         }
       }
       if (gl) {
-        afr::GlReconstructor rec(cfg, gl);
-        row("gl (" + gl->renderer() + ")", "-", run(rec, size, gl_repeats, warmup, readback, 1));
+        for (const afr::GlSplat splat : splats) {
+          for (const int tile : splat == afr::GlSplat::kGather ? tiles : std::vector<int>{0}) {
+            afr::GlReconstructorOptions options{splat, tile > 0 ? tile : 16};
+            const std::string name =
+                splat == afr::GlSplat::kGather ? fmt::format("gl gather {}", tile) : "gl raster";
+            afr::GlReconstructor rec(cfg, gl, options);
+            const Timing t = run(rec, size, gl_repeats, warmup, readback, 1);
+            row(name, "-", t);
+            passes.push_back(
+                fmt::format("| {} | {}x{} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |",
+                            name, size.width, size.height, t.passes.upload, t.passes.bin,
+                            t.passes.splat, t.passes.fill, t.passes.readback, t.gpu));
+          }
+        }
       }
+    }
+    if (!passes.empty()) {
+      fmt::print("\nGPU time per pass, median ms (GL_TIME_ELAPSED)\n\n");
+      fmt::print("| backend | resolution | upload | bin | splat | fill | read-back | total |\n");
+      fmt::print("|---|---|---|---|---|---|---|---|\n");
+      for (const std::string& line : passes) fmt::print("{}\n", line);
     }
   } catch (const afr::Error& e) {
     fmt::print(stderr, "afr-bench-reconstruct: {}\n", e.what());

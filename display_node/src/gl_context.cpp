@@ -32,57 +32,190 @@ void GlContext::query_strings() {
   version_ = str(GL_VERSION);
 }
 
-std::unique_ptr<EglContext> EglContext::create_headless(std::string* error) {
-  // libepoxy resolves EGL itself; without libEGL there is nothing to ask.
-  if (!epoxy_has_egl()) {
-    *error = "EGL is not available";
-    return nullptr;
+namespace {
+
+bool has_extension(const char* list, std::string_view name) {
+  if (list == nullptr) return false;
+  std::string_view rest(list);
+  while (!rest.empty()) {
+    const size_t space = rest.find(' ');
+    if (rest.substr(0, space) == name) return true;
+    if (space == std::string_view::npos) break;
+    rest.remove_prefix(space + 1);
   }
-  const char* client_extensions = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
-  if (client_extensions == nullptr ||
-      std::string_view(client_extensions).find("EGL_MESA_platform_surfaceless") ==
-          std::string_view::npos) {
-    *error = "EGL has no EGL_MESA_platform_surfaceless";
-    return nullptr;
-  }
-  EGLDisplay display =
-      eglGetPlatformDisplayEXT(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
+  return false;
+}
+
+const char* client_extensions() { return eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS); }
+
+// An OpenGL 4.3 core context on an initialised display, current with no surface; EGL_NO_CONTEXT
+// with the reason in *error otherwise.
+EGLContext make_context(EGLDisplay display, std::string* error) {
   EGLint major = 0, minor = 0;
   if (display == EGL_NO_DISPLAY || !eglInitialize(display, &major, &minor)) {
-    *error = fmt::format("no surfaceless EGL display (EGL error 0x{:x})", eglGetError());
-    return nullptr;
+    *error = fmt::format("no EGL display (EGL error 0x{:x})", eglGetError());
+    return EGL_NO_CONTEXT;
   }
   // The display is never terminated: EGL hands every caller the same display for the same
-  // platform, so terminating it would pull it from under other contexts of this process.
+  // platform and device, so terminating it would pull it from under other contexts.
   if (!eglBindAPI(EGL_OPENGL_API)) {
     *error = "EGL cannot bind the OpenGL API";
-    return nullptr;
+    return EGL_NO_CONTEXT;
   }
-  const std::array<EGLint, 7> attributes = {EGL_CONTEXT_MAJOR_VERSION,
-                                            4,
-                                            EGL_CONTEXT_MINOR_VERSION,
-                                            3,
-                                            EGL_CONTEXT_OPENGL_PROFILE_MASK,
-                                            EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
-                                            EGL_NONE};
-  // EGL_KHR_no_config_context: a context for FBO rendering needs no config.
-  EGLContext context =
-      eglCreateContext(display, EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT, attributes.data());
+  // The newest core profile the driver gives, 4.3 at least: a driver may answer a request
+  // for 4.3 with exactly 4.3, without 4.4's persistent mappings or 4.5's direct access.
+  EGLContext context = EGL_NO_CONTEXT;
+  for (const EGLint minor : {6, 5, 3}) {
+    const std::array<EGLint, 7> attributes = {EGL_CONTEXT_MAJOR_VERSION,
+                                              4,
+                                              EGL_CONTEXT_MINOR_VERSION,
+                                              minor,
+                                              EGL_CONTEXT_OPENGL_PROFILE_MASK,
+                                              EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
+                                              EGL_NONE};
+    // EGL_KHR_no_config_context: a context for FBO rendering needs no config.
+    context = eglCreateContext(display, EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT, attributes.data());
+    if (context != EGL_NO_CONTEXT) break;
+  }
   if (context == EGL_NO_CONTEXT) {
     *error = fmt::format("no OpenGL 4.3 core context (EGL error 0x{:x})", eglGetError());
-    return nullptr;
+    return EGL_NO_CONTEXT;
   }
   if (!eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, context)) {
     *error = fmt::format("cannot make the context current without a surface (EGL error 0x{:x})",
                          eglGetError());
     eglDestroyContext(display, context);
+    return EGL_NO_CONTEXT;
+  }
+  return context;
+}
+
+std::vector<EGLDeviceEXT> device_handles(std::string* why) {
+  const char* client = client_extensions();
+  if (!has_extension(client, "EGL_EXT_device_enumeration") &&
+      !has_extension(client, "EGL_EXT_device_base")) {
+    *why = "EGL has no EGL_EXT_device_enumeration";
+    return {};
+  }
+  EGLint count = 0;
+  if (!eglQueryDevicesEXT(0, nullptr, &count) || count <= 0) {
+    *why = fmt::format("EGL lists no devices (EGL error 0x{:x})", eglGetError());
+    return {};
+  }
+  std::vector<EGLDeviceEXT> handles(size_t(std::min(count, 64)));
+  if (!eglQueryDevicesEXT(EGLint(handles.size()), handles.data(), &count)) {
+    *why = fmt::format("EGL cannot list its devices (EGL error 0x{:x})", eglGetError());
+    return {};
+  }
+  handles.resize(size_t(std::max(count, 0)));
+  return handles;
+}
+
+}  // namespace
+
+std::string EglDevice::describe() const {
+  std::string d = fmt::format("EGL device {} ({}", index, software ? "software" : "hardware");
+  if (!drm_file.empty()) d += ", " + drm_file;
+  return d + ")";
+}
+
+std::vector<EglDevice> egl_devices(std::string* why) {
+  if (!epoxy_has_egl()) {
+    *why = "EGL is not available";
+    return {};
+  }
+  std::vector<EglDevice> devices;
+  const std::vector<EGLDeviceEXT> handles = device_handles(why);
+  for (size_t i = 0; i < handles.size(); ++i) {
+    EglDevice d;
+    d.index = int(i);
+    const char* extensions = eglQueryDeviceStringEXT(handles[i], EGL_EXTENSIONS);
+    d.extensions = extensions != nullptr ? extensions : "";
+    d.software = has_extension(extensions, "EGL_MESA_device_software");
+    if (has_extension(extensions, "EGL_EXT_device_drm")) {
+      const char* file = eglQueryDeviceStringEXT(handles[i], EGL_DRM_DEVICE_FILE_EXT);
+      if (file != nullptr) d.drm_file = file;
+    }
+    devices.push_back(std::move(d));
+  }
+  return devices;
+}
+
+std::unique_ptr<EglContext> EglContext::create_headless(const HeadlessGlOptions& options,
+                                                        std::string* error) {
+  // libepoxy resolves EGL itself; without libEGL there is nothing to ask.
+  if (!epoxy_has_egl()) {
+    *error = "EGL is not available";
     return nullptr;
   }
-  std::unique_ptr<EglContext> c(new EglContext());
-  c->display_ = display;
-  c->context_ = context;
-  c->query_strings();
-  return c;
+  std::string why_no_devices;
+  const std::vector<EglDevice> devices = egl_devices(&why_no_devices);
+  const std::vector<EGLDeviceEXT> handles =
+      devices.empty() ? std::vector<EGLDeviceEXT>{} : device_handles(&why_no_devices);
+  const bool device_platform = has_extension(client_extensions(), "EGL_EXT_platform_device");
+  const bool surfaceless = has_extension(client_extensions(), "EGL_MESA_platform_surfaceless");
+
+  std::vector<std::string> tried;  // "what: why not", for the error
+  const auto on = [&](EGLDisplay display, std::string where) -> std::unique_ptr<EglContext> {
+    std::string why;
+    EGLContext context = make_context(display, &why);
+    if (context == EGL_NO_CONTEXT) {
+      tried.push_back(where + ": " + why);
+      return nullptr;
+    }
+    std::unique_ptr<EglContext> c(new EglContext());
+    c->display_ = display;
+    c->context_ = context;
+    c->device_ = std::move(where);
+    c->query_strings();
+    return c;
+  };
+  const auto on_device = [&](const EglDevice& d) -> std::unique_ptr<EglContext> {
+    if (!device_platform) {
+      tried.push_back(d.describe() + ": EGL has no EGL_EXT_platform_device");
+      return nullptr;
+    }
+    return on(eglGetPlatformDisplayEXT(EGL_PLATFORM_DEVICE_EXT, handles[size_t(d.index)], nullptr),
+              d.describe());
+  };
+  const auto listed = [&] {
+    if (devices.empty()) return why_no_devices;
+    std::string list;
+    for (const EglDevice& d : devices) list += (list.empty() ? "" : ", ") + d.describe();
+    return fmt::format("EGL lists {} device{}: {}", devices.size(), devices.size() == 1 ? "" : "s",
+                       list);
+  };
+
+  if (options.gpu >= 0) {
+    if (size_t(options.gpu) >= devices.size() || size_t(options.gpu) >= handles.size()) {
+      *error = fmt::format("--gpu {}: no such EGL device ({})", options.gpu, listed());
+      return nullptr;
+    }
+    if (auto c = on_device(devices[size_t(options.gpu)])) return c;
+    *error = fmt::format("--gpu {}: {}", options.gpu, tried.back());
+    return nullptr;
+  }
+  for (const EglDevice& d : devices) {
+    if (d.software || size_t(d.index) >= handles.size()) continue;
+    if (auto c = on_device(d)) return c;
+  }
+  if (surfaceless) {
+    if (auto c = on(
+            eglGetPlatformDisplayEXT(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr),
+            "Mesa surfaceless platform")) {
+      return c;
+    }
+  } else {
+    tried.push_back("Mesa surfaceless platform: EGL has no EGL_MESA_platform_surfaceless");
+  }
+  for (const EglDevice& d : devices) {
+    if (!d.software || size_t(d.index) >= handles.size()) continue;
+    if (auto c = on_device(d)) return c;
+  }
+  std::string reasons;
+  for (const std::string& t : tried) reasons += "; " + t;
+  *error = fmt::format("no headless OpenGL context ({}{})", listed(), reasons);
+  return nullptr;
 }
 
 EglContext::~EglContext() {

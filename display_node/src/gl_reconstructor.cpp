@@ -93,7 +93,28 @@ struct Uniforms {
   void set(const char* name, const glm::ivec2& v) const { glUniform2i(at(name), v.x, v.y); }
 };
 
+constexpr int kInFlight = 3;  // images the GPU may still be drawing when the next begins
+constexpr GLsizeiptr kStatusStride = 256;  // >= GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT
+// Status words of an image (kPrepareCompute, kScanCompute, kNormaliseCompute).
+enum StatusWord { kHoles = 0, kEmpty = 1, kNonfinite = 2, kPrepared = 3, kListWanted = 4 };
+enum Pass { kUpload = 0, kBin = 1, kSplatPass = 2, kFill = 3, kReadback = 4, kPasses = 5 };
+
+// Work groups for `n` invocations of 256, as x * y groups within every driver's 65535 a side.
+std::array<GLuint, 2> groups_for(size_t n) {
+  const size_t groups = std::max<size_t>(1, (n + 255) / 256);
+  const size_t x = std::min<size_t>(groups, 65535);
+  return {GLuint(x), GLuint((groups + x - 1) / x)};
+}
+
 }  // namespace
+
+GlSplat parse_gl_splat(std::string_view text) {
+  if (text == "gather") return GlSplat::kGather;
+  if (text == "raster") return GlSplat::kRaster;
+  throw Error("--gl-splat '" + std::string(text) + "': expected gather or raster");
+}
+
+const char* gl_splat_name(GlSplat splat) { return splat == GlSplat::kGather ? "gather" : "raster"; }
 
 struct GlReconstructor::Impl {
   // Samples: the store's ring, slot for slot.
@@ -103,6 +124,39 @@ struct GlReconstructor::Impl {
   uint64_t seen = 0;
   size_t stored = 0;
   std::vector<StoredSample> staging;
+  // The staging ring: kInFlight segments of a persistently mapped buffer, each reused once
+  // the GPU's copy out of it (fenced) is done.
+  GLuint upload = 0;
+  uint8_t* upload_map = nullptr;
+  size_t segment_bytes = 0;
+  std::array<GLsync, kInFlight> segment_fence{};
+  int next_segment = 0;
+
+  // Per image in flight: a fence at its end, its timer queries and its status words (a
+  // persistently mapped buffer, kStatusStride bytes an image).
+  struct InFlight {
+    GLsync fence = nullptr;
+    uint64_t image = 0;
+    std::array<GLuint, kPasses> queries{};
+    std::array<bool, kPasses> timed{};
+  };
+  std::array<InFlight, kInFlight> flight;
+  GLuint status = 0;
+  uint32_t* status_map = nullptr;
+  uint64_t images = 0;
+  GpuTimes latest_gpu;
+  std::array<uint64_t, 3> latest_counts{};  // holes, empty, non-finite of the latest finished
+
+  // The gather's buffers: prepared splats (4 vec4 each, one per stored sample at most), the
+  // per-tile counts, starts and cursors, and the tiles' lists of splat indices.
+  GLuint prepare = 0, scan = 0, scatter = 0, gather = 0;
+  GLuint splats = 0, tile_count = 0, tile_start = 0, tile_cursor = 0, lists = 0;
+  size_t list_capacity = 0;
+  int tile = 16;  // GlReconstructorOptions::tile
+  int tiles_x = 0, tiles_y = 0;
+  // Read back: the output through a framebuffer into a pixel-buffer object.
+  GLuint readback_fbo = 0, pbo = 0;
+  size_t pbo_bytes = 0;
   // A CPU copy of the ring, kept once stored_samples() asked for it.
   bool mirrored = false;
   std::vector<StoredSample> mirror;
@@ -123,7 +177,6 @@ struct GlReconstructor::Impl {
   std::array<GLuint, 2> fbo{};  // accum + coverage[i] + depth
   int current = 0;              // coverage[current] is written by the next image
   bool have_coverage = false;   // coverage[1 - current] holds the previous image's map
-  GLuint counts = 0;            // hole, empty, non-finite pixel counters
   GLint max_viewport[2] = {0, 0};
   GLint max_texture = 0;
 
@@ -132,6 +185,9 @@ struct GlReconstructor::Impl {
     glDeleteTextures(2, coverage.data());
     for (GLuint* t : {&tile_index, &accum, &atlas, &output}) glDeleteTextures(1, t);
     glDeleteRenderbuffers(1, &depth);
+    for (GLuint* b : {&tile_count, &tile_start, &tile_cursor}) glDeleteBuffers(1, b);
+    tile_count = tile_start = tile_cursor = 0;
+    tiles_x = tiles_y = 0;
     fbo = {};
     coverage = {};
     tile_index = accum = atlas = output = depth = 0;
@@ -177,10 +233,105 @@ struct GlReconstructor::Impl {
       }
     }
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    tiles_x = (w + tile - 1) / tile;
+    tiles_y = (h + tile - 1) / tile;
+    const GLsizeiptr tile_bytes = GLsizeiptr(size_t(tiles_x) * size_t(tiles_y) * sizeof(uint32_t));
+    for (GLuint* b : {&tile_count, &tile_start, &tile_cursor}) {
+      glGenBuffers(1, b);
+      glBindBuffer(GL_SHADER_STORAGE_BUFFER, *b);
+      glBufferData(GL_SHADER_STORAGE_BUFFER, tile_bytes, nullptr, GL_DYNAMIC_COPY);
+    }
     current = 0;
     have_coverage = false;
     check_gl("resizing the reconstruction targets");
     return true;
+  }
+
+  // Waits for a fence (and deletes it); the GPU is flushed first so that it can signal.
+  static void wait(GLsync* fence) {
+    if (*fence == nullptr) return;
+    while (glClientWaitSync(*fence, GL_SYNC_FLUSH_COMMANDS_BIT, 1000000000) == GL_TIMEOUT_EXPIRED) {
+    }
+    glDeleteSync(*fence);
+    *fence = nullptr;
+  }
+
+  static bool signalled(GLsync fence) {
+    return fence != nullptr && glClientWaitSync(fence, 0, 0) != GL_TIMEOUT_EXPIRED;
+  }
+
+  // A finished image's timer queries and counts become the latest; its slot is free again.
+  void harvest(InFlight& f) {
+    if (f.fence == nullptr) return;
+    wait(&f.fence);
+    GpuTimes t;
+    t.image = f.image;
+    double* pass_ms[kPasses] = {&t.upload, &t.bin, &t.splat, &t.fill, &t.readback};
+    for (int p = 0; p < kPasses; ++p) {
+      if (!f.timed[size_t(p)]) continue;
+      GLuint64 ns = 0;
+      glGetQueryObjectui64v(f.queries[size_t(p)], GL_QUERY_RESULT, &ns);
+      *pass_ms[p] = double(ns) * 1e-6;
+      f.timed[size_t(p)] = false;
+    }
+    const uint32_t* w = status_words(f);
+    if (f.image >= latest_gpu.image) {
+      latest_gpu = t;
+      latest_counts = {w[kHoles], w[kEmpty], w[kNonfinite]};
+    }
+    // An image whose tiles wanted more list entries than there were lost splats; the next
+    // image gets room for this one's need and half again.
+    if (w[kListWanted] > list_capacity) grow_lists(size_t(w[kListWanted]) * 3 / 2);
+  }
+
+  // Harvests every image the GPU has finished, without waiting.
+  void harvest_finished() {
+    for (InFlight& f : flight) {
+      if (signalled(f.fence)) harvest(f);
+    }
+  }
+
+  uint32_t* status_words(const InFlight& f) {
+    return status_map + size_t(&f - flight.data()) * (kStatusStride / sizeof(uint32_t));
+  }
+
+  void grow_lists(size_t entries) {
+    if (entries <= list_capacity) return;
+    // A 32-bit list index; beyond it (2^32 entries, 16 GiB) the lists are clamped.
+    list_capacity = std::min<size_t>(entries, size_t(UINT32_MAX));
+    glDeleteBuffers(1, &lists);
+    glGenBuffers(1, &lists);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, lists);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(list_capacity * sizeof(uint32_t)), nullptr,
+                 GL_DYNAMIC_COPY);
+  }
+
+  // The new samples into their ring slots: through the staging ring, a segment at a time.
+  void upload_samples(const SampleStore::Delta& delta, size_t capacity) {
+    RingRun runs[2];
+    const int k = ring_runs(delta.first, delta.end, capacity, runs);
+    const size_t per_segment = segment_bytes / sizeof(StoredSample);
+    for (int r = 0; r < k; ++r) {
+      for (size_t done = 0; done < runs[r].count; done += per_segment) {
+        const size_t n = std::min(per_segment, runs[r].count - done);
+        const int seg = next_segment;
+        next_segment = (next_segment + 1) % kInFlight;
+        wait(&segment_fence[size_t(seg)]);
+        const size_t at = size_t(seg) * segment_bytes;
+        std::copy_n(staging.data() + runs[r].offset + done, n,
+                    reinterpret_cast<StoredSample*>(upload_map + at));
+        glBindBuffer(GL_COPY_READ_BUFFER, upload);
+        glBindBuffer(GL_COPY_WRITE_BUFFER, samples);
+        glCopyBufferSubData(GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER, GLintptr(at),
+                            GLintptr((runs[r].slot + done) * sizeof(StoredSample)),
+                            GLsizeiptr(n * sizeof(StoredSample)));
+        segment_fence[size_t(seg)] = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+      }
+      if (mirrored) {
+        std::copy_n(staging.begin() + ptrdiff_t(runs[r].offset), runs[r].count,
+                    mirror.begin() + ptrdiff_t(runs[r].slot));
+      }
+    }
   }
 
   // The output's part of a grid-sized texture with `channels` floats per pixel.
@@ -198,16 +349,67 @@ struct GlReconstructor::Impl {
 };
 
 GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
-                                 std::shared_ptr<GlContext> context)
-    : Reconstructor(config), context_(std::move(context)), impl_(std::make_unique<Impl>()) {
+                                 std::shared_ptr<GlContext> context, GlReconstructorOptions options)
+    : Reconstructor(config),
+      context_(std::move(context)),
+      options_(options),
+      impl_(std::make_unique<Impl>()) {
   AFR_CHECK(context_ != nullptr);
   context_->make_current();
+  if (epoxy_gl_version() < 44 && !epoxy_has_gl_extension("GL_ARB_buffer_storage")) {
+    throw Error(
+        fmt::format("OpenGL {} has no persistent buffer mappings (4.4 or "
+                    "GL_ARB_buffer_storage)",
+                    context_->version()));
+  }
+  if (options_.tile < 4 || options_.tile > 16) {
+    throw Error(fmt::format("GL reconstructor: gather tile {} is outside 4..16", options_.tile));
+  }
   Impl& m = *impl_;
+  m.tile = options_.tile;
   m.splat = graphics_program(gl_shaders::kSplatVertex, gl_shaders::kSplatFragment, "splat");
   m.newest = graphics_program(gl_shaders::kNewestVertex, gl_shaders::kNewestFragment, "newest");
   m.pyramid = compute_program(gl_shaders::kPyramidCompute, "pyramid");
   m.normalise = compute_program(gl_shaders::kNormaliseCompute, "normalise");
   m.blit = graphics_program(gl_shaders::kBlitVertex, gl_shaders::kBlitFragment, "blit");
+  if (options_.splat == GlSplat::kGather) {
+    m.prepare = compute_program(gl_shaders::kPrepareCompute, "prepare");
+    m.scan = compute_program(gl_shaders::kScanCompute, "scan");
+    m.scatter = compute_program(gl_shaders::kScatterCompute, "scatter");
+    const std::string gather_source = fmt::format("#version 430 core\n#define TILE {}\n{}",
+                                                  options_.tile, gl_shaders::kGatherCompute);
+    m.gather = compute_program(gather_source.c_str(), "gather");
+    glGenBuffers(1, &m.splats);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, m.splats);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(store_.capacity() * 4 * sizeof(glm::vec4)),
+                 nullptr, GL_DYNAMIC_COPY);
+    // Splats reach about two tiles each at the filter's usual sizes; more grows the lists.
+    m.grow_lists(4 * store_.capacity());
+  }
+
+  // The staging ring: room for 1/30 s of a store that turns over once a second, 1-64 MiB a
+  // segment; a larger delta (the first image) goes through in several segments.
+  m.segment_bytes = std::clamp<size_t>(store_.capacity() * sizeof(StoredSample) / 30,
+                                       size_t(1) << 20, size_t(64) << 20);
+  m.segment_bytes -= m.segment_bytes % sizeof(StoredSample);
+  const GLbitfield write_flags = GL_MAP_WRITE_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
+  glGenBuffers(1, &m.upload);
+  glBindBuffer(GL_COPY_READ_BUFFER, m.upload);
+  glBufferStorage(GL_COPY_READ_BUFFER, GLsizeiptr(kInFlight * m.segment_bytes), nullptr,
+                  write_flags);
+  m.upload_map = static_cast<uint8_t*>(glMapBufferRange(
+      GL_COPY_READ_BUFFER, 0, GLsizeiptr(kInFlight * m.segment_bytes), write_flags));
+  const GLbitfield status_flags =
+      GL_MAP_READ_BIT | GL_MAP_WRITE_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
+  glGenBuffers(1, &m.status);
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, m.status);
+  glBufferStorage(GL_SHADER_STORAGE_BUFFER, kInFlight * kStatusStride, nullptr, status_flags);
+  m.status_map = static_cast<uint32_t*>(
+      glMapBufferRange(GL_SHADER_STORAGE_BUFFER, 0, kInFlight * kStatusStride, status_flags));
+  if (m.upload_map == nullptr || m.status_map == nullptr) {
+    throw Error("OpenGL: cannot map the staging or status buffers persistently");
+  }
+  for (Impl::InFlight& f : m.flight) glGenQueries(kPasses, f.queries.data());
 
   glGenVertexArrays(1, &m.vao);
   glGenVertexArrays(1, &m.empty_vao);
@@ -236,9 +438,6 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
 
   glGetIntegerv(GL_MAX_VIEWPORT_DIMS, m.max_viewport);
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &m.max_texture);
-  glGenBuffers(1, &m.counts);
-  glBindBuffer(GL_SHADER_STORAGE_BUFFER, m.counts);
-  glBufferData(GL_SHADER_STORAGE_BUFFER, 3 * sizeof(uint32_t), nullptr, GL_DYNAMIC_READ);
   check_gl("creating the GL reconstructor");
 }
 
@@ -246,13 +445,24 @@ GlReconstructor::~GlReconstructor() {
   context_->make_current();
   Impl& m = *impl_;
   m.release_sized();
-  for (GLuint p : {m.splat, m.newest, m.pyramid, m.normalise, m.blit}) glDeleteProgram(p);
+  for (Impl::InFlight& f : m.flight) {
+    if (f.fence != nullptr) glDeleteSync(f.fence);
+    glDeleteQueries(kPasses, f.queries.data());
+  }
+  for (GLsync& f : m.segment_fence) {
+    if (f != nullptr) glDeleteSync(f);
+  }
+  for (GLuint p : {m.splat, m.newest, m.pyramid, m.normalise, m.blit, m.prepare, m.scan, m.scatter,
+                   m.gather}) {
+    glDeleteProgram(p);
+  }
+  for (GLuint* b : {&m.upload, &m.status, &m.splats, &m.lists, &m.pbo}) glDeleteBuffers(1, b);
+  glDeleteFramebuffers(1, &m.readback_fbo);
   glDeleteVertexArrays(1, &m.vao);
   glDeleteVertexArrays(1, &m.empty_vao);
   glDeleteBuffers(1, &m.samples);
   glDeleteBuffers(1, &m.tile_filters_buffer);
   glDeleteTextures(1, &m.tile_filters);
-  glDeleteBuffers(1, &m.counts);
 }
 
 uint32_t GlReconstructor::output_texture() const { return impl_->output; }
@@ -262,20 +472,25 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
   context_->make_current();
   Impl& m = *impl_;
 
+  // ---- This image's slot: the one kInFlight images back must be done (at most kInFlight in
+  // flight); whatever else the GPU has finished reports its times and counts.
+  Impl::InFlight& f = m.flight[size_t(m.images % kInFlight)];
+  m.harvest(f);
+  m.harvest_finished();
+  f.image = ++m.images;
+  uint32_t* status = m.status_words(f);
+  std::fill_n(status, kStatusStride / sizeof(uint32_t), 0u);
+  const GLintptr status_at = GLintptr(size_t(&f - m.flight.data()) * kStatusStride);
+  const auto timed = [&](Pass pass, auto&& body) {
+    glBeginQuery(GL_TIME_ELAPSED, f.queries[size_t(pass)]);
+    body();
+    glEndQuery(GL_TIME_ELAPSED);
+    f.timed[size_t(pass)] = true;
+  };
+
   // ---- Only the new samples go to the GPU, into their ring slots.
   const SampleStore::Delta delta = store_.copy_since(m.seen, &m.staging);
-  glBindBuffer(GL_ARRAY_BUFFER, m.samples);
-  RingRun runs[2];
-  const int k = ring_runs(delta.first, delta.end, store_.capacity(), runs);
-  for (int r = 0; r < k; ++r) {
-    glBufferSubData(GL_ARRAY_BUFFER, GLintptr(runs[r].slot * sizeof(StoredSample)),
-                    GLsizeiptr(runs[r].count * sizeof(StoredSample)),
-                    m.staging.data() + runs[r].offset);
-    if (m.mirrored) {
-      std::copy_n(m.staging.begin() + ptrdiff_t(runs[r].offset), runs[r].count,
-                  m.mirror.begin() + ptrdiff_t(runs[r].slot));
-    }
-  }
+  timed(kUpload, [&] { m.upload_samples(delta, store_.capacity()); });
   m.seen = delta.end;
   m.stored = delta.stored;
 
@@ -313,38 +528,12 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
   const glm::vec2 scale(setup.scale_x, setup.scale_y);
   const glm::vec2 origin(float(setup.grid.origin_x), float(setup.grid.origin_y));
   const glm::ivec2 size(width, height);
+  const bool gather = options_.splat == GlSplat::kGather &&
+                      current_mode != ReconstructionMode::kTraditionalFrameless;
 
-  // ---- Splats (or newest samples) into (sum w c, sum w) and coverage.
-  glBindFramebuffer(GL_FRAMEBUFFER, m.fbo[size_t(m.current)]);
-  const GLenum draw_buffers[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
-  glDrawBuffers(2, draw_buffers);
-  const float zero[4] = {0.0f, 0.0f, 0.0f, 0.0f};
-  glClearBufferfv(GL_COLOR, 0, zero);
-  glClearBufferfv(GL_COLOR, 1, zero);
-  const float far_depth = 1.0f;
-  glClearBufferfv(GL_DEPTH, 0, &far_depth);
-  // The viewport is the image grown by the guard band: samples just off the image still
-  // reach its edge pixels (GL culls points whose center is outside the viewport).
-  glViewport(-g, -g, width + 2 * g, height + 2 * g);
-  glEnable(GL_PROGRAM_POINT_SIZE);
-  glBindVertexArray(m.vao);
-  if (current_mode == ReconstructionMode::kTraditionalFrameless) {
-    glUseProgram(m.newest);
-    const Uniforms u{m.newest};
-    u.set("u_now", time);
-    u.set("u_max_future", limits.max_future);
-    u.set("u_scale", scale);
-    u.set("u_origin", origin);
-    u.set("u_size", size);
-    u.set("u_guard", float(g));
-    glDisable(GL_BLEND);
-    glEnable(GL_DEPTH_TEST);
-    glDepthFunc(GL_LESS);
-    glDrawArrays(GL_POINTS, 0, GLsizei(m.stored));
-    glDisable(GL_DEPTH_TEST);
-  } else {
-    glUseProgram(m.splat);
-    const Uniforms u{m.splat};
+  // The uniforms the splat's preparation reads: the vertex stage of the raster path, the
+  // prepare pass of the gather.
+  const auto set_splat_uniforms = [&](const Uniforms& u) {
     const Projector proj(camera, setup.scaled_width, setup.scaled_height, setup.grid.origin_x,
                          setup.grid.origin_y);
     u.set("u_now", time);
@@ -372,7 +561,6 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     u.set("u_relax", rule.relax);
     u.set("u_min_radius", rule.min_radius);
     u.set("u_max_radius", rule.max_radius);
-    u.set("u_min_weight", kMinSplatWeight);
     u.set("u_tile_index", 0);
     u.set("u_tile_filters", 1);
     u.set("u_coverage", 2);
@@ -382,77 +570,205 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     glBindTexture(GL_TEXTURE_BUFFER, m.tile_filters);
     glActiveTexture(GL_TEXTURE2);
     glBindTexture(GL_TEXTURE_2D, m.coverage[size_t(1 - m.current)]);
-    glEnable(GL_BLEND);
-    glBlendEquation(GL_FUNC_ADD);
-    glBlendFunc(GL_ONE, GL_ONE);
-    glDrawArrays(GL_POINTS, 0, GLsizei(m.stored));
-    glDisable(GL_BLEND);
     glActiveTexture(GL_TEXTURE0);
-  }
-  glBindVertexArray(0);
-  glBindFramebuffer(GL_FRAMEBUFFER, 0);
-  glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
+  };
 
-  // ---- Hole pyramid (hole_fill.h), level by level.
-  glUseProgram(m.pyramid);
-  {
-    const Uniforms u{m.pyramid};
-    glm::ivec2 src_size(width, height);
-    int src_row = 0;
-    for (size_t level = 0; level < m.levels.size(); ++level) {
-      const PyramidLevel& L = m.levels[level];
-      glBindImageTexture(0, level == 0 ? m.accum : m.atlas, 0, GL_FALSE, 0, GL_READ_ONLY,
-                         GL_RGBA32F);
-      glBindImageTexture(1, m.atlas, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
-      u.set("u_src_size", src_size);
-      u.set("u_src_row", src_row);
-      u.set("u_dst_size", glm::ivec2(L.width, L.height));
-      u.set("u_dst_row", L.row_offset);
-      glDispatchCompute(GLuint((L.width + kGroup - 1) / kGroup),
-                        GLuint((L.height + kGroup - 1) / kGroup), 1);
-      glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
-      src_size = glm::ivec2(L.width, L.height);
-      src_row = L.row_offset;
-    }
-  }
+  // ---- Splats (or newest samples) into (sum w c, sum w) and coverage.
+  const auto bin_for_gather = [&] {
+    const GLuint tiles = GLuint(m.tiles_x * m.tiles_y);
+    const std::array<GLuint, 2> per_sample = groups_for(m.stored);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m.samples);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m.splats);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, m.tile_count);
+    glBindBufferRange(GL_SHADER_STORAGE_BUFFER, 3, m.status, status_at, kStatusStride);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, m.tile_start);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, m.tile_cursor);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, m.lists);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, m.tile_count);
+    glClearBufferData(GL_SHADER_STORAGE_BUFFER, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
 
-  // ---- Normalise, fill holes.
-  glUseProgram(m.normalise);
-  {
-    const Uniforms u{m.normalise};
-    const uint32_t no_counts[3] = {0, 0, 0};
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, m.counts);
-    glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, sizeof no_counts, no_counts);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m.counts);
-    glBindImageTexture(0, m.accum, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
-    glBindImageTexture(1, m.atlas, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
-    glBindImageTexture(2, m.output, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
-    std::vector<glm::ivec3> level_data;
-    for (const PyramidLevel& L : m.levels) level_data.emplace_back(L.width, L.height, L.row_offset);
-    AFR_CHECK(level_data.size() <= 32);
-    u.set("u_size", glm::ivec2(out_width, out_height));
-    u.set("u_offset", glm::ivec2(setup.view_x, setup.view_y));
-    u.set("u_levels", int(level_data.size()));
-    if (!level_data.empty()) {
-      glUniform3iv(u.at("u_level"), GLsizei(level_data.size()), &level_data[0].x);
+    glUseProgram(m.prepare);
+    const Uniforms prep{m.prepare};
+    set_splat_uniforms(prep);
+    glUniform1ui(prep.at("u_stored"), GLuint(m.stored));
+    prep.set("u_tile", options_.tile);
+    prep.set("u_tiles", glm::ivec2(m.tiles_x, m.tiles_y));
+    glDispatchCompute(per_sample[0], per_sample[1], 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+
+    glUseProgram(m.scan);
+    glUniform1ui(glGetUniformLocation(m.scan, "u_tiles"), tiles);
+    glDispatchCompute(1, 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+
+    glUseProgram(m.scatter);
+    const Uniforms sc{m.scatter};
+    sc.set("u_tiles", glm::ivec2(m.tiles_x, m.tiles_y));
+    glUniform1ui(sc.at("u_list_capacity"), GLuint(m.list_capacity));
+    glDispatchCompute(per_sample[0], per_sample[1], 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  };
+  const auto splat_by_gather = [&] {
+    glUseProgram(m.gather);
+    const Uniforms ga{m.gather};
+    ga.set("u_size", size);
+    ga.set("u_tiles", glm::ivec2(m.tiles_x, m.tiles_y));
+    glUniform1ui(ga.at("u_list_capacity"), GLuint(m.list_capacity));
+    ga.set("u_min_weight", kMinSplatWeight);
+    glBindImageTexture(0, m.accum, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+    glBindImageTexture(1, m.coverage[size_t(m.current)], 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RG32F);
+    glDispatchCompute(GLuint(m.tiles_x), GLuint(m.tiles_y), 1);
+    glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
+  };
+  const auto splat_by_raster = [&] {
+    glBindFramebuffer(GL_FRAMEBUFFER, m.fbo[size_t(m.current)]);
+    const GLenum draw_buffers[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
+    glDrawBuffers(2, draw_buffers);
+    const float zero[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+    glClearBufferfv(GL_COLOR, 0, zero);
+    glClearBufferfv(GL_COLOR, 1, zero);
+    const float far_depth = 1.0f;
+    glClearBufferfv(GL_DEPTH, 0, &far_depth);
+    // The viewport is the image grown by the guard band: samples just off the image still
+    // reach its edge pixels (GL culls points whose center is outside the viewport).
+    glViewport(-g, -g, width + 2 * g, height + 2 * g);
+    glEnable(GL_PROGRAM_POINT_SIZE);
+    glBindVertexArray(m.vao);
+    if (current_mode == ReconstructionMode::kTraditionalFrameless) {
+      glUseProgram(m.newest);
+      const Uniforms u{m.newest};
+      u.set("u_now", time);
+      u.set("u_max_future", limits.max_future);
+      u.set("u_scale", scale);
+      u.set("u_origin", origin);
+      u.set("u_size", size);
+      u.set("u_guard", float(g));
+      glDisable(GL_BLEND);
+      glEnable(GL_DEPTH_TEST);
+      glDepthFunc(GL_LESS);
+      glDrawArrays(GL_POINTS, 0, GLsizei(m.stored));
+      glDisable(GL_DEPTH_TEST);
+    } else {
+      glUseProgram(m.splat);
+      const Uniforms u{m.splat};
+      set_splat_uniforms(u);
+      u.set("u_min_weight", kMinSplatWeight);
+      glEnable(GL_BLEND);
+      glBlendEquation(GL_FUNC_ADD);
+      glBlendFunc(GL_ONE, GL_ONE);
+      glDrawArrays(GL_POINTS, 0, GLsizei(m.stored));
+      glDisable(GL_BLEND);
     }
-    glDispatchCompute(GLuint((out_width + kGroup - 1) / kGroup),
-                      GLuint((out_height + kGroup - 1) / kGroup), 1);
-    glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_TEXTURE_UPDATE_BARRIER_BIT |
-                    GL_TEXTURE_FETCH_BARRIER_BIT);
-    uint32_t counts[3] = {0, 0, 0};
-    glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, sizeof counts, counts);
-    frame_.hole_pixels = counts[0];
-    frame_.empty_pixels = counts[1];
-    frame_.nonfinite_pixels = counts[2];
-  }
-  glUseProgram(0);
+    glBindVertexArray(0);
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
+  };
+  // The image: splats, fill, read-back; a fence at its end.
+  const auto draw = [&] {
+    if (gather) timed(kBin, bin_for_gather);
+    timed(kSplatPass, [&] { gather ? splat_by_gather() : splat_by_raster(); });
+
+    timed(kFill, [&] {
+      // ---- Hole pyramid (hole_fill.h), level by level.
+      glUseProgram(m.pyramid);
+      {
+        const Uniforms u{m.pyramid};
+        glm::ivec2 src_size(width, height);
+        int src_row = 0;
+        for (size_t level = 0; level < m.levels.size(); ++level) {
+          const PyramidLevel& L = m.levels[level];
+          glBindImageTexture(0, level == 0 ? m.accum : m.atlas, 0, GL_FALSE, 0, GL_READ_ONLY,
+                             GL_RGBA32F);
+          glBindImageTexture(1, m.atlas, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+          u.set("u_src_size", src_size);
+          u.set("u_src_row", src_row);
+          u.set("u_dst_size", glm::ivec2(L.width, L.height));
+          u.set("u_dst_row", L.row_offset);
+          glDispatchCompute(GLuint((L.width + kGroup - 1) / kGroup),
+                            GLuint((L.height + kGroup - 1) / kGroup), 1);
+          glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
+          src_size = glm::ivec2(L.width, L.height);
+          src_row = L.row_offset;
+        }
+      }
+
+      // ---- Normalise, fill holes; the pixel counts into this image's status words.
+      glUseProgram(m.normalise);
+      const Uniforms u{m.normalise};
+      glBindBufferRange(GL_SHADER_STORAGE_BUFFER, 0, m.status, status_at, kStatusStride);
+      glBindImageTexture(0, m.accum, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
+      glBindImageTexture(1, m.atlas, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
+      glBindImageTexture(2, m.output, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+      std::vector<glm::ivec3> level_data;
+      for (const PyramidLevel& L : m.levels)
+        level_data.emplace_back(L.width, L.height, L.row_offset);
+      AFR_CHECK(level_data.size() <= 32);
+      u.set("u_size", glm::ivec2(out_width, out_height));
+      u.set("u_offset", glm::ivec2(setup.view_x, setup.view_y));
+      u.set("u_levels", int(level_data.size()));
+      if (!level_data.empty()) {
+        glUniform3iv(u.at("u_level"), GLsizei(level_data.size()), &level_data[0].x);
+      }
+      glDispatchCompute(GLuint((out_width + kGroup - 1) / kGroup),
+                        GLuint((out_height + kGroup - 1) / kGroup), 1);
+      glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_TEXTURE_UPDATE_BARRIER_BIT |
+                      GL_TEXTURE_FETCH_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT |
+                      GL_PIXEL_BUFFER_BARRIER_BIT | GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT);
+    });
+    glUseProgram(0);
+
+    // ---- The image leaves the GPU only when asked for: into a pixel-buffer object.
+    if (out != nullptr) {
+      const size_t bytes = size_t(out_width) * size_t(out_height) * sizeof(glm::vec4);
+      timed(kReadback, [&] {
+        if (m.readback_fbo == 0) glGenFramebuffers(1, &m.readback_fbo);
+        if (m.pbo == 0 || m.pbo_bytes < bytes) {
+          glDeleteBuffers(1, &m.pbo);
+          glGenBuffers(1, &m.pbo);
+          glBindBuffer(GL_PIXEL_PACK_BUFFER, m.pbo);
+          glBufferData(GL_PIXEL_PACK_BUFFER, GLsizeiptr(bytes), nullptr, GL_STREAM_READ);
+          m.pbo_bytes = bytes;
+        }
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, m.readback_fbo);
+        glFramebufferTexture2D(GL_READ_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, m.output,
+                               0);
+        glReadBuffer(GL_COLOR_ATTACHMENT0);
+        glBindBuffer(GL_PIXEL_PACK_BUFFER, m.pbo);
+        glPixelStorei(GL_PACK_ALIGNMENT, 4);
+        glReadPixels(0, 0, out_width, out_height, GL_RGBA, GL_FLOAT, nullptr);
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+      });
+    }
+    f.fence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+    glFlush();
+  };
+  draw();
 
   if (out != nullptr) {
-    glBindTexture(GL_TEXTURE_2D, m.output);
-    glPixelStorei(GL_PACK_ALIGNMENT, 4);
-    glGetTexImage(GL_TEXTURE_2D, 0, GL_RGB, GL_FLOAT, out->pixels.data());
+    // The caller wants the pixels now: wait for this image, then copy them out. Were the
+    // tiles' lists too short for it (splats lost), it is drawn again with the room it needs.
+    const size_t lists_before = m.list_capacity;
+    m.harvest(f);
+    if (gather && m.list_capacity > lists_before) {
+      std::fill_n(status, kStatusStride / sizeof(uint32_t), 0u);
+      draw();
+      m.harvest(f);
+    }
+
+    glBindBuffer(GL_PIXEL_PACK_BUFFER, m.pbo);
+    const auto* rgba = static_cast<const glm::vec4*>(glMapBufferRange(
+        GL_PIXEL_PACK_BUFFER, 0,
+        GLsizeiptr(size_t(out_width) * size_t(out_height) * sizeof(glm::vec4)), GL_MAP_READ_BIT));
+    if (rgba == nullptr) throw Error("OpenGL: cannot map the read-back buffer");
+    for (size_t i = 0; i < out->pixels.size(); ++i) out->pixels[i] = glm::vec3(rgba[i]);
+    glUnmapBuffer(GL_PIXEL_PACK_BUFFER);
+    glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
   }
+  frame_.hole_pixels = m.latest_counts[0];
+  frame_.empty_pixels = m.latest_counts[1];
+  frame_.nonfinite_pixels = m.latest_counts[2];
+  frame_.gpu = m.latest_gpu;
   if (current_mode == ReconstructionMode::kTraditionalFrameless) {
     m.have_coverage = false;
   } else {
@@ -460,6 +776,16 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     m.current = 1 - m.current;
   }
   check_gl("reconstruct");
+}
+
+void GlReconstructor::finish() {
+  context_->make_current();
+  Impl& m = *impl_;
+  for (Impl::InFlight& f : m.flight) m.harvest(f);
+  frame_.hole_pixels = m.latest_counts[0];
+  frame_.empty_pixels = m.latest_counts[1];
+  frame_.nonfinite_pixels = m.latest_counts[2];
+  frame_.gpu = m.latest_gpu;
 }
 
 void GlReconstructor::read_weights(std::vector<float>* out) {

@@ -302,4 +302,260 @@ void main() {
 }
 )";
 
+// ---- The tiled gather: the splat pass as compute (prepare, scan, scatter, gather). The ring
+// holds StoredSample (sample_store.h) as 16 words: time (2, a double), x, y, r, g, b, flags,
+// position (3), velocity (3), sampler id, reserved.
+
+const char* const kPrepareCompute = R"(#version 430 core
+layout(local_size_x = 256) in;
+layout(std430, binding = 0) readonly buffer Ring { uint ring[]; };
+// 16 floats a splat: center (2), kernel (4: k_x, k_y, off_x, off_y), color (3), weight,
+// extent (3: r_x, r_y, growth), tile range (1: x0 | y0 << 16), tile range end (1: x1 | y1 << 16),
+// unused.
+layout(std430, binding = 1) writeonly buffer Splats { vec4 splats[]; };
+layout(std430, binding = 2) buffer TileCounts { uint tile_count[]; };
+layout(std430, binding = 3) buffer Status { uint status[]; };  // [3]: splats prepared
+
+uniform uint u_stored;
+uniform double u_now;
+uniform bool u_reproject;
+uniform vec3 u_eye;
+uniform vec3 u_forward;
+uniform vec3 u_axis_x;
+uniform vec3 u_axis_y;
+uniform float u_znear;
+uniform vec2 u_half;
+uniform float u_min_direction_z;
+uniform float u_max_coordinate;
+uniform vec2 u_scale;
+uniform vec2 u_origin;
+uniform ivec2 u_size;
+uniform float u_guard;
+uniform float u_max_future;
+uniform float u_cutoff;
+uniform float u_min_wt;
+uniform bool u_have_coverage;
+uniform float u_grow_below;
+uniform float u_grow;
+uniform float u_shrink_above;
+uniform float u_relax;
+uniform float u_shrink;
+uniform float u_min_radius;
+uniform float u_max_radius;
+uniform int u_tile;      // tile side, pixels
+uniform ivec2 u_tiles;   // tiles across, down
+
+uniform usampler2D u_tile_index;
+uniform samplerBuffer u_tile_filters;
+uniform sampler2D u_coverage;
+
+vec2 quantize_position(vec2 v) {
+  return mix(v, roundEven(v * 256.0) / 256.0, lessThan(abs(v), vec2(16384.0)));
+}
+float quantize_position(float v) { return abs(v) < 16384.0 ? roundEven(v * 256.0) / 256.0 : v; }
+
+float splat_radius(vec2 cell, float filter_radius) {
+  float g = 1.0;
+  if (u_have_coverage) {
+    float c = cell.x;
+    if (!(c > 0.0)) {
+      g = u_grow;
+    } else {
+      float mean = cell.y / c;
+      float base = mean + u_relax * (1.0 - mean);
+      if (c < u_grow_below) g = base * min(u_grow, sqrt(u_grow_below / c));
+      else if (c > u_shrink_above) g = base * max(u_shrink, sqrt(sqrt(u_shrink_above / c)));
+      else g = base;
+    }
+  }
+  float r = g * filter_radius;
+  if (!(r >= u_min_radius)) return u_min_radius;
+  return min(r, u_max_radius);
+}
+
+vec3 word3(uint i) { return uintBitsToFloat(uvec3(ring[i], ring[i + 1u], ring[i + 2u])); }
+
+void main() {
+  // groups_for(): x * y work groups of 256.
+  uint slot = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * 256u +
+              gl_LocalInvocationID.x;
+  if (slot >= u_stored) return;
+  uint b = slot * 16u;
+  double time = packDouble2x32(uvec2(ring[b], ring[b + 1u]));
+  vec2 xy = uintBitsToFloat(uvec2(ring[b + 2u], ring[b + 3u]));
+  vec3 color = word3(b + 4u);
+  uint flags = ring[b + 7u];
+  vec3 position = word3(b + 8u);
+  vec3 velocity = word3(b + 11u);
+
+  double age_d = u_now - time;
+  if (age_d < double(-u_max_future)) return;
+  float age_signed = float(age_d);
+  float age = max(age_signed, 0.0);
+  vec2 p;
+  if (u_reproject && (flags & 1u) != 0u) {
+    vec3 d;
+    float z;
+    if ((flags & 2u) != 0u) {
+      d = position;
+      z = dot(d, u_forward);
+      if (!(z > u_min_direction_z)) return;
+    } else {
+      vec3 w = position;
+      if ((flags & 4u) != 0u) w += velocity * age_signed;
+      d = w - u_eye;
+      z = dot(d, u_forward);
+      if (!(z >= u_znear)) return;
+    }
+    p = vec2(u_half.x + dot(d, u_axis_x) / z, u_half.y - dot(d, u_axis_y) / z);
+    if (!(abs(p.x) < u_max_coordinate) || !(abs(p.y) < u_max_coordinate)) return;
+    p = quantize_position(p) - u_origin;
+  } else {
+    p = quantize_position(xy * u_scale) - u_origin;
+  }
+  vec2 size = vec2(u_size);
+  if (!(p.x > -u_guard && p.x < size.x + u_guard && p.y > -u_guard && p.y < size.y + u_guard)) {
+    return;
+  }
+  ivec2 pix = clamp(ivec2(floor(p)), ivec2(0), u_size - 1);
+  vec4 f = texelFetch(u_tile_filters, int(texelFetch(u_tile_index, pix, 0).r));
+  float r_filter = u_cutoff * max(f.x, f.y);
+  float r = splat_radius(texelFetch(u_coverage, pix, 0).xy, r_filter);
+  float grown = max(1.0, r / r_filter);
+  float sigma_x = f.x * grown;
+  float sigma_y = f.y * grown;
+  float k_x = 0.5 / (sigma_x * sigma_x);
+  float k_y = 0.5 / (sigma_y * sigma_y);
+  float r_x = quantize_position(min(r, u_cutoff * sigma_x));
+  float r_y = quantize_position(min(r, u_cutoff * sigma_y));
+  // The pixels whose centers lie strictly within (r_x, r_y) of p: x + 0.5 in (p - r, p + r).
+  ivec2 lo = max(ivec2(floor(p - vec2(r_x, r_y) - 0.5)), ivec2(0));
+  ivec2 hi = min(ivec2(ceil(p + vec2(r_x, r_y) - 0.5)), u_size - 1);
+  if (any(greaterThan(lo, hi))) return;
+  ivec2 t0 = lo / u_tile, t1 = hi / u_tile;
+  uint i = atomicAdd(status[3], 1u);
+  float wt = max(exp(-age * age * f.z), u_min_wt) / (sigma_x * sigma_y);
+  splats[4u * i] = vec4(p, k_x, k_y);
+  splats[4u * i + 1u] = vec4(exp(-r_x * r_x * k_x), exp(-r_y * r_y * k_y), color.r, color.g);
+  splats[4u * i + 2u] = vec4(color.b, wt, r_x, r_y);
+  splats[4u * i + 3u] = vec4(r / r_filter, uintBitsToFloat(uint(t0.x) | (uint(t0.y) << 16)),
+                             uintBitsToFloat(uint(t1.x) | (uint(t1.y) << 16)), 0.0);
+  for (int ty = t0.y; ty <= t1.y; ++ty) {
+    for (int tx = t0.x; tx <= t1.x; ++tx) atomicAdd(tile_count[ty * u_tiles.x + tx], 1u);
+  }
+}
+)";
+
+const char* const kScanCompute = R"(#version 430 core
+layout(local_size_x = 1024) in;
+layout(std430, binding = 2) buffer TileCounts { uint tile_count[]; };
+layout(std430, binding = 4) writeonly buffer TileStart { uint tile_start[]; };
+layout(std430, binding = 5) writeonly buffer TileCursor { uint tile_cursor[]; };
+layout(std430, binding = 3) buffer Status { uint status[]; };  // [4]: list entries wanted
+uniform uint u_tiles;
+shared uint partial[1024];
+void main() {
+  // Each thread sums a run of tiles; an exclusive scan over the runs; each thread writes its
+  // run's starts.
+  uint t = gl_LocalInvocationID.x;
+  uint per = (u_tiles + 1023u) / 1024u;
+  uint first = t * per, last = min(first + per, u_tiles);
+  uint sum = 0u;
+  for (uint i = first; i < last; ++i) sum += tile_count[i];
+  partial[t] = sum;
+  barrier();
+  for (uint step = 1u; step < 1024u; step <<= 1) {
+    uint add = t >= step ? partial[t - step] : 0u;
+    barrier();
+    partial[t] += add;
+    barrier();
+  }
+  uint at = partial[t] - sum;  // exclusive
+  for (uint i = first; i < last; ++i) {
+    tile_start[i] = at;
+    tile_cursor[i] = at;
+    at += tile_count[i];
+  }
+  if (t == 1023u) status[4] = partial[1023];
+}
+)";
+
+const char* const kScatterCompute = R"(#version 430 core
+layout(local_size_x = 256) in;
+layout(std430, binding = 1) readonly buffer Splats { vec4 splats[]; };
+layout(std430, binding = 3) readonly buffer Status { uint status[]; };
+layout(std430, binding = 5) buffer TileCursor { uint tile_cursor[]; };
+layout(std430, binding = 6) writeonly buffer Lists { uint lists[]; };
+uniform ivec2 u_tiles;
+uniform uint u_list_capacity;
+void main() {
+  uint i = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * 256u +
+           gl_LocalInvocationID.x;
+  if (i >= status[3]) return;
+  vec4 s = splats[4u * i + 3u];
+  uint a = floatBitsToUint(s.y), b = floatBitsToUint(s.z);
+  ivec2 t0 = ivec2(a & 0xffffu, a >> 16), t1 = ivec2(b & 0xffffu, b >> 16);
+  for (int ty = t0.y; ty <= t1.y; ++ty) {
+    for (int tx = t0.x; tx <= t1.x; ++tx) {
+      uint at = atomicAdd(tile_cursor[ty * u_tiles.x + tx], 1u);
+      if (at < u_list_capacity) lists[at] = i;
+    }
+  }
+}
+)";
+
+// One work group a tile, one invocation a pixel: the tile's splats, a batch at a time through
+// shared memory, each evaluated at the pixel exactly as kSplatFragment does.
+const char* const kGatherCompute = R"(
+// TILE: the tile side, defined by the program (after #version).
+layout(local_size_x = TILE, local_size_y = TILE) in;
+layout(std430, binding = 1) readonly buffer Splats { vec4 splats[]; };
+layout(std430, binding = 2) readonly buffer TileCounts { uint tile_count[]; };
+layout(std430, binding = 4) readonly buffer TileStart { uint tile_start[]; };
+layout(std430, binding = 6) readonly buffer Lists { uint lists[]; };
+layout(rgba32f, binding = 0) uniform writeonly image2D u_accum;
+layout(rg32f, binding = 1) uniform writeonly image2D u_cover;
+uniform ivec2 u_size;
+uniform ivec2 u_tiles;
+uniform uint u_list_capacity;
+uniform float u_min_weight;
+const uint kBatch = uint(TILE * TILE);
+shared vec4 batch[TILE * TILE * 4];
+void main() {
+  uint tile = gl_WorkGroupID.y * uint(u_tiles.x) + gl_WorkGroupID.x;
+  ivec2 pix = ivec2(gl_GlobalInvocationID.xy);
+  vec2 at = vec2(pix) + 0.5;
+  uint start = tile_start[tile];
+  uint count = start < u_list_capacity ? min(tile_count[tile], u_list_capacity - start) : 0u;
+  vec4 sum = vec4(0.0);
+  vec2 cover = vec2(0.0);
+  uint local = gl_LocalInvocationIndex;
+  for (uint base = 0u; base < count; base += kBatch) {
+    uint n = min(kBatch, count - base);
+    barrier();
+    if (local < n) {
+      uint s = lists[start + base + local];
+      for (uint j = 0u; j < 4u; ++j) batch[4u * local + j] = splats[4u * s + j];
+    }
+    barrier();
+    for (uint k = 0u; k < n; ++k) {
+      vec4 a = batch[4u * k], b = batch[4u * k + 1u], c = batch[4u * k + 2u];
+      vec2 d = at - a.xy;
+      if (abs(d.x) >= c.z || abs(d.y) >= c.w) continue;
+      float wx = exp(-d.x * d.x * a.z) - b.x;
+      float wy = exp(-d.y * d.y * a.w) - b.y;
+      if (!(wx > 0.0) || !(wy > 0.0)) continue;
+      float w = wx * (wy * c.y);
+      if (!(w > u_min_weight)) continue;
+      sum += vec4(vec3(b.z, b.w, c.x) * w, w);
+      cover += vec2(1.0, batch[4u * k + 3u].x);
+    }
+  }
+  if (pix.x < u_size.x && pix.y < u_size.y) {
+    imageStore(u_accum, pix, sum);
+    imageStore(u_cover, pix, vec4(cover, 0.0, 0.0));
+  }
+}
+)";
+
 }  // namespace afr::gl_shaders

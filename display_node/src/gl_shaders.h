@@ -14,6 +14,14 @@ extern const char* const kNewestFragment;
 // hole_fill.cpp: one pyramid level from the one below, and normalise-with-fill.
 extern const char* const kPyramidCompute;
 extern const char* const kNormaliseCompute;
+// The tiled gather, the splat pass as compute: prepare each sample's splat (the vertex stage
+// of kSplatVertex) and count the screen tiles it reaches; scan the counts into list starts;
+// scatter splat indices into the tiles' lists; gather, one work group a tile and one
+// invocation a pixel, each splat evaluated as kSplatFragment does.
+extern const char* const kPrepareCompute;
+extern const char* const kScanCompute;
+extern const char* const kScatterCompute;
+extern const char* const kGatherCompute;
 // Shows the output texture in a window, image row 0 at the top.
 extern const char* const kBlitVertex;
 extern const char* const kBlitFragment;

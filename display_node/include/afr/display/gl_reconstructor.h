@@ -1,11 +1,19 @@
 // The OpenGL reconstructor (sections 5.2 and 6.2, the paper's GPU reconstructor), OpenGL 4.3
-// core. Samples live in a vertex buffer laid out as the store's ring, updated each image with
-// only the samples that arrived; the tile field is a texture of tile indices plus a buffer
-// texture of per-tile filters; a vertex shader reprojects each sample and sizes its splat
-// from the previous image's coverage texture, and points with a fragment shader accumulate
-// (sum w c, sum w) and the new coverage by float blending into two render targets. Compute
-// shaders then build the hole-filling pyramid and normalise. The arithmetic is the CPU
-// backend's, so the two agree within the rasteriser's and exp's rounding.
+// core with persistent mappings (4.4 or ARB_buffer_storage). Asynchronous: new samples go
+// through a persistently mapped staging ring, fenced, and are copied on the GPU into the
+// sample ring (the store's ring, slot for slot), so the CPU fills image j+1's samples while
+// the GPU draws image j; at most three images are in flight. Nothing is read back unless the
+// caller asks for the image (then through a pixel-buffer object); pixel counts and GPU times
+// (GL_TIME_ELAPSED per pass) come back a few images later without waiting.
+//
+// The splat pass, two ways (GlSplat):
+//   gather  compute shaders: each sample's splat is prepared (reprojection, tile filter,
+//           coverage rule) and binned to the 16 x 16 screen tiles it reaches; one work group a
+//           tile then evaluates its splats at each of its pixels (sum w c, sum w, coverage).
+//   raster  a vertex shader prepares each splat and draws it as a point; a fragment shader
+//           weights it and float blending accumulates.
+// Both then build the hole-filling pyramid and normalise with compute shaders. The arithmetic
+// is the CPU backend's, so the backends agree within rounding and summation order.
 #pragma once
 
 #include <afr/display/gl_context.h>
@@ -13,13 +21,28 @@
 
 #include <memory>
 
+#include <string_view>
+
 namespace afr {
+
+enum class GlSplat { kGather, kRaster };
+// "gather", "raster"; throws afr::Error naming the text otherwise.
+GlSplat parse_gl_splat(std::string_view text);
+const char* gl_splat_name(GlSplat splat);
+
+struct GlReconstructorOptions {
+  GlSplat splat = GlSplat::kGather;
+  // gather: the screen tile side in pixels, one work group a tile (4..16). Smaller tiles test
+  // fewer splats at each pixel but bin each splat to more tiles.
+  int tile = 16;
+};
 
 class GlReconstructor final : public Reconstructor {
  public:
   // `context` is made current here and in every call below; call them all (and destroy the
   // reconstructor) on one thread. Throws afr::Error when shaders or buffers cannot be made.
-  GlReconstructor(const ReconstructorConfig& config, std::shared_ptr<GlContext> context);
+  GlReconstructor(const ReconstructorConfig& config, std::shared_ptr<GlContext> context,
+                  GlReconstructorOptions options = {});
   ~GlReconstructor() override;
 
   const char* backend_name() const override { return "gl"; }
@@ -28,6 +51,8 @@ class GlReconstructor final : public Reconstructor {
   bool read_coverage(const PixelRect& rect, std::vector<CoverageCell>* out) override;
   size_t write_coverage(const PixelRect& rect, const std::vector<CoverageCell>& cells) override;
   StoredSlots stored_samples() override;
+  void finish() override;
+  GlSplat splat_method() const { return options_.splat; }
   const std::string& renderer() const { return context_->renderer(); }
 
   // The last image as an RGBA32F texture (linear RGB, row 0 = image top), for display.
@@ -43,6 +68,7 @@ class GlReconstructor final : public Reconstructor {
  private:
   struct Impl;
   std::shared_ptr<GlContext> context_;
+  GlReconstructorOptions options_;
   std::unique_ptr<Impl> impl_;
 };
 

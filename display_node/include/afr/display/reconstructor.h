@@ -58,19 +58,34 @@ struct ReconstructorConfig {
   int threads = 0;
 };
 
+// GPU time of one image's passes, milliseconds, from GL_TIME_ELAPSED queries read without
+// waiting (a GPU backend; the CPU backend leaves them empty).
+struct GpuTimes {
+  uint64_t image = 0;     // the reconstruct() call they time (1 = the first); 0: none yet
+  double upload = 0.0;    // new samples from the staging ring into the sample ring
+  double bin = 0.0;       // gather: splats prepared and binned to screen tiles
+  double splat = 0.0;     // splats (or newest samples) into the accumulation and coverage
+  double fill = 0.0;      // hole pyramid and normalisation
+  double readback = 0.0;  // the image to a pixel-buffer object, when read back
+  double total() const { return upload + bin + splat + fill + readback; }
+};
+
 // What the last reconstruct() did.
 struct FrameStats {
-  uint64_t stored = 0;            // samples in the store
-  uint64_t splatted = 0;          // samples that reached the image (CPU backend only)
-  uint64_t behind_camera = 0;     // reprojected behind the camera (CPU backend only)
-  uint64_t off_screen = 0;        // reprojected where their splat reaches no pixel (CPU only)
-  uint64_t future = 0;            // stamped more than max_future ahead: skipped (CPU only)
+  uint64_t stored = 0;         // samples in the store
+  uint64_t splatted = 0;       // samples that reached the image (CPU backend only)
+  uint64_t behind_camera = 0;  // reprojected behind the camera (CPU backend only)
+  uint64_t off_screen = 0;     // reprojected where their splat reaches no pixel (CPU only)
+  uint64_t future = 0;         // stamped more than max_future ahead: skipped (CPU only)
+  // The pixel counts are of this image, except on a GPU backend that was not asked for the
+  // image: then of the latest image the GPU had finished (read without waiting for it).
   uint64_t hole_pixels = 0;       // no splat reached them: filled from wider support
   uint64_t empty_pixels = 0;      // no weight anywhere in the image: black
   uint64_t nonfinite_pixels = 0;  // NaN or infinite before the final guard (set to 0); 0
   float depth = 0.0f;             // seconds the store reaches back (the cap of e_t)
   float default_rate = 0.0f;      // measured samples per pixel per second, for unknown tiles
   double milliseconds = 0.0;      // wall time of the reconstruct() call
+  GpuTimes gpu;                   // GPU backend: the latest image the GPU has finished
 };
 
 // One tile of the last image as the filter saw it (Reconstructor::tile_states()).
@@ -139,6 +154,11 @@ class Reconstructor : public SampleSink {
     size_t stored = 0;
   };
   virtual StoredSlots stored_samples() = 0;
+
+  // Waits until every image asked for is complete (a GPU backend returns from reconstruct()
+  // before the GPU has drawn the image, unless it was read back); then frame_stats().gpu times
+  // the last one.
+  virtual void finish() {}
 
   void set_mode(ReconstructionMode mode) { mode_ = mode; }
   ReconstructionMode mode() const { return mode_; }
