@@ -13,6 +13,7 @@ usage() {
   sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//'
   echo "options: --seconds S --size WxH --scene FILE --threads T --port P --metrics-port P"
   echo "         --preset fast|balanced|accurate --window --output DIR --build DIR --every K"
+  echo "         --backend gl|cpu|auto --gpu N (the display's reconstructor and EGL device)"
   exit "${1:-0}"
 }
 
@@ -21,7 +22,7 @@ case "$1" in -h|--help) usage 0 ;; esac
 n=$1; shift
 [[ "$n" =~ ^[0-9]+$ ]] && [ "$n" -ge 1 ] && [ "$n" -le 64 ] || { echo "run-local: N must be 1..64, got '$n'" >&2; exit 1; }
 seconds=20 size=256x256 scene="" threads=1 port=7100 metrics_port=9100 preset=balanced
-window=0 output=out build=build every=0
+window=0 output=out build=build every=0 backend=auto gpu=-1
 while [ $# -gt 0 ]; do
   case "$1" in
     --seconds) seconds=$2; shift 2 ;;
@@ -35,6 +36,8 @@ while [ $# -gt 0 ]; do
     --output) output=$2; shift 2 ;;
     --build) build=$2; shift 2 ;;
     --every) every=$2; shift 2 ;;
+    --backend) backend=$2; shift 2 ;;
+    --gpu) gpu=$2; shift 2 ;;
     -h|--help) usage 0 ;;
     *) echo "run-local: unknown option '$1'" >&2; usage 1 ;;
   esac
@@ -57,7 +60,8 @@ echo "run-local: display on tcp://127.0.0.1:$port (metrics http://127.0.0.1:$met
 # shellcheck disable=SC2086
 "$build/display_node/display_node" $scene $headless --bind "tcp://127.0.0.1:$port" \
   --size "$size" --preset "$preset" --seconds "$seconds" --output "$output" \
-  --screenshot-every "$every" --metrics-port "$metrics_port" > >(tee "$output/logs/display.log") 2>&1 &
+  --screenshot-every "$every" --metrics-port "$metrics_port" --backend "$backend" --gpu "$gpu" \
+  > >(tee "$output/logs/display.log") 2>&1 &
 display_pid=$!
 pids+=("$display_pid")
 for i in $(seq 1 "$n"); do

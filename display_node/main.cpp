@@ -49,6 +49,8 @@ int keygen(const std::string& dir, int samplers) {
 
 int main(int argc, char** argv) {
   CLI::App app{"display_node: the afr display: coordinates sampler nodes and reconstructs"};
+  std::string gl_splat_text = "auto";
+  int gpu = -1;
   std::string scene_path, size_text = "256x256", backend_text = "auto", preset = "balanced",
                           mode_text = "adaptive", keys_dir, key_file, allow_file, record, replay,
                           output = "out", log_level = "info", wall_text = "1x1", cell_text = "0,0",
@@ -69,6 +71,12 @@ int main(int argc, char** argv) {
   app.add_option("-s,--size", size_text, "image size WxH (a wall's whole virtual display)")
       ->capture_default_str();
   app.add_flag("--headless", headless, "no window: reconstruct at --fps and write images");
+  app.add_option("--gpu", gpu, "EGL device for a headless GL backend (-1: hardware first)")
+      ->check(CLI::Range(-1, 63));
+  app.add_option("--gl-splat", gl_splat_text,
+                 "GL splat pass: gather (compute), raster (points) or auto (gather on a GPU)")
+      ->check(CLI::IsMember({"auto", "gather", "raster"}))
+      ->capture_default_str();
   app.add_option("--backend", backend_text, "reconstruction backend gl, cpu or auto")
       ->capture_default_str();
   app.add_option("--preset", preset, "fast, balanced or accurate (samplers follow it)")
@@ -237,6 +245,8 @@ int main(int argc, char** argv) {
     afr::service::DisplayAppOptions ao;
     ao.headless = headless;
     ao.backend = afr::parse_backend(backend_text);
+    ao.gl.gpu = gpu;
+    ao.gl.reconstructor.splat = afr::parse_gl_splat(gl_splat_text);
     ao.fps = fps;
     ao.seconds = seconds;
     ao.stats_interval = stats_interval;

@@ -29,29 +29,34 @@ const char* backend_name(Backend backend) {
   return "?";
 }
 
-BackendChoice make_reconstructor(Backend backend, const ReconstructorConfig& config) {
+BackendChoice make_reconstructor(Backend backend, const ReconstructorConfig& config,
+                                 const GlBackendOptions& gl) {
   BackendChoice choice;
   bool fell_back = false;
   if (backend == Backend::kCpu) {
     choice.reason = "reconstruction backend: cpu (requested)";
   } else {
     std::string error;
-    std::shared_ptr<GlContext> context = EglContext::create_headless(&error);
+    std::shared_ptr<EglContext> context =
+        EglContext::create_headless(HeadlessGlOptions{gl.gpu}, &error);
     if (context == nullptr) {
       choice.reason = fmt::format("reconstruction backend: cpu ({}: no OpenGL context: {})",
                                   backend == Backend::kGl ? "gl requested but" : "auto", error);
       fell_back = backend == Backend::kGl;
     } else if (backend == Backend::kAuto && context->software()) {
       choice.reason = fmt::format(
-          "reconstruction backend: cpu (auto: OpenGL renderer '{}' is a software rasteriser)",
-          context->renderer());
+          "reconstruction backend: cpu (auto: OpenGL renderer '{}' on {} is a software "
+          "rasteriser)",
+          context->renderer(), context->device());
     } else {
       try {
-        choice.reconstructor = std::make_unique<GlReconstructor>(config, context);
+        auto reconstructor = std::make_unique<GlReconstructor>(config, context, gl.reconstructor);
+        choice.reason = fmt::format(
+            "reconstruction backend: gl ({}: renderer '{}' on {}, {}, {} splats)",
+            backend == Backend::kGl ? "requested" : "auto", context->renderer(), context->device(),
+            context->version(), gl_splat_name(reconstructor->splat_method()));
+        choice.reconstructor = std::move(reconstructor);
         choice.chosen = Backend::kGl;
-        choice.reason = fmt::format("reconstruction backend: gl ({}: renderer '{}', {})",
-                                    backend == Backend::kGl ? "requested" : "auto",
-                                    context->renderer(), context->version());
       } catch (const Error& e) {
         choice.reason =
             fmt::format("reconstruction backend: cpu (the OpenGL backend failed: {})", e.what());

@@ -96,7 +96,7 @@ struct Uniforms {
 constexpr int kInFlight = 3;  // images the GPU may still be drawing when the next begins
 constexpr GLsizeiptr kStatusStride = 256;  // >= GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT
 // Status words of an image (kPrepareCompute, kScanCompute, kNormaliseCompute).
-enum StatusWord { kHoles = 0, kEmpty = 1, kNonfinite = 2, kPrepared = 3, kListWanted = 4 };
+enum StatusWord { kHoles = 0, kEmpty = 1, kNonfinite = 2, kListWanted = 4 };
 enum Pass { kUpload = 0, kBin = 1, kSplatPass = 2, kFill = 3, kReadback = 4, kPasses = 5 };
 
 // Work groups for `n` invocations of 256, as x * y groups within every driver's 65535 a side.
@@ -109,12 +109,23 @@ std::array<GLuint, 2> groups_for(size_t n) {
 }  // namespace
 
 GlSplat parse_gl_splat(std::string_view text) {
+  if (text == "auto") return GlSplat::kAuto;
   if (text == "gather") return GlSplat::kGather;
   if (text == "raster") return GlSplat::kRaster;
-  throw Error("--gl-splat '" + std::string(text) + "': expected gather or raster");
+  throw Error("--gl-splat '" + std::string(text) + "': expected auto, gather or raster");
 }
 
-const char* gl_splat_name(GlSplat splat) { return splat == GlSplat::kGather ? "gather" : "raster"; }
+const char* gl_splat_name(GlSplat splat) {
+  switch (splat) {
+    case GlSplat::kAuto:
+      return "auto";
+    case GlSplat::kGather:
+      return "gather";
+    case GlSplat::kRaster:
+      return "raster";
+  }
+  return "?";
+}
 
 struct GlReconstructor::Impl {
   // Samples: the store's ring, slot for slot.
@@ -154,9 +165,10 @@ struct GlReconstructor::Impl {
   size_t list_capacity = 0;
   int tile = 16;  // GlReconstructorOptions::tile
   int tiles_x = 0, tiles_y = 0;
-  // Read back: the output through a framebuffer into a pixel-buffer object.
-  GLuint readback_fbo = 0, pbo = 0;
-  size_t pbo_bytes = 0;
+  // Read back: the output packed by a compute pass into a persistently mapped buffer.
+  GLuint pack = 0, readback = 0;
+  void* readback_map = nullptr;
+  size_t readback_bytes = 0;
   // A CPU copy of the ring, kept once stored_samples() asked for it.
   bool mirrored = false;
   std::vector<StoredSample> mirror;
@@ -356,6 +368,9 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
       impl_(std::make_unique<Impl>()) {
   AFR_CHECK(context_ != nullptr);
   context_->make_current();
+  if (options_.splat == GlSplat::kAuto) {
+    options_.splat = context_->software() ? GlSplat::kRaster : GlSplat::kGather;
+  }
   if (epoxy_gl_version() < 44 && !epoxy_has_gl_extension("GL_ARB_buffer_storage")) {
     throw Error(
         fmt::format("OpenGL {} has no persistent buffer mappings (4.4 or "
@@ -372,6 +387,7 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
   m.pyramid = compute_program(gl_shaders::kPyramidCompute, "pyramid");
   m.normalise = compute_program(gl_shaders::kNormaliseCompute, "normalise");
   m.blit = graphics_program(gl_shaders::kBlitVertex, gl_shaders::kBlitFragment, "blit");
+  m.pack = compute_program(gl_shaders::kPackCompute, "pack");
   if (options_.splat == GlSplat::kGather) {
     m.prepare = compute_program(gl_shaders::kPrepareCompute, "prepare");
     m.scan = compute_program(gl_shaders::kScanCompute, "scan");
@@ -452,12 +468,13 @@ GlReconstructor::~GlReconstructor() {
   for (GLsync& f : m.segment_fence) {
     if (f != nullptr) glDeleteSync(f);
   }
-  for (GLuint p : {m.splat, m.newest, m.pyramid, m.normalise, m.blit, m.prepare, m.scan, m.scatter,
-                   m.gather}) {
+  for (GLuint p : {m.splat, m.newest, m.pyramid, m.normalise, m.blit, m.pack, m.prepare, m.scan,
+                   m.scatter, m.gather}) {
     glDeleteProgram(p);
   }
-  for (GLuint* b : {&m.upload, &m.status, &m.splats, &m.lists, &m.pbo}) glDeleteBuffers(1, b);
-  glDeleteFramebuffers(1, &m.readback_fbo);
+  for (GLuint* b : {&m.upload, &m.status, &m.splats, &m.lists, &m.readback}) {
+    glDeleteBuffers(1, b);
+  }
   glDeleteVertexArrays(1, &m.vao);
   glDeleteVertexArrays(1, &m.empty_vao);
   glDeleteBuffers(1, &m.samples);
@@ -466,6 +483,8 @@ GlReconstructor::~GlReconstructor() {
 }
 
 uint32_t GlReconstructor::output_texture() const { return impl_->output; }
+
+size_t GlReconstructor::gather_list_capacity() const { return impl_->list_capacity; }
 
 void GlReconstructor::do_reconstruct(const Camera& camera, double time, int width, int height,
                                      Image* out) {
@@ -605,6 +624,7 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     glUseProgram(m.scatter);
     const Uniforms sc{m.scatter};
     sc.set("u_tiles", glm::ivec2(m.tiles_x, m.tiles_y));
+    glUniform1ui(sc.at("u_stored"), GLuint(m.stored));
     glUniform1ui(sc.at("u_list_capacity"), GLuint(m.list_capacity));
     glDispatchCompute(per_sample[0], per_sample[1], 1);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
@@ -713,31 +733,35 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
       glDispatchCompute(GLuint((out_width + kGroup - 1) / kGroup),
                         GLuint((out_height + kGroup - 1) / kGroup), 1);
       glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_TEXTURE_UPDATE_BARRIER_BIT |
-                      GL_TEXTURE_FETCH_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT |
-                      GL_PIXEL_BUFFER_BARRIER_BIT | GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT);
+                      GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
+                      GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT);
     });
     glUseProgram(0);
 
-    // ---- The image leaves the GPU only when asked for: into a pixel-buffer object.
+    // ---- The image leaves the GPU only when asked for: into a mapped buffer.
     if (out != nullptr) {
-      const size_t bytes = size_t(out_width) * size_t(out_height) * sizeof(glm::vec4);
       timed(kReadback, [&] {
-        if (m.readback_fbo == 0) glGenFramebuffers(1, &m.readback_fbo);
-        if (m.pbo == 0 || m.pbo_bytes < bytes) {
-          glDeleteBuffers(1, &m.pbo);
-          glGenBuffers(1, &m.pbo);
-          glBindBuffer(GL_PIXEL_PACK_BUFFER, m.pbo);
-          glBufferData(GL_PIXEL_PACK_BUFFER, GLsizeiptr(bytes), nullptr, GL_STREAM_READ);
-          m.pbo_bytes = bytes;
+        const size_t bytes = out->pixels.size() * sizeof(glm::vec3);
+        if (m.readback_bytes < bytes) {
+          // A buffer the CPU keeps mapped: written by a compute pass, read once the image's
+          // fence has signalled, with no driver read-back path in between.
+          glDeleteBuffers(1, &m.readback);
+          glGenBuffers(1, &m.readback);
+          glBindBuffer(GL_SHADER_STORAGE_BUFFER, m.readback);
+          const GLbitfield flags = GL_MAP_READ_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
+          glBufferStorage(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(bytes), nullptr, flags);
+          m.readback_map = glMapBufferRange(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(bytes), flags);
+          if (m.readback_map == nullptr) throw Error("OpenGL: cannot map the read-back buffer");
+          m.readback_bytes = bytes;
         }
-        glBindFramebuffer(GL_READ_FRAMEBUFFER, m.readback_fbo);
-        glFramebufferTexture2D(GL_READ_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, m.output,
-                               0);
-        glReadBuffer(GL_COLOR_ATTACHMENT0);
-        glBindBuffer(GL_PIXEL_PACK_BUFFER, m.pbo);
-        glPixelStorei(GL_PACK_ALIGNMENT, 4);
-        glReadPixels(0, 0, out_width, out_height, GL_RGBA, GL_FLOAT, nullptr);
-        glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+        glUseProgram(m.pack);
+        glBindImageTexture(0, m.output, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RGBA32F);
+        glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 7, m.readback);
+        Uniforms{m.pack}.set("u_size", glm::ivec2(out_width, out_height));
+        glDispatchCompute(GLuint((out_width + kGroup - 1) / kGroup),
+                          GLuint((out_height + kGroup - 1) / kGroup), 1);
+        glMemoryBarrier(GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT);
+        glUseProgram(0);
       });
     }
     f.fence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
@@ -756,14 +780,8 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
       m.harvest(f);
     }
 
-    glBindBuffer(GL_PIXEL_PACK_BUFFER, m.pbo);
-    const auto* rgba = static_cast<const glm::vec4*>(glMapBufferRange(
-        GL_PIXEL_PACK_BUFFER, 0,
-        GLsizeiptr(size_t(out_width) * size_t(out_height) * sizeof(glm::vec4)), GL_MAP_READ_BIT));
-    if (rgba == nullptr) throw Error("OpenGL: cannot map the read-back buffer");
-    for (size_t i = 0; i < out->pixels.size(); ++i) out->pixels[i] = glm::vec3(rgba[i]);
-    glUnmapBuffer(GL_PIXEL_PACK_BUFFER);
-    glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+    std::copy_n(static_cast<const glm::vec3*>(m.readback_map), out->pixels.size(),
+                out->pixels.data());
   }
   frame_.hole_pixels = m.latest_counts[0];
   frame_.empty_pixels = m.latest_counts[1];

@@ -309,12 +309,12 @@ void main() {
 const char* const kPrepareCompute = R"(#version 430 core
 layout(local_size_x = 256) in;
 layout(std430, binding = 0) readonly buffer Ring { uint ring[]; };
-// 16 floats a splat: center (2), kernel (4: k_x, k_y, off_x, off_y), color (3), weight,
-// extent (3: r_x, r_y, growth), tile range (1: x0 | y0 << 16), tile range end (1: x1 | y1 << 16),
-// unused.
+// 16 floats a splat, at its sample's ring slot: center (2), kernel (4: k_x, k_y, off_x, off_y),
+// color (3), weight, extent (3: r_x, r_y, growth), first tile (1: x0 | y0 << 16), last tile
+// (1: x1 | y1 << 16), unused. A skipped sample's first tile lies past its last. (Slots, not a
+// compacted list: one counter that every sample increments serialises the whole pass.)
 layout(std430, binding = 1) writeonly buffer Splats { vec4 splats[]; };
 layout(std430, binding = 2) buffer TileCounts { uint tile_count[]; };
-layout(std430, binding = 3) buffer Status { uint status[]; };  // [3]: splats prepared
 
 uniform uint u_stored;
 uniform double u_now;
@@ -380,6 +380,7 @@ void main() {
   uint slot = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * 256u +
               gl_LocalInvocationID.x;
   if (slot >= u_stored) return;
+  splats[4u * slot + 3u] = vec4(0.0, uintBitsToFloat(1u), uintBitsToFloat(0u), 0.0);  // skipped
   uint b = slot * 16u;
   double time = packDouble2x32(uvec2(ring[b], ring[b + 1u]));
   vec2 xy = uintBitsToFloat(uvec2(ring[b + 2u], ring[b + 3u]));
@@ -433,7 +434,7 @@ void main() {
   ivec2 hi = min(ivec2(ceil(p + vec2(r_x, r_y) - 0.5)), u_size - 1);
   if (any(greaterThan(lo, hi))) return;
   ivec2 t0 = lo / u_tile, t1 = hi / u_tile;
-  uint i = atomicAdd(status[3], 1u);
+  uint i = slot;
   float wt = max(exp(-age * age * f.z), u_min_wt) / (sigma_x * sigma_y);
   splats[4u * i] = vec4(p, k_x, k_y);
   splats[4u * i + 1u] = vec4(exp(-r_x * r_x * k_x), exp(-r_y * r_y * k_y), color.r, color.g);
@@ -483,15 +484,15 @@ void main() {
 const char* const kScatterCompute = R"(#version 430 core
 layout(local_size_x = 256) in;
 layout(std430, binding = 1) readonly buffer Splats { vec4 splats[]; };
-layout(std430, binding = 3) readonly buffer Status { uint status[]; };
 layout(std430, binding = 5) buffer TileCursor { uint tile_cursor[]; };
 layout(std430, binding = 6) writeonly buffer Lists { uint lists[]; };
+uniform uint u_stored;
 uniform ivec2 u_tiles;
 uniform uint u_list_capacity;
 void main() {
   uint i = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * 256u +
            gl_LocalInvocationID.x;
-  if (i >= status[3]) return;
+  if (i >= u_stored) return;
   vec4 s = splats[4u * i + 3u];
   uint a = floatBitsToUint(s.y), b = floatBitsToUint(s.z);
   ivec2 t0 = ivec2(a & 0xffffu, a >> 16), t1 = ivec2(b & 0xffffu, b >> 16);
@@ -555,6 +556,24 @@ void main() {
     imageStore(u_accum, pix, sum);
     imageStore(u_cover, pix, vec4(cover, 0.0, 0.0));
   }
+}
+)";
+
+// The output image into a buffer the CPU maps (read-back): RGB floats, row 0 first, as
+// afr::Image holds them.
+const char* const kPackCompute = R"(#version 430 core
+layout(local_size_x = 16, local_size_y = 16) in;
+layout(rgba32f, binding = 0) uniform readonly image2D u_image;
+layout(std430, binding = 7) writeonly buffer Pixels { float pixels[]; };
+uniform ivec2 u_size;
+void main() {
+  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+  if (p.x >= u_size.x || p.y >= u_size.y) return;
+  vec4 c = imageLoad(u_image, p);
+  uint i = 3u * (uint(p.y) * uint(u_size.x) + uint(p.x));
+  pixels[i] = c.r;
+  pixels[i + 1u] = c.g;
+  pixels[i + 2u] = c.b;
 }
 )";
 

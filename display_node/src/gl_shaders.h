@@ -22,6 +22,8 @@ extern const char* const kPrepareCompute;
 extern const char* const kScanCompute;
 extern const char* const kScatterCompute;
 extern const char* const kGatherCompute;
+// Read-back: the output image as RGB floats into a persistently mapped buffer.
+extern const char* const kPackCompute;
 // Shows the output texture in a window, image row 0 at the top.
 extern const char* const kBlitVertex;
 extern const char* const kBlitFragment;

@@ -1,5 +1,6 @@
 #include <afr/display/gl_reconstructor.h>
 
+#include <afr/common/error.h>
 #include <afr/common/random.h>
 #include <afr/display/cpu_reconstructor.h>
 
@@ -30,50 +31,57 @@ ReconstructorConfig config(int w, int h, ReconstructionMode mode) {
   return c;
 }
 
+// Both splat passes: the compute gather (a GPU's default) and the points (llvmpipe's).
+constexpr GlSplat kSplatPasses[] = {GlSplat::kGather, GlSplat::kRaster};
+
 TEST(GlReconstructorTest, AgreesWithTheCpuBackendOnRandomSampleSets) {
   AFR_REQUIRE_GL(context);
   test::FloorScene scene;
   scene.velocity = glm::dvec3(0.7, 0.0, 0.2);
-  for (ReconstructionMode mode :
-       {ReconstructionMode::kAdaptive, ReconstructionMode::kAdaptiveNoReprojection,
-        ReconstructionMode::kTraditionalFrameless}) {
-    for (const glm::ivec2 size : {glm::ivec2(96, 64), glm::ivec2(77, 53)}) {
-      const int W = size.x, H = size.y;
-      SCOPED_TRACE(std::string(mode_name(mode)) + " " + std::to_string(W) + "x" +
-                   std::to_string(H));
-      const ReconstructorConfig cfg = config(W, H, mode);
-      CpuReconstructor cpu(cfg);
-      GlReconstructor gl(cfg, context);
-      Pcg32 rng(uint64_t(W) * 7 + uint64_t(mode));
-      double t = 0.0;
-      // Frames with new samples and tilings in between; the ring wraps after a few.
-      for (int frame = 0; frame < 6; ++frame) {
-        const double t1 = t + 0.25;
-        const Camera sampled =
-            Camera::look_at({0.1 * frame, 0.5, 0.0}, {0.0, 0.1, -5.0}, {0, 1, 0}, 1.0, 0.01);
-        const SampleBatch b = frame % 2 == 0 ? test::scene_batch(scene, sampled, rng, size_t(W * H),
-                                                                 W, H, t, t1, frame % 4 == 0)
-                                             : test::random_batch(rng, size_t(W * H), W, H, t, t1);
-        const TilingSnapshot tiling = test::random_tiling(rng, W, H, 8 + 4 * frame, t1);
-        for (Reconstructor* r :
-             {static_cast<Reconstructor*>(&cpu), static_cast<Reconstructor*>(&gl)}) {
-          r->add_batch(b);
-          r->set_tiling(tiling);
+  for (const GlSplat splat : kSplatPasses) {
+    for (ReconstructionMode mode :
+         {ReconstructionMode::kAdaptive, ReconstructionMode::kAdaptiveNoReprojection,
+          ReconstructionMode::kTraditionalFrameless}) {
+      for (const glm::ivec2 size : {glm::ivec2(96, 64), glm::ivec2(77, 53)}) {
+        const int W = size.x, H = size.y;
+        SCOPED_TRACE(std::string(gl_splat_name(splat)) + " " + mode_name(mode) + " " +
+                     std::to_string(W) + "x" + std::to_string(H));
+        const ReconstructorConfig cfg = config(W, H, mode);
+        CpuReconstructor cpu(cfg);
+        GlReconstructor gl(cfg, context, GlReconstructorOptions{splat});
+        ASSERT_EQ(gl.splat_method(), splat);
+        Pcg32 rng(uint64_t(W) * 7 + uint64_t(mode));
+        double t = 0.0;
+        // Frames with new samples and tilings in between; the ring wraps after a few.
+        for (int frame = 0; frame < 6; ++frame) {
+          const double t1 = t + 0.25;
+          const Camera sampled =
+              Camera::look_at({0.1 * frame, 0.5, 0.0}, {0.0, 0.1, -5.0}, {0, 1, 0}, 1.0, 0.01);
+          const SampleBatch b = frame % 2 == 0
+                                    ? test::scene_batch(scene, sampled, rng, size_t(W * H), W, H, t,
+                                                        t1, frame % 4 == 0)
+                                    : test::random_batch(rng, size_t(W * H), W, H, t, t1);
+          const TilingSnapshot tiling = test::random_tiling(rng, W, H, 8 + 4 * frame, t1);
+          for (Reconstructor* r :
+               {static_cast<Reconstructor*>(&cpu), static_cast<Reconstructor*>(&gl)}) {
+            r->add_batch(b);
+            r->set_tiling(tiling);
+          }
+          t = t1;
+          const Camera view = Camera::look_at({0.1 * frame + 0.2, 0.55, -0.1}, {0.0, 0.1, -5.0},
+                                              {0, 1, 0}, 1.0, 0.01);
+          const Image a = cpu.reconstruct(view, t, W, H);
+          const Image g = gl.reconstruct(view, t, W, H);
+          const test::Diff8 d = diff8(a, g);
+          EXPECT_LE(d.rms, 1.0) << "frame " << frame;
+          EXPECT_LE(d.max, 4) << "frame " << frame;
+          // Whether a pixel is a hole turns on thresholds (a weight above kMinSplatWeight, a splat
+          // radius rounded to 1/256 px) that the shader's exp and division and the CPU's fast_exp
+          // can put on either side: a few pixels in a thousand may differ.
+          EXPECT_NEAR(double(gl.frame_stats().hole_pixels), double(cpu.frame_stats().hole_pixels),
+                      0.002 * W * H);
+          EXPECT_TRUE(test::all_finite(g));
         }
-        t = t1;
-        const Camera view = Camera::look_at({0.1 * frame + 0.2, 0.55, -0.1}, {0.0, 0.1, -5.0},
-                                            {0, 1, 0}, 1.0, 0.01);
-        const Image a = cpu.reconstruct(view, t, W, H);
-        const Image g = gl.reconstruct(view, t, W, H);
-        const test::Diff8 d = diff8(a, g);
-        EXPECT_LE(d.rms, 1.0) << "frame " << frame;
-        EXPECT_LE(d.max, 4) << "frame " << frame;
-        // Whether a pixel is a hole turns on thresholds (a weight above kMinSplatWeight, a splat
-        // radius rounded to 1/256 px) that the shader's exp and division and the CPU's fast_exp
-        // can put on either side: a few pixels in a thousand may differ.
-        EXPECT_NEAR(double(gl.frame_stats().hole_pixels), double(cpu.frame_stats().hole_pixels),
-                    0.002 * W * H);
-        EXPECT_TRUE(test::all_finite(g));
       }
     }
   }
@@ -81,35 +89,117 @@ TEST(GlReconstructorTest, AgreesWithTheCpuBackendOnRandomSampleSets) {
 
 TEST(GlReconstructorTest, WeightsAndCoverageMatchTheCpuBackend) {
   AFR_REQUIRE_GL(context);
+  for (const GlSplat splat : kSplatPasses) {
+    SCOPED_TRACE(gl_splat_name(splat));
+    const int W = 64, H = 48;
+    const ReconstructorConfig cfg = config(W, H, ReconstructionMode::kAdaptive);
+    CpuReconstructor cpu(cfg);
+    GlReconstructor gl(cfg, context, GlReconstructorOptions{splat});
+    Pcg32 rng(21);
+    const SampleBatch b = test::random_batch(rng, 2000, W, H, 0.0, 1.0);
+    const TilingSnapshot tiling = test::random_tiling(rng, W, H, 16, 1.0);
+    for (Reconstructor* r : {static_cast<Reconstructor*>(&cpu), static_cast<Reconstructor*>(&gl)}) {
+      r->add_batch(b);
+      r->set_tiling(tiling);
+    }
+    const Camera cam;
+    for (int frame = 0; frame < 2; ++frame) {
+      cpu.reconstruct(cam, 1.0, W, H);
+      gl.reconstruct(cam, 1.0, W, H);
+      std::vector<float> wc, wg;
+      cpu.read_weights(&wc);
+      gl.read_weights(&wg);
+      ASSERT_EQ(wc.size(), wg.size());
+      for (size_t p = 0; p < wc.size(); ++p) {
+        ASSERT_NEAR(wg[p], wc[p], 1e-3 * wc[p] + 1e-12) << "frame " << frame << " pixel " << p;
+      }
+      std::vector<CoverageCell> cc, cg;
+      cpu.read_coverage(&cc);
+      gl.read_coverage(&cg);
+      int same = 0;
+      for (size_t p = 0; p < cc.size(); ++p) same += cc[p].count == cg[p].count;
+      EXPECT_GE(same, int(cc.size()) * 99 / 100);
+    }
+  }
+}
+
+// Splats of at least 6 pixels on 4-pixel tiles reach about 18 tiles each, far beyond the
+// lists' first room (4 entries a stored sample): the first image overflows them, is drawn
+// again with room, and still agrees with the CPU backend.
+TEST(GlReconstructorTest, GatherListsTooShortGrowAndTheImageIsDrawnAgain) {
+  AFR_REQUIRE_GL(context);
   const int W = 64, H = 48;
-  const ReconstructorConfig cfg = config(W, H, ReconstructionMode::kAdaptive);
+  ReconstructorConfig cfg = config(W, H, ReconstructionMode::kAdaptive);
+  cfg.splat.min_radius = 6.0f;
   CpuReconstructor cpu(cfg);
-  GlReconstructor gl(cfg, context);
-  Pcg32 rng(21);
-  const SampleBatch b = test::random_batch(rng, 2000, W, H, 0.0, 1.0);
+  GlReconstructor gl(cfg, context, GlReconstructorOptions{GlSplat::kGather, 4});
+  const size_t first_room = gl.gather_list_capacity();
+  EXPECT_EQ(first_room, 4 * gl.capacity());
+  Pcg32 rng(8);
+  const SampleBatch b = test::random_batch(rng, gl.capacity(), W, H, 0.0, 1.0);
   const TilingSnapshot tiling = test::random_tiling(rng, W, H, 16, 1.0);
   for (Reconstructor* r : {static_cast<Reconstructor*>(&cpu), static_cast<Reconstructor*>(&gl)}) {
     r->add_batch(b);
     r->set_tiling(tiling);
   }
   const Camera cam;
-  for (int frame = 0; frame < 2; ++frame) {
-    cpu.reconstruct(cam, 1.0, W, H);
-    gl.reconstruct(cam, 1.0, W, H);
-    std::vector<float> wc, wg;
-    cpu.read_weights(&wc);
-    gl.read_weights(&wg);
-    ASSERT_EQ(wc.size(), wg.size());
-    for (size_t p = 0; p < wc.size(); ++p) {
-      ASSERT_NEAR(wg[p], wc[p], 1e-3 * wc[p] + 1e-12) << "frame " << frame << " pixel " << p;
+  const Image a = cpu.reconstruct(cam, 1.0, W, H);
+  const Image g = gl.reconstruct(cam, 1.0, W, H);
+  EXPECT_GT(gl.gather_list_capacity(), 10 * gl.capacity());
+  const test::Diff8 d = diff8(a, g);
+  EXPECT_LE(d.rms, 1.0);
+  EXPECT_LE(d.max, 4);
+}
+
+// Images not read back are drawn all the same: after finish() the GPU times and pixel counts
+// are the last image's, and a read-back image agrees with the CPU backend's.
+TEST(GlReconstructorTest, ImagesNotReadBackFinishAndReportTheirGpuTimes) {
+  AFR_REQUIRE_GL(context);
+  const int W = 48, H = 32;
+  const ReconstructorConfig cfg = config(W, H, ReconstructionMode::kAdaptive);
+  for (const GlSplat splat : kSplatPasses) {
+    SCOPED_TRACE(gl_splat_name(splat));
+    CpuReconstructor cpu(cfg);
+    GlReconstructor gl(cfg, context, GlReconstructorOptions{splat});
+    Pcg32 rng(5);
+    Image a, g;
+    for (int frame = 0; frame < 7; ++frame) {
+      const double t = 0.1 * (frame + 1);
+      const SampleBatch b = test::random_batch(rng, size_t(W * H / 2), W, H, t - 0.1, t);
+      for (Reconstructor* r :
+           {static_cast<Reconstructor*>(&cpu), static_cast<Reconstructor*>(&gl)}) {
+        r->add_batch(b);
+      }
+      const bool last = frame == 6;
+      cpu.reconstruct(Camera(), t, W, H, &a);
+      gl.reconstruct(Camera(), t, W, H, last ? &g : nullptr);
+      EXPECT_LE(gl.frame_stats().gpu.image, uint64_t(frame + 1));
     }
-    std::vector<CoverageCell> cc, cg;
-    cpu.read_coverage(&cc);
-    gl.read_coverage(&cg);
-    int same = 0;
-    for (size_t p = 0; p < cc.size(); ++p) same += cc[p].count == cg[p].count;
-    EXPECT_GE(same, int(cc.size()) * 99 / 100);
+    // The read-back image waited for itself: its counts and times are its own.
+    EXPECT_EQ(gl.frame_stats().gpu.image, 7u);
+    EXPECT_NEAR(double(gl.frame_stats().hole_pixels), double(cpu.frame_stats().hole_pixels),
+                0.002 * W * H + 1.0);
+    EXPECT_GE(gl.frame_stats().gpu.total(), 0.0);
+    const test::Diff8 d = diff8(a, g);
+    EXPECT_LE(d.rms, 1.0);
+    EXPECT_LE(d.max, 4);
+    gl.reconstruct(Camera(), 0.8, W, H, nullptr);
+    gl.finish();
+    EXPECT_EQ(gl.frame_stats().gpu.image, 8u);
   }
+}
+
+TEST(GlReconstructorTest, SplatPassesParseAndAutoFollowsTheRenderer) {
+  EXPECT_EQ(parse_gl_splat("gather"), GlSplat::kGather);
+  EXPECT_EQ(parse_gl_splat("raster"), GlSplat::kRaster);
+  EXPECT_EQ(parse_gl_splat("auto"), GlSplat::kAuto);
+  EXPECT_THROW(parse_gl_splat("splat"), Error);
+  AFR_REQUIRE_GL(context);
+  GlReconstructor gl(config(16, 16, ReconstructionMode::kAdaptive), context);
+  EXPECT_EQ(gl.splat_method(), context->software() ? GlSplat::kRaster : GlSplat::kGather);
+  EXPECT_THROW(GlReconstructor(config(16, 16, ReconstructionMode::kAdaptive), context,
+                               GlReconstructorOptions{GlSplat::kGather, 3}),
+               Error);
 }
 
 // Within 2 ulp of `want`, channel by channel: a GPU may divide through a reciprocal (GLSL
@@ -124,15 +214,19 @@ void expect_within_2ulp(const Image& image, glm::vec3 want) {
 
 TEST(GlReconstructorTest, UniformColorReconstructsToThatColor) {
   AFR_REQUIRE_GL(context);
-  GlReconstructor gl(config(40, 30, ReconstructionMode::kAdaptive), context);
-  Pcg32 rng(22);
-  gl.set_tiling(test::random_tiling(rng, 40, 30, 8, 1.0));
-  SampleBatch b = test::random_batch(rng, 600, 40, 30, 0.0, 1.0);  // sparse: holes to fill
-  for (Sample& s : b.samples) s.color = glm::vec3(0.25f, 0.5f, 1.0f);
-  gl.add_batch(b);
-  for (int frame = 0; frame < 2; ++frame) {
-    const Image image = gl.reconstruct(Camera{}, 1.0, 40, 30);
-    expect_within_2ulp(image, glm::vec3(0.25f, 0.5f, 1.0f));
+  for (const GlSplat splat : kSplatPasses) {
+    SCOPED_TRACE(gl_splat_name(splat));
+    GlReconstructor gl(config(40, 30, ReconstructionMode::kAdaptive), context,
+                       GlReconstructorOptions{splat});
+    Pcg32 rng(22);
+    gl.set_tiling(test::random_tiling(rng, 40, 30, 8, 1.0));
+    SampleBatch b = test::random_batch(rng, 600, 40, 30, 0.0, 1.0);  // sparse: holes to fill
+    for (Sample& s : b.samples) s.color = glm::vec3(0.25f, 0.5f, 1.0f);
+    gl.add_batch(b);
+    for (int frame = 0; frame < 2; ++frame) {
+      const Image image = gl.reconstruct(Camera{}, 1.0, 40, 30);
+      expect_within_2ulp(image, glm::vec3(0.25f, 0.5f, 1.0f));
+    }
   }
 }
 
@@ -140,18 +234,22 @@ TEST(GlReconstructorTest, BadInputsNeverReachTheImage) {
   AFR_REQUIRE_GL(context);
   const float inf = std::numeric_limits<float>::infinity();
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  GlReconstructor gl(config(32, 32, ReconstructionMode::kAdaptive), context);
-  Pcg32 rng(23);
-  gl.set_tiling(test::uniform_tiling(32, 32, nan, 0.0f, inf, 0.0f, 1e6));
-  SampleBatch b = test::random_batch(rng, 4000, 32, 32, 1e6 - 1e4, 1e6 + 1e4);
-  b.samples[0].color.r = nan;
-  b.samples[1].color.g = inf;
-  b.samples[2].time = nan;
-  gl.add_batch(b);
-  const Image image = gl.reconstruct(Camera{}, 1e6, 32, 32);
-  EXPECT_TRUE(test::all_finite(image));
-  EXPECT_EQ(gl.frame_stats().nonfinite_pixels, 0u);
-  EXPECT_EQ(gl.ingest_stats().rejected(), 3u);
+  for (const GlSplat splat : kSplatPasses) {
+    SCOPED_TRACE(gl_splat_name(splat));
+    GlReconstructor gl(config(32, 32, ReconstructionMode::kAdaptive), context,
+                       GlReconstructorOptions{splat});
+    Pcg32 rng(23);
+    gl.set_tiling(test::uniform_tiling(32, 32, nan, 0.0f, inf, 0.0f, 1e6));
+    SampleBatch b = test::random_batch(rng, 4000, 32, 32, 1e6 - 1e4, 1e6 + 1e4);
+    b.samples[0].color.r = nan;
+    b.samples[1].color.g = inf;
+    b.samples[2].time = nan;
+    gl.add_batch(b);
+    const Image image = gl.reconstruct(Camera{}, 1e6, 32, 32);
+    EXPECT_TRUE(test::all_finite(image));
+    EXPECT_EQ(gl.frame_stats().nonfinite_pixels, 0u);
+    EXPECT_EQ(gl.ingest_stats().rejected(), 3u);
+  }
 }
 
 TEST(GlReconstructorTest, AnEmptyStoreGivesBlackAndResizingWorks) {

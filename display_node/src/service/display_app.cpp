@@ -119,7 +119,7 @@ void DisplayApp::State::make_reconstructor(const ReconstructorConfig& rc) {
     std::string error;
     window = GlfwWindow::create(out_w, out_h, "afr display", &error);
     if (window) {
-      auto g = std::make_unique<GlReconstructor>(rc, window);
+      auto g = std::make_unique<GlReconstructor>(rc, window, options.gl.reconstructor);
       gl = g.get();
       recon = std::move(g);
     } else {
@@ -127,7 +127,7 @@ void DisplayApp::State::make_reconstructor(const ReconstructorConfig& rc) {
       options.headless = true;
     }
   }
-  if (!recon) recon = afr::make_reconstructor(options.backend, rc).reconstructor;
+  if (!recon) recon = afr::make_reconstructor(options.backend, rc, options.gl).reconstructor;
   tee = std::make_unique<OverlaySink>(*recon);
   ingest.set(tee.get());
   if (options.exchange) {
@@ -205,13 +205,17 @@ void DisplayApp::State::frame_at(double t, std::atomic<bool>& stop) {
     cell_sized = show_in_window(camera, t);
     read_input(camera, t, stop);
   } else {
-    recon->reconstruct(camera, t, out_w, out_h, &image);
+    // The image leaves the reconstructor (a GPU's memory) only when it is written out.
+    const bool saving = options.screenshot_every > 0 && frame > 0 &&
+                        frame % uint64_t(options.screenshot_every) == 0;
+    recon->reconstruct(camera, t, out_w, out_h, saving ? &image : nullptr);
   }
   ServiceMetrics& metrics = role.metrics();
   if (links) links->send(*recon, camera, t, cell_sized, coverage_applied, metrics);
   const double done = role.now();
   metrics.on_frame(done, recon->frame_stats().milliseconds, recon->frame_stats().stored,
                    recon->capacity());
+  metrics.set_gpu(recon->frame_stats().gpu);
   if (!window && options.screenshot_every > 0 && frame > 0 &&
       frame % uint64_t(options.screenshot_every) == 0) {
     save(fmt::format("frame_{:06d}", frame), t);

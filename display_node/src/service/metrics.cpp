@@ -156,6 +156,11 @@ void ServiceMetrics::on_frame(double time, double ms, uint64_t stored, uint64_t 
   display_.store_capacity = capacity;
 }
 
+void ServiceMetrics::set_gpu(const GpuTimes& gpu) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  display_.gpu = gpu;
+}
+
 void ServiceMetrics::set_display(uint64_t session, int width, int height,
                                  const std::string& backend, const std::string& mode) {
   std::lock_guard<std::mutex> lock(mutex_);

@@ -5,6 +5,23 @@
 
 namespace afr::service {
 
+namespace {
+
+std::vector<std::pair<const char*, double>> gpu_passes(const GpuTimes& g) {
+  return {{"upload", g.upload}, {"bin", g.bin},           {"splat", g.splat},
+          {"fill", g.fill},     {"readback", g.readback}, {"total", g.total()}};
+}
+
+// null for a CPU backend (no GPU times yet).
+nlohmann::json gpu_json(const GpuTimes& g) {
+  if (g.image == 0) return nullptr;
+  nlohmann::json j;
+  for (const auto& [pass, ms] : gpu_passes(g)) j[pass] = ms;
+  return j;
+}
+
+}  // namespace
+
 std::string prometheus_text(const ServiceMetrics& metrics) {
   const DisplayMetrics d = metrics.display();
   const std::vector<SamplerMetrics> ss = metrics.samplers();
@@ -57,6 +74,13 @@ std::string prometheus_text(const ServiceMetrics& metrics) {
   scalar("afr_display_reconstruct_ms", "gauge", "wall time of the last reconstruction",
          d.reconstruct_ms);
   scalar("afr_display_refresh_hz", "gauge", "images per second", d.refresh_hz);
+  if (d.gpu.image > 0) {
+    metric("afr_display_gpu_pass_ms", "gauge",
+           "GPU time of each pass of the latest image the GPU finished (GL_TIME_ELAPSED)");
+    for (const auto& [pass, ms] : gpu_passes(d.gpu)) {
+      o += fmt::format("afr_display_gpu_pass_ms{{pass=\"{}\"}} {}\n", pass, ms);
+    }
+  }
   scalar("afr_display_period_reconstruct_ms_mean", "gauge",
          "mean reconstruction time over the last stats period", d.period_reconstruct_ms_mean);
   scalar("afr_display_period_reconstruct_ms_p99", "gauge",
@@ -121,6 +145,7 @@ std::string stats_json(const ServiceMetrics& metrics) {
                   {"frames", d.frames},
                   {"reconstruct_ms", d.reconstruct_ms},
                   {"reconstruct_ms_mean", d.reconstruct_ms_mean},
+                  {"gpu_ms", gpu_json(d.gpu)},
                   {"refresh_hz", d.refresh_hz},
                   {"period_reconstruct_ms_mean", d.period_reconstruct_ms_mean},
                   {"period_reconstruct_ms_p99", d.period_reconstruct_ms_p99},
@@ -192,6 +217,7 @@ std::string stats_line(const ServiceMetrics& metrics) {
       d.period_reconstruct_ms_mean, d.period_reconstruct_ms_p99,
       d.store_capacity ? 100.0 * double(d.store_stored) / double(d.store_capacity) : 0.0,
       d.window_latency_p50 * 1e3, d.window_latency_p99 * 1e3);
+  if (d.gpu.image > 0) o += fmt::format(", GPU {:.2f} ms", d.gpu.total());
   for (const SamplerMetrics& s : metrics.samplers()) {
     if (!s.member) continue;
     o += fmt::format(" | #{} {:.0f} k/s dropped {} gaps {}", s.id, s.samples_per_second * 1e-3,

@@ -3,6 +3,7 @@
 // times faster); every choice falls back to the CPU when no OpenGL context can be made.
 #pragma once
 
+#include <afr/display/gl_reconstructor.h>
 #include <afr/display/reconstructor.h>
 
 #include <memory>
@@ -23,9 +24,16 @@ struct BackendChoice {
   std::string reason;  // one line for the log: what was chosen and why
 };
 
+// How a GL backend is made: which EGL device (--gpu) and which splat pass (--gl-splat).
+struct GlBackendOptions {
+  int gpu = -1;  // HeadlessGlOptions::gpu
+  GlReconstructorOptions reconstructor;
+};
+
 // Makes the reconstructor; a GL one gets its own headless EGL context, current on the calling
 // thread (which must then be the reconstructing thread). Logs the reason at info level (warn
-// when a requested GL backend fell back).
-BackendChoice make_reconstructor(Backend backend, const ReconstructorConfig& config);
+// when a requested GL backend fell back), naming the EGL device and renderer.
+BackendChoice make_reconstructor(Backend backend, const ReconstructorConfig& config,
+                                 const GlBackendOptions& gl = {});
 
 }  // namespace afr

@@ -25,13 +25,15 @@
 
 namespace afr {
 
-enum class GlSplat { kGather, kRaster };
-// "gather", "raster"; throws afr::Error naming the text otherwise.
+// kAuto: the gather on a hardware GPU, the raster path on a software rasteriser (measured:
+// docs/benchmarks.md, "GPU reconstructor").
+enum class GlSplat { kAuto, kGather, kRaster };
+// "auto", "gather", "raster"; throws afr::Error naming the text otherwise.
 GlSplat parse_gl_splat(std::string_view text);
 const char* gl_splat_name(GlSplat splat);
 
 struct GlReconstructorOptions {
-  GlSplat splat = GlSplat::kGather;
+  GlSplat splat = GlSplat::kAuto;
   // gather: the screen tile side in pixels, one work group a tile (4..16). Smaller tiles test
   // fewer splats at each pixel but bin each splat to more tiles.
   int tile = 16;
@@ -52,7 +54,9 @@ class GlReconstructor final : public Reconstructor {
   size_t write_coverage(const PixelRect& rect, const std::vector<CoverageCell>& cells) override;
   StoredSlots stored_samples() override;
   void finish() override;
-  GlSplat splat_method() const { return options_.splat; }
+  GlSplat splat_method() const { return options_.splat; }  // never kAuto
+  // gather: list entries the tiles have room for (grows when an image needs more).
+  size_t gather_list_capacity() const;
   const std::string& renderer() const { return context_->renderer(); }
 
   // The last image as an RGBA32F texture (linear RGB, row 0 = image top), for display.

@@ -46,6 +46,7 @@ ReconstructorConfig display_reconstructor_config(const Preset& preset, Reconstru
 struct DisplayAppOptions {
   bool headless = false;  // no window: images at `fps` into `output`
   Backend backend = Backend::kAuto;
+  GlBackendOptions gl;  // --gpu, --gl-splat (the window's context takes only the splat pass)
   double fps = 30.0;
   double seconds = 0.0;  // stop after this long; 0: until the stop flag
   double stats_interval = 2.0;

@@ -9,6 +9,7 @@
 
 #include <afr/common/rect.h>
 #include <afr/common/samples.h>
+#include <afr/display/reconstructor.h>
 #include <afr/display/service/latency_histogram.h>
 #include <afr/protocol/messages.h>
 
@@ -54,6 +55,7 @@ struct DisplayMetrics {
   std::string mode;
   uint64_t frames = 0;
   double reconstruct_ms = 0.0;       // last frame
+  GpuTimes gpu;                      // a GPU backend: the latest image the GPU finished
   double reconstruct_ms_mean = 0.0;  // over the whole run
   double refresh_hz = 0.0;           // frames per second over the last stats period
   // Over the last stats period: the reconstruction time's mean and 99th percentile, and the
@@ -120,6 +122,7 @@ class ServiceMetrics {
   // Display thread: a frame finished at display time `time` (samples received before it are
   // now on screen).
   void on_frame(double time, double reconstruct_ms, uint64_t stored, uint64_t capacity);
+  void set_gpu(const GpuTimes& gpu);
   void set_display(uint64_t session, int width, int height, const std::string& backend,
                    const std::string& mode);
   void set_uptime(double seconds);

@@ -1,0 +1,86 @@
+#!/usr/bin/env bash
+# The GPU reconstructor's benchmarks (docs/benchmarks.md, "GPU reconstructor"), the same on a
+# GPU server (EGL's device platform, NVIDIA's driver) and here (Mesa's llvmpipe):
+#   1. the CPU and OpenGL backends side by side at 256x256 and 512x512 (N = 4 W H), both GL
+#      splat passes (gather, raster), GPU time per pass from GL_TIME_ELAPSED queries;
+#   2. the OpenGL backend alone at 1920x1080 and 3840x2160 (on a hardware GPU only: llvmpipe
+#      takes seconds an image there);
+#   3. a short headless display run with two samplers (deploy/run-local.sh) on the GL backend,
+#      where display_node and sampler_node are built (the display's stats line names its GPU
+#      time per image).
+# It writes bench/results/gpu-<renderer>.md (or OUT) with a header naming the renderer, the
+# EGL device, the commit and the date, and prints it.
+#
+#   bench/gpu.sh                                  build/ of this checkout
+#   bench/gpu.sh --bin DIR                        a bundle (deploy/bundle.sh DIR build/bench/afr-bench-reconstruct)
+#   bench/gpu.sh --out FILE --repeats 20 --gpu 1
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+bin="" out="" repeats=10 gpu=-1
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --bin) bin=$2; shift 2 ;;
+    --out) out=$2; shift 2 ;;
+    --repeats) repeats=$2; shift 2 ;;
+    --gpu) gpu=$2; shift 2 ;;
+    -h|--help) sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    *) echo "gpu.sh: unknown option '$1'" >&2; exit 2 ;;
+  esac
+done
+if [ -n "$bin" ]; then
+  bench=("$bin/run" afr-bench-reconstruct)
+else
+  bench=(build/bench/afr-bench-reconstruct)
+fi
+[ -x "${bench[0]}" ] || { echo "gpu.sh: ${bench[0]} not found (build first, or --bin DIR)" >&2; exit 2; }
+
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+common=(--naive false --readback false --gpu "$gpu" --gl-repeats "$repeats" --repeats "$repeats")
+
+"${bench[@]}" "${common[@]}" --backends cpu,gl --threads "$(nproc)" --sizes 256,512 \
+  --gl-splat gather,raster --gl-tiles 8,16 | tee "$tmp/small.md"
+renderer=$(sed -n 's/^OpenGL: \(.*\) on .*/\1/p' "$tmp/small.md" | head -1)
+[ -n "$renderer" ] || { echo "gpu.sh: no OpenGL context (see above)" >&2; exit 1; }
+if echo "$renderer" | grep -qiE 'llvmpipe|softpipe|swrast|swiftshader'; then
+  echo "(1920x1080 and 3840x2160 skipped: $renderer is a software rasteriser)" | tee "$tmp/large.md"
+else
+  "${bench[@]}" "${common[@]}" --backends gl --sizes 1920x1080,3840x2160 --gl-splat gather,raster \
+    --gl-tiles 8,16 | tee "$tmp/large.md"
+fi
+
+display=""
+if [ -z "$bin" ] && [ -x build/display_node/display_node ] && [ -x build/sampler_node/sampler_node ]; then
+  deploy/run-local.sh 2 --seconds 12 --backend gl --gpu "$gpu" --output "$tmp/run" \
+    --port 7390 --metrics-port 9390 >/dev/null 2>&1 || true
+  display=$(grep -E "reconstruction backend|display .* Hz" "$tmp/run/logs/display.log" 2>/dev/null |
+    tail -3 || true)
+fi
+
+slug=$(echo "$renderer" | tr 'A-Z' 'a-z' | sed 's/[^a-z0-9]\{1,\}/-/g; s/^-//; s/-$//' | cut -c1-40)
+out=${out:-bench/results/gpu-$slug.md}
+commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
+dirty=$(git status --porcelain 2>/dev/null | grep -qv '^??' && echo " (with uncommitted changes)" || true)
+{
+  echo "# GPU reconstructor: $renderer"
+  echo
+  echo "The GL backend's splat passes and the CPU backend, N = 4 W H, 1/60 of N new samples per"
+  echo "refresh, nothing read back (docs/benchmarks.md, \"GPU reconstructor\")."
+  echo
+  echo "- command: \`bench/gpu.sh${bin:+ --bin DIR} --repeats $repeats --gpu $gpu\`"
+  echo "- commit: $commit$dirty; date: $(date -u +%Y-%m-%d); $(nproc) cores"
+  echo
+  cat "$tmp/small.md"
+  echo
+  cat "$tmp/large.md"
+  if [ -n "$display" ]; then
+    echo
+    echo "A headless display run (deploy/run-local.sh 2, 12 s, GL backend), its log:"
+    echo
+    echo '```'
+    echo "$display"
+    echo '```'
+  fi
+} >"$out"
+echo "gpu.sh: wrote $out"
