@@ -54,8 +54,9 @@ display=""
 if [ -z "$bin" ] && [ -x build/display_node/display_node ] && [ -x build/sampler_node/sampler_node ]; then
   deploy/run-local.sh 2 --seconds 12 --backend gl --gpu "$gpu" --output "$tmp/run" \
     --port 7390 --metrics-port 9390 >/dev/null 2>&1 || true
-  display=$(grep -E "reconstruction backend|display .* Hz" "$tmp/run/logs/display.log" 2>/dev/null |
-    tail -3 || true)
+  log=$tmp/run/logs/display.log
+  display=$( (grep -m1 "reconstruction backend" "$log"; grep "display .* Hz" "$log" | tail -2) \
+    2>/dev/null || true)
 fi
 
 slug=$(echo "$renderer" | tr 'A-Z' 'a-z' | sed 's/[^a-z0-9]\{1,\}/-/g; s/^-//; s/-$//' | cut -c1-40)

@@ -186,7 +186,7 @@ Timing run(afr::Reconstructor& rec, afr::ImageExtent size, int repeats, int warm
   rec.finish();
   collect(rec.frame_stats().gpu, warmup, &gpu);
   Timing timing = summarize(ms, cpu);
-  if (!gpu.empty()) {
+  if (!gpu.empty() && gpu.back().timed) {
     const auto median_pass = [&](double afr::GpuTimes::*pass) {
       std::vector<double> v;
       for (const afr::GpuTimes& g : gpu) v.push_back(g.*pass);
@@ -295,13 +295,20 @@ int main(int argc, char** argv) {
             afr::GlReconstructor rec(cfg, gl, options);
             const Timing t = run(rec, size, gl_repeats, warmup, readback, 1);
             row(name, "-", t);
-            passes.push_back(
-                fmt::format("| {} | {}x{} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |",
-                            name, size.width, size.height, t.passes.upload, t.passes.bin,
-                            t.passes.splat, t.passes.fill, t.passes.readback, t.gpu));
+            if (t.gpu > 0.0)
+              passes.push_back(fmt::format(
+                  "| {} | {}x{} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |", name,
+                  size.width, size.height, t.passes.upload, t.passes.bin, t.passes.splat,
+                  t.passes.fill, t.passes.readback, t.gpu));
           }
         }
       }
+    }
+    if (gl && gl->software()) {
+      fmt::print(
+          "\nNo GPU times: {} runs the work when it is waited for, so its timer queries "
+          "measure nothing; with at most three images in flight its call ms measure its rate.\n",
+          gl->renderer());
     }
     if (!passes.empty()) {
       fmt::print("\nGPU time per pass, median ms (GL_TIME_ELAPSED)\n\n");

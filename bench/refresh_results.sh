@@ -34,6 +34,10 @@ add liveness liveness.md "Liveness of the running service" \
   "Detection of a kill -9, stops that must not count as deaths, samplers back after a display restart (docs/service.md, \"Liveness\")." \
   'python3 bench/liveness.py --build "$BUILD" --trials 5 --load 0 --write' \
   self
+add gpu "gpu-llvmpipe-llvm-15-0-6-256-bits.md" "GPU reconstructor" \
+  "The GL backend's splat passes beside the CPU backend (docs/benchmarks.md, \"GPU reconstructor\"); the file is named after the renderer." \
+  'bench/gpu.sh' \
+  self
 add liveness-load4 liveness-load4.md "Liveness of the running service, four busy processes beside" \
   "As liveness.md with four busy processes beside the nodes (docs/service.md, \"Liveness\")." \
   'python3 bench/liveness.py --build "$BUILD" --trials 5 --load 4 --write' \

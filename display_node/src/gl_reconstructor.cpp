@@ -281,6 +281,7 @@ struct GlReconstructor::Impl {
     double* pass_ms[kPasses] = {&t.upload, &t.bin, &t.splat, &t.fill, &t.readback};
     for (int p = 0; p < kPasses; ++p) {
       if (!f.timed[size_t(p)]) continue;
+      t.timed = true;
       GLuint64 ns = 0;
       glGetQueryObjectui64v(f.queries[size_t(p)], GL_QUERY_RESULT, &ns);
       *pass_ms[p] = double(ns) * 1e-6;
@@ -500,11 +501,13 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
   uint32_t* status = m.status_words(f);
   std::fill_n(status, kStatusStride / sizeof(uint32_t), 0u);
   const GLintptr status_at = GLintptr(size_t(&f - m.flight.data()) * kStatusStride);
+  // llvmpipe runs the work when it is waited for, so its GL_TIME_ELAPSED measures nothing.
+  const bool queries = !context_->software();
   const auto timed = [&](Pass pass, auto&& body) {
-    glBeginQuery(GL_TIME_ELAPSED, f.queries[size_t(pass)]);
+    if (queries) glBeginQuery(GL_TIME_ELAPSED, f.queries[size_t(pass)]);
     body();
-    glEndQuery(GL_TIME_ELAPSED);
-    f.timed[size_t(pass)] = true;
+    if (queries) glEndQuery(GL_TIME_ELAPSED);
+    f.timed[size_t(pass)] = queries;
   };
 
   // ---- Only the new samples go to the GPU, into their ring slots.

@@ -14,7 +14,7 @@ std::vector<std::pair<const char*, double>> gpu_passes(const GpuTimes& g) {
 
 // null for a CPU backend (no GPU times yet).
 nlohmann::json gpu_json(const GpuTimes& g) {
-  if (g.image == 0) return nullptr;
+  if (!g.timed) return nullptr;
   nlohmann::json j;
   for (const auto& [pass, ms] : gpu_passes(g)) j[pass] = ms;
   return j;
@@ -74,7 +74,7 @@ std::string prometheus_text(const ServiceMetrics& metrics) {
   scalar("afr_display_reconstruct_ms", "gauge", "wall time of the last reconstruction",
          d.reconstruct_ms);
   scalar("afr_display_refresh_hz", "gauge", "images per second", d.refresh_hz);
-  if (d.gpu.image > 0) {
+  if (d.gpu.timed) {
     metric("afr_display_gpu_pass_ms", "gauge",
            "GPU time of each pass of the latest image the GPU finished (GL_TIME_ELAPSED)");
     for (const auto& [pass, ms] : gpu_passes(d.gpu)) {
@@ -217,7 +217,7 @@ std::string stats_line(const ServiceMetrics& metrics) {
       d.period_reconstruct_ms_mean, d.period_reconstruct_ms_p99,
       d.store_capacity ? 100.0 * double(d.store_stored) / double(d.store_capacity) : 0.0,
       d.window_latency_p50 * 1e3, d.window_latency_p99 * 1e3);
-  if (d.gpu.image > 0) o += fmt::format(", GPU {:.2f} ms", d.gpu.total());
+  if (d.gpu.timed) o += fmt::format(", GPU {:.2f} ms", d.gpu.total());
   for (const SamplerMetrics& s : metrics.samplers()) {
     if (!s.member) continue;
     o += fmt::format(" | #{} {:.0f} k/s dropped {} gaps {}", s.id, s.samples_per_second * 1e-3,

@@ -61,7 +61,10 @@ struct ReconstructorConfig {
 // GPU time of one image's passes, milliseconds, from GL_TIME_ELAPSED queries read without
 // waiting (a GPU backend; the CPU backend leaves them empty).
 struct GpuTimes {
-  uint64_t image = 0;     // the reconstruct() call they time (1 = the first); 0: none yet
+  uint64_t image = 0;  // the reconstruct() call they time (1 = the first); 0: none yet
+  // False where the driver's timer queries measure nothing (a software rasteriser runs the
+  // work when it is waited for): then only `image` is set.
+  bool timed = false;
   double upload = 0.0;    // new samples from the staging ring into the sample ring
   double bin = 0.0;       // gather: splats prepared and binned to screen tiles
   double splat = 0.0;     // splats (or newest samples) into the accumulation and coverage
