@@ -383,14 +383,16 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
   }
   Impl& m = *impl_;
   m.tile = options_.tile;
-  m.splat = graphics_program(gl_shaders::kSplatVertex, gl_shaders::kSplatFragment, "splat");
+  m.splat = graphics_program(gl_shaders::splat_program_source(gl_shaders::kSplatVertex).c_str(),
+                             gl_shaders::kSplatFragment, "splat");
   m.newest = graphics_program(gl_shaders::kNewestVertex, gl_shaders::kNewestFragment, "newest");
   m.pyramid = compute_program(gl_shaders::kPyramidCompute, "pyramid");
   m.normalise = compute_program(gl_shaders::kNormaliseCompute, "normalise");
   m.blit = graphics_program(gl_shaders::kBlitVertex, gl_shaders::kBlitFragment, "blit");
   m.pack = compute_program(gl_shaders::kPackCompute, "pack");
   if (options_.splat == GlSplat::kGather) {
-    m.prepare = compute_program(gl_shaders::kPrepareCompute, "prepare");
+    m.prepare = compute_program(
+        gl_shaders::splat_program_source(gl_shaders::kPrepareCompute).c_str(), "prepare");
     m.scan = compute_program(gl_shaders::kScanCompute, "scan");
     m.scatter = compute_program(gl_shaders::kScatterCompute, "scatter");
     const std::string gather_source = fmt::format("#version 430 core\n#define TILE {}\n{}",

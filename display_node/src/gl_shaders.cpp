@@ -2,15 +2,11 @@
 
 namespace afr::gl_shaders {
 
-// Vertex attributes are StoredSample's fields (sample_store.h), 64 bytes a sample.
-const char* const kSplatVertex = R"(#version 430 core
-layout(location = 0) in double a_time;
-layout(location = 1) in vec2 a_xy;
-layout(location = 2) in vec3 a_color;
-layout(location = 3) in uint a_flags;
-layout(location = 4) in vec3 a_position;
-layout(location = 5) in vec3 a_velocity;
-
+// What the raster path's vertex shader and the gather's prepare pass share: the uniforms of a
+// splat's preparation and prepare_splat(), which reprojects a sample (reprojection.h), reads
+// its tile's filter and the previous image's coverage, and sizes its splat (coverage_map.h,
+// filter.h): cpu_reconstructor.cpp's phases 1 and 2. Programs put it after their #version.
+const char* const kSplatCommon = R"(
 uniform double u_now;
 uniform bool u_reproject;
 // Projector (reprojection.h)
@@ -44,17 +40,6 @@ uniform usampler2D u_tile_index;       // per output pixel: index into u_tile_fi
 uniform samplerBuffer u_tile_filters;  // sigma_x, sigma_y, k_t, e_t
 uniform sampler2D u_coverage;          // previous image: count, growth sum
 
-flat out vec2 v_center;
-flat out vec4 v_kernel;  // k_x, k_y, off_x, off_y
-flat out vec3 v_color;
-flat out float v_wt;
-flat out vec3 v_extent;  // r_x, r_y, growth r / r_filter
-
-void skip() {
-  gl_Position = vec4(2.0, 2.0, 2.0, 1.0);  // outside the clip volume: culled
-  gl_PointSize = 1.0;
-}
-
 // quantize_position (reprojection.h): 1/256 pixel in the whole image's coordinates.
 vec2 quantize_position(vec2 v) {
   return mix(v, roundEven(v * 256.0) / 256.0, lessThan(abs(v), vec2(16384.0)));
@@ -80,36 +65,45 @@ float splat_radius(vec2 cell, float filter_radius) {
   return min(r, u_max_radius);
 }
 
-void main() {
-  double age_d = u_now - a_time;
-  if (age_d < double(-u_max_future)) { skip(); return; }
+struct Splat {
+  vec2 center;  // grid pixels
+  vec4 kernel;  // k_x, k_y, and the Gaussians' values at the cut: off_x, off_y
+  vec3 extent;  // r_x, r_y, growth r / r_filter
+  float wt;     // temporal weight over the Gaussian's area
+};
+
+// False when the sample reaches no pixel of the grid (too far in the future, behind the
+// camera, off the grid and its guard band).
+bool prepare_splat(double time, vec2 xy, uint flags, vec3 position, vec3 velocity,
+                   out Splat s) {
+  double age_d = u_now - time;
+  if (age_d < double(-u_max_future)) return false;
   float age_signed = float(age_d);
   float age = max(age_signed, 0.0);
   vec2 p;
-  if (u_reproject && (a_flags & 1u) != 0u) {
+  if (u_reproject && (flags & 1u) != 0u) {
     vec3 d;
     float z;
-    if ((a_flags & 2u) != 0u) {
-      d = a_position;
+    if ((flags & 2u) != 0u) {
+      d = position;
       z = dot(d, u_forward);
-      if (!(z > u_min_direction_z)) { skip(); return; }
+      if (!(z > u_min_direction_z)) return false;
     } else {
-      vec3 w = a_position;
-      if ((a_flags & 4u) != 0u) w += a_velocity * age_signed;
+      vec3 w = position;
+      if ((flags & 4u) != 0u) w += velocity * age_signed;
       d = w - u_eye;
       z = dot(d, u_forward);
-      if (!(z >= u_znear)) { skip(); return; }
+      if (!(z >= u_znear)) return false;
     }
     p = vec2(u_half.x + dot(d, u_axis_x) / z, u_half.y - dot(d, u_axis_y) / z);
-    if (!(abs(p.x) < u_max_coordinate) || !(abs(p.y) < u_max_coordinate)) { skip(); return; }
+    if (!(abs(p.x) < u_max_coordinate) || !(abs(p.y) < u_max_coordinate)) return false;
     p = quantize_position(p) - u_origin;
   } else {
-    p = quantize_position(a_xy * u_scale) - u_origin;
+    p = quantize_position(xy * u_scale) - u_origin;
   }
   vec2 size = vec2(u_size);
   if (!(p.x > -u_guard && p.x < size.x + u_guard && p.y > -u_guard && p.y < size.y + u_guard)) {
-    skip();
-    return;
+    return false;
   }
   ivec2 pix = clamp(ivec2(floor(p)), ivec2(0), u_size - 1);
   vec4 f = texelFetch(u_tile_filters, int(texelFetch(u_tile_index, pix, 0).r));
@@ -123,17 +117,48 @@ void main() {
   // The square of radius r cut to the Gaussian's own cutoff box.
   float r_x = quantize_position(min(r, u_cutoff * sigma_x));
   float r_y = quantize_position(min(r, u_cutoff * sigma_y));
-  v_kernel = vec4(k_x, k_y, exp(-r_x * r_x * k_x), exp(-r_y * r_y * k_y));
+  s.center = p;
+  s.kernel = vec4(k_x, k_y, exp(-r_x * r_x * k_x), exp(-r_y * r_y * k_y));
+  s.extent = vec3(r_x, r_y, r / r_filter);
   // Divided by the Gaussian's area (filter.h).
-  v_wt = max(exp(-age * age * f.z), u_min_wt) / (sigma_x * sigma_y);
-  v_center = p;
+  s.wt = max(exp(-age * age * f.z), u_min_wt) / (sigma_x * sigma_y);
+  return true;
+}
+)";
+
+// Vertex attributes are StoredSample's fields (sample_store.h), 64 bytes a sample.
+const char* const kSplatVertex = R"(
+layout(location = 0) in double a_time;
+layout(location = 1) in vec2 a_xy;
+layout(location = 2) in vec3 a_color;
+layout(location = 3) in uint a_flags;
+layout(location = 4) in vec3 a_position;
+layout(location = 5) in vec3 a_velocity;
+
+flat out vec2 v_center;
+flat out vec4 v_kernel;  // k_x, k_y, off_x, off_y
+flat out vec3 v_color;
+flat out float v_wt;
+flat out vec3 v_extent;  // r_x, r_y, growth r / r_filter
+
+void main() {
+  Splat s;
+  if (!prepare_splat(a_time, a_xy, a_flags, a_position, a_velocity, s)) {
+    gl_Position = vec4(2.0, 2.0, 2.0, 1.0);  // outside the clip volume: culled
+    gl_PointSize = 1.0;
+    return;
+  }
+  v_center = s.center;
+  v_kernel = s.kernel;
   v_color = a_color;
-  v_extent = vec3(r_x, r_y, r / r_filter);
+  v_wt = s.wt;
+  v_extent = s.extent;
   // The viewport is the image grown by u_guard on every side.
-  gl_Position = vec4((p + u_guard) / (size + 2.0 * u_guard) * 2.0 - 1.0, 0.0, 1.0);
+  vec2 size = vec2(u_size);
+  gl_Position = vec4((s.center + u_guard) / (size + 2.0 * u_guard) * 2.0 - 1.0, 0.0, 1.0);
   // Covers every pixel center within r of p, with half a pixel to spare on each side for the
   // rasteriser's snapping of point positions (1/256 pixel on llvmpipe) and size rounding.
-  gl_PointSize = 2.0 * max(r_x, r_y) + 1.0;
+  gl_PointSize = 2.0 * max(s.extent.x, s.extent.y) + 1.0;
 }
 )";
 
@@ -306,7 +331,7 @@ void main() {
 // holds StoredSample (sample_store.h) as 16 words: time (2, a double), x, y, r, g, b, flags,
 // position (3), velocity (3), sampler id, reserved.
 
-const char* const kPrepareCompute = R"(#version 430 core
+const char* const kPrepareCompute = R"(
 layout(local_size_x = 256) in;
 layout(std430, binding = 0) readonly buffer Ring { uint ring[]; };
 // 16 floats a splat, at its sample's ring slot: center (2), kernel (4: k_x, k_y, off_x, off_y),
@@ -317,61 +342,8 @@ layout(std430, binding = 1) writeonly buffer Splats { vec4 splats[]; };
 layout(std430, binding = 2) buffer TileCounts { uint tile_count[]; };
 
 uniform uint u_stored;
-uniform double u_now;
-uniform bool u_reproject;
-uniform vec3 u_eye;
-uniform vec3 u_forward;
-uniform vec3 u_axis_x;
-uniform vec3 u_axis_y;
-uniform float u_znear;
-uniform vec2 u_half;
-uniform float u_min_direction_z;
-uniform float u_max_coordinate;
-uniform vec2 u_scale;
-uniform vec2 u_origin;
-uniform ivec2 u_size;
-uniform float u_guard;
-uniform float u_max_future;
-uniform float u_cutoff;
-uniform float u_min_wt;
-uniform bool u_have_coverage;
-uniform float u_grow_below;
-uniform float u_grow;
-uniform float u_shrink_above;
-uniform float u_relax;
-uniform float u_shrink;
-uniform float u_min_radius;
-uniform float u_max_radius;
-uniform int u_tile;      // tile side, pixels
-uniform ivec2 u_tiles;   // tiles across, down
-
-uniform usampler2D u_tile_index;
-uniform samplerBuffer u_tile_filters;
-uniform sampler2D u_coverage;
-
-vec2 quantize_position(vec2 v) {
-  return mix(v, roundEven(v * 256.0) / 256.0, lessThan(abs(v), vec2(16384.0)));
-}
-float quantize_position(float v) { return abs(v) < 16384.0 ? roundEven(v * 256.0) / 256.0 : v; }
-
-float splat_radius(vec2 cell, float filter_radius) {
-  float g = 1.0;
-  if (u_have_coverage) {
-    float c = cell.x;
-    if (!(c > 0.0)) {
-      g = u_grow;
-    } else {
-      float mean = cell.y / c;
-      float base = mean + u_relax * (1.0 - mean);
-      if (c < u_grow_below) g = base * min(u_grow, sqrt(u_grow_below / c));
-      else if (c > u_shrink_above) g = base * max(u_shrink, sqrt(sqrt(u_shrink_above / c)));
-      else g = base;
-    }
-  }
-  float r = g * filter_radius;
-  if (!(r >= u_min_radius)) return u_min_radius;
-  return min(r, u_max_radius);
-}
+uniform int u_tile;     // tile side, pixels
+uniform ivec2 u_tiles;  // tiles across, down
 
 vec3 word3(uint i) { return uintBitsToFloat(uvec3(ring[i], ring[i + 1u], ring[i + 2u])); }
 
@@ -382,65 +354,23 @@ void main() {
   if (slot >= u_stored) return;
   splats[4u * slot + 3u] = vec4(0.0, uintBitsToFloat(1u), uintBitsToFloat(0u), 0.0);  // skipped
   uint b = slot * 16u;
-  double time = packDouble2x32(uvec2(ring[b], ring[b + 1u]));
-  vec2 xy = uintBitsToFloat(uvec2(ring[b + 2u], ring[b + 3u]));
-  vec3 color = word3(b + 4u);
-  uint flags = ring[b + 7u];
-  vec3 position = word3(b + 8u);
-  vec3 velocity = word3(b + 11u);
-
-  double age_d = u_now - time;
-  if (age_d < double(-u_max_future)) return;
-  float age_signed = float(age_d);
-  float age = max(age_signed, 0.0);
-  vec2 p;
-  if (u_reproject && (flags & 1u) != 0u) {
-    vec3 d;
-    float z;
-    if ((flags & 2u) != 0u) {
-      d = position;
-      z = dot(d, u_forward);
-      if (!(z > u_min_direction_z)) return;
-    } else {
-      vec3 w = position;
-      if ((flags & 4u) != 0u) w += velocity * age_signed;
-      d = w - u_eye;
-      z = dot(d, u_forward);
-      if (!(z >= u_znear)) return;
-    }
-    p = vec2(u_half.x + dot(d, u_axis_x) / z, u_half.y - dot(d, u_axis_y) / z);
-    if (!(abs(p.x) < u_max_coordinate) || !(abs(p.y) < u_max_coordinate)) return;
-    p = quantize_position(p) - u_origin;
-  } else {
-    p = quantize_position(xy * u_scale) - u_origin;
-  }
-  vec2 size = vec2(u_size);
-  if (!(p.x > -u_guard && p.x < size.x + u_guard && p.y > -u_guard && p.y < size.y + u_guard)) {
+  Splat s;
+  if (!prepare_splat(packDouble2x32(uvec2(ring[b], ring[b + 1u])),
+                     uintBitsToFloat(uvec2(ring[b + 2u], ring[b + 3u])), ring[b + 7u],
+                     word3(b + 8u), word3(b + 11u), s)) {
     return;
   }
-  ivec2 pix = clamp(ivec2(floor(p)), ivec2(0), u_size - 1);
-  vec4 f = texelFetch(u_tile_filters, int(texelFetch(u_tile_index, pix, 0).r));
-  float r_filter = u_cutoff * max(f.x, f.y);
-  float r = splat_radius(texelFetch(u_coverage, pix, 0).xy, r_filter);
-  float grown = max(1.0, r / r_filter);
-  float sigma_x = f.x * grown;
-  float sigma_y = f.y * grown;
-  float k_x = 0.5 / (sigma_x * sigma_x);
-  float k_y = 0.5 / (sigma_y * sigma_y);
-  float r_x = quantize_position(min(r, u_cutoff * sigma_x));
-  float r_y = quantize_position(min(r, u_cutoff * sigma_y));
+  vec3 color = word3(b + 4u);
   // The pixels whose centers lie strictly within (r_x, r_y) of p: x + 0.5 in (p - r, p + r).
-  ivec2 lo = max(ivec2(floor(p - vec2(r_x, r_y) - 0.5)), ivec2(0));
-  ivec2 hi = min(ivec2(ceil(p + vec2(r_x, r_y) - 0.5)), u_size - 1);
+  ivec2 lo = max(ivec2(floor(s.center - s.extent.xy - 0.5)), ivec2(0));
+  ivec2 hi = min(ivec2(ceil(s.center + s.extent.xy - 0.5)), u_size - 1);
   if (any(greaterThan(lo, hi))) return;
   ivec2 t0 = lo / u_tile, t1 = hi / u_tile;
-  uint i = slot;
-  float wt = max(exp(-age * age * f.z), u_min_wt) / (sigma_x * sigma_y);
-  splats[4u * i] = vec4(p, k_x, k_y);
-  splats[4u * i + 1u] = vec4(exp(-r_x * r_x * k_x), exp(-r_y * r_y * k_y), color.r, color.g);
-  splats[4u * i + 2u] = vec4(color.b, wt, r_x, r_y);
-  splats[4u * i + 3u] = vec4(r / r_filter, uintBitsToFloat(uint(t0.x) | (uint(t0.y) << 16)),
-                             uintBitsToFloat(uint(t1.x) | (uint(t1.y) << 16)), 0.0);
+  splats[4u * slot] = vec4(s.center, s.kernel.xy);
+  splats[4u * slot + 1u] = vec4(s.kernel.zw, color.rg);
+  splats[4u * slot + 2u] = vec4(color.b, s.wt, s.extent.xy);
+  splats[4u * slot + 3u] = vec4(s.extent.z, uintBitsToFloat(uint(t0.x) | (uint(t0.y) << 16)),
+                                uintBitsToFloat(uint(t1.x) | (uint(t1.y) << 16)), 0.0);
   for (int ty = t0.y; ty <= t1.y; ++ty) {
     for (int tx = t0.x; tx <= t1.x; ++tx) atomicAdd(tile_count[ty * u_tiles.x + tx], 1u);
   }

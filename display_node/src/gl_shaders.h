@@ -2,10 +2,16 @@
 // it; keep the two in step (the backend agreement tests check they are).
 #pragma once
 
+#include <string>
+
 namespace afr::gl_shaders {
 
-// Adaptive splats (cpu_reconstructor.cpp, phase 1 and 2): reprojection, tile filter, coverage
-// rule, Gaussian weight; accumulates (sum w c, sum w) and (count, radius sum).
+// The shaders below without a #version line are completed by splat_program_source(): the
+// version, then kSplatCommon (the uniforms and prepare_splat(): reprojection, tile filter,
+// coverage rule, Gaussian constants, cpu_reconstructor.cpp's phases 1 and 2), then the body.
+extern const char* const kSplatCommon;
+// Adaptive splats as points: the vertex shader prepares (with kSplatCommon), the fragment
+// shader weights; accumulates (sum w c, sum w) and (count, radius sum).
 extern const char* const kSplatVertex;
 extern const char* const kSplatFragment;
 // Traditional frameless: one point per sample at its pixel, the newest wins the depth test.
@@ -18,7 +24,7 @@ extern const char* const kNormaliseCompute;
 // of kSplatVertex) and count the screen tiles it reaches; scan the counts into list starts;
 // scatter splat indices into the tiles' lists; gather, one work group a tile and one
 // invocation a pixel, each splat evaluated as kSplatFragment does.
-extern const char* const kPrepareCompute;
+extern const char* const kPrepareCompute;  // with kSplatCommon
 extern const char* const kScanCompute;
 extern const char* const kScatterCompute;
 extern const char* const kGatherCompute;
@@ -27,5 +33,10 @@ extern const char* const kPackCompute;
 // Shows the output texture in a window, image row 0 at the top.
 extern const char* const kBlitVertex;
 extern const char* const kBlitFragment;
+
+// "#version 430 core", kSplatCommon, then `body`.
+inline std::string splat_program_source(const char* body) {
+  return std::string("#version 430 core\n") + kSplatCommon + body;
+}
 
 }  // namespace afr::gl_shaders
