@@ -6,6 +6,7 @@
 #include <afr/common/log.h>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <tiny_gltf.h>
 #include <nlohmann/json.hpp>
 
@@ -35,9 +36,21 @@ constexpr size_t kMaxAccessorCount = size_t(1) << 26;
 constexpr size_t kMaxAccessorCountWithoutView = size_t(1) << 22;
 
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
-// of attributes, which the accessor reader converts anyway).
-constexpr std::array<std::string_view, 3> kSupportedExtensions = {
-    "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_mesh_quantization"};
+// of attributes, which the accessor reader converts anyway). A file that requires any other
+// extension is refused; one that only uses another is loaded with a warning naming it.
+constexpr std::array<std::string_view, 4> kSupportedExtensions = {
+    "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_mesh_quantization",
+    "KHR_texture_transform"};
+
+// The default lighting of a scene without lights (what glTF viewers do): a directional
+// headlight that moves with the scene's camera and a uniform sky term. The headlight comes from
+// above and to the right of the view (about 31 degrees off its axis), so faces turned toward
+// the camera differ in shade and shadows fall visibly; a white Lambertian surface facing it
+// reflects about 0.8 (intensity / pi, the BRDF's convention), and the sky adds 0.2 times the
+// base color everywhere, so that no surface the camera sees is black.
+constexpr double kHeadlightIntensity = 2.5;
+constexpr std::array<double, 3> kHeadlightFrom = {0.35, 0.5, 1.0};  // in the camera's frame
+constexpr float kSkyRadiance = 0.2f;
 
 bool is_finite(std::span<const double> values) {
   return std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); });
@@ -137,6 +150,7 @@ class Loader {
   std::vector<uint8_t> read_file() const;
   void parse(std::span<const uint8_t> bytes);
   void check_extensions();
+  void add_default_lighting();
 
   // Accessors.
   std::vector<uint8_t> gather(int index, int type, const std::string& what,
@@ -148,6 +162,9 @@ class Loader {
   void load_meshes();
   bool load_primitive(const tinygltf::Primitive& in, const std::string& what, Primitive* out);
   void load_materials();
+  std::optional<glm::dmat3> read_texture_transform(const tinygltf::TextureInfo& info,
+                                                   const std::string& what, int* tex_coord);
+  void apply_texture_transforms();
   int texture_for_image(int image_index);
   void load_cameras();
   void load_lights();
@@ -167,6 +184,8 @@ class Loader {
   std::vector<int> camera_map_;        // glTF camera -> Scene::cameras, -1 when skipped
   std::vector<int> light_map_;         // glTF light -> Scene::lights, -1 when skipped
   std::vector<int> image_to_texture_;  // glTF image -> Scene::textures, -1 until decoded
+  // Per glTF material: the KHR_texture_transform of its base-color texture, if any.
+  std::vector<std::optional<glm::dmat3>> uv_transforms_;
 };
 
 void Loader::warn_once(const std::string& feature, const std::string& message) {
@@ -278,6 +297,7 @@ void Loader::check_extensions() {
   for (const auto& t : model_.textures) add(t.extensions);
   for (const auto& i : model_.images) add(i.extensions);
   for (const auto& c : model_.cameras) add(c.extensions);
+  std::vector<std::string> required_missing;
   for (const auto& name : used) {
     if (std::find(kSupportedExtensions.begin(), kSupportedExtensions.end(), name) !=
         kSupportedExtensions.end()) {
@@ -286,8 +306,16 @@ void Loader::check_extensions() {
     const bool required =
         std::find(model_.extensionsRequired.begin(), model_.extensionsRequired.end(), name) !=
         model_.extensionsRequired.end();
-    warn_once("extension " + name, fmt::format("{}extension {} is not supported (ignored)",
-                                               required ? "required " : "", name));
+    if (required) {
+      required_missing.push_back(name);
+    } else {
+      warn_once("extension " + name,
+                fmt::format("extension {} is not supported (its content is ignored)", name));
+    }
+  }
+  if (!required_missing.empty()) {
+    fail(fmt::format("the file requires extension{} {}, which afr does not support",
+                     required_missing.size() > 1 ? "s" : "", fmt::join(required_missing, ", ")));
   }
 }
 
@@ -635,6 +663,7 @@ glm::vec3 Loader::read_rgb_extra(const tinygltf::Value& extras, const char* key,
 
 void Loader::load_materials() {
   image_to_texture_.assign(model_.images.size(), -1);
+  uv_transforms_.assign(model_.materials.size(), std::nullopt);
   for (size_t m = 0; m < model_.materials.size(); ++m) {
     const tinygltf::Material& in = model_.materials[m];
     const tinygltf::PbrMetallicRoughness& pbr = in.pbrMetallicRoughness;
@@ -691,10 +720,12 @@ void Loader::load_materials() {
         fail(fmt::format("{} refers to texture {}, but there are {}", what, t,
                          model_.textures.size()));
       }
-      if (pbr.baseColorTexture.texCoord != 0) {
+      int tex_coord = pbr.baseColorTexture.texCoord;
+      uv_transforms_[m] = read_texture_transform(pbr.baseColorTexture, what, &tex_coord);
+      if (tex_coord != 0) {
         warn_once("texCoord", fmt::format("textures on TEXCOORD_{} are not supported "
                                           "(TEXCOORD_0 is used)",
-                                          pbr.baseColorTexture.texCoord));
+                                          tex_coord));
       }
       const tinygltf::Texture& texture = model_.textures[size_t(t)];
       if (texture.sampler >= int(model_.samplers.size())) {
@@ -723,6 +754,71 @@ void Loader::load_materials() {
     }
     if (in.extras.Has("afr_ambient")) out.ambient = read_rgb_extra(in.extras, "afr_ambient", what);
     scene_.materials.push_back(std::move(out));
+  }
+}
+
+// KHR_texture_transform on a texture reference: the matrix that maps the primitive's texture
+// coordinates to the texture's, and its texCoord (which replaces the reference's own). The
+// order is the Khronos sample viewer's, translation x rotation x scale, with the rotation
+// turning (u, v) to (c u + s v, -s u + c v): TextureTransformTest's green marker. The GLSL of
+// the extension's text writes the rotation transposed; viewers and the test model agree on
+// this one.
+std::optional<glm::dmat3> Loader::read_texture_transform(const tinygltf::TextureInfo& info,
+                                                         const std::string& what, int* tex_coord) {
+  const auto ext = info.extensions.find("KHR_texture_transform");
+  if (ext == info.extensions.end()) return std::nullopt;
+  const tinygltf::Value& t = ext->second;
+  const std::string where = what + " KHR_texture_transform";
+  if (!t.IsObject()) fail(where + " is not an object");
+  auto pair = [&](const char* key, double fallback) {
+    std::array<double, 2> v = {fallback, fallback};
+    if (!t.Has(key)) return v;
+    const tinygltf::Value& a = t.Get(key);
+    bool ok = a.IsArray() && a.ArrayLen() == 2;
+    for (int i = 0; ok && i < 2; ++i) {
+      ok = a.Get(i).IsNumber() && std::isfinite(a.Get(i).GetNumberAsDouble());
+      if (ok) v[size_t(i)] = a.Get(i).GetNumberAsDouble();
+    }
+    if (!ok) fail(fmt::format("{} \"{}\" is not an array of 2 numbers", where, key));
+    return v;
+  };
+  const std::array<double, 2> offset = pair("offset", 0.0);
+  const std::array<double, 2> scale = pair("scale", 1.0);
+  double rotation = 0.0;
+  if (t.Has("rotation")) {
+    const tinygltf::Value& r = t.Get("rotation");
+    if (!r.IsNumber() || !std::isfinite(r.GetNumberAsDouble())) {
+      fail(where + " \"rotation\" is not a number");
+    }
+    rotation = r.GetNumberAsDouble();
+  }
+  if (t.Has("texCoord")) {
+    const tinygltf::Value& c = t.Get("texCoord");
+    if (!c.IsInt() || c.GetNumberAsInt() < 0) {
+      fail(where + " \"texCoord\" is not a non-negative integer");
+    }
+    *tex_coord = c.GetNumberAsInt();
+  }
+  const double c = std::cos(rotation), s = std::sin(rotation);
+  // glm is column-major: m[column][row].
+  glm::dmat3 m(1.0);
+  m[0] = glm::dvec3(c * scale[0], -s * scale[0], 0.0);
+  m[1] = glm::dvec3(s * scale[1], c * scale[1], 0.0);
+  m[2] = glm::dvec3(offset[0], offset[1], 1.0);
+  return m;
+}
+
+// Texture transforms become the primitives' texture coordinates: afr reads one texture per
+// material, and a primitive has one material, so moving the coordinates is exact and costs
+// the tracer nothing.
+void Loader::apply_texture_transforms() {
+  for (Mesh& mesh : scene_.meshes) {
+    for (Primitive& p : mesh.primitives) {
+      if (p.material < 0 || size_t(p.material) >= uv_transforms_.size()) continue;
+      const std::optional<glm::dmat3>& m = uv_transforms_[size_t(p.material)];
+      if (!m) continue;
+      for (glm::vec2& uv : p.uvs) uv = glm::vec2(*m * glm::dvec3(uv, 1.0));
+    }
   }
 }
 
@@ -774,8 +870,11 @@ void Loader::load_cameras() {
   for (size_t i = 0; i < model_.cameras.size(); ++i) {
     const tinygltf::Camera& in = model_.cameras[i];
     if (in.type != "perspective") {
+      // afr's camera and the display's reprojection are perspective only.
       warn_once("camera " + in.type,
-                fmt::format("{} cameras are not supported (skipped)", in.type));
+                fmt::format("{} cameras are not supported: camera {}{} is skipped, and the "
+                            "first perspective camera (else the default camera) is used",
+                            in.type, i, in.name.empty() ? "" : " ('" + in.name + "')"));
       camera_map_.push_back(-1);
       continue;
     }
@@ -1069,6 +1168,7 @@ Scene Loader::load(std::span<const uint8_t> bytes) {
   scene_.source = path_.string();
   load_meshes();
   load_materials();
+  apply_texture_transforms();
   load_cameras();
   load_lights();
   load_nodes();
@@ -1081,7 +1181,43 @@ Scene Loader::load(std::span<const uint8_t> bytes) {
     if (message.find(path_.string()) != std::string::npos) throw;
     fail(message);
   }
+  add_default_lighting();
   return std::move(scene_);
+}
+
+// ---- Default lighting ----
+
+// A scene that brings no light of its own (no KHR_lights_punctual light in the displayed
+// scene and no afr_ambient) gets the default lighting of glTF viewers, so that content made
+// for them does not render black: a directional headlight that moves with the active camera
+// (Light::on_camera) and a sky term as the scene's ambient light. Both are ordinary scene
+// content that the tracer shades like any light and ambient; Scene::nodes stay the file's.
+// Emission and the background are left as they are.
+void Loader::add_default_lighting() {
+  for (int n : scene_.scene_nodes()) {
+    if (scene_.nodes[size_t(n)].light >= 0) return;
+  }
+  if (scene_.ambient != glm::vec3(0.0f)) return;
+
+  Light headlight;
+  headlight.name = "afr default headlight";
+  headlight.type = Light::Type::kDirectional;
+  headlight.intensity = float(kHeadlightIntensity);
+  headlight.on_camera = true;
+  // The light shines along its -Z, away from kHeadlightFrom; the camera's up stays up.
+  const glm::dvec3 from =
+      glm::normalize(glm::dvec3(kHeadlightFrom[0], kHeadlightFrom[1], kHeadlightFrom[2]));
+  headlight.camera_rotation = glm::quatLookAt(-from, glm::dvec3(0.0, 1.0, 0.0));
+  scene_.lights.push_back(std::move(headlight));
+  scene_.ambient = glm::vec3(kSkyRadiance);
+
+  const std::string camera = scene_.camera_node() != -1
+                                 ? fmt::format("camera node {}", scene_.camera_node())
+                                 : std::string("the default camera");
+  spdlog::info(
+      "{}: the scene has no lights (no KHR_lights_punctual light, no afr_ambient): added the "
+      "default lighting, a headlight on {} (intensity {}) and a sky term of {}",
+      path_.string(), camera, kHeadlightIntensity, kSkyRadiance);
 }
 
 }  // namespace

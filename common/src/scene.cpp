@@ -210,6 +210,59 @@ void Scene::finalize() {
     if (nodes[i].mesh != -1 && node_moves_[i]) has_moving_geometry_ = true;
     if (nodes[i].camera != -1 && camera_node_ == -1) camera_node_ = i;
   }
+  if (camera_node_ == -1) frame_default_camera();
+}
+
+// ---------------------------------------------------------------------------------------------
+// The default camera
+
+namespace {
+
+// At most this many instants of the animation are evaluated to frame it (a scene with more
+// distinct keyframe times is sampled evenly over them).
+constexpr size_t kMaxFramingTimes = 4096;
+
+}  // namespace
+
+void Scene::frame_default_camera() {
+  // The times at which the animation is framed: 0 and every keyframe time. Between keys a
+  // LINEAR channel stays inside its keys' hull; STEP takes a key's value; only a CUBICSPLINE
+  // overshoot may leave the frame a little.
+  std::vector<double> times = {0.0};
+  for (const AnimationChannel& ch : channels) {
+    times.insert(times.end(), ch.times.begin(), ch.times.end());
+  }
+  std::sort(times.begin(), times.end());
+  times.erase(std::unique(times.begin(), times.end()), times.end());
+  if (times.size() > kMaxFramingTimes) {
+    std::vector<double> picked(kMaxFramingTimes);
+    for (size_t k = 0; k < kMaxFramingTimes; ++k) {
+      picked[k] = times[k * (times.size() - 1) / (kMaxFramingTimes - 1)];
+    }
+    times = std::move(picked);
+  }
+  glm::dvec3 lo(std::numeric_limits<double>::max());
+  glm::dvec3 hi(std::numeric_limits<double>::lowest());
+  SceneState state;
+  for (double t : times) {
+    glm::dvec3 l, h;
+    evaluate(t, &state);
+    bounds(state, &l, &h);
+    lo = glm::min(lo, l);
+    hi = glm::max(hi, h);
+  }
+
+  // Look at the bounds from +Z, far enough to see them whole. Lengths are relative to the
+  // scene's own size, so that a scene in micrometres is framed as one in metres (an absolute
+  // floor of 1e-3 made it a dot in the middle of the view). Only a scene of one point (or
+  // none) gets a size from where it is.
+  const glm::dvec3 center = 0.5 * (lo + hi);
+  const double extent = 0.5 * glm::length(hi - lo);
+  const double radius = extent > 0.0 ? extent : std::max(1e-3 * glm::length(center), 1e-3);
+  const double yfov = 0.8;
+  const double distance = radius / std::sin(0.5 * yfov);
+  default_camera_ = Camera::look_at(center + glm::dvec3(0.0, 0.0, distance), center,
+                                    glm::dvec3(0.0, 1.0, 0.0), yfov, (distance - radius) * 0.1);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -273,23 +326,9 @@ void Scene::bounds(const SceneState& state, glm::dvec3* lo, glm::dvec3* hi) cons
 }
 
 Camera Scene::camera_at(const SceneState& state) const {
-  if (camera_node_ != -1) {
-    const CameraModel& model = cameras[nodes[camera_node_].camera];
-    return Camera::from_transform(state.world[camera_node_], model.yfov, model.znear);
-  }
-  // No camera in the file: look at the scene's bounds from +Z, far enough to see them whole.
-  glm::dvec3 lo, hi;
-  bounds(state, &lo, &hi);
-  const glm::dvec3 center = 0.5 * (lo + hi);
-  // Lengths relative to the scene's own size, so that a scene in micrometres is framed as one
-  // in metres (an absolute floor of 1e-3 made it a dot in the middle of the view). Only a
-  // scene of one point (or none) gets a size from where it is.
-  const double extent = 0.5 * glm::length(hi - lo);
-  const double radius = extent > 0.0 ? extent : std::max(1e-3 * glm::length(center), 1e-3);
-  const double yfov = 0.8;
-  const double distance = radius / std::sin(0.5 * yfov);
-  return Camera::look_at(center + glm::dvec3(0.0, 0.0, distance), center, glm::dvec3(0.0, 1.0, 0.0),
-                         yfov, (distance - radius) * 0.1);
+  if (camera_node_ == -1) return default_camera_;
+  const CameraModel& model = cameras[nodes[camera_node_].camera];
+  return Camera::from_transform(state.world[camera_node_], model.yfov, model.znear);
 }
 
 size_t Scene::triangle_count() const {

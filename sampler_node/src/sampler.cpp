@@ -193,7 +193,10 @@ void Sampler::advance_scene_time() {
     tracer_.set_time(config_.loop_animation && duration > 0.0 ? std::fmod(t, duration) : t);
     camera_ = tracer_.camera();
     if (camera_source_) {
-      if (std::optional<Camera> c = camera_source_->camera_at(t)) camera_ = *c;
+      if (std::optional<Camera> c = camera_source_->camera_at(t)) {
+        camera_ = *c;
+        tracer_.set_view(camera_);  // a headlight goes where this sampler looks from
+      }
     }
     tan_half_fov_ = std::tan(0.5 * camera_.yfov);
     scene_time_ = t;

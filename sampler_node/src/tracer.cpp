@@ -167,7 +167,9 @@ struct Tracer::Impl {
   std::vector<Instance> instances_;
   std::vector<ShadeMaterial> materials_;  // scene materials, then the default material
   std::vector<int> light_nodes_;          // scene nodes that carry a light
-  std::vector<LightRecord> lights_;       // placed at the current time
+  std::vector<int> camera_lights_;        // lights on the camera (Light::on_camera)
+  std::vector<LightRecord> lights_;       // placed at the current time: nodes', then camera's
+  size_t node_light_count_ = 0;           // how many of lights_ come from nodes
   // Static geometry transformed to world space (GeomRecord points into these).
   std::vector<std::vector<glm::vec3>> static_positions_;
   std::vector<std::vector<glm::vec3>> static_normals_;
@@ -187,6 +189,7 @@ struct Tracer::Impl {
                                     const uint32_t* indices, size_t triangle_count) const;
   void build();
   void set_time(double t);
+  void place_camera_lights(const Camera& camera);
 
   // ---- queries (const, thread-safe) ----
   HitRef intersect(const glm::vec3& o, const glm::vec3& d, float tnear) const;
@@ -387,7 +390,10 @@ void Tracer::Impl::build() {
     instances_.push_back(inst);
   }
 
-  lights_.reserve(light_nodes_.size());
+  for (size_t l = 0; l < scene_.lights.size(); ++l) {
+    if (scene_.lights[l].on_camera) camera_lights_.push_back(int(l));
+  }
+  lights_.reserve(light_nodes_.size() + camera_lights_.size());
 
   for (size_t i = 0; i < instances_.size(); ++i) {
     Instance& inst = instances_[i];
@@ -449,14 +455,31 @@ void Tracer::Impl::set_time(double t) {
   rtcCommitScene(top_);
   check_device("committing the top-level scene");
 
+  camera_ = scene_.camera_at(state_);
   lights_.clear();  // capacity stays: no allocation after the first call
+  // A black light would cost a shadow ray per shading point for nothing.
   for (int n : light_nodes_) {
     const LightRecord r = shading::make_light_record(
         scene_.lights[size_t(scene_.nodes[size_t(n)].light)], state_.world[size_t(n)]);
-    // A black light would cost a shadow ray per shading point for nothing.
     if (r.radiance != glm::vec3(0.0f)) lights_.push_back(r);
   }
-  camera_ = scene_.camera_at(state_);
+  node_light_count_ = lights_.size();
+  place_camera_lights(camera_);
+}
+
+// The lights that ride on the camera (Light::on_camera) go after the nodes' lights.
+void Tracer::Impl::place_camera_lights(const Camera& camera) {
+  lights_.resize(node_light_count_);
+  if (camera_lights_.empty()) return;
+  // The camera's frame as a node transform: x right, y up, z back, at the eye.
+  const glm::dmat4 frame(glm::dvec4(camera.right, 0.0), glm::dvec4(camera.up, 0.0),
+                         glm::dvec4(-camera.forward, 0.0), glm::dvec4(camera.eye, 1.0));
+  for (int l : camera_lights_) {
+    const Light& light = scene_.lights[size_t(l)];
+    const LightRecord r =
+        shading::make_light_record(light, frame * glm::mat4_cast(light.camera_rotation));
+    if (r.radiance != glm::vec3(0.0f)) lights_.push_back(r);
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -737,6 +760,7 @@ Tracer::Tracer(const Scene& scene, const TracerOptions& options)
 Tracer::~Tracer() = default;
 
 void Tracer::set_time(double t) { impl_->set_time(t); }
+void Tracer::set_view(const Camera& view) { impl_->place_camera_lights(view); }
 double Tracer::time() const { return impl_->state_.time; }
 const Camera& Tracer::camera() const { return impl_->camera_; }
 const TracerOptions& Tracer::options() const { return impl_->options_; }

@@ -56,7 +56,8 @@ struct Material {
   bool double_sided = false;
 };
 
-// KHR_lights_punctual. Position and direction (local -Z) come from the light's node.
+// KHR_lights_punctual. Position and direction (local -Z) come from the light's node, or, for
+// a light `on_camera`, from the active camera.
 struct Light {
   enum class Type { kPoint, kDirectional, kSpot };
   std::string name;
@@ -67,6 +68,11 @@ struct Light {
   float inner_cone_angle = 0.0f;
   float outer_cone_angle = 0.7853981633974483f;
   bool inverse_square_falloff = true;  // false for NFF/AFF lights, which do not fall off
+  // A light that no node carries but the active camera (camera_at), as a child node of the
+  // camera's would be, turned by `camera_rotation` in the camera's frame (x right, y up, z
+  // back): the default headlight of a scene without lights (docs/scene-model.md).
+  bool on_camera = false;
+  glm::dquat camera_rotation{1.0, 0.0, 0.0, 0.0};
 };
 
 // A glTF perspective camera. The image's aspect ratio always comes from the render target.
@@ -131,8 +137,9 @@ class Scene {
   void evaluate(double t, SceneState* state) const;
   SceneState evaluate(double t) const;
 
-  // The active camera at the state's time. Without a camera node, a default camera that looks
-  // at the whole static scene from the +Z side.
+  // The active camera at the state's time. Without a camera node, the default camera: one
+  // fixed camera that looks from the +Z side at the bounds of the whole animation (their
+  // union over time 0 and every keyframe time), so a moving object moves across the image.
   Camera camera_at(const SceneState& state) const;
 
   // World-space bounds of all geometry at time t.
@@ -141,6 +148,8 @@ class Scene {
   size_t triangle_count() const;  // over the instanced scene (one count per mesh node)
 
  private:
+  void frame_default_camera();  // sets default_camera_ (finalize, without a camera node)
+
   std::vector<char> node_moves_;
   std::vector<int> order_;               // all nodes, parents before children
   std::vector<int> scene_nodes_;         // nodes reachable from roots, parents before children
@@ -150,6 +159,7 @@ class Scene {
   bool has_moving_geometry_ = false;
   int camera_node_ = -1;
   double duration_ = 0.0;
+  Camera default_camera_;  // the camera without a camera node
 };
 
 // Generates normals for a primitive that has none: area-weighted vertex normals over the

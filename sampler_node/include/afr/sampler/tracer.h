@@ -7,9 +7,9 @@
 // texture. The details are in sampler_node/src/shading.h.
 //
 // Order of calls: construct (the tracer keeps its own copy of the scene and starts at time 0),
-// optionally set_time(t), then any number of trace/trace_crosshair/occluded
-// calls from any number of threads (each thread with its own TraceStats), then set_time again.
-// set_time must not overlap with tracing.
+// optionally set_time(t) and then set_view(camera), then any number of
+// trace/trace_crosshair/occluded calls from any number of threads (each thread with its own
+// TraceStats), then set_time again. set_time and set_view must not overlap with tracing.
 #pragma once
 
 #include <afr/common/camera.h>
@@ -67,6 +67,10 @@ class Tracer {
   double time() const;
   // The scene's active camera at the current time.
   const Camera& camera() const;
+  // Places the lights that ride on the camera (Light::on_camera: the default headlight of a
+  // scene without lights) in `view` rather than in camera(), until the next set_time: for a
+  // sampler whose camera comes from a CameraSource.
+  void set_view(const Camera& view);
 
   const TracerOptions& options() const;
 

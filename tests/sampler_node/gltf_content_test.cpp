@@ -1,0 +1,207 @@
+// The tracer on glTF content made elsewhere (issue 18), loaded through the loader as the
+// sampler loads it: a scene without lights renders non-black under the default lighting (the
+// Lambert law written out by hand for the headlight and sky), the headlight follows an
+// animated camera, emission scaled by KHR_materials_emissive_strength, and the default camera
+// shows a moving object moving across the image.
+#include <afr/common/gltf_loader.h>
+#include <afr/sampler/tracer.h>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "support/gltf_content.h"
+
+namespace afr {
+namespace {
+
+using json = nlohmann::json;
+using testing::GltfContent;
+using testing::TempFolder;
+
+constexpr double kPi = 3.14159265358979323846;
+
+// The default lighting as docs/scene-model.md states it: a directional headlight of intensity
+// 2.5 from (0.35, 0.5, 1) in the camera's frame and a sky of 0.2.
+constexpr double kHeadlightIntensity = 2.5;
+constexpr double kSky = 0.2;
+const glm::dvec3 kFromInCamera = glm::normalize(glm::dvec3(0.35, 0.5, 1.0));
+
+// A Lambertian face (metallic 0, roughness 1: no specular lobe) of base color `base` whose
+// normal, in the camera's frame, is `n`: sky plus headlight, by hand.
+glm::dvec3 lambert_under_default_light(const glm::dvec3& base, const glm::dvec3& n) {
+  const double cos_l = std::max(glm::dot(n, kFromInCamera), 0.0);
+  return base * (kSky + kHeadlightIntensity / kPi * cos_l);
+}
+
+// A box of half size 0.5 at the origin with one plain Lambertian material, as mesh 0 on node 0.
+GltfContent box(const json& material) {
+  GltfContent g;
+  g.doc()["materials"] = json::array({material});
+  g.set_roots({g.add_node({{"mesh", g.add_box(0.5f, 0)}})});
+  return g;
+}
+
+const json kPurple = {{"pbrMetallicRoughness",
+                       {{"baseColorFactor", {0.8, 0.4, 0.8, 1.0}},
+                        {"metallicFactor", 0.0},
+                        {"roughnessFactor", 1.0}}}};
+
+ShadedSample trace_pixel(const Tracer& tracer, double x, double y, int w, int h) {
+  TraceStats stats;
+  return tracer.trace(tracer.camera().ray(x, y, w, h), &stats);
+}
+
+void expect_color_near(const glm::vec3& got, const glm::dvec3& want, double tolerance) {
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(got[c], want[c], tolerance) << "channel " << c;
+}
+
+TEST(GltfContentTracerTest, ASceneWithoutLightsRendersUnderTheDefaultLighting) {
+  // The box and, beside it, a triangle without material or normals (like AnimatedTriangle).
+  TempFolder dir;
+  GltfContent g = box(kPurple);
+  const int triangle = g.add_mesh({0, 0, 0, 1, 0, 0, 0, 1, 0}, {0, 1, 2});
+  g.set_roots({0, g.add_node({{"mesh", triangle}, {"translation", {1.0, -0.5, 0.5}}})});
+  g.write(dir / "unlit.gltf");
+  const Scene scene = load_gltf(dir / "unlit.gltf");
+  Tracer tracer(scene);
+  tracer.set_time(0.0);
+
+  // The default camera looks down -Z, so it sees the box's +Z face (normal (0, 0, 1) in the
+  // camera's frame too) head on.
+  const int kSize = 48;
+  glm::dvec2 face_center;
+  ASSERT_TRUE(tracer.camera().project({0.0, 0.0, 0.5}, kSize, kSize, &face_center, nullptr));
+  const ShadedSample face = trace_pixel(tracer, face_center.x, face_center.y, kSize, kSize);
+  ASSERT_TRUE(face.hit);
+  EXPECT_NEAR(face.position.z, 0.5f, 1e-4f);
+  expect_color_near(face.color,
+                    lambert_under_default_light({0.8, 0.4, 0.8}, glm::dvec3(0.0, 0.0, 1.0)), 1e-4);
+
+  // Every pixel that sees a surface is lit; every other one is the background, as before.
+  int hits = 0;
+  for (int y = 0; y < kSize; ++y) {
+    for (int x = 0; x < kSize; ++x) {
+      const ShadedSample s = trace_pixel(tracer, x + 0.5, y + 0.5, kSize, kSize);
+      if (s.hit) {
+        ++hits;
+        EXPECT_GT(luminance(s.color), 0.05f) << "pixel " << x << "," << y;
+      } else {
+        EXPECT_EQ(s.color, scene.background) << "pixel " << x << "," << y;
+      }
+    }
+  }
+  EXPECT_GT(hits, kSize * kSize / 10);
+}
+
+TEST(GltfContentTracerTest, TheHeadlightFollowsAnAnimatedCamera) {
+  // A rig node turns a quarter about +Y in 1 s and carries the camera 4 units out: at 0 s the
+  // camera looks at the box's +Z face, at 1 s at its +X face. A light fixed in the world would
+  // light the two faces differently; the headlight lights both as the same face.
+  TempFolder dir;
+  GltfContent g = box(kPurple);
+  g.doc()["cameras"] =
+      json::array({{{"type", "perspective"}, {"perspective", {{"yfov", 0.6}, {"znear", 0.1}}}}});
+  const int camera = g.add_node({{"camera", 0}, {"translation", {0, 0, 4}}});
+  const int rig = g.add_node({{"children", {camera}}});
+  g.set_roots({0, rig});
+  const float h = float(std::sqrt(0.5));
+  const int input = g.add_floats({0.0f, 1.0f}, 1);
+  const int output = g.add_floats({0, 0, 0, 1, 0, h, 0, h}, 4);
+  g.doc()["animations"] = json::array(
+      {{{"channels", {{{"sampler", 0}, {"target", {{"node", rig}, {"path", "rotation"}}}}}},
+        {"samplers", {{{"input", input}, {"output", output}}}}}});
+  g.write(dir / "orbit.gltf");
+  const Scene scene = load_gltf(dir / "orbit.gltf");
+  Tracer tracer(scene);
+
+  const glm::dvec3 want = lambert_under_default_light({0.8, 0.4, 0.8}, glm::dvec3(0, 0, 1));
+  for (double t : {0.0, 1.0}) {
+    SCOPED_TRACE(t);
+    tracer.set_time(t);
+    const ShadedSample s = trace_pixel(tracer, 16.0, 16.0, 32, 32);
+    ASSERT_TRUE(s.hit);
+    const glm::dvec3 face = t == 0.0 ? glm::dvec3(0, 0, 0.5) : glm::dvec3(0.5, 0, 0);
+    EXPECT_NEAR(glm::dot(glm::dvec3(s.position), glm::normalize(face)), 0.5, 1e-4);
+    expect_color_near(s.color, want, 1e-4);
+  }
+}
+
+TEST(GltfContentTracerTest, TheHeadlightFollowsASteeredView) {
+  // A sampler whose camera comes from the display (Tracer::set_view) looks at the box's +X
+  // face from (4, 0, 0): the headlight comes with it and lights that face head on.
+  TempFolder dir;
+  box(kPurple).write(dir / "box.gltf");
+  Tracer tracer(load_gltf(dir / "box.gltf"));
+  tracer.set_time(0.0);
+  const Camera view = Camera::look_at({4, 0, 0}, {0, 0, 0}, {0, 1, 0}, 0.6, 0.1);
+  tracer.set_view(view);
+  TraceStats stats;
+  const ShadedSample s = tracer.trace(view.ray(16.0, 16.0, 32, 32), &stats);
+  ASSERT_TRUE(s.hit);
+  EXPECT_NEAR(s.position.x, 0.5f, 1e-4f);
+  expect_color_near(s.color, lambert_under_default_light({0.8, 0.4, 0.8}, glm::dvec3(0, 0, 1)),
+                    1e-4);
+  // The next set_time puts it back on the scene's camera, which sees that face edge-on.
+  tracer.set_time(0.0);
+  const ShadedSample back = tracer.trace(view.ray(16.0, 16.0, 32, 32), &stats);
+  const glm::dvec3 side_normal_in_scene_camera(1.0, 0.0, 0.0);
+  expect_color_near(
+      back.color, lambert_under_default_light({0.8, 0.4, 0.8}, side_normal_in_scene_camera), 1e-4);
+}
+
+TEST(GltfContentTracerTest, EmissiveStrengthScalesTheTracedEmission) {
+  // A black, rough, non-metallic box reflects nothing: what it shows is its emission alone.
+  TempFolder dir;
+  GltfContent g =
+      box({{"pbrMetallicRoughness",
+            {{"baseColorFactor", {0.0, 0.0, 0.0, 1.0}},
+             {"metallicFactor", 0.0},
+             {"roughnessFactor", 1.0}}},
+           {"emissiveFactor", {1.0, 0.5, 0.25}},
+           {"extensions", {{"KHR_materials_emissive_strength", {{"emissiveStrength", 4.0}}}}}});
+  g.doc()["extensionsUsed"] = {"KHR_materials_emissive_strength"};
+  g.write(dir / "glowing.gltf");
+  Tracer tracer(load_gltf(dir / "glowing.gltf"));
+  tracer.set_time(0.0);
+  const ShadedSample s = trace_pixel(tracer, 8.0, 8.0, 16, 16);
+  ASSERT_TRUE(s.hit);
+  expect_color_near(s.color, glm::dvec3(4.0, 2.0, 1.0), 1e-6);
+}
+
+TEST(GltfContentTracerTest, TheDefaultCameraShowsAMovingObjectMoving) {
+  // The box slides from x = -3 to x = 3 over 2 s; no camera in the file.
+  TempFolder dir;
+  GltfContent g = box(kPurple);
+  g.animate_translation(0, {0.0f, 2.0f}, {-3, 0, 0, 3, 0, 0});
+  g.write(dir / "sliding.gltf");
+  Tracer tracer(load_gltf(dir / "sliding.gltf"));
+
+  const int kSize = 40;
+  auto hit_centroid = [&](double t) {
+    tracer.set_time(t);
+    glm::dvec2 sum(0.0);
+    int n = 0;
+    for (int y = 0; y < kSize; ++y) {
+      for (int x = 0; x < kSize; ++x) {
+        if (trace_pixel(tracer, x + 0.5, y + 0.5, kSize, kSize).hit) {
+          sum += glm::dvec2(x + 0.5, y + 0.5);
+          ++n;
+        }
+      }
+    }
+    EXPECT_GT(n, 4) << "t = " << t;
+    return n > 0 ? sum / double(n) : glm::dvec2(-1.0);
+  };
+  const glm::dvec2 start = hit_centroid(0.0);
+  const Camera at_start = tracer.camera();
+  const glm::dvec2 end = hit_centroid(2.0);
+  EXPECT_EQ(tracer.camera().eye, at_start.eye);  // one camera for the whole animation
+  EXPECT_LT(start.x, 0.3 * kSize);
+  EXPECT_GT(end.x, 0.7 * kSize);
+  EXPECT_NEAR(start.y, end.y, 0.5);
+}
+
+}  // namespace
+}  // namespace afr
