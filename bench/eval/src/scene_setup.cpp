@@ -118,6 +118,12 @@ uint64_t render_fingerprint(const Scene& scene) {
     h.value(l.inner_cone_angle);
     h.value(l.outer_cone_angle);
     h.value(l.inverse_square_falloff);
+    // Only a headlight adds bytes, so the fingerprints (and cached ideal frames) of scenes
+    // with lights of their own stay what they were.
+    if (l.on_camera) {
+      h.value(l.on_camera);
+      h.value(l.camera_rotation);
+    }
   }
   h.value(uint64_t(scene.cameras.size()));
   for (const CameraModel& c : scene.cameras) {
