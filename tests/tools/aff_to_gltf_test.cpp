@@ -4,6 +4,7 @@
 #include "hand_scene.h"
 #include "test_paths.h"
 
+#include <afr/common/gltf_loader.h>
 #include <afr/common/image.h>
 
 #include <gtest/gtest.h>
@@ -12,6 +13,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <iterator>
 #include <numbers>
 
 namespace afr::aff {
@@ -480,6 +482,62 @@ TEST(Aff2GltfProgramTest, PrintsFileAndLineAndExitsOneOnMalformedInput) {
   const std::string message((std::istreambuf_iterator<char>(err)), {});
   EXPECT_NE(message.find((dir / "bad.aff").string() + ":4: "), std::string::npos) << message;
   EXPECT_FALSE(std::filesystem::exists(dir / "bad.gltf"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST(Aff2GltfProgramTest, GlbOutputIsOneBinaryFileWithTheGltfsContent) {
+  const auto dir = test::fresh_temp_dir("aff-glb");
+  const auto aff = test::write_hand_scene(dir);
+  const auto run = [&](const std::filesystem::path& out) {
+    const std::string command = std::string(AFF2GLTF_PATH) + " " + aff.string() + " -o " +
+                                out.string() + " > " + (dir / "log.txt").string() + " 2>&1";
+    return std::system(command.c_str());
+  };
+  ASSERT_EQ(run(dir / "gltf" / "scene.gltf"), 0);
+  ASSERT_EQ(run(dir / "glb" / "scene.glb"), 0);
+  // One file: no .bin, no textures, no scratch folder beside it.
+  std::vector<std::string> written;
+  for (const auto& e : std::filesystem::directory_iterator(dir / "glb")) {
+    written.push_back(e.path().filename().string());
+  }
+  EXPECT_EQ(written, std::vector<std::string>{"scene.glb"});
+  std::ifstream in(dir / "glb" / "scene.glb", std::ios::binary);
+  const std::vector<uint8_t> glb{std::istreambuf_iterator<char>(in), {}};
+  ASSERT_GE(glb.size(), 20u);
+  EXPECT_EQ(std::string(glb.begin(), glb.begin() + 4), "glTF");
+  EXPECT_EQ(glb[4], 2);  // version 2, little-endian
+  EXPECT_EQ(size_t(glb[8]) | size_t(glb[9]) << 8 | size_t(glb[10]) << 16 | size_t(glb[11]) << 24,
+            glb.size());
+
+  // Read by tinygltf as a .glb, every accessor has the values of the .gltf's.
+  const tinygltf::Model a = test::load_gltf((dir / "gltf" / "scene.gltf").string());
+  tinygltf::TinyGLTF loader;
+  loader.SetImageLoader([](tinygltf::Image*, const int, std::string*, std::string*, int, int,
+                           const unsigned char*, int, void*) { return true; },
+                        nullptr);
+  tinygltf::Model b;
+  std::string err, warn;
+  ASSERT_TRUE(loader.LoadBinaryFromFile(&b, &err, &warn, (dir / "glb" / "scene.glb").string()))
+      << err;
+  ASSERT_EQ(a.accessors.size(), b.accessors.size());
+  for (size_t i = 0; i < a.accessors.size(); ++i) {
+    EXPECT_EQ(test::read_accessor(a, int(i)), test::read_accessor(b, int(i))) << "accessor " << i;
+  }
+  EXPECT_EQ(test::scene_triangles(a), test::scene_triangles(b));
+  ASSERT_EQ(b.images.size(), 2u);
+  for (const tinygltf::Image& image : b.images) {
+    EXPECT_TRUE(image.uri.empty());
+    EXPECT_EQ(image.mimeType, "image/png");
+    EXPECT_GE(image.bufferView, 0);
+  }
+  // afr loads both to the same scene, textures included.
+  const afr::Scene from_gltf = afr::load_gltf(dir / "gltf" / "scene.gltf");
+  const afr::Scene from_glb = afr::load_gltf(dir / "glb" / "scene.glb");
+  EXPECT_EQ(from_gltf.triangle_count(), from_glb.triangle_count());
+  ASSERT_EQ(from_gltf.textures.size(), from_glb.textures.size());
+  for (size_t i = 0; i < from_gltf.textures.size(); ++i) {
+    EXPECT_EQ(from_gltf.textures[i].texels, from_glb.textures[i].texels) << "texture " << i;
+  }
   std::filesystem::remove_all(dir);
 }
 

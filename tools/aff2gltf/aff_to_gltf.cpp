@@ -2,15 +2,21 @@
 
 #include <afr/common/check.h>
 #include <afr/common/error.h>
+#include <afr/common/gltf_pack.h>
 #include <afr/common/image.h>
+
+#include <fmt/format.h>
+#include <unistd.h>
 
 #include <glm/gtc/quaternion.hpp>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <numbers>
@@ -804,7 +810,11 @@ GltfScene build_gltf(const Scene& scene, const GltfOptions& options) {
   return out;
 }
 
-void write_gltf(GltfScene* gltf, const std::filesystem::path& path) {
+namespace {
+
+// The .gltf, its .bin and its PNG textures, written by afr (write_image8; tinygltf only
+// references their uri).
+void write_gltf_files(GltfScene* gltf, const std::filesystem::path& path) {
   const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : ".";
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
@@ -821,6 +831,48 @@ void write_gltf(GltfScene* gltf, const std::filesystem::path& path) {
     throw Error(path.string() + ": cannot write glTF");
   }
   drop_zero_zfar(path);
+}
+
+// One .glb: the .gltf and its files written to a scratch folder beside `path`, then packed by
+// afr's packer (afr/common/gltf_pack.h), the one the display serves .gltf scenes with.
+void write_glb(GltfScene* gltf, const std::filesystem::path& path) {
+  namespace fs = std::filesystem;
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : ".";
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  const fs::path scratch = dir / fmt::format(".{}.{}.parts", path.filename().string(), ::getpid());
+  struct Scratch {
+    fs::path dir;
+    ~Scratch() {
+      std::error_code ignored;
+      fs::remove_all(dir, ignored);
+    }
+  } remove_scratch{scratch};
+  const fs::path gltf_path = scratch / (path.stem().string() + ".gltf");
+  write_gltf_files(gltf, gltf_path);
+  std::ifstream in(gltf_path, std::ios::binary);
+  const std::vector<uint8_t> text{std::istreambuf_iterator<char>(in), {}};
+  const PackedGltf packed = pack_gltf(text, gltf_path);
+  const fs::path part = path.string() + ".part";
+  {
+    std::ofstream out(part, std::ios::binary | std::ios::trunc);
+    out.write(reinterpret_cast<const char*>(packed.glb.data()), std::streamsize(packed.glb.size()));
+    if (!out) throw Error(path.string() + ": write error");
+  }
+  fs::rename(part, path, ec);
+  if (ec) throw Error(fmt::format("{}: cannot rename into place: {}", path.string(), ec.message()));
+}
+
+}  // namespace
+
+void write_gltf(GltfScene* gltf, const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  if (ext == ".glb") {
+    write_glb(gltf, path);
+  } else {
+    write_gltf_files(gltf, path);
+  }
 }
 
 ConvertReport convert_aff_to_gltf(const std::filesystem::path& aff_path,

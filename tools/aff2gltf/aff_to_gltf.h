@@ -1,8 +1,8 @@
 // Turns a parsed AFF scene into glTF 2.0 (one AFF transform = one glTF node; keyframes as
 // CUBICSPLINE or densely baked LINEAR/STEP samplers; the `camera` animation as a camera node;
-// lights as KHR_lights_punctual) and writes it as .gltf + .bin + PNG textures. The mapping is
-// documented in docs/aff2gltf.md. Order of calls: parse (aff_parser.h), build_gltf, write_gltf;
-// or convert_aff_to_gltf for all three.
+// lights as KHR_lights_punctual) and writes it as .gltf + .bin + PNG textures, or as one .glb. The
+// mapping is documented in docs/aff2gltf.md. Order of calls: parse (aff_parser.h), build_gltf,
+// write_gltf; or convert_aff_to_gltf for all three.
 #pragma once
 
 #include "aff_parser.h"
@@ -44,7 +44,8 @@ struct GltfScene {
 GltfScene build_gltf(const Scene& scene, const GltfOptions& options = {});
 
 // Writes `path` (.gltf), its .bin (same stem) and the PNG textures into path's directory.
-// Images are written by afr (write_image8), tinygltf only references their uri. Throws
+// Images are written by afr (write_image8), tinygltf only references their uri. A `path` ending
+// in .glb is one binary glTF file instead, with the buffer and the PNGs inside. Throws
 // afr::Error naming the file on failure.
 void write_gltf(GltfScene* gltf, const std::filesystem::path& path);
 

@@ -1,5 +1,6 @@
-// aff2gltf: converts a BART AFF scene to glTF 2.0 (.gltf + .bin + PNG textures).
+// aff2gltf: converts a BART AFF scene to glTF 2.0 (.gltf + .bin + PNG textures, or one .glb).
 //   aff2gltf scene.aff -o scene.gltf
+//   aff2gltf scene.aff -o scene.glb
 #include "aff_to_gltf.h"
 
 #include <afr/common/error.h>
@@ -17,7 +18,10 @@ int main(int argc, char** argv) {
   afr::aff::ParseOptions parse_options;
   afr::aff::GltfOptions gltf_options;
   app.add_option("input", input, "The root .aff file")->required();
-  app.add_option("-o,--output", output, "The .gltf to write (default: input name, .gltf)");
+  app.add_option(
+      "-o,--output", output,
+      "The .gltf to write, or a .glb: one binary file with the buffer and textures inside "
+      "(default: input name, .gltf)");
   app.add_option("--detail-level", parse_options.detail_level,
                  "Initial detail level D: includes above it are skipped")
       ->capture_default_str();

@@ -1,0 +1,44 @@
+// Packs a glTF scene and every file it refers to (external buffers and images) into one .glb
+// held in memory, so that the scene is one payload: the display serves it to the samplers as
+// one transfer, and aff2gltf writes it for `-o x.glb`. The JSON keeps everything as written
+// except the references: all buffers become the one binary chunk, each external image a buffer
+// view in it.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace afr {
+
+struct PackedGltf {
+  std::vector<uint8_t> glb;
+  // The URIs of the files now inside, as the glTF wrote them: buffers first, then images, each
+  // in document order (gltf_external_uris' order).
+  std::vector<std::string> packed_files;
+};
+
+// `bytes` is the .gltf (JSON text) or .glb at `path`. The files it names are read from the
+// folder of `path`, and only from inside it, as load_gltf reads them; data: URIs of buffers
+// are decoded into the binary chunk, those of images are kept. Throws afr::Error naming `path`
+// and the problem: not glTF, a missing file or one outside the folder, a file shorter than
+// its buffer's byteLength, an image whose type cannot be told, or a result over 2 GiB (what
+// load_gltf accepts).
+PackedGltf pack_gltf(std::span<const uint8_t> bytes, const std::filesystem::path& path);
+
+// The files a .gltf or .glb refers to (gltf_external_uris of its JSON): when there are none,
+// the bytes are already one payload. Throws afr::Error naming `path` when they are not glTF.
+std::vector<std::string> gltf_external_files(std::span<const uint8_t> bytes,
+                                             const std::filesystem::path& path);
+
+// Whether `bytes` start as a .glb does ("glTF").
+bool is_glb(std::span<const uint8_t> bytes);
+
+// A .glb of this JSON text and binary chunk (none when `bin` is empty), each chunk padded to
+// 4 bytes as the format requires (the JSON with spaces, the binary with zeros).
+std::vector<uint8_t> make_glb(std::string_view json, std::span<const uint8_t> bin);
+
+}  // namespace afr

@@ -1,0 +1,364 @@
+#include <afr/common/gltf_pack.h>
+
+#include <afr/common/check.h>
+#include <afr/common/error.h>
+#include <afr/common/gltf_loader.h>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <cstring>
+#include <fstream>
+#include <optional>
+
+namespace afr {
+
+namespace fs = std::filesystem;
+using Json = nlohmann::ordered_json;  // keeps the members in the order the file has them
+
+namespace {
+
+// What load_gltf accepts (gltf_loader.cpp), so a packed scene the samplers cannot load is
+// refused where it is made.
+constexpr uint64_t kMaxPackedBytes = uint64_t(1) << 31;
+constexpr uint32_t kGlbMagic = 0x46546C67;  // "glTF"
+constexpr uint32_t kChunkJson = 0x4E4F534A;
+constexpr uint32_t kChunkBin = 0x004E4942;
+// Each buffer starts on this boundary in the binary chunk, so every accessor keeps the
+// alignment its component type needs (at most 4 bytes; 8 leaves room for doubles of extras).
+constexpr size_t kBufferAlignment = 8;
+
+// A glTF count (byteLength, byteOffset, an index): a non-negative integer, which a writer may
+// have spelled as a float.
+std::optional<uint64_t> count_of(const Json& v) {
+  if (v.is_number_unsigned()) return v.get<uint64_t>();
+  if (v.is_number_float()) {
+    const double d = v.get<double>();
+    if (d >= 0.0 && d <= 9.0e15 && d == double(uint64_t(d))) return uint64_t(d);
+  }
+  return std::nullopt;
+}
+
+uint32_t read_u32(std::span<const uint8_t> bytes, size_t at) {
+  uint32_t v = 0;
+  for (size_t i = 0; i < 4; ++i) v |= uint32_t(bytes[at + i]) << (8 * i);
+  return v;
+}
+
+void append_u32(std::vector<uint8_t>* out, uint32_t v) {
+  for (int i = 0; i < 4; ++i) out->push_back(uint8_t(v >> (8 * i)));
+}
+
+void pad_to(std::vector<uint8_t>* v, size_t alignment, uint8_t fill = 0) {
+  while (v->size() % alignment != 0) v->push_back(fill);
+}
+
+std::optional<std::vector<uint8_t>> decode_base64(std::string_view text) {
+  static const std::array<int8_t, 256> table = [] {
+    std::array<int8_t, 256> t{};
+    t.fill(-1);
+    const char* alphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    for (int i = 0; i < 64; ++i) t[uint8_t(alphabet[i])] = int8_t(i);
+    return t;
+  }();
+  std::vector<uint8_t> out;
+  out.reserve(text.size() / 4 * 3);
+  uint32_t bits = 0;
+  int count = 0;
+  for (char c : text) {
+    if (c == '=') break;
+    const int8_t v = table[uint8_t(c)];
+    if (v < 0) return std::nullopt;
+    bits = (bits << 6) | uint32_t(v);
+    if (++count == 4) {
+      out.push_back(uint8_t(bits >> 16));
+      out.push_back(uint8_t(bits >> 8));
+      out.push_back(uint8_t(bits));
+      bits = 0;
+      count = 0;
+    }
+  }
+  if (count == 1) return std::nullopt;
+  if (count == 2) out.push_back(uint8_t(bits >> 4));
+  if (count == 3) {
+    out.push_back(uint8_t(bits >> 10));
+    out.push_back(uint8_t(bits >> 2));
+  }
+  return out;
+}
+
+// The image type the glTF names by mimeType, told from the bytes or else the file's name.
+std::string image_mime_type(std::span<const uint8_t> b, const std::string& uri) {
+  const auto starts = [&](std::string_view magic, size_t at = 0) {
+    return b.size() >= at + magic.size() &&
+           std::memcmp(b.data() + at, magic.data(), magic.size()) == 0;
+  };
+  if (starts("\x89PNG")) return "image/png";
+  if (starts("\xFF\xD8\xFF")) return "image/jpeg";
+  if (starts("RIFF") && starts("WEBP", 8)) return "image/webp";
+  if (starts("\xABKTX 20\xBB")) return "image/ktx2";
+  std::string ext = fs::path(uri).extension().string();
+  for (char& c : ext) c = char(std::tolower(uint8_t(c)));
+  if (ext == ".png") return "image/png";
+  if (ext == ".jpg" || ext == ".jpeg") return "image/jpeg";
+  if (ext == ".webp") return "image/webp";
+  if (ext == ".ktx2") return "image/ktx2";
+  return "";
+}
+
+// The JSON chunk and the first binary chunk (empty when none) of a .glb.
+void split_glb(std::span<const uint8_t> b, const fs::path& path, std::span<const uint8_t>* json,
+               std::span<const uint8_t>* bin) {
+  const auto fail = [&](const std::string& problem) {
+    throw Error(fmt::format("{}: {}", path.string(), problem));
+  };
+  if (b.size() < 20 || read_u32(b, 0) != kGlbMagic) fail("invalid .glb: no header");
+  if (read_u32(b, 4) != 2) fail(fmt::format("invalid .glb: version {}, not 2", read_u32(b, 4)));
+  const uint64_t length = std::min<uint64_t>(read_u32(b, 8), b.size());
+  uint64_t at = 12;
+  bool first = true;
+  while (at + 8 <= length) {
+    const uint64_t size = read_u32(b, at);
+    const uint32_t type = read_u32(b, at + 4);
+    if (at + 8 + size > length) fail("invalid .glb: a chunk runs past the end of the file");
+    const std::span<const uint8_t> data = b.subspan(at + 8, size);
+    if (first && type != kChunkJson) fail("invalid .glb: the first chunk is not JSON");
+    if (first) *json = data;
+    if (!first && type == kChunkBin && bin->empty()) *bin = data;
+    first = false;
+    at += 8 + size;
+  }
+  if (first) fail("invalid .glb: no JSON chunk");
+}
+
+class Packer {
+ public:
+  explicit Packer(const fs::path& path) : path_(path) {
+    std::error_code ec;
+    root_ = fs::weakly_canonical(fs::absolute(path_).parent_path(), ec);
+    if (ec) fail(fmt::format("cannot resolve its folder: {}", ec.message()));
+  }
+
+  PackedGltf pack(std::span<const uint8_t> bytes) {
+    std::span<const uint8_t> json_text = bytes, glb_bin;
+    if (is_glb(bytes)) split_glb(bytes, path_, &json_text, &glb_bin);
+    Json doc = Json::parse(json_text.begin(), json_text.end(), nullptr, /*allow_exceptions=*/false);
+    if (doc.is_discarded() || !doc.is_object()) fail("invalid glTF: not a JSON object");
+
+    std::vector<uint64_t> base;  // where each buffer starts in the binary chunk
+    if (Json* buffers = array(doc, "buffers")) {
+      for (size_t i = 0; i < buffers->size(); ++i) {
+        base.push_back(add_buffer((*buffers)[i], i, glb_bin));
+      }
+    }
+    if (Json* views = array(doc, "bufferViews")) {
+      for (size_t i = 0; i < views->size(); ++i) {
+        Json& view = (*views)[i];
+        const std::string what = fmt::format("bufferViews[{}]", i);
+        rebase(&view, base, what);
+        // EXT_meshopt_compression's view names a buffer of its own.
+        if (view.contains("extensions") && view["extensions"].is_object() &&
+            view["extensions"].contains("EXT_meshopt_compression")) {
+          rebase(&view["extensions"]["EXT_meshopt_compression"], base,
+                 what + ".extensions.EXT_meshopt_compression");
+        }
+      }
+    }
+    if (Json* images = array(doc, "images")) {
+      for (size_t i = 0; i < images->size(); ++i) add_image(&doc, (*images)[i], i);
+    }
+    if (!bin_.empty() || array(doc, "buffers")) {
+      doc["buffers"] = Json::array({Json{{"byteLength", bin_.size()}}});
+    }
+    PackedGltf out;
+    out.glb = make_glb(doc.dump(), bin_);
+    if (out.glb.size() > kMaxPackedBytes) {
+      fail(fmt::format("packed into one .glb it has {} bytes, more than afr loads (2 GiB)",
+                       out.glb.size()));
+    }
+    out.packed_files = std::move(buffer_files_);
+    out.packed_files.insert(out.packed_files.end(), image_files_.begin(), image_files_.end());
+    return out;
+  }
+
+ private:
+  [[noreturn]] void fail(const std::string& problem) const {
+    throw Error(fmt::format("{}: {}", path_.string(), problem));
+  }
+
+  static Json* array(Json& doc, const char* name) {
+    auto it = doc.find(name);
+    return it != doc.end() && it->is_array() ? &*it : nullptr;
+  }
+
+  // The bytes of an external file named by `uri`, from inside the glTF's folder only.
+  std::vector<uint8_t> read_external(const std::string& uri, const std::string& what) const {
+    std::error_code ec;
+    const fs::path p = fs::weakly_canonical(root_ / uri, ec);
+    const fs::path relative = ec ? fs::path() : p.lexically_relative(root_);
+    if (relative.empty() || *relative.begin() == "..") {
+      fail(
+          fmt::format("{} refers to {}: not a file inside the folder of the glTF file", what, uri));
+    }
+    if (!fs::is_regular_file(p, ec)) {
+      fail(fmt::format("{} refers to {}: no such file in the folder of the glTF file", what, uri));
+    }
+    const uintmax_t size = fs::file_size(p, ec);
+    if (ec || size > kMaxPackedBytes) {
+      fail(fmt::format("{} refers to {}: {}", what, uri,
+                       ec ? ec.message() : std::string("larger than afr loads (2 GiB)")));
+    }
+    std::vector<uint8_t> bytes(size_t(size), 0);
+    std::ifstream in(p, std::ios::binary);
+    if (!in || !in.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(size))) {
+      fail(fmt::format("{} refers to {}: cannot read it", what, uri));
+    }
+    return bytes;
+  }
+
+  // Appends buffer i to the binary chunk; returns where it starts.
+  uint64_t add_buffer(const Json& buffer, size_t i, std::span<const uint8_t> glb_bin) {
+    const std::string what = fmt::format("buffers[{}]", i);
+    const std::optional<uint64_t> byte_length = buffer.is_object() && buffer.contains("byteLength")
+                                                    ? count_of(buffer["byteLength"])
+                                                    : std::nullopt;
+    if (!byte_length) fail(fmt::format("invalid glTF: {} has no byteLength", what));
+    const uint64_t length = *byte_length;
+    std::vector<uint8_t> owned;
+    std::span<const uint8_t> data;
+    if (!buffer.contains("uri")) {
+      // Only a .glb's first buffer may leave out its URI: it is the binary chunk.
+      if (i != 0 || glb_bin.empty()) fail(fmt::format("invalid glTF: {} has no uri", what));
+      data = glb_bin;
+    } else {
+      if (!buffer["uri"].is_string())
+        fail(fmt::format("invalid glTF: {}.uri is not a string", what));
+      const std::string& uri = buffer["uri"].get_ref<const std::string&>();
+      if (uri.rfind("data:", 0) == 0) {
+        const size_t comma = uri.find(',');
+        const bool base64 = comma != std::string::npos &&
+                            std::string_view(uri).substr(0, comma).ends_with(";base64");
+        std::optional<std::vector<uint8_t>> decoded;
+        if (base64) decoded = decode_base64(std::string_view(uri).substr(comma + 1));
+        if (!decoded) fail(fmt::format("invalid glTF: {}.uri is not a base64 data: URI", what));
+        owned = std::move(*decoded);
+      } else {
+        owned = read_external(uri, what);
+        buffer_files_.push_back(uri);
+      }
+      data = owned;
+    }
+    if (data.size() < length) {
+      fail(fmt::format("{} has {} bytes, fewer than its byteLength {}", what, data.size(), length));
+    }
+    pad_to(&bin_, kBufferAlignment);
+    const uint64_t start = bin_.size();
+    if (start + length > kMaxPackedBytes) {
+      fail("its buffers and images together have more than afr loads (2 GiB)");
+    }
+    bin_.insert(bin_.end(), data.begin(), data.begin() + ptrdiff_t(length));
+    return start;
+  }
+
+  // A buffer view (or an extension's view) into buffer 0, at its buffer's place in it.
+  void rebase(Json* view, const std::vector<uint64_t>& base, const std::string& what) const {
+    const std::optional<uint64_t> buffer =
+        view->is_object() && view->contains("buffer") ? count_of((*view)["buffer"]) : std::nullopt;
+    if (!buffer) fail(fmt::format("invalid glTF: {} has no buffer", what));
+    const uint64_t b = *buffer;
+    if (b >= base.size()) {
+      fail(fmt::format("invalid glTF: {} refers to buffer {}, but there are {}", what, b,
+                       base.size()));
+    }
+    uint64_t offset = 0;
+    if (view->contains("byteOffset")) {
+      const std::optional<uint64_t> given = count_of((*view)["byteOffset"]);
+      if (!given) fail(fmt::format("invalid glTF: {}.byteOffset is not a count", what));
+      offset = *given;
+    }
+    (*view)["buffer"] = 0;
+    (*view)["byteOffset"] = base[b] + offset;
+  }
+
+  // An external image into the binary chunk, behind a new buffer view.
+  void add_image(Json* doc, Json& image, size_t i) {
+    if (!image.is_object() || !image.contains("uri") || !image["uri"].is_string()) return;
+    const std::string uri = image["uri"].get<std::string>();
+    if (uri.rfind("data:", 0) == 0) return;  // travels inside the JSON as it is
+    const std::string what = fmt::format("images[{}]", i);
+    const std::vector<uint8_t> bytes = read_external(uri, what);
+    std::string mime = image.contains("mimeType") && image["mimeType"].is_string()
+                           ? image["mimeType"].get<std::string>()
+                           : image_mime_type(bytes, uri);
+    if (mime.empty()) {
+      fail(fmt::format("{} refers to {}: cannot tell its type (PNG, JPEG, WebP or KTX2)", what,
+                       uri));
+    }
+    pad_to(&bin_, 4);
+    const uint64_t start = bin_.size();
+    if (start + bytes.size() > kMaxPackedBytes) {
+      fail("its buffers and images together have more than afr loads (2 GiB)");
+    }
+    bin_.insert(bin_.end(), bytes.begin(), bytes.end());
+    if (!doc->contains("bufferViews") || !(*doc)["bufferViews"].is_array()) {
+      (*doc)["bufferViews"] = Json::array();
+    }
+    Json& views = (*doc)["bufferViews"];
+    views.push_back(Json{{"buffer", 0}, {"byteOffset", start}, {"byteLength", bytes.size()}});
+    image.erase("uri");
+    image["bufferView"] = views.size() - 1;
+    image["mimeType"] = mime;
+    image_files_.push_back(uri);
+  }
+
+  fs::path path_;
+  fs::path root_;  // canonical folder of the glTF file
+  std::vector<uint8_t> bin_;
+  std::vector<std::string> buffer_files_, image_files_;
+};
+
+}  // namespace
+
+bool is_glb(std::span<const uint8_t> bytes) {
+  return bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
+}
+
+std::vector<uint8_t> make_glb(std::string_view json, std::span<const uint8_t> bin) {
+  std::vector<uint8_t> json_chunk(json.begin(), json.end());
+  pad_to(&json_chunk, 4, ' ');
+  std::vector<uint8_t> out;
+  const uint64_t total =
+      12 + 8 + json_chunk.size() + (bin.empty() ? 0 : 8 + (bin.size() + 3) / 4 * 4);
+  AFR_CHECK(total <= UINT32_MAX);
+  out.reserve(size_t(total));
+  append_u32(&out, kGlbMagic);
+  append_u32(&out, 2);
+  append_u32(&out, uint32_t(total));
+  append_u32(&out, uint32_t(json_chunk.size()));
+  append_u32(&out, kChunkJson);
+  out.insert(out.end(), json_chunk.begin(), json_chunk.end());
+  if (!bin.empty()) {
+    append_u32(&out, uint32_t((bin.size() + 3) / 4 * 4));
+    append_u32(&out, kChunkBin);
+    out.insert(out.end(), bin.begin(), bin.end());
+    pad_to(&out, 4);
+  }
+  return out;
+}
+
+PackedGltf pack_gltf(std::span<const uint8_t> bytes, const std::filesystem::path& path) {
+  return Packer(path).pack(bytes);
+}
+
+std::vector<std::string> gltf_external_files(std::span<const uint8_t> bytes,
+                                             const std::filesystem::path& path) {
+  std::span<const uint8_t> json = bytes, bin;
+  if (is_glb(bytes)) split_glb(bytes, path, &json, &bin);
+  return gltf_external_uris(
+      std::string_view(reinterpret_cast<const char*>(json.data()), json.size()), path);
+}
+
+}  // namespace afr

@@ -1,0 +1,296 @@
+#include <afr/common/gltf_pack.h>
+
+#include <afr/common/error.h>
+#include <afr/common/gltf_loader.h>
+#include <afr/common/image.h>
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+#include <nlohmann/json.hpp>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include "support/base64.h"
+
+namespace afr {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+std::vector<uint8_t> read_bytes(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+void write_bytes(const fs::path& path, std::span<const uint8_t> bytes) {
+  std::ofstream out(path, std::ios::binary);
+  out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+}
+
+void write_text(const fs::path& path, const std::string& text) {
+  std::ofstream(path, std::ios::binary) << text;
+}
+
+template <typename T>
+void append(std::vector<uint8_t>* out, const std::vector<T>& values) {
+  const auto* p = reinterpret_cast<const uint8_t*>(values.data());
+  out->insert(out->end(), p, p + values.size() * sizeof(T));
+}
+
+uint32_t u32_at(std::span<const uint8_t> b, size_t at) {
+  uint32_t v = 0;
+  std::memcpy(&v, b.data() + at, 4);  // little-endian hosts only, as afr is
+  return v;
+}
+
+// The JSON and binary chunks of a .glb, read by the format's layout (independently of the
+// packer's own reader).
+struct GlbParts {
+  json doc;
+  std::vector<uint8_t> bin;
+};
+GlbParts split(std::span<const uint8_t> glb) {
+  GlbParts parts;
+  EXPECT_EQ(u32_at(glb, 0), 0x46546C67u);
+  EXPECT_EQ(u32_at(glb, 4), 2u);
+  EXPECT_EQ(u32_at(glb, 8), glb.size());
+  const uint32_t json_size = u32_at(glb, 12);
+  EXPECT_EQ(u32_at(glb, 16), 0x4E4F534Au);
+  EXPECT_EQ(json_size % 4, 0u);
+  parts.doc = json::parse(glb.begin() + 20, glb.begin() + 20 + json_size);
+  const size_t bin_at = 20 + json_size;
+  if (bin_at < glb.size()) {
+    const uint32_t bin_size = u32_at(glb, bin_at);
+    EXPECT_EQ(u32_at(glb, bin_at + 4), 0x004E4942u);
+    EXPECT_EQ(bin_size % 4, 0u);
+    EXPECT_EQ(bin_at + 8 + bin_size, glb.size());
+    parts.bin.assign(glb.begin() + ptrdiff_t(bin_at) + 8, glb.end());
+  }
+  return parts;
+}
+
+// A textured quad as a user's exporter writes it: positions and uvs in an external .bin, the
+// indices in a second buffer embedded as a data: URI, the texture an external PNG.
+class GltfPackTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("afr-gltf-pack-" + std::to_string(::getpid()) + "-" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_ / "scene" / "textures");
+    fs::create_directories(dir_ / "alone");
+
+    const std::vector<float> positions = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+    const std::vector<float> uvs = {0, 1, 1, 1, 1, 0, 0, 0};
+    const std::vector<uint16_t> indices = {0, 1, 2, 0, 2, 3};
+    std::vector<uint8_t> geometry(4, 0xEE);  // a header the views skip
+    append(&geometry, positions);
+    append(&geometry, uvs);
+    write_bytes(dir_ / "scene" / "geometry.bin", geometry);
+    std::vector<uint8_t> index_bytes;
+    append(&index_bytes, indices);
+
+    DecodedImage checker{2, 2, 3, {255, 0, 0, 0, 255, 0, 0, 0, 255, 255, 255, 255}};
+    write_image8(checker, dir_ / "scene" / "textures" / "checker.png");
+
+    doc_ = {
+        {"asset", {{"version", "2.0"}}},
+        {"scene", 0},
+        {"scenes", {{{"nodes", {0}}}}},
+        {"nodes", {{{"mesh", 0}}}},
+        {"meshes",
+         {{{"primitives",
+            {{{"attributes", {{"POSITION", 0}, {"TEXCOORD_0", 1}}},
+              {"indices", 2},
+              {"material", 0}}}}}}},
+        {"materials", {{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}}}},
+        {"textures", {{{"source", 0}}}},
+        {"images", {{{"uri", "textures/checker.png"}}}},
+        {"accessors",
+         {{{"bufferView", 0},
+           {"componentType", 5126},
+           {"count", 4},
+           {"type", "VEC3"},
+           {"min", {0, 0, 0}},
+           {"max", {1, 1, 0}}},
+          {{"bufferView", 1}, {"componentType", 5126}, {"count", 4}, {"type", "VEC2"}},
+          {{"bufferView", 2}, {"componentType", 5123}, {"count", 6}, {"type", "SCALAR"}}}},
+        {"bufferViews",
+         {{{"buffer", 0}, {"byteOffset", 4}, {"byteLength", 48}},
+          {{"buffer", 0}, {"byteOffset", 52}, {"byteLength", 32}},
+          {{"buffer", 1}, {"byteLength", 12}}}},
+        {"buffers",
+         {{{"uri", "geometry.bin"}, {"byteLength", geometry.size()}},
+          {{"uri", "data:application/octet-stream;base64," + testing::base64(index_bytes)},
+           {"byteLength", index_bytes.size()}}}},
+    };
+    gltf_ = dir_ / "scene" / "quad.gltf";
+    write_text(gltf_, doc_.dump(2));
+  }
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir_);
+  }
+
+  // Each buffer's bytes as the original document has them.
+  std::vector<std::vector<uint8_t>> original_buffers() const {
+    return {read_bytes(dir_ / "scene" / "geometry.bin"), [] {
+              std::vector<uint8_t> b;
+              append(&b, std::vector<uint16_t>{0, 1, 2, 0, 2, 3});
+              return b;
+            }()};
+  }
+
+  fs::path dir_;
+  fs::path gltf_;
+  json doc_;
+};
+
+TEST_F(GltfPackTest, PackedSceneLoadsAloneAsTheGltfDoesBesideItsFiles) {
+  const PackedGltf packed = pack_gltf(read_bytes(gltf_), gltf_);
+  EXPECT_EQ(packed.packed_files,
+            (std::vector<std::string>{"geometry.bin", "textures/checker.png"}));
+  const fs::path alone = dir_ / "alone" / "quad.glb";
+  write_bytes(alone, packed.glb);
+
+  const Scene a = load_gltf(gltf_);
+  const Scene b = load_gltf(alone);
+  ASSERT_EQ(a.meshes.size(), 1u);
+  ASSERT_EQ(b.meshes.size(), 1u);
+  ASSERT_EQ(a.meshes[0].primitives.size(), 1u);
+  ASSERT_EQ(b.meshes[0].primitives.size(), 1u);
+  const Primitive& pa = a.meshes[0].primitives[0];
+  const Primitive& pb = b.meshes[0].primitives[0];
+  EXPECT_EQ(pa.positions, pb.positions);
+  EXPECT_EQ(pa.uvs, pb.uvs);
+  EXPECT_EQ(pa.indices, pb.indices);
+  EXPECT_EQ(pb.positions[2], glm::vec3(1, 1, 0));
+  EXPECT_EQ(pb.indices, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3}));
+  EXPECT_EQ(a.triangle_count(), b.triangle_count());
+  ASSERT_EQ(a.textures.size(), 1u);
+  ASSERT_EQ(b.textures.size(), 1u);
+  EXPECT_EQ(b.textures[0].width, 2);
+  EXPECT_EQ(a.textures[0].texels, b.textures[0].texels);
+  // The same bytes as a .glb name, and from memory: one payload, nothing else read.
+  const Scene c = load_gltf_bytes(packed.glb, dir_ / "alone" / "elsewhere.glb");
+  EXPECT_EQ(c.meshes[0].primitives[0].positions, pa.positions);
+}
+
+TEST_F(GltfPackTest, EveryViewKeepsItsBytesAndImagesBecomeViews) {
+  const PackedGltf packed = pack_gltf(read_bytes(gltf_), gltf_);
+  const GlbParts parts = split(packed.glb);
+  const std::vector<std::vector<uint8_t>> buffers = original_buffers();
+  ASSERT_EQ(parts.doc["buffers"].size(), 1u);
+  EXPECT_FALSE(parts.doc["buffers"][0].contains("uri"));
+  EXPECT_LE(parts.doc["buffers"][0]["byteLength"].get<size_t>(), parts.bin.size());
+  const json& views = parts.doc["bufferViews"];
+  ASSERT_EQ(views.size(), doc_["bufferViews"].size() + 1);  // + the image's
+  for (size_t i = 0; i < doc_["bufferViews"].size(); ++i) {
+    const json& before = doc_["bufferViews"][i];
+    const json& after = views[i];
+    EXPECT_EQ(after["buffer"], 0);
+    const size_t n = before["byteLength"].get<size_t>();
+    const size_t from = before.value("byteOffset", size_t(0));
+    const size_t to = after["byteOffset"].get<size_t>();
+    const std::vector<uint8_t>& source = buffers[before["buffer"].get<size_t>()];
+    ASSERT_LE(to + n, parts.bin.size());
+    EXPECT_EQ(std::vector<uint8_t>(source.begin() + ptrdiff_t(from),
+                                   source.begin() + ptrdiff_t(from + n)),
+              std::vector<uint8_t>(parts.bin.begin() + ptrdiff_t(to),
+                                   parts.bin.begin() + ptrdiff_t(to + n)))
+        << "view " << i;
+    // A buffer starts on an 8-byte boundary: every view keeps its alignment within it.
+    EXPECT_EQ(to % 4, from % 4) << "view " << i;
+  }
+  const json& image = parts.doc["images"][0];
+  EXPECT_FALSE(image.contains("uri"));
+  EXPECT_EQ(image["mimeType"], "image/png");
+  const json& view = views[image["bufferView"].get<size_t>()];
+  const std::vector<uint8_t> png = read_bytes(dir_ / "scene" / "textures" / "checker.png");
+  const size_t at = view["byteOffset"].get<size_t>();
+  ASSERT_EQ(view["byteLength"].get<size_t>(), png.size());
+  EXPECT_EQ(std::vector<uint8_t>(parts.bin.begin() + ptrdiff_t(at),
+                                 parts.bin.begin() + ptrdiff_t(at + png.size())),
+            png);
+  // Everything else as written.
+  EXPECT_EQ(parts.doc["meshes"], doc_["meshes"]);
+  EXPECT_EQ(parts.doc["accessors"], doc_["accessors"]);
+  EXPECT_EQ(parts.doc["materials"], doc_["materials"]);
+}
+
+TEST_F(GltfPackTest, GlbThatNamesAnExternalBufferIsPackedWithIt) {
+  // Buffer 0 is the .glb's own chunk; buffer 1 an external file beside it (valid glTF, but
+  // only the .glb would travel).
+  const PackedGltf first = pack_gltf(read_bytes(gltf_), gltf_);
+  GlbParts parts = split(first.glb);
+  const std::vector<uint8_t> extra = {1, 2, 3, 4, 5, 6, 7, 8};
+  write_bytes(dir_ / "scene" / "extra.bin", extra);
+  parts.doc["buffers"].push_back({{"uri", "extra.bin"}, {"byteLength", 8}});
+  parts.doc["bufferViews"].push_back({{"buffer", 1}, {"byteOffset", 4}, {"byteLength", 4}});
+  const fs::path glb = dir_ / "scene" / "with-extra.glb";
+  write_bytes(glb, make_glb(parts.doc.dump(), parts.bin));
+
+  const PackedGltf packed = pack_gltf(read_bytes(glb), glb);
+  EXPECT_EQ(packed.packed_files, std::vector<std::string>{"extra.bin"});
+  const GlbParts again = split(packed.glb);
+  ASSERT_EQ(again.doc["buffers"].size(), 1u);
+  const json& view = again.doc["bufferViews"].back();
+  const size_t at = view["byteOffset"].get<size_t>();
+  EXPECT_EQ(std::vector<uint8_t>(again.bin.begin() + ptrdiff_t(at),
+                                 again.bin.begin() + ptrdiff_t(at + 4)),
+            (std::vector<uint8_t>{5, 6, 7, 8}));
+  EXPECT_EQ(load_gltf_bytes(packed.glb, dir_ / "alone" / "x.glb").triangle_count(), 2u);
+}
+
+TEST_F(GltfPackTest, MissingShortOrOutsideFilesAreNamed) {
+  const auto error_of = [&](const json& doc) {
+    write_text(gltf_, doc.dump());
+    try {
+      (void)pack_gltf(read_bytes(gltf_), gltf_);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  json missing = doc_;
+  missing["images"][0]["uri"] = "textures/nowhere.png";
+  EXPECT_EQ(error_of(missing), gltf_.string() +
+                                   ": images[0] refers to textures/nowhere.png: no such file in "
+                                   "the folder of the glTF file");
+  write_text(dir_ / "outside.bin", std::string(64, 'x'));
+  json outside = doc_;
+  outside["buffers"][0]["uri"] = "../outside.bin";
+  EXPECT_NE(error_of(outside).find("buffers[0] refers to ../outside.bin: not a file inside the "
+                                   "folder of the glTF file"),
+            std::string::npos);
+  json shorter = doc_;
+  shorter["buffers"][0]["byteLength"] = 1000;
+  EXPECT_NE(error_of(shorter).find("buffers[0] has 84 bytes, fewer than its byteLength 1000"),
+            std::string::npos);
+  json bad_view = doc_;
+  bad_view["bufferViews"][2]["buffer"] = 7;
+  EXPECT_NE(error_of(bad_view).find("bufferViews[2] refers to buffer 7, but there are 2"),
+            std::string::npos);
+  EXPECT_NE(error_of(json::array()).find("invalid glTF: not a JSON object"), std::string::npos);
+}
+
+TEST(GlbTest, ChunksArePaddedAndTheHeaderGivesTheLength) {
+  const std::vector<uint8_t> bin = {1, 2, 3, 4, 5};
+  const std::vector<uint8_t> glb = make_glb(R"({"asset":{"version":"2.0"}})", bin);
+  EXPECT_TRUE(is_glb(glb));
+  const GlbParts parts = split(glb);
+  EXPECT_EQ(parts.doc["asset"]["version"], "2.0");
+  EXPECT_EQ(parts.bin, (std::vector<uint8_t>{1, 2, 3, 4, 5, 0, 0, 0}));
+  const std::vector<uint8_t> bare = make_glb("{}", {});
+  EXPECT_EQ(bare.size(), 12u + 8u + 4u);  // "{}" padded with two spaces; no binary chunk
+  EXPECT_EQ(bare[22], ' ');
+}
+
+}  // namespace
+}  // namespace afr
