@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Runs the afr service on this machine: N sampler nodes and one display node on loopback.
 # Headless by default (images and stats to out/); with a window when $DISPLAY is set and
-# --window is given. Stops everything cleanly after SECONDS (or on Ctrl-C).
+# --window is given. Stops everything cleanly after SECONDS (or on Ctrl-C). Exits 1 with the
+# reason when a node fails: the display exits with an error, or a sampler exits.
 #
 #   deploy/run-local.sh 2                          2 samplers, 20 s, built-in scene, out/
 #   deploy/run-local.sh 3 --seconds 60 --window    a window (needs $DISPLAY)
@@ -54,7 +55,8 @@ if [ "$window" = 1 ]; then
   if [ -n "${DISPLAY:-}" ]; then headless=""; else echo "run-local: no \$DISPLAY: headless"; fi
 fi
 
-trap cleanup EXIT INT TERM
+trap cleanup EXIT
+trap 'cleanup; exit 130' INT TERM
 
 echo "run-local: display on tcp://127.0.0.1:$port (metrics http://127.0.0.1:$metrics_port/stats), $n sampler(s), $seconds s"
 # shellcheck disable=SC2086
@@ -62,13 +64,15 @@ echo "run-local: display on tcp://127.0.0.1:$port (metrics http://127.0.0.1:$met
   --size "$size" --preset "$preset" --seconds "$seconds" --output "$output" \
   --screenshot-every "$every" --metrics-port "$metrics_port" --backend "$backend" --gpu "$gpu" \
   > >(tee "$output/logs/display.log") 2>&1 &
-display_pid=$!
-pids+=("$display_pid")
+start_node display display "$output/logs/display.log"
 for i in $(seq 1 "$n"); do
   # Samplers at a lower priority: the display keeps its refresh when they share its cores.
   nice -n 10 "$build/sampler_node/sampler_node" --display "tcp://127.0.0.1:$port" --threads "$threads" \
     --name "local-$i" --cache "$output/scene-cache" >"$output/logs/sampler-$i.log" 2>&1 &
-  pids+=("$!")
+  start_node sampler "sampler $i" "$output/logs/sampler-$i.log"
 done
-wait "$display_pid" || true
+if ! watch_nodes run-local; then
+  echo "run-local: failed; logs in $output/logs/" >&2
+  exit 1
+fi
 echo "run-local: images in $output/ (final.png, final_tiling.png, final_density.png), logs in $output/logs/"

@@ -2,7 +2,8 @@
 # Runs a display wall on this machine (docs/wall.md): a lead display_node for cell 0,0 of a
 # COLUMNSxROWS grid over a WxH virtual display, one follower display_node per other cell, and
 # N sampler nodes, all headless on loopback. At the end each node writes its cell's image and
-# the script stitches them into OUTPUT/wall.png.
+# the script stitches them into OUTPUT/wall.png. Exits 1 with the reason when a node fails: a
+# display exits with an error, or a sampler exits.
 #
 #   deploy/run-wall.sh 2x2 2                         4 display nodes, 2 samplers, 512x512, 20 s
 #   deploy/run-wall.sh 2x2 2 --size 8192x8192 --seconds 30 --preset fast
@@ -53,8 +54,7 @@ echo "run-wall: lead display on $lead (metrics :$((port + 3))), ${cols}x${rows} 
 "$build/display_node/display_node" $scene --headless --bind "$lead" --size "$size" \
   --wall "${cols}x${rows}" --margin "$margin" --preset "$preset" --seconds "$((seconds + 2))" \
   --output "$output/cell-0-0" --metrics-port "$((port + 3))" >"$output/logs/lead.log" 2>&1 &
-lead_pid=$!
-pids+=("$lead_pid")
+start_node display "the lead display" "$output/logs/lead.log"
 k=0
 for r in $(seq 0 $((rows - 1))); do
   for c in $(seq 0 $((cols - 1))); do
@@ -64,16 +64,17 @@ for r in $(seq 0 $((rows - 1))); do
     "$build/display_node/display_node" --headless --follow "$lead" --cell "$c,$r" \
       --bind "tcp://127.0.0.1:$base" --metrics-port "$((base + 3))" --seconds "$seconds" \
       --output "$output/cell-$c-$r" >"$output/logs/cell-$c-$r.log" 2>&1 &
-    pids+=("$!")
+    start_node display "the display of cell $c,$r" "$output/logs/cell-$c-$r.log"
   done
 done
 for i in $(seq 1 "$n"); do
   "$build/sampler_node/sampler_node" --display "$lead" --threads "$threads" --name "local-$i" \
     --max-samples-per-second "$cap" --cache "$output/scene-cache" >"$output/logs/sampler-$i.log" 2>&1 &
-  pids+=("$!")
+  start_node sampler "sampler $i" "$output/logs/sampler-$i.log"
 done
-for p in "${pids[@]:1:$k}"; do wait "$p" || true; done
-wait "$lead_pid" || true
+# The lead runs 2 s longer than the cells, so each cell has exited (0) when the lead does.
+status=0
+watch_nodes run-wall || status=1
 cleanup
 trap - EXIT
 
@@ -88,3 +89,7 @@ else
   echo "run-wall: cells in $output/cell-*/final.png (not stitched: a cell image is missing or oiiotool is absent)"
 fi
 grep -E "wall layout|joined the wall|lost" "$output/logs/lead.log" | tail -n 6 || true
+if [ "$status" != 0 ]; then
+  echo "run-wall: failed; logs in $output/logs/" >&2
+  exit 1
+fi

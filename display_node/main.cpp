@@ -63,8 +63,8 @@ int main(int argc, char** argv) {
   double lead_timeout = 1.5;
   bool no_exchange = false;
   app.add_option("scene", scene_path,
-                 "glTF scene (.glb, or .gltf with embedded buffers); "
-                 "the built-in scene if omitted")
+                 "glTF scene (.glb or .gltf; the files a .gltf names are packed with it "
+                 "for the samplers); the built-in scene if omitted")
       ->check(CLI::ExistingFile);
   app.add_option("--bind", o.bind, "base endpoint tcp://HOST:PORT (uses PORT..PORT+2)")
       ->capture_default_str();

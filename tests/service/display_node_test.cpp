@@ -5,6 +5,7 @@
 
 #include <afr/common/clock.h>
 #include <afr/common/gltf_loader.h>
+#include <afr/common/gltf_pack.h>
 #include <afr/common/image.h>
 #include <afr/display/backend.h>
 #include <afr/protocol/channels.h>
@@ -14,8 +15,11 @@
 #include <gtest/gtest.h>
 #include <zmq.hpp>
 
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <optional>
 
 namespace afr::testing {
 namespace {
@@ -91,6 +95,78 @@ TEST_F(ServiceTest, TwoSamplersConvergeToTheInProcessImage) {
                 log.find("found in the cache") != std::string::npos)
         << log;
   }
+}
+
+// The glTF a user's exporter writes: the static scene with its buffer in a file beside it. The
+// display packs the two into one .glb for the samplers, which load it and sample.
+TEST_F(ServiceTest, GltfWithExternalFilesIsServedAsOnePackedTransfer) {
+  std::ifstream in(kStaticScene, std::ios::binary);
+  const std::vector<uint8_t> text{std::istreambuf_iterator<char>(in), {}};
+  const std::vector<uint8_t> glb = pack_gltf(text, kStaticScene).glb;  // buffers now in one chunk
+  uint32_t json_size = 0;
+  std::memcpy(&json_size, glb.data() + 12, 4);
+  nlohmann::json doc = nlohmann::json::parse(glb.begin() + 20, glb.begin() + 20 + json_size);
+  const std::vector<uint8_t> bin(glb.begin() + 20 + json_size + 8, glb.end());
+  doc["buffers"][0]["uri"] = "static scene.bin";
+  std::ofstream(path("static.gltf")) << doc.dump(1);
+  std::ofstream(path("static scene.bin"), std::ios::binary)
+      .write(reinterpret_cast<const char*>(bin.data()), std::streamsize(bin.size()));
+
+  auto d = display({path("static.gltf"), "--size", "64x64", "--fps", "20"}, "display.log");
+  auto s = sampler({"--max-samples-per-second", "50000"}, "s1.log");
+  ASSERT_TRUE(wait_members(1, 5.0)) << d->log() << s->log();
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const nlohmann::json st = get_stats(metrics_port());
+        return members(st) == 1 && st["samplers"][0]["samples"].get<uint64_t>() > 0;
+      },
+      10.0))
+      << d->log() << s->log();
+  EXPECT_NE(d->log().find("static.gltf: 1 external file(s) (static scene.bin) packed with it into "
+                          "one .glb"),
+            std::string::npos)
+      << d->log();
+  const std::string log = s->log();
+  EXPECT_NE(log.find("scene static.glb ("), std::string::npos) << log;
+  EXPECT_NE(log.find("loaded in"), std::string::npos) << log;
+  EXPECT_EQ(log.find(" error "), std::string::npos) << log;
+}
+
+// A sampler that cannot serve the session (here one that says so, as a sampler does whose
+// scene does not load: SamplerThatCannotLoadTheSceneTellsTheDisplayWhyAndLeaves) is logged by
+// id and name with its reason, and is no member any more.
+TEST_F(ServiceTest, SamplerThatFailsIsLoggedByNameWithItsReason) {
+  auto d = display({"--size", "64x64", "--fps", "20"}, "display.log");
+  ASSERT_TRUE(wait_until([&] { return !get_stats(metrics_port()).is_null(); }, 5.0)) << d->log();
+  protocol::Context context;
+  protocol::ControlClient client(context, endpoint());
+  protocol::Join join;
+  join.threads = 1;
+  join.name = "broken-sampler";
+  ASSERT_TRUE(client.send(join).ok());
+  std::optional<protocol::Welcome> welcome;
+  ASSERT_TRUE(wait_until(
+      [&] {
+        while (auto m = client.receive(10)) {
+          if (m->ok() && std::holds_alternative<protocol::Welcome>(m->value())) {
+            welcome = std::get<protocol::Welcome>(m->value());
+          }
+        }
+        return welcome.has_value();
+      },
+      5.0))
+      << d->log();
+  ASSERT_TRUE(wait_members(1, 5.0)) << d->log();
+  ASSERT_TRUE(client
+                  .send(protocol::Leave{welcome->sampler_id, protocol::LeaveReason::kError,
+                                        "cannot load the display's scene x.glb: boom"})
+                  .ok());
+  const std::string line = "error sampler " + std::to_string(welcome->sampler_id) +
+                           " (broken-sampler) failed and left: cannot load the display's scene "
+                           "x.glb: boom";
+  EXPECT_TRUE(wait_until([&] { return d->log().find(line) != std::string::npos; }, 5.0))
+      << d->log();
+  EXPECT_TRUE(wait_members(0, 5.0)) << d->log();
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -283,17 +359,16 @@ TEST_F(ServiceTest, MissingAndBrokenSceneFilesAreNamed) {
   EXPECT_NE(truncated->wait(10.0), 0);
   EXPECT_NE(truncated->log().find("broken.gltf: invalid glTF"), std::string::npos)
       << truncated->log();
-  // Only the one file travels to the samplers: a .gltf that names others is refused, though
-  // it loads here beside them.
+  // A .gltf whose external file is missing is named with the file (the display packs the files
+  // a .gltf names for the samplers: GltfWithExternalFilesIsServedAsOnePackedTransfer).
   const std::string external = path("external.gltf");
   std::ofstream(external)
       << R"({"asset":{"version":"2.0"},"buffers":[{"uri":"mesh.bin","byteLength":64}]})";
-  std::ofstream(path("mesh.bin")) << std::string(64, '\0');
-  auto refused = display({external, "--seconds", "1"}, "external.log");
-  EXPECT_NE(refused->wait(10.0), 0);
-  EXPECT_NE(refused->log().find("external.gltf: refers to 1 external file(s) (mesh.bin)"),
-            std::string::npos)
-      << refused->log();
+  auto missing_file = display({external, "--seconds", "1"}, "external.log");
+  EXPECT_NE(missing_file->wait(10.0), 0);
+  const std::string log = missing_file->log();
+  EXPECT_NE(log.find("external.gltf"), std::string::npos) << log;
+  EXPECT_NE(log.find("mesh.bin"), std::string::npos) << log;
 }
 
 TEST_F(ServiceTest, NonLoopbackBindWithoutKeysIsRefused) {

@@ -1,8 +1,17 @@
 // sampler_node as a service: back after its display restarts, bounded memory while the display
-// stalls, an unreachable display reported, flags checked and winning over the display's preset.
+// stalls, an unreachable display reported, flags checked and winning over the display's preset,
+// a scene that does not load told to the display, a large scene that keeps membership.
 #include "service_fixture.h"
 
+#include <afr/common/gltf_pack.h>
+#include <afr/protocol/channels.h>
+#include <afr/protocol/scene_hash.h>
+
 #include <gtest/gtest.h>
+
+#include <cstring>
+#include <fstream>
+#include <optional>
 
 namespace afr::testing {
 namespace {
@@ -93,6 +102,141 @@ TEST_F(ServiceTest, SamplerFlagsGivenExplicitlyWinOverTheDisplaysPreset) {
       << s->log();
   const std::string log = s->log();
   EXPECT_NE(log.find("preset fast, b = 1, r = 2, chunk = 50"), std::string::npos) << log;
+}
+
+// A display played by the test serves bytes that are no scene: the sampler tells it why in a
+// leave (the protocol's kError) and exits 3, instead of staying a member that sends nothing.
+TEST_F(ServiceTest, SamplerThatCannotLoadTheSceneTellsTheDisplayWhyAndLeaves) {
+  using namespace protocol;
+  Context context;
+  ControlServer server(context, endpoint());
+  const std::string text = "not a scene at all";
+  const std::vector<uint8_t> scene(text.begin(), text.end());
+  auto s = sampler({"--max-samples-per-second", "50000"}, "s1.log");
+  std::optional<Leave> leave;
+  uint64_t beat = 0;
+  std::string peer;
+  auto last_beat = std::chrono::steady_clock::now();
+  wait_until(
+      [&] {
+        while (auto in = server.receive(10)) {
+          if (!in->message.ok()) continue;
+          const Message& m = in->message.value();
+          if (std::holds_alternative<Join>(m)) {
+            peer = in->peer;
+            Welcome w;
+            w.sampler_id = 1;
+            w.session = 42;
+            w.image = ImageExtent{64, 64};
+            w.refresh_interval = 1.0 / 30.0;
+            w.scene_hash = scene_hash(scene);
+            w.scene_size = scene.size();
+            w.scene_name = "garbage.glb";
+            (void)server.send(in->peer, w);
+          } else if (const auto* r = std::get_if<SceneRequest>(&m)) {
+            SceneChunk c;
+            c.scene_hash = r->scene_hash;
+            c.scene_size = scene.size();
+            c.count = 1;
+            c.bytes = scene;
+            (void)server.send(in->peer, c);
+          } else if (const auto* l = std::get_if<Leave>(&m)) {
+            leave = *l;
+          }
+        }
+        if (!peer.empty() && seconds_since(last_beat) > 0.15) {
+          (void)server.send(peer, Heartbeat{1, 42, beat++, 0.0});
+          last_beat = std::chrono::steady_clock::now();
+        }
+        return leave.has_value();
+      },
+      10.0);
+  ASSERT_TRUE(leave.has_value()) << s->log();
+  EXPECT_EQ(leave->reason, LeaveReason::kError);
+  EXPECT_EQ(leave->sampler_id, 1u);
+  EXPECT_NE(leave->text.find("cannot load the display's scene garbage.glb: "), std::string::npos)
+      << leave->text;
+  EXPECT_EQ(s->wait(10.0), 3) << s->log();
+  EXPECT_NE(s->log().find("leaving the display"), std::string::npos) << s->log();
+}
+
+// A scene of about 50 MB (most of it a buffer no mesh reads, so the tracers' BVH stays small
+// on a loaded test machine): while it travels, is hashed, cached and loaded, the samplers keep
+// sending heartbeats, so the display never loses them and they join once.
+TEST_F(ServiceTest, LargeSceneKeepsMembershipWhileItTravelsAndLoads) {
+  const int n = 100;  // n x n quads
+  std::vector<float> positions;
+  std::vector<uint32_t> indices;
+  for (int j = 0; j <= n; ++j) {
+    for (int i = 0; i <= n; ++i) {
+      positions.insert(positions.end(), {float(i) / n - 0.5f, 0.0f, float(j) / n - 0.5f});
+    }
+  }
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const uint32_t a = uint32_t(j * (n + 1) + i);
+      indices.insert(indices.end(), {a, a + n + 1, a + 1, a + 1, a + n + 1, a + n + 2});
+    }
+  }
+  const size_t pos_bytes = positions.size() * 4, index_bytes = indices.size() * 4;
+  const size_t filler = size_t(50) << 20;
+  std::vector<uint8_t> bin(pos_bytes + index_bytes + filler);
+  std::memcpy(bin.data(), positions.data(), pos_bytes);
+  std::memcpy(bin.data() + pos_bytes, indices.data(), index_bytes);
+  for (size_t k = 0; k < filler; ++k)
+    bin[pos_bytes + index_bytes + k] = uint8_t(k * 2654435761u >> 24);
+  const nlohmann::json doc = {
+      {"asset", {{"version", "2.0"}}},
+      {"scene", 0},
+      {"scenes", {{{"nodes", {0, 1}}}}},
+      {"nodes",
+       {{{"mesh", 0}},
+        {{"camera", 0},
+         {"translation", {0, 1.2, 1.2}},
+         {"rotation", {-0.3826834, 0, 0, 0.9238795}}}}},
+      {"cameras", {{{"type", "perspective"}, {"perspective", {{"yfov", 0.9}, {"znear", 0.05}}}}}},
+      {"meshes", {{{"primitives", {{{"attributes", {{"POSITION", 0}}}, {"indices", 1}}}}}}},
+      {"accessors",
+       {{{"bufferView", 0},
+         {"componentType", 5126},
+         {"count", (n + 1) * (n + 1)},
+         {"type", "VEC3"},
+         {"min", {-0.5, 0, -0.5}},
+         {"max", {0.5, 0, 0.5}}},
+        {{"bufferView", 1},
+         {"componentType", 5125},
+         {"count", indices.size()},
+         {"type", "SCALAR"}}}},
+      {"bufferViews",
+       {{{"buffer", 0}, {"byteOffset", 0}, {"byteLength", pos_bytes}},
+        {{"buffer", 0}, {"byteOffset", pos_bytes}, {"byteLength", index_bytes}},
+        {{"buffer", 0}, {"byteOffset", pos_bytes + index_bytes}, {"byteLength", filler}}}},
+      {"buffers", {{{"byteLength", bin.size()}}}},
+  };
+  const std::vector<uint8_t> glb = make_glb(doc.dump(), bin);
+  std::ofstream(path("large.glb"), std::ios::binary)
+      .write(reinterpret_cast<const char*>(glb.data()), std::streamsize(glb.size()));
+
+  auto d = display({path("large.glb"), "--size", "64x64", "--fps", "20"}, "display.log");
+  auto s1 = sampler({"--max-samples-per-second", "50000"}, "s1.log");
+  auto s2 = sampler({"--max-samples-per-second", "50000"}, "s2.log");
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const nlohmann::json st = get_stats(metrics_port());
+        if (members(st) != 2) return false;
+        for (const auto& m : st["samplers"]) {
+          if (m["member"].get<bool>() && m["samples"].get<uint64_t>() == 0) return false;
+        }
+        return true;
+      },
+      30.0))
+      << d->log() << s1->log() << s2->log();
+  EXPECT_EQ(d->log().find(" lost: "), std::string::npos) << d->log();
+  for (const auto* s : {s1.get(), s2.get()}) {
+    const std::string log = s->log();
+    EXPECT_EQ(count_of(log, "joined the display as sampler"), 1u) << log;
+    EXPECT_NE(log.find("loaded in"), std::string::npos) << log;
+  }
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 
 #include <afr/common/error.h>
 #include <afr/common/gltf_loader.h>
+#include <afr/common/gltf_pack.h>
 #include <afr/protocol/scene_hash.h>
 
 #include <fmt/format.h>
@@ -34,23 +35,24 @@ ScenePayload read_scene_payload(const std::string& path) {
     if (!in) throw Error(fmt::format("{}: cannot open the scene file", path));
     p.bytes.assign(std::istreambuf_iterator<char>(in), {});
     if (p.bytes.empty()) throw Error(fmt::format("{}: the scene file is empty", path));
-    if (p.bytes.size() > kMaxSceneBytes) {
-      throw Error(
-          fmt::format("{}: {} bytes is over the protocol's limit of 4 GiB", path, p.bytes.size()));
-    }
     p.name = std::filesystem::path(path).filename().string();
     if (p.name.size() > kMaxNameBytes) p.name = p.name.substr(p.name.size() - kMaxNameBytes);
-    // Only this one file travels: external buffers or images would be missing on the samplers.
-    if (std::filesystem::path(path).extension() == ".gltf") {
-      const std::vector<std::string> external = gltf_external_uris(
-          std::string_view(reinterpret_cast<const char*>(p.bytes.data()), p.bytes.size()), path);
-      if (!external.empty()) {
-        throw Error(fmt::format(
-            "{}: refers to {} external file(s) ({}{}); samplers receive only this file: convert "
-            "it to .glb or embed its buffers and images",
-            path, external.size(), external.front(), external.size() > 1 ? ", ..." : ""));
-      }
+    // Only this one payload travels: a glTF that names other files (buffers, images) goes out
+    // packed with them into one .glb, which loads on the samplers as the file loads here.
+    const std::vector<std::string> external = gltf_external_files(p.bytes, path);
+    if (!external.empty()) {
+      PackedGltf packed = pack_gltf(p.bytes, path);
+      spdlog::info("{}: {} external file(s) ({}{}) packed with it into one .glb of {} bytes", path,
+                   packed.packed_files.size(), packed.packed_files.front(),
+                   packed.packed_files.size() > 1 ? ", ..." : "", packed.glb.size());
+      p.bytes = std::move(packed.glb);
+      p.name = std::filesystem::path(path).stem().string() + ".glb";
+      if (p.name.size() > kMaxNameBytes) p.name = p.name.substr(p.name.size() - kMaxNameBytes);
     }
+  }
+  if (p.bytes.size() > kMaxSceneBytes) {
+    throw Error(
+        fmt::format("{}: {} bytes is over the protocol's limit of 4 GiB", path, p.bytes.size()));
   }
   p.hash = scene_hash(p.bytes);
   return p;
@@ -510,7 +512,12 @@ void DisplayService::Control::on_member_message(Member& m, const std::string& pe
     service_.metrics_.on_reported(*s);
     coordinator_.report_throughput(m.id, s->samples_per_second, t);
   } else if (const auto* l = std::get_if<Leave>(&msg)) {
-    spdlog::info("sampler {} ({}) left: {}", m.id, m.name, l->text);
+    if (l->reason == LeaveReason::kError) {
+      // The sampler cannot serve this session (its scene did not load, say): it said why.
+      spdlog::error("sampler {} ({}) failed and left: {}", m.id, m.name, l->text);
+    } else {
+      spdlog::info("sampler {} ({}) left: {}", m.id, m.name, l->text);
+    }
     service_.metrics_.on_member_gone(m.id, false);
     transfers_.erase(m.peer);
     coordinator_.remove(m.id);  // m is gone from here on

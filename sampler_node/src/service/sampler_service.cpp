@@ -14,6 +14,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <future>
 #include <map>
 #include <mutex>
@@ -206,7 +207,25 @@ class NetworkSink final : public SampleSink {
   SampleSender::Counters retired_;
 };
 
-enum class SessionEnd { kStopped, kRetry, kFatal };
+enum class SessionEnd { kStopped, kRetry, kFatal, kFailed };
+
+// What the scene loader thread hands back: the scene, or why there is none yet.
+struct SceneLoad {
+  enum class Outcome { kLoaded, kNotCached, kCorrupt } outcome = Outcome::kLoaded;
+  std::unique_ptr<Scene> scene;
+  std::string detail;       // kCorrupt: the hash the bytes had
+  bool from_cache = false;  // kLoaded: found in the cache, not received
+};
+
+double megabytes(uint64_t bytes) { return double(bytes) / (1024.0 * 1024.0); }
+
+// A leave's text within the protocol's limit, cut at a character boundary.
+std::string leave_text(std::string text) {
+  if (text.size() <= kMaxNameBytes) return text;
+  size_t n = kMaxNameBytes - 3;
+  while (n > 0 && (uint8_t(text[n]) & 0xC0) == 0x80) --n;
+  return text.substr(0, n) + "...";
+}
 
 }  // namespace
 
@@ -219,13 +238,13 @@ struct SamplerService::Impl {
   void handle(const Message& m, DisplayLink& control, SampleSender& sender, double now,
               SessionEnd* end);
   void on_welcome(const Welcome& w, DisplayLink& control, SampleSender& sender);
-  void on_chunk(const SceneChunk& c, DisplayLink& control);
+  void on_chunk(const SceneChunk& c);
   void on_region(const RegionAssignment& r);
   void on_wall(const WallLayout& w, SampleSender& sender);
-  void use_scene(const std::filesystem::path& file, const SceneHash& hash);
+  void load_scene(std::function<SceneLoad()> job, const SceneHash& hash);
   void update_pool();
   void stop_pool();
-  void finish_background_work();
+  void finish_background_work(DisplayLink& control);
   void send_stats(DisplayLink& control);
   SamplerCounters pool_counters() const;
 
@@ -245,6 +264,7 @@ struct SamplerService::Impl {
   Welcome welcome;
   bool fetching = false;
   double last_chunk_time = 0.0;
+  double last_progress_time = 0.0;  // of the last progress line of a transfer or a load
   std::optional<RegionAssignment> region;
   uint64_t epoch = 0;
   // A display wall's sample channels (the lead display's is the session's own sender), by
@@ -263,10 +283,14 @@ struct SamplerService::Impl {
   // loads on a helper thread, and a pool whose construction is abandoned (a recut, a new
   // session) finishes on its own and is dropped here once built. Such pools read `scene`, so
   // a loaded scene replaces it only when none is left.
-  std::future<std::unique_ptr<Scene>> loading;
+  std::future<SceneLoad> loading;
   SceneHash loading_hash{};
+  double loading_since = 0.0;
   std::vector<std::future<std::unique_ptr<SamplerPool>>> abandoned_pools;
-  std::vector<std::future<std::unique_ptr<Scene>>> abandoned_scenes;
+  std::vector<std::future<SceneLoad>> abandoned_scenes;
+  // Why this sampler cannot serve the session (the scene does not load, the pool cannot be
+  // built): told to the display in a leave, then run() returns 3.
+  std::optional<std::string> failure;
   SamplerCounters retired;  // counters of pools already stopped
 
   // Stats.
@@ -303,6 +327,10 @@ int SamplerService::run(const std::atomic<bool>& stop) {
   while (!stop.load()) {
     const SessionEnd end = impl_->run_session(stop);
     if (end == SessionEnd::kFatal) return 2;
+    if (end == SessionEnd::kFailed) {
+      impl_->stop_pool();
+      return 3;
+    }
     if (end == SessionEnd::kStopped) break;
     // A short pause, so a display that refuses at once is not hammered.
     for (int i = 0; i < 5 && !stop.load(); ++i) {
@@ -394,8 +422,22 @@ SessionEnd SamplerService::Impl::run_session(const std::atomic<bool>& stop) {
         (void)control.send(SceneRequest{sampler_id, assembler.hash(), assembler.next_chunk()});
         last_chunk_time = now;
       }
+      if (loading.valid() && now - loading_since >= 2.0 && now - last_progress_time >= 2.0) {
+        spdlog::info("still loading scene {}: {:.0f} s so far", welcome.scene_name,
+                     now - loading_since);
+        last_progress_time = now;
+      }
     }
+    finish_background_work(control);
     update_pool();
+    if (failure) {
+      // The display hears why and gives the region to the others; joining again would only
+      // fail the same way on the same scene.
+      spdlog::error("{}: leaving the display", *failure);
+      if (joined) (void)control.send(Leave{sampler_id, LeaveReason::kError, leave_text(*failure)});
+      end = SessionEnd::kFailed;
+      break;
+    }
     sink.pump();
   }
 
@@ -419,7 +461,7 @@ void SamplerService::Impl::handle(const Message& m, DisplayLink& control, Sample
     on_welcome(*w, control, sender);
   } else if (const auto* c = std::get_if<SceneChunk>(&m)) {
     last_chunk_time = now;
-    on_chunk(*c, control);
+    on_chunk(*c);
   } else if (const auto* r = std::get_if<RegionAssignment>(&m)) {
     on_region(*r);
   } else if (const auto* wl = std::get_if<WallLayout>(&m)) {
@@ -473,63 +515,94 @@ void SamplerService::Impl::on_welcome(const Welcome& w, DisplayLink& control,
   if (loading.valid() ? loading_hash == w.scene_hash : scene && scene_hash == w.scene_hash) {
     return;
   }
-  if (std::optional<std::filesystem::path> file = cache.find(w.scene_hash)) {
-    spdlog::info("scene {} found in the cache: {}", to_hex(w.scene_hash).substr(0, 16),
-                 file->string());
-    {
-      std::lock_guard<std::mutex> lock(counters_mutex);
-      ++counters.scene_cache_hits;
-    }
-    use_scene(*file, w.scene_hash);
-    return;
-  }
-  assembler.reset(w.scene_hash, w.scene_size);
-  fetching = true;
-  last_chunk_time = steady_seconds();
-  (void)control.send(SceneRequest{sampler_id, w.scene_hash, 0});
+  fetching = false;
+  // The cache is looked up on the loader thread (a hit is read and hashed whole, then loaded);
+  // a miss comes back as kNotCached and the transfer starts then (finish_background_work).
+  load_scene(
+      [cache = cache, hash = w.scene_hash, name = w.scene_name] {
+        SceneLoad out;
+        const std::optional<std::filesystem::path> file = cache.find(hash);
+        if (!file) {
+          out.outcome = SceneLoad::Outcome::kNotCached;
+          return out;
+        }
+        spdlog::info("scene {} found in the cache: {}", to_hex(hash).substr(0, 16), file->string());
+        out.scene = std::make_unique<Scene>(load_scene_payload(*file));
+        out.from_cache = true;
+        return out;
+      },
+      w.scene_hash);
 }
 
-void SamplerService::Impl::on_chunk(const SceneChunk& c, DisplayLink& control) {
+void SamplerService::Impl::on_chunk(const SceneChunk& c) {
   if (!fetching) return;  // a late chunk of a transfer already done
   if (std::string err = assembler.add(c); !err.empty()) {
     spdlog::warn("scene transfer: {}", err);
     return;
   }
-  if (!assembler.complete()) return;
-  fetching = false;
-  const SceneHash got = protocol::scene_hash(assembler.bytes());
-  if (got != assembler.hash()) {
-    spdlog::error("scene transfer: the bytes hash to {}, not {}: asking again", to_hex(got),
-                  to_hex(assembler.hash()));
-    assembler.reset(welcome.scene_hash, welcome.scene_size);
-    fetching = true;
-    (void)control.send(SceneRequest{sampler_id, welcome.scene_hash, 0});
+  const double now = steady_seconds();
+  if (!assembler.complete()) {
+    if (now - last_progress_time >= 2.0) {
+      spdlog::info("scene transfer: {:.1f} of {:.1f} MB ({:.0f}%)", megabytes(assembler.received()),
+                   megabytes(assembler.size()),
+                   100.0 * double(assembler.received()) / double(assembler.size()));
+      last_progress_time = now;
+    }
     return;
   }
+  fetching = false;
   {
     std::lock_guard<std::mutex> lock(counters_mutex);
     ++counters.scenes_received;
   }
-  try {
-    const std::filesystem::path file =
-        cache.store(assembler.hash(), welcome.scene_name, assembler.bytes());
-    spdlog::info("scene received: {} bytes, cached as {}", assembler.bytes().size(), file.string());
-    use_scene(file, assembler.hash());
-  } catch (const std::exception& e) {
-    spdlog::error("scene {}: {}", welcome.scene_name, e.what());
-  }
+  // Hash, cache and load on the loader thread: tens of MB take a while, and this thread sends
+  // the heartbeats that keep this sampler a member.
+  const SceneHash hash = assembler.hash();
+  auto bytes = std::make_shared<std::vector<uint8_t>>(assembler.take_bytes());
+  load_scene(
+      [cache = cache, hash, bytes, name = welcome.scene_name] {
+        SceneLoad out;
+        const SceneHash got = protocol::scene_hash(*bytes);
+        if (got != hash) {
+          out.outcome = SceneLoad::Outcome::kCorrupt;
+          out.detail = to_hex(got);
+          return out;
+        }
+        std::filesystem::path file;
+        try {
+          file = cache.store(hash, name, *bytes);
+          spdlog::info("scene received: {} bytes, cached as {}", bytes->size(), file.string());
+        } catch (const Error& e) {
+          // Not fatal: the scene is in memory; only a later session fetches it again.
+          spdlog::warn("scene received: {} bytes, not cached ({}): loading it from memory",
+                       bytes->size(), e.what());
+        }
+        if (!file.empty()) {
+          out.scene = std::make_unique<Scene>(load_scene_payload(file));
+        } else {
+          // Named as the cached file would be: the loader looks for nothing outside the
+          // cache's folder, as for a cached file.
+          const std::string as = (cache.dir() / to_hex(hash)).string() +
+                                 std::filesystem::path(name).extension().string();
+          out.scene = std::make_unique<Scene>(load_scene_payload(*bytes, as));
+        }
+        return out;
+      },
+      hash);
 }
 
-void SamplerService::Impl::use_scene(const std::filesystem::path& file, const SceneHash& hash) {
+// Starts loading a scene on the loader thread; the pool stops (it reads the old scene).
+void SamplerService::Impl::load_scene(std::function<SceneLoad()> job, const SceneHash& hash) {
   stop_pool();
   if (loading.valid()) abandoned_scenes.push_back(std::move(loading));
   loading_hash = hash;
-  loading = std::async(std::launch::async,
-                       [file] { return std::make_unique<Scene>(load_scene_payload(file)); });
+  loading_since = steady_seconds();
+  loading = std::async(std::launch::async, std::move(job));
 }
 
-// Drops what background threads finished and no one waits for; installs a loaded scene.
-void SamplerService::Impl::finish_background_work() {
+// Drops what background threads finished and no one waits for; takes a finished scene load:
+// installs the scene, or starts the transfer the cache could not spare, or fails.
+void SamplerService::Impl::finish_background_work(DisplayLink& control) {
   const auto ready = [](const auto& f) {
     return f.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
   };
@@ -549,15 +622,41 @@ void SamplerService::Impl::finish_background_work() {
   drop_ready(&abandoned_pools);
   drop_ready(&abandoned_scenes);
   if (!loading.valid() || !ready(loading) || !abandoned_pools.empty()) return;
+  const double seconds = steady_seconds() - loading_since;
+  SceneLoad got;
   try {
-    scene = loading.get();
-    scene_hash = loading_hash;
-    spdlog::info("scene {}: {} triangles, {:.2f} s of animation", welcome.scene_name,
-                 scene->triangle_count(), scene->duration());
+    got = loading.get();
   } catch (const std::exception& e) {
-    scene.reset();
-    spdlog::error("cannot load the display's scene {}: {}", welcome.scene_name, e.what());
+    failure = fmt::format("cannot load the display's scene {}: {}", welcome.scene_name, e.what());
+    return;
   }
+  switch (got.outcome) {
+    case SceneLoad::Outcome::kNotCached:
+    case SceneLoad::Outcome::kCorrupt:
+      if (got.outcome == SceneLoad::Outcome::kCorrupt) {
+        spdlog::error("scene transfer: the bytes hash to {}, not {}: asking again", got.detail,
+                      to_hex(loading_hash));
+      } else {
+        spdlog::info("asking the display for scene {} ({:.1f} MB)", welcome.scene_name,
+                     megabytes(welcome.scene_size));
+      }
+      if (!joined || loading_hash != welcome.scene_hash) return;  // a session since
+      assembler.reset(welcome.scene_hash, welcome.scene_size);
+      fetching = true;
+      last_chunk_time = last_progress_time = steady_seconds();
+      (void)control.send(SceneRequest{sampler_id, welcome.scene_hash, 0});
+      return;
+    case SceneLoad::Outcome::kLoaded:
+      break;
+  }
+  if (got.from_cache) {
+    std::lock_guard<std::mutex> lock(counters_mutex);
+    ++counters.scene_cache_hits;
+  }
+  scene = std::move(got.scene);
+  scene_hash = loading_hash;
+  spdlog::info("scene {}: {} triangles, {:.2f} s of animation (loaded in {:.2f} s)",
+               welcome.scene_name, scene->triangle_count(), scene->duration(), seconds);
 }
 
 void SamplerService::Impl::on_region(const RegionAssignment& r) {
@@ -617,17 +716,15 @@ void SamplerService::Impl::on_wall(const WallLayout& w, SampleSender& sender) {
 // Starts, replaces or keeps the pool so that it runs on the current region. Pools are built on
 // a helper thread (a Tracer per worker thread builds its BVH), so heartbeats go on meanwhile.
 void SamplerService::Impl::update_pool() {
-  finish_background_work();
   if (building.valid()) {
     if (building.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return;
     std::unique_ptr<SamplerPool> built;
     try {
       built = building.get();
     } catch (const std::exception& e) {
-      spdlog::error("cannot start the sampler on region [{}, {}) x [{}, {}): {}",
-                    building_region.x0, building_region.x1, building_region.y0, building_region.y1,
-                    e.what());
-      region.reset();
+      failure =
+          fmt::format("cannot start sampling region [{}, {}) x [{}, {}): {}", building_region.x0,
+                      building_region.x1, building_region.y0, building_region.y1, e.what());
       return;
     }
     if (joined && region && region->region == building_region) {
@@ -639,7 +736,7 @@ void SamplerService::Impl::update_pool() {
                    pool_region.x1, pool_region.y0, pool_region.y1, pool->regions().size());
     }
   }
-  if (!joined || !scene || loading.valid() || !region) return;
+  if (!joined || !scene || scene_hash != welcome.scene_hash || loading.valid() || !region) return;
   if (pool && pool_region == region->region) return;
   stop_pool();
 

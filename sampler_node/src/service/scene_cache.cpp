@@ -44,6 +44,12 @@ std::string SceneAssembler::add(const protocol::SceneChunk& chunk) {
   return {};
 }
 
+std::vector<uint8_t> SceneAssembler::take_bytes() {
+  std::vector<uint8_t> out = std::move(bytes_);
+  reset(protocol::SceneHash{}, 0);
+  return out;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Cache
 
@@ -110,6 +116,14 @@ Scene load_scene_payload(const std::filesystem::path& file) {
     return make_builtin_scene();
   }
   return load_gltf(file);
+}
+
+Scene load_scene_payload(std::span<const uint8_t> bytes, const std::string& name) {
+  if (std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()) ==
+      kBuiltinScenePayload) {
+    return make_builtin_scene();
+  }
+  return load_gltf_bytes(bytes, name);
 }
 
 std::filesystem::path default_scene_cache_dir() {

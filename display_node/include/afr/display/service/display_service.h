@@ -42,8 +42,9 @@ struct ScenePayload {
   std::vector<uint8_t> bytes;
   protocol::SceneHash hash{};
 };
-// Reads a scene file (empty path: the built-in scene). A .gltf must embed its buffers and
-// images (data URIs), since only this one file travels; throws afr::Error naming the file.
+// Reads a scene file (empty path: the built-in scene). A glTF that refers to other files
+// (buffers, images) is packed with them into one .glb (afr/common/gltf_pack.h), since only this
+// one payload travels; `name` then ends in .glb. Throws afr::Error naming the file.
 ScenePayload read_scene_payload(const std::string& path);
 
 struct DisplayServiceOptions {

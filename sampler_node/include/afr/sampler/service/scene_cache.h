@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -33,7 +34,11 @@ class SceneAssembler {
   // The index of the first chunk not yet received, for a request that resumes the transfer.
   uint32_t next_chunk() const { return next_chunk_; }
   const std::vector<uint8_t>& bytes() const { return bytes_; }
+  // Hands the assembled bytes over and starts empty (nothing complete) again.
+  std::vector<uint8_t> take_bytes();
   const protocol::SceneHash& hash() const { return hash_; }
+  uint64_t size() const { return size_; }
+  uint64_t received() const { return received_; }
 
  private:
   protocol::SceneHash hash_{};
@@ -63,6 +68,8 @@ class SceneCache {
 // The scene of a payload file: the built-in scene for kBuiltinScenePayload, else the glTF.
 // Throws afr::Error naming the file and the problem.
 Scene load_scene_payload(const std::filesystem::path& file);
+// The same for payload bytes held in memory; `name` stands for the file in errors.
+Scene load_scene_payload(std::span<const uint8_t> bytes, const std::string& name);
 
 // The default cache folder: $XDG_CACHE_HOME/afr/scenes or ~/.cache/afr/scenes, else
 // /tmp/afr-scenes-<uid>.

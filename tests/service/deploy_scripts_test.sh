@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# deploy/run-local.sh and deploy/run-wall.sh end with status 1 and the reason when a node fails
+# (the display exits with an error, or every sampler exits), and with 0 after a good run.
+#
+#   tests/service/deploy_scripts_test.sh BUILD_DIR SCENE     (the ctest deploy_scripts)
+set -uo pipefail
+build=$(realpath "$1") scene=$(realpath "$2")
+cd "$(dirname "$0")/../.." || exit 1
+out=$(mktemp -d)
+trap 'rm -rf "$out"' EXIT
+port=$((20000 + RANDOM % 20000))
+failures=0
+check() {  # check NAME EXPECTED_STATUS STATUS LOG PATTERN...
+  local name=$1 want=$2 got=$3 log=$4 p
+  shift 4
+  if [ "$got" != "$want" ]; then
+    echo "FAIL $name: exit status $got, expected $want"; cat "$log"; failures=$((failures + 1)); return
+  fi
+  for p in "$@"; do
+    if ! grep -qF -- "$p" "$log"; then
+      echo "FAIL $name: no '$p' in its output"; cat "$log"; failures=$((failures + 1)); return
+    fi
+  done
+  echo "ok $name"
+}
+local_run() {
+  deploy/run-local.sh "$@" --build "$build" --port "$port" --metrics-port "$((port + 3))" \
+    --size 64x64 --backend cpu
+}
+
+local_run 2 --threads 0 --seconds 30 --output "$out/dead" >"$out/dead.txt" 2>&1
+check "run-local, every sampler exits" 1 $? "$out/dead.txt" \
+  "run-local: sampler 1 failed (exit status 105): --threads: Value 0 not in range 1 to 256" \
+  "run-local: every sampler has exited: stopping the display" "run-local: failed"
+
+printf '{"asset":' >"$out/broken.gltf"
+local_run 1 --scene "$out/broken.gltf" --seconds 30 --output "$out/broken" >"$out/broken.txt" 2>&1
+check "run-local, the display fails" 1 $? "$out/broken.txt" \
+  "run-local: display failed (exit status 1): " "broken.gltf: invalid glTF" "run-local: failed"
+
+local_run 1 --scene "$scene" --seconds 3 --output "$out/good" >"$out/good.txt" 2>&1
+check "run-local, a good run" 0 $? "$out/good.txt" "run-local: images in"
+
+deploy/run-wall.sh 2x1 1 --threads 0 --size 64x32 --seconds 30 --build "$build" --port "$port" \
+  --output "$out/wall" >"$out/wall.txt" 2>&1
+check "run-wall, every sampler exits" 1 $? "$out/wall.txt" \
+  "run-wall: sampler 1 failed (exit status 105)" "run-wall: every sampler has exited" \
+  "run-wall: failed"
+
+exit $((failures > 0))
