@@ -67,13 +67,9 @@ struct FileAccess {
 };
 
 bool inside_root(const FileAccess& access, const std::string& file, fs::path* resolved) {
-  std::error_code ec;
-  fs::path p = fs::weakly_canonical(fs::absolute(fs::path(file), ec), ec);
-  if (ec) return false;
-  const fs::path relative = p.lexically_relative(access.root);
-  if (relative.empty() || *relative.begin() == "..") return false;
-  *resolved = p;
-  return true;
+  const std::optional<fs::path> p = file_in_gltf_folder(access.root, file);
+  if (p) *resolved = *p;
+  return p.has_value();
 }
 
 bool file_exists(const std::string& file, void* user_data) {
@@ -1234,6 +1230,15 @@ Scene load_gltf_bytes(std::span<const uint8_t> bytes, const std::filesystem::pat
 Scene load_scene(const std::filesystem::path& path) {
   if (path.empty()) return make_builtin_scene();
   return load_gltf(path);
+}
+
+std::optional<fs::path> file_in_gltf_folder(const fs::path& folder, const fs::path& file) {
+  std::error_code ec;
+  fs::path p = fs::weakly_canonical(fs::absolute(folder / file, ec), ec);
+  if (ec) return std::nullopt;
+  const fs::path relative = p.lexically_relative(folder);
+  if (relative.empty() || *relative.begin() == "..") return std::nullopt;
+  return p;
 }
 
 std::vector<std::string> gltf_external_uris(std::string_view json_text,

@@ -5,6 +5,7 @@
 #include <afr/common/gltf_loader.h>
 
 #include <fmt/format.h>
+#include <tiny_gltf.h>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -54,40 +55,6 @@ void append_u32(std::vector<uint8_t>* out, uint32_t v) {
 
 void pad_to(std::vector<uint8_t>* v, size_t alignment, uint8_t fill = 0) {
   while (v->size() % alignment != 0) v->push_back(fill);
-}
-
-std::optional<std::vector<uint8_t>> decode_base64(std::string_view text) {
-  static const std::array<int8_t, 256> table = [] {
-    std::array<int8_t, 256> t{};
-    t.fill(-1);
-    const char* alphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    for (int i = 0; i < 64; ++i) t[uint8_t(alphabet[i])] = int8_t(i);
-    return t;
-  }();
-  std::vector<uint8_t> out;
-  out.reserve(text.size() / 4 * 3);
-  uint32_t bits = 0;
-  int count = 0;
-  for (char c : text) {
-    if (c == '=') break;
-    const int8_t v = table[uint8_t(c)];
-    if (v < 0) return std::nullopt;
-    bits = (bits << 6) | uint32_t(v);
-    if (++count == 4) {
-      out.push_back(uint8_t(bits >> 16));
-      out.push_back(uint8_t(bits >> 8));
-      out.push_back(uint8_t(bits));
-      bits = 0;
-      count = 0;
-    }
-  }
-  if (count == 1) return std::nullopt;
-  if (count == 2) out.push_back(uint8_t(bits >> 4));
-  if (count == 3) {
-    out.push_back(uint8_t(bits >> 10));
-    out.push_back(uint8_t(bits >> 2));
-  }
-  return out;
 }
 
 // The image type the glTF names by mimeType, told from the bytes or else the file's name.
@@ -196,13 +163,13 @@ class Packer {
 
   // The bytes of an external file named by `uri`, from inside the glTF's folder only.
   std::vector<uint8_t> read_external(const std::string& uri, const std::string& what) const {
-    std::error_code ec;
-    const fs::path p = fs::weakly_canonical(root_ / uri, ec);
-    const fs::path relative = ec ? fs::path() : p.lexically_relative(root_);
-    if (relative.empty() || *relative.begin() == "..") {
+    const std::optional<fs::path> inside = file_in_gltf_folder(root_, uri);
+    if (!inside) {
       fail(
           fmt::format("{} refers to {}: not a file inside the folder of the glTF file", what, uri));
     }
+    const fs::path& p = *inside;
+    std::error_code ec;
     if (!fs::is_regular_file(p, ec)) {
       fail(fmt::format("{} refers to {}: no such file in the folder of the glTF file", what, uri));
     }
@@ -238,13 +205,11 @@ class Packer {
         fail(fmt::format("invalid glTF: {}.uri is not a string", what));
       const std::string& uri = buffer["uri"].get_ref<const std::string&>();
       if (uri.rfind("data:", 0) == 0) {
-        const size_t comma = uri.find(',');
-        const bool base64 = comma != std::string::npos &&
-                            std::string_view(uri).substr(0, comma).ends_with(";base64");
-        std::optional<std::vector<uint8_t>> decoded;
-        if (base64) decoded = decode_base64(std::string_view(uri).substr(comma + 1));
-        if (!decoded) fail(fmt::format("invalid glTF: {}.uri is not a base64 data: URI", what));
-        owned = std::move(*decoded);
+        // tinygltf's decoder, the one the loader reads the buffer with.
+        std::string mime;
+        if (!tinygltf::IsDataURI(uri) || !tinygltf::DecodeDataURI(&owned, mime, uri, 0, false)) {
+          fail(fmt::format("invalid glTF: {}.uri is not a base64 data: URI", what));
+        }
       } else {
         owned = read_external(uri, what);
         buffer_files_.push_back(uri);

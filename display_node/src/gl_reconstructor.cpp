@@ -163,7 +163,6 @@ struct GlReconstructor::Impl {
   GLuint prepare = 0, scan = 0, scatter = 0, gather = 0;
   GLuint splats = 0, tile_count = 0, tile_start = 0, tile_cursor = 0, lists = 0;
   size_t list_capacity = 0;
-  int tile = 16;  // GlReconstructorOptions::tile
   int tiles_x = 0, tiles_y = 0;
   // Read back: the output packed by a compute pass into a persistently mapped buffer.
   GLuint pack = 0, readback = 0;
@@ -207,7 +206,8 @@ struct GlReconstructor::Impl {
   }
 
   // Returns true when the textures were made anew.
-  bool resize(const FrameSetup& setup) {
+  // `tile`: the gather's tile side (GlReconstructorOptions::tile).
+  bool resize(const FrameSetup& setup, int tile) {
     const int w = setup.grid.width, h = setup.grid.height;
     view_x = setup.view_x;
     view_y = setup.view_y;
@@ -297,6 +297,14 @@ struct GlReconstructor::Impl {
     if (w[kListWanted] > list_capacity) grow_lists(size_t(w[kListWanted]) * 3 / 2);
   }
 
+  // The latest finished image's pixel counts and GPU times into `frame`.
+  void report(FrameStats* frame) const {
+    frame->hole_pixels = latest_counts[0];
+    frame->empty_pixels = latest_counts[1];
+    frame->nonfinite_pixels = latest_counts[2];
+    frame->gpu = latest_gpu;
+  }
+
   // Harvests every image the GPU has finished, without waiting.
   void harvest_finished() {
     for (InFlight& f : flight) {
@@ -382,7 +390,6 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
     throw Error(fmt::format("GL reconstructor: gather tile {} is outside 4..16", options_.tile));
   }
   Impl& m = *impl_;
-  m.tile = options_.tile;
   m.splat = graphics_program(gl_shaders::splat_program_source(gl_shaders::kSplatVertex).c_str(),
                              gl_shaders::kSplatFragment, "splat");
   m.newest = graphics_program(gl_shaders::kNewestVertex, gl_shaders::kNewestFragment, "newest");
@@ -535,7 +542,7 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
                     out_width, out_height, width, height, g, m.max_viewport[0], m.max_viewport[1],
                     m.max_texture));
   }
-  const bool resized = m.resize(setup);
+  const bool resized = m.resize(setup, options_.tile);
   if (setup.field_changed || resized) {
     glBindTexture(GL_TEXTURE_2D, m.tile_index);
     glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
@@ -788,10 +795,7 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     std::copy_n(static_cast<const glm::vec3*>(m.readback_map), out->pixels.size(),
                 out->pixels.data());
   }
-  frame_.hole_pixels = m.latest_counts[0];
-  frame_.empty_pixels = m.latest_counts[1];
-  frame_.nonfinite_pixels = m.latest_counts[2];
-  frame_.gpu = m.latest_gpu;
+  m.report(&frame_);
   if (current_mode == ReconstructionMode::kTraditionalFrameless) {
     m.have_coverage = false;
   } else {
@@ -805,10 +809,7 @@ void GlReconstructor::finish() {
   context_->make_current();
   Impl& m = *impl_;
   for (Impl::InFlight& f : m.flight) m.harvest(f);
-  frame_.hole_pixels = m.latest_counts[0];
-  frame_.empty_pixels = m.latest_counts[1];
-  frame_.nonfinite_pixels = m.latest_counts[2];
-  frame_.gpu = m.latest_gpu;
+  m.report(&frame_);
 }
 
 void GlReconstructor::read_weights(std::vector<float>* out) {

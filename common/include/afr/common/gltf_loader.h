@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -35,5 +36,11 @@ Scene load_scene(const std::filesystem::path& path);
 // ...", as load_gltf words it) when the text is not a JSON object.
 std::vector<std::string> gltf_external_uris(std::string_view json_text,
                                             const std::filesystem::path& path);
+
+// The rule for a glTF's external files, which are untrusted names: `file` resolved (symbolic
+// links and "..") lies inside `folder` (canonical), never "/etc/passwd" or "../../x". The
+// resolved path, or nothing. The loader reads and the packer (gltf_pack.h) packs by it.
+std::optional<std::filesystem::path> file_in_gltf_folder(const std::filesystem::path& folder,
+                                                         const std::filesystem::path& file);
 
 }  // namespace afr
