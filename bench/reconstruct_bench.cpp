@@ -1,5 +1,5 @@
 // afr-bench-reconstruct: time of one reconstruct() call (display refresh) versus resolution,
-// with N = 4 x pixels samples in the store, for the CPU backend on 1 and 2 threads and the
+// with N = 4 x pixels samples (--spp) in the store, for the CPU backend on 1 and 2 threads and the
 // OpenGL backend (whatever driver EGL gives: llvmpipe here). Like a live display, every timed
 // refresh first receives 1/60 s worth of new samples (the store turning over once a second)
 // and a new tiling, and reprojects everything for a slightly moved camera. Prints a Markdown
@@ -8,6 +8,7 @@
 //   afr-bench-reconstruct --sizes 256,512,1024 --repeats 15
 #include <afr/common/cli.h>
 #include <afr/common/error.h>
+#include <afr/common/image.h>
 #include <afr/common/log.h>
 #include <afr/common/random.h>
 #include <afr/common/rect.h>
@@ -15,6 +16,7 @@
 #include <afr/display/gl_context.h>
 #include <afr/display/gl_reconstructor.h>
 
+#include <epoxy/gl.h>
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>
 
@@ -25,6 +27,7 @@
 #include <cmath>
 #include <memory>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace {
@@ -204,6 +207,73 @@ Timing run(afr::Reconstructor& rec, afr::ImageExtent size, int repeats, int warm
   return timing;
 }
 
+// The GL backend's image against the CPU backend's for the same samples, tilings and cameras
+// (three refreshes after one second of samples): RMS and largest difference of the 8-bit sRGB
+// channels, and the share of pixels whose hole-filled state differs.
+struct Agreement {
+  double rms = 0.0;
+  int max = 0;
+  double holes = 0.0;  // |GL holes - CPU holes| / pixels
+};
+
+Agreement agreement(const afr::ReconstructorConfig& cfg, const std::shared_ptr<afr::EglContext>& gl,
+                    afr::GlReconstructorOptions options, int threads) {
+  afr::ReconstructorConfig c = cfg;
+  c.threads = threads;
+  afr::CpuReconstructor cpu(c);
+  afr::GlReconstructor gpu(c, gl, options);
+  const afr::ImageExtent size = cfg.image;
+  afr::Pcg32 rng(afr::mix_seed(7));
+  const size_t n = cpu.capacity();
+  const afr::Camera start =
+      afr::Camera::look_at({0.0, 0.5, 0.0}, {0.0, 0.0, -5.0}, {0, 1, 0}, 1.0, 0.01);
+  const afr::SampleBatch first = make_batch(start, rng, size, n, 0.0, 1.0);
+  cpu.add_batch(first);
+  gpu.add_batch(first);
+  double t = 1.0;
+  afr::Image a, b;
+  for (int frame = 0; frame < 3; ++frame) {
+    const afr::Camera cam = afr::Camera::look_at({0.01 * frame, 0.5, -0.01 * frame},
+                                                 {0.0, 0.0, -5.0}, {0, 1, 0}, 1.0, 0.01);
+    const afr::SampleBatch batch = make_batch(cam, rng, size, n / 60, t, t + 1.0 / 60.0);
+    t += 1.0 / 60.0;
+    const afr::TilingSnapshot tiling = make_tiling(rng, size, t, double(n) / double(size.area()));
+    for (afr::Reconstructor* r :
+         {static_cast<afr::Reconstructor*>(&cpu), static_cast<afr::Reconstructor*>(&gpu)}) {
+      r->add_batch(batch);
+      r->set_tiling(tiling);
+    }
+    cpu.reconstruct(cam, t, size.width, size.height, &a);
+    gpu.reconstruct(cam, t, size.width, size.height, &b);
+  }
+  Agreement out;
+  double sum = 0.0;
+  for (size_t p = 0; p < a.pixels.size(); ++p) {
+    for (int k = 0; k < 3; ++k) {
+      const int d = std::abs(int(afr::linear_to_srgb8(a.pixels[p][k])) -
+                             int(afr::linear_to_srgb8(b.pixels[p][k])));
+      sum += double(d) * double(d);
+      out.max = std::max(out.max, d);
+    }
+  }
+  out.rms = std::sqrt(sum / double(3 * std::max<size_t>(a.pixels.size(), 1)));
+  out.holes =
+      std::abs(double(gpu.frame_stats().hole_pixels) - double(cpu.frame_stats().hole_pixels)) /
+      double(size.area());
+  return out;
+}
+
+// The gather's tile sides times its chunk sizes; the raster path once.
+std::vector<std::pair<int, size_t>> gather_variants(bool gather, const std::vector<int>& tiles,
+                                                    const std::vector<size_t>& chunk_mibs) {
+  if (!gather) return {{16, 0}};
+  std::vector<std::pair<int, size_t>> v;
+  for (const int tile : tiles) {
+    for (const size_t chunk : chunk_mibs) v.emplace_back(tile, chunk);
+  }
+  return v;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -212,10 +282,11 @@ int main(int argc, char** argv) {
   std::vector<int> thread_counts{1, 2};
   std::vector<std::string> splat_texts{"gather", "raster"};
   std::vector<int> tiles{16};
+  std::vector<size_t> chunk_mibs{256};
   std::string backends = "cpu,gl";
   std::string mode_text = "adaptive", log_level = "warn";
-  int repeats = 15, warmup = 3, gl_repeats = 7, gpu = -1;
-  bool readback = true, naive = true;
+  int repeats = 15, warmup = 3, gl_repeats = 7, gpu = -1, spp = 4;
+  bool readback = true, naive = true, gl_debug = false, check = false;
   app.add_option("--sizes", size_texts, "outputs, comma separated: S (square) or WxH")
       ->delimiter(',');
   app.add_option("--threads", thread_counts, "CPU backend thread counts, comma separated")
@@ -232,8 +303,17 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(-1, 63));
   app.add_option("--gl-splat", splat_texts, "GL splat passes to time: gather, raster or both")
       ->delimiter(',');
-  app.add_option("--gl-tiles", tiles, "gather tile sides to time, comma separated (4..16)")
+  app.add_option("--gl-tiles", tiles, "gather tile sides to time, comma separated (4, 8, 16)")
       ->delimiter(',');
+  app.add_option("--gl-chunks", chunk_mibs,
+                 "gather chunk sizes to time, MiB of splat records a pass reads (0: one pass)")
+      ->delimiter(',');
+  app.add_option("--spp", spp, "samples stored per pixel: N = spp x pixels")
+      ->check(CLI::Range(1, 64));
+  app.add_flag("--gl-debug", gl_debug,
+               "a debug GL context; the driver's messages are logged (with --log debug)");
+  app.add_flag("--check", check,
+               "also compare each GL row's image with the CPU backend's (8-bit sRGB RMS, max)");
   app.add_option("--log", log_level, "log level");
   CLI11_PARSE(app, argc, argv);
   try {
@@ -247,15 +327,18 @@ int main(int argc, char** argv) {
     std::string gl_error;
     std::shared_ptr<afr::EglContext> gl;
     if (backends.find("gl") != std::string::npos) {
-      gl = afr::EglContext::create_headless(afr::HeadlessGlOptions{gpu}, &gl_error);
+      gl = afr::EglContext::create_headless(afr::HeadlessGlOptions{gpu, gl_debug}, &gl_error);
       if (!gl) fmt::print(stderr, "OpenGL backend skipped: {}\n", gl_error);
     }
     fmt::print(
-        "Reconstruction, mode {}, N = 4 x pixels, 1/60 of N new samples per refresh, "
+        "Reconstruction, mode {}, N = {} x pixels, 1/60 of N new samples per refresh, "
         "median of {} (CPU) / {} (GL) refreshes{}\n",
-        afr::mode_name(mode), repeats, gl_repeats, readback ? ", image read back" : "");
+        afr::mode_name(mode), spp, repeats, gl_repeats, readback ? ", image read back" : "");
     if (gl) {
-      fmt::print("OpenGL: {} on {}, {}\n", gl->renderer(), gl->device(), gl->version());
+      GLint64 block = 0;
+      glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &block);
+      fmt::print("OpenGL: {} on {}, {}, largest storage block {} MiB\n", gl->renderer(),
+                 gl->device(), gl->version(), block >> 20);
     }
     fmt::print(
         "\n| backend | threads | resolution | N | call ms | p10 ms | p90 ms | CPU ms | GPU ms | "
@@ -263,12 +346,13 @@ int main(int argc, char** argv) {
     fmt::print("|---|---|---|---|---|---|---|---|---|---|\n");
     std::vector<afr::GlSplat> splats;
     for (const std::string& text : splat_texts) splats.push_back(afr::parse_gl_splat(text));
-    std::vector<std::string> passes;
+    std::vector<std::string> passes, checks;
     for (const afr::ImageExtent size : sizes) {
       afr::ReconstructorConfig cfg;
       cfg.image = size;
       cfg.mode = mode;
-      const size_t n = 4 * size_t(size.area());
+      const size_t n = size_t(spp) * size_t(size.area());
+      cfg.capacity = n;
       const auto row = [&](const std::string& backend, const std::string& threads, Timing t) {
         // A GPU backend's call returns before the GPU is done (unless it reads the image
         // back): the refresh rate is bounded by the slower of the two.
@@ -288,13 +372,21 @@ int main(int argc, char** argv) {
       }
       if (gl) {
         for (const afr::GlSplat splat : splats) {
-          for (const int tile : splat == afr::GlSplat::kGather ? tiles : std::vector<int>{0}) {
-            afr::GlReconstructorOptions options{splat, tile > 0 ? tile : 16};
-            const std::string name =
-                splat == afr::GlSplat::kGather ? fmt::format("gl gather {}", tile) : "gl raster";
+          const bool gather = splat == afr::GlSplat::kGather;
+          for (const auto& [tile, chunk] : gather_variants(gather, tiles, chunk_mibs)) {
+            afr::GlReconstructorOptions options{splat, tile, chunk << 20};
+            // "gl gather TILE" (the chunk size named only when several are timed)
+            std::string name = gather ? fmt::format("gl gather {}", tile) : "gl raster";
+            if (gather && chunk_mibs.size() > 1) name += fmt::format(" / {} MiB", chunk);
             afr::GlReconstructor rec(cfg, gl, options);
             const Timing t = run(rec, size, gl_repeats, warmup, readback, 1);
             row(name, "-", t);
+            if (check) {
+              const Agreement ag =
+                  agreement(cfg, gl, options, int(std::thread::hardware_concurrency()));
+              checks.push_back(fmt::format("| {} | {}x{} | {:.3f} | {} | {:.4f} |", name,
+                                           size.width, size.height, ag.rms, ag.max, ag.holes));
+            }
             if (t.gpu > 0.0)
               passes.push_back(fmt::format(
                   "| {} | {}x{} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |", name,
@@ -311,10 +403,19 @@ int main(int argc, char** argv) {
           gl->renderer());
     }
     if (!passes.empty()) {
-      fmt::print("\nGPU time per pass, median ms (GL_TIME_ELAPSED)\n\n");
-      fmt::print("| backend | resolution | upload | bin | splat | fill | read-back | total |\n");
+      fmt::print(
+          "\nGPU time per pass, median ms (GL_TIME_ELAPSED; a pass's time can include the tail "
+          "of the image before it), and of the whole image (GL_TIMESTAMP, from the moment the "
+          "image before it was done)\n\n");
+      fmt::print("| backend | resolution | upload | bin | splat | fill | read-back | image |\n");
       fmt::print("|---|---|---|---|---|---|---|---|\n");
       for (const std::string& line : passes) fmt::print("{}\n", line);
+    }
+    if (!checks.empty()) {
+      fmt::print("\nThe GL image against the CPU backend's, same samples (8-bit sRGB levels)\n\n");
+      fmt::print("| backend | resolution | RMS | max | hole pixels differing |\n");
+      fmt::print("|---|---|---|---|---|\n");
+      for (const std::string& line : checks) fmt::print("{}\n", line);
     }
   } catch (const afr::Error& e) {
     fmt::print(stderr, "afr-bench-reconstruct: {}\n", e.what());

@@ -1,5 +1,7 @@
 #include <afr/display/gl_context.h>
 
+#include <afr/common/log.h>
+
 #include <epoxy/egl.h>
 #include <epoxy/gl.h>
 #include <fmt/format.h>
@@ -50,7 +52,9 @@ const char* client_extensions() { return eglQueryString(EGL_NO_DISPLAY, EGL_EXTE
 
 // An OpenGL 4.3 core context on an initialised display, current with no surface; EGL_NO_CONTEXT
 // with the reason in *error otherwise.
-EGLContext make_context(EGLDisplay display, std::string* error) {
+// `debug`: a debug context whose driver messages (errors, performance and memory notes) go to
+// the log at debug level.
+EGLContext make_context(EGLDisplay display, bool debug, std::string* error) {
   EGLint major = 0, minor = 0;
   if (display == EGL_NO_DISPLAY || !eglInitialize(display, &major, &minor)) {
     *error = fmt::format("no EGL display (EGL error 0x{:x})", eglGetError());
@@ -66,12 +70,14 @@ EGLContext make_context(EGLDisplay display, std::string* error) {
   // for 4.3 with exactly 4.3, without 4.4's persistent mappings or 4.5's direct access.
   EGLContext context = EGL_NO_CONTEXT;
   for (const EGLint minor : {6, 5, 3}) {
-    const std::array<EGLint, 7> attributes = {EGL_CONTEXT_MAJOR_VERSION,
+    const std::array<EGLint, 9> attributes = {EGL_CONTEXT_MAJOR_VERSION,
                                               4,
                                               EGL_CONTEXT_MINOR_VERSION,
                                               minor,
                                               EGL_CONTEXT_OPENGL_PROFILE_MASK,
                                               EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
+                                              debug ? EGL_CONTEXT_OPENGL_DEBUG : EGL_NONE,
+                                              EGL_TRUE,
                                               EGL_NONE};
     // EGL_KHR_no_config_context: a context for FBO rendering needs no config.
     context = eglCreateContext(display, EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT, attributes.data());
@@ -86,6 +92,16 @@ EGLContext make_context(EGLDisplay display, std::string* error) {
                          eglGetError());
     eglDestroyContext(display, context);
     return EGL_NO_CONTEXT;
+  }
+  if (debug) {
+    glEnable(GL_DEBUG_OUTPUT);
+    glDebugMessageCallback(
+        [](GLenum, GLenum type, GLuint id, GLenum severity, GLsizei, const GLchar* message,
+           const void*) {
+          spdlog::debug("OpenGL debug message {} (type 0x{:x}, severity 0x{:x}): {}", id, type,
+                        severity, message);
+        },
+        nullptr);
   }
   return context;
 }
@@ -158,7 +174,7 @@ std::unique_ptr<EglContext> EglContext::create_headless(const HeadlessGlOptions&
   std::vector<std::string> tried;  // "what: why not", for the error
   const auto on = [&](EGLDisplay display, std::string where) -> std::unique_ptr<EglContext> {
     std::string why;
-    EGLContext context = make_context(display, &why);
+    EGLContext context = make_context(display, options.debug, &why);
     if (context == EGL_NO_CONTEXT) {
       tried.push_back(where + ": " + why);
       return nullptr;

@@ -2,6 +2,7 @@
 
 #include <afr/common/check.h>
 #include <afr/common/error.h>
+#include <afr/common/log.h>
 #include <afr/display/hole_fill.h>
 #include <afr/display/reprojection.h>
 
@@ -67,6 +68,17 @@ GLuint graphics_program(const char* vs, const char* fs, const char* name) {
 
 GLuint compute_program(const char* cs, const char* name) {
   return link({compile(GL_COMPUTE_SHADER, cs, name)}, name);
+}
+
+// A buffer only the GPU reads and writes (copies, clears and shaders; never a CPU map):
+// immutable storage without access flags, which drivers keep in the device's own memory.
+GLuint gpu_buffer(size_t bytes) {
+  GLuint b = 0;
+  glGenBuffers(1, &b);
+  glBindBuffer(GL_COPY_WRITE_BUFFER, b);
+  glBufferStorage(GL_COPY_WRITE_BUFFER, GLsizeiptr(std::max<size_t>(bytes, 4)), nullptr, 0);
+  glBindBuffer(GL_COPY_WRITE_BUFFER, 0);
+  return b;
 }
 
 GLuint make_texture(GLenum format, int width, int height) {
@@ -150,6 +162,7 @@ struct GlReconstructor::Impl {
     uint64_t image = 0;
     std::array<GLuint, kPasses> queries{};
     std::array<bool, kPasses> timed{};
+    std::array<GLuint, 2> stamps{};  // GL_TIMESTAMP at its start and end
   };
   std::array<InFlight, kInFlight> flight;
   GLuint status = 0;
@@ -158,12 +171,15 @@ struct GlReconstructor::Impl {
   GpuTimes latest_gpu;
   std::array<uint64_t, 3> latest_counts{};  // holes, empty, non-finite of the latest finished
 
-  // The gather's buffers: prepared splats (4 vec4 each, one per stored sample at most), the
-  // per-tile counts, starts and cursors, and the tiles' lists of splat indices.
+  // The gather's buffers: prepared splats (3 vec4 each at their samples' ring slots) and
+  // their first and last tiles, the per-tile counts, starts and cursors, and the tiles' lists
+  // of splat indices.
   GLuint prepare = 0, scan = 0, scatter = 0, gather = 0;
-  GLuint splats = 0, tile_count = 0, tile_start = 0, tile_cursor = 0, lists = 0;
+  GLuint splats = 0, splat_tiles = 0, tile_count = 0, tile_start = 0, tile_cursor = 0, lists = 0;
   size_t list_capacity = 0;
   int tiles_x = 0, tiles_y = 0;
+  size_t chunk_slots = 1;  // ring slots a chunk
+  int chunks = 1;          // chunks of the ring: each has tiles_x * tiles_y counts and lists
   // Read back: the output packed by a compute pass into a persistently mapped buffer.
   GLuint pack = 0, readback = 0;
   void* readback_map = nullptr;
@@ -190,6 +206,7 @@ struct GlReconstructor::Impl {
   bool have_coverage = false;   // coverage[1 - current] holds the previous image's map
   GLint max_viewport[2] = {0, 0};
   GLint max_texture = 0;
+  size_t max_block_bytes = 0;  // GL_MAX_SHADER_STORAGE_BLOCK_SIZE
 
   void release_sized() {
     glDeleteFramebuffers(2, fbo.data());
@@ -247,12 +264,9 @@ struct GlReconstructor::Impl {
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
     tiles_x = (w + tile - 1) / tile;
     tiles_y = (h + tile - 1) / tile;
-    const GLsizeiptr tile_bytes = GLsizeiptr(size_t(tiles_x) * size_t(tiles_y) * sizeof(uint32_t));
-    for (GLuint* b : {&tile_count, &tile_start, &tile_cursor}) {
-      glGenBuffers(1, b);
-      glBindBuffer(GL_SHADER_STORAGE_BUFFER, *b);
-      glBufferData(GL_SHADER_STORAGE_BUFFER, tile_bytes, nullptr, GL_DYNAMIC_COPY);
-    }
+    const GLsizeiptr tile_bytes =
+        GLsizeiptr(size_t(chunks) * size_t(tiles_x) * size_t(tiles_y) * sizeof(uint32_t));
+    for (GLuint* b : {&tile_count, &tile_start, &tile_cursor}) *b = gpu_buffer(size_t(tile_bytes));
     current = 0;
     have_coverage = false;
     check_gl("resizing the reconstruction targets");
@@ -287,6 +301,12 @@ struct GlReconstructor::Impl {
       *pass_ms[p] = double(ns) * 1e-6;
       f.timed[size_t(p)] = false;
     }
+    if (t.timed) {
+      GLuint64 start = 0, end = 0;
+      glGetQueryObjectui64v(f.stamps[0], GL_QUERY_RESULT, &start);
+      glGetQueryObjectui64v(f.stamps[1], GL_QUERY_RESULT, &end);
+      t.image_ms = end > start ? double(end - start) * 1e-6 : 0.0;
+    }
     const uint32_t* w = status_words(f);
     if (f.image >= latest_gpu.image) {
       latest_gpu = t;
@@ -318,13 +338,19 @@ struct GlReconstructor::Impl {
 
   void grow_lists(size_t entries) {
     if (entries <= list_capacity) return;
-    // A 32-bit list index; beyond it (2^32 entries, 16 GiB) the lists are clamped.
-    list_capacity = std::min<size_t>(entries, size_t(UINT32_MAX));
+    // The lists are one shader storage block: beyond the driver's largest, they are clamped
+    // (and the splats that do not fit are lost, counted in the status words).
+    const size_t most = std::min<size_t>(max_block_bytes / sizeof(uint32_t), UINT32_MAX);
+    if (entries > most && list_capacity < most) {
+      spdlog::warn(
+          "GL gather: the tiles' lists want {} entries; the driver's largest storage block "
+          "holds {}: splats beyond it are lost (a smaller --gl-tile bins fewer, a larger "
+          "one more)",
+          entries, most);
+    }
+    list_capacity = std::min(entries, most);
     glDeleteBuffers(1, &lists);
-    glGenBuffers(1, &lists);
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, lists);
-    glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(list_capacity * sizeof(uint32_t)), nullptr,
-                 GL_DYNAMIC_COPY);
+    lists = gpu_buffer(list_capacity * sizeof(uint32_t));
   }
 
   // The new samples into their ring slots: through the staging ring, a segment at a time.
@@ -386,10 +412,21 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
                     "GL_ARB_buffer_storage)",
                     context_->version()));
   }
-  if (options_.tile < 4 || options_.tile > 16) {
-    throw Error(fmt::format("GL reconstructor: gather tile {} is outside 4..16", options_.tile));
+  if (options_.tile != 4 && options_.tile != 8 && options_.tile != 16) {
+    throw Error(fmt::format("GL reconstructor: gather tile {} is not 4, 8 or 16", options_.tile));
   }
   Impl& m = *impl_;
+  GLint64 max_block = 0;
+  glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &max_block);
+  m.max_block_bytes = size_t(std::max<GLint64>(max_block, 0));
+  // The ring and the splats are each one storage block the compute passes index.
+  const size_t ring_bytes = store_.capacity() * sizeof(StoredSample);
+  if (options_.splat == GlSplat::kGather && ring_bytes > m.max_block_bytes) {
+    throw Error(fmt::format(
+        "GL gather: a store of {} samples ({} MiB) exceeds this driver's largest shader storage "
+        "block ({} MiB); store fewer samples (--capacity) or use --gl-splat raster",
+        store_.capacity(), ring_bytes >> 20, m.max_block_bytes >> 20));
+  }
   m.splat = graphics_program(gl_shaders::splat_program_source(gl_shaders::kSplatVertex).c_str(),
                              gl_shaders::kSplatFragment, "splat");
   m.newest = graphics_program(gl_shaders::kNewestVertex, gl_shaders::kNewestFragment, "newest");
@@ -402,13 +439,21 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
         gl_shaders::splat_program_source(gl_shaders::kPrepareCompute).c_str(), "prepare");
     m.scan = compute_program(gl_shaders::kScanCompute, "scan");
     m.scatter = compute_program(gl_shaders::kScatterCompute, "scatter");
-    const std::string gather_source = fmt::format("#version 430 core\n#define TILE {}\n{}",
-                                                  options_.tile, gl_shaders::kGatherCompute);
+    // A tile's cells are 8 x 4 pixels (a warp of invocations), or the whole 4 x 4 tile.
+    const std::string gather_source = fmt::format(
+        "#version 430 core\n#define TILE {}\n#define GROUP {}\n#define CELL_W {}\n#define CELL_H "
+        "{}\n{}",
+        options_.tile, options_.tile * options_.tile, std::min(options_.tile, 8),
+        std::min(options_.tile, 4), gl_shaders::kGatherCompute);
     m.gather = compute_program(gather_source.c_str(), "gather");
-    glGenBuffers(1, &m.splats);
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, m.splats);
-    glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(store_.capacity() * 4 * sizeof(glm::vec4)),
-                 nullptr, GL_DYNAMIC_COPY);
+    constexpr size_t kSplatBytes = 3 * sizeof(glm::vec4);
+    m.splats = gpu_buffer(store_.capacity() * kSplatBytes);
+    m.chunk_slots =
+        options_.chunk_bytes == 0
+            ? store_.capacity()
+            : std::clamp<size_t>(options_.chunk_bytes / kSplatBytes, 1, store_.capacity());
+    m.chunks = int((store_.capacity() + m.chunk_slots - 1) / m.chunk_slots);
+    m.splat_tiles = gpu_buffer(store_.capacity() * sizeof(glm::uvec2));
     // Splats reach about two tiles each at the filter's usual sizes; more grows the lists.
     m.grow_lists(4 * store_.capacity());
   }
@@ -435,15 +480,16 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
   if (m.upload_map == nullptr || m.status_map == nullptr) {
     throw Error("OpenGL: cannot map the staging or status buffers persistently");
   }
-  for (Impl::InFlight& f : m.flight) glGenQueries(kPasses, f.queries.data());
+  for (Impl::InFlight& f : m.flight) {
+    glGenQueries(kPasses, f.queries.data());
+    glGenQueries(2, f.stamps.data());
+  }
 
   glGenVertexArrays(1, &m.vao);
   glGenVertexArrays(1, &m.empty_vao);
-  glGenBuffers(1, &m.samples);
+  m.samples = gpu_buffer(ring_bytes);
   glBindVertexArray(m.vao);
   glBindBuffer(GL_ARRAY_BUFFER, m.samples);
-  glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(store_.capacity() * sizeof(StoredSample)), nullptr,
-               GL_DYNAMIC_DRAW);
   const GLsizei stride = sizeof(StoredSample);
   const auto at = [](size_t offset) { return reinterpret_cast<const void*>(offset); };
   glVertexAttribLPointer(0, 1, GL_DOUBLE, stride, at(offsetof(StoredSample, time)));
@@ -474,6 +520,7 @@ GlReconstructor::~GlReconstructor() {
   for (Impl::InFlight& f : m.flight) {
     if (f.fence != nullptr) glDeleteSync(f.fence);
     glDeleteQueries(kPasses, f.queries.data());
+    glDeleteQueries(2, f.stamps.data());
   }
   for (GLsync& f : m.segment_fence) {
     if (f != nullptr) glDeleteSync(f);
@@ -482,7 +529,7 @@ GlReconstructor::~GlReconstructor() {
                    m.scatter, m.gather}) {
     glDeleteProgram(p);
   }
-  for (GLuint* b : {&m.upload, &m.status, &m.splats, &m.lists, &m.readback}) {
+  for (GLuint* b : {&m.upload, &m.status, &m.splats, &m.splat_tiles, &m.lists, &m.readback}) {
     glDeleteBuffers(1, b);
   }
   glDeleteVertexArrays(1, &m.vao);
@@ -518,6 +565,8 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     if (queries) glEndQuery(GL_TIME_ELAPSED);
     f.timed[size_t(pass)] = queries;
   };
+  // Recorded once everything before it is done: the image's start (its end, in draw()).
+  if (queries) glQueryCounter(f.stamps[0], GL_TIMESTAMP);
 
   // ---- Only the new samples go to the GPU, into their ring slots.
   const SampleStore::Delta delta = store_.copy_since(m.seen, &m.staging);
@@ -606,7 +655,7 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
 
   // ---- Splats (or newest samples) into (sum w c, sum w) and coverage.
   const auto bin_for_gather = [&] {
-    const GLuint tiles = GLuint(m.tiles_x * m.tiles_y);
+    const GLuint tiles = GLuint(m.chunks * m.tiles_x * m.tiles_y);
     const std::array<GLuint, 2> per_sample = groups_for(m.stored);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m.samples);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m.splats);
@@ -615,6 +664,7 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 4, m.tile_start);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 5, m.tile_cursor);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 6, m.lists);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 7, m.splat_tiles);
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, m.tile_count);
     glClearBufferData(GL_SHADER_STORAGE_BUFFER, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
@@ -625,6 +675,7 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     glUniform1ui(prep.at("u_stored"), GLuint(m.stored));
     prep.set("u_tile", options_.tile);
     prep.set("u_tiles", glm::ivec2(m.tiles_x, m.tiles_y));
+    glUniform1ui(prep.at("u_chunk_slots"), GLuint(m.chunk_slots));
     glDispatchCompute(per_sample[0], per_sample[1], 1);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
 
@@ -638,6 +689,7 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     sc.set("u_tiles", glm::ivec2(m.tiles_x, m.tiles_y));
     glUniform1ui(sc.at("u_stored"), GLuint(m.stored));
     glUniform1ui(sc.at("u_list_capacity"), GLuint(m.list_capacity));
+    glUniform1ui(sc.at("u_chunk_slots"), GLuint(m.chunk_slots));
     glDispatchCompute(per_sample[0], per_sample[1], 1);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
   };
@@ -648,10 +700,15 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     ga.set("u_tiles", glm::ivec2(m.tiles_x, m.tiles_y));
     glUniform1ui(ga.at("u_list_capacity"), GLuint(m.list_capacity));
     ga.set("u_min_weight", kMinSplatWeight);
-    glBindImageTexture(0, m.accum, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
-    glBindImageTexture(1, m.coverage[size_t(m.current)], 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RG32F);
-    glDispatchCompute(GLuint(m.tiles_x), GLuint(m.tiles_y), 1);
-    glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
+    glBindImageTexture(0, m.accum, 0, GL_FALSE, 0, GL_READ_WRITE, GL_RGBA32F);
+    glBindImageTexture(1, m.coverage[size_t(m.current)], 0, GL_FALSE, 0, GL_READ_WRITE, GL_RG32F);
+    // Chunk by chunk; a chunk past the stored samples has nothing (the first always runs: it
+    // writes every pixel).
+    for (int k = 0; k == 0 || size_t(k) * m.chunk_slots < m.stored; ++k) {
+      glUniform1ui(ga.at("u_chunk"), GLuint(k));
+      glDispatchCompute(GLuint(m.tiles_x), GLuint(m.tiles_y), 1);
+      glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
+    }
   };
   const auto splat_by_raster = [&] {
     glBindFramebuffer(GL_FRAMEBUFFER, m.fbo[size_t(m.current)]);
@@ -776,6 +833,7 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
         glUseProgram(0);
       });
     }
+    if (queries) glQueryCounter(f.stamps[1], GL_TIMESTAMP);
     f.fence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
     glFlush();
   };

@@ -334,16 +334,20 @@ void main() {
 const char* const kPrepareCompute = R"(
 layout(local_size_x = 256) in;
 layout(std430, binding = 0) readonly buffer Ring { uint ring[]; };
-// 16 floats a splat, at its sample's ring slot: center (2), kernel (4: k_x, k_y, off_x, off_y),
-// color (3), weight, extent (3: r_x, r_y, growth), first tile (1: x0 | y0 << 16), last tile
-// (1: x1 | y1 << 16), unused. A skipped sample's first tile lies past its last. (Slots, not a
-// compacted list: one counter that every sample increments serialises the whole pass.)
+// A splat is 3 vec4 at its sample's ring slot: (center, k_x, k_y), (color, weight),
+// (r_x, r_y, growth, unused); a skipped sample's r_x is -1. (Slots, not a compacted list: one
+// counter that every sample increments serialises the whole pass.) Its tiles, first and last
+// (x | y << 16 each), go to a buffer of their own that only the scatter reads.
 layout(std430, binding = 1) writeonly buffer Splats { vec4 splats[]; };
 layout(std430, binding = 2) buffer TileCounts { uint tile_count[]; };
+layout(std430, binding = 7) writeonly buffer SplatTiles { uvec2 splat_tiles[]; };
 
 uniform uint u_stored;
 uniform int u_tile;     // tile side, pixels
 uniform ivec2 u_tiles;  // tiles across, down
+// The ring's slots come in chunks of this many, each with its own tile counts and lists (the
+// gather reads one chunk's splats at a time).
+uniform uint u_chunk_slots;
 
 vec3 word3(uint i) { return uintBitsToFloat(uvec3(ring[i], ring[i + 1u], ring[i + 2u])); }
 
@@ -352,7 +356,7 @@ void main() {
   uint slot = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * 256u +
               gl_LocalInvocationID.x;
   if (slot >= u_stored) return;
-  splats[4u * slot + 3u] = vec4(0.0, uintBitsToFloat(1u), uintBitsToFloat(0u), 0.0);  // skipped
+  splats[3u * slot + 2u] = vec4(-1.0, -1.0, 0.0, 0.0);  // skipped
   uint b = slot * 16u;
   Splat s;
   if (!prepare_splat(packDouble2x32(uvec2(ring[b], ring[b + 1u])),
@@ -360,19 +364,20 @@ void main() {
                      word3(b + 8u), word3(b + 11u), s)) {
     return;
   }
-  vec3 color = word3(b + 4u);
   // The pixels whose centers lie strictly within (r_x, r_y) of p: x + 0.5 in (p - r, p + r).
   ivec2 lo = max(ivec2(floor(s.center - s.extent.xy - 0.5)), ivec2(0));
   ivec2 hi = min(ivec2(ceil(s.center + s.extent.xy - 0.5)), u_size - 1);
   if (any(greaterThan(lo, hi))) return;
   ivec2 t0 = lo / u_tile, t1 = hi / u_tile;
-  splats[4u * slot] = vec4(s.center, s.kernel.xy);
-  splats[4u * slot + 1u] = vec4(s.kernel.zw, color.rg);
-  splats[4u * slot + 2u] = vec4(color.b, s.wt, s.extent.xy);
-  splats[4u * slot + 3u] = vec4(s.extent.z, uintBitsToFloat(uint(t0.x) | (uint(t0.y) << 16)),
-                                uintBitsToFloat(uint(t1.x) | (uint(t1.y) << 16)), 0.0);
+  splats[3u * slot] = vec4(s.center, s.kernel.xy);
+  splats[3u * slot + 1u] = vec4(word3(b + 4u), s.wt);
+  splats[3u * slot + 2u] = vec4(s.extent, 0.0);
+  splat_tiles[slot] = uvec2(uint(t0.x) | (uint(t0.y) << 16), uint(t1.x) | (uint(t1.y) << 16));
+  uint chunk = slot / u_chunk_slots * uint(u_tiles.x * u_tiles.y);
   for (int ty = t0.y; ty <= t1.y; ++ty) {
-    for (int tx = t0.x; tx <= t1.x; ++tx) atomicAdd(tile_count[ty * u_tiles.x + tx], 1u);
+    for (int tx = t0.x; tx <= t1.x; ++tx) {
+      atomicAdd(tile_count[chunk + uint(ty * u_tiles.x + tx)], 1u);
+    }
   }
 }
 )";
@@ -416,73 +421,114 @@ layout(local_size_x = 256) in;
 layout(std430, binding = 1) readonly buffer Splats { vec4 splats[]; };
 layout(std430, binding = 5) buffer TileCursor { uint tile_cursor[]; };
 layout(std430, binding = 6) writeonly buffer Lists { uint lists[]; };
+layout(std430, binding = 7) readonly buffer SplatTiles { uvec2 splat_tiles[]; };
 uniform uint u_stored;
 uniform ivec2 u_tiles;
 uniform uint u_list_capacity;
+uniform uint u_chunk_slots;
 void main() {
   uint i = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * 256u +
            gl_LocalInvocationID.x;
-  if (i >= u_stored) return;
-  vec4 s = splats[4u * i + 3u];
-  uint a = floatBitsToUint(s.y), b = floatBitsToUint(s.z);
-  ivec2 t0 = ivec2(a & 0xffffu, a >> 16), t1 = ivec2(b & 0xffffu, b >> 16);
+  if (i >= u_stored || splats[3u * i + 2u].x < 0.0) return;
+  uvec2 range = splat_tiles[i];
+  ivec2 t0 = ivec2(range.x & 0xffffu, range.x >> 16), t1 = ivec2(range.y & 0xffffu, range.y >> 16);
+  uint chunk = i / u_chunk_slots * uint(u_tiles.x * u_tiles.y);
   for (int ty = t0.y; ty <= t1.y; ++ty) {
     for (int tx = t0.x; tx <= t1.x; ++tx) {
-      uint at = atomicAdd(tile_cursor[ty * u_tiles.x + tx], 1u);
+      uint at = atomicAdd(tile_cursor[chunk + uint(ty * u_tiles.x + tx)], 1u);
       if (at < u_list_capacity) lists[at] = i;
     }
   }
 }
 )";
 
-// One work group a tile, one invocation a pixel: the tile's splats, a batch at a time through
-// shared memory, each evaluated at the pixel exactly as kSplatFragment does.
+// One work group a tile, one invocation a pixel, one dispatch a chunk of the ring (its sums are
+// added to the chunks' before). The tile's splats come a batch at a time through shared
+// memory; each batch is culled to the tile's cells (8 x 4 pixels, a warp of invocations each:
+// CELL_W x CELL_H) so that a pixel tests only the splats whose box reaches its cell, and each
+// is evaluated at the pixel exactly as kSplatFragment does.
 const char* const kGatherCompute = R"(
-// TILE: the tile side, defined by the program (after #version).
-layout(local_size_x = TILE, local_size_y = TILE) in;
+// TILE (4, 8 or 16), GROUP (TILE * TILE), CELL_W, CELL_H: defined by the program (after
+// #version).
+const uint kCellSize = uint(CELL_W * CELL_H);
+const int kCellsX = TILE / CELL_W;
+const uint kCells = uint(kCellsX * (TILE / CELL_H));
+const uint kBatch = uint(TILE * TILE);
+layout(local_size_x = GROUP) in;
 layout(std430, binding = 1) readonly buffer Splats { vec4 splats[]; };
 layout(std430, binding = 2) readonly buffer TileCounts { uint tile_count[]; };
 layout(std430, binding = 4) readonly buffer TileStart { uint tile_start[]; };
 layout(std430, binding = 6) readonly buffer Lists { uint lists[]; };
-layout(rgba32f, binding = 0) uniform writeonly image2D u_accum;
-layout(rg32f, binding = 1) uniform writeonly image2D u_cover;
+layout(rgba32f, binding = 0) uniform image2D u_accum;
+layout(rg32f, binding = 1) uniform image2D u_cover;
 uniform ivec2 u_size;
 uniform ivec2 u_tiles;
 uniform uint u_list_capacity;
 uniform float u_min_weight;
-const uint kBatch = uint(TILE * TILE);
-shared vec4 batch[TILE * TILE * 4];
+uniform uint u_chunk;  // this dispatch's chunk: 0 writes the sums, later ones add to them
+// The batch: center and kernel, color and weight, extent and growth, and the Gaussians'
+// values at the cut (off_x, off_y); per cell, the batch entries that reach it.
+shared vec4 batch[kBatch * 4u];
+shared uint cell_count[kCells];
+shared uint cell_list[kCells * kBatch];
 void main() {
-  uint tile = gl_WorkGroupID.y * uint(u_tiles.x) + gl_WorkGroupID.x;
-  ivec2 pix = ivec2(gl_GlobalInvocationID.xy);
+  uint tile = u_chunk * uint(u_tiles.x * u_tiles.y) + gl_WorkGroupID.y * uint(u_tiles.x) +
+              gl_WorkGroupID.x;
+  uint local = gl_LocalInvocationIndex;
+  // Invocations numbered cell by cell: one cell's pixels are consecutive invocations.
+  uint cell = local / kCellSize, in_cell = local % kCellSize;
+  ivec2 cell_at = ivec2(int(cell) % kCellsX * CELL_W, int(cell) / kCellsX * CELL_H);
+  ivec2 tile_at = ivec2(gl_WorkGroupID.xy) * TILE;
+  ivec2 pix = tile_at + cell_at + ivec2(int(in_cell) % CELL_W, int(in_cell) / CELL_W);
   vec2 at = vec2(pix) + 0.5;
   uint start = tile_start[tile];
   uint count = start < u_list_capacity ? min(tile_count[tile], u_list_capacity - start) : 0u;
   vec4 sum = vec4(0.0);
   vec2 cover = vec2(0.0);
-  uint local = gl_LocalInvocationIndex;
   for (uint base = 0u; base < count; base += kBatch) {
     uint n = min(kBatch, count - base);
     barrier();
+    if (local < kCells) cell_count[local] = 0u;
+    barrier();
     if (local < n) {
       uint s = lists[start + base + local];
-      for (uint j = 0u; j < 4u; ++j) batch[4u * local + j] = splats[4u * s + j];
+      vec4 a = splats[3u * s], c = splats[3u * s + 1u], e = splats[3u * s + 2u];
+      batch[4u * local] = a;
+      batch[4u * local + 1u] = c;
+      batch[4u * local + 2u] = e;
+      batch[4u * local + 3u] = vec4(exp(-e.x * e.x * a.z), exp(-e.y * e.y * a.w), 0.0, 0.0);
+      // The tile's cells that the splat's pixel box (as the prepare pass bins it) reaches.
+      ivec2 lo = max(ivec2(floor(a.xy - e.xy - 0.5)) - tile_at, ivec2(0));
+      ivec2 hi = min(ivec2(ceil(a.xy + e.xy - 0.5)) - tile_at, ivec2(TILE - 1));
+      for (int cy = lo.y / CELL_H; cy <= hi.y / CELL_H; ++cy) {
+        for (int cx = lo.x / CELL_W; cx <= hi.x / CELL_W; ++cx) {
+          uint c_at = uint(cy * kCellsX + cx);
+          cell_list[c_at * kBatch + atomicAdd(cell_count[c_at], 1u)] = local;
+        }
+      }
     }
     barrier();
-    for (uint k = 0u; k < n; ++k) {
-      vec4 a = batch[4u * k], b = batch[4u * k + 1u], c = batch[4u * k + 2u];
+    uint m = cell_count[cell];
+    for (uint j = 0u; j < m; ++j) {
+      uint k = cell_list[cell * kBatch + j];
+      vec4 a = batch[4u * k], c = batch[4u * k + 1u], e = batch[4u * k + 2u];
       vec2 d = at - a.xy;
-      if (abs(d.x) >= c.z || abs(d.y) >= c.w) continue;
-      float wx = exp(-d.x * d.x * a.z) - b.x;
-      float wy = exp(-d.y * d.y * a.w) - b.y;
+      if (abs(d.x) >= e.x || abs(d.y) >= e.y) continue;
+      vec2 off = batch[4u * k + 3u].xy;
+      float wx = exp(-d.x * d.x * a.z) - off.x;
+      float wy = exp(-d.y * d.y * a.w) - off.y;
       if (!(wx > 0.0) || !(wy > 0.0)) continue;
-      float w = wx * (wy * c.y);
+      float w = wx * (wy * c.w);
       if (!(w > u_min_weight)) continue;
-      sum += vec4(vec3(b.z, b.w, c.x) * w, w);
-      cover += vec2(1.0, batch[4u * k + 3u].x);
+      sum += vec4(c.rgb * w, w);
+      cover += vec2(1.0, e.z);
     }
   }
   if (pix.x < u_size.x && pix.y < u_size.y) {
+    if (u_chunk > 0u) {
+      sum += imageLoad(u_accum, pix);
+      cover += imageLoad(u_cover, pix).xy;
+    }
     imageStore(u_accum, pix, sum);
     imageStore(u_cover, pix, vec4(cover, 0.0, 0.0));
   }

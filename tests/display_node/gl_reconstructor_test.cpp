@@ -33,23 +33,32 @@ ReconstructorConfig config(int w, int h, ReconstructionMode mode) {
 
 // Both splat passes: the compute gather (a GPU's default) and the points (llvmpipe's).
 constexpr GlSplat kSplatPasses[] = {GlSplat::kGather, GlSplat::kRaster};
+// The gather on each tile side it takes: 16 (8 cells of 8 x 4 pixels a tile), 8 (two cells)
+// and 4 (the tile is its one cell), and with the ring cut into chunks of 1000 slots (a dozen
+// dispatches adding up); the points.
+constexpr GlReconstructorOptions kEveryPass[] = {{GlSplat::kGather, 16},
+                                                 {GlSplat::kGather, 8},
+                                                 {GlSplat::kGather, 4},
+                                                 {GlSplat::kGather, 16, 48 * 1000},
+                                                 {GlSplat::kRaster, 16}};
 
 TEST(GlReconstructorTest, AgreesWithTheCpuBackendOnRandomSampleSets) {
   AFR_REQUIRE_GL(context);
   test::FloorScene scene;
   scene.velocity = glm::dvec3(0.7, 0.0, 0.2);
-  for (const GlSplat splat : kSplatPasses) {
+  for (const GlReconstructorOptions& pass : kEveryPass) {
     for (ReconstructionMode mode :
          {ReconstructionMode::kAdaptive, ReconstructionMode::kAdaptiveNoReprojection,
           ReconstructionMode::kTraditionalFrameless}) {
       for (const glm::ivec2 size : {glm::ivec2(96, 64), glm::ivec2(77, 53)}) {
         const int W = size.x, H = size.y;
-        SCOPED_TRACE(std::string(gl_splat_name(splat)) + " " + mode_name(mode) + " " +
+        SCOPED_TRACE(std::string(gl_splat_name(pass.splat)) + " " + std::to_string(pass.tile) +
+                     " chunk " + std::to_string(pass.chunk_bytes) + " " + mode_name(mode) + " " +
                      std::to_string(W) + "x" + std::to_string(H));
         const ReconstructorConfig cfg = config(W, H, mode);
         CpuReconstructor cpu(cfg);
-        GlReconstructor gl(cfg, context, GlReconstructorOptions{splat});
-        ASSERT_EQ(gl.splat_method(), splat);
+        GlReconstructor gl(cfg, context, pass);
+        ASSERT_EQ(gl.splat_method(), pass.splat);
         Pcg32 rng(uint64_t(W) * 7 + uint64_t(mode));
         double t = 0.0;
         // Frames with new samples and tilings in between; the ring wraps after a few.
@@ -181,7 +190,9 @@ TEST(GlReconstructorTest, ImagesNotReadBackFinishAndReportTheirGpuTimes) {
                 0.002 * W * H + 1.0);
     // Timed where the driver's queries measure (a hardware GPU), never on a software one.
     EXPECT_EQ(gl.frame_stats().gpu.timed, !context->software());
-    if (gl.frame_stats().gpu.timed) EXPECT_GT(gl.frame_stats().gpu.total(), 0.0);
+    if (gl.frame_stats().gpu.timed) {
+      EXPECT_GT(gl.frame_stats().gpu.total(), 0.0);
+    }
     const test::Diff8 d = diff8(a, g);
     EXPECT_LE(d.rms, 1.0);
     EXPECT_LE(d.max, 4);
@@ -199,9 +210,11 @@ TEST(GlReconstructorTest, SplatPassesParseAndAutoFollowsTheRenderer) {
   AFR_REQUIRE_GL(context);
   GlReconstructor gl(config(16, 16, ReconstructionMode::kAdaptive), context);
   EXPECT_EQ(gl.splat_method(), context->software() ? GlSplat::kRaster : GlSplat::kGather);
-  EXPECT_THROW(GlReconstructor(config(16, 16, ReconstructionMode::kAdaptive), context,
-                               GlReconstructorOptions{GlSplat::kGather, 3}),
-               Error);
+  for (const int tile : {3, 12, 32}) {
+    EXPECT_THROW(GlReconstructor(config(16, 16, ReconstructionMode::kAdaptive), context,
+                                 GlReconstructorOptions{GlSplat::kGather, tile}),
+                 Error);
+  }
 }
 
 // Within 2 ulp of `want`, channel by channel: a GPU may divide through a reciprocal (GLSL

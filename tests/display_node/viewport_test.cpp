@@ -187,7 +187,9 @@ void expect_seamless(const MakeReconstructor& make, const SeamCase& c) {
     EXPECT_LE(all.max, c.max_diff);
     EXPECT_LE(at_seams.rms, c.max_rms);
     EXPECT_LE(at_seams.max, c.max_diff);
-    if (c.max_diff == 0) EXPECT_EQ(holes, whole->frame_stats().hole_pixels);
+    if (c.max_diff == 0) {
+      EXPECT_EQ(holes, whole->frame_stats().hole_pixels);
+    }
     EXPECT_TRUE(test::all_finite(stitched));
     std::printf(
         "  [%s, %zu + %zu samples, frame %d] stitched vs whole: rms %.4f max %d; seams "

@@ -805,7 +805,9 @@ TEST(ExtremesTest, OnePixelTilesAtTheDisplayEqualOneTileOfTheSameValues) {
       ASSERT_EQ(tiles[i].stored, uint64_t(kPerPixel) * uint64_t(tiles[i].rect.area())) << i;
       ASSERT_EQ(tiles[i].rate, tiles[1].rate) << i;
     }
-    if (k == 1) EXPECT_EQ(tiles[1].rate, rates[0]);
+    if (k == 1) {
+      EXPECT_EQ(tiles[1].rate, rates[0]);
+    }
     rates[k] = tiles[1].rate;
   }
   for (size_t p = 0; p < images[0].pixels.size(); ++p) {
@@ -941,7 +943,9 @@ TEST(ExtremesTest, FilterExtentsAtBothClampsGiveFiniteImages) {
       EXPECT_EQ(sharp.e_t, e_t) << reach;
       EXPECT_EQ(flat.e_x, lim.max_spatial_extent) << reach;
       EXPECT_EQ(flat.e_y, lim.max_spatial_extent) << reach;
-      if (reach < 1.0) EXPECT_EQ(flat.e_t, lim.min_temporal_extent);
+      if (reach < 1.0) {
+        EXPECT_EQ(flat.e_t, lim.min_temporal_extent);
+      }
     }
   }
 }

@@ -9,7 +9,7 @@ namespace {
 
 std::vector<std::pair<const char*, double>> gpu_passes(const GpuTimes& g) {
   return {{"upload", g.upload}, {"bin", g.bin},           {"splat", g.splat},
-          {"fill", g.fill},     {"readback", g.readback}, {"total", g.total()}};
+          {"fill", g.fill},     {"readback", g.readback}, {"image", g.total()}};
 }
 
 // null for a CPU backend (no GPU times yet).

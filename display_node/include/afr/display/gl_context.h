@@ -50,6 +50,9 @@ struct HeadlessGlOptions {
   // -1: the first hardware device that gives a context, else Mesa's surfaceless platform,
   // else a software device. N >= 0: EGL device N alone (--gpu N).
   int gpu = -1;
+  // A debug context: the driver's messages (where buffers live, stalls, errors) are logged at
+  // debug level (afr-bench-reconstruct --gl-debug).
+  bool debug = false;
 };
 
 // A context without any surface, OpenGL 4.3 core, made current with no draw surface (it

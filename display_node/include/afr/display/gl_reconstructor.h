@@ -37,6 +37,12 @@ struct GlReconstructorOptions {
   // gather: the screen tile side in pixels, one work group a tile (4..16). Smaller tiles test
   // fewer splats at each pixel but bin each splat to more tiles.
   int tile = 16;
+  // gather: the most bytes of splat records (48 bytes a sample) one pass reads; 0: the whole
+  // store in one pass. The store's ring is cut into chunks of this size, each binned to its own
+  // lists and gathered by its own dispatch: a tile's splats lie anywhere in the ring, and
+  // random reads spread over more memory than the GPU's address translation covers at once
+  // cost far more than the reads (measured: docs/benchmarks.md, "GPU reconstructor").
+  size_t chunk_bytes = size_t(256) << 20;
 };
 
 class GlReconstructor final : public Reconstructor {

@@ -69,8 +69,13 @@ struct GpuTimes {
   double bin = 0.0;       // gather: splats prepared and binned to screen tiles
   double splat = 0.0;     // splats (or newest samples) into the accumulation and coverage
   double fill = 0.0;      // hole pyramid and normalisation
-  double readback = 0.0;  // the image to a pixel-buffer object, when read back
-  double total() const { return upload + bin + splat + fill + readback; }
+  double readback = 0.0;  // the image into a mapped buffer, when read back
+  // The whole image: from the moment the GPU had finished everything before it to its last
+  // command (GL_TIMESTAMP). A pass's time can include the tail of the image before it (its
+  // timer starts when the GPU reaches it, not when the work before it is done), so this, not
+  // the passes' sum, is what the image costs the GPU.
+  double image_ms = 0.0;
+  double total() const { return image_ms; }
 };
 
 // What the last reconstruct() did.
