@@ -570,12 +570,12 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
 
   // ---- Only the new samples go to the GPU, into their ring slots.
   const SampleStore::Delta delta = store_.copy_since(m.seen, &m.staging);
-  timed(kUpload, [&] { m.upload_samples(delta, store_.capacity()); });
+  FrameSetup setup;
+  // (The upload runs while the base class counts the new samples on another thread.)
+  prepare_frame(time, width, height, delta, m.staging, &setup,
+                [&] { timed(kUpload, [&] { m.upload_samples(delta, store_.capacity()); }); });
   m.seen = delta.end;
   m.stored = delta.stored;
-
-  FrameSetup setup;
-  prepare_frame(time, width, height, delta, m.staging, &setup);
   // From here on the image is the grid: the viewport with its margin. The output is its
   // viewport part (the whole grid when the viewport is the whole image).
   const int out_width = width, out_height = height;

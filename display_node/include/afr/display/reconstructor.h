@@ -26,6 +26,7 @@
 #include <afr/display/tile_field.h>
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace afr {
@@ -219,9 +220,11 @@ class Reconstructor : public SampleSink {
   // Places the frame's pixels, brings the tile field and the stored-sample count per tile up
   // to date and computes the per-tile filters for this frame from the store's `delta` (its
   // depth) and `fresh`, the samples it copied (oldest first). Fills frame_.stored, depth and
-  // default_rate, and tile_states().
+  // default_rate, and tile_states(). `meanwhile`, when given, runs on this thread while the
+  // stored-sample counts are brought up to date on another (it must not touch them).
   void prepare_frame(double time, int width, int height, const SampleStore::Delta& delta,
-                     const std::vector<StoredSample>& fresh, FrameSetup* setup);
+                     const std::vector<StoredSample>& fresh, FrameSetup* setup,
+                     const std::function<void()>& meanwhile = {});
 
   ReconstructorConfig config_;
   PixelRect received_;
