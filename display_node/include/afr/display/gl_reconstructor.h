@@ -3,13 +3,19 @@
 // through a persistently mapped staging ring, fenced, and are copied on the GPU into the
 // sample ring (the store's ring, slot for slot), so the CPU fills image j+1's samples while
 // the GPU draws image j; at most three images are in flight. Nothing is read back unless the
-// caller asks for the image (then through a pixel-buffer object); pixel counts and GPU times
-// (GL_TIME_ELAPSED per pass) come back a few images later without waiting.
+// caller asks for the image (then a compute pass packs it into a mapped buffer); pixel counts
+// and GPU times (GL_TIME_ELAPSED per pass, GL_TIMESTAMP per image) come back a few images
+// later without waiting.
 //
 // The splat pass, two ways (GlSplat):
 //   gather  compute shaders: each sample's splat is prepared (reprojection, tile filter,
-//           coverage rule) and binned to the 16 x 16 screen tiles it reaches; one work group a
-//           tile then evaluates its splats at each of its pixels (sum w c, sum w, coverage).
+//           coverage rule) and binned to the screen tiles (4, 8 or 16 pixels) it reaches; one
+//           work group a tile then evaluates its splats at each of its pixels (sum w c, sum w,
+//           coverage), a batch at a time, each batch culled to the 8 x 4 pixel cells it
+//           reaches. The ring is cut into chunks (GlReconstructorOptions::chunk_bytes), each
+//           binned to lists of its own and gathered by a dispatch of its own: a tile's splats
+//           lie anywhere in the ring, and random reads spread over more memory than the GPU's
+//           address translation covers cost ~25x the reads (docs/benchmarks.md).
 //   raster  a vertex shader prepares each splat and draws it as a point; a fragment shader
 //           weights it and float blending accumulates.
 // Both then build the hole-filling pyramid and normalise with compute shaders. The arithmetic
