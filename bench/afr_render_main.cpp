@@ -1,6 +1,7 @@
 // afr-render: the ideal renderer (the evaluation's gold standard) as a command.
 //   afr-render kitchen.gltf --time 6 --size 256x256 --spp 16 -o kitchen_t6.png
 //   afr-render --frames 600 --fps 60 -o frames/builtin_%04d.png     (the built-in scene)
+//   afr-render --time 4.25 --compare out/frame_000255.png   (RMS error of a display's image)
 #include <afr/bench/ideal_renderer.h>
 #include <afr/common/cli.h>
 #include <afr/common/error.h>
@@ -20,6 +21,8 @@ int main(int argc, char** argv) {
   double time = 0.0, fps = 60.0;
   int spp = 16, frames = 1, threads = 0;
   uint64_t seed = 1;
+  std::vector<std::string> compare;
+  bool loop = false;
   app.add_option("scene", scene_path, "glTF 2.0 scene (.gltf/.glb); the built-in scene if omitted")
       ->check(CLI::ExistingFile);
   app.add_option("-t,--time", time, "scene time in seconds (first frame's time with --frames)");
@@ -36,8 +39,12 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 1024));
   app.add_option("--seed", seed, "seed of the sample jitter");
   app.add_option("--log", log_level, "log level")->capture_default_str();
+  app.add_flag("--loop", loop,
+               "times wrap over the scene's animation, as the service's nodes wrap display time");
+  app.add_option("--compare", compare,
+                 "instead of writing, print the RMS error (0-255 sRGB, afr-eval's metric) of "
+                 "these images against the ideal image of --time (their size)");
   CLI11_PARSE(app, argc, argv);
-
   try {
     afr::init_logging(log_level);
     const afr::ImageExtent size = afr::parse_image_size(size_text);
@@ -53,6 +60,27 @@ int main(int argc, char** argv) {
     spdlog::info("scene {}: {} triangles, {} lights, {:.2f} s of animation", scene.source,
                  scene.triangle_count(), scene.lights.size(), scene.duration());
     afr::Tracer tracer(scene);
+    if (!compare.empty()) {
+      // One ideal image per size among the images, at --time; a line per image.
+      afr::IdealRenderOptions options;
+      options.strata = strata;
+      options.threads = threads;
+      options.seed = seed;
+      const double d = scene.duration();
+      options.time = loop && d > 0.0 ? std::fmod(time, d) : time;
+      afr::Image ideal;
+      for (const std::string& path : compare) {
+        const afr::Image shot = afr::read_image(path);
+        if (ideal.width != shot.width || ideal.height != shot.height) {
+          options.width = shot.width;
+          options.height = shot.height;
+          ideal = afr::render_ideal(tracer, options, nullptr);
+        }
+        fmt::print("{} t={:.4f} scene_time={:.4f} rms={:.3f}\n", path, time, options.time,
+                   afr::rms_error_255(ideal, shot));
+      }
+      return 0;
+    }
 
     afr::IdealRenderOptions options;
     options.width = size.width;
@@ -62,6 +90,7 @@ int main(int argc, char** argv) {
     options.seed = seed;
     for (int f = 0; f < frames; ++f) {
       options.time = time + f / fps;
+      if (loop && scene.duration() > 0.0) options.time = std::fmod(options.time, scene.duration());
       afr::IdealRenderStats stats;
       const afr::Image image = afr::render_ideal(tracer, options, &stats);
       const std::string path = frames > 1 ? fmt::sprintf(output, f) : output;
