@@ -34,6 +34,8 @@ def run_service(args, out):
            "--build", args.build, "--preset", args.preset, "--backend", args.backend]
     if args.scene:
         cmd += ["--scene", args.scene]
+    if args.display_args:
+        cmd += ["--display-args", args.display_args]
     done = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                           text=True)
     if done.returncode != 0:
@@ -143,6 +145,8 @@ def main():
     p.add_argument("--preset", default="balanced")
     p.add_argument("--backend", default="auto")
     p.add_argument("--port", type=int, default=7700)
+    p.add_argument("--display-args", default="",
+                   help="more display_node options, e.g. '--recut-interval 10'")
     p.add_argument("--eval", action="store_true", help="afr-eval at the measured rate beside")
     p.add_argument("--seeds", type=int, default=3, help="afr-eval's seeds")
     p.add_argument("--out", default="", help="folder for the run (default: a temporary one)")
@@ -168,6 +172,7 @@ def main():
             f"Command: `python3 bench/live.py --samplers {args.samplers} --seconds {args.seconds:g}"
             f" --warmup {args.warmup:g} --every {args.every} --size {args.size}"
             + (f" --scene {os.path.relpath(args.scene, ROOT)}" if args.scene else "")
+            + (f" --display-args '{args.display_args}'" if args.display_args else "")
             + (" --eval" if args.eval else "") + "`", "",
             f"After {args.warmup:g} s of warm-up, {len(rms)} images of the running service "
             f"against the ideal renderer (16 spp) at their display times.", "",

@@ -15,6 +15,7 @@ usage() {
   echo "options: --seconds S --size WxH --scene FILE --threads T --port P --metrics-port P"
   echo "         --preset fast|balanced|accurate --window --output DIR --build DIR --every K"
   echo "         --backend gl|cpu|auto --gpu N (the display's reconstructor and EGL device)"
+  echo "         --display-args \"ARGS\" (more display_node options, e.g. \"--recut-interval 10\")"
   exit "${1:-0}"
 }
 
@@ -23,7 +24,7 @@ case "$1" in -h|--help) usage 0 ;; esac
 n=$1; shift
 [[ "$n" =~ ^[0-9]+$ ]] && [ "$n" -ge 1 ] && [ "$n" -le 64 ] || { echo "run-local: N must be 1..64, got '$n'" >&2; exit 1; }
 seconds=20 size=256x256 scene="" threads=1 port=7100 metrics_port=9100 preset=balanced
-window=0 output=out build=build every=0 backend=auto gpu=-1
+window=0 output=out build=build every=0 backend=auto gpu=-1 display_args=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --seconds) seconds=$2; shift 2 ;;
@@ -39,6 +40,7 @@ while [ $# -gt 0 ]; do
     --every) every=$2; shift 2 ;;
     --backend) backend=$2; shift 2 ;;
     --gpu) gpu=$2; shift 2 ;;
+    --display-args) display_args=$2; shift 2 ;;
     -h|--help) usage 0 ;;
     *) echo "run-local: unknown option '$1'" >&2; usage 1 ;;
   esac
@@ -63,7 +65,7 @@ echo "run-local: display on tcp://127.0.0.1:$port (metrics http://127.0.0.1:$met
 "$build/display_node/display_node" $scene $headless --bind "tcp://127.0.0.1:$port" \
   --size "$size" --preset "$preset" --seconds "$seconds" --output "$output" \
   --screenshot-every "$every" --metrics-port "$metrics_port" --backend "$backend" --gpu "$gpu" \
-  > >(tee "$output/logs/display.log") 2>&1 &
+  $display_args > >(tee "$output/logs/display.log") 2>&1 &
 start_node display display "$output/logs/display.log"
 for i in $(seq 1 "$n"); do
   # Samplers at a lower priority: the display keeps its refresh when they share its cores.

@@ -120,6 +120,16 @@ int main(int argc, char** argv) {
                  "to --member-timeout when below it)")
       ->capture_default_str()
       ->check(CLI::Range(0.1, 600.0));
+  app.add_option("--recut-interval", o.coordinator.recut_interval,
+                 "seconds at least between recuts of the samplers' regions that follow their "
+                 "throughput and error (joins, leaves and deaths recut at once)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 3600.0));
+  app.add_option("--recut-hysteresis", o.coordinator.hysteresis,
+                 "recut when a sampler's part of the image's error exceeds (1 + this) times its "
+                 "share of the throughput")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 100.0));
   app.add_option(
          "--wall", wall_text,
          "display wall: COLUMNSxROWS cells over --size, this display leading (docs/wall.md)")

@@ -74,6 +74,7 @@ TEST(CoordinatorTest, SilentMemberExpiresAndItsRegionGoesToTheOthers) {
 TEST(CoordinatorTest, AreasFollowThroughputWithHysteresis) {
   CoordinatorOptions o;
   o.settle_seconds = 0.0;
+  o.recut_interval = 1.0;
   Coordinator c(200, 100, o);
   join_two(&c);
   EXPECT_EQ(c.members().at(1).region.area(), 10000);
@@ -96,6 +97,7 @@ TEST(CoordinatorTest, OnlyAnOverloadedMemberIsReasonToRecut) {
   // would gain less than it costs. At 40:60, sampler 2 carries 0.91 / 0.60 = 1.5x: recut.
   CoordinatorOptions o;
   o.settle_seconds = 0.0;
+  o.recut_interval = 1.0;
   Coordinator c(200, 100, o);
   join_two(&c);
   c.report_throughput(1, 90000.0, 0.5);
@@ -121,6 +123,7 @@ TEST(CoordinatorTest, NoDriftRecutUntilEveryRegionHasSettled) {
   // A new region restarts the sampler's pool: for settle_seconds its figures are not used.
   CoordinatorOptions o;
   o.settle_seconds = 2.0;
+  o.recut_interval = 1.0;
   Coordinator c(200, 100, o);
   join_two(&c);
   MassDensity error(200, 100, 50, 25);
@@ -141,6 +144,7 @@ TEST(CoordinatorTest, ErrorSharesFollowThroughputOnceTheErrorIsKnown) {
   // gives each sampler half of the error, so the left region shrinks to about an eighth.
   CoordinatorOptions o;
   o.settle_seconds = 0.0;
+  o.recut_interval = 1.0;
   Coordinator c(200, 100, o);
   join_two(&c);
   c.report_throughput(1, 100000.0, 0.1);

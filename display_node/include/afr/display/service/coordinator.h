@@ -28,7 +28,12 @@ struct CoordinatorOptions {
   FailureDetectorOptions liveness;
   // The samplers' and wall followers' heartbeat interval: the detector's first guess.
   double heartbeat_interval = protocol::kMemberHeartbeatInterval;
-  double recut_interval = 1.0;  // seconds between throughput-driven recuts
+  // Seconds at least between recuts that follow throughput and error. A recut restarts the
+  // pool of every sampler whose region changed (its deep buffer and tiling refill), which costs
+  // more image error than a better balance gains: on the built-in scene with two samplers the
+  // live error (bench/live.py) was 26.3 (25.5-27.2, 3 runs) with recuts at most once a second
+  // and 21.0 (17.7-24.3) at most once in 10 s (docs/benchmarks.md, "Live accuracy").
+  double recut_interval = 10.0;
   // A recut happens when a member's part of the error exceeds (1 + hysteresis) times its
   // share of the throughput.
   double hysteresis = 0.5;
