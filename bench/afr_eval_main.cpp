@@ -204,6 +204,7 @@ int main(int argc, char** argv) {
   app.add_option("--taa-gamma", taa.clamp_gamma, "TAA: clamp box half-width in std devs")
       ->capture_default_str();
   app.add_flag("!--taa-no-clamp", taa.clamp, "TAA: no neighbourhood clamping");
+  afr::refuse_non_finite(app);
   CLI11_PARSE(app, argc, argv);
 
   try {

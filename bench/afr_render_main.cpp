@@ -44,6 +44,7 @@ int main(int argc, char** argv) {
   app.add_option("--compare", compare,
                  "instead of writing, print the RMS error (0-255 sRGB, afr-eval's metric) of "
                  "these images against the ideal image of --time (their size)");
+  afr::refuse_non_finite(app);
   CLI11_PARSE(app, argc, argv);
   try {
     afr::init_logging(log_level);

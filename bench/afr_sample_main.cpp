@@ -74,6 +74,7 @@ int main(int argc, char** argv) {
   app.add_option("--dump", dump, "folder for the PNG pictures")->capture_default_str();
   app.add_option("--log", log_level, "log level")->capture_default_str();
   afr::add_sampler_flags(app, &config);
+  afr::refuse_non_finite(app);
   CLI11_PARSE(app, argc, argv);
 
   try {

@@ -315,6 +315,7 @@ int main(int argc, char** argv) {
   app.add_flag("--check", check,
                "also compare each GL row's image with the CPU backend's (8-bit sRGB RMS, max)");
   app.add_option("--log", log_level, "log level");
+  afr::refuse_non_finite(app);
   CLI11_PARSE(app, argc, argv);
   try {
     afr::init_logging(log_level);

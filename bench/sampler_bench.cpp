@@ -13,6 +13,7 @@
 //   valgrind --tool=callgrind --toggle-collect='*profile_steps*' afr-bench-sampler --profile
 //   adaptive
 #include <afr/common/builtin_scene.h>
+#include <afr/common/cli.h>
 #include <afr/common/gltf_loader.h>
 #include <afr/common/log.h>
 #include <afr/common/random.h>
@@ -283,6 +284,7 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"adaptive", "uniform", "reproject", "crosshair"}));
   app.add_option("--steps", profile_count, "steps under --profile")
       ->check(CLI::Range(1, 100000000));
+  afr::refuse_non_finite(app);
   CLI11_PARSE(app, argc, argv);
   try {
     afr::init_logging("warn");

@@ -9,6 +9,7 @@
 // display, and the step across seam and interior lines in each.
 //   afr-bench-seam --seed 1-7                  # the wall as display_node runs it
 //   afr-bench-seam --seed 1-10 --frames 6 --no-exchange
+#include <afr/common/cli.h>
 #include <afr/common/error.h>
 #include <afr/common/log.h>
 
@@ -101,6 +102,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--mean-from", mean_from, "--twin: means over refreshes from this one (-1: half)");
   app.add_flag("--per-frame", per_frame, "print a line per refresh as it is measured");
+  afr::refuse_non_finite(app);
   CLI11_PARSE(app, argc, argv);
   try {
     afr::init_logging("warn");

@@ -18,6 +18,7 @@
 // counters as one "counters ..." line on SIGUSR1 (so a script reads them at the same moments)
 // and at exit. The receiver counts what the display's ingest thread counts (run_ingest into a
 // SampleStore); display_node itself can be the receiver instead (its /stats).
+#include <afr/common/cli.h>
 #include <afr/common/random.h>
 #include <afr/display/sample_store.h>
 #include <afr/display/service/display_service.h>
@@ -326,6 +327,7 @@ int send_main(int argc, char** argv) {
   app.add_option("--sndhwm", options.send_hwm, "ZMQ_SNDHWM (messages)")->capture_default_str();
   app.add_option("--sndbuf", options.send_buffer, "SO_SNDBUF (bytes, 0: OS default)")
       ->capture_default_str();
+  afr::refuse_non_finite(app);
   CLI11_PARSE(app, argc, argv);
 
   Context context;
@@ -386,6 +388,7 @@ int receive_main(int argc, char** argv) {
   app.add_option("--rcvhwm", options.receive_hwm, "ZMQ_RCVHWM (messages)")->capture_default_str();
   app.add_option("--rcvbuf", options.receive_buffer, "SO_RCVBUF (bytes, 0: OS default)")
       ->capture_default_str();
+  afr::refuse_non_finite(app);
   CLI11_PARSE(app, argc, argv);
 
   Context context;

@@ -60,6 +60,7 @@ int main(int argc, char** argv) {
   app.add_option("--spp", spp, "ideal image: S x S samples per pixel")
       ->capture_default_str()
       ->check(CLI::Range(1, 16));
+  afr::refuse_non_finite(app);
   CLI11_PARSE(app, argc, argv);
   try {
     init_logging("warn");

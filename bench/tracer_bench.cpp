@@ -164,6 +164,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 256));
   app.add_option("--seed", seed, "seed of the image positions");
   app.add_option("--log", log_level, "log level")->capture_default_str();
+  afr::refuse_non_finite(app);
   CLI11_PARSE(app, argc, argv);
 
   try {

@@ -166,6 +166,7 @@ int main(int argc, char** argv) {
   kg->add_option("--samplers", keygen_samplers, "sampler key pairs to make")
       ->capture_default_str()
       ->check(CLI::Range(0, 10000));
+  afr::refuse_non_finite(app);
   CLI11_PARSE(app, argc, argv);
 
   try {

@@ -3,6 +3,7 @@
 //   sampler_node --display tcp://10.0.0.1:7100 --key sampler.key --server-key display.pub
 //   sampler_node keygen sampler.key          (writes sampler.key and sampler.pub)
 // The display sends the scene, the image size and the region to sample (docs/service.md).
+#include <afr/common/cli.h>
 #include <afr/common/error.h>
 #include <afr/common/log.h>
 #include <afr/common/presets.h>
@@ -63,6 +64,7 @@ int main(int argc, char** argv) {
   CLI::App* keygen =
       app.add_subcommand("keygen", "write a new CurveZMQ key pair FILE and FILE.pub");
   keygen->add_option("file", keygen_path, "key pair file to write (mode 0600)")->required();
+  afr::refuse_non_finite(app);
   CLI11_PARSE(app, argc, argv);
 
   try {

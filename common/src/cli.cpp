@@ -3,8 +3,11 @@
 #include <afr/common/error.h>
 
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <charconv>
+#include <cmath>
+#include <cstdlib>
 
 namespace afr {
 
@@ -27,6 +30,25 @@ ImageExtent parse_image_size(std::string_view text) {
   parse(text.substr(0, x), &size.width);
   parse(text.substr(x + 1), &size.height);
   return size;
+}
+
+void refuse_non_finite(CLI::App& app) {
+  const CLI::Validator finite(
+      [](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(text.c_str(), &end);
+        if (end != text.c_str() && !std::isfinite(v)) {
+          return fmt::format("{} is not a finite number", text);
+        }
+        return {};
+      },
+      "FINITE");
+  for (CLI::Option* option : app.get_options()) {
+    if (option->get_type_name().find("FLOAT") != std::string::npos) option->check(finite);
+  }
+  for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) {
+    refuse_non_finite(*sub);
+  }
 }
 
 }  // namespace afr

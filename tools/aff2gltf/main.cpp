@@ -3,6 +3,7 @@
 //   aff2gltf scene.aff -o scene.glb
 #include "aff_to_gltf.h"
 
+#include <afr/common/cli.h>
 #include <afr/common/error.h>
 
 #include <spdlog/spdlog.h>
@@ -41,6 +42,7 @@ int main(int argc, char** argv) {
                  "Baked rotations: largest turn between samples, degrees")
       ->capture_default_str()
       ->check(CLI::Range(0.01, 180.0));
+  afr::refuse_non_finite(app);
   CLI11_PARSE(app, argc, argv);
   if (output.empty()) output = std::filesystem::path(input).replace_extension(".gltf").filename();
 

@@ -7,11 +7,20 @@
 #include <string>
 #include <string_view>
 
+namespace CLI {
+class App;
+}
+
 namespace afr {
 
 // Parses "WxH" (e.g. "256x256"); both in [1, kMaxImageDimension]. Throws afr::Error naming
 // the text and the problem.
 inline constexpr int kMaxImageDimension = 32768;
 ImageExtent parse_image_size(std::string_view text);
+
+// Gives every floating-point option of `app` and of its subcommands a check that refuses NaN
+// and infinities, naming the option and the value (CLI::Range lets NaN through: every
+// comparison with it is false). Call once the options are added, before parsing.
+void refuse_non_finite(CLI::App& app);
 
 }  // namespace afr

@@ -1,0 +1,63 @@
+#include <afr/common/cli.h>
+#include <afr/common/error.h>
+
+#include <gtest/gtest.h>
+#include <CLI/CLI.hpp>
+
+#include <string>
+#include <vector>
+
+namespace afr {
+namespace {
+
+// Parses `args` (after a program name) with the options of a small program; returns the
+// error's text, empty when the arguments were taken.
+std::string parse(std::vector<std::string> args, double* fps = nullptr) {
+  CLI::App app{"test"};
+  double rate = 60.0;
+  std::vector<double> starts;
+  int count = 1;
+  std::string name;
+  app.add_option("--fps", rate)->check(CLI::Range(1.0, 1000.0));
+  app.add_option("--start", starts)->delimiter(',');
+  app.add_option("--count", count);
+  app.add_option("--name", name);
+  CLI::App* sub = app.add_subcommand("sub");
+  double limit = 1.0;
+  sub->add_option("--limit", limit);
+  refuse_non_finite(app);
+  std::vector<std::string> reversed(args.rbegin(), args.rend());
+  try {
+    app.parse(reversed);
+  } catch (const CLI::ParseError& e) {
+    return e.what();
+  }
+  if (fps) *fps = rate;
+  return {};
+}
+
+TEST(CliTest, FloatingOptionsRefuseNanAndInfinityByName) {
+  double fps = 0.0;
+  EXPECT_EQ(parse({"--fps", "30"}, &fps), "");
+  EXPECT_EQ(fps, 30.0);
+  // CLI::Range alone would take NaN: every comparison with it is false.
+  const std::string nan = parse({"--fps", "nan"});
+  EXPECT_NE(nan.find("--fps"), std::string::npos) << nan;
+  EXPECT_NE(nan.find("nan is not a finite number"), std::string::npos) << nan;
+  EXPECT_NE(parse({"--start", "1,inf"}).find("inf is not a finite number"), std::string::npos);
+  EXPECT_NE(parse({"--start", "-infinity"}), "");
+  EXPECT_NE(parse({"sub", "--limit", "NaN"}).find("--limit"), std::string::npos);
+  // Text and whole-number options are left alone.
+  EXPECT_EQ(parse({"--name", "nan"}), "");
+  EXPECT_EQ(parse({"--start", "0.5,2", "--count", "3"}), "");
+}
+
+TEST(CliTest, ImageSizesAreCheckedWithTheirReason) {
+  EXPECT_EQ(parse_image_size("256x128").width, 256);
+  EXPECT_THROW(parse_image_size("256"), Error);
+  EXPECT_THROW(parse_image_size("0x5"), Error);
+  EXPECT_THROW(parse_image_size("40000x5"), Error);
+}
+
+}  // namespace
+}  // namespace afr
