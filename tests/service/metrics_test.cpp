@@ -42,6 +42,63 @@ TEST(ServiceMetricsTest, SequenceGapsCountMissingBatchesNotRestarts) {
   EXPECT_EQ(ss[0].batches, 7u);
 }
 
+// A peer that makes up sampler ids cannot grow the per-sampler state: batches and tilings
+// from non-members are counted in the display's figures alone.
+TEST(ServiceMetricsTest, NonMembersGetNoPerSamplerState) {
+  ServiceMetrics m;
+  m.on_member("real", 1, "", 1);
+  SampleBatch b;
+  b.samples.resize(4);
+  for (uint32_t id = 100; id < 100100; ++id) {
+    b.sampler_id = id;
+    m.on_batch(b, 50, false);
+    m.on_tiling(id, 30, false);
+  }
+  b.sampler_id = 1;
+  m.on_batch(b, 50, true);
+  const std::vector<SamplerMetrics> ss = m.samplers();
+  ASSERT_EQ(ss.size(), 1u);
+  EXPECT_EQ(ss[0].id, 1u);
+  EXPECT_EQ(ss[0].samples, 4u);
+  EXPECT_EQ(m.display().unknown_sampler_batches, 100000u);
+  EXPECT_EQ(m.display().unknown_sampler_samples, 400000u);
+  EXPECT_LT(prometheus_text(m).size(), size_t(20000));
+}
+
+// Stats are filed under the member whose control connection sent them, whatever id they claim.
+TEST(ServiceMetricsTest, StatsAreFiledUnderTheSendingMember) {
+  ServiceMetrics m;
+  m.on_member("a", 2, "", 1);
+  protocol::SamplerStats claimed;
+  claimed.sampler_id = 99;
+  claimed.samples_per_second = 1e300;
+  m.on_reported(2, claimed);
+  const std::vector<SamplerMetrics> ss = m.samplers();
+  ASSERT_EQ(ss.size(), 1u);
+  EXPECT_EQ(ss[0].id, 2u);
+  EXPECT_EQ(ss[0].reported.sampler_id, 2u);
+}
+
+TEST(ServiceMetricsTest, DepartedSamplersAreForgottenAfterTheGrace) {
+  ServiceMetrics m;
+  m.on_member("leaves", 1, "", 1);
+  m.on_member("stays", 2, "", 1);
+  m.on_member_gone(1, false);
+  for (int p = 0; p < ServiceMetrics::kDepartedPeriods; ++p) m.end_period(2.0);
+  EXPECT_EQ(m.samplers().size(), 2u);  // its last figures, for a while
+  m.end_period(2.0);
+  const std::vector<SamplerMetrics> ss = m.samplers();
+  ASSERT_EQ(ss.size(), 1u);
+  EXPECT_EQ(ss[0].id, 2u);
+  // One that comes back before the grace ends starts counting again when it leaves again.
+  m.on_member("back", 3, "", 1);
+  m.on_member_gone(3, true);
+  for (int p = 0; p < 10; ++p) m.end_period(2.0);
+  m.on_member("back", 3, "", 1);
+  for (int p = 0; p < 2 * ServiceMetrics::kDepartedPeriods; ++p) m.end_period(2.0);
+  EXPECT_EQ(m.samplers().size(), 2u);
+}
+
 TEST(ServiceMetricsTest, LatencyIsFrameTimeMinusSampleTime) {
   ServiceMetrics m;
   SampleBatch b;

@@ -308,7 +308,8 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
       }
       case SampleReceiver::Got::kTiling: {
         const TilingSnapshot& t = receiver.tiling();
-        metrics.on_tiling(t.sampler_id, snapshot_message_bytes(t.tiles.size()));
+        metrics.on_tiling(t.sampler_id, snapshot_message_bytes(t.tiles.size()),
+                          is_member(t.sampler_id));
         if (on_tiling) on_tiling(t);
         sink.on_tiling(std::move(receiver.tiling()));
         break;
@@ -509,7 +510,7 @@ void DisplayService::Control::on_member_message(Member& m, const std::string& pe
       transfers_[peer].next_chunk = r->first_chunk;
     }
   } else if (const auto* s = std::get_if<SamplerStats>(&msg)) {
-    service_.metrics_.on_reported(*s);
+    service_.metrics_.on_reported(m.id, *s);
     coordinator_.report_throughput(m.id, s->samples_per_second, t);
   } else if (const auto* l = std::get_if<Leave>(&msg)) {
     if (l->reason == LeaveReason::kError) {

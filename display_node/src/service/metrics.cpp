@@ -12,6 +12,11 @@ void ServiceMetrics::on_batch(const SampleBatch& batch, size_t bytes, bool membe
   double sum = 0.0;
   for (const Sample& s : batch.samples) sum += s.time;
   std::lock_guard<std::mutex> lock(mutex_);
+  if (!member) {
+    ++display_.unknown_sampler_batches;
+    display_.unknown_sampler_samples += batch.samples.size();
+    return;
+  }
   SamplerMetrics& m = samplers_[batch.sampler_id];
   m.id = batch.sampler_id;
   m.samples += batch.samples.size();
@@ -26,7 +31,6 @@ void ServiceMetrics::on_batch(const SampleBatch& batch, size_t bytes, bool membe
   }
   m.last_sequence = batch.sequence;
   m.have_sequence = true;
-  if (!member) ++display_.unknown_sampler_batches;
   if (!batch.samples.empty()) {
     if (pending_.size() >= 65536) pending_.erase(pending_.begin(), pending_.begin() + 32768);
     pending_.emplace_back(sum / double(batch.samples.size()), batch.samples.size());
@@ -59,8 +63,9 @@ void ServiceMetrics::on_wall_exchanged(uint64_t cells_applied, uint64_t coverage
   w.dropped_out = dropped_out_total;
 }
 
-void ServiceMetrics::on_tiling(uint32_t sampler_id, size_t bytes) {
+void ServiceMetrics::on_tiling(uint32_t sampler_id, size_t bytes, bool member) {
   std::lock_guard<std::mutex> lock(mutex_);
+  if (!member) return;
   SamplerMetrics& m = samplers_[sampler_id];
   m.id = sampler_id;
   ++m.tilings;
@@ -82,6 +87,7 @@ void ServiceMetrics::on_member(const std::string& name, uint32_t id, const std::
   m.public_key = key;
   m.threads = threads;
   m.member = true;
+  m.periods_gone = 0;
   ++display_.joins;
   display_.members = 0;
   for (const auto& [i, s] : samplers_) display_.members += s.member;
@@ -107,11 +113,12 @@ void ServiceMetrics::on_region(uint32_t id, const PixelRect& region, uint64_t ep
   display_.recuts = recuts;
 }
 
-void ServiceMetrics::on_reported(const protocol::SamplerStats& stats) {
+void ServiceMetrics::on_reported(uint32_t member_id, const protocol::SamplerStats& stats) {
   std::lock_guard<std::mutex> lock(mutex_);
-  SamplerMetrics& m = samplers_[stats.sampler_id];
-  m.id = stats.sampler_id;
+  SamplerMetrics& m = samplers_[member_id];
+  m.id = member_id;
   m.reported = stats;
+  m.reported.sampler_id = member_id;
 }
 
 void ServiceMetrics::on_rejected_control() {
@@ -192,7 +199,9 @@ void ServiceMetrics::end_period(double seconds) {
     m.samples_per_second = double(m.period_samples) / seconds;
     m.bytes_per_second = double(m.period_bytes) / seconds;
     m.period_samples = m.period_bytes = 0;
+    if (!m.member) ++m.periods_gone;
   }
+  std::erase_if(samplers_, [](const auto& e) { return e.second.periods_gone > kDepartedPeriods; });
   display_.refresh_hz = double(period_frames_) / seconds;
   period_frames_ = 0;
   display_.period_reconstruct_ms_mean =

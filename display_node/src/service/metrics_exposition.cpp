@@ -163,6 +163,7 @@ std::string stats_json(const ServiceMetrics& metrics) {
                   {"rejected_sample_messages", d.rejected_samples_channel},
                   {"rejected_control_messages", d.rejected_control},
                   {"unknown_sampler_batches", d.unknown_sampler_batches},
+                  {"unknown_sampler_samples", d.unknown_sampler_samples},
                   {"zap_accepted", d.zap_accepted},
                   {"zap_refused", d.zap_refused},
                   {"latency_p50", d.latency_p50},

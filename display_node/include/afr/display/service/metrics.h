@@ -26,7 +26,10 @@ struct SamplerMetrics {
   uint32_t id = 0;
   std::string name;
   std::string public_key;
-  bool member = false;  // currently a member (false: left or dead; kept for the record)
+  // Currently a member. A sampler that left or died is kept for kDepartedPeriods stats periods
+  // (its last figures), then forgotten.
+  bool member = false;
+  int periods_gone = 0;
   PixelRect region;
   int threads = 1;
   // Received by the display (sample channel).
@@ -72,7 +75,10 @@ struct DisplayMetrics {
   uint64_t leaves = 0;
   uint64_t rejected_samples_channel = 0;
   uint64_t rejected_control = 0;
-  uint64_t unknown_sampler_batches = 0;  // batches from ids that are not members
+  // Batches (and their samples) from ids that are not members: counted here alone, so that
+  // made-up ids cannot grow the per-sampler state.
+  uint64_t unknown_sampler_batches = 0;
+  uint64_t unknown_sampler_samples = 0;
   uint64_t zap_accepted = 0;
   uint64_t zap_refused = 0;
   uint64_t views = 0;
@@ -103,9 +109,13 @@ struct DisplayMetrics {
 
 class ServiceMetrics {
  public:
-  // Ingest thread.
+  // Stats periods a departed sampler's figures stay (a minute at the default 2 s period).
+  static constexpr int kDepartedPeriods = 30;
+
+  // Ingest thread. `member`: whether batch.sampler_id is a member now; per-sampler figures
+  // are kept for members only.
   void on_batch(const SampleBatch& batch, size_t bytes, bool member);
-  void on_tiling(uint32_t sampler_id, size_t bytes);
+  void on_tiling(uint32_t sampler_id, size_t bytes, bool member);
   void on_rejected_sample_message();
   // A display wall's peers: coverage (pixels) and strays (samples) that arrived.
   void on_wall_coverage_in(uint64_t cells, size_t bytes);
@@ -114,7 +124,9 @@ class ServiceMetrics {
   void on_member(const std::string& name, uint32_t id, const std::string& public_key, int threads);
   void on_member_gone(uint32_t id, bool dead);
   void on_region(uint32_t id, const PixelRect& region, uint64_t epoch, uint64_t recuts);
-  void on_reported(const protocol::SamplerStats& stats);
+  // A member's stats message, under the id its control connection belongs to (not the one the
+  // message claims).
+  void on_reported(uint32_t member_id, const protocol::SamplerStats& stats);
   void on_rejected_control();
   void on_view();
   void on_chunks_sent(uint64_t n);
