@@ -61,14 +61,18 @@ int main(int argc, char** argv) {
     spdlog::info("scene {}: {} triangles, {} lights, {:.2f} s of animation", scene.source,
                  scene.triangle_count(), scene.lights.size(), scene.duration());
     afr::Tracer tracer(scene);
+    // --loop: display time to scene time, as the service's nodes map it.
+    const auto scene_time = [&](double t) {
+      const double d = scene.duration();
+      return loop && d > 0.0 ? std::fmod(t, d) : t;
+    };
     if (!compare.empty()) {
       // One ideal image per size among the images, at --time; a line per image.
       afr::IdealRenderOptions options;
       options.strata = strata;
       options.threads = threads;
       options.seed = seed;
-      const double d = scene.duration();
-      options.time = loop && d > 0.0 ? std::fmod(time, d) : time;
+      options.time = scene_time(time);
       afr::Image ideal;
       for (const std::string& path : compare) {
         const afr::Image shot = afr::read_image(path);
@@ -90,8 +94,7 @@ int main(int argc, char** argv) {
     options.threads = threads;
     options.seed = seed;
     for (int f = 0; f < frames; ++f) {
-      options.time = time + f / fps;
-      if (loop && scene.duration() > 0.0) options.time = std::fmod(options.time, scene.duration());
+      options.time = scene_time(time + f / fps);
       afr::IdealRenderStats stats;
       const afr::Image image = afr::render_ideal(tracer, options, &stats);
       const std::string path = frames > 1 ? fmt::sprintf(output, f) : output;

@@ -158,26 +158,58 @@ void collect(const afr::GpuTimes& g, int warmup, std::vector<afr::GpuTimes>* out
   }
 }
 
+// What a live display receives, the same for every reconstructor fed: one second of samples
+// (N of them), then per refresh 1/60 s of new samples and a new tiling, for a camera that
+// moves a little each refresh.
+class LiveFeed {
+ public:
+  LiveFeed(afr::ImageExtent size, size_t n, uint64_t seed)
+      : size_(size), n_(n), rng_(afr::mix_seed(seed)) {}
+
+  void fill(std::initializer_list<afr::Reconstructor*> recs) {
+    const afr::SampleBatch b = make_batch(camera(0), rng_, size_, n_, 0.0, 1.0);
+    for (afr::Reconstructor* r : recs) r->add_batch(b);
+  }
+
+  // The next refresh's samples and tiling into every one of `recs`: its camera, and its
+  // display time in *t.
+  afr::Camera next(std::initializer_list<afr::Reconstructor*> recs, double* t) {
+    const afr::Camera cam = camera(frame_++);
+    const afr::SampleBatch b = make_batch(cam, rng_, size_, n_ / 60, t_, t_ + 1.0 / 60.0);
+    t_ += 1.0 / 60.0;
+    const afr::TilingSnapshot tiling =
+        make_tiling(rng_, size_, t_, double(n_) / double(size_.area()));  // per pixel and second
+    for (afr::Reconstructor* r : recs) {
+      r->add_batch(b);
+      r->set_tiling(tiling);
+    }
+    *t = t_;
+    return cam;
+  }
+
+ private:
+  static afr::Camera camera(int frame) {
+    return afr::Camera::look_at({0.01 * frame, 0.5, -0.01 * frame}, {0.0, 0.0, -5.0}, {0, 1, 0},
+                                1.0, 0.01);
+  }
+  afr::ImageExtent size_;
+  size_t n_;
+  afr::Pcg32 rng_;
+  double t_ = 1.0;
+  int frame_ = 0;
+};
+
 // Fills the store, then times `repeats` refreshes after `warmup` untimed ones.
 Timing run(afr::Reconstructor& rec, afr::ImageExtent size, int repeats, int warmup, bool readback,
            uint64_t seed) {
-  afr::Pcg32 rng(afr::mix_seed(seed));
-  const size_t n = rec.capacity();
-  const double rate = double(n) / double(size.area());  // per pixel per second
-  const afr::Camera start =
-      afr::Camera::look_at({0.0, 0.5, 0.0}, {0.0, 0.0, -5.0}, {0, 1, 0}, 1.0, 0.01);
-  rec.add_batch(make_batch(start, rng, size, n, 0.0, 1.0));  // one second of samples
-  double t = 1.0;
-  const size_t per_frame = n / 60;
+  LiveFeed feed(size, rec.capacity(), seed);
+  feed.fill({&rec});
   std::vector<double> ms, cpu;
   std::vector<afr::GpuTimes> gpu;
   afr::Image image;
   for (int frame = 0; frame < warmup + repeats; ++frame) {
-    const afr::Camera cam = afr::Camera::look_at({0.01 * frame, 0.5, -0.01 * frame},
-                                                 {0.0, 0.0, -5.0}, {0, 1, 0}, 1.0, 0.01);
-    rec.add_batch(make_batch(cam, rng, size, per_frame, t, t + 1.0 / 60.0));
-    t += 1.0 / 60.0;
-    rec.set_tiling(make_tiling(rng, size, t, rate));
+    double t = 0.0;
+    const afr::Camera cam = feed.next({&rec}, &t);
     const double c0 = process_cpu_ms();
     rec.reconstruct(cam, t, size.width, size.height, readback ? &image : nullptr);
     if (frame >= warmup) {
@@ -223,40 +255,23 @@ Agreement agreement(const afr::ReconstructorConfig& cfg, const std::shared_ptr<a
   afr::CpuReconstructor cpu(c);
   afr::GlReconstructor gpu(c, gl, options);
   const afr::ImageExtent size = cfg.image;
-  afr::Pcg32 rng(afr::mix_seed(7));
-  const size_t n = cpu.capacity();
-  const afr::Camera start =
-      afr::Camera::look_at({0.0, 0.5, 0.0}, {0.0, 0.0, -5.0}, {0, 1, 0}, 1.0, 0.01);
-  const afr::SampleBatch first = make_batch(start, rng, size, n, 0.0, 1.0);
-  cpu.add_batch(first);
-  gpu.add_batch(first);
-  double t = 1.0;
+  LiveFeed feed(size, cpu.capacity(), 7);
+  feed.fill({&cpu, &gpu});
   afr::Image a, b;
   for (int frame = 0; frame < 3; ++frame) {
-    const afr::Camera cam = afr::Camera::look_at({0.01 * frame, 0.5, -0.01 * frame},
-                                                 {0.0, 0.0, -5.0}, {0, 1, 0}, 1.0, 0.01);
-    const afr::SampleBatch batch = make_batch(cam, rng, size, n / 60, t, t + 1.0 / 60.0);
-    t += 1.0 / 60.0;
-    const afr::TilingSnapshot tiling = make_tiling(rng, size, t, double(n) / double(size.area()));
-    for (afr::Reconstructor* r :
-         {static_cast<afr::Reconstructor*>(&cpu), static_cast<afr::Reconstructor*>(&gpu)}) {
-      r->add_batch(batch);
-      r->set_tiling(tiling);
-    }
+    double t = 0.0;
+    const afr::Camera cam = feed.next({&cpu, &gpu}, &t);
     cpu.reconstruct(cam, t, size.width, size.height, &a);
     gpu.reconstruct(cam, t, size.width, size.height, &b);
   }
   Agreement out;
-  double sum = 0.0;
+  out.rms = afr::rms_error_255(a, b);
   for (size_t p = 0; p < a.pixels.size(); ++p) {
     for (int k = 0; k < 3; ++k) {
-      const int d = std::abs(int(afr::linear_to_srgb8(a.pixels[p][k])) -
-                             int(afr::linear_to_srgb8(b.pixels[p][k])));
-      sum += double(d) * double(d);
-      out.max = std::max(out.max, d);
+      out.max = std::max(out.max, std::abs(int(afr::linear_to_srgb8(a.pixels[p][k])) -
+                                           int(afr::linear_to_srgb8(b.pixels[p][k]))));
     }
   }
-  out.rms = std::sqrt(sum / double(3 * std::max<size_t>(a.pixels.size(), 1)));
   out.holes =
       std::abs(double(gpu.frame_stats().hole_pixels) - double(cpu.frame_stats().hole_pixels)) /
       double(size.area());

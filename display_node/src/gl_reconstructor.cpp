@@ -442,9 +442,9 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
     // A tile's cells are 8 x 4 pixels (a warp of invocations), or the whole 4 x 4 tile.
     const std::string gather_source = fmt::format(
         "#version 430 core\n#define TILE {}\n#define GROUP {}\n#define CELL_W {}\n#define CELL_H "
-        "{}\n{}",
+        "{}\n{}{}",
         options_.tile, options_.tile * options_.tile, std::min(options_.tile, 8),
-        std::min(options_.tile, 4), gl_shaders::kGatherCompute);
+        std::min(options_.tile, 4), gl_shaders::kPixelBox, gl_shaders::kGatherCompute);
     m.gather = compute_program(gather_source.c_str(), "gather");
     constexpr size_t kSplatBytes = 3 * sizeof(glm::vec4);
     m.splats = gpu_buffer(store_.capacity() * kSplatBytes);

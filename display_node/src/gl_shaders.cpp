@@ -2,6 +2,15 @@
 
 namespace afr::gl_shaders {
 
+const char* const kPixelBox = R"(
+// The pixels whose centers lie strictly within (r.x, r.y) of `center` (x + 0.5 in
+// (center - r, center + r)) lie in [lo, hi], unclamped to any image.
+void pixel_box(vec2 center, vec2 r, out ivec2 lo, out ivec2 hi) {
+  lo = ivec2(floor(center - r - 0.5));
+  hi = ivec2(ceil(center + r - 0.5));
+}
+)";
+
 // What the raster path's vertex shader and the gather's prepare pass share: the uniforms of a
 // splat's preparation and prepare_splat(), which reprojects a sample (reprojection.h), reads
 // its tile's filter and the previous image's coverage, and sizes its splat (coverage_map.h,
@@ -364,9 +373,10 @@ void main() {
                      word3(b + 8u), word3(b + 11u), s)) {
     return;
   }
-  // The pixels whose centers lie strictly within (r_x, r_y) of p: x + 0.5 in (p - r, p + r).
-  ivec2 lo = max(ivec2(floor(s.center - s.extent.xy - 0.5)), ivec2(0));
-  ivec2 hi = min(ivec2(ceil(s.center + s.extent.xy - 0.5)), u_size - 1);
+  ivec2 lo, hi;
+  pixel_box(s.center, s.extent.xy, lo, hi);
+  lo = max(lo, ivec2(0));
+  hi = min(hi, u_size - 1);
   if (any(greaterThan(lo, hi))) return;
   ivec2 t0 = lo / u_tile, t1 = hi / u_tile;
   splats[3u * slot] = vec4(s.center, s.kernel.xy);
@@ -498,8 +508,10 @@ void main() {
       batch[4u * local + 2u] = e;
       batch[4u * local + 3u] = vec4(exp(-e.x * e.x * a.z), exp(-e.y * e.y * a.w), 0.0, 0.0);
       // The tile's cells that the splat's pixel box (as the prepare pass bins it) reaches.
-      ivec2 lo = max(ivec2(floor(a.xy - e.xy - 0.5)) - tile_at, ivec2(0));
-      ivec2 hi = min(ivec2(ceil(a.xy + e.xy - 0.5)) - tile_at, ivec2(TILE - 1));
+      ivec2 lo, hi;
+      pixel_box(a.xy, e.xy, lo, hi);
+      lo = max(lo - tile_at, ivec2(0));
+      hi = min(hi - tile_at, ivec2(TILE - 1));
       for (int cy = lo.y / CELL_H; cy <= hi.y / CELL_H; ++cy) {
         for (int cx = lo.x / CELL_W; cx <= hi.x / CELL_W; ++cx) {
           uint c_at = uint(cy * kCellsX + cx);

@@ -6,9 +6,13 @@
 
 namespace afr::gl_shaders {
 
+// pixel_box(): the pixels a splat's box reaches, as the prepare pass bins it to tiles and the
+// gather culls it to cells (the two must agree).
+extern const char* const kPixelBox;
 // The shaders below without a #version line are completed by splat_program_source(): the
-// version, then kSplatCommon (the uniforms and prepare_splat(): reprojection, tile filter,
-// coverage rule, Gaussian constants, cpu_reconstructor.cpp's phases 1 and 2), then the body.
+// version, kPixelBox, then kSplatCommon (the uniforms and prepare_splat(): reprojection, tile
+// filter, coverage rule, Gaussian constants, cpu_reconstructor.cpp's phases 1 and 2), then the
+// body.
 extern const char* const kSplatCommon;
 // Adaptive splats as points: the vertex shader prepares (with kSplatCommon), the fragment
 // shader weights; accumulates (sum w c, sum w) and (count, radius sum).
@@ -27,16 +31,16 @@ extern const char* const kNormaliseCompute;
 extern const char* const kPrepareCompute;  // with kSplatCommon
 extern const char* const kScanCompute;
 extern const char* const kScatterCompute;
-extern const char* const kGatherCompute;
+extern const char* const kGatherCompute;  // with kPixelBox
 // Read-back: the output image as RGB floats into a persistently mapped buffer.
 extern const char* const kPackCompute;
 // Shows the output texture in a window, image row 0 at the top.
 extern const char* const kBlitVertex;
 extern const char* const kBlitFragment;
 
-// "#version 430 core", kSplatCommon, then `body`.
+// "#version 430 core", kPixelBox, kSplatCommon, then `body`.
 inline std::string splat_program_source(const char* body) {
-  return std::string("#version 430 core\n") + kSplatCommon + body;
+  return std::string("#version 430 core\n") + kPixelBox + kSplatCommon + body;
 }
 
 }  // namespace afr::gl_shaders

@@ -74,7 +74,8 @@ struct GpuTimes {
   // The whole image: from the moment the GPU had finished everything before it to its last
   // command (GL_TIMESTAMP). A pass's time can include the tail of the image before it (its
   // timer starts when the GPU reaches it, not when the work before it is done), so this, not
-  // the passes' sum, is what the image costs the GPU.
+  // the passes' sum, bounds the image's GPU cost; it also holds any time the GPU waited for
+  // the CPU to send the image's commands (a CPU-bound display shows it in the first pass).
   double image_ms = 0.0;
   double total() const { return image_ms; }
 };
