@@ -89,6 +89,7 @@ struct Timing {
   double cpu = 0.0;      // median CPU time of the whole process (all its threads) per refresh
   double gpu = 0.0;      // median GPU time per refresh (timer queries); 0 for the CPU backend
   afr::GpuTimes passes;  // median of each pass
+  afr::CallTimes call;   // median of each phase of the call (GL backend)
 };
 
 double median_of(std::vector<double> v) {
@@ -206,6 +207,7 @@ Timing run(afr::Reconstructor& rec, afr::ImageExtent size, int repeats, int warm
   feed.fill({&rec});
   std::vector<double> ms, cpu;
   std::vector<afr::GpuTimes> gpu;
+  std::vector<afr::CallTimes> calls;
   afr::Image image;
   for (int frame = 0; frame < warmup + repeats; ++frame) {
     double t = 0.0;
@@ -215,12 +217,23 @@ Timing run(afr::Reconstructor& rec, afr::ImageExtent size, int repeats, int warm
     if (frame >= warmup) {
       ms.push_back(rec.frame_stats().milliseconds);
       cpu.push_back(process_cpu_ms() - c0);
+      calls.push_back(rec.frame_stats().call);
     }
     collect(rec.frame_stats().gpu, warmup, &gpu);
   }
   rec.finish();
   collect(rec.frame_stats().gpu, warmup, &gpu);
   Timing timing = summarize(ms, cpu);
+  const auto median_phase = [&](double afr::CallTimes::*phase) {
+    std::vector<double> v;
+    for (const afr::CallTimes& c : calls) v.push_back(c.*phase);
+    return median_of(v);
+  };
+  timing.call.wait = median_phase(&afr::CallTimes::wait);
+  timing.call.copy = median_phase(&afr::CallTimes::copy);
+  timing.call.prepare = median_phase(&afr::CallTimes::prepare);
+  timing.call.upload = median_phase(&afr::CallTimes::upload);
+  timing.call.passes = median_phase(&afr::CallTimes::passes);
   if (!gpu.empty() && gpu.back().timed) {
     const auto median_pass = [&](double afr::GpuTimes::*pass) {
       std::vector<double> v;
@@ -362,7 +375,7 @@ int main(int argc, char** argv) {
     fmt::print("|---|---|---|---|---|---|---|---|---|---|\n");
     std::vector<afr::GlSplat> splats;
     for (const std::string& text : splat_texts) splats.push_back(afr::parse_gl_splat(text));
-    std::vector<std::string> passes, checks;
+    std::vector<std::string> passes, phases, checks;
     for (const afr::ImageExtent size : sizes) {
       afr::ReconstructorConfig cfg;
       cfg.image = size;
@@ -397,6 +410,10 @@ int main(int argc, char** argv) {
             afr::GlReconstructor rec(cfg, gl, options);
             const Timing t = run(rec, size, gl_repeats, warmup, readback, 1);
             row(name, "-", t);
+            phases.push_back(
+                fmt::format("| {} | {}x{} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |", name,
+                            size.width, size.height, t.call.wait, t.call.copy, t.call.prepare,
+                            t.call.upload, t.call.passes));
             if (check) {
               const Agreement ag =
                   agreement(cfg, gl, options, int(std::thread::hardware_concurrency()));
@@ -426,6 +443,15 @@ int main(int argc, char** argv) {
       fmt::print("| backend | resolution | upload | bin | splat | fill | read-back | image |\n");
       fmt::print("|---|---|---|---|---|---|---|---|\n");
       for (const std::string& line : passes) fmt::print("{}\n", line);
+    }
+    if (!phases.empty()) {
+      fmt::print(
+          "\nThe GL backend's call by phase, median wall ms on the calling thread (wait: for an "
+          "image slot and any read-back; copy: new samples out of the store; prepare: counts, "
+          "tile field, filters; upload: into the staging ring; passes: the commands)\n\n");
+      fmt::print("| backend | resolution | wait | copy | prepare | upload | passes |\n");
+      fmt::print("|---|---|---|---|---|---|---|\n");
+      for (const std::string& line : phases) fmt::print("{}\n", line);
     }
     if (!checks.empty()) {
       fmt::print("\nThe GL image against the CPU backend's, same samples (8-bit sRGB levels)\n\n");

@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cstddef>
 
 namespace afr {
@@ -183,6 +184,8 @@ struct GlReconstructor::Impl {
   // Read back: the output packed by a compute pass into a persistently mapped buffer.
   GLuint pack = 0, readback = 0;
   void* readback_map = nullptr;
+  // The tile index map, built on the GPU from the tiles' pixel spans (TileField::spans).
+  GLuint index_map = 0, tile_spans = 0;
   size_t readback_bytes = 0;
   // A CPU copy of the ring, kept once stored_samples() asked for it.
   bool mirrored = false;
@@ -412,6 +415,10 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
                     "GL_ARB_buffer_storage)",
                     context_->version()));
   }
+  if (epoxy_gl_version() < 44 && !epoxy_has_gl_extension("GL_ARB_clear_texture")) {
+    throw Error(fmt::format("OpenGL {} cannot clear textures (4.4 or GL_ARB_clear_texture)",
+                            context_->version()));
+  }
   if (options_.tile != 4 && options_.tile != 8 && options_.tile != 16) {
     throw Error(fmt::format("GL reconstructor: gather tile {} is not 4, 8 or 16", options_.tile));
   }
@@ -434,6 +441,10 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
   m.normalise = compute_program(gl_shaders::kNormaliseCompute, "normalise");
   m.blit = graphics_program(gl_shaders::kBlitVertex, gl_shaders::kBlitFragment, "blit");
   m.pack = compute_program(gl_shaders::kPackCompute, "pack");
+  m.index_map = compute_program(gl_shaders::kIndexMapCompute, "index map");
+  glGenBuffers(1, &m.tile_spans);
+  // The map is built here from the tiles' spans: the field need not fill one on the CPU.
+  field_.set_index_map(false);
   if (options_.splat == GlSplat::kGather) {
     m.prepare = compute_program(
         gl_shaders::splat_program_source(gl_shaders::kPrepareCompute).c_str(), "prepare");
@@ -526,7 +537,7 @@ GlReconstructor::~GlReconstructor() {
     if (f != nullptr) glDeleteSync(f);
   }
   for (GLuint p : {m.splat, m.newest, m.pyramid, m.normalise, m.blit, m.pack, m.prepare, m.scan,
-                   m.scatter, m.gather}) {
+                   m.scatter, m.gather, m.index_map}) {
     glDeleteProgram(p);
   }
   for (GLuint* b : {&m.upload, &m.status, &m.splats, &m.splat_tiles, &m.lists, &m.readback}) {
@@ -536,6 +547,7 @@ GlReconstructor::~GlReconstructor() {
   glDeleteVertexArrays(1, &m.empty_vao);
   glDeleteBuffers(1, &m.samples);
   glDeleteBuffers(1, &m.tile_filters_buffer);
+  glDeleteBuffers(1, &m.tile_spans);
   glDeleteTextures(1, &m.tile_filters);
 }
 
@@ -547,6 +559,15 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
                                      Image* out) {
   context_->make_current();
   Impl& m = *impl_;
+  // The call's phases (FrameStats::call): each lap() returns the milliseconds since the last.
+  CallTimes call;
+  auto lap_start = std::chrono::steady_clock::now();
+  const auto lap = [&lap_start] {
+    const auto now = std::chrono::steady_clock::now();
+    const double ms = std::chrono::duration<double, std::milli>(now - lap_start).count();
+    lap_start = now;
+    return ms;
+  };
 
   // ---- This image's slot: the one kInFlight images back must be done (at most kInFlight in
   // flight); whatever else the GPU has finished reports its times and counts.
@@ -568,12 +589,20 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
   // Recorded once everything before it is done: the image's start (its end, in draw()).
   if (queries) glQueryCounter(f.stamps[0], GL_TIMESTAMP);
 
+  call.wait = lap();
   // ---- Only the new samples go to the GPU, into their ring slots.
   const SampleStore::Delta delta = store_.copy_since(m.seen, &m.staging);
+  call.copy = lap();
   FrameSetup setup;
   // (The upload runs while the base class counts the new samples on another thread.)
-  prepare_frame(time, width, height, delta, m.staging, &setup,
-                [&] { timed(kUpload, [&] { m.upload_samples(delta, store_.capacity()); }); });
+  prepare_frame(time, width, height, delta, m.staging, &setup, [&] {
+    const auto upload_start = std::chrono::steady_clock::now();
+    timed(kUpload, [&] { m.upload_samples(delta, store_.capacity()); });
+    call.upload =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - upload_start)
+            .count();
+  });
+  call.prepare = lap() - call.upload;
   m.seen = delta.end;
   m.stored = delta.stored;
   // From here on the image is the grid: the viewport with its margin. The output is its
@@ -593,10 +622,27 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
   }
   const bool resized = m.resize(setup, options_.tile);
   if (setup.field_changed || resized) {
-    glBindTexture(GL_TEXTURE_2D, m.tile_index);
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, width, height, GL_RED_INTEGER, GL_UNSIGNED_INT,
-                    field_.index_map().data());
+    // The tile index map from the tiles' spans: cleared to "no tile", then each span's pixels
+    // take the highest index that covers them (TileField::index_map's rule).
+    const std::vector<PixelRect>& spans = field_.spans();
+    static_assert(sizeof(PixelRect) == 4 * sizeof(int32_t));
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, m.tile_spans);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(spans.size() * sizeof(PixelRect)),
+                 spans.data(), GL_STREAM_DRAW);
+    const GLuint none = 0;
+    glClearTexImage(m.tile_index, 0, GL_RED_INTEGER, GL_UNSIGNED_INT, &none);
+    glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
+    if (spans.size() > 1) {
+      glUseProgram(m.index_map);
+      glUniform1ui(glGetUniformLocation(m.index_map, "u_tiles"), GLuint(spans.size()));
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m.tile_spans);
+      glBindImageTexture(0, m.tile_index, 0, GL_FALSE, 0, GL_READ_WRITE, GL_R32UI);
+      // Tiles across work groups; rows of a tile across 16 of them (a tile of the fewest,
+      // largest tiles is still spread over many invocations).
+      glDispatchCompute(GLuint(std::min<size_t>(spans.size() - 1, 65535)), 16, 1);
+      glUseProgram(0);
+    }
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
   }
   glBindBuffer(GL_TEXTURE_BUFFER, m.tile_filters_buffer);
   glBufferData(GL_TEXTURE_BUFFER, GLsizeiptr(setup.filters.size() * sizeof(TileFilter)),
@@ -838,6 +884,7 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     glFlush();
   };
   draw();
+  call.passes = lap();
 
   if (out != nullptr) {
     // The caller wants the pixels now: wait for this image, then copy them out. Were the
@@ -852,8 +899,10 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
 
     std::copy_n(static_cast<const glm::vec3*>(m.readback_map), out->pixels.size(),
                 out->pixels.data());
+    call.wait += lap();
   }
   m.report(&frame_);
+  frame_.call = call;
   if (current_mode == ReconstructionMode::kTraditionalFrameless) {
     m.have_coverage = false;
   } else {

@@ -549,6 +549,26 @@ void main() {
 
 // The output image into a buffer the CPU maps (read-back): RGB floats, row 0 first, as
 // afr::Image holds them.
+const char* const kIndexMapCompute = R"(#version 430 core
+// Work group (x, y): tiles x, x + X, ...; rows y, y + Y, ... of each. The map was cleared to 0
+// ("no tile"); where spans overlap the highest index wins, as the newest snapshot's tiles
+// come last in TileField::tiles().
+layout(local_size_x = 256) in;
+layout(r32ui, binding = 0) uniform coherent uimage2D u_map;
+layout(std430, binding = 0) readonly buffer Spans { ivec4 spans[]; };  // x0, y0, x1, y1
+uniform uint u_tiles;  // entries of spans, 0 included
+void main() {
+  for (uint t = gl_WorkGroupID.x + 1u; t < u_tiles; t += gl_NumWorkGroups.x) {
+    ivec4 s = spans[t];
+    for (int y = s.y + int(gl_WorkGroupID.y); y < s.w; y += int(gl_NumWorkGroups.y)) {
+      for (int x = s.x + int(gl_LocalInvocationID.x); x < s.z; x += 256) {
+        imageAtomicMax(u_map, ivec2(x, y), t);
+      }
+    }
+  }
+}
+)";
+
 const char* const kPackCompute = R"(#version 430 core
 layout(local_size_x = 16, local_size_y = 16) in;
 layout(rgba32f, binding = 0) uniform readonly image2D u_image;

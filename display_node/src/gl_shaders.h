@@ -32,6 +32,8 @@ extern const char* const kPrepareCompute;  // with kSplatCommon
 extern const char* const kScanCompute;
 extern const char* const kScatterCompute;
 extern const char* const kGatherCompute;  // with kPixelBox
+// The tile field's per-pixel tile index (TileField::index_map) from its tiles' pixel spans.
+extern const char* const kIndexMapCompute;
 // Read-back: the output image as RGB floats into a persistently mapped buffer.
 extern const char* const kPackCompute;
 // Shows the output texture in a window, image row 0 at the top.

@@ -104,7 +104,12 @@ bool TileField::update(const PixelGrid& grid) {
   grid_ = grid;
   const int width = grid.width, height = grid.height;
   tiles_.assign(1, FieldTile{});
-  index_map_.assign(size_t(width) * size_t(height), 0u);
+  spans_.assign(1, PixelRect{});
+  if (build_index_map_) {
+    index_map_.assign(size_t(width) * size_t(height), 0u);
+  } else {
+    index_map_.clear();
+  }
   const double sx = grid.scale_x, sy = grid.scale_y;
   // The part of the sampling image the grid covers, rounded out to whole pixels: tiles
   // outside it reach no pixel and are not kept.
@@ -118,6 +123,8 @@ bool TileField::update(const PixelGrid& grid) {
     int i0, i1, j0, j1;
     pixel_span(rect.x0, rect.x1, sx, grid.origin_x, width, &i0, &i1);
     pixel_span(rect.y0, rect.y1, sy, grid.origin_y, height, &j0, &j1);
+    spans_.push_back(PixelRect{i0, j0, i1, j1});
+    if (!build_index_map_) return;
     for (int j = j0; j < j1; ++j) {
       uint32_t* row = index_map_.data() + size_t(j) * size_t(width);
       std::fill(row + i0, row + i1, index);

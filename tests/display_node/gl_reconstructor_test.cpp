@@ -71,10 +71,17 @@ TEST(GlReconstructorTest, AgreesWithTheCpuBackendOnRandomSampleSets) {
                                                         t1, frame % 4 == 0)
                                     : test::random_batch(rng, size_t(W * H), W, H, t, t1);
           const TilingSnapshot tiling = test::random_tiling(rng, W, H, 8 + 4 * frame, t1);
+          // A second sampler's tiles over the lower right, older or newer than the first's:
+          // where they overlap the newest wins (the GL backend builds that map itself).
+          TilingSnapshot other =
+              test::random_tiling(rng, W, H, 5 + frame, t1 + (frame % 2 ? 0.1 : -0.1));
+          other.sampler_id = 2;
+          other.region = PixelRect{W / 3, H / 4, W, H};
           for (Reconstructor* r :
                {static_cast<Reconstructor*>(&cpu), static_cast<Reconstructor*>(&gl)}) {
             r->add_batch(b);
             r->set_tiling(tiling);
+            r->set_tiling(other);
           }
           t = t1;
           const Camera view = Camera::look_at({0.1 * frame + 0.2, 0.55, -0.1}, {0.0, 0.1, -5.0},

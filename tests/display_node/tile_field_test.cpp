@@ -1,7 +1,9 @@
 #include <afr/display/tile_field.h>
 
 #include <gtest/gtest.h>
+#include <glm/glm.hpp>
 
+#include <algorithm>
 #include <limits>
 
 namespace afr {
@@ -160,6 +162,46 @@ TEST(TileFieldTest, ScaledOutputsMapPixelCentersIntoTiles) {
   EXPECT_FLOAT_EQ(field.at(1, 1).G_x, 0.1f);
   EXPECT_FLOAT_EQ(field.at(2, 0).G_x, 0.2f);
   EXPECT_FLOAT_EQ(field.at(7, 1).G_x, 0.2f);
+}
+
+// A GPU backend builds the map from spans(): each pixel takes the highest tile index whose span
+// holds it. That rule must give the CPU's map exactly, overlaps and lattice pieces included.
+TEST(TileFieldTest, SpansGiveTheIndexMapByTheHighestIndexThatCoversAPixel) {
+  for (const glm::ivec2 size : {glm::ivec2(100, 70), glm::ivec2(37, 150)}) {
+    TileField with_map(100, 80), without(100, 80);
+    without.set_index_map(false);
+    std::vector<TileInfo> left, right;
+    for (int y = 0; y < 80; y += 10) {
+      for (int x = 0; x < 60; x += 15) left.push_back(tile(x, y, x + 15, y + 10, 0.1f));
+    }
+    right.push_back(tile(40, 0, 100, 80, 0.2f));  // larger than the lattice: cut into pieces
+    right.push_back(tile(45, 30, 70, 50, 0.3f));
+    for (TileField* f : {&with_map, &without}) {
+      f->set_tiling(snapshot(1, 2.0, {0, 0, 60, 80}, left));
+      f->set_tiling(snapshot(2, 1.0, {40, 0, 100, 80}, right));  // older: loses the overlap
+    }
+    EXPECT_TRUE(with_map.update(size.x, size.y));
+    EXPECT_TRUE(without.update(size.x, size.y));
+    EXPECT_TRUE(without.index_map().empty());
+    ASSERT_EQ(with_map.spans(), without.spans());
+    ASSERT_EQ(with_map.spans().size(), with_map.tiles().size());
+    std::vector<uint32_t> map(size_t(size.x) * size_t(size.y), 0u);
+    for (uint32_t i = 1; i < with_map.spans().size(); ++i) {
+      const PixelRect& s = with_map.spans()[i];
+      for (int y = s.y0; y < s.y1; ++y) {
+        for (int x = s.x0; x < s.x1; ++x) {
+          uint32_t& m = map[size_t(y) * size_t(size.x) + size_t(x)];
+          m = std::max(m, i);
+        }
+      }
+    }
+    EXPECT_EQ(map, with_map.index_map());
+    // Sampling pixel (50, 35) lies in both samplers' tiles: the newer snapshot's (sampler 1).
+    const int gx = int(50.5 * size.x / 100.0), gy = int(35.5 * size.y / 80.0);
+    EXPECT_EQ(with_map.at(gx, gy).sampler_id, 1u);
+    const int hx = int(80.5 * size.x / 100.0);
+    EXPECT_EQ(with_map.at(hx, gy).sampler_id, 2u);
+  }
 }
 
 }  // namespace

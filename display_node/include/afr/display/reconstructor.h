@@ -80,6 +80,16 @@ struct GpuTimes {
   double total() const { return image_ms; }
 };
 
+// Where a GPU backend's reconstruct() call spends its wall time, milliseconds, by phase: what
+// bounds the rate when the CPU, not the GPU, is the slower side.
+struct CallTimes {
+  double wait = 0.0;     // for the image slot kInFlight images back, and for a read-back
+  double copy = 0.0;     // the new samples out of the store
+  double prepare = 0.0;  // the base class's share: sample counts, tile field, filters
+  double upload = 0.0;   // the new samples into the staging ring and their copy commands
+  double passes = 0.0;   // the index map, the filters and every pass's commands
+};
+
 // What the last reconstruct() did.
 struct FrameStats {
   uint64_t stored = 0;         // samples in the store
@@ -96,6 +106,7 @@ struct FrameStats {
   float default_rate = 0.0f;      // measured samples per pixel per second, for unknown tiles
   double milliseconds = 0.0;      // wall time of the reconstruct() call
   GpuTimes gpu;                   // GPU backend: the latest image the GPU has finished
+  CallTimes call;                 // GPU backend: this call's phases
 };
 
 // One tile of the last image as the filter saw it (Reconstructor::tile_states()).

@@ -92,8 +92,15 @@ class TileField {
   // tiles larger than kRateLattice are here as their pieces.
   const std::vector<FieldTile>& tiles() const { return tiles_; }
   // width x height tile indices, row 0 at the top. Where tiles of several snapshots overlap
-  // (regions being reassigned), the newest snapshot wins.
+  // (regions being reassigned), the newest snapshot wins: the highest index. Empty when the
+  // map is not built (set_index_map(false): a GPU backend builds it from spans()).
   const std::vector<uint32_t>& index_map() const { return index_map_; }
+  // Per tile, the grid pixels its rectangle covers, [x0, x1) x [y0, y1) (entry 0 empty):
+  // pixel p of the map holds the highest i whose span contains p, or 0.
+  const std::vector<PixelRect>& spans() const { return spans_; }
+  // Whether update() fills index_map() (default true). A backend that builds the map itself
+  // turns it off and saves a pass over every pixel of the grid whenever the tiling changes.
+  void set_index_map(bool build) { build_index_map_ = build; }
   const FieldTile& at(int x, int y) const {
     return tiles_[index_map_[size_t(y) * size_t(grid_.width) + size_t(x)]];
   }
@@ -111,7 +118,9 @@ class TileField {
   uint64_t built_version_ = ~uint64_t(0);
   PixelGrid grid_;
   std::vector<FieldTile> tiles_;
+  std::vector<PixelRect> spans_;
   std::vector<uint32_t> index_map_;
+  bool build_index_map_ = true;
 };
 
 // Section 5.1's local rate R_l, measured: how many samples of the store lie in each tile of
