@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace afr {
@@ -29,6 +30,8 @@ std::string_view to_string(AnimatedPath path) {
       return "rotation";
     case AnimatedPath::kScale:
       return "scale";
+    case AnimatedPath::kWeights:
+      return "weights";
   }
   return "?";
 }
@@ -36,10 +39,35 @@ std::string_view to_string(AnimatedPath path) {
 void AnimationChannel::validate(std::string_view what) const {
   if (times.empty()) throw Error(fmt::format("{}: animation channel has no keyframes", what));
   const size_t per_key = interpolation == Interpolation::kCubicSpline ? 3 : 1;
-  if (values.size() != times.size() * per_key) {
-    throw Error(fmt::format("{}: {} {} channel has {} keyframes but {} values (expected {})", what,
-                            to_string(interpolation), to_string(path), times.size(), values.size(),
-                            times.size() * per_key));
+  if (path == AnimatedPath::kWeights) {
+    if (weight_count == 0) {
+      throw Error(fmt::format("{}: weights channel animates no morph weights", what));
+    }
+    if (!values.empty()) {
+      throw Error(fmt::format("{}: weights channel has {} vector values (its values are weights)",
+                              what, values.size()));
+    }
+    if (weights.size() != times.size() * per_key * weight_count) {
+      throw Error(fmt::format(
+          "{}: {} weights channel has {} keyframes of {} weights but {} values (expected {})", what,
+          to_string(interpolation), times.size(), weight_count, weights.size(),
+          times.size() * per_key * weight_count));
+    }
+    for (size_t i = 0; i < weights.size(); ++i) {
+      if (!std::isfinite(weights[i])) {
+        throw Error(fmt::format("{}: morph weight {} of keyframe value {} is not finite", what,
+                                i % weight_count, i / weight_count));
+      }
+    }
+  } else {
+    if (!weights.empty() || weight_count != 0) {
+      throw Error(fmt::format("{}: {} channel has morph weights", what, to_string(path)));
+    }
+    if (values.size() != times.size() * per_key) {
+      throw Error(fmt::format("{}: {} {} channel has {} keyframes but {} values (expected {})",
+                              what, to_string(interpolation), to_string(path), times.size(),
+                              values.size(), times.size() * per_key));
+    }
   }
   for (size_t i = 0; i < times.size(); ++i) {
     if (!std::isfinite(times[i])) {
@@ -78,42 +106,92 @@ glm::dvec4 slerp_xyzw(glm::dvec4 a, glm::dvec4 b, double s) {
   return (std::sin((1.0 - s) * angle) * a + std::sin(s * angle) * b) / sin_angle;
 }
 
+// Where time t falls among the keys: on key k (`hold`: before the first key, at or after the
+// last, or a single key), or between keys k and k + 1 at fraction s of their interval td.
+struct KeySpan {
+  size_t k = 0;
+  double s = 0.0;
+  double td = 0.0;
+  bool hold = true;
+};
+
+KeySpan locate(const std::vector<double>& times, double t) {
+  const size_t n = times.size();
+  KeySpan span;
+  if (n == 1 || !(t > times.front())) return span;  // also catches NaN t
+  if (t >= times.back()) {
+    span.k = n - 1;
+    return span;
+  }
+  // The last key at or before t: times[k] <= t < times[k + 1].
+  span.k = size_t(std::upper_bound(times.begin(), times.end(), t) - times.begin()) - 1;
+  span.td = times[span.k + 1] - times[span.k];
+  span.s = (t - times[span.k]) / span.td;
+  span.hold = false;
+  return span;
+}
+
+// The Hermite basis of glTF's cubic spline at s: weights of p0, m0, p1, m1.
+std::array<double, 4> hermite(double s) {
+  const double s2 = s * s;
+  const double s3 = s2 * s;
+  return {2.0 * s3 - 3.0 * s2 + 1.0, s3 - 2.0 * s2 + s, -2.0 * s3 + 3.0 * s2, s3 - s2};
+}
+
 }  // namespace
 
 glm::dvec4 AnimationChannel::evaluate(double t) const {
   const bool cubic = interpolation == Interpolation::kCubicSpline;
-  const size_t n = times.size();
   auto key_value = [&](size_t k) { return cubic ? values[3 * k + 1] : values[k]; };
   const bool rotation = path == AnimatedPath::kRotation;
   auto finish = [&](const glm::dvec4& v) { return rotation ? normalized_quat(v) : v; };
 
-  if (n == 1 || !(t > times.front())) return finish(key_value(0));  // also catches NaN t
-  if (t >= times.back()) return finish(key_value(n - 1));
-
-  // The last key at or before t: times[k] <= t < times[k + 1].
-  const size_t k = size_t(std::upper_bound(times.begin(), times.end(), t) - times.begin()) - 1;
-  const double td = times[k + 1] - times[k];
-  const double s = (t - times[k]) / td;
-
+  const KeySpan span = locate(times, t);
+  const size_t k = span.k;
+  if (span.hold) return finish(key_value(k));
   switch (interpolation) {
     case Interpolation::kStep:
       return finish(values[k]);
     case Interpolation::kLinear:
-      if (rotation) return normalized_quat(slerp_xyzw(values[k], values[k + 1], s));
-      return glm::mix(values[k], values[k + 1], s);
+      if (rotation) return normalized_quat(slerp_xyzw(values[k], values[k + 1], span.s));
+      return glm::mix(values[k], values[k + 1], span.s);
     case Interpolation::kCubicSpline: {
       // Hermite spline with per-second tangents scaled by the key interval.
-      const glm::dvec4 p0 = values[3 * k + 1];
-      const glm::dvec4 m0 = td * values[3 * k + 2];
-      const glm::dvec4 p1 = values[3 * (k + 1) + 1];
-      const glm::dvec4 m1 = td * values[3 * (k + 1)];
-      const double s2 = s * s;
-      const double s3 = s2 * s;
-      return finish((2.0 * s3 - 3.0 * s2 + 1.0) * p0 + (s3 - 2.0 * s2 + s) * m0 +
-                    (-2.0 * s3 + 3.0 * s2) * p1 + (s3 - s2) * m1);
+      const std::array<double, 4> h = hermite(span.s);
+      return finish(h[0] * values[3 * k + 1] + h[1] * (span.td * values[3 * k + 2]) +
+                    h[2] * values[3 * (k + 1) + 1] + h[3] * (span.td * values[3 * (k + 1)]));
     }
   }
   return finish(key_value(0));
+}
+
+void AnimationChannel::evaluate_weights(double t, float* out) const {
+  const size_t n = weight_count;
+  const bool cubic = interpolation == Interpolation::kCubicSpline;
+  // The weights of value v (key k's value is v = k, or 3 k + 1 for CUBICSPLINE).
+  auto value = [&](size_t v) { return &weights[v * n]; };
+  const KeySpan span = locate(times, t);
+  const size_t k = span.k;
+  if (span.hold || interpolation == Interpolation::kStep) {
+    const double* w = value(cubic ? 3 * k + 1 : k);
+    for (size_t i = 0; i < n; ++i) out[i] = float(w[i]);
+    return;
+  }
+  if (interpolation == Interpolation::kLinear) {
+    const double* a = value(k);
+    const double* b = value(k + 1);
+    for (size_t i = 0; i < n; ++i) out[i] = float(a[i] + span.s * (b[i] - a[i]));
+    return;
+  }
+  const std::array<double, 4> h = hermite(span.s);
+  const double* p0 = value(3 * k + 1);
+  const double* m0 = value(3 * k + 2);
+  const double* p1 = value(3 * (k + 1) + 1);
+  const double* m1 = value(3 * (k + 1));
+  for (size_t i = 0; i < n; ++i) {
+    out[i] =
+        float(h[0] * p0[i] + h[1] * (span.td * m0[i]) + h[2] * p1[i] + h[3] * (span.td * m1[i]));
+  }
 }
 
 }  // namespace afr

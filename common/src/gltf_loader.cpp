@@ -34,6 +34,9 @@ constexpr uint64_t kMaxFileBytes = uint64_t(1) << 31;
 // bytes behind its count, so the count alone must not decide how much memory is allocated.
 constexpr size_t kMaxAccessorCount = size_t(1) << 26;
 constexpr size_t kMaxAccessorCountWithoutView = size_t(1) << 22;
+// Morph target displacements (positions and normals) in one file: targets may share one
+// accessor, so the accessor limits alone do not bound their memory.
+constexpr size_t kMaxMorphDisplacements = size_t(1) << 24;
 
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
@@ -154,9 +157,16 @@ class Loader {
   std::span<const uint8_t> buffer_view_bytes(int view, const std::string& what) const;
   std::vector<float> read_floats(int index, int type, const std::string& what);
   std::vector<uint32_t> read_indices(int index, const std::string& what);
+  std::vector<std::array<uint16_t, 4>> read_joints(int index, const std::string& what);
+  std::vector<glm::vec3> read_vec3s(int index, size_t count, const std::string& attribute,
+                                    const std::string& what);
 
   void load_meshes();
   bool load_primitive(const tinygltf::Primitive& in, const std::string& what, Primitive* out);
+  void load_skinning(const tinygltf::Primitive& in, const std::string& what, Primitive* out);
+  void load_targets(const tinygltf::Primitive& in, const std::string& what, Primitive* out);
+  void load_skins();
+  void drop_unused_joints();
   void load_materials();
   std::optional<glm::dmat3> read_texture_transform(const tinygltf::TextureInfo& info,
                                                    const std::string& what, int* tex_coord);
@@ -182,6 +192,7 @@ class Loader {
   std::vector<int> image_to_texture_;  // glTF image -> Scene::textures, -1 until decoded
   // Per glTF material: the KHR_texture_transform of its base-color texture, if any.
   std::vector<std::optional<glm::dmat3>> uv_transforms_;
+  size_t morph_displacements_ = 0;  // read so far, at most kMaxMorphDisplacements
 };
 
 void Loader::warn_once(const std::string& feature, const std::string& message) {
@@ -530,6 +541,42 @@ std::vector<uint32_t> Loader::read_indices(int index, const std::string& what) {
   return indices;
 }
 
+// JOINTS_0: four unsigned bytes or shorts per vertex (glTF 2.0, 3.7.3.1).
+std::vector<std::array<uint16_t, 4>> Loader::read_joints(int index, const std::string& what) {
+  const tinygltf::Accessor* a = nullptr;
+  const std::vector<uint8_t> bytes = gather(index, TINYGLTF_TYPE_VEC4, what, &a);
+  const bool bytes_type = a->componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
+  if ((!bytes_type && a->componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT) ||
+      a->normalized) {
+    fail(fmt::format(
+        "accessor {} ({}) has componentType {}{}, not unsigned bytes or shorts as joints must be",
+        index, what, a->componentType, a->normalized ? " (normalized)" : ""));
+  }
+  std::vector<std::array<uint16_t, 4>> joints(a->count);
+  for (size_t v = 0; v < joints.size(); ++v) {
+    for (size_t c = 0; c < 4; ++c) {
+      if (bytes_type) {
+        joints[v][c] = bytes[4 * v + c];
+      } else {
+        std::memcpy(&joints[v][c], &bytes[2 * (4 * v + c)], 2);
+      }
+    }
+  }
+  return joints;
+}
+
+// A VEC3 attribute of `count` elements.
+std::vector<glm::vec3> Loader::read_vec3s(int index, size_t count, const std::string& attribute,
+                                          const std::string& what) {
+  const std::vector<float> f = read_floats(index, TINYGLTF_TYPE_VEC3, what + " " + attribute);
+  if (f.size() != 3 * count) {
+    fail(fmt::format("{} has {} {} values for {} positions", what, f.size() / 3, attribute, count));
+  }
+  std::vector<glm::vec3> v(count);
+  for (size_t i = 0; i < count; ++i) v[i] = {f[3 * i], f[3 * i + 1], f[3 * i + 2]};
+  return v;
+}
+
 // ---- Meshes ----
 
 void Loader::load_meshes() {
@@ -537,6 +584,22 @@ void Loader::load_meshes() {
     const tinygltf::Mesh& in = model_.meshes[m];
     Mesh mesh;
     mesh.name = in.name;
+    // Every primitive of a mesh has the same number of morph targets, one per mesh weight.
+    const size_t targets = in.primitives.empty() ? 0 : in.primitives[0].targets.size();
+    for (size_t k = 0; k < in.primitives.size(); ++k) {
+      if (in.primitives[k].targets.size() != targets) {
+        fail(fmt::format("mesh {} primitive {} has {} morph targets, but primitive 0 has {}", m, k,
+                         in.primitives[k].targets.size(), targets));
+      }
+    }
+    if (!in.weights.empty() && in.weights.size() != targets) {
+      fail(fmt::format("mesh {} has {} morph weights for {} morph targets", m, in.weights.size(),
+                       targets));
+    }
+    if (!is_finite(in.weights))
+      fail(fmt::format("mesh {} has a morph weight that is not finite", m));
+    mesh.weights.assign(targets, 0.0f);
+    for (size_t k = 0; k < in.weights.size(); ++k) mesh.weights[k] = float(in.weights[k]);
     for (size_t k = 0; k < in.primitives.size(); ++k) {
       Primitive primitive;
       if (load_primitive(in.primitives[k], fmt::format("mesh {} primitive {}", m, k), &primitive)) {
@@ -558,13 +621,16 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
         fmt::format("primitives of mode {} (points or lines) are not supported (skipped)", mode));
     return false;
   }
-  if (!in.targets.empty()) {
-    warn_once("morph targets", "morph targets are not supported (the base shape is used)");
-  }
   for (const auto& [name, accessor] : in.attributes) {
     if (name.rfind("COLOR_", 0) == 0) {
       warn_once("vertex colors",
                 fmt::format("vertex colors ({}) are not supported (ignored)", name));
+    }
+    if (name.rfind("JOINTS_", 0) == 0 && name != "JOINTS_0") {
+      warn_once("more joints",
+                fmt::format("more than 4 joint influences per vertex ({}) are not supported: the "
+                            "4 of JOINTS_0 are used, their weights renormalised",
+                            name));
     }
   }
   if (in.material < -1 || in.material >= int(model_.materials.size())) {
@@ -603,6 +669,8 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
     out->uvs.resize(vertex_count);
     for (size_t i = 0; i < vertex_count; ++i) out->uvs[i] = {t[2 * i], t[2 * i + 1]};
   }
+  load_skinning(in, what, out);
+  load_targets(in, what, out);
 
   std::vector<uint32_t> indices;
   if (in.indices >= 0) {
@@ -640,6 +708,86 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
   if (out->indices.empty()) return false;
   if (out->normals.empty()) generate_normals(out);
   return true;
+}
+
+// JOINTS_0 and WEIGHTS_0. Weights are renormalised to sum to 1 (as viewers do: quantized
+// weights rarely sum to 1 exactly, and JOINTS_1 influences are dropped); a vertex whose weights
+// sum to 0 follows its first joint.
+void Loader::load_skinning(const tinygltf::Primitive& in, const std::string& what, Primitive* out) {
+  const auto joints = in.attributes.find("JOINTS_0");
+  const auto weights = in.attributes.find("WEIGHTS_0");
+  if (joints == in.attributes.end() && weights == in.attributes.end()) return;
+  if (joints == in.attributes.end() || weights == in.attributes.end()) {
+    fail(fmt::format("{} has {} but no {}", what,
+                     joints == in.attributes.end() ? "WEIGHTS_0" : "JOINTS_0",
+                     joints == in.attributes.end() ? "JOINTS_0" : "WEIGHTS_0"));
+  }
+  const size_t vertex_count = out->positions.size();
+  out->joints = read_joints(joints->second, what + " JOINTS_0");
+  if (out->joints.size() != vertex_count) {
+    fail(fmt::format("{} has {} JOINTS_0 values for {} positions", what, out->joints.size(),
+                     vertex_count));
+  }
+  const std::vector<float> w =
+      read_floats(weights->second, TINYGLTF_TYPE_VEC4, what + " WEIGHTS_0");
+  const tinygltf::Accessor& wa = model_.accessors[size_t(weights->second)];
+  if (wa.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT &&
+      !(wa.normalized && (wa.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ||
+                          wa.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT))) {
+    fail(
+        fmt::format("accessor {} ({} WEIGHTS_0) has componentType {}{}: weights are floats or "
+                    "normalized unsigned bytes or shorts",
+                    weights->second, what, wa.componentType, wa.normalized ? " (normalized)" : ""));
+  }
+  if (w.size() != 4 * vertex_count) {
+    fail(fmt::format("{} has {} WEIGHTS_0 values for {} positions", what, w.size() / 4,
+                     vertex_count));
+  }
+  out->joint_weights.resize(vertex_count);
+  for (size_t v = 0; v < vertex_count; ++v) {
+    glm::vec4 jw(w[4 * v], w[4 * v + 1], w[4 * v + 2], w[4 * v + 3]);
+    if (jw.x < 0.0f || jw.y < 0.0f || jw.z < 0.0f || jw.w < 0.0f) {
+      fail(fmt::format("{} WEIGHTS_0 of vertex {} has a negative weight", what, v));
+    }
+    const float sum = jw.x + jw.y + jw.z + jw.w;
+    if (sum > 0.0f) {
+      jw /= sum;
+    } else {
+      warn_once("zero joint weights",
+                "vertices whose joint weights sum to 0 follow their first joint");
+      jw = glm::vec4(1.0f, 0.0f, 0.0f, 0.0f);
+    }
+    out->joint_weights[v] = jw;
+  }
+}
+
+// Morph targets: POSITION and NORMAL displacements (TANGENT is not read: afr has no normal
+// maps; other attributes warn).
+void Loader::load_targets(const tinygltf::Primitive& in, const std::string& what, Primitive* out) {
+  const size_t vertex_count = out->positions.size();
+  out->targets.resize(in.targets.size());
+  for (size_t k = 0; k < in.targets.size(); ++k) {
+    const std::string where = fmt::format("{} morph target {}", what, k);
+    MorphTarget& target = out->targets[k];
+    for (const auto& [name, accessor] : in.targets[k]) {
+      if (name != "POSITION" && name != "NORMAL") {
+        if (name != "TANGENT") {
+          warn_once("target " + name,
+                    fmt::format("morph targets of {} are not supported (ignored)", name));
+        }
+        continue;
+      }
+      morph_displacements_ += vertex_count;
+      if (morph_displacements_ > kMaxMorphDisplacements) {
+        fail(
+            fmt::format("{}: the file's morph targets displace more than {} vertex attributes, "
+                        "more than afr accepts",
+                        where, kMaxMorphDisplacements));
+      }
+      std::vector<glm::vec3> d = read_vec3s(accessor, vertex_count, name, where);
+      (name == "POSITION" ? target.positions : target.normals) = std::move(d);
+    }
+  }
 }
 
 // ---- Materials and textures ----
@@ -977,8 +1125,21 @@ void Loader::load_nodes() {
                        model_.cameras.size()));
     }
     node.camera = in.camera >= 0 ? camera_map_[size_t(in.camera)] : -1;
-    if (in.skin >= 0 || !model_.skins.empty()) {
-      warn_once("skins", "skins are not supported (meshes are shown in their bind pose)");
+    if (in.skin < -1 || in.skin >= int(model_.skins.size())) {
+      fail(fmt::format("{} refers to skin {}, but there are {}", what, in.skin,
+                       model_.skins.size()));
+    }
+    if (in.skin >= 0 && in.mesh < 0) fail(fmt::format("{} has skin {} but no mesh", what, in.skin));
+    node.skin = in.skin;
+    if (!in.weights.empty()) {
+      const size_t targets = in.mesh >= 0 ? scene_.meshes[size_t(in.mesh)].weights.size() : 0;
+      if (in.weights.size() != targets) {
+        fail(fmt::format("{} has {} morph weights, but {} {} morph targets", what,
+                         in.weights.size(), in.mesh >= 0 ? "its mesh has" : "it has no mesh and",
+                         targets));
+      }
+      if (!is_finite(in.weights)) fail(what + " has a morph weight that is not finite");
+      node.weights.assign(in.weights.begin(), in.weights.end());
     }
     if (const auto ext = in.extensions.find("KHR_lights_punctual"); ext != in.extensions.end()) {
       const int light = ext->second.Has("light") && ext->second.Get("light").IsInt()
@@ -1037,6 +1198,61 @@ void Loader::load_nodes() {
   }
 }
 
+// ---- Skins ----
+
+void Loader::load_skins() {
+  for (size_t k = 0; k < model_.skins.size(); ++k) {
+    const tinygltf::Skin& in = model_.skins[k];
+    const std::string what = fmt::format("skin {}", k);
+    Skin skin;
+    skin.name = in.name;
+    if (in.joints.empty()) fail(what + " has no joints");
+    for (int joint : in.joints) {
+      if (joint < 0 || size_t(joint) >= model_.nodes.size()) {
+        fail(fmt::format("{} has joint node {}, but there are {} nodes", what, joint,
+                         model_.nodes.size()));
+      }
+    }
+    skin.joints = in.joints;
+    if (in.skeleton < -1 || in.skeleton >= int(model_.nodes.size())) {
+      fail(fmt::format("{} has skeleton node {}, but there are {} nodes", what, in.skeleton,
+                       model_.nodes.size()));
+    }
+    skin.skeleton = in.skeleton;
+    // Without inverse bind matrices, each is the identity (glTF 2.0, 5.29).
+    skin.inverse_bind_matrices.assign(in.joints.size(), glm::dmat4(1.0));
+    if (in.inverseBindMatrices >= 0) {
+      const std::vector<float> m =
+          read_floats(in.inverseBindMatrices, TINYGLTF_TYPE_MAT4, what + " inverseBindMatrices");
+      if (m.size() != 16 * in.joints.size()) {
+        fail(fmt::format("{} has {} inverse bind matrices for {} joints", what, m.size() / 16,
+                         in.joints.size()));
+      }
+      for (size_t j = 0; j < in.joints.size(); ++j) {
+        for (int c = 0; c < 4; ++c) {
+          for (int r = 0; r < 4; ++r) skin.inverse_bind_matrices[j][c][r] = m[16 * j + 4 * c + r];
+        }
+      }
+    }
+    scene_.skins.push_back(std::move(skin));
+  }
+}
+
+// Joints and weights of meshes that no skinned node shows are never read: not kept.
+void Loader::drop_unused_joints() {
+  std::vector<char> skinned(scene_.meshes.size(), 0);
+  for (const Node& n : scene_.nodes) {
+    if (n.skin >= 0 && n.mesh >= 0) skinned[size_t(n.mesh)] = 1;
+  }
+  for (size_t m = 0; m < scene_.meshes.size(); ++m) {
+    if (skinned[m]) continue;
+    for (Primitive& p : scene_.meshes[m].primitives) {
+      p.joints = {};
+      p.joint_weights = {};
+    }
+  }
+}
+
 // ---- Animations ----
 
 void Loader::load_animations() {
@@ -1068,12 +1284,15 @@ void Loader::load_animations() {
         value_type = TINYGLTF_TYPE_VEC4;
       } else if (in.target_path == "scale") {
         channel.path = AnimatedPath::kScale;
+      } else if (in.target_path == "weights") {
+        channel.path = AnimatedPath::kWeights;
+        value_type = TINYGLTF_TYPE_SCALAR;
       } else {
         warn_once("path " + in.target_path,
                   fmt::format("animations of \"{}\" are not supported (skipped)", in.target_path));
         continue;
       }
-      if (scene_.nodes[size_t(in.target_node)].matrix) {
+      if (channel.path != AnimatedPath::kWeights && scene_.nodes[size_t(in.target_node)].matrix) {
         warn_once("animated matrix node",
                   "animations of nodes given as a matrix are not supported (skipped)");
         continue;
@@ -1094,8 +1313,30 @@ void Loader::load_animations() {
       const std::vector<float> times =
           read_floats(sampler.input, TINYGLTF_TYPE_SCALAR, what + " input");
       const std::vector<float> values = read_floats(sampler.output, value_type, what + " output");
-      const size_t width = value_type == TINYGLTF_TYPE_VEC4 ? 4 : 3;
       const size_t per_key = channel.interpolation == Interpolation::kCubicSpline ? 3 : 1;
+      if (channel.path == AnimatedPath::kWeights) {
+        // As many weights per value as the node's mesh has morph targets (glTF 2.0, 3.11).
+        const Node& node = scene_.nodes[size_t(in.target_node)];
+        const size_t targets = node.mesh >= 0 ? scene_.meshes[size_t(node.mesh)].weights.size() : 0;
+        if (targets == 0) {
+          fail(fmt::format("{} animates the morph weights of node {}, which has {}", what,
+                           in.target_node,
+                           node.mesh >= 0 ? "a mesh without morph targets" : "no mesh"));
+        }
+        if (times.empty() || values.size() != times.size() * per_key * targets) {
+          fail(fmt::format(
+              "{} has {} keyframe times and {} weights ({} per key expected: {} morph targets{})",
+              what, times.size(), values.size(), per_key * targets, targets,
+              per_key == 3 ? " times in-tangent, value, out-tangent" : ""));
+        }
+        channel.times.assign(times.begin(), times.end());
+        channel.weights.assign(values.begin(), values.end());
+        channel.weight_count = targets;
+        channel.validate(fmt::format("{} of {}", what, path_.string()));
+        scene_.channels.push_back(std::move(channel));
+        continue;
+      }
+      const size_t width = value_type == TINYGLTF_TYPE_VEC4 ? 4 : 3;
       if (times.empty() || values.size() != times.size() * per_key * width) {
         fail(fmt::format("{} has {} keyframe times and {} values ({} per key expected)", what,
                          times.size(), values.size() / width, per_key));
@@ -1168,6 +1409,8 @@ Scene Loader::load(std::span<const uint8_t> bytes) {
   load_cameras();
   load_lights();
   load_nodes();
+  load_skins();
+  drop_unused_joints();
   load_animations();
   load_scene_roots();
   try {

@@ -36,22 +36,33 @@ glm::vec3 Texture::sample_bilinear(glm::vec2 uv) const {
 // ---------------------------------------------------------------------------------------------
 // Normals
 
-void generate_normals(Primitive* p) {
-  p->normals.assign(p->positions.size(), glm::vec3(0.0f));
-  for (size_t i = 0; i + 2 < p->indices.size(); i += 3) {
-    const uint32_t a = p->indices[i], b = p->indices[i + 1], c = p->indices[i + 2];
+namespace {
+
+// Area-weighted sums of the normals of the triangles around each vertex, not normalised.
+void sum_triangle_normals(const glm::vec3* positions, size_t vertex_count,
+                          const std::vector<uint32_t>& indices, glm::vec3* normals) {
+  std::fill_n(normals, vertex_count, glm::vec3(0.0f));
+  for (size_t i = 0; i + 2 < indices.size(); i += 3) {
+    const uint32_t a = indices[i], b = indices[i + 1], c = indices[i + 2];
     // The cross product's length is twice the area: an area-weighted sum.
-    const glm::vec3 n =
-        glm::cross(p->positions[b] - p->positions[a], p->positions[c] - p->positions[a]);
+    const glm::vec3 n = glm::cross(positions[b] - positions[a], positions[c] - positions[a]);
     if (!std::isfinite(n.x) || !std::isfinite(n.y) || !std::isfinite(n.z)) continue;
-    p->normals[a] += n;
-    p->normals[b] += n;
-    p->normals[c] += n;
+    normals[a] += n;
+    normals[b] += n;
+    normals[c] += n;
   }
+}
+
+}  // namespace
+
+void generate_normals(Primitive* p) {
+  p->normals.resize(p->positions.size());
+  sum_triangle_normals(p->positions.data(), p->positions.size(), p->indices, p->normals.data());
   for (glm::vec3& n : p->normals) {
     const float len = glm::length(n);
     n = len > 0.0f && std::isfinite(len) ? n / len : glm::vec3(0.0f, 0.0f, 1.0f);
   }
+  p->generated_normals = true;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -70,6 +81,85 @@ void Scene::finalize() {
     return Error(fmt::format("{}: {}", source, what));
   };
   const auto in_range = [](int i, size_t n) { return i >= 0 && size_t(i) < n; };
+  // Morph targets and skinning data of one primitive of a mesh with `target_count` targets.
+  const auto check_deformation = [&](const Primitive& p, size_t target_count,
+                                     const std::string& where) {
+    const size_t vertices = p.positions.size();
+    if (p.targets.size() != target_count) {
+      throw err(fmt::format("{}: {} morph targets, but the mesh has {} morph weights", where,
+                            p.targets.size(), target_count));
+    }
+    for (size_t k = 0; k < p.targets.size(); ++k) {
+      const MorphTarget& target = p.targets[k];
+      for (const auto* deltas : {&target.positions, &target.normals}) {
+        const char* what = deltas == &target.positions ? "position" : "normal";
+        if (!deltas->empty() && deltas->size() != vertices) {
+          throw err(fmt::format("{}: morph target {} has {} {} displacements for {} vertices",
+                                where, k, deltas->size(), what, vertices));
+        }
+        for (const glm::vec3& d : *deltas) {
+          if (!finite3(d)) {
+            throw err(fmt::format("{}: morph target {} has a {} displacement that is not finite",
+                                  where, k, what));
+          }
+        }
+      }
+    }
+    if (p.joints.size() != p.joint_weights.size() ||
+        (!p.joints.empty() && p.joints.size() != vertices)) {
+      throw err(fmt::format("{}: {} joints and {} joint weights for {} vertices", where,
+                            p.joints.size(), p.joint_weights.size(), vertices));
+    }
+    for (size_t v = 0; v < p.joint_weights.size(); ++v) {
+      const glm::vec4& w = p.joint_weights[v];
+      const bool ok = std::isfinite(w.x) && std::isfinite(w.y) && std::isfinite(w.z) &&
+                      std::isfinite(w.w) && w.x >= 0.0f && w.y >= 0.0f && w.z >= 0.0f &&
+                      w.w >= 0.0f && w.x + w.y + w.z + w.w > 0.0f;
+      if (!ok) {
+        throw err(fmt::format(
+            "{}: the joint weights of vertex {} ({}, {}, {}, {}) are not >= 0 with a positive sum",
+            where, v, w.x, w.y, w.z, w.w));
+      }
+    }
+  };
+  // A node's skin and morph weights against its mesh.
+  const auto check_node_deformation = [&](int i) {
+    const Node& n = nodes[i];
+    const std::string where = fmt::format("node {} ('{}')", i, n.name);
+    if (n.skin != -1) {
+      if (n.mesh == -1) throw err(fmt::format("{} has skin {} but no mesh", where, n.skin));
+      const Skin& skin = skins[n.skin];
+      const Mesh& mesh = meshes[n.mesh];
+      for (size_t pi = 0; pi < mesh.primitives.size(); ++pi) {
+        const Primitive& p = mesh.primitives[pi];
+        if (p.joints.empty()) {
+          throw err(fmt::format("{} has skin {}, but primitive {} of its mesh {} has no joints",
+                                where, n.skin, pi, n.mesh));
+        }
+        for (size_t v = 0; v < p.joints.size(); ++v) {
+          for (uint16_t j : p.joints[v]) {
+            if (j >= skin.joints.size()) {
+              throw err(fmt::format(
+                  "{}: vertex {} of primitive {} of mesh {} names joint {}, but skin {} has {} "
+                  "joints",
+                  where, v, pi, n.mesh, j, n.skin, skin.joints.size()));
+            }
+          }
+        }
+      }
+    }
+    if (!n.weights.empty()) {
+      const size_t targets = n.mesh == -1 ? 0 : meshes[n.mesh].weights.size();
+      if (n.mesh == -1) throw err(where + " has morph weights but no mesh");
+      if (n.weights.size() != targets) {
+        throw err(fmt::format("{} has {} morph weights, but its mesh has {} morph targets", where,
+                              n.weights.size(), targets));
+      }
+      for (float w : n.weights) {
+        if (!std::isfinite(w)) throw err(where + " has a morph weight that is not finite");
+      }
+    }
+  };
 
   for (size_t t = 0; t < textures.size(); ++t) {
     const Texture& tex = textures[t];
@@ -120,6 +210,39 @@ void Scene::finalize() {
       if (p.material != -1 && !in_range(p.material, materials.size())) {
         throw err(fmt::format("{}: material {} of {}", where, p.material, materials.size()));
       }
+      check_deformation(p, meshes[m].weights.size(), where);
+    }
+    for (size_t k = 0; k < meshes[m].weights.size(); ++k) {
+      if (!std::isfinite(meshes[m].weights[k])) {
+        throw err(
+            fmt::format("mesh {} ('{}'): morph weight {} is not finite", m, meshes[m].name, k));
+      }
+    }
+  }
+  for (size_t k = 0; k < skins.size(); ++k) {
+    const Skin& skin = skins[k];
+    const std::string where = fmt::format("skin {} ('{}')", k, skin.name);
+    if (skin.joints.empty()) throw err(where + " has no joints");
+    if (skin.inverse_bind_matrices.size() != skin.joints.size()) {
+      throw err(fmt::format("{} has {} inverse bind matrices for {} joints", where,
+                            skin.inverse_bind_matrices.size(), skin.joints.size()));
+    }
+    for (size_t j = 0; j < skin.joints.size(); ++j) {
+      if (!in_range(skin.joints[j], nodes.size())) {
+        throw err(
+            fmt::format("{}: joint {} is node {} of {}", where, j, skin.joints[j], nodes.size()));
+      }
+      const glm::dmat4& ibm = skin.inverse_bind_matrices[j];
+      for (int c = 0; c < 4; ++c) {
+        for (int r = 0; r < 4; ++r) {
+          if (!std::isfinite(ibm[c][r])) {
+            throw err(fmt::format("{}: inverse bind matrix {} is not finite", where, j));
+          }
+        }
+      }
+    }
+    if (skin.skeleton != -1 && !in_range(skin.skeleton, nodes.size())) {
+      throw err(fmt::format("{}: skeleton is node {} of {}", where, skin.skeleton, nodes.size()));
     }
   }
 
@@ -135,6 +258,8 @@ void Scene::finalize() {
     check_ref(n.mesh, meshes.size(), "mesh");
     check_ref(n.camera, cameras.size(), "camera");
     check_ref(n.light, lights.size(), "light");
+    check_ref(n.skin, skins.size(), "skin");
+    check_node_deformation(int(i));
     for (int c : n.children) {
       if (!in_range(c, nodes.size())) {
         throw err(fmt::format("node {} ('{}') has child {} of {}", i, n.name, c, nodes.size()));
@@ -184,7 +309,21 @@ void Scene::finalize() {
     }
     ch.validate(fmt::format("{}: animation channel {} ({} of node {})", source, c,
                             to_string(ch.path), ch.node));
-    if (nodes[ch.node].matrix) {
+    if (ch.path == AnimatedPath::kWeights) {
+      const Node& n = nodes[ch.node];
+      const size_t targets = n.mesh == -1 ? 0 : meshes[n.mesh].weights.size();
+      if (targets == 0) {
+        throw err(fmt::format(
+            "animation channel {} animates the morph weights of node {} ('{}'), whose {}", c,
+            ch.node, n.name, n.mesh == -1 ? "has no mesh" : "mesh has no morph targets"));
+      }
+      if (ch.weight_count != targets) {
+        throw err(fmt::format(
+            "animation channel {} animates {} morph weights of node {} ('{}'), whose mesh has {} "
+            "morph targets",
+            c, ch.weight_count, ch.node, n.name, targets));
+      }
+    } else if (nodes[ch.node].matrix) {
       throw err(fmt::format("node {} ('{}') is animated but given as a matrix", ch.node,
                             nodes[ch.node].name));
     }
@@ -198,16 +337,53 @@ void Scene::finalize() {
     for (size_t c = 0; c < channels.size(); ++c) channel_index_[fill[channels[c].node]++] = c;
   }
 
+  // A node moves when a channel drives its transform (a weights channel does not) or its
+  // parent moves.
+  std::vector<char> weights_animated(nodes.size(), 0);
+  std::vector<char> transform_animated(nodes.size(), 0);
+  for (const AnimationChannel& ch : channels) {
+    (ch.path == AnimatedPath::kWeights ? weights_animated : transform_animated)[ch.node] = 1;
+  }
   node_moves_.assign(nodes.size(), 0);
   for (int i : order_) {
     const Node& n = nodes[i];
-    node_moves_[i] =
-        channel_start_[i + 1] > channel_start_[i] || (n.parent != -1 && node_moves_[n.parent]);
+    node_moves_[i] = transform_animated[i] || (n.parent != -1 && node_moves_[n.parent]);
   }
+
+  // Deformation: which nodes deform and move, where each node's morph weights and each skin's
+  // joint matrices go in a SceneState.
+  node_deforms_.assign(nodes.size(), 0);
+  node_geometry_moves_.assign(nodes.size(), 0);
+  weight_start_.assign(nodes.size() + 1, 0);
+  default_weights_.clear();
+  for (size_t i = 0; i < nodes.size(); ++i) {
+    const Node& n = nodes[i];
+    weight_start_[i] = default_weights_.size();
+    if (n.mesh == -1) continue;
+    const Mesh& mesh = meshes[n.mesh];
+    const bool morphed = !mesh.weights.empty();
+    node_deforms_[i] = n.skin != -1 || morphed;
+    bool moves = n.skin == -1 && node_moves_[i];
+    if (n.skin != -1) {
+      for (int joint : skins[n.skin].joints) moves = moves || node_moves_[joint];
+    }
+    node_geometry_moves_[i] = moves || (morphed && weights_animated[i]);
+    if (morphed) {
+      const std::vector<float>& w = n.weights.empty() ? mesh.weights : n.weights;
+      default_weights_.insert(default_weights_.end(), w.begin(), w.end());
+    }
+  }
+  weight_start_[nodes.size()] = default_weights_.size();
+  skin_start_.assign(skins.size() + 1, 0);
+  for (size_t k = 0; k < skins.size(); ++k) {
+    skin_start_[k + 1] = skin_start_[k] + skins[k].joints.size();
+  }
+  joint_matrix_count_ = skin_start_[skins.size()];
+
   has_moving_geometry_ = false;
   camera_node_ = -1;
   for (int i : scene_nodes_) {
-    if (nodes[i].mesh != -1 && node_moves_[i]) has_moving_geometry_ = true;
+    if (nodes[i].mesh != -1 && node_geometry_moves_[i]) has_moving_geometry_ = true;
     if (nodes[i].camera != -1 && camera_node_ == -1) camera_node_ = i;
   }
   if (camera_node_ == -1) frame_default_camera();
@@ -221,6 +397,10 @@ namespace {
 // At most this many instants of the animation are evaluated to frame it (a scene with more
 // distinct keyframe times is sampled evenly over them).
 constexpr size_t kMaxFramingTimes = 4096;
+// Framing a deforming mesh deforms all its vertices at every instant: fewer instants (but at
+// least kMinFramingTimes) when that would deform more than this many vertices in all.
+constexpr size_t kMaxFramingVertices = size_t(1) << 25;
+constexpr size_t kMinFramingTimes = 64;
 
 }  // namespace
 
@@ -234,10 +414,21 @@ void Scene::frame_default_camera() {
   }
   std::sort(times.begin(), times.end());
   times.erase(std::unique(times.begin(), times.end()), times.end());
-  if (times.size() > kMaxFramingTimes) {
-    std::vector<double> picked(kMaxFramingTimes);
-    for (size_t k = 0; k < kMaxFramingTimes; ++k) {
-      picked[k] = times[k * (times.size() - 1) / (kMaxFramingTimes - 1)];
+  size_t deformed_vertices = 0;
+  for (int i : scene_nodes_) {
+    if (!node_deforms_[i]) continue;
+    for (const Primitive& p : meshes[nodes[i].mesh].primitives) {
+      deformed_vertices += p.positions.size();
+    }
+  }
+  const size_t max_times =
+      deformed_vertices == 0
+          ? kMaxFramingTimes
+          : std::clamp(kMaxFramingVertices / deformed_vertices, kMinFramingTimes, kMaxFramingTimes);
+  if (times.size() > max_times) {
+    std::vector<double> picked(max_times);
+    for (size_t k = 0; k < max_times; ++k) {
+      picked[k] = times[k * (times.size() - 1) / (max_times - 1)];
     }
     times = std::move(picked);
   }
@@ -271,6 +462,7 @@ void Scene::frame_default_camera() {
 void Scene::evaluate(double t, SceneState* state) const {
   state->time = t;
   state->world.resize(nodes.size());
+  state->morph_weights = default_weights_;  // keeps its capacity: no allocation once sized
   for (int i : order_) {
     const Node& n = nodes[i];
     glm::dmat4 local;
@@ -282,6 +474,7 @@ void Scene::evaluate(double t, SceneState* state) const {
       glm::dvec3 scale = n.scale;
       for (uint32_t k = channel_start_[i]; k < channel_start_[i + 1]; ++k) {
         const AnimationChannel& ch = channels[channel_index_[k]];
+        if (ch.path == AnimatedPath::kWeights) continue;  // below
         const glm::dvec4 v = ch.evaluate(t);
         switch (ch.path) {
           case AnimatedPath::kTranslation:
@@ -293,11 +486,27 @@ void Scene::evaluate(double t, SceneState* state) const {
           case AnimatedPath::kScale:
             scale = glm::dvec3(v);
             break;
+          case AnimatedPath::kWeights:
+            break;
         }
       }
       local = compose_trs(translation, rotation, scale);
     }
     state->world[i] = n.parent == -1 ? local : state->world[n.parent] * local;
+  }
+  // Weights channels may drive nodes given as a matrix too: a loop of their own.
+  for (const AnimationChannel& ch : channels) {
+    if (ch.path == AnimatedPath::kWeights) {
+      ch.evaluate_weights(t, &state->morph_weights[weight_start_[ch.node]]);
+    }
+  }
+  state->joint_matrices.resize(joint_matrix_count_);
+  for (size_t k = 0; k < skins.size(); ++k) {
+    const Skin& skin = skins[k];
+    for (size_t j = 0; j < skin.joints.size(); ++j) {
+      state->joint_matrices[skin_start_[k] + j] =
+          glm::mat4(state->world[skin.joints[j]] * skin.inverse_bind_matrices[j]);
+    }
   }
 }
 
@@ -307,12 +516,94 @@ SceneState Scene::evaluate(double t) const {
   return state;
 }
 
+// ---------------------------------------------------------------------------------------------
+// Deformation
+
+namespace {
+
+// Normals under the linear part of `m`: the inverse transpose, up to the positive factor
+// |det|, whose columns are cross products of m's columns (a mirroring m keeps its sign).
+glm::mat3 normal_transform(const glm::mat4& m) {
+  const glm::vec3 c0(m[0]), c1(m[1]), c2(m[2]);
+  const glm::mat3 cofactor(glm::cross(c1, c2), glm::cross(c2, c0), glm::cross(c0, c1));
+  return glm::dot(c0, cofactor[0]) < 0.0f ? -cofactor : cofactor;
+}
+
+glm::vec3 unit_or_zero(const glm::vec3& n) {
+  const float len2 = glm::dot(n, n);
+  return len2 > 0.0f && std::isfinite(len2) ? n * (1.0f / std::sqrt(len2)) : glm::vec3(0.0f);
+}
+
+}  // namespace
+
+void Scene::deform(int node, size_t primitive, const SceneState& state, glm::vec3* positions,
+                   glm::vec3* normals) const {
+  const Node& n = nodes[node];
+  const Primitive& p = meshes[n.mesh].primitives[primitive];
+  const size_t count = p.positions.size();
+
+  // Morph targets, in the mesh's space (glTF 2.0, 3.7.2.2): base + sum_k w_k target_k.
+  const std::span<const float> w = morph_weights(state, node);
+  std::copy_n(p.positions.data(), count, positions);
+  for (size_t k = 0; k < p.targets.size(); ++k) {
+    const std::vector<glm::vec3>& d = p.targets[k].positions;
+    if (w[k] == 0.0f || d.empty()) continue;
+    for (size_t v = 0; v < count; ++v) positions[v] += w[k] * d[v];
+  }
+  if (normals != nullptr) {
+    if (p.generated_normals && !p.targets.empty()) {
+      // Normals the loader made from the base shape would not fit a morphed one.
+      sum_triangle_normals(positions, count, p.indices, normals);
+    } else {
+      std::copy_n(p.normals.data(), count, normals);
+      for (size_t k = 0; k < p.targets.size(); ++k) {
+        const std::vector<glm::vec3>& d = p.targets[k].normals;
+        if (w[k] == 0.0f || d.empty()) continue;
+        for (size_t v = 0; v < count; ++v) normals[v] += w[k] * d[v];
+      }
+    }
+  }
+
+  if (n.skin != -1) {
+    // Linear blend skinning (glTF 2.0, 3.7.3): the node's own transform is ignored.
+    const glm::mat4* joint = &state.joint_matrices[skin_start_[n.skin]];
+    for (size_t v = 0; v < count; ++v) {
+      const std::array<uint16_t, 4>& j = p.joints[v];
+      const glm::vec4& jw = p.joint_weights[v];
+      const glm::mat4 m =
+          jw.x * joint[j[0]] + jw.y * joint[j[1]] + jw.z * joint[j[2]] + jw.w * joint[j[3]];
+      positions[v] = glm::vec3(m * glm::vec4(positions[v], 1.0f));
+      if (normals != nullptr) normals[v] = unit_or_zero(normal_transform(m) * normals[v]);
+    }
+    return;
+  }
+  const glm::mat4 world(state.world[node]);
+  const glm::mat3 normal_matrix = normal_transform(world);
+  for (size_t v = 0; v < count; ++v) {
+    positions[v] = glm::vec3(world * glm::vec4(positions[v], 1.0f));
+    if (normals != nullptr) normals[v] = unit_or_zero(normal_matrix * normals[v]);
+  }
+}
+
 void Scene::bounds(const SceneState& state, glm::dvec3* lo, glm::dvec3* hi) const {
   *lo = glm::dvec3(std::numeric_limits<double>::max());
   *hi = glm::dvec3(std::numeric_limits<double>::lowest());
+  std::vector<glm::vec3> deformed;
   for (int i : scene_nodes_) {
     const int m = nodes[i].mesh;
     if (m == -1 || mesh_lo_[m].x > mesh_hi_[m].x) continue;
+    if (node_deforms_[i]) {
+      // Every vertex where it is at this time: a skin can take them anywhere.
+      for (size_t pi = 0; pi < meshes[m].primitives.size(); ++pi) {
+        deformed.resize(meshes[m].primitives[pi].positions.size());
+        deform(i, pi, state, deformed.data(), nullptr);
+        for (const glm::vec3& v : deformed) {
+          *lo = glm::min(*lo, glm::dvec3(v));
+          *hi = glm::max(*hi, glm::dvec3(v));
+        }
+      }
+      continue;
+    }
     for (int corner = 0; corner < 8; ++corner) {
       const glm::dvec3 local((corner & 1) ? mesh_hi_[m].x : mesh_lo_[m].x,
                              (corner & 2) ? mesh_hi_[m].y : mesh_lo_[m].y,

@@ -47,13 +47,14 @@ float max_abs(const glm::vec3& v) {
   return std::max(std::abs(v.x), std::max(std::abs(v.y), std::abs(v.z)));
 }
 
-// One Embree triangle geometry: one primitive of a mesh. Static geometry is stored in world
-// space and knows its node; geometry of an instanced mesh is in the mesh's space and takes its
-// node from the instance.
+// One Embree triangle geometry: one primitive of a mesh. Static and deforming geometry is
+// stored in world space and knows its node; geometry of an instanced mesh is in the mesh's
+// space and takes its node from the instance.
 struct GeomRecord {
   const glm::vec3* positions = nullptr;
-  const glm::vec3* normals = nullptr;  // null when the primitive has none per vertex
-  const glm::vec2* uvs = nullptr;      // null when the primitive has none per vertex
+  const glm::vec3* normals = nullptr;     // null when the primitive has none per vertex
+  const glm::vec2* uvs = nullptr;         // null when the primitive has none per vertex
+  const glm::vec3* velocities = nullptr;  // world velocity per vertex: deforming geometry only
   const uint32_t* indices = nullptr;
   uint32_t material = 0;  // index into Impl::materials_
   int node = -1;
@@ -63,7 +64,8 @@ struct GeomRecord {
   bool flip_winding = false;
 };
 
-// A bottom-level Embree scene: all static geometry, or one mesh shared by its moving nodes.
+// A bottom-level Embree scene: all static geometry, one mesh shared by its moving nodes, or all
+// deforming geometry.
 struct Blas {
   RTCScene scene = nullptr;
   std::vector<GeomRecord> geoms;  // indexed by Embree geomID
@@ -73,7 +75,7 @@ struct Blas {
 struct Instance {
   RTCGeometry geom = nullptr;
   int blas = 0;
-  int node = -1;  // -1 for the static instance
+  int node = -1;  // -1 for the static and the deforming instance
   bool moves = false;
   bool enabled = true;
   glm::mat3 normal_matrix{1.0f};  // inverse transpose of the world transform's linear part
@@ -97,8 +99,22 @@ struct Surface {
   glm::vec2 uv{0.0f};
   const ShadeMaterial* material = nullptr;
   const Instance* instance = nullptr;
+  const GeomRecord* geom = nullptr;
+  const uint32_t* triangle = nullptr;  // the hit triangle's vertex indices
+  glm::vec3 barycentric{0.0f};         // of the hit, weights of triangle[0], [1], [2]
   int node = -1;
   bool back_face = false;  // a single-sided surface seen from behind
+};
+
+// One primitive of a deforming mesh node (Scene::node_geometry_moves): an Embree geometry whose
+// vertex buffer, shared with `positions`, set_time rewrites in world space.
+struct DeformingPrimitive {
+  int node = -1;
+  size_t primitive = 0;
+  RTCGeometry geom = nullptr;        // owned by the deforming BLAS
+  std::vector<glm::vec3> positions;  // one more than the vertices: Embree reads 16 bytes
+  std::vector<glm::vec3> normals;
+  std::vector<glm::vec3> velocities;
 };
 
 // What the direct-light loop needs of one shading point, computed once for all lights.
@@ -173,6 +189,12 @@ struct Tracer::Impl {
   // Static geometry transformed to world space (GeomRecord points into these).
   std::vector<std::vector<glm::vec3>> static_positions_;
   std::vector<std::vector<glm::vec3>> static_normals_;
+  // Deforming geometry, in one BLAS (deforming_blas_, -1 when there is none) refitted at every
+  // set_time; positions at the two times of the velocity's difference quotient.
+  std::vector<DeformingPrimitive> deforming_;
+  int deforming_blas_ = -1;
+  int deforming_instance_ = -1;
+  std::vector<glm::vec3> positions_before_, positions_after_;
   SceneState state_, state_minus_, state_plus_;
   Camera camera_;
   // The scene's size (largest coordinate at time 0), at most 1: the part of a ray offset that
@@ -188,7 +210,16 @@ struct Tracer::Impl {
   RTCGeometry new_triangle_geometry(const glm::vec3* positions, size_t vertex_count,
                                     const uint32_t* indices, size_t triangle_count) const;
   void build();
+  void build_deforming(const std::vector<int>& nodes, uint32_t default_material);
+  void deform(double before, double after);
   void set_time(double t);
+  // Whether world-space triangles of node n's mesh take clockwise faces as front faces: its
+  // world transform mirrors (glTF 2.0, 3.7.4). A skin's joints decide a skinned mesh's
+  // placement, and its own transform is ignored: never for it.
+  bool flips_winding(int n, const SceneState& state) const {
+    if (scene_.nodes[size_t(n)].skin != -1) return false;
+    return glm::determinant(glm::dmat3(state.world[size_t(n)])) < 0.0;
+  }
   void place_camera_lights(const Camera& camera);
 
   // ---- queries (const, thread-safe) ----
@@ -302,27 +333,41 @@ void Tracer::Impl::build() {
   statics.scene = rtcNewScene(device_);
   std::vector<int> mesh_blas(scene_.meshes.size(), -1);
   std::vector<int> moving_nodes;
+  std::vector<int> deforming_nodes;
   for (int n : scene_.scene_nodes()) {
     const Node& node = scene_.nodes[size_t(n)];
     if (node.light >= 0 && size_t(node.light) < scene_.lights.size()) light_nodes_.push_back(n);
     if (node.mesh < 0) continue;
-    if (scene_.node_moves(n)) {
+    const bool deformed = scene_.node_deforms(n);
+    if (deformed && scene_.node_geometry_moves(n)) {
+      deforming_nodes.push_back(n);
+      continue;
+    }
+    if (!deformed && scene_.node_moves(n)) {
       moving_nodes.push_back(n);
       continue;
     }
+    // Static: a deformed mesh that does not move is deformed once, here.
     const glm::dmat4& world = at0.world[size_t(n)];
     const glm::dmat3 normal_matrix = glm::transpose(glm::inverse(glm::dmat3(world)));
-    for (const Primitive& p : scene_.meshes[size_t(node.mesh)].primitives) {
+    const std::vector<Primitive>& primitives = scene_.meshes[size_t(node.mesh)].primitives;
+    for (size_t pi = 0; pi < primitives.size(); ++pi) {
+      const Primitive& p = primitives[pi];
       if (!usable(p)) continue;
       std::vector<glm::vec3> positions(p.positions.size());
-      for (size_t i = 0; i < positions.size(); ++i)
-        positions[i] = glm::vec3(world * glm::dvec4(glm::dvec3(p.positions[i]), 1.0));
       std::vector<glm::vec3> normals;
-      if (p.normals.size() == p.positions.size()) {
-        normals.resize(p.normals.size());
-        // Not normalised here: a zero normal must stay zero so shading can detect it.
-        for (size_t i = 0; i < normals.size(); ++i)
-          normals[i] = glm::vec3(normal_matrix * glm::dvec3(p.normals[i]));
+      if (deformed) {
+        normals.resize(p.positions.size());
+        scene_.deform(n, pi, at0, positions.data(), normals.data());
+      } else {
+        for (size_t i = 0; i < positions.size(); ++i)
+          positions[i] = glm::vec3(world * glm::dvec4(glm::dvec3(p.positions[i]), 1.0));
+        if (p.normals.size() == p.positions.size()) {
+          normals.resize(p.normals.size());
+          // Not normalised here: a zero normal must stay zero so shading can detect it.
+          for (size_t i = 0; i < normals.size(); ++i)
+            normals[i] = glm::vec3(normal_matrix * glm::dvec3(p.normals[i]));
+        }
       }
       RTCGeometry g = new_triangle_geometry(positions.data(), positions.size(), p.indices.data(),
                                             p.triangle_count());
@@ -337,7 +382,7 @@ void Tracer::Impl::build() {
       r.indices = p.indices.data();
       r.material = material_of(p);
       r.node = n;
-      r.flip_winding = glm::determinant(glm::dmat3(world)) < 0.0;
+      r.flip_winding = flips_winding(n, at0);
       statics.geoms.push_back(r);
     }
   }
@@ -389,6 +434,7 @@ void Tracer::Impl::build() {
     inst.moves = true;
     instances_.push_back(inst);
   }
+  build_deforming(deforming_nodes, default_material);
 
   for (size_t l = 0; l < scene_.lights.size(); ++l) {
     if (scene_.lights[l].on_camera) camera_lights_.push_back(int(l));
@@ -407,10 +453,106 @@ void Tracer::Impl::build() {
   check_device("building the instances");
 }
 
+// One BLAS of all deforming geometry in world space: Embree's two-level build (scene quality
+// LOW) with a BVH per primitive that set_time refits (geometry quality REFIT) instead of
+// rebuilding, since only vertex positions change. The BVH is built once over the positions at
+// time 0, so that its topology fits the shape.
+void Tracer::Impl::build_deforming(const std::vector<int>& nodes, uint32_t default_material) {
+  size_t max_vertices = 0;
+  for (int n : nodes) {
+    const std::vector<Primitive>& primitives =
+        scene_.meshes[size_t(scene_.nodes[size_t(n)].mesh)].primitives;
+    for (size_t pi = 0; pi < primitives.size(); ++pi) {
+      const size_t count = primitives[pi].positions.size();
+      if (primitives[pi].triangle_count() == 0 || count == 0) continue;
+      DeformingPrimitive d;
+      d.node = n;
+      d.primitive = pi;
+      d.positions.assign(count + 1, glm::vec3(0.0f));
+      d.normals.assign(count, glm::vec3(0.0f));
+      d.velocities.assign(count, glm::vec3(0.0f));
+      deforming_.push_back(std::move(d));
+      max_vertices = std::max(max_vertices, count);
+    }
+  }
+  if (deforming_.empty()) return;
+  positions_before_.resize(max_vertices);
+  positions_after_.resize(max_vertices);
+  scene_.evaluate(0.0, &state_);
+
+  Blas b;
+  b.scene = rtcNewScene(device_);
+  rtcSetSceneFlags(b.scene, RTC_SCENE_FLAG_DYNAMIC);
+  rtcSetSceneBuildQuality(b.scene, RTC_BUILD_QUALITY_LOW);
+  for (DeformingPrimitive& d : deforming_) {
+    const Primitive& p =
+        scene_.meshes[size_t(scene_.nodes[size_t(d.node)].mesh)].primitives[d.primitive];
+    scene_.deform(d.node, d.primitive, state_, d.positions.data(), d.normals.data());
+    RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+    rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, d.positions.data(),
+                               0, sizeof(glm::vec3), d.normals.size());
+    auto* i = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(
+        g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), p.triangle_count()));
+    if (!i) {
+      rtcReleaseGeometry(g);
+      check_device("allocating an index buffer");
+      throw Error("embree: cannot allocate geometry buffers for scene " + scene_.source);
+    }
+    std::copy_n(p.indices.data(), 3 * p.triangle_count(), i);
+    rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
+    rtcCommitGeometry(g);
+    rtcAttachGeometryByID(b.scene, g, unsigned(b.geoms.size()));
+    rtcReleaseGeometry(g);  // the BLAS holds it as long as d.geom is used
+    d.geom = g;
+    GeomRecord r;
+    r.positions = d.positions.data();
+    r.normals = d.normals.data();
+    r.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
+    r.velocities = d.velocities.data();
+    r.indices = p.indices.data();
+    r.material = p.material >= 0 && size_t(p.material) < scene_.materials.size()
+                     ? uint32_t(p.material)
+                     : default_material;
+    r.node = d.node;
+    r.flip_winding = flips_winding(d.node, state_);
+    b.geoms.push_back(r);
+  }
+  rtcCommitScene(b.scene);
+  check_device("building the deforming BVH");
+  deforming_blas_ = int(blas_.size());
+  blas_.push_back(std::move(b));
+  Instance inst;
+  inst.blas = deforming_blas_;
+  deforming_instance_ = int(instances_.size());
+  instances_.push_back(inst);
+}
+
+// Deforming geometry at the current time (state_), with per-vertex velocities by the
+// difference quotient of the positions at `before` and `after` (state_minus_, state_plus_).
+void Tracer::Impl::deform(double before, double after) {
+  const float inverse_dt = float(1.0 / (after - before));
+  Blas& b = blas_[size_t(deforming_blas_)];
+  for (size_t k = 0; k < deforming_.size(); ++k) {
+    DeformingPrimitive& d = deforming_[k];
+    const size_t count = d.normals.size();
+    scene_.deform(d.node, d.primitive, state_minus_, positions_before_.data(), nullptr);
+    scene_.deform(d.node, d.primitive, state_plus_, positions_after_.data(), nullptr);
+    scene_.deform(d.node, d.primitive, state_, d.positions.data(), d.normals.data());
+    for (size_t v = 0; v < count; ++v) {
+      d.velocities[v] = (positions_after_[v] - positions_before_[v]) * inverse_dt;
+    }
+    b.geoms[k].flip_winding = flips_winding(d.node, state_);
+    rtcUpdateGeometryBuffer(d.geom, RTC_BUFFER_TYPE_VERTEX, 0);
+    rtcCommitGeometry(d.geom);
+  }
+  rtcCommitScene(b.scene);
+  rtcCommitGeometry(instances_[size_t(deforming_instance_)].geom);
+}
+
 void Tracer::Impl::set_time(double t) {
   scene_.evaluate(t, &state_);
-  const bool moving =
-      std::any_of(instances_.begin(), instances_.end(), [](const Instance& i) { return i.moves; });
+  const bool moving = !deforming_.empty() || std::any_of(instances_.begin(), instances_.end(),
+                                                         [](const Instance& i) { return i.moves; });
   // The velocity's difference quotient: central, except at the ends of the keyframe range
   // [0, duration], where a central difference would straddle a clamped state and halve the
   // velocity (at t = 0, where every run starts): one-sided there.
@@ -452,6 +594,7 @@ void Tracer::Impl::set_time(double t) {
     }
     rtcCommitGeometry(inst.geom);
   }
+  if (!deforming_.empty()) deform(before, after);
   rtcCommitScene(top_);
   check_device("committing the top-level scene");
 
@@ -522,6 +665,9 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   const float w = 1.0f - hit.u - hit.v;
   s->p = o + hit.t * d;
   s->instance = &inst;
+  s->geom = &g;
+  s->triangle = tri;
+  s->barycentric = glm::vec3(w, hit.u, hit.v);
   s->node = inst.moves ? inst.node : g.node;
   s->material = &materials_[g.material];
 
@@ -714,8 +860,15 @@ bool Tracer::Impl::begin_sample(const Ray& ray, const HitRef& hit, ShadedSample*
   }
   make_surface(hit, ray.origin, ray.direction, s);
   o->position = s->p;
-  o->velocity = s->instance->moves ? glm::vec3(s->instance->velocity * glm::vec4(s->p, 1.0f))
-                                   : glm::vec3(0.0f);
+  if (s->instance->moves) {
+    o->velocity = glm::vec3(s->instance->velocity * glm::vec4(s->p, 1.0f));
+  } else if (const glm::vec3* v = s->geom->velocities) {
+    const uint32_t* tri = s->triangle;
+    o->velocity = s->barycentric[0] * v[tri[0]] + s->barycentric[1] * v[tri[1]] +
+                  s->barycentric[2] * v[tri[2]];
+  } else {
+    o->velocity = glm::vec3(0.0f);
+  }
   o->object_id = uint32_t(s->node);
   o->hit = true;
   return true;

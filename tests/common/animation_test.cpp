@@ -117,5 +117,66 @@ TEST(AnimationTest, ValidateRejectsBadChannels) {
   }
 }
 
+// A weights channel interpolates each of its weights on its own, as a scalar channel would:
+// the reference is a translation channel per weight.
+TEST(AnimationTest, WeightsChannelsInterpolateEveryWeightLikeAScalarChannel) {
+  const std::vector<double> times = {0.0, 0.5, 2.0};
+  const std::vector<std::vector<double>> per_weight = {
+      {0.0, 1.0, 3.0, -2.0, 2.0, 0.25, 4.0, -1.0, 0.0},
+      {1.0, 0.5, 0.0, 2.0, -1.0, 0.5, 0.0, 1.0, 3.0}};
+  for (Interpolation mode :
+       {Interpolation::kStep, Interpolation::kLinear, Interpolation::kCubicSpline}) {
+    const size_t values = mode == Interpolation::kCubicSpline ? 9 : 3;
+    AnimationChannel weights;
+    weights.path = AnimatedPath::kWeights;
+    weights.interpolation = mode;
+    weights.times = times;
+    weights.weight_count = 2;
+    for (size_t v = 0; v < values; ++v) {
+      for (const std::vector<double>& w : per_weight) weights.weights.push_back(w[v]);
+    }
+    weights.validate("weights");
+    std::vector<AnimationChannel> scalars;
+    for (const std::vector<double>& w : per_weight) {
+      std::vector<glm::dvec4> v;
+      for (size_t k = 0; k < values; ++k) v.push_back({w[k], 0, 0, 0});
+      scalars.push_back(translation_channel(mode, times, v));
+    }
+    for (double t : {-1.0, 0.0, 0.2, 0.5, 0.7, 1.9, 2.0, 5.0}) {
+      float out[2];
+      weights.evaluate_weights(t, out);
+      for (size_t i = 0; i < 2; ++i) {
+        EXPECT_NEAR(out[i], scalars[i].evaluate(t).x, 1e-6)
+            << to_string(mode) << " t = " << t << " weight " << i;
+      }
+    }
+  }
+}
+
+TEST(AnimationTest, ValidateRejectsBadWeightsChannels) {
+  AnimationChannel ch;
+  ch.path = AnimatedPath::kWeights;
+  ch.interpolation = Interpolation::kLinear;
+  ch.times = {0.0, 1.0};
+  ch.weight_count = 2;
+  ch.weights = {0, 0, 1, 1};
+  ch.validate("good");
+  ch.weights = {0, 0, 1};
+  EXPECT_THROW(ch.validate("one weight short"), Error);
+  ch.weights = {0, 0, 1, NAN};
+  EXPECT_THROW(ch.validate("nan weight"), Error);
+  ch.weights = {0, 0, 1, 1};
+  ch.weight_count = 0;
+  EXPECT_THROW(ch.validate("no weights"), Error);
+  ch.weight_count = 2;
+  ch.values = {{0, 0, 0, 0}, {0, 0, 0, 0}};
+  EXPECT_THROW(ch.validate("vector values"), Error);
+  AnimationChannel translation;
+  translation.times = {0.0};
+  translation.values = {{0, 0, 0, 0}};
+  translation.weights = {1.0};
+  EXPECT_THROW(translation.validate("translation with weights"), Error);
+}
+
 }  // namespace
 }  // namespace afr

@@ -608,19 +608,21 @@ TEST_F(GltfLoaderTest, CameraAndAllThreeLightTypesLoadWithExtras) {
 TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {
   GltfBuilder b;
   const int positions = add_quad(&b);
-  // Two skinned nodes, an unknown extension in two places, two line primitives, an
-  // orthographic camera, a weights animation and an unknown interpolation used twice.
-  b.doc()["skins"] = json::array({{{"joints", {1}}}});
-  b.doc()["nodes"] = json::array(
-      {{{"mesh", 0}, {"skin", 0}, {"children", {1}}}, {{"mesh", 0}, {"skin", 0}, {"camera", 0}}});
+  // An unknown extension in two places, two line primitives, an orthographic camera, an
+  // unknown interpolation used twice and a morph target of texture coordinates used twice.
+  b.doc()["nodes"] = json::array({{{"mesh", 0}, {"children", {1}}}, {{"mesh", 0}, {"camera", 0}}});
   b.doc()["extensionsUsed"] = {"EXT_made_up"};
   b.doc()["materials"] = json::array({{{"extensions", {{"EXT_made_up", {{"x", 1}}}}}}});
   b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
   b.doc()["meshes"][0]["primitives"][0]["extensions"] = {{"EXT_made_up", json::object()}};
+  const int uv_deltas = b.add_floats({0, 0, 0, 0, 0, 0, 0, 0}, 2);
+  const json targets = json::array(
+      {{{"POSITION", positions}, {"TEXCOORD_0", uv_deltas}}, {{"TEXCOORD_0", uv_deltas}}});
+  b.doc()["meshes"][0]["primitives"][0]["targets"] = targets;
   b.doc()["meshes"][0]["primitives"].push_back(
-      {{"attributes", {{"POSITION", positions}}}, {"mode", 1}});
+      {{"attributes", {{"POSITION", positions}}}, {"mode", 1}, {"targets", targets}});
   b.doc()["meshes"][0]["primitives"].push_back(
-      {{"attributes", {{"POSITION", positions}}}, {"mode", 1}});
+      {{"attributes", {{"POSITION", positions}}}, {"mode", 1}, {"targets", targets}});
   b.doc()["cameras"] =
       json::array({{{"type", "orthographic"},
                     {"orthographic", {{"xmag", 1}, {"ymag", 1}, {"znear", 0.1}, {"zfar", 10}}}}});
@@ -630,11 +632,9 @@ TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {
       json::array({{{"channels",
                      {{{"sampler", 0}, {"target", {{"node", 0}, {"path", "translation"}}}},
                       {{"sampler", 0}, {"target", {{"node", 1}, {"path", "translation"}}}},
-                      {{"sampler", 1}, {"target", {{"node", 0}, {"path", "weights"}}}},
-                      {{"sampler", 2}, {"target", {{"node", 1}, {"path", "scale"}}}}}},
+                      {{"sampler", 1}, {"target", {{"node", 1}, {"path", "scale"}}}}}},
                     {"samplers",
                      {{{"input", times}, {"output", values}, {"interpolation", "SMOOTHSTEP"}},
-                      {{"input", times}, {"output", times}},
                       {{"input", times}, {"output", values}}}}}});
   const fs::path path = dir_ / "unsupported.gltf";
   b.write_embedded(path);
@@ -644,17 +644,17 @@ TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {
   for (const std::string& w : report.warnings) {
     EXPECT_NE(w.find(path.string()), std::string::npos) << w;
   }
-  EXPECT_EQ(count_containing(report.warnings, "skin"), 1u);
   EXPECT_EQ(count_containing(report.warnings, "EXT_made_up"), 1u);
   EXPECT_EQ(count_containing(report.warnings, "mode 1"), 1u);
   EXPECT_EQ(count_containing(report.warnings, "orthographic"), 1u);
-  EXPECT_EQ(count_containing(report.warnings, "weights"), 1u);
   EXPECT_EQ(count_containing(report.warnings, "SMOOTHSTEP"), 1u);
-  EXPECT_EQ(report.warnings.size(), 6u);
+  EXPECT_EQ(count_containing(report.warnings, "morph targets of TEXCOORD_0"), 1u);
+  EXPECT_EQ(report.warnings.size(), 5u);
 
   ASSERT_EQ(scene.meshes.size(), 1u);
   ASSERT_EQ(scene.meshes[0].primitives.size(), 1u);
   EXPECT_EQ(scene.meshes[0].primitives[0].triangle_count(), 2u);
+  EXPECT_EQ(scene.meshes[0].primitives[0].targets.size(), 2u);  // positions kept
   EXPECT_EQ(scene.nodes[1].camera, -1);
   EXPECT_TRUE(scene.cameras.empty());
   ASSERT_EQ(scene.channels.size(), 1u);

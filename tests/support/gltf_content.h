@@ -36,6 +36,18 @@ class GltfContent {
                                  {"count", values.size() / size_t(width)}});
     return int(doc_["accessors"].size()) - 1;
   }
+  // An accessor of `count` elements of glTF `type` ("VEC4", "MAT4", ...) and `component_type`
+  // (5121 unsigned byte, 5123 unsigned short, 5126 float, ...) over a buffer view of its own.
+  template <typename T>
+  int add_accessor(const std::vector<T>& values, int component_type, const char* type, size_t count,
+                   bool normalized = false) {
+    const int view = add_view(values.data(), values.size() * sizeof(T));
+    json accessor = {
+        {"bufferView", view}, {"componentType", component_type}, {"type", type}, {"count", count}};
+    if (normalized) accessor["normalized"] = true;
+    doc_["accessors"].push_back(accessor);
+    return int(doc_["accessors"].size()) - 1;
+  }
   int add_indices(const std::vector<uint16_t>& indices) {
     const int view = add_view(indices.data(), indices.size() * sizeof(uint16_t));
     doc_["accessors"].push_back({{"bufferView", view},

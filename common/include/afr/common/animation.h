@@ -1,6 +1,7 @@
 // glTF 2.0 animation samplers: keyframe times and values for one animated property of one
-// node, evaluated at a time in seconds with STEP, LINEAR (slerp for rotations) or CUBICSPLINE
-// (Hermite) interpolation, exactly as the glTF 2.0 specification, Appendix C, defines them.
+// node (its translation, rotation, scale or morph weights), evaluated at a time in seconds with
+// STEP, LINEAR (slerp for rotations) or CUBICSPLINE (Hermite) interpolation, exactly as the
+// glTF 2.0 specification, Appendix C, defines them.
 #pragma once
 
 #include <afr/common/math.h>
@@ -11,7 +12,7 @@
 namespace afr {
 
 enum class Interpolation { kStep, kLinear, kCubicSpline };
-enum class AnimatedPath { kTranslation, kRotation, kScale };
+enum class AnimatedPath { kTranslation, kRotation, kScale, kWeights };
 
 std::string_view to_string(Interpolation interpolation);
 std::string_view to_string(AnimatedPath path);
@@ -19,21 +20,30 @@ std::string_view to_string(AnimatedPath path);
 // One channel: drives `path` of node `node`. Values are vec3 (translation, scale) stored in
 // xyz, or quaternions stored as (x, y, z, w) like glTF. For CUBICSPLINE there are three values
 // per key in glTF order: in-tangent, value, out-tangent (tangents per second).
+//
+// A weights channel (kWeights) drives the morph weights of the node's mesh: `values` is empty
+// and `weights` holds `weight_count` numbers per value (one value per key, three for
+// CUBICSPLINE, in the same order), key after key, as glTF's output accessor lists them.
 struct AnimationChannel {
   int node = -1;
   AnimatedPath path = AnimatedPath::kTranslation;
   Interpolation interpolation = Interpolation::kLinear;
   std::vector<double> times;  // strictly increasing, seconds
   std::vector<glm::dvec4> values;
+  std::vector<double> weights;  // kWeights only
+  size_t weight_count = 0;      // kWeights only: morph targets of the node's mesh
 
   // Throws afr::Error if times are not strictly increasing and finite, the value count does
-  // not match the interpolation, or the channel is empty. `what` names the channel in the
-  // message.
+  // not match the interpolation (and, for weights, the weight count), a value is not finite,
+  // or the channel is empty. `what` names the channel in the message.
   void validate(std::string_view what) const;
 
-  // Value at time t (seconds). Before the first key: the first value; after the last: the last
-  // value. Rotations come back normalised.
+  // Value at time t (seconds) of a translation, rotation or scale channel. Before the first
+  // key: the first value; after the last: the last value. Rotations come back normalised.
   glm::dvec4 evaluate(double t) const;
+  // The `weight_count` morph weights of a weights channel at time t, written to `out`, with
+  // the same rules at and beyond the ends.
+  void evaluate_weights(double t, float* out) const;
 
   double start_time() const { return times.front(); }
   double end_time() const { return times.back(); }

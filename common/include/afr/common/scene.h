@@ -1,28 +1,49 @@
 // The scene model of afr: what a glTF 2.0 file (or the built-in scene) describes, in plain
-// structs: meshes, materials, textures, a node hierarchy, animations of node transforms,
-// perspective cameras and punctual lights. Scene::evaluate gives every node's world transform
-// at a time t; camera_at gives the active camera at that time.
+// structs: meshes (with skins and morph targets), materials, textures, a node hierarchy,
+// animations of node transforms and morph weights, perspective cameras and punctual lights.
+// Scene::evaluate gives every node's world transform at a time t, deform the vertices of a
+// skinned or morphed mesh at that time; camera_at gives the active camera.
 #pragma once
 
 #include <afr/common/animation.h>
 #include <afr/common/camera.h>
 #include <afr/common/math.h>
 
+#include <array>
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
 namespace afr {
 
+// One morph target of a primitive (glTF 2.0, 3.7.2.2): displacements of its vertices, added
+// times the target's weight to the base positions and normals. An array is empty when the
+// target does not displace that attribute; otherwise it has one entry per vertex.
+struct MorphTarget {
+  std::vector<glm::vec3> positions;
+  std::vector<glm::vec3> normals;
+};
+
 // An indexed triangle list with one material. Normals are per vertex (generated when the
-// source has none); uvs are empty when the source has none.
+// source has none); uvs are empty when the source has none. Skinning data and morph targets
+// are present only where the mesh has them.
 struct Primitive {
   std::vector<glm::vec3> positions;
   std::vector<glm::vec3> normals;
   std::vector<glm::vec2> uvs;
   std::vector<uint32_t> indices;  // 3 per triangle
   int material = -1;              // index into Scene::materials; -1 = default material
+  // JOINTS_0 and WEIGHTS_0 of a skinned mesh, one entry per vertex (else empty): four slots of
+  // the skin's joint list and their weights, which are >= 0 and sum to 1. More than four
+  // influences (JOINTS_1) are not modelled.
+  std::vector<std::array<uint16_t, 4>> joints;
+  std::vector<glm::vec4> joint_weights;
+  std::vector<MorphTarget> targets;  // as many as the mesh has weights
+  // The normals were generated from the positions (the source had none): a morphed shape then
+  // gets its normals generated from its own positions.
+  bool generated_normals = false;
 
   size_t triangle_count() const { return indices.size() / 3; }
 };
@@ -30,6 +51,21 @@ struct Primitive {
 struct Mesh {
   std::string name;
   std::vector<Primitive> primitives;
+  // The default morph weights, one per morph target of every primitive; empty when the mesh
+  // has no morph targets (then no primitive has any).
+  std::vector<float> weights = {};
+};
+
+// A glTF skin: the joints (nodes) whose world transforms move the vertices of the meshes on
+// the nodes that name the skin, and for each joint the inverse bind matrix that takes the
+// mesh's bind pose into the joint's space. A vertex goes to
+// sum_i w_i (world(joint_i) x inverse_bind_i) x v in world space; the transform of the node that
+// carries the mesh is ignored (glTF 2.0, 3.7.3).
+struct Skin {
+  std::string name;
+  std::vector<int> joints;                        // node indices
+  std::vector<glm::dmat4> inverse_bind_matrices;  // one per joint
+  int skeleton = -1;                              // the file's skeleton root (not used)
 };
 
 // A decoded texture in linear RGB, row 0 at the top (v = 0), texel centers at (i + 0.5) / size.
@@ -93,12 +129,18 @@ struct Node {
   int mesh = -1;
   int camera = -1;
   int light = -1;
+  int skin = -1;               // index into Scene::skins; the mesh is then skinned
+  std::vector<float> weights;  // morph weights instead of the mesh's; empty: the mesh's
 };
 
-// The world transforms of every node at one time.
+// The world transforms of every node at one time, and what deforms meshes at that time.
 struct SceneState {
   double time = 0.0;
   std::vector<glm::dmat4> world;  // indexed like Scene::nodes
+  // The morph weights of every node whose mesh has morph targets (Scene::morph_weights), and
+  // world(joint) x inverse bind matrix for every joint of every skin, skin after skin.
+  std::vector<float> morph_weights;
+  std::vector<glm::mat4> joint_matrices;
 };
 
 class Scene {
@@ -110,6 +152,7 @@ class Scene {
   std::vector<Light> lights;
   std::vector<CameraModel> cameras;
   std::vector<Node> nodes;
+  std::vector<Skin> skins;
   std::vector<int> roots;  // nodes of the displayed scene with no parent
   std::vector<AnimationChannel> channels;
   glm::vec3 background{0.0f};  // radiance of rays that hit nothing
@@ -125,7 +168,13 @@ class Scene {
   bool is_animated() const { return !channels.empty(); }
   // True when the world transform of node i depends on time (it or an ancestor is animated).
   bool node_moves(int i) const { return node_moves_[i]; }
-  // True when any node carrying a mesh moves: samples then need a velocity.
+  // True when node i carries a mesh that is skinned or has morph targets: its vertices are
+  // those deform() gives, not the mesh's under the node's world transform.
+  bool node_deforms(int i) const { return node_deforms_[i]; }
+  // True when the world-space vertices of node i's mesh depend on time: the node moves (a
+  // mesh that is not skinned), a joint of its skin moves, or a weights channel drives it.
+  bool node_geometry_moves(int i) const { return node_geometry_moves_[i]; }
+  // True when any mesh of the displayed scene moves or deforms: samples then need a velocity.
   bool has_moving_geometry() const { return has_moving_geometry_; }
   // The node whose camera is active (the first camera node in scene order), or -1.
   int camera_node() const { return camera_node_; }
@@ -137,12 +186,24 @@ class Scene {
   void evaluate(double t, SceneState* state) const;
   SceneState evaluate(double t) const;
 
+  // The morph weights of node i at the state's time (empty when its mesh has no targets).
+  std::span<const float> morph_weights(const SceneState& state, int i) const {
+    return {state.morph_weights.data() + weight_start_[i], weight_start_[i + 1] - weight_start_[i]};
+  }
+  // The world-space vertices of primitive `primitive` of the mesh on node `node`
+  // (node_deforms) at the state's time: morph targets applied in the mesh's space, then the
+  // skin (or, without one, the node's world transform). Writes the primitive's vertex count
+  // of positions, and of unit normals when `normals` is not null (zero where the normal is
+  // degenerate). Allocates nothing.
+  void deform(int node, size_t primitive, const SceneState& state, glm::vec3* positions,
+              glm::vec3* normals) const;
+
   // The active camera at the state's time. Without a camera node, the default camera: one
   // fixed camera that looks from the +Z side at the bounds of the whole animation (their
   // union over time 0 and every keyframe time), so a moving object moves across the image.
   Camera camera_at(const SceneState& state) const;
 
-  // World-space bounds of all geometry at time t.
+  // World-space bounds of all geometry at time t, deformed geometry included.
   void bounds(const SceneState& state, glm::dvec3* lo, glm::dvec3* hi) const;
 
   size_t triangle_count() const;  // over the instanced scene (one count per mesh node)
@@ -151,11 +212,20 @@ class Scene {
   void frame_default_camera();  // sets default_camera_ (finalize, without a camera node)
 
   std::vector<char> node_moves_;
+  std::vector<char> node_deforms_;
+  std::vector<char> node_geometry_moves_;
   std::vector<int> order_;               // all nodes, parents before children
   std::vector<int> scene_nodes_;         // nodes reachable from roots, parents before children
   std::vector<uint32_t> channel_start_;  // channels of node i: channel_index_[start[i]..start[i+1])
   std::vector<uint32_t> channel_index_;
   std::vector<glm::vec3> mesh_lo_, mesh_hi_;  // local bounds per mesh
+  // Morph weights of node i: SceneState::morph_weights[weight_start_[i]..weight_start_[i + 1]),
+  // initialised from default_weights_ at every evaluation.
+  std::vector<size_t> weight_start_;
+  std::vector<float> default_weights_;
+  std::vector<size_t>
+      skin_start_;  // joints of skin s: SceneState::joint_matrices[skin_start_[s]..]
+  size_t joint_matrix_count_ = 0;
   bool has_moving_geometry_ = false;
   int camera_node_ = -1;
   double duration_ = 0.0;
@@ -163,7 +233,8 @@ class Scene {
 };
 
 // Generates normals for a primitive that has none: area-weighted vertex normals over the
-// triangles sharing a vertex, (0, 0, 1) where all of them are degenerate.
+// triangles sharing a vertex, (0, 0, 1) where all of them are degenerate. Sets
+// Primitive::generated_normals.
 void generate_normals(Primitive* primitive);
 
 }  // namespace afr
