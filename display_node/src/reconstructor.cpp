@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <future>
+#include <thread>
 
 namespace afr {
 
@@ -107,7 +108,10 @@ Reconstructor::Reconstructor(const ReconstructorConfig& config)
       store_(checked_capacity(config_)),
       field_(config_.image.width, config_.image.height),
       mode_(config_.mode),
-      counts_(received_, store_.capacity()) {
+      counts_(received_, store_.capacity()),
+      count_threads_(config_.threads > 0
+                         ? std::min(config_.threads, 256)
+                         : std::clamp(int(std::thread::hardware_concurrency()), 1, 256)) {
   config_.capacity = store_.capacity();
 }
 
@@ -166,7 +170,7 @@ void Reconstructor::prepare_frame(double time, int width, int height,
   // here throw.)
   std::future<void> counted;
   if (delta.end - delta.first >= kCountsOnAWorker) {
-    counted = std::async(std::launch::async, [&] { counts_.update(delta, fresh); });
+    counted = std::async(std::launch::async, [&] { counts_.update(delta, fresh, count_threads_); });
   } else {
     counts_.update(delta, fresh);
   }
@@ -176,7 +180,7 @@ void Reconstructor::prepare_frame(double time, int width, int height,
   setup->field_changed = field_.update(setup->grid);
   if (meanwhile) meanwhile();
   if (counted.valid()) counted.get();
-  counts_.count_tiles(field_.tiles());
+  counts_.count_tiles(field_.tiles(), count_threads_);
 
   // How far back the store reaches, and the mean rate it was filled at: the cap of e_t and the
   // rate of pixels no tile with a known rate covers.

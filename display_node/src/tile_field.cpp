@@ -4,7 +4,9 @@
 #include <afr/common/error.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <future>
 
 namespace afr {
 
@@ -201,13 +203,35 @@ TileSampleCounts::TileSampleCounts(const PixelRect& region, size_t capacity) : r
   counts_.assign(1, 0u);
 }
 
-void TileSampleCounts::count_tiles(const std::vector<FieldTile>& tiles) {
+void TileSampleCounts::count_tiles(const std::vector<FieldTile>& tiles, int threads) {
   const size_t n = tiles.size();
   const PixelRect local{0, 0, region_.width(), region_.height()};
-  const size_t gw = size_t(grid_width_);
   rects_.resize(n);
   counts_.assign(n, 0u);
   rects_[0] = PixelRect{};  // "no tile"
+  int64_t area = 0;
+  for (size_t i = 1; i < n; ++i) {
+    const PixelRect& t = tiles[i].rect;
+    rects_[i] = intersect(
+        PixelRect{t.x0 - region_.x0, t.y0 - region_.y0, t.x1 - region_.x0, t.y1 - region_.y0},
+        local);
+    area += rects_[i].area();
+  }
+  // Tiles i = p, p + parts, ... on part p's thread: each reads the counts and writes its own
+  // tiles' (parts of at least 2^20 pixels to sum).
+  const int parts = int(std::clamp<int64_t>(area >> 20, 1, std::max(threads, 1)));
+  const auto count_part = [&](int p) {
+    for (size_t i = 1 + size_t(p); i < n; i += size_t(parts)) count_tile(i);
+  };
+  std::vector<std::future<void>> others;
+  for (int p = 1; p < parts; ++p) others.push_back(std::async(std::launch::async, count_part, p));
+  count_part(0);
+  for (std::future<void>& f : others) f.get();
+}
+
+void TileSampleCounts::count_tile(size_t i) {
+  const PixelRect local{0, 0, region_.width(), region_.height()};
+  const size_t gw = size_t(grid_width_);
   const int side = 1 << shift_;
   const auto walk = [&](size_t b, const PixelRect& r) {
     uint64_t c = 0;
@@ -217,45 +241,39 @@ void TileSampleCounts::count_tiles(const std::vector<FieldTile>& tiles) {
     }
     return c;
   };
-  for (size_t i = 1; i < n; ++i) {
-    const PixelRect& t = tiles[i].rect;
-    PixelRect r = intersect(
-        PixelRect{t.x0 - region_.x0, t.y0 - region_.y0, t.x1 - region_.x0, t.y1 - region_.y0},
-        local);
-    rects_[i] = r;
-    if (r.empty()) continue;
-    uint64_t count = 0;
-    if (shift_ == 0) {
-      // One block per pixel: the sum of the rectangle's counts, row by row.
-      for (int y = r.y0; y < r.y1; ++y) {
-        const uint32_t* row = block_count_.data() + size_t(y) * gw;
-        uint32_t sum = 0;  // < N < 2^32
-        for (int x = r.x0; x < r.x1; ++x) sum += row[x];
-        count += sum;
-      }
-      counts_[i] = count;
-      continue;
-    }
-    // The blocks it overlaps, [bx0, bx1] x [by0, by1], and those wholly inside it,
-    // [ix0, ix1) x [iy0, iy1) (the region's last blocks may be narrower).
-    const int bx0 = r.x0 >> shift_, bx1 = (r.x1 - 1) >> shift_;
-    const int by0 = r.y0 >> shift_, by1 = (r.y1 - 1) >> shift_;
-    const int ix0 = std::min((r.x0 + side - 1) >> shift_, bx1 + 1);
-    const int ix1 = std::max(r.x1 == local.x1 ? grid_width_ : r.x1 >> shift_, ix0);
-    const int iy0 = (r.y0 + side - 1) >> shift_;
-    const int iy1 = r.y1 == local.y1 ? grid_height_ : r.y1 >> shift_;
-    for (int by = by0; by <= by1; ++by) {
-      const size_t row = size_t(by) * gw;
-      if (by < iy0 || by >= iy1) {
-        for (int bx = bx0; bx <= bx1; ++bx) count += walk(row + size_t(bx), r);
-        continue;
-      }
-      for (int bx = bx0; bx < ix0; ++bx) count += walk(row + size_t(bx), r);
-      for (int bx = ix0; bx < ix1; ++bx) count += block_count_[row + size_t(bx)];
-      for (int bx = ix1; bx <= bx1; ++bx) count += walk(row + size_t(bx), r);
+  const PixelRect r = rects_[i];
+  if (r.empty()) return;
+  uint64_t count = 0;
+  if (shift_ == 0) {
+    // One block per pixel: the sum of the rectangle's counts, row by row.
+    for (int y = r.y0; y < r.y1; ++y) {
+      const uint32_t* row = block_count_.data() + size_t(y) * gw;
+      uint32_t sum = 0;  // < N < 2^32
+      for (int x = r.x0; x < r.x1; ++x) sum += row[x];
+      count += sum;
     }
     counts_[i] = count;
+    return;
   }
+  // The blocks it overlaps, [bx0, bx1] x [by0, by1], and those wholly inside it,
+  // [ix0, ix1) x [iy0, iy1) (the region's last blocks may be narrower).
+  const int bx0 = r.x0 >> shift_, bx1 = (r.x1 - 1) >> shift_;
+  const int by0 = r.y0 >> shift_, by1 = (r.y1 - 1) >> shift_;
+  const int ix0 = std::min((r.x0 + side - 1) >> shift_, bx1 + 1);
+  const int ix1 = std::max(r.x1 == local.x1 ? grid_width_ : r.x1 >> shift_, ix0);
+  const int iy0 = (r.y0 + side - 1) >> shift_;
+  const int iy1 = r.y1 == local.y1 ? grid_height_ : r.y1 >> shift_;
+  for (int by = by0; by <= by1; ++by) {
+    const size_t row = size_t(by) * gw;
+    if (by < iy0 || by >= iy1) {
+      for (int bx = bx0; bx <= bx1; ++bx) count += walk(row + size_t(bx), r);
+      continue;
+    }
+    for (int bx = bx0; bx < ix0; ++bx) count += walk(row + size_t(bx), r);
+    for (int bx = ix0; bx < ix1; ++bx) count += block_count_[row + size_t(bx)];
+    for (int bx = ix1; bx <= bx1; ++bx) count += walk(row + size_t(bx), r);
+  }
+  counts_[i] = count;
 }
 
 void TileSampleCounts::clear_samples() {
@@ -281,18 +299,22 @@ void TileSampleCounts::remove(size_t slot) {
   }
 }
 
-void TileSampleCounts::insert(size_t slot, const StoredSample& s) {
+uint32_t TileSampleCounts::pixel_of(const StoredSample& s) const {
   // (NaN and far-away positions were rejected at the door; the comparisons keep the casts in
   // range anyway.)
   if (!(s.x >= float(region_.x0) && s.x < float(region_.x1) && s.y >= float(region_.y0) &&
         s.y < float(region_.y1))) {
-    slot_pixel_[slot] = kNone;
-    return;
+    return kNone;
   }
   const int x = std::min(int(s.x), region_.x1 - 1) - region_.x0;
   const int y = std::min(int(s.y), region_.y1 - 1) - region_.y0;
-  const uint32_t v = pack(x, y);
+  return pack(x, y);
+}
+
+void TileSampleCounts::insert(size_t slot, const StoredSample& s) {
+  const uint32_t v = pixel_of(s);
   slot_pixel_[slot] = v;
+  if (v == kNone) return;
   const size_t b = block_of(v);
   ++block_count_[b];
   ++total_;
@@ -308,14 +330,58 @@ void TileSampleCounts::insert(size_t slot, const StoredSample& s) {
   }
 }
 
+int64_t TileSampleCounts::update_part(const SampleStore::Delta& delta,
+                                      const std::vector<StoredSample>& fresh, size_t lo,
+                                      size_t hi) {
+  const size_t capacity = slot_pixel_.size();
+  int64_t change = 0;
+  for (size_t i = lo; i < hi; ++i) {
+    const size_t slot = size_t((delta.first + i) % capacity);
+    if (const uint32_t old = slot_pixel_[slot]; old != kNone) {
+      std::atomic_ref<uint32_t>(block_count_[block_of(old)])
+          .fetch_sub(1, std::memory_order_relaxed);
+      --change;
+    }
+    const uint32_t v = pixel_of(fresh[i]);
+    slot_pixel_[slot] = v;
+    if (v != kNone) {
+      std::atomic_ref<uint32_t>(block_count_[block_of(v)]).fetch_add(1, std::memory_order_relaxed);
+      ++change;
+    }
+  }
+  return change;
+}
+
 void TileSampleCounts::update(const SampleStore::Delta& delta,
-                              const std::vector<StoredSample>& fresh) {
+                              const std::vector<StoredSample>& fresh, int threads) {
   const size_t capacity = slot_pixel_.size();
   RingRun runs[2];
   const int k = ring_runs(delta.first, delta.end, capacity, runs);
   // A whole ring's worth replaces every sample, including ones never seen (more than N
   // arrived since the last update): start from empty rather than evict out of order.
   if (delta.end - delta.first >= capacity) clear_samples();
+  // Parts of at least this many pairs (a thread start costs tens of microseconds).
+  constexpr size_t kPairsPerThread = size_t(1) << 16;
+  const size_t pairs = size_t(delta.end - delta.first);
+  const int parts =
+      shift_ == 0 ? int(std::min<size_t>(size_t(std::max(threads, 1)), pairs / kPairsPerThread))
+                  : 1;
+  if (parts > 1) {
+    // The parts' slots are disjoint and their block counts move by atomic adds and subtracts,
+    // which commute (a count may pass below zero while the parts run; unsigned arithmetic
+    // wraps it back).
+    std::vector<std::future<int64_t>> others;
+    const auto bound = [&](int p) { return pairs * size_t(p) / size_t(parts); };
+    for (int p = 1; p < parts; ++p) {
+      others.push_back(std::async(std::launch::async, [this, &delta, &fresh, &bound, p] {
+        return update_part(delta, fresh, bound(p), bound(p + 1));
+      }));
+    }
+    int64_t change = update_part(delta, fresh, 0, bound(1));
+    for (std::future<int64_t>& f : others) change += f.get();
+    total_ = uint64_t(int64_t(total_) + change);
+    return;
+  }
   for (int r = 0; r < k; ++r) {
     for (size_t j = 0; j < runs[r].count; ++j) {
       const size_t slot = runs[r].slot + j;

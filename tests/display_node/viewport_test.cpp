@@ -545,9 +545,16 @@ TEST(ViewportTest, GlMemoryIsBoundedByTheViewportNotTheSamplingImage) {
 // The counts against a brute-force count over a list of what the ring holds, through ring
 // wraps, retilings, overlapping tiles, tiles cut by the region and more than N samples
 // arriving between two updates; with one block per pixel and with 2 x 2 pixel blocks (the
-// blocks tile edges cut are walked sample by sample).
+// blocks tile edges cut are walked sample by sample); and with updates of up to N samples
+// and tiles spread over 4 threads (one block per pixel: parts of 65536 pairs, of 2^20 pixels).
 TEST(TileSampleCountsTest, CountsEqualABruteForceCountThroughRingWrapsAndRetilings) {
-  for (const size_t capacity : {size_t(1) << 17, size_t(5000)}) {
+  struct Case {
+    size_t capacity;
+    int threads;
+  };
+  for (const Case c : {Case{size_t(1) << 17, 1}, Case{5000, 1}, Case{size_t(1) << 18, 4}}) {
+    const size_t capacity = c.capacity;
+    SCOPED_TRACE(std::to_string(capacity) + " slots, " + std::to_string(c.threads) + " threads");
     const PixelRect region{100, 50, 100 + 300, 50 + 400};  // 120000 pixels
     TileSampleCounts counts(region, capacity);
     EXPECT_EQ(counts.block_side(), capacity > 120000 ? 1 : 2);
@@ -561,7 +568,9 @@ TEST(TileSampleCountsTest, CountsEqualABruteForceCountThroughRingWrapsAndRetilin
     for (int round = 0; round < 12; ++round) {
       // Samples over the region and around it (some outside: not counted).
       SampleBatch b;
-      const size_t n = round == 7 ? capacity + 123 : size_t(rng.next_float() * capacity / 3);
+      const size_t n =
+          round == 7 ? capacity + 123
+                     : size_t(rng.next_float() * double(capacity) / (c.threads > 1 ? 1.0 : 3.0));
       for (size_t i = 0; i < n; ++i) {
         Sample s;
         s.x = 60.0f + 400.0f * rng.next_float();
@@ -573,18 +582,21 @@ TEST(TileSampleCountsTest, CountsEqualABruteForceCountThroughRingWrapsAndRetilin
       if (round % 3 == 0) {
         // A new tiling: random rectangles, overlapping, some reaching outside the region.
         tiles.assign(1, FieldTile{});
-        for (int k = 0; k < 40; ++k) {
+        // (With threads, 100 tiles of up to 300 x 300: over 2^21 pixels to sum, two parts.)
+        const int count = c.threads > 1 ? 100 : 40;
+        const float most = c.threads > 1 ? 300.0f : 90.0f;
+        for (int k = 0; k < count; ++k) {
           FieldTile t;
           const int x0 = 60 + int(rng.next_float() * 400), y0 = 20 + int(rng.next_float() * 460);
-          t.rect = PixelRect{x0, y0, x0 + 1 + int(rng.next_float() * 90),
-                             y0 + 1 + int(rng.next_float() * 90)};
+          t.rect = PixelRect{x0, y0, x0 + 1 + int(rng.next_float() * most),
+                             y0 + 1 + int(rng.next_float() * most)};
           tiles.push_back(t);
         }
         tiles.push_back(FieldTile{0, 0, 0, 0, 0, PixelRect{101, 51, 102, 52}});  // one pixel
       }
       const SampleStore::Delta d = store.copy_since(seen, &fresh);
-      counts.update(d, fresh);
-      counts.count_tiles(tiles);
+      counts.update(d, fresh, c.threads);
+      counts.count_tiles(tiles, c.threads);
       seen = d.end;
       for (const StoredSample& s : fresh) held.push_back(s);
       while (held.size() > d.stored) held.pop_front();

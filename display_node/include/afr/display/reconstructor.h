@@ -254,6 +254,7 @@ class Reconstructor : public SampleSink {
   ReconstructionMode mode_;
   // Reconstructing thread only.
   TileSampleCounts counts_;
+  int count_threads_ = 1;  // threads a large count update may use (config threads, 0 = all)
   std::vector<TileState> tile_states_;
 };
 
