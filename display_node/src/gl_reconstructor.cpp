@@ -7,6 +7,7 @@
 #include <afr/display/reprojection.h>
 
 #include "gl_shaders.h"
+#include "parallel_copy.h"
 
 #include <epoxy/gl.h>
 #include <fmt/format.h>
@@ -368,8 +369,8 @@ struct GlReconstructor::Impl {
         next_segment = (next_segment + 1) % kInFlight;
         wait(&segment_fence[size_t(seg)]);
         const size_t at = size_t(seg) * segment_bytes;
-        std::copy_n(staging.data() + runs[r].offset + done, n,
-                    reinterpret_cast<StoredSample*>(upload_map + at));
+        parallel_copy(upload_map + at, staging.data() + runs[r].offset + done,
+                      n * sizeof(StoredSample));
         glBindBuffer(GL_COPY_READ_BUFFER, upload);
         glBindBuffer(GL_COPY_WRITE_BUFFER, samples);
         glCopyBufferSubData(GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER, GLintptr(at),

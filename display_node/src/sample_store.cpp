@@ -3,6 +3,8 @@
 #include <afr/common/check.h>
 #include <afr/common/error.h>
 
+#include "parallel_copy.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -149,8 +151,8 @@ SampleStore::Delta SampleStore::copy_since(uint64_t since, std::vector<StoredSam
   RingRun runs[2];
   const int k = ring_runs(d.first, d.end, capacity_, runs);
   for (int r = 0; r < k; ++r) {
-    std::memcpy(out->data() + runs[r].offset, &ring_[runs[r].slot],
-                runs[r].count * sizeof(StoredSample));
+    parallel_copy(out->data() + runs[r].offset, &ring_[runs[r].slot],
+                  runs[r].count * sizeof(StoredSample));
   }
   return d;
 }
