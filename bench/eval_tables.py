@@ -16,6 +16,8 @@ in the document (--write), or prints the tables (default). Tables:
              difference exceeds the spread over the seeds (the ranges do not overlap).
     timing   from --timing DIR: the wall time of a full Table 1 run; the 30-minute target
              counts the whole run, with the ideal frames (9 spp) read from a warm cache.
+    scenes   from --scene DIR (repeatable): the same targets on scenes beyond the kitchen
+             and the built-in scene (afr-eval --scene runs), one table per run.
 
     python3 bench/eval_tables.py --table out/eval/table-256 --timing out/eval/table1-timing
     python3 bench/eval_tables.py --table out/eval/table-256 --timing out/eval/table1-timing \\
@@ -189,18 +191,23 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--table", help="afr-eval output folder of the Table 1 run")
     parser.add_argument("--timing", help="afr-eval output folder of the timed Table 1 run")
+    parser.add_argument("--scene", action="append", default=[],
+                        help="afr-eval output folder of a --scene run (repeatable)")
     parser.add_argument("--rate", default="400K", help="rate of the targets table")
     parser.add_argument("--animations", default="",
                         help="animations of the targets table (default: all of the run)")
     parser.add_argument("--write", metavar="DOC", help="replace the tables' blocks in DOC")
     args = parser.parse_args()
-    if not args.table and not args.timing:
-        fail("nothing to do: give --table and/or --timing")
+    if not args.table and not args.timing and not args.scene:
+        fail("nothing to do: give --table, --timing and/or --scene")
     tables = {}
     if args.table:
         meta, cells = read_run(args.table)
         animations = [a for a in args.animations.split(",") if a]
         tables["targets"] = targets_table(meta, cells, parse_rate(args.rate), animations)
+    if args.scene:
+        tables["scenes"] = "\n\n".join(
+            targets_table(*read_run(folder), parse_rate(args.rate), []) for folder in args.scene)
     if args.timing:
         meta, _ = read_run(args.timing)
         tables["timing"] = timing_table(meta)

@@ -88,9 +88,15 @@ add eval-512 eval-table-512.md "Table 1 at 512 x 512" \
 add eval-timing eval-timing.md "Cost of a full Table 1 run" \
   "Wall minutes of a whole Table-1 run of 20 s per kitchen animation at 256 x 256, every method at 100K, 400K and 800K, 3 seeds, with the 9-spp ideal frames read from a warm cache (the first command renders any that are missing); the target is 30 minutes (docs/evaluation.md, \"Cost of a full Table 1 run\"); the program's table.md." \
   'need_kitchen && "$BUILD"/bench/afr-eval --ideal-only --size 256x256 --seconds 20 --spp 9 --animations bart,toycar,interactive >&2 && "$BUILD"/bench/afr-eval --size 256x256 --seconds 20 --spp 9 --animations bart,toycar,interactive --out out/eval/table1-timing >&2 && cat out/eval/table1-timing/table.md'
+add eval-robots eval-robots-256.md "The targets on BART robots at 256 x 256" \
+  "Every method at 100K, 400K and 800K rays/s on BART's robots from 14 s (the camera closes in on a robot and turns away), 3 s, 3 seeds, the rules of eval-256 (docs/results.md, \"Other scenes\"); the program's table.md." \
+  'need_robots && "$BUILD"/bench/afr-eval --scene out/robots/robots.gltf --camera own --start 14 --size 256x256 --seconds 3 --spp 9 --no-progress --out out/eval/robots-256 >&2 && cat out/eval/robots-256/table.md'
+add eval-boxanimated eval-boxanimated-256.md "The targets on a Khronos glTF sample model at 256 x 256" \
+  "Every method at 100K, 400K and 800K rays/s on BoxAnimated (tests/data/khronos: no lights, no camera: the default headlight and camera) from 0.5 s, 3 s, 3 seeds, the rules of eval-256 (docs/results.md, \"Other scenes\"); the program's table.md." \
+  '"$BUILD"/bench/afr-eval --scene tests/data/khronos/BoxAnimated.gltf --camera own --start 0.5 --size 256x256 --seconds 3 --spp 9 --no-progress --out out/eval/boxanimated-256 >&2 && cat out/eval/boxanimated-256/table.md'
 add results-doc ../../docs/results.md "The tables of docs/results.md" \
-  "The targets and timing tables of docs/results.md, made by bench/eval_tables.py from the outputs of eval-256 and eval-timing (run those first)." \
-  'python3 bench/eval_tables.py --table out/eval/table-256 --timing out/eval/table1-timing --write docs/results.md' \
+  "The targets, other-scene and timing tables of docs/results.md, made by bench/eval_tables.py from the outputs of eval-256, eval-robots, eval-boxanimated and eval-timing (run those first)." \
+  'python3 bench/eval_tables.py --table out/eval/table-256 $([ -d out/eval/table1-timing ] && echo --timing out/eval/table1-timing) --scene out/eval/robots-256 --scene out/eval/boxanimated-256 --write docs/results.md' \
   self
 add sweep sweep-256.md "Speed/accuracy sweep at 256 x 256" \
   "Mean RMS and wall-clock cost of one knob at a time and of the baselines, Pareto fronts marked (docs/tradeoffs.md); the program's sweep.md." \
@@ -113,6 +119,12 @@ add lossy lossy-lan.md "Lossy LAN" \
   root
 
 # The BART kitchen in glTF, for the results that use it (docs/benchmarks.md).
+need_robots() {
+  [ -f out/robots/robots.gltf ] && return 0
+  "$BUILD"/tools/aff2gltf/aff2gltf ../shared/scenes/bart-robots/aff/Robot.aff \
+    -o out/robots/robots.gltf >&2
+}
+
 need_kitchen() {
   [ -f out/kitchen/kitchen.gltf ] && return 0
   "$BUILD"/tools/aff2gltf/aff2gltf ../shared/scenes/bart-kitchen/aff/kitchen.aff \
