@@ -1,14 +1,18 @@
 // afr-bench-tracer: throughput of the tracer (shaded samples/s and rays/s) on the built-in
-// scene and on a glTF scene, for single rays at random image positions and for crosshairs cast
-// as five single rays or as one 8-wide packet, on 1 and 2 threads, at several animation times.
-// Prints a Markdown table of medians over repeats.
+// scene, on a glTF scene and on a deforming sheet (a skinned and morphed grid made here), for
+// single rays at random image positions and for crosshairs cast as five single rays or as one
+// 8-wide packet, on 1 and 2 threads, at several animation times. Prints a Markdown table of
+// medians over repeats, and for the deforming sheet what set_time costs and the samples/s of a
+// sampler on it, animated and frozen in its pose.
 //   afr-bench-tracer --scene ../shared/scenes/bart-kitchen/kitchen.gltf --times 0,5,10
+//   afr-bench-tracer --no-builtin --deforming 256
 #include <afr/common/builtin_scene.h>
 #include <afr/common/cli.h>
 #include <afr/common/error.h>
 #include <afr/common/gltf_loader.h>
 #include <afr/common/log.h>
 #include <afr/common/random.h>
+#include <afr/sampler/sampler_pool.h>
 #include <afr/sampler/tracer.h>
 
 #include <fmt/format.h>
@@ -18,7 +22,9 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -139,17 +145,170 @@ std::string si(double v) {
   return fmt::format("{:.0f}", v);
 }
 
+// ---- The deforming sheet ----
+//
+// An n x n grid of vertices over [-2, 2] x [-2, 2] in the XZ plane, skinned to a chain of
+// kSheetJoints joints along X that wave about Z, with one morph target (a ripple, with its
+// normals) whose weight rises and falls: every vertex moves at every time. Lit by a sun, seen
+// from above and in front; its animation is 4 s long.
+constexpr int kSheetJoints = 8;
+constexpr double kSheetSeconds = 4.0;
+
+afr::Scene make_deforming_sheet(int n, bool animated) {
+  afr::Scene s;
+  s.source = fmt::format("deforming sheet {}x{}", n, n);
+  afr::Material grey;
+  grey.base_color_factor = glm::vec4(0.7f, 0.7f, 0.7f, 1.0f);
+  grey.metallic = 0.0f;
+  grey.roughness = 0.6f;
+  s.materials.push_back(grey);
+
+  afr::Primitive p;
+  p.material = 0;
+  afr::MorphTarget ripple;
+  const float step = 4.0f / float(n - 1);
+  const float joint_step = 4.0f / float(kSheetJoints - 1);
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const float x = -2.0f + step * float(i), z = -2.0f + step * float(j);
+      p.positions.push_back({x, 0.0f, z});
+      p.normals.push_back({0.0f, 1.0f, 0.0f});
+      // y = 0.2 sin(3x) cos(3z), and its normal's change (-dy/dx, 0, -dy/dz).
+      ripple.positions.push_back({0.0f, 0.2f * std::sin(3.0f * x) * std::cos(3.0f * z), 0.0f});
+      ripple.normals.push_back({-0.6f * std::cos(3.0f * x) * std::cos(3.0f * z), 0.0f,
+                                0.6f * std::sin(3.0f * x) * std::sin(3.0f * z)});
+      // The two joints around x, weighted by distance.
+      const float f = (x + 2.0f) / joint_step;
+      const int k = std::min(int(f), kSheetJoints - 2);
+      const float w = std::clamp(f - float(k), 0.0f, 1.0f);
+      p.joints.push_back({uint16_t(k), uint16_t(k + 1), 0, 0});
+      p.joint_weights.push_back({1.0f - w, w, 0.0f, 0.0f});
+    }
+  }
+  for (int j = 0; j + 1 < n; ++j) {
+    for (int i = 0; i + 1 < n; ++i) {
+      const uint32_t a = uint32_t(j * n + i), b = a + 1, c = a + uint32_t(n), d = c + 1;
+      p.indices.insert(p.indices.end(), {a, c, b, b, c, d});  // faces +Y
+    }
+  }
+  p.targets.push_back(std::move(ripple));
+  afr::Mesh mesh;
+  mesh.name = "sheet";
+  mesh.primitives.push_back(std::move(p));
+  mesh.weights = {0.5f};
+  s.meshes.push_back(std::move(mesh));
+
+  // Node 0: the sheet. Nodes 1..kSheetJoints: the joint chain, each a child of the one before.
+  afr::Node sheet;
+  sheet.mesh = 0;
+  sheet.skin = 0;
+  s.nodes.push_back(sheet);
+  afr::Skin skin;
+  for (int k = 0; k < kSheetJoints; ++k) {
+    afr::Node joint;
+    joint.translation = k == 0 ? glm::dvec3(-2.0, 0.0, 0.0) : glm::dvec3(joint_step, 0.0, 0.0);
+    if (k + 1 < kSheetJoints) joint.children = {int(s.nodes.size()) + 1};
+    skin.joints.push_back(int(s.nodes.size()));
+    skin.inverse_bind_matrices.push_back(
+        glm::translate(glm::dmat4(1.0), glm::dvec3(2.0 - joint_step * k, 0.0, 0.0)));
+    s.nodes.push_back(joint);
+  }
+  s.skins.push_back(std::move(skin));
+  const int camera = int(s.nodes.size());
+  afr::Node eye;
+  eye.camera = 0;
+  eye.translation = {0.0, 3.0, 4.5};
+  eye.rotation =
+      glm::quatLookAt(glm::normalize(glm::dvec3(0.0, -3.0, -4.5)), glm::dvec3(0.0, 1.0, 0.0));
+  s.nodes.push_back(eye);
+  s.cameras.push_back(afr::CameraModel{"eye", 0.8, 0.01});
+  afr::Light sun;
+  sun.type = afr::Light::Type::kDirectional;
+  sun.intensity = 3.0f;
+  s.lights.push_back(sun);
+  afr::Node sun_node;
+  sun_node.light = 0;
+  sun_node.rotation =
+      glm::quatLookAt(glm::normalize(glm::dvec3(0.3, -1.0, -0.4)), glm::dvec3(0.0, 1.0, 0.0));
+  s.nodes.push_back(sun_node);
+  s.roots = {0, 1, camera, camera + 1};
+  s.ambient = glm::vec3(0.1f);
+
+  if (animated) {
+    // Each joint but the root waves about Z, a phase apart; the ripple comes and goes.
+    constexpr int kKeys = 41;
+    for (int k = 1; k < kSheetJoints; ++k) {
+      afr::AnimationChannel wave;
+      wave.node = 1 + k;
+      wave.path = afr::AnimatedPath::kRotation;
+      for (int key = 0; key < kKeys; ++key) {
+        const double t = kSheetSeconds * key / (kKeys - 1);
+        const double angle = 0.15 * std::sin(2.0 * M_PI * t / kSheetSeconds + 0.7 * k);
+        wave.times.push_back(t);
+        wave.values.push_back({0.0, 0.0, std::sin(0.5 * angle), std::cos(0.5 * angle)});
+      }
+      s.channels.push_back(std::move(wave));
+    }
+    afr::AnimationChannel weights;
+    weights.node = 0;
+    weights.path = afr::AnimatedPath::kWeights;
+    weights.weight_count = 1;
+    weights.times = {0.0, 0.5 * kSheetSeconds, kSheetSeconds};
+    weights.weights = {0.0, 1.0, 0.0};
+    s.channels.push_back(std::move(weights));
+  }
+  s.finalize();
+  return s;
+}
+
+struct CountingSink final : afr::SampleSink {
+  std::atomic<uint64_t> samples{0};
+  void on_batch(afr::SampleBatch&& b) override { samples += b.samples.size(); }
+  void on_tiling(afr::TilingSnapshot&&) override {}
+};
+
+// Samples/s of a one-thread sampler pool on the wall clock (as a sampler node runs it: a new
+// scene time at every animation step), over `seconds` after the first fill.
+double sampler_samples_per_second(const afr::Scene& scene, int width, int height, double seconds) {
+  afr::WallClock clock;
+  CountingSink sink;
+  afr::SamplerConfig config;
+  config.image = {width, height};
+  afr::SamplerPoolOptions options;
+  options.threads = 1;
+  afr::SamplerPool pool(scene, config, options, clock, sink);
+  pool.start();
+  std::this_thread::sleep_for(std::chrono::duration<double>(0.3));
+  const uint64_t s0 = sink.samples;
+  const auto t0 = Clock::now();
+  std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+  const uint64_t s1 = sink.samples;
+  const double dt = std::chrono::duration<double>(Clock::now() - t0).count();
+  pool.stop();
+  return double(s1 - s0) / dt;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"afr-bench-tracer: tracer throughput (shaded samples/s, rays/s)"};
   std::string scene_path, size_text = "640x480", times_text = "0,2.5,5,7.5", log_level = "warn";
   uint64_t samples = 200000, seed = 1;
-  int repeats = 5, max_threads = 2;
+  int repeats = 5, max_threads = 2, deforming = 0;
+  double sampler_seconds = 2.0;
   bool skip_builtin = false;
   app.add_option("--scene", scene_path, "a glTF scene (e.g. the converted BART kitchen)")
       ->check(CLI::ExistingFile);
   app.add_flag("--no-builtin", skip_builtin, "skip the built-in scene");
+  app.add_option("--deforming", deforming,
+                 "also measure a deforming sheet of N x N vertices (skinned and morphed), and a "
+                 "sampler on it; 0 = not")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 4096));
+  app.add_option("--sampler-seconds", sampler_seconds,
+                 "wall seconds of each sampler run on the deforming sheet")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 600.0));
   app.add_option("-s,--size", size_text, "image size WxH")->capture_default_str();
   app.add_option("--times", times_text, "animation times in seconds, comma-separated")
       ->capture_default_str();
@@ -175,6 +334,7 @@ int main(int argc, char** argv) {
     std::vector<afr::Scene> scenes;
     if (!skip_builtin) scenes.push_back(afr::make_builtin_scene());
     if (!scene_path.empty()) scenes.push_back(afr::load_gltf(scene_path));
+    if (deforming > 0) scenes.push_back(make_deforming_sheet(std::max(deforming, 2), true));
     std::vector<std::string> names;
     for (const afr::Scene& s : scenes)
       names.push_back(std::filesystem::path(s.source).filename().string());
@@ -265,6 +425,61 @@ int main(int argc, char** argv) {
         fmt::print("| {} | {} | {} | {} | {:.3f} |\n", threads, cell(0), cell(1), cell(2),
                    cpu_sum[packet_c] / std::max(cpu_sum[single_c], 1e-9));
       }
+    }
+    if (deforming > 0) {
+      // The sampler on the sheet, animated and frozen at its pose at 0 s (deformed once, when
+      // the tracer is built): what the deformation at every new scene time costs it.
+      const int n = std::max(deforming, 2);
+      const afr::Scene& animated = scenes.back();
+      const afr::Scene frozen = make_deforming_sheet(n, false);
+      afr::Tracer tracer(animated);
+      // set_time's parts, by the thread's CPU time: the scene's evaluation, one deformation of
+      // the sheet's vertices with and without normals, and the whole call.
+      const int kCalls = 50;
+      afr::SceneState state;
+      auto per_call_ms = [&](auto&& f) {
+        const double start = thread_cpu_seconds();
+        for (int i = 0; i < kCalls; ++i) f(i);
+        return 1e3 * (thread_cpu_seconds() - start) / kCalls;
+      };
+      const double evaluate_ms = per_call_ms([&](int i) { animated.evaluate(0.013 * i, &state); });
+      std::vector<glm::vec3> positions(size_t(n) * size_t(n)), normals(positions.size());
+      const double deform_ms =
+          per_call_ms([&](int) { animated.deform(0, 0, state, positions.data(), normals.data()); });
+      const double deform_positions_ms =
+          per_call_ms([&](int) { animated.deform(0, 0, state, positions.data(), nullptr); });
+      const double set_time_ms = per_call_ms([&](int i) { tracer.set_time(0.013 * i); });
+      // Embree may refit on worker threads too: the call's wall time beside.
+      const auto wall_start = Clock::now();
+      for (int i = 0; i < kCalls; ++i) tracer.set_time(0.013 * i + 0.005);
+      const double set_time_wall_ms =
+          std::chrono::duration<double, std::milli>(Clock::now() - wall_start).count() / kCalls;
+      const double per_vertex_ns = 1e6 / (double(n) * double(n));
+      fmt::print(
+          "\n## Deforming sheet\n\n{}x{} vertices ({} triangles), skinned to {} joints with one "
+          "morph target; CPU time of one thread\n\n| step | ms | ns per vertex |\n"
+          "|---|---:|---:|\n| Scene::evaluate | {:.3f} | |\n"
+          "| Scene::deform, positions and normals | {:.3f} | {:.1f} |\n"
+          "| Scene::deform, positions | {:.3f} | {:.1f} |\n"
+          "| Tracer::set_time (three deformations, velocities, refit) | {:.3f} | {:.1f} |\n"
+          "| Tracer::set_time, wall time | {:.3f} | {:.1f} |\n\n",
+          n, n, animated.triangle_count(), kSheetJoints, evaluate_ms, deform_ms,
+          deform_ms * per_vertex_ns, deform_positions_ms, deform_positions_ms * per_vertex_ns,
+          set_time_ms, set_time_ms * per_vertex_ns, set_time_wall_ms,
+          set_time_wall_ms * per_vertex_ns);
+      fmt::print("| sampler, 1 thread, {}x{}, wall clock | samples/s |\n|---|---:|\n", size.width,
+                 size.height);
+      std::vector<double> moving, still;
+      for (int r = 0; r < std::min(repeats, 3); ++r) {
+        moving.push_back(
+            sampler_samples_per_second(animated, size.width, size.height, sampler_seconds));
+        still.push_back(
+            sampler_samples_per_second(frozen, size.width, size.height, sampler_seconds));
+      }
+      fmt::print("| animated (a new scene time every max(1 ms, 8 x set_time)) | {} |\n",
+                 si(median(moving)));
+      fmt::print("| frozen in its pose | {} |\n\n", si(median(still)));
+      std::fflush(stdout);
     }
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());

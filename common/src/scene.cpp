@@ -505,7 +505,7 @@ void Scene::evaluate(double t, SceneState* state) const {
     const Skin& skin = skins[k];
     for (size_t j = 0; j < skin.joints.size(); ++j) {
       state->joint_matrices[skin_start_[k] + j] =
-          glm::mat4(state->world[skin.joints[j]] * skin.inverse_bind_matrices[j]);
+          glm::mat4x3(state->world[skin.joints[j]] * skin.inverse_bind_matrices[j]);
     }
   }
 }
@@ -521,18 +521,28 @@ SceneState Scene::evaluate(double t) const {
 
 namespace {
 
-// Normals under the linear part of `m`: the inverse transpose, up to the positive factor
-// |det|, whose columns are cross products of m's columns (a mirroring m keeps its sign).
-glm::mat3 normal_transform(const glm::mat4& m) {
-  const glm::vec3 c0(m[0]), c1(m[1]), c2(m[2]);
-  const glm::mat3 cofactor(glm::cross(c1, c2), glm::cross(c2, c0), glm::cross(c0, c1));
-  return glm::dot(c0, cofactor[0]) < 0.0f ? -cofactor : cofactor;
-}
+// Normals under the linear part of a matrix (columns c0, c1, c2): by the inverse transpose, up
+// to the positive factor |det|, whose columns are c1 x c2, c2 x c0, c0 x c1 (the cofactors),
+// negated where the matrix mirrors so that a normal stays on its side.
+struct NormalTransform {
+  glm::vec3 x, y, z;
 
-glm::vec3 unit_or_zero(const glm::vec3& n) {
-  const float len2 = glm::dot(n, n);
-  return len2 > 0.0f && std::isfinite(len2) ? n * (1.0f / std::sqrt(len2)) : glm::vec3(0.0f);
-}
+  NormalTransform(const glm::vec3& c0, const glm::vec3& c1, const glm::vec3& c2)
+      : x(glm::cross(c1, c2)), y(glm::cross(c2, c0)), z(glm::cross(c0, c1)) {
+    if (glm::dot(c0, x) < 0.0f) {
+      x = -x;
+      y = -y;
+      z = -z;
+    }
+  }
+  // Unit length, or zero where the matrix flattens the normal.
+  glm::vec3 operator()(const glm::vec3& n) const {
+    const glm::vec3 out = n.x * x + n.y * y + n.z * z;
+    const float len2 = glm::dot(out, out);
+    if (!(len2 > 0.0f) || !(len2 < std::numeric_limits<float>::infinity())) return glm::vec3(0.0f);
+    return out * (1.0f / std::sqrt(len2));
+  }
+};
 
 }  // namespace
 
@@ -566,22 +576,25 @@ void Scene::deform(int node, size_t primitive, const SceneState& state, glm::vec
 
   if (n.skin != -1) {
     // Linear blend skinning (glTF 2.0, 3.7.3): the node's own transform is ignored.
-    const glm::mat4* joint = &state.joint_matrices[skin_start_[n.skin]];
+    const glm::mat4x3* joint = &state.joint_matrices[skin_start_[n.skin]];
     for (size_t v = 0; v < count; ++v) {
       const std::array<uint16_t, 4>& j = p.joints[v];
       const glm::vec4& jw = p.joint_weights[v];
-      const glm::mat4 m =
-          jw.x * joint[j[0]] + jw.y * joint[j[1]] + jw.z * joint[j[2]] + jw.w * joint[j[3]];
-      positions[v] = glm::vec3(m * glm::vec4(positions[v], 1.0f));
-      if (normals != nullptr) normals[v] = unit_or_zero(normal_transform(m) * normals[v]);
+      // Most vertices have fewer than four influences: unused slots cost nothing.
+      glm::mat4x3 m = jw.x * joint[j[0]];
+      if (jw.y != 0.0f) m += jw.y * joint[j[1]];
+      if (jw.z != 0.0f) m += jw.z * joint[j[2]];
+      if (jw.w != 0.0f) m += jw.w * joint[j[3]];
+      positions[v] = m * glm::vec4(positions[v], 1.0f);
+      if (normals != nullptr) normals[v] = NormalTransform(m[0], m[1], m[2])(normals[v]);
     }
     return;
   }
-  const glm::mat4 world(state.world[node]);
-  const glm::mat3 normal_matrix = normal_transform(world);
+  const glm::mat4x3 world(state.world[node]);
+  const NormalTransform normal_transform(world[0], world[1], world[2]);
   for (size_t v = 0; v < count; ++v) {
-    positions[v] = glm::vec3(world * glm::vec4(positions[v], 1.0f));
-    if (normals != nullptr) normals[v] = unit_or_zero(normal_matrix * normals[v]);
+    positions[v] = world * glm::vec4(positions[v], 1.0f);
+    if (normals != nullptr) normals[v] = normal_transform(normals[v]);
   }
 }
 

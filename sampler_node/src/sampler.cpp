@@ -32,6 +32,9 @@ constexpr double kMinPixelDistance = 0.25;
 constexpr double kCancellation = 1e-6;
 // `TileSums::updates` at or above this asks for a re-derivation before the sums are next read.
 constexpr int32_t kRederiveNow = std::numeric_limits<int32_t>::max() / 2;
+// The scene time moves again only after this many times what its last move took by the
+// sampler's clock (advance_scene_time): moving takes at most about 1/9 of the sampler's time.
+constexpr double kTimeStepPerMoveCost = 8.0;
 
 float sample_luminance(const ShadedSample& s) { return luminance(s.color); }
 
@@ -187,7 +190,7 @@ Sampler::Sampler(const Scene& scene, Tracer& tracer, Clock& clock, const Sampler
 
 void Sampler::advance_scene_time() {
   const double t = clock_.now();
-  if (!scene_time_set_ || std::abs(t - scene_time_) >= config_.animation_step) {
+  if (!scene_time_set_ || std::abs(t - scene_time_) >= time_step_) {
     // The clock runs on for ever; with loop_animation the scene repeats its keyframe range.
     const double duration = scene_.duration();
     tracer_.set_time(config_.loop_animation && duration > 0.0 ? std::fmod(t, duration) : t);
@@ -201,6 +204,13 @@ void Sampler::advance_scene_time() {
     tan_half_fov_ = std::tan(0.5 * camera_.yfov);
     scene_time_ = t;
     scene_time_set_ = true;
+    // Moving a deforming mesh to a new time takes the tracer a while (a large skinned mesh,
+    // milliseconds). Were the time to move again at the next step, the sampler would do little
+    // else: the next move waits until the clock has gone on kTimeStepPerMoveCost times what
+    // this one took by the clock, so that moving takes at most about 1 / (1 + that) of the
+    // sampler's time. Samples keep the scene time they were traced at. Cheap moves (static and
+    // rigid scenes) and clocks that advance only with traced rays leave animation_step as is.
+    time_step_ = std::max(config_.animation_step, kTimeStepPerMoveCost * (clock_.now() - t));
   }
 }
 

@@ -721,5 +721,47 @@ TEST(SamplerTest, AdjustmentSplitsTheLargestErrorAndMergesTheSmallestPair) {
   EXPECT_GT(checked, 5);
 }
 
+// A clock that reads `tick` seconds later at every reading, as a wall clock reads around work
+// that takes that long.
+class TickingClock final : public Clock {
+ public:
+  explicit TickingClock(double tick) : tick_(tick) {}
+  double now() const override { return now_ += tick_; }
+
+ private:
+  double tick_;
+  mutable double now_ = 0.0;
+};
+
+TEST(SamplerTest, ACostlyMoveToANewSceneTimeSpacesOutTheNext) {
+  // Under a clock of 4 ms a reading, moving the scene to a new time appears to take 4 ms: the
+  // next move waits 8 x 4 ms, so that moving takes no more than about 1/9 of the sampler's
+  // time. Under a clock of 10 us a reading the move is cheap and the scene time follows the
+  // clock in steps of animation_step (1 ms), as before. The samples say which time they were
+  // traced at.
+  struct Case {
+    double tick, min_spacing;
+  };
+  for (const Case c : {Case{4e-3, 8.0 * 4e-3}, Case{1e-5, 1e-3}}) {
+    const Scene scene = testing::moving_scene();
+    Tracer tracer(scene);
+    TickingClock clock(c.tick);
+    CollectingSink sink;
+    Sampler sampler(scene, tracer, clock, small_config(32, 32), sink);
+    sampler.fill();
+    for (int k = 0; k < 3000; ++k) sampler.step();
+    sampler.flush();
+    std::vector<double> times;
+    for (const Sample& s : sink.samples) times.push_back(s.time);
+    std::sort(times.begin(), times.end());
+    times.erase(std::unique(times.begin(), times.end()), times.end());
+    ASSERT_GE(times.size(), 5u) << "tick " << c.tick;
+    for (size_t i = 1; i < times.size(); ++i) {
+      EXPECT_GE(times[i] - times[i - 1], c.min_spacing * (1.0 - 1e-9))
+          << "tick " << c.tick << ", times " << times[i - 1] << " and " << times[i];
+    }
+  }
+}
+
 }  // namespace
 }  // namespace afr

@@ -140,7 +140,7 @@ struct SceneState {
   // The morph weights of every node whose mesh has morph targets (Scene::morph_weights), and
   // world(joint) x inverse bind matrix for every joint of every skin, skin after skin.
   std::vector<float> morph_weights;
-  std::vector<glm::mat4> joint_matrices;
+  std::vector<glm::mat4x3> joint_matrices;  // affine: the bottom row is (0, 0, 0, 1)
 };
 
 class Scene {

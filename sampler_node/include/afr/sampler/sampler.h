@@ -179,6 +179,9 @@ class Sampler {
   const CameraSource* camera_source_ = nullptr;
   double scene_time_ = 0.0;
   bool scene_time_set_ = false;
+  // The scene time moves in steps of at least this: animation_step, or more where moving the
+  // tracer to a new time is costly (advance_scene_time).
+  double time_step_ = 0.0;
   uint32_t fields_ = 0;
   float max_x_ = 0.0f, max_y_ = 0.0f;  // the largest emitted positions: just short of the edge
   SampleBatch batch_;
