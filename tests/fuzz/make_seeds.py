@@ -241,9 +241,10 @@ def gltf_seeds():
     g.doc["extensionsUsed"] = ["KHR_lights_punctual"]
     write("gltf", "nodes_cameras_lights.gltf", g.embedded())
 
-    # Animations: LINEAR translation, STEP scale, CUBICSPLINE rotation, and an unsupported path.
+    # Animations: LINEAR translation, STEP scale, CUBICSPLINE rotation, LINEAR morph weights.
     g = Gltf()
-    g.quad()
+    prim = g.quad()
+    prim["targets"] = [{"POSITION": g.floats([0, 0, 1] * 4, "VEC3")}]
     g.doc["nodes"] = [{"mesh": 0}, {"children": [0]}]
     g.doc["scenes"] = [{"nodes": [1]}]
     times = g.floats([0, 1, 2], "SCALAR", min=[0], max=[2])
@@ -261,8 +262,33 @@ def gltf_seeds():
                      {"sampler": 3, "target": {"node": 0, "path": "weights"}}]}]
     write("gltf", "animation.gltf", g.embedded())
 
-    # Features afr skips with a warning: skins, morph targets, points, vertex colors, unknown
-    # required extensions, no scenes.
+    # A skin of two joints (unsigned byte joints, normalized unsigned short weights, inverse bind
+    # matrices) on a quad with a POSITION and NORMAL morph target, and a CUBICSPLINE weights
+    # channel beside a rotation of the second joint.
+    g = Gltf()
+    joints = g.accessor(g.view(struct.pack("<16B", *([0, 1, 0, 0] * 4))), U8, "VEC4", 4)
+    weights = g.accessor(g.view(struct.pack("<16H", *([65535, 0, 0, 0, 32768, 32767, 0, 0] * 2))),
+                         U16, "VEC4", 4, normalized=True)
+    prim = g.quad(JOINTS_0=joints, WEIGHTS_0=weights)
+    prim["targets"] = [{"POSITION": g.floats([0, 0, 1] * 4, "VEC3"),
+                        "NORMAL": g.floats([0.5, 0, 0] * 4, "VEC3")}]
+    g.doc["meshes"][0]["weights"] = [0.25]
+    identity = [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]
+    ibm = g.accessor(g.view(struct.pack("<32f", *(identity + identity[:12] + [0, -1, 0, 1]))),
+                     FLOAT, "MAT4", 2)
+    g.doc["skins"] = [{"joints": [1, 2], "inverseBindMatrices": ibm, "skeleton": 1}]
+    g.doc["nodes"] = [{"mesh": 0, "skin": 0}, {"children": [2]}, {"translation": [0, 1, 0]}]
+    g.doc["scenes"] = [{"nodes": [0, 1]}]
+    times = g.floats([0, 1], "SCALAR", min=[0], max=[1])
+    g.doc["animations"] = [{"samplers": [
+        {"input": times, "output": g.floats([0, 0, 0, 1, 0, 0, 0.7071068, 0.7071068], "VEC4")},
+        {"input": times, "output": g.floats([0, 0, 0, 1, 1, 0], "SCALAR"), "interpolation": "CUBICSPLINE"}],
+        "channels": [{"sampler": 0, "target": {"node": 2, "path": "rotation"}},
+                     {"sampler": 1, "target": {"node": 0, "path": "weights"}}]}]
+    write("gltf", "skin_morph.gltf", g.embedded())
+
+    # Features afr skips with a warning or refuses: points, vertex colors, unknown required
+    # extensions, no scenes (and a skinned node whose mesh has no joints).
     g = Gltf()
     prim = g.quad(COLOR_0=g.floats([1, 0, 0, 1] * 4, "VEC4"))
     prim["targets"] = [{"POSITION": g.floats([0, 0, 1] * 4, "VEC3")}]
