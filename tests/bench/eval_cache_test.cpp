@@ -88,6 +88,48 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
   EXPECT_NE(render_fingerprint(with_path), h);
 }
 
+TEST(IdealCacheTest, SceneHashSeesSkinsAndMorphTargets) {
+  // The built-in scene's first mesh with a morph target lifting it by dz at weight w, skinned
+  // (or not) to its own node with inverse bind matrix `ibm`, its weight driven (or not) by a
+  // channel from 0 to `key`.
+  auto deformed = [](float dz, float w, bool skinned, double ibm, double key) {
+    Scene s = make_builtin_scene();
+    Primitive& p = s.meshes[0].primitives[0];
+    p.targets.push_back({std::vector<glm::vec3>(p.positions.size(), {0.0f, 0.0f, dz}), {}});
+    s.meshes[0].weights = {w};
+    int node = 0;
+    while (s.nodes[size_t(node)].mesh != 0) ++node;
+    if (skinned) {
+      p.joints.assign(p.positions.size(), {0, 0, 0, 0});
+      p.joint_weights.assign(p.positions.size(), {1.0f, 0.0f, 0.0f, 0.0f});
+      s.skins.push_back({"skin", {node}, {glm::dmat4(ibm)}, -1});
+      s.nodes[size_t(node)].skin = 0;
+    }
+    if (key != 0.0) {
+      AnimationChannel c;
+      c.node = node;
+      c.path = AnimatedPath::kWeights;
+      c.times = {0.0, 1.0};
+      c.weight_count = 1;
+      c.weights = {0.0, key};
+      s.channels.push_back(c);
+    }
+    return render_fingerprint(s);
+  };
+  const uint64_t plain = render_fingerprint(make_builtin_scene());
+  const uint64_t h = deformed(1.0f, 0.5f, false, 1.0, 0.0);
+  EXPECT_NE(h, plain);
+  EXPECT_EQ(deformed(1.0f, 0.5f, false, 1.0, 0.0), h);
+  EXPECT_NE(deformed(2.0f, 0.5f, false, 1.0, 0.0), h);
+  EXPECT_NE(deformed(1.0f, 0.25f, false, 1.0, 0.0), h);
+  const uint64_t skinned = deformed(1.0f, 0.5f, true, 1.0, 0.0);
+  EXPECT_NE(skinned, h);
+  EXPECT_NE(deformed(1.0f, 0.5f, true, 2.0, 0.0), skinned);
+  const uint64_t animated = deformed(1.0f, 0.5f, false, 1.0, 1.0);
+  EXPECT_NE(animated, h);
+  EXPECT_NE(deformed(1.0f, 0.5f, false, 1.0, 0.5), animated);
+}
+
 TEST(IdealCacheTest, CachedFrameIsTheRenderedFrameAndIsRenderedOnce) {
   const Scene scene = testing::sliding_quad_scene(1.0);
   Tracer tracer(scene);

@@ -90,7 +90,19 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.array(p.uvs);
       h.array(p.indices);
       h.value(p.material);
+      // Skins and morph targets add bytes only where a mesh has them, so the fingerprints (and
+      // cached ideal frames) of other scenes stay what they were.
+      if (!p.joints.empty() || !p.targets.empty()) {
+        h.array(p.joints);
+        h.array(p.joint_weights);
+        h.value(uint64_t(p.targets.size()));
+        for (const MorphTarget& t : p.targets) {
+          h.array(t.positions);
+          h.array(t.normals);
+        }
+      }
     }
+    if (!m.weights.empty()) h.array(m.weights);
   }
   h.value(uint64_t(scene.materials.size()));
   for (const Material& m : scene.materials) {
@@ -141,6 +153,17 @@ uint64_t render_fingerprint(const Scene& scene) {
     h.value(n.mesh);
     h.value(n.camera);
     h.value(n.light);
+    if (n.skin != -1 || !n.weights.empty()) {
+      h.value(n.skin);
+      h.array(n.weights);
+    }
+  }
+  if (!scene.skins.empty()) {
+    h.value(uint64_t(scene.skins.size()));
+    for (const Skin& s : scene.skins) {
+      h.array(s.joints);
+      h.array(s.inverse_bind_matrices);
+    }
   }
   h.array(scene.roots);
   h.value(uint64_t(scene.channels.size()));
@@ -150,6 +173,10 @@ uint64_t render_fingerprint(const Scene& scene) {
     h.value(c.interpolation);
     h.array(c.times);
     h.array(c.values);
+    if (c.path == AnimatedPath::kWeights) {
+      h.value(uint64_t(c.weight_count));
+      h.array(c.weights);
+    }
   }
   h.value(scene.background);
   h.value(scene.ambient);
