@@ -45,6 +45,9 @@ add liveness-load4 liveness-load4.md "Liveness of the running service, four busy
 add tracer tracer.md "Tracer throughput" \
   "Shaded samples per second of the Embree tracer on the built-in scene and the BART kitchen (docs/benchmarks.md, \"Tracer\")." \
   'need_kitchen && "$BUILD"/bench/afr-bench-tracer --scene out/kitchen/kitchen.gltf'
+add tracer-deforming tracer-deforming.md "Tracer and sampler on deforming meshes" \
+  "A skinned and morphed sheet of 64 x 64 and 256 x 256 vertices: what Tracer::set_time costs (deformation, velocities, refit), the tracer's samples/s, and a one-thread sampler's samples/s animated and frozen in its pose (docs/benchmarks.md, \"Deforming meshes\")." \
+  'for n in 64 256; do "$BUILD"/bench/afr-bench-tracer --no-builtin --deforming $n --times 0,1,2,3 || exit 1; echo; done'
 add ideal-render ideal-render.md "Ideal renderer" \
   "Wall time and rays per second of the ideal renderer for one 256x256 frame of the kitchen at 16 spp (docs/benchmarks.md, \"Ideal renderer\")." \
   'need_kitchen && "$BUILD"/bench/afr-render out/kitchen/kitchen.gltf --time 6 --size 256x256 --spp 16 -o out/kitchen_t6.png'

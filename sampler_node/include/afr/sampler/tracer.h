@@ -1,6 +1,8 @@
 // The ray tracer of afr: an Embree 3 two-level BVH over a Scene (one instance of all static
-// geometry, one instance per moving mesh node, so a new time only updates instance transforms
-// and re-commits the top level) and the shading model the scene's materials ask for.
+// geometry, one instance per rigidly moving mesh node, so a new time only updates instance
+// transforms and re-commits the top level; and one instance of all skinned or morphed meshes
+// that move, whose world-space vertices a new time rewrites and refits) and the shading model
+// the scene's materials ask for.
 // Shading follows glTF's conventions: BRDF = diffuse / pi + GGX, so a light of intensity I
 // (color 1) at distance d gives a white Lambertian surface facing it radiance I / (pi d^2)
 // (I / pi without falloff); ambient = Scene::ambient x (Material::ambient or base color) x
@@ -62,7 +64,10 @@ class Tracer {
   Tracer(const Tracer&) = delete;
   Tracer& operator=(const Tracer&) = delete;
 
-  // Moves every animated instance to time t (seconds) and re-commits the top level.
+  // Moves every animated instance to time t (seconds), deforms the skinned and morphed meshes
+  // that move (Scene::deform: their vertices, normals and per-vertex velocities) and
+  // re-commits. Costs about the same for static and rigid scenes whatever their size, and for
+  // a deforming one grows with its vertex count (afr-bench-tracer --deforming).
   void set_time(double t);
   double time() const;
   // The scene's active camera at the current time.
