@@ -76,6 +76,14 @@ bool finite3(const glm::vec3& v) {
 
 }  // namespace
 
+namespace {
+
+// The most vertex updates (Scene::finalize, deformation_work_) one deformation of the displayed
+// scene may take: about 1 s of a tracer's set_time.
+constexpr size_t kMaxDeformationWork = size_t(1) << 24;
+
+}  // namespace
+
 void Scene::finalize() {
   const auto err = [&](const std::string& what) {
     return Error(fmt::format("{}: {}", source, what));
@@ -122,7 +130,9 @@ void Scene::finalize() {
       }
     }
   };
-  // A node's skin and morph weights against its mesh.
+  // A node's skin and morph weights against its mesh. `largest_joint`: per mesh, the largest
+  // joint index its primitives name.
+  std::vector<int> largest_joint;
   const auto check_node_deformation = [&](int i) {
     const Node& n = nodes[i];
     const std::string where = fmt::format("node {} ('{}')", i, n.name);
@@ -136,6 +146,9 @@ void Scene::finalize() {
           throw err(fmt::format("{} has skin {}, but primitive {} of its mesh {} has no joints",
                                 where, n.skin, pi, n.mesh));
         }
+        // Many nodes may show one large mesh: its vertices are scanned only when its largest
+        // joint index (found once, below) is out of this skin's range.
+        if (size_t(largest_joint[size_t(n.mesh)]) < skin.joints.size()) continue;
         for (size_t v = 0; v < p.joints.size(); ++v) {
           for (uint16_t j : p.joints[v]) {
             if (j >= skin.joints.size()) {
@@ -243,6 +256,15 @@ void Scene::finalize() {
     }
     if (skin.skeleton != -1 && !in_range(skin.skeleton, nodes.size())) {
       throw err(fmt::format("{}: skeleton is node {} of {}", where, skin.skeleton, nodes.size()));
+    }
+  }
+
+  largest_joint.assign(meshes.size(), -1);
+  for (size_t m = 0; m < meshes.size(); ++m) {
+    for (const Primitive& p : meshes[m].primitives) {
+      for (const std::array<uint16_t, 4>& j : p.joints) {
+        largest_joint[m] = std::max({largest_joint[m], int(j[0]), int(j[1]), int(j[2]), int(j[3])});
+      }
     }
   }
 
@@ -380,6 +402,25 @@ void Scene::finalize() {
   }
   joint_matrix_count_ = skin_start_[skins.size()];
 
+  // What deforming the displayed scene takes at one time: a vertex update for each deformed
+  // vertex of each node, and one more for each morph target that moves it. Bounded, so that a
+  // small file cannot ask for an endless deformation (many nodes showing one large mesh).
+  deformation_work_ = 0;
+  for (int i : scene_nodes_) {
+    if (!node_deforms_[i]) continue;
+    for (const Primitive& p : meshes[nodes[i].mesh].primitives) {
+      size_t targets = 0;
+      for (const MorphTarget& t : p.targets) targets += t.positions.empty() ? 0 : 1;
+      deformation_work_ += p.positions.size() * (1 + targets);
+    }
+  }
+  if (deformation_work_ > kMaxDeformationWork) {
+    throw err(fmt::format(
+        "the scene deforms {} vertices at every time (counting a vertex once more for each morph "
+        "target that moves it, and once for each node that shows it), more than afr accepts ({})",
+        deformation_work_, kMaxDeformationWork));
+  }
+
   has_moving_geometry_ = false;
   camera_node_ = -1;
   for (int i : scene_nodes_) {
@@ -397,10 +438,11 @@ namespace {
 // At most this many instants of the animation are evaluated to frame it (a scene with more
 // distinct keyframe times is sampled evenly over them).
 constexpr size_t kMaxFramingTimes = 4096;
-// Framing a deforming mesh deforms all its vertices at every instant: fewer instants (but at
-// least kMinFramingTimes) when that would deform more than this many vertices in all.
-constexpr size_t kMaxFramingVertices = size_t(1) << 25;
-constexpr size_t kMinFramingTimes = 64;
+// Framing a deforming mesh deforms all its vertices at every instant: fewer instants (at least
+// 0 s and one more) when that would take more than this many vertex updates in all
+// (deformation_work_ at each).
+constexpr size_t kMaxFramingWork = size_t(1) << 25;
+constexpr size_t kMinFramingTimes = 2;
 
 }  // namespace
 
@@ -414,17 +456,9 @@ void Scene::frame_default_camera() {
   }
   std::sort(times.begin(), times.end());
   times.erase(std::unique(times.begin(), times.end()), times.end());
-  size_t deformed_vertices = 0;
-  for (int i : scene_nodes_) {
-    if (!node_deforms_[i]) continue;
-    for (const Primitive& p : meshes[nodes[i].mesh].primitives) {
-      deformed_vertices += p.positions.size();
-    }
-  }
-  const size_t max_times =
-      deformed_vertices == 0
-          ? kMaxFramingTimes
-          : std::clamp(kMaxFramingVertices / deformed_vertices, kMinFramingTimes, kMaxFramingTimes);
+  const size_t max_times = deformation_work_ == 0 ? kMaxFramingTimes
+                                                  : std::clamp(kMaxFramingWork / deformation_work_,
+                                                               kMinFramingTimes, kMaxFramingTimes);
   if (times.size() > max_times) {
     std::vector<double> picked(max_times);
     for (size_t k = 0; k < max_times; ++k) {

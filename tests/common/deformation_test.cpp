@@ -376,6 +376,31 @@ TEST(DeformationTest, BadSkinsAreErrorsNamingTheProblem) {
   }
 }
 
+TEST(DeformationTest, AFileCannotAskForAnEndlessDeformation) {
+  // One skinned mesh of 2^21 vertices (accessors without buffer views: all zeros, a few bytes
+  // of JSON) shown by 9 nodes: 9 x 2^21 vertex updates at every time, beyond the 2^24 afr
+  // accepts. With 7 nodes it loads.
+  auto file = [](int nodes) {
+    GltfContent g;
+    const size_t count = size_t(1) << 21;
+    auto& accessors = g.doc()["accessors"];
+    accessors.push_back({{"componentType", 5126}, {"type", "VEC3"}, {"count", count}});
+    accessors.push_back({{"componentType", 5121}, {"type", "VEC4"}, {"count", count}});
+    accessors.push_back({{"componentType", 5126}, {"type", "VEC4"}, {"count", count}});
+    const json primitive = {{"attributes", {{"POSITION", 0}, {"JOINTS_0", 1}, {"WEIGHTS_0", 2}}},
+                            {"indices", g.add_indices({0, 1, 2})}};
+    g.doc()["meshes"].push_back({{"primitives", json::array({primitive})}});
+    g.doc()["skins"] = json::array({{{"joints", {0}}}});
+    std::vector<int> roots = {g.add_node(json::object())};
+    for (int k = 0; k < nodes; ++k) roots.push_back(g.add_node({{"mesh", 0}, {"skin", 0}}));
+    g.set_roots(roots);
+    return g;
+  };
+  expect_load_error(file(9), "more than afr accepts (16777216)");
+  TempFolder dir;
+  EXPECT_TRUE(load(file(7), dir).node_deforms(1));
+}
+
 TEST(DeformationTest, BadMorphTargetsAreErrorsNamingTheProblem) {
   {
     GltfContent g = MorphedQuad::make(Interpolation::kLinear);

@@ -226,6 +226,7 @@ class Scene {
   std::vector<size_t>
       skin_start_;  // joints of skin s: SceneState::joint_matrices[skin_start_[s]..]
   size_t joint_matrix_count_ = 0;
+  size_t deformation_work_ = 0;  // vertex updates of one deformation of the displayed scene
   bool has_moving_geometry_ = false;
   int camera_node_ = -1;
   double duration_ = 0.0;
