@@ -13,7 +13,7 @@ packages=(
   # rendering
   libembree-dev libglm-dev libtinygltf-dev nlohmann-json3-dev libopenimageio-dev openimageio-tools
   # display
-  libglfw3-dev libegl-dev libepoxy-dev libgl1-mesa-dri xvfb xauth
+  libglfw3-dev libegl-dev libepoxy-dev libgl1-mesa-dri xvfb xauth libstb-dev
   # messaging
   libzmq3-dev cppzmq-dev libsodium-dev libcpp-httplib-dev iproute2 nftables
   # flags, logging

@@ -1,5 +1,6 @@
 #include <afr/display/glfw_window.h>
 
+#include <afr/common/error.h>
 #include <afr/display/gl_reconstructor.h>
 
 // epoxy before GLFW, and GLFW without its own GL header.
@@ -10,6 +11,15 @@
 
 #include <fmt/format.h>
 
+// A 6 x 11 pixel font as quads (Debian's libstb-dev); its functions are static, used here only.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wunused-function"
+#pragma GCC diagnostic ignored "-Wsign-compare"
+#pragma GCC diagnostic ignored "-Wmissing-field-initializers"
+#include <stb/stb_easy_font.h>
+#pragma GCC diagnostic pop
+
+#include <algorithm>
 #include <vector>
 
 namespace afr {
@@ -26,6 +36,36 @@ void release_current_egl() {
     eglMakeCurrent(eglGetCurrentDisplay(), EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
   }
 }
+
+// draw_text's program: positions in window pixels (y down), one color per draw.
+constexpr const char* kTextVertex = R"(#version 430 core
+layout(location = 0) in vec2 a_pixel;
+uniform vec2 u_size;
+void main() { gl_Position = vec4(2.0 * a_pixel.x / u_size.x - 1.0, 1.0 - 2.0 * a_pixel.y / u_size.y, 0.0, 1.0); }
+)";
+constexpr const char* kTextFragment = R"(#version 430 core
+uniform vec4 u_color;
+out vec4 o_color;
+void main() { o_color = u_color; }
+)";
+
+GLuint compile(GLenum type, const char* source) {
+  const GLuint shader = glCreateShader(type);
+  glShaderSource(shader, 1, &source, nullptr);
+  glCompileShader(shader);
+  GLint ok = 0;
+  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    char log[1024] = {};
+    glGetShaderInfoLog(shader, sizeof(log), nullptr, log);
+    glDeleteShader(shader);
+    throw Error(fmt::format("window text shader: {}", log));
+  }
+  return shader;
+}
+
+// The key presses a window keeps for take_key_presses() at most (a window nobody reads).
+constexpr size_t kMaxKeyPresses = 256;
 
 }  // namespace
 
@@ -54,6 +94,10 @@ std::unique_ptr<GlfwWindow> GlfwWindow::create(int width, int height, const std:
   }
   std::unique_ptr<GlfwWindow> w(new GlfwWindow());
   w->window_ = window;
+  glfwSetWindowUserPointer(window, w.get());
+  glfwSetKeyCallback(window, [](GLFWwindow* win, int key, int, int action, int) {
+    static_cast<GlfwWindow*>(glfwGetWindowUserPointer(win))->on_key(key, action);
+  });
   glfwMakeContextCurrent(window);
   glfwSwapInterval(1);
   w->query_strings();
@@ -61,10 +105,13 @@ std::unique_ptr<GlfwWindow> GlfwWindow::create(int width, int height, const std:
 }
 
 GlfwWindow::~GlfwWindow() {
-  if (window_ != nullptr && image_texture_ != 0) {
+  if (window_ != nullptr && (image_texture_ != 0 || text_program_ != 0)) {
     make_current();
     glDeleteFramebuffers(1, &image_framebuffer_);
     glDeleteTextures(1, &image_texture_);
+    glDeleteProgram(text_program_);
+    glDeleteVertexArrays(1, &text_vao_);
+    glDeleteBuffers(1, &text_buffer_);
   }
   if (window_ != nullptr) glfwDestroyWindow(window_);
   glfwTerminate();
@@ -129,6 +176,87 @@ void GlfwWindow::draw_image(const Image& image) {
 }
 
 void GlfwWindow::set_title(const std::string& title) { glfwSetWindowTitle(window_, title.c_str()); }
+
+void GlfwWindow::on_key(int key, int action) {
+  if (action == GLFW_PRESS && key_presses_.size() < kMaxKeyPresses) key_presses_.push_back(key);
+}
+
+std::vector<int> GlfwWindow::take_key_presses() {
+  std::vector<int> keys;
+  keys.swap(key_presses_);
+  return keys;
+}
+
+void GlfwWindow::draw_text(const std::vector<std::string>& lines, int scale) {
+  if (lines.empty()) return;
+  make_current();
+  if (text_program_ == 0) {
+    const GLuint vs = compile(GL_VERTEX_SHADER, kTextVertex);
+    const GLuint fs = compile(GL_FRAGMENT_SHADER, kTextFragment);
+    text_program_ = glCreateProgram();
+    glAttachShader(text_program_, vs);
+    glAttachShader(text_program_, fs);
+    glLinkProgram(text_program_);
+    glDeleteShader(vs);
+    glDeleteShader(fs);
+    glGenVertexArrays(1, &text_vao_);
+    glGenBuffers(1, &text_buffer_);
+    glBindVertexArray(text_vao_);
+    glBindBuffer(GL_ARRAY_BUFFER, text_buffer_);
+    glEnableVertexAttribArray(0);
+    glVertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, 0, nullptr);
+    glBindVertexArray(0);
+  }
+  // The font's quads (4 vertices of x, y, z and a color each) as triangles, in window pixels.
+  constexpr float kLine = 12.0f, kMargin = 4.0f;
+  const float s = float(std::max(scale, 1));
+  std::vector<glm::vec2> text;
+  float widest = 0.0f;
+  std::vector<char> buffer(64 * 1024);
+  for (size_t i = 0; i < lines.size(); ++i) {
+    std::string line = lines[i];
+    // The font draws ASCII 32-126; anything else shows as '?'.
+    for (char& c : line) c = (c >= 32 && c < 127) ? c : '?';
+    widest = std::max(widest, float(stb_easy_font_width(line.data())));
+    const int quads = stb_easy_font_print(0.0f, float(i) * kLine, line.data(), nullptr,
+                                          buffer.data(), int(buffer.size()));
+    const float* v = reinterpret_cast<const float*>(buffer.data());
+    for (int q = 0; q < quads; ++q) {
+      glm::vec2 c[4];
+      for (int k = 0; k < 4; ++k) {
+        const float* p = v + size_t(q * 4 + k) * 4;  // x, y, z, color (4 bytes)
+        c[k] = (glm::vec2(p[0], p[1]) + kMargin) * s;
+      }
+      for (int k : {0, 1, 2, 0, 2, 3}) text.push_back(c[k]);
+    }
+  }
+  const glm::vec2 lo(0.0f),
+      hi = glm::vec2(widest + 2.0f * kMargin, float(lines.size()) * kLine + 2.0f * kMargin) * s;
+  const glm::vec2 panel[6] = {lo, {hi.x, lo.y}, hi, lo, hi, {lo.x, hi.y}};
+
+  int w = 0, h = 0;
+  framebuffer_size(&w, &h);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glViewport(0, 0, w, h);
+  glDisable(GL_FRAMEBUFFER_SRGB);
+  glUseProgram(text_program_);
+  glUniform2f(glGetUniformLocation(text_program_, "u_size"), float(w), float(h));
+  const GLint color = glGetUniformLocation(text_program_, "u_color");
+  glBindVertexArray(text_vao_);
+  glBindBuffer(GL_ARRAY_BUFFER, text_buffer_);
+  glEnable(GL_BLEND);
+  glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+  glBufferData(GL_ARRAY_BUFFER, sizeof(panel), panel, GL_STREAM_DRAW);
+  glUniform4f(color, 0.0f, 0.0f, 0.0f, 0.65f);
+  glDrawArrays(GL_TRIANGLES, 0, 6);
+  glDisable(GL_BLEND);
+  glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(text.size() * sizeof(glm::vec2)), text.data(),
+               GL_STREAM_DRAW);
+  glUniform4f(color, 1.0f, 1.0f, 1.0f, 1.0f);
+  glDrawArrays(GL_TRIANGLES, 0, GLsizei(text.size()));
+  glBindVertexArray(0);
+  glUseProgram(0);
+}
 
 void GlfwWindow::swap() { glfwSwapBuffers(window_); }
 

@@ -75,5 +75,52 @@ TEST(GlfwWindowTest, DrawsAnImageAsItsSrgbValuesScaledToTheWindow) {
   EXPECT_NEAR(shown.at(10, 0).b, 1.0f, 1e-6f);  // the top row at the top
 }
 
+// The HUD: white text on a dark panel over the top left, the image untouched elsewhere.
+TEST(GlfwWindowTest, DrawsTheHudTextOverTheImage) {
+  std::string error;
+  std::shared_ptr<GlfwWindow> window = GlfwWindow::create(240, 120, "afr test", &error);
+  if (window == nullptr) GTEST_SKIP() << error;
+  Image gray(240, 120);
+  for (glm::vec3& p : gray.pixels) p = glm::vec3(0.5f);
+  window->draw_image(gray);
+  window->draw_text({"afr 12.3 Hz", "#1 87 k/s"}, 2);
+  const Image shown = window->read_back_buffer();
+  window->swap();
+  const float background = linear_to_srgb8(0.5f) / 255.0f;
+  // The panel spans the widest line (11 characters of about 6 font pixels, x2) and two lines
+  // of 12 (x2), plus margins: some of its pixels are text (white), the rest darkened gray.
+  int white = 0, dark = 0;
+  for (int y = 0; y < 50; ++y) {
+    for (int x = 0; x < 120; ++x) {
+      const float v = shown.at(x, y).g;
+      white += v > 0.95f ? 1 : 0;
+      dark += v < background - 0.2f ? 1 : 0;
+    }
+  }
+  EXPECT_GT(white, 100);
+  EXPECT_GT(dark, 1000);
+  // Away from the panel the image is as drawn.
+  EXPECT_NEAR(shown.at(200, 100).g, background, 1.5f / 255);
+  EXPECT_NEAR(shown.at(10, 110).g, background, 1.5f / 255);
+}
+
+// Keys come from GLFW's key events: a tap between two frames is kept until read, in order,
+// held repeats are not presses, and nobody reading bounds what is kept.
+TEST(GlfwWindowTest, KeyTapsAreKeptUntilReadInOrder) {
+  std::string error;
+  std::shared_ptr<GlfwWindow> window = GlfwWindow::create(32, 32, "afr test", &error);
+  if (window == nullptr) GTEST_SKIP() << error;
+  window->poll_events();
+  (void)window->take_key_presses();
+  window->on_key(50, 1);  // GLFW_PRESS of '2'
+  window->on_key(50, 0);  // its release
+  window->on_key(77, 1);  // 'M'
+  window->on_key(77, 2);  // GLFW_REPEAT: held, not a new press
+  EXPECT_EQ(window->take_key_presses(), (std::vector<int>{50, 77}));
+  EXPECT_TRUE(window->take_key_presses().empty());
+  for (int i = 0; i < 10000; ++i) window->on_key(72, 1);
+  EXPECT_LE(window->take_key_presses().size(), 256u);
+}
+
 }  // namespace
 }  // namespace afr

@@ -70,11 +70,64 @@ ReconstructorConfig display_reconstructor_config(const Preset& preset, Reconstru
 
 // What the window's keyboard and mouse did since the last frame.
 struct WindowInput {
-  bool key_down[3] = {false, false, false};  // M, S, Q: act on the press, not while held
   bool dragging = false;
   double drag_x = 0.0, drag_y = 0.0;
-  int overlay = 0;  // 0 the image, 1 tiling, 2 gradients, 3 density
+  int overlay = 0;                // 0 the image, 1 tiling, 2 gradients, 3 density
+  bool hud = true;                // the heads-up text over the image (H toggles it)
+  std::string stats;              // the latest stats line, for the HUD
+  glm::vec3 gradient_full{0.0f};  // the gradient overlay's full-scale values
 };
+
+// `text` as lines of at most `width` characters, broken after ", " or at spaces where it can.
+void wrap(const std::string& text, size_t width, std::vector<std::string>* lines) {
+  std::string rest = text;
+  while (rest.size() > width) {
+    size_t cut = rest.rfind(", ", width - 1);
+    if (cut != std::string::npos && cut > 0) {
+      cut += 1;  // keep the comma
+    } else {
+      cut = rest.rfind(' ', width);
+      if (cut == std::string::npos || cut == 0) cut = width;
+    }
+    lines->push_back(rest.substr(0, cut));
+    rest = rest.substr(std::min(rest.size(), cut + (rest[cut] == ' ' ? 1 : 0)));
+  }
+  if (!rest.empty()) lines->push_back(rest);
+}
+
+// The HUD's lines, at most `width` characters each: the latest stats line cut at its
+// separators, the overlay's legend, the keys.
+std::vector<std::string> hud_lines(const WindowInput& input, const std::string& mode,
+                                   size_t width) {
+  std::vector<std::string> parts;
+  std::string rest =
+      input.stats.empty() ? std::string("waiting for the first stats period") : input.stats;
+  for (size_t at; (at = rest.find(" | ")) != std::string::npos; rest = rest.substr(at + 3)) {
+    parts.push_back(rest.substr(0, at));
+  }
+  parts.push_back(rest);
+  switch (input.overlay) {
+    case 1:
+      parts.push_back("overlay 1: tiling (each sampler's region tinted, tiles outlined)");
+      break;
+    case 2:
+      parts.push_back(fmt::format(
+          "overlay 2: gradients, red |G_x| full at {:.3g}, green |G_y| at {:.3g}, blue |G_t| at "
+          "{:.3g}",
+          input.gradient_full.x, input.gradient_full.y, input.gradient_full.z));
+      break;
+    case 3:
+      parts.push_back("overlay 3: sample density (filter weight, log scale, white = densest)");
+      break;
+    default:
+      parts.push_back("reconstruction: " + mode);
+  }
+  parts.push_back(
+      "keys: 0 image, 1 tiling, 2 gradients, 3 density, M mode, S screenshot, H HUD, Q quit");
+  std::vector<std::string> lines;
+  for (const std::string& part : parts) wrap(part, std::max<size_t>(width, 16), &lines);
+  return lines;
+}
 
 struct DisplayApp::State {
   DisplayAppOptions options;
@@ -239,29 +292,52 @@ bool DisplayApp::State::show_in_window(const Camera& camera, double t) {
     if (input.overlay == 1) {
       window->draw_image(tiling_overlay(image, tilings, role.regions()));
     } else if (input.overlay == 2) {
-      window->draw_image(gradient_overlay(tilings, out_w, out_h));
+      window->draw_image(gradient_overlay(tilings, out_w, out_h, &input.gradient_full));
     } else {
       std::vector<float> weights;
       recon->read_weights(&weights);
       window->draw_image(density_overlay(weights, out_w, out_h));
     }
   }
+  if (input.hud) {
+    // Font pixels twice the size in a window wide enough for it; lines wrapped to its width
+    // (the font is 6 pixels a character, with 4 of margin on each side).
+    int fw = 0, fh = 0;
+    window->framebuffer_size(&fw, &fh);
+    const int scale = fw >= 640 ? 2 : 1;
+    window->draw_text(
+        hud_lines(input, mode_name(recon->mode()), size_t(std::max(0, fw / scale - 8) / 6)), scale);
+  }
   window->swap();
   window->poll_events();
   return cell_sized;
 }
 
-// Keys: M cycles the reconstruction mode, S writes a screenshot, Q/Esc quits; 1, 2, 3 show the
-// tiling (the paper's Figure 3), the gradients (Figure 4) and the sample density (Figure 7)
-// over the image, 0 the image alone. With --interactive a left-button drag looks around, the
-// arrows and Page Up/Down move.
+// Keys (taps, from the window's key events): M cycles the reconstruction mode, S writes a
+// screenshot, H shows or hides the HUD, Q/Esc quits; 1, 2, 3 show the tiling (the paper's
+// Figure 3), the gradients (Figure 4) and the sample density (Figure 7) over the image, 0 the
+// image alone. With --interactive a left-button drag looks around, the arrows and Page Up/Down
+// move (held, polled each frame).
 void DisplayApp::State::read_input(const Camera& camera, double t, std::atomic<bool>& stop) {
+  for (const int key : window->take_key_presses()) {
+    if (key >= GLFW_KEY_0 && key <= GLFW_KEY_3) {
+      input.overlay = key - GLFW_KEY_0;
+    } else if (key == GLFW_KEY_M) {
+      const ReconstructionMode next = ReconstructionMode((int(recon->mode()) + 1) % 3);
+      recon->set_mode(next);
+      spdlog::info("reconstruction mode: {}", mode_name(next));
+    } else if (key == GLFW_KEY_S) {
+      recon->reconstruct(camera, t, out_w, out_h, &image);
+      save(fmt::format("screenshot_{:06d}", frame), t);
+    } else if (key == GLFW_KEY_H) {
+      input.hud = !input.hud;
+    } else if (key == GLFW_KEY_Q || key == GLFW_KEY_ESCAPE) {
+      stop.store(true);
+    }
+  }
   GLFWwindow* w = glfwGetCurrentContext();
   if (!w) return;
   const auto pressed = [w](int key) { return glfwGetKey(w, key) == GLFW_PRESS; };
-  for (int k = 0; k < 4; ++k) {
-    if (pressed(GLFW_KEY_0 + k)) input.overlay = k;
-  }
   if (fly) {
     double cx = 0.0, cy = 0.0;
     glfwGetCursorPos(w, &cx, &cy);
@@ -279,24 +355,6 @@ void DisplayApp::State::read_input(const Camera& camera, double t, std::atomic<b
     fly->move(move, std::min(t - last_input, 0.1));
   }
   last_input = t;
-  const int keys[3] = {GLFW_KEY_M, GLFW_KEY_S, GLFW_KEY_Q};
-  for (int k = 0; k < 3; ++k) {
-    const bool down = pressed(keys[k]);
-    if (down && !input.key_down[k]) {
-      if (k == 0) {
-        const ReconstructionMode next = ReconstructionMode((int(recon->mode()) + 1) % 3);
-        recon->set_mode(next);
-        spdlog::info("reconstruction mode: {}", mode_name(next));
-      } else if (k == 1) {
-        recon->reconstruct(camera, t, out_w, out_h, &image);
-        save(fmt::format("screenshot_{:06d}", frame), t);
-      } else {
-        stop.store(true);
-      }
-    }
-    input.key_down[k] = down;
-  }
-  if (pressed(GLFW_KEY_ESCAPE)) stop.store(true);
 }
 
 void DisplayApp::State::save(const std::string& stem, double t) {
@@ -317,9 +375,10 @@ void DisplayApp::State::report_stats(double t) {
   metrics.end_period(t - last_stats);
   last_stats = t;
   next_stats = t + options.stats_interval;
-  spdlog::info("{}", stats_line(metrics));
-  // The window's heads-up line: the same figures in its title.
-  if (window) window->set_title("afr display | " + stats_line(metrics));
+  input.stats = stats_line(metrics);
+  spdlog::info("{}", input.stats);
+  // The window's title and HUD: the same figures.
+  if (window) window->set_title("afr display | " + input.stats);
 }
 
 }  // namespace afr::service

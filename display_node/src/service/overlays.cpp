@@ -1,6 +1,7 @@
 #include <afr/display/service/overlays.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace afr::service {
@@ -60,23 +61,45 @@ Image tiling_overlay(const Image& image, const std::map<uint32_t, TilingSnapshot
   return out;
 }
 
-Image gradient_overlay(const std::map<uint32_t, TilingSnapshot>& tilings, int width, int height) {
+Image gradient_overlay(const std::map<uint32_t, TilingSnapshot>& tilings, int width, int height,
+                       glm::vec3* full) {
   Image out(width, height);
-  glm::vec3 largest(0.0f);
+  // Per channel, the value that 95% of the tiled area lies at or below (weighted by the tiles'
+  // visible areas): a few steep tiles saturate instead of darkening all the others.
+  std::array<std::vector<std::pair<float, int64_t>>, 3> values;
+  int64_t total = 0;
   for (const auto& [id, snap] : tilings) {
     for (const TileInfo& t : snap.tiles) {
+      const PixelRect r = intersect(t.rect, PixelRect{0, 0, width, height});
+      if (r.empty()) continue;
+      total += r.area();
       const glm::vec3 g(t.G_x, t.G_y, t.G_t);
       for (int c = 0; c < 3; ++c) {
-        if (std::isfinite(g[c])) largest[c] = std::max(largest[c], std::abs(g[c]));
+        values[size_t(c)].emplace_back(std::isfinite(g[c]) ? std::abs(g[c]) : 0.0f, r.area());
       }
     }
   }
+  glm::vec3 scale(0.0f);
+  for (int c = 0; c < 3; ++c) {
+    std::vector<std::pair<float, int64_t>>& v = values[size_t(c)];
+    std::sort(v.begin(), v.end());
+    int64_t below = 0;
+    for (const auto& [value, area] : v) {
+      below += area;
+      scale[c] = value;
+      if (double(below) >= 0.95 * double(total)) break;
+    }
+    if (!(scale[c] > 0.0f) && !v.empty()) scale[c] = v.back().first;  // mostly flat
+  }
+  if (full != nullptr) *full = scale;
   for (const auto& [id, snap] : tilings) {
     for (const TileInfo& t : snap.tiles) {
       glm::vec3 color(0.0f);
       const glm::vec3 g(t.G_x, t.G_y, t.G_t);
       for (int c = 0; c < 3; ++c) {
-        color[c] = largest[c] > 0.0f && std::isfinite(g[c]) ? std::abs(g[c]) / largest[c] : 0.0f;
+        color[c] = scale[c] > 0.0f && std::isfinite(g[c])
+                       ? std::min(std::abs(g[c]) / scale[c], 1.0f)
+                       : 0.0f;
       }
       const int x0 = std::clamp(t.rect.x0, 0, width), x1 = std::clamp(t.rect.x1, 0, width);
       const int y0 = std::clamp(t.rect.y0, 0, height), y1 = std::clamp(t.rect.y1, 0, height);

@@ -37,9 +37,11 @@ glm::vec3 sampler_color(uint32_t sampler_id);
 // The image dimmed, each region tinted with its sampler's color and every tile outlined in it.
 Image tiling_overlay(const Image& image, const std::map<uint32_t, TilingSnapshot>& tilings,
                      const std::vector<std::pair<uint32_t, PixelRect>>& regions);
-// The tiles' gradients as the paper's Figure 4: G_x red, G_y green, G_t blue, each scaled by
-// its largest value over all tiles (black where no tile lies).
-Image gradient_overlay(const std::map<uint32_t, TilingSnapshot>& tilings, int width, int height);
+// The tiles' gradients as the paper's Figure 4: G_x red, G_y green, G_t blue (black where no
+// tile lies), each full at the value 95% of the tiled area lies at or below (its largest where
+// that is 0), the steeper 5% saturated; those values in *full when asked (the HUD's legend).
+Image gradient_overlay(const std::map<uint32_t, TilingSnapshot>& tilings, int width, int height,
+                       glm::vec3* full = nullptr);
 // Filter weight per pixel on a log scale, as grey (white: the densest pixel).
 Image density_overlay(const std::vector<float>& weights, int width, int height);
 
