@@ -60,6 +60,7 @@ int main(int argc, char** argv) {
   double fps = 30.0, seconds = 0.0, stats_interval = 2.0;
   int screenshot_every = 0, margin = -1;
   size_t capacity = 0;
+  uint64_t memory_limit = 0;
   double lead_timeout = 1.5;
   bool no_exchange = false;
   app.add_option("scene", scene_path,
@@ -158,6 +159,11 @@ int main(int argc, char** argv) {
                  "pixels this node receives samples for)")
       ->capture_default_str()
       ->check(CLI::Range(size_t(0), afr::kMaxCapacity));
+  app.add_option("--memory-limit", memory_limit,
+                 "the most memory the reconstructor may plan for, e.g. 8G (0: 80% of the memory "
+                 "available at start); a --size and --capacity that need more are refused before "
+                 "anything is allocated")
+      ->transform(CLI::AsSizeValue(false));
   app.add_option("--log", log_level, "log level")->capture_default_str();
   std::string keygen_dir;
   int keygen_samplers = 1;
@@ -179,6 +185,13 @@ int main(int argc, char** argv) {
     std::signal(SIGPIPE, SIG_IGN);
     const bool follower = !follow.empty();
     const afr::ImageExtent size = afr::parse_image_size(size_text);
+    if (wall_text == "1x1" && !follower &&
+        (size.width > afr::kMaxOutputSide || size.height > afr::kMaxOutputSide)) {
+      throw afr::Error(fmt::format(
+          "--size {}x{}: one display node reconstructs at most {} pixels a side; a larger "
+          "image (up to {} a side) needs a wall (--wall COLUMNSxROWS) whose cells are within it",
+          size.width, size.height, afr::kMaxOutputSide, afr::kMaxImageDimension));
+    }
     o.image = size;
     o.refresh_interval = 1.0 / fps;
     o.coordinator.liveness.ceiling =
@@ -234,6 +247,7 @@ int main(int argc, char** argv) {
     } else {
       scene = std::make_unique<afr::Scene>(afr::load_scene(scene_path));
       o.scene = afr::service::read_scene_payload(scene_path);
+      if (g_stop.load()) return 0;  // a signal while the scene loaded
       if (!replay.empty()) {
         path = std::make_unique<afr::CameraPath>(afr::read_camera_path(replay));
         spdlog::warn(
@@ -270,11 +284,14 @@ int main(int argc, char** argv) {
     ao.peer_security = o.keys.secret_key.empty()
                            ? afr::protocol::Security::none()
                            : afr::protocol::Security::client(o.keys, o.keys.public_key);
-    afr::service::DisplayApp display(
-        ao, *role,
-        afr::service::display_reconstructor_config(*p, mode, o.image.width, o.image.height,
-                                                   role->cell(), o.wall.margin, capacity),
-        ingest, fly.get());
+    const afr::ReconstructorConfig rc = afr::service::display_reconstructor_config(
+        *p, mode, o.image.width, o.image.height, role->cell(), o.wall.margin, capacity);
+    // Before the reconstructor allocates anything.
+    afr::service::check_memory(
+        rc, memory_limit > 0 ? memory_limit : afr::service::default_memory_limit());
+    if (g_stop.load()) return 0;  // a signal during setup
+    afr::service::DisplayApp display(ao, *role, rc, ingest, fly.get());
+    if (g_stop.load()) return 0;
     if (service) service->start();
     const int status = display.run(g_stop);
     role->stop();

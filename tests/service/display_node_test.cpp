@@ -386,5 +386,22 @@ TEST_F(ServiceTest, InteractiveCameraWithoutAWindowIsRefusedWithTheReason) {
   EXPECT_NE(d->log().find("--interactive needs a window"), std::string::npos) << d->log();
 }
 
+// Sizes are admitted before anything is allocated: past one node's largest side with the
+// reason and the way out (a wall), and past the memory limit with the estimate and the limit.
+TEST_F(ServiceTest, OversizedImagesAreRefusedBeforeAnyAllocation) {
+  auto wide = display({"--size", "20000x64"}, "wide.log");
+  EXPECT_EQ(wide->wait(10.0), 1);
+  EXPECT_NE(wide->log().find("at most 16384 pixels a side"), std::string::npos) << wide->log();
+  // (An explicit limit: a machine with more memory available would take the default.)
+  auto big = display({"--size", "16384x16384", "--memory-limit", "8G"}, "big.log");
+  EXPECT_EQ(big->wait(10.0), 1);
+  EXPECT_NE(big->log().find("needs about 41.4 GiB"), std::string::npos) << big->log();
+  EXPECT_NE(big->log().find("--memory-limit"), std::string::npos) << big->log();
+  auto limited = display({"--size", "1024x1024", "--memory-limit", "500M"}, "limited.log");
+  EXPECT_EQ(limited->wait(10.0), 1);
+  EXPECT_NE(limited->log().find("more than the limit of 0.5 GiB"), std::string::npos)
+      << limited->log();
+}
+
 }  // namespace
 }  // namespace afr::testing

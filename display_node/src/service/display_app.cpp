@@ -18,8 +18,11 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <thread>
 #include <vector>
 
@@ -66,6 +69,55 @@ ReconstructorConfig display_reconstructor_config(const Preset& preset, Reconstru
                                                         double(received.area())));
   rc.capacity = std::min(rc.capacity, kMaxCapacity);
   return rc;
+}
+
+// display_memory_estimate's model: peak resident size of display_node --headless --backend cpu
+// at 256x256 and 1024x1024 with 1, 4 and 8 samples a pixel stored (RSS = 133 MB + 132 B a slot
+// + 119 B a pixel), rounded up.
+constexpr uint64_t kMemoryFixed = uint64_t(160) << 20;
+constexpr uint64_t kMemoryPerSample = 136;
+constexpr uint64_t kMemoryPerPixel = 128;
+
+uint64_t display_memory_estimate(const ReconstructorConfig& config) {
+  const PixelRect& v = config.viewport.empty() ? config.image.rect() : config.viewport;
+  const uint64_t m = uint64_t(std::max(0, config.viewport_margin));
+  const uint64_t pixels = (uint64_t(v.width()) + 2 * m) * (uint64_t(v.height()) + 2 * m);
+  return kMemoryFixed + kMemoryPerSample * uint64_t(config.capacity) + kMemoryPerPixel * pixels;
+}
+
+uint64_t default_memory_limit() {
+  uint64_t available = 0;
+  if (std::ifstream meminfo("/proc/meminfo"); meminfo) {
+    std::string key, unit;
+    uint64_t kb = 0;
+    while (meminfo >> key >> kb >> unit) {
+      if (key == "MemAvailable:") {
+        available = kb * 1024;
+        break;
+      }
+    }
+  }
+  if (available == 0) {
+    available = uint64_t(sysconf(_SC_PHYS_PAGES)) * uint64_t(sysconf(_SC_PAGE_SIZE));
+  }
+  return available / 10 * 8;
+}
+
+void check_memory(const ReconstructorConfig& config, uint64_t limit) {
+  const uint64_t need = display_memory_estimate(config);
+  if (need <= limit) return;
+  const auto gib = [](uint64_t b) { return double(b) / double(uint64_t(1) << 30); };
+  throw Error(fmt::format(
+      "--size {}x{}{} with N = {} stored samples needs about {:.1f} GiB ({} B a stored sample, "
+      "{} B a pixel, {} MiB besides), more than the limit of {:.1f} GiB (--memory-limit; by "
+      "default 80% of the memory available): use a smaller --size or --capacity, or a wall "
+      "(--wall) to spread the image over display nodes",
+      config.image.width, config.image.height,
+      config.viewport == config.image.rect() || config.viewport.empty()
+          ? std::string()
+          : fmt::format(" (a cell of {}x{})", config.viewport.width(), config.viewport.height()),
+      config.capacity, gib(need), kMemoryPerSample, kMemoryPerPixel, kMemoryFixed >> 20,
+      gib(limit)));
 }
 
 // What the window's keyboard and mouse did since the last frame.

@@ -43,6 +43,16 @@ ReconstructorConfig display_reconstructor_config(const Preset& preset, Reconstru
                                                  int width, int height, PixelRect cell, int margin,
                                                  size_t capacity);
 
+// The display's memory with the reconstructor of `config` (CPU backend; a GPU one keeps less
+// here), bytes: a fixed part plus so much a stored sample and a pixel of the reconstructed
+// grid, from display_node's measured peak resident size (docs/robustness.md, "Admission").
+uint64_t display_memory_estimate(const ReconstructorConfig& config);
+// The default of display_node's --memory-limit: 80% of the memory available now (the kernel's
+// MemAvailable; the physical memory where it does not say).
+uint64_t default_memory_limit();
+// Throws afr::Error naming the estimate, its parts and the limit when the estimate exceeds it.
+void check_memory(const ReconstructorConfig& config, uint64_t limit);
+
 struct DisplayAppOptions {
   bool headless = false;  // no window: images at `fps` into `output`
   Backend backend = Backend::kAuto;
