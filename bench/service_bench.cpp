@@ -181,10 +181,7 @@ void BM_Ingest(benchmark::State& state) {
   SampleSink& sink = store_sink ? static_cast<SampleSink&>(*store_sink) : null_sink;
   std::atomic<bool> running{true};
   // The display's ingest thread, as DisplayService::ingest_loop runs it.
-  std::thread ingest([&] {
-    service::run_ingest(
-        receiver, sink, metrics, [](uint32_t) { return true; }, running);
-  });
+  std::thread ingest([&] { service::run_ingest(receiver, sink, metrics, nullptr, running); });
   clockid_t ingest_clock{};
   pthread_getcpuclockid(ingest.native_handle(), &ingest_clock);
 
@@ -400,10 +397,7 @@ int receive_main(int argc, char** argv) {
   if (capacity > 0) store_sink = std::make_unique<StoreSink>(capacity);
   SampleSink& sink = store_sink ? static_cast<SampleSink&>(*store_sink) : null_sink;
   std::atomic<bool> running{true};
-  std::thread ingest([&] {
-    service::run_ingest(
-        receiver, sink, metrics, [](uint32_t) { return true; }, running);
-  });
+  std::thread ingest([&] { service::run_ingest(receiver, sink, metrics, nullptr, running); });
   clockid_t ingest_clock{};
   pthread_getcpuclockid(ingest.native_handle(), &ingest_clock);
   std::printf("ready\n");

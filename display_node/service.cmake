@@ -10,6 +10,7 @@ add_library(afr_display_service
   ${CMAKE_CURRENT_LIST_DIR}/src/service/display_service.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/fly_camera.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/latency_histogram.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/service/member_gate.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/metrics.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/metrics_exposition.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/metrics_server.cpp

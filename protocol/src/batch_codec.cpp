@@ -179,7 +179,7 @@ int64_t unpack_samples(const uint8_t* p, double base, double tick, uint32_t max_
 
 // ---------------------------------------------------------------------------------------------
 // SampleBatch: u32 sampler_id, u32 fields, u64 sequence, f64 base_time, u32 count,
-// i8 tick_exp, u8[3] reserved (0); then count packed samples (docs/protocol.md)
+// i8 tick_exp, u8[3] reserved (0), u64 token; then count packed samples (docs/protocol.md)
 
 Status validate(const SampleBatch& m, const ImageExtent& bounds) {
   double lo, hi;
@@ -203,6 +203,7 @@ Status encode(const SampleBatch& m, std::vector<uint8_t>* out, const ImageExtent
   w.u8(0);
   w.u8(0);
   w.u8(0);
+  w.u64(m.token);
   uint8_t* p = w.take(n * packed_sample_bytes(m.fields));
   const double inv_tick = std::ldexp(1.0, -tick_exp);
   switch (m.fields) {
@@ -234,7 +235,8 @@ Status decode(Bytes message, SampleBatch* out, const ImageExtent& bounds) {
   const uint8_t* reserved = nullptr;
   if (!(r.u32(&out->sampler_id, "sampler_id") && r.u32(&out->fields, "fields") &&
         r.u64(&out->sequence, "sequence") && r.f64(&base, "base_time") && r.u32(&count, "count") &&
-        r.u8(&tick_byte, "tick_exp") && (reserved = r.take(3, "reserved")))) {
+        r.u8(&tick_byte, "tick_exp") && (reserved = r.take(3, "reserved")) &&
+        r.u64(&out->token, "token"))) {
     return r.status();
   }
   if (out->fields & ~kKnownSampleFields) {
@@ -291,8 +293,8 @@ Status decode(Bytes message, SampleBatch* out, const ImageExtent& bounds) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// TilingSnapshot: u32 sampler_id, f64 time, u16 region x0, y0, x1, y1, u32 tile_count; then
-// per tile u16 x0, y0, x1, y1, f32 G_x, G_y, G_t, v, E, u32 count, f32 rate
+// TilingSnapshot: u32 sampler_id, f64 time, u16 region x0, y0, x1, y1, u32 tile_count,
+// u64 token; then per tile u16 x0, y0, x1, y1, f32 G_x, G_y, G_t, v, E, u32 count, f32 rate
 
 namespace {
 
@@ -350,6 +352,7 @@ Status encode(const TilingSnapshot& m, std::vector<uint8_t>* out, const ImageExt
   w.u16(uint16_t(m.region.x1));
   w.u16(uint16_t(m.region.y1));
   w.u32(uint32_t(m.tiles.size()));
+  w.u64(m.token);
   for (const TileInfo& t : m.tiles) {
     w.u16(uint16_t(t.rect.x0));
     w.u16(uint16_t(t.rect.y0));
@@ -376,7 +379,7 @@ Status decode(Bytes message, TilingSnapshot* out, const ImageExtent& bounds) {
   uint32_t count = 0;
   if (!(r.u32(&out->sampler_id, "sampler_id") && r.f64(&out->time, "time") &&
         r.u16(&rc[0], "region.x0") && r.u16(&rc[1], "region.y0") && r.u16(&rc[2], "region.x1") &&
-        r.u16(&rc[3], "region.y1") && r.u32(&count, "tile_count"))) {
+        r.u16(&rc[3], "region.y1") && r.u32(&count, "tile_count") && r.u64(&out->token, "token"))) {
     return r.status();
   }
   out->region = PixelRect{rc[0], rc[1], rc[2], rc[3]};

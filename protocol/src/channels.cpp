@@ -307,6 +307,13 @@ SampleReceiver::~SampleReceiver() = default;
 
 std::string SampleReceiver::endpoint() const { return last_endpoint(socket_->socket); }
 
+std::string_view SampleReceiver::peer_key() const {
+  // The ZAP handler's user id, which afr's handler sets to the client's Z85 key; libzmq keeps it
+  // in the metadata of every message of that connection.
+  const char* user = zmq_msg_gets(socket_->message.handle(), "User-Id");
+  return user ? std::string_view(user) : std::string_view();
+}
+
 SampleReceiver::Got SampleReceiver::receive(int timeout_ms) {
   if (timeout_ms != 0 && !wait_readable(socket_->socket, timeout_ms)) return Got::kNothing;
   const Frame frame = receive_one(socket_->socket, socket_->message);

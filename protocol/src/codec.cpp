@@ -224,13 +224,14 @@ Status decode(Bytes message, Join* out) {
 
 // ---------------------------------------------------------------------------------------------
 // Welcome: u32 sampler_id, u64 session, u32 width, u32 height, f64 display_time,
-// f64 refresh_interval, u8[32] scene_hash, u64 scene_size, string scene_name, string presets
+// f64 refresh_interval, u8[32] scene_hash, u64 scene_size, u64 token, string scene_name,
+// string presets
 
 Status encode(const Welcome& m, std::vector<uint8_t>* out) {
   out->clear();
   if (Status s = validate(m); !s) return s;
   Writer w = wire::begin_message(
-      MessageType::kWelcome, 76 + wire::string_bytes(m.scene_name) + wire::string_bytes(m.presets),
+      MessageType::kWelcome, 84 + wire::string_bytes(m.scene_name) + wire::string_bytes(m.presets),
       out);
   w.u32(m.sampler_id);
   w.u64(m.session);
@@ -240,6 +241,7 @@ Status encode(const Welcome& m, std::vector<uint8_t>* out) {
   w.f64(m.refresh_interval);
   write_hash(w, m.scene_hash);
   w.u64(m.scene_size);
+  w.u64(m.token);
   w.string(m.scene_name);
   w.string(m.presets);
   AFR_CHECK(w.done());
@@ -253,7 +255,7 @@ Status decode(Bytes message, Welcome* out) {
         r.f64(&out->display_time, "display_time") &&
         r.f64(&out->refresh_interval, "refresh_interval") &&
         read_hash(r, &out->scene_hash, "scene_hash") && r.u64(&out->scene_size, "scene_size") &&
-        r.string(&out->scene_name, "scene_name", kMaxNameBytes) &&
+        r.u64(&out->token, "token") && r.string(&out->scene_name, "scene_name", kMaxNameBytes) &&
         r.string(&out->presets, "presets", kMaxNameBytes);
   });
 }

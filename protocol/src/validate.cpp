@@ -107,6 +107,7 @@ Status validate(const Join& m) {
 Status validate(const Welcome& m) {
   if (m.sampler_id == 0) return field_error("welcome", "sampler_id", "0 is not an assigned id");
   if (m.session == 0) return field_error("welcome", "session", "0 is not a session id");
+  if (m.token == 0) return field_error("welcome", "token", "0 is not a member token");
   if (Status s = check_image_size("welcome", m.image.width, m.image.height); !s) return s;
   if (Status s = check_time("welcome", "display_time", m.display_time); !s) return s;
   if (!std::isfinite(m.refresh_interval) || !(m.refresh_interval > 0.0) ||

@@ -14,6 +14,7 @@ PixelRect wall_receive_rect(const WallLayout& layout, const WallNode& node) {
 
 void select_samples(const SampleBatch& batch, const PixelRect& rect, SampleBatch* out) {
   out->sampler_id = batch.sampler_id;
+  out->token = batch.token;
   out->sequence = batch.sequence;
   out->fields = batch.fields;
   out->samples.clear();
@@ -25,6 +26,7 @@ void select_samples(const SampleBatch& batch, const PixelRect& rect, SampleBatch
 
 void select_tiles(const TilingSnapshot& snapshot, const PixelRect& rect, TilingSnapshot* out) {
   out->sampler_id = snapshot.sampler_id;
+  out->token = snapshot.token;
   out->time = snapshot.time;
   out->region = snapshot.region;
   out->tiles.clear();

@@ -258,7 +258,7 @@ TEST(CodecRejectTest, UnknownEnumValuesAndBitsAreRejected) {
   EXPECT_REJECTED(b, "sample_batch.reserved");
   // The miss bit without positions.
   b = batch;
-  put_u8(b, 32 + 12 + 7, 0x80);
+  put_u8(b, 40 + 12 + 7, 0x80);
   EXPECT_REJECTED(b, "miss");
 
   b = encoded(random_stats(rng));
@@ -308,7 +308,7 @@ TEST(CodecRejectTest, NonFiniteValuesAreRejectedWhereForbidden) {
     EXPECT_REJECTED(b, "sample_batch.base_time");
     for (size_t c = 0; c < 3; ++c) {
       b = encoded(random_batch(rng, kFieldPosition, 3));
-      put_f32(b, 32 + 24 * 2 + 12 + 4 * c, float(x));  // sample 2's world position
+      put_f32(b, 40 + 24 * 2 + 12 + 4 * c, float(x));  // sample 2's world position
       EXPECT_REJECTED(b, "sample_batch.samples[2].position");
     }
 
@@ -316,14 +316,14 @@ TEST(CodecRejectTest, NonFiniteValuesAreRejectedWhereForbidden) {
     for (size_t field = 0; field < 6; ++field) {
       std::vector<uint8_t> t = b;
       const size_t off = field < 5 ? 8 + 4 * field : 32;  // G_x, G_y, G_t, v, E; rate
-      put_f32(t, 24 + kTileBytes + off, float(x));
+      put_f32(t, 32 + kTileBytes + off, float(x));
       EXPECT_REJECTED(t, "tiling_snapshot.tiles[1]");
     }
   }
   // Half-float Inf and NaN in velocities.
   for (uint16_t h : {uint16_t(0x7c00), uint16_t(0xfc00), uint16_t(0x7e00), uint16_t(0x7c01)}) {
     std::vector<uint8_t> b = encoded(random_batch(rng, kFieldVelocity, 3));
-    put_u16(b, 32 + 18 + 12 + 2, h);
+    put_u16(b, 40 + 18 + 12 + 2, h);
     EXPECT_REJECTED(b, "sample_batch.samples[1].velocity");
   }
 }
@@ -340,11 +340,15 @@ TEST(CodecRejectTest, NegativeValuesAreRejectedWhereForbidden) {
   put_f64(b, 112, 3.2);
   EXPECT_REJECTED(b, "yfov");
   b = encoded(random_tiling(rng, 1));
-  put_f32(b, 24 + 20, -0.5f);  // v
+  put_f32(b, 32 + 20, -0.5f);  // v
   EXPECT_REJECTED(b, "tiles[0].v: negative");
   b = encoded(random_welcome(rng));
   put_f64(b, 28, 0.0);
   EXPECT_REJECTED(b, "refresh_interval");
+  // A welcome without a member token: the member's batches could not be told from others'.
+  b = encoded(random_welcome(rng));
+  put_u64(b, 76, 0);
+  EXPECT_REJECTED(b, "welcome.token: 0 is not a member token");
 }
 
 TEST(CodecRejectTest, ViewsWithoutAnOrthonormalBasisAreRejected) {
@@ -389,14 +393,14 @@ TEST(CodecRejectTest, SizesAndRectanglesOutsideTheImageAreRejected) {
   SampleBatch batch = random_batch(rng, 0, 4, 0.01, ImageExtent{100, 100});
   b = encoded(batch);
   EXPECT_EQ(error_of(b, ImageExtent{100, 100}), "");
-  b[kHeaderBytes + 32 + 12 * 3 + 2] = 0x01;  // sample 3: x code + 65536 (x + 128 px)
+  b[kHeaderBytes + 40 + 12 * 3 + 2] = 0x01;  // sample 3: x code + 65536 (x + 128 px)
   EXPECT_NE(error_of(b, ImageExtent{100, 100}).find("samples[3].x: outside"), std::string::npos);
   EXPECT_EQ(error_of(b), "");  // inside the protocol's 32768 x 32768 still
 
   // A tile outside its region, and a region outside the bounds.
   TilingSnapshot t = random_tiling(rng, 2);
   b = encoded(t);
-  put_u16(b, 24 + kTileBytes + 4, uint16_t(t.region.x1 + 1));  // tile 1's x1
+  put_u16(b, 32 + kTileBytes + 4, uint16_t(t.region.x1 + 1));  // tile 1's x1
   EXPECT_REJECTED(b, "tiles[1].rect");
   b = encoded(t);
   EXPECT_NE(error_of(b, ImageExtent{t.region.x1 - 1, 32768}).find("tiling_snapshot.region"),

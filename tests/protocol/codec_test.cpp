@@ -138,11 +138,11 @@ TEST(CodecTest, JoinBytesAreTheDocumentedLayout) {
   std::vector<uint8_t> bytes;
   ASSERT_TRUE(encode(join, &bytes).ok());
   const std::vector<uint8_t> expected = {'A',  'F',  'R',  'P',   // magic
-                                         3,    0,                 // version
+                                         4,    0,                 // version
                                          1,    0,                 // type: join
                                          16,   0,    0,    0,     // payload bytes
                                          0x04, 0x03, 0x02, 0x01,  // sampler_id
-                                         3,    0,                 // protocol_version
+                                         4,    0,                 // protocol_version
                                          8,    0,                 // threads
                                          5,    0,    0,    0,     // capabilities
                                          2,    0,    'a',  'b'};  // name
@@ -162,13 +162,13 @@ TEST(CodecTest, BytesPerSampleAreTheDocumentedFigures) {
   for (uint32_t fields = 0; fields < 4; ++fields) {
     for (size_t n : {size_t(0), size_t(1), size_t(128), size_t(4096)}) {
       ASSERT_TRUE(encode(random_batch(rng, fields, n), &bytes).ok());
-      EXPECT_EQ(bytes.size(), 44 + n * packed_sample_bytes(fields));
+      EXPECT_EQ(bytes.size(), 52 + n * packed_sample_bytes(fields));
       EXPECT_EQ(bytes.size(), batch_message_bytes(fields, n));
     }
   }
   // The default batch of the sampler (128 samples) with world positions, per sample, with
-  // the headers shared out: 24 + 44 / 128.
-  EXPECT_NEAR(double(batch_message_bytes(kFieldPosition, 128)) / 128, 24.34375, 1e-12);
+  // the headers shared out: 24 + 52 / 128.
+  EXPECT_NEAR(double(batch_message_bytes(kFieldPosition, 128)) / 128, 24.40625, 1e-12);
 }
 
 // The tick of a batch: the finest power of two that spans it in 32767 ticks (from the
@@ -183,6 +183,7 @@ double expected_tick(double span) {
 void expect_batch_close(const SampleBatch& in, const SampleBatch& out, double tick) {
   ASSERT_EQ(out.samples.size(), in.samples.size());
   EXPECT_EQ(out.sampler_id, in.sampler_id);
+  EXPECT_EQ(out.token, in.token);
   EXPECT_EQ(out.sequence, in.sequence);
   EXPECT_EQ(out.fields, in.fields);
   for (size_t i = 0; i < in.samples.size(); ++i) {
@@ -280,6 +281,7 @@ TEST(CodecTest, BatchesAtTheLongestSpanEncodeAgainAfterDecoding) {
 TEST(CodecTest, OneSampleBatchIsTheDocumentedLayout) {
   SampleBatch in;
   in.sampler_id = 7;
+  in.token = 0x1122334455667788;
   in.sequence = 9;
   in.fields = kFieldPosition | kFieldVelocity;
   Sample s;
@@ -293,7 +295,7 @@ TEST(CodecTest, OneSampleBatchIsTheDocumentedLayout) {
   in.samples.push_back(s);
   std::vector<uint8_t> bytes;
   ASSERT_TRUE(encode(in, &bytes).ok());
-  ASSERT_EQ(bytes.size(), 12u + 32 + 30);
+  ASSERT_EQ(bytes.size(), 12u + 40 + 30);
   const uint8_t* p = bytes.data() + 12;
   uint32_t u32;
   double f64;
@@ -306,7 +308,10 @@ TEST(CodecTest, OneSampleBatchIsTheDocumentedLayout) {
   std::memcpy(&u32, p + 24, 4);
   EXPECT_EQ(u32, 1u);                     // count
   EXPECT_EQ(int8_t(p[28]), kMinTickExp);  // a zero span takes the finest tick
-  const uint8_t* q = p + 32;
+  uint64_t u64;
+  std::memcpy(&u64, p + 32, 8);
+  EXPECT_EQ(u64, 0x1122334455667788u);  // token
+  const uint8_t* q = p + 40;
   const std::vector<uint8_t> sample(q, q + 12);
   const uint32_t color = 256u | (128u << 9) | (0u << 18) | (16u << 27);
   const std::vector<uint8_t> expected = {0x80,
@@ -385,6 +390,7 @@ TEST(CodecTest, TilingsRoundTripExactly) {
     const TilingSnapshot out = round_trip(in, &bytes);
     EXPECT_EQ(bytes.size(), snapshot_message_bytes(in.tiles.size()));
     EXPECT_EQ(out.sampler_id, in.sampler_id);
+    EXPECT_EQ(out.token, in.token);
     EXPECT_EQ(out.time, in.time);
     EXPECT_EQ(out.region, in.region);
     ASSERT_EQ(out.tiles.size(), in.tiles.size());
@@ -448,7 +454,7 @@ TEST(CodecTest, WallCoverageBytesAreTheDocumentedLayout) {
   std::vector<uint8_t> bytes;
   ASSERT_TRUE(encode(m, &bytes).ok());
   const std::vector<uint8_t> expected = {
-      'A',  'F',  'R',  'P',  3,    0,    14,   0,    40, 0, 0, 0,  // header: version 3, type 14
+      'A',  'F',  'R',  'P',  4,    0,    14,   0,    40, 0, 0, 0,  // header: version 4, type 14
       0x04, 0x03, 0x02, 0x01,                                       // node_id
       0,    0,    0,    0,    0,    0,    0x00, 0x40,               // time: 2.0
       3,    0,    4,    0,    5,    0,    5,    0,                  // rect x0, y0, x1, y1

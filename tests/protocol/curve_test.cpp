@@ -137,7 +137,12 @@ TEST_F(CurveTest, SampleAndViewChannelsWorkWithCurve) {
          std::chrono::steady_clock::now() - start < std::chrono::seconds(5)) {
     ASSERT_TRUE(sender.send(batch).ok());
     ASSERT_TRUE(publisher.publish(random_view(rng)).ok());
-    got_batch |= receiver.receive(10) == SampleReceiver::Got::kBatch;
+    if (receiver.receive(10) == SampleReceiver::Got::kBatch) {
+      got_batch = true;
+      // The connection's authenticated key travels with each message: the display binds a
+      // member's batches to the key it joined with.
+      EXPECT_EQ(receiver.peer_key(), allowed_.public_key);
+    }
     got_view |= subscriber.receive(10).has_value();
   }
   EXPECT_TRUE(got_batch);

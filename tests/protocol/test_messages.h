@@ -43,6 +43,7 @@ inline Welcome random_welcome(Pcg32& rng) {
   Welcome m;
   m.sampler_id = 1 + rng.next_below(1000);
   m.session = random_u64(rng) | 1;
+  m.token = random_u64(rng) | 1;
   m.image.width = int32_t(1 + rng.next_below(kMaxImageSize));
   m.image.height = int32_t(1 + rng.next_below(kMaxImageSize));
   m.display_time = random_time(rng);
@@ -113,6 +114,7 @@ inline SampleBatch random_batch(Pcg32& rng, uint32_t fields, size_t n, double sp
                                 const ImageExtent& bounds = kMaxImageExtent) {
   SampleBatch m;
   m.sampler_id = rng.next_u32();
+  m.token = random_u64(rng);
   m.sequence = random_u64(rng);
   m.fields = fields;
   const double base = random_time(rng);
@@ -139,6 +141,7 @@ inline SampleBatch random_batch(Pcg32& rng, uint32_t fields, size_t n, double sp
 inline TilingSnapshot random_tiling(Pcg32& rng, size_t n) {
   TilingSnapshot m;
   m.sampler_id = rng.next_u32();
+  m.token = random_u64(rng);
   m.time = random_time(rng);
   const int32_t w = 64 + int32_t(rng.next_below(4000)), h = 64 + int32_t(rng.next_below(4000));
   m.region = random_rect_in(rng, PixelRect{0, 0, w, h});

@@ -105,6 +105,8 @@ TEST(TransportTest, PushPullCarriesBatchesAndTilings) {
     SampleReceiver::Got got = receiver.receive(2000);
     ASSERT_EQ(got, SampleReceiver::Got::kBatch) << where << " " << receiver.rejection().message();
     EXPECT_EQ(receiver.batch().sampler_id, batch.sampler_id);
+    EXPECT_EQ(receiver.batch().token, batch.token);
+    EXPECT_EQ(receiver.peer_key(), "");  // no CurveZMQ: no authenticated key
     EXPECT_EQ(receiver.batch().samples.size(), 128u);
     EXPECT_EQ(receiver.batch().samples[5].position, batch.samples[5].position);
     // Any further batches the retry loop sent, then the tiling.

@@ -2,6 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <map>
+#include <set>
+
 namespace afr::service {
 namespace {
 
@@ -9,6 +13,10 @@ int64_t total_area(const Coordinator& c) {
   int64_t a = 0;
   for (const auto& [id, m] : c.members()) a += m.region.area();
   return a;
+}
+
+double area_share(const Coordinator& c, uint32_t id) {
+  return double(c.members().at(id).region.area()) / (double(c.width()) * c.height());
 }
 
 // The regions partition the image: areas add up and no pixel is owned twice.
@@ -27,33 +35,83 @@ bool partitions(const Coordinator& c) {
   return true;
 }
 
+Member& join(Coordinator* c, const std::string& peer, double now, int threads = 1) {
+  bool is_new = false;
+  return c->join(peer, peer, "", threads, 1000 + uint64_t(peer[0]), now, &is_new);
+}
+
 // Samplers "a" (id 1) and "b" (id 2) joined at time 0, and the first cut made.
 void join_two(Coordinator* c) {
-  bool is_new = false;
-  c->join("a", 0, "a", "", 1, 0.0, &is_new);
-  c->join("b", 0, "b", "", 1, 0.0, &is_new);
+  join(c, "a", 0.0);
+  join(c, "b", 0.0);
   c->maybe_recut(0.0);
 }
+
+// The display's control thread in miniature: a pass every 50 ms from `from` to `to`; in each,
+// every member is heard (its heartbeats) and those in `rates` deliver samples at that rate (per
+// second), then the coordinator measures and maybe recuts. Returns the time of each recut.
+constexpr double kPass = 0.05;
+std::vector<double> run(Coordinator* c, double from, double to,
+                        const std::map<uint32_t, double>& rates) {
+  std::vector<double> cuts;
+  const int passes = int(std::lround((to - from) / kPass));
+  for (int k = 1; k <= passes; ++k) {
+    const double t = from + k * kPass;
+    std::vector<uint32_t> ids;
+    for (const auto& [id, m] : c->members()) ids.push_back(id);
+    for (uint32_t id : ids) c->heard(id, t);
+    for (const auto& [id, rate] : rates) c->add_samples(id, uint64_t(rate * kPass), t);
+    if (c->maybe_recut(t)) cuts.push_back(t);
+  }
+  return cuts;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Membership and ids
 
 TEST(CoordinatorTest, JoinsGetIdsAndTheRegionsPartitionTheImage) {
   Coordinator c(100, 60);
   bool is_new = false;
-  EXPECT_EQ(c.join("a", 0, "a", "", 1, 0.0, &is_new).id, 1u);
+  EXPECT_EQ(c.join("a", "a", "", 1, 11, 0.0, &is_new).id, 1u);
   EXPECT_TRUE(is_new);
-  EXPECT_EQ(c.join("b", 0, "b", "", 1, 0.0, &is_new).id, 2u);
-  EXPECT_EQ(c.join("a", 0, "a", "", 1, 0.1, &is_new).id, 1u);  // a repeated join
+  EXPECT_EQ(c.join("b", "b", "", 1, 12, 0.0, &is_new).id, 2u);
+  const Member& again = c.join("a", "a", "", 1, 13, 0.1, &is_new);  // a repeated join
   EXPECT_FALSE(is_new);
+  EXPECT_EQ(again.id, 1u);
+  EXPECT_EQ(again.token, 11u);  // keeps its token
   EXPECT_TRUE(c.maybe_recut(0.1));
   EXPECT_EQ(total_area(c), 6000);
   EXPECT_TRUE(partitions(c));
   EXPECT_FALSE(c.maybe_recut(0.2));  // nothing changed
 }
 
-TEST(CoordinatorTest, RequestedIdIsHonouredWhenFree) {
+TEST(CoordinatorTest, IdsAreAssignedByTheDisplayAndALiveOneIsNeverGivenAgain) {
   Coordinator c(10, 10);
-  bool is_new = false;
-  EXPECT_EQ(c.join("a", 7, "a", "", 1, 0.0, &is_new).id, 7u);
-  EXPECT_EQ(c.join("b", 7, "b", "", 1, 0.0, &is_new).id, 8u);  // taken: a fresh one
+  join(&c, "a", 0.0);
+  join(&c, "b", 0.0);
+  join(&c, "c", 0.0);
+  ASSERT_TRUE(c.remove(2));
+  // The departed id is not given again either (its late batches stay a stranger's).
+  EXPECT_EQ(join(&c, "d", 0.1).id, 4u);
+  EXPECT_EQ(c.members().size(), 3u);
+}
+
+// A peer that once made every later sampler get id 4294967295 (a join asking for 0xFFFFFFFE):
+// ids near the top of the range now wrap to 1, stay distinct, and no join removes a member.
+TEST(CoordinatorTest, IdsWrapPastTheTopWithoutEvictingAnyone) {
+  CoordinatorOptions o;
+  o.first_id = 0xFFFFFFFEu;
+  Coordinator c(64, 64, o);
+  std::set<uint32_t> ids;
+  for (const char* peer : {"a", "b", "c", "d", "e"}) ids.insert(join(&c, peer, 0.0).id);
+  EXPECT_EQ(ids, (std::set<uint32_t>{0xFFFFFFFEu, 0xFFFFFFFFu, 1u, 2u, 3u}));
+  EXPECT_EQ(c.members().size(), 5u);
+  EXPECT_TRUE(c.maybe_recut(0.0));
+  EXPECT_TRUE(partitions(c));
+  // Repeated joins keep their ids; membership stays as it is.
+  for (const char* peer : {"a", "b", "c", "d", "e"}) join(&c, peer, 0.1);
+  EXPECT_EQ(c.members().size(), 5u);
+  EXPECT_FALSE(c.maybe_recut(0.1));
 }
 
 TEST(CoordinatorTest, SilentMemberExpiresAndItsRegionGoesToTheOthers) {
@@ -71,52 +129,43 @@ TEST(CoordinatorTest, SilentMemberExpiresAndItsRegionGoesToTheOthers) {
   EXPECT_EQ(c.members().at(1).region, (PixelRect{0, 0, 64, 64}));
 }
 
-TEST(CoordinatorTest, AreasFollowThroughputWithHysteresis) {
+// ---------------------------------------------------------------------------------------------
+// Shares from measured rates
+
+TEST(CoordinatorTest, AreasFollowMeasuredRatesWithHysteresis) {
   CoordinatorOptions o;
   o.settle_seconds = 0.0;
   o.recut_interval = 1.0;
   Coordinator c(200, 100, o);
   join_two(&c);
   EXPECT_EQ(c.members().at(1).region.area(), 10000);
-  // 4:1 against halves: 0.8 / 0.5 is beyond the hysteresis (0.5).
-  c.report_throughput(1, 400000.0, 0.5);
-  c.report_throughput(2, 100000.0, 0.5);
-  EXPECT_FALSE(c.maybe_recut(0.5));  // at most once per recut_interval
-  EXPECT_TRUE(c.maybe_recut(1.1));
-  EXPECT_NEAR(double(c.members().at(1).region.area()) / 20000.0, 0.8, 0.02);
+  // 4:1 against halves: 0.8 / 0.5 is beyond the hysteresis (0.5); the cut waits until both
+  // rates have been measured for measure_seconds and an interval has passed.
+  const std::vector<double> cuts = run(&c, 0.0, 1.5, {{1, 400000.0}, {2, 100000.0}});
+  ASSERT_EQ(cuts.size(), 1u);
+  EXPECT_GE(cuts[0], 1.0 - 1e-9);
+  EXPECT_NEAR(c.members().at(1).rate, 400000.0, 1.0);
+  EXPECT_NEAR(area_share(c, 1), 0.8, 0.02);
   EXPECT_TRUE(partitions(c));
   // A 10% change is inside the hysteresis: no recut.
-  c.report_throughput(1, 440000.0, 2.0);
-  EXPECT_FALSE(c.maybe_recut(2.5));
+  EXPECT_TRUE(run(&c, 1.5, 4.0, {{1, 440000.0}, {2, 100000.0}}).empty());
 }
 
 TEST(CoordinatorTest, OnlyAnOverloadedMemberIsReasonToRecut) {
-  // Regions cut for throughputs 9:91; then the throughputs become 20:80. Sampler 1 now has
-  // less than half of what it could take, but sampler 2, which finishes last, carries 0.91
-  // against 0.80 of its share: 14% over, inside the hysteresis. A recut (two pool restarts)
-  // would gain less than it costs. At 40:60, sampler 2 carries 0.91 / 0.60 = 1.5x: recut.
+  // Regions cut for rates 9:91; then the rates become 20:80. Sampler 1 now has less than half
+  // of what it could take, but sampler 2, which finishes last, carries 0.91 against 0.80 of its
+  // share: 14% over, inside the hysteresis. A recut (two pool restarts) would gain less than it
+  // costs. At 40:60, sampler 2 carries 0.91 / 0.60 = 1.5x: recut.
   CoordinatorOptions o;
   o.settle_seconds = 0.0;
   o.recut_interval = 1.0;
   Coordinator c(200, 100, o);
   join_two(&c);
-  c.report_throughput(1, 90000.0, 0.5);
-  c.report_throughput(2, 910000.0, 0.5);
-  c.report_throughput(1, 90000.0, 0.6);
-  c.report_throughput(2, 910000.0, 0.6);
-  ASSERT_TRUE(c.maybe_recut(1.1));
-  ASSERT_NEAR(double(c.members().at(1).region.area()) / 20000.0, 0.09, 0.01);
-  for (double t = 1.2; t < 3.0; t += 0.2) {  // the running mean settles on the new figures
-    c.report_throughput(1, 200000.0, t);
-    c.report_throughput(2, 800000.0, t);
-  }
-  EXPECT_FALSE(c.maybe_recut(3.0));
-  for (double t = 3.2; t < 5.0; t += 0.2) {
-    c.report_throughput(1, 400000.0, t);
-    c.report_throughput(2, 600000.0, t);
-  }
-  EXPECT_TRUE(c.maybe_recut(5.0));
-  EXPECT_NEAR(double(c.members().at(1).region.area()) / 20000.0, 0.4, 0.02);
+  ASSERT_EQ(run(&c, 0.0, 1.5, {{1, 90000.0}, {2, 910000.0}}).size(), 1u);
+  ASSERT_NEAR(area_share(c, 1), 0.09, 0.01);
+  EXPECT_TRUE(run(&c, 1.5, 4.0, {{1, 200000.0}, {2, 800000.0}}).empty());
+  EXPECT_EQ(run(&c, 4.0, 6.0, {{1, 400000.0}, {2, 600000.0}}).size(), 1u);
+  EXPECT_NEAR(area_share(c, 1), 0.4, 0.02);
 }
 
 TEST(CoordinatorTest, NoDriftRecutUntilEveryRegionHasSettled) {
@@ -129,43 +178,146 @@ TEST(CoordinatorTest, NoDriftRecutUntilEveryRegionHasSettled) {
   MassDensity error(200, 100, 50, 25);
   error.add(PixelRect{0, 0, 20, 100}, 1000.0);
   c.set_error(error);
-  EXPECT_FALSE(c.maybe_recut(1.5));  // regions 1.5 s old
-  EXPECT_TRUE(c.maybe_recut(2.1));   // settled, and the error is far from half and half
+  const std::map<uint32_t, double> rates = {{1, 100000.0}, {2, 100000.0}};
+  EXPECT_TRUE(run(&c, 0.0, 1.5, rates).empty());  // regions 1.5 s old
+  const std::vector<double> cuts = run(&c, 1.5, 2.5, rates);
+  ASSERT_EQ(cuts.size(), 1u);  // settled, and the error is far from half and half
+  EXPECT_GE(cuts[0], 2.0 - 1e-9);
   EXPECT_LT(c.members().at(1).region.x1, 20);
   // The joining of a third sampler recuts at once, settled or not.
-  bool is_new = false;
-  c.join("c", 0, "c", "", 1, 2.5, &is_new);
+  join(&c, "c", 2.5);
   EXPECT_TRUE(c.maybe_recut(2.5));
   EXPECT_TRUE(partitions(c));
 }
 
-TEST(CoordinatorTest, ErrorSharesFollowThroughputOnceTheErrorIsKnown) {
-  // Equal throughputs; then the error sits mostly in the left quarter of the image: the cut
-  // gives each sampler half of the error, so the left region shrinks to about an eighth.
+TEST(CoordinatorTest, ErrorSharesFollowRatesOnceTheErrorIsKnown) {
+  // Equal rates; then the error sits mostly in the left quarter of the image: the cut gives
+  // each sampler half of the error, so the left region shrinks to about an eighth.
   CoordinatorOptions o;
   o.settle_seconds = 0.0;
   o.recut_interval = 1.0;
   Coordinator c(200, 100, o);
   join_two(&c);
-  c.report_throughput(1, 100000.0, 0.1);
-  c.report_throughput(2, 100000.0, 0.1);
+  const std::map<uint32_t, double> rates = {{1, 100000.0}, {2, 100000.0}};
+  EXPECT_TRUE(run(&c, 0.0, 1.0, rates).empty());
   EXPECT_EQ(c.members().at(1).region, (PixelRect{0, 0, 100, 100}));
   MassDensity error(200, 100, 50, 25);
   error.add(PixelRect{0, 0, 50, 100}, 1000.0);
   error.add_uniform(1e-3);
   c.set_error(error);
-  EXPECT_TRUE(c.maybe_recut(1.1));  // the halves hold 0.998 and 0.002 of the error
+  EXPECT_EQ(run(&c, 1.0, 1.1, rates).size(), 1u);  // the halves hold 0.998 and 0.002 of it
   const PixelRect left = c.members().at(1).region;
   EXPECT_NEAR(left.x1, 25, 1);
   EXPECT_NEAR(error.mass(left) / error.total(), 0.5, 0.02);
   EXPECT_TRUE(partitions(c));
   // The same error again: the shares hold, no recut.
   c.set_error(error);
-  EXPECT_FALSE(c.maybe_recut(2.2));
+  EXPECT_TRUE(run(&c, 1.1, 2.2, rates).empty());
   // No error anywhere (an all-black image): back to areas at the next recut.
   c.set_error(MassDensity(200, 100, 50, 25));
-  EXPECT_TRUE(c.maybe_recut(3.3));
+  EXPECT_EQ(run(&c, 2.2, 3.3, rates).size(), 1u);
   EXPECT_EQ(c.members().at(1).region, (PixelRect{0, 0, 100, 100}));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Claims and silence
+
+// A join that claims 4096 threads (and would claim any rate) gets no more than a provisional
+// equal share, and loses even that within starve_seconds when nothing comes from it; the two
+// samplers that deliver keep the image between them.
+TEST(CoordinatorTest, GreedyJoinThatSendsNothingDoesNotTakeTheRealSamplersRegions) {
+  Coordinator c(256, 256);
+  join_two(&c);
+  const std::map<uint32_t, double> real = {{1, 100000.0}, {2, 100000.0}};
+  run(&c, 0.0, 1.0, real);
+  const Member& greedy = join(&c, "greedy", 1.0, protocol::kMaxThreads);
+  const uint32_t g = greedy.id;
+  ASSERT_TRUE(c.maybe_recut(1.0));
+  EXPECT_LE(area_share(c, g), 1.0 / 3.0 + 0.01);  // its claim bought nothing
+  const std::vector<double> cuts = run(&c, 1.0, 2.0, real);
+  ASSERT_FALSE(cuts.empty());
+  EXPECT_LE(cuts.front(), 1.0 + 0.75 + kPass + 1e-9);  // starve_seconds, a pass
+  EXPECT_TRUE(c.members().at(g).starved);
+  EXPECT_LT(area_share(c, g), 0.01);
+  EXPECT_GT(area_share(c, 1) + area_share(c, 2), 0.99);
+  EXPECT_TRUE(partitions(c));
+  // And it stays so while the real samplers deliver; the rates, not the claim, split the rest.
+  run(&c, 2.0, 6.0, real);
+  EXPECT_LT(area_share(c, g), 0.01);
+  EXPECT_NEAR(area_share(c, 1), area_share(c, 2), 0.05);
+}
+
+// A new member's provisional share is the mean of the measured rates: between the slow and the
+// fast sampler, whatever it says about itself.
+TEST(CoordinatorTest, NewMemberStartsWithTheMeanMeasuredRate) {
+  CoordinatorOptions o;
+  o.settle_seconds = 0.5;
+  Coordinator c(300, 100, o);
+  join_two(&c);
+  run(&c, 0.0, 2.0, {{1, 100000.0}, {2, 300000.0}});
+  ASSERT_TRUE(c.measured(c.members().at(1)) && c.measured(c.members().at(2)));
+  const uint32_t n = join(&c, "new", 2.0, protocol::kMaxThreads).id;
+  ASSERT_TRUE(c.maybe_recut(2.0));
+  EXPECT_FALSE(c.measured(c.members().at(n)));
+  EXPECT_NEAR(area_share(c, n), 200.0 / 600.0, 0.02);
+  EXPECT_NEAR(area_share(c, 1), 100.0 / 600.0, 0.02);
+}
+
+// A sampler that starved while it loaded the scene comes back at once when it delivers: its
+// first return recuts immediately, with the provisional share.
+TEST(CoordinatorTest, StarvedMemberThatStartsDeliveringGetsAShareBack) {
+  Coordinator c(256, 256);
+  join_two(&c);
+  join(&c, "slow", 0.0);
+  ASSERT_TRUE(c.maybe_recut(0.0));
+  const std::vector<double> starved = run(&c, 0.0, 1.0, {{1, 100000.0}, {2, 100000.0}});
+  ASSERT_EQ(starved.size(), 1u);
+  EXPECT_LT(area_share(c, 3), 0.01);
+  const std::vector<double> back = run(&c, 3.0, 3.1, {{1, 100000.0}, {2, 100000.0}, {3, 100000.0}});
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_FALSE(c.members().at(3).starved);
+  EXPECT_NEAR(area_share(c, 3), 1.0 / 3.0, 0.02);
+}
+
+// Silence is starvation only when others deliver meanwhile: when nobody delivers (all loading,
+// the network down) nobody's region moves, and a stall of this display itself (no measure()
+// for a while) is not the members' silence.
+TEST(CoordinatorTest, NoStarvationWhileNobodyDeliversOrWhileTheDisplayStalled) {
+  Coordinator c(128, 128);
+  join_two(&c);
+  EXPECT_TRUE(run(&c, 0.0, 3.0, {}).empty());
+  EXPECT_FALSE(c.members().at(1).starved || c.members().at(2).starved);
+  // Both deliver; then the display stalls for 3 s; then only sampler 1's batches have come in
+  // (sampler 2's are still queued): sampler 2 has starve_seconds from the stall's end, not from
+  // its last batch 3 s before.
+  run(&c, 3.0, 6.0, {{1, 100000.0}, {2, 100000.0}});
+  c.add_samples(1, 300000, 9.0);
+  EXPECT_FALSE(c.maybe_recut(9.0));
+  EXPECT_FALSE(c.members().at(2).starved);
+  EXPECT_TRUE(run(&c, 9.0, 9.6, {{1, 100000.0}}).empty());
+  EXPECT_FALSE(c.members().at(2).starved);
+  EXPECT_EQ(run(&c, 9.6, 10.0, {{1, 100000.0}}).size(), 1u);
+  EXPECT_TRUE(c.members().at(2).starved);
+}
+
+// A sampler that has delivered before gets settle_seconds after a region change (its pool
+// restarts and sends nothing meanwhile) before its silence counts.
+TEST(CoordinatorTest, ARestartingPoolIsNotTakenForStarvation) {
+  Coordinator c(128, 128);
+  join_two(&c);
+  run(&c, 0.0, 3.0, {{1, 100000.0}, {2, 100000.0}});
+  join(&c, "c", 3.0);
+  ASSERT_TRUE(c.maybe_recut(3.0));  // every region changes
+  // 1 and 3 deliver; 2 rebuilds its pool for 2.5 s: settle_seconds (2) + starve_seconds (0.75)
+  // is its patience.
+  EXPECT_TRUE(run(&c, 3.0, 5.5, {{1, 100000.0}, {3, 100000.0}}).empty());
+  EXPECT_FALSE(c.members().at(2).starved);
+  EXPECT_TRUE(run(&c, 5.5, 6.5, {{1, 100000.0}, {2, 100000.0}, {3, 100000.0}}).empty());
+  // 2 stops for good: starved 0.75 s after its last batch.
+  const std::vector<double> cuts = run(&c, 6.5, 8.0, {{1, 100000.0}, {3, 100000.0}});
+  ASSERT_EQ(cuts.size(), 1u);
+  EXPECT_NEAR(cuts[0], 6.5 + 0.75, kPass + 1e-9);
+  EXPECT_TRUE(c.members().at(2).starved);
 }
 
 }  // namespace

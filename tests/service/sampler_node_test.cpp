@@ -127,6 +127,7 @@ TEST_F(ServiceTest, SamplerThatCannotLoadTheSceneTellsTheDisplayWhyAndLeaves) {
             Welcome w;
             w.sampler_id = 1;
             w.session = 42;
+            w.token = 7;
             w.image = ImageExtent{64, 64};
             w.refresh_interval = 1.0 / 30.0;
             w.scene_hash = scene_hash(scene);

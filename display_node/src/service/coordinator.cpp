@@ -1,39 +1,56 @@
 #include <afr/display/service/coordinator.h>
 
+#include <afr/common/check.h>
 #include <afr/common/region_split.h>
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace afr::service {
 
 Coordinator::Coordinator(int width, int height, const CoordinatorOptions& options)
-    : width_(width), height_(height), options_(options) {
+    : width_(width), height_(height), options_(options), next_id_(std::max(1u, options.first_id)) {
   (void)FailureDetector(options_.heartbeat_interval, options_.liveness);  // throws when invalid
 }
 
-Member& Coordinator::join(const std::string& peer, uint32_t requested_id, const std::string& name,
-                          const std::string& public_key, int threads, double now, bool* is_new) {
+Member& Coordinator::join(const std::string& peer, const std::string& name,
+                          const std::string& public_key, int threads, uint64_t token, double now,
+                          bool* is_new) {
   if (Member* m = find_peer(peer)) {
     m->liveness.heard(now);
     *is_new = false;
     return *m;
   }
-  uint32_t id = requested_id;
-  if (id == 0 || members_.count(id)) id = next_id_;
-  next_id_ = std::max(next_id_, id + 1);
   Member m;
-  m.id = id;
+  m.id = next_free_id();
   m.peer = peer;
   m.name = name;
   m.public_key = public_key;
+  m.token = token;
   m.threads = std::max(1, threads);
   m.joined_at = now;
+  m.region_since = now;
+  m.last_sample_at = now;
   m.liveness = FailureDetector(options_.heartbeat_interval, options_.liveness);
   m.liveness.reset(now);
   dirty_ = true;
   *is_new = true;
-  return members_[id] = m;
+  const uint32_t id = m.id;
+  auto placed = members_.emplace(id, std::move(m));
+  AFR_CHECK(placed.second);  // next_free_id() never gives a member's id
+  return placed.first->second;
+}
+
+// Ids count up from 1 and wrap past the largest u32 to 1 (0 is kWallPeerSamplerId), skipping
+// every id a member holds: a live id is never given twice, and no claim can push the counter.
+uint32_t Coordinator::next_free_id() {
+  AFR_CHECK(members_.size() < size_t(std::numeric_limits<uint32_t>::max()) - 1);
+  for (;;) {
+    const uint32_t id = next_id_;
+    next_id_ = next_id_ == std::numeric_limits<uint32_t>::max() ? 1 : next_id_ + 1;
+    if (id != protocol::kWallPeerSamplerId && !members_.count(id)) return id;
+  }
 }
 
 Member* Coordinator::find(uint32_t id) {
@@ -52,12 +69,13 @@ void Coordinator::heard(uint32_t id, double now) {
   if (Member* m = find(id)) m->liveness.heard(now);
 }
 
-void Coordinator::report_throughput(uint32_t id, double samples_per_second, double now) {
+void Coordinator::add_samples(uint32_t id, uint64_t samples, double now) {
   Member* m = find(id);
-  if (!m || !std::isfinite(samples_per_second) || samples_per_second <= 0.0) return;
-  if (now - m->region_since < options_.settle_seconds) return;
-  m->throughput =
-      m->throughput == 0.0 ? samples_per_second : 0.5 * m->throughput + 0.5 * samples_per_second;
+  if (!m || samples == 0) return;
+  m->pending_ += samples;
+  m->samples += samples;
+  m->last_sample_at = std::max(m->last_sample_at, now);
+  m->delivered = true;
 }
 
 bool Coordinator::remove(uint32_t id) {
@@ -80,21 +98,97 @@ std::vector<Member> Coordinator::expire(double now) {
   return dead;
 }
 
-// Shares of the image: measured throughput; a member not yet measured counts as the mean
-// measured throughput per thread times its threads (or all equal when nothing is measured).
+std::vector<std::pair<uint32_t, bool>> Coordinator::measure(double now) {
+  std::vector<std::pair<uint32_t, bool>> changes;
+  if (!measured_once_) {
+    measured_once_ = true;
+    last_measure_ = now;
+    watching_since_ = now;
+  }
+  const double dt = now - last_measure_;
+  if (dt < 0.0) return changes;
+  last_measure_ = now;
+  // A long gap is this display's own stall: what arrived meanwhile is no rate, and the members'
+  // silence was not theirs. Their starvation clocks start again.
+  const bool stalled = dt > options_.max_measure_gap;
+  if (stalled) watching_since_ = now;
+  const double alpha = 1.0 - std::exp(-dt / options_.rate_time_constant);
+  for (auto& [id, m] : members_) {
+    const uint64_t n = m.pending_;
+    m.pending_ = 0;
+    if (n > 0 && m.starved) {
+      m.starved = false;
+      changes.emplace_back(id, false);
+      // Its first return recuts at once (a sampler that starved while it loaded the scene and
+      // built its pool); later ones wait for the drift check, so that a member cannot buy an
+      // immediate recut (every sampler's pool restart) with a batch now and then.
+      if (!m.came_back_) dirty_ = true;
+      m.came_back_ = true;
+    }
+    if (stalled || dt <= 0.0 || now - m.region_since < options_.settle_seconds) continue;
+    // Exponential smoothing of the arrival rate over time steps of any length, and its bias
+    // (the weight the average has gathered, which is less than 1 while it is young).
+    m.smoothed_ += alpha * (double(n) / dt - m.smoothed_);
+    m.weight_ += alpha * (1.0 - m.weight_);
+    m.measured_seconds += dt;
+    m.rate = m.weight_ > 0.0 ? m.smoothed_ / m.weight_ : 0.0;
+  }
+  // Starvation: silence that others' deliveries show is not the display's or the network's.
+  const auto delivering = [&](const Member& m) {
+    return m.delivered && now - m.last_sample_at < options_.starve_seconds;
+  };
+  for (auto& [id, m] : members_) {
+    if (m.starved) continue;
+    double quiet_from = m.delivered
+                            ? std::max(m.last_sample_at, m.region_since + options_.settle_seconds)
+                            : m.joined_at;
+    quiet_from = std::max(quiet_from, watching_since_);
+    if (now - quiet_from < options_.starve_seconds) continue;
+    const uint32_t self = id;
+    const bool others = std::any_of(members_.begin(), members_.end(), [&](const auto& e) {
+      return e.first != self && delivering(e.second);
+    });
+    if (!others) continue;
+    m.starved = true;
+    dirty_ = true;
+    changes.emplace_back(id, true);
+  }
+  return changes;
+}
+
+bool Coordinator::measured(const Member& m) const {
+  return !m.starved && m.measured_seconds >= options_.measure_seconds;
+}
+
+// Weights of the cut, by member: the measured rate; before a member is measured, the mean
+// measured rate (an equal share when nobody is measured yet); a starved member kStarvedWeight
+// of the others' mean. Nothing a sampler says about itself enters.
 std::vector<double> Coordinator::shares() const {
-  double measured = 0.0;
-  int measured_threads = 0;
+  double measured_sum = 0.0;
+  int measured_count = 0;
   for (const auto& [id, m] : members_) {
-    if (m.throughput > 0.0) {
-      measured += m.throughput;
-      measured_threads += m.threads;
+    if (measured(m) && m.rate > 0.0) {
+      measured_sum += m.rate;
+      ++measured_count;
     }
   }
-  const double per_thread = measured_threads > 0 ? measured / measured_threads : 1.0;
+  const bool any = measured_count > 0;
+  const double provisional = any ? measured_sum / measured_count : 1.0;
   std::vector<double> s;
+  double live_sum = 0.0;
+  int live = 0;
   for (const auto& [id, m] : members_) {
-    s.push_back(m.throughput > 0.0 ? m.throughput : per_thread * m.threads);
+    double w = 0.0;
+    if (!m.starved) {
+      w = any && measured(m) ? std::max(m.rate, kStarvedWeight * provisional) : provisional;
+      live_sum += w;
+      ++live;
+    }
+    s.push_back(w);
+  }
+  const double starved = live > 0 ? kStarvedWeight * live_sum / live : 1.0;
+  for (double& w : s) {
+    if (w == 0.0) w = starved;
   }
   return s;
 }
@@ -112,11 +206,13 @@ double Coordinator::fraction(const PixelRect& r) const {
   return double(r.area()) / (double(width_) * double(height_));
 }
 
-void Coordinator::cut(double now) {
+std::vector<PixelRect> Coordinator::parts() const {
   const std::vector<double> s = shares();
   const PixelRect image{0, 0, width_, height_};
-  const std::vector<PixelRect> parts =
-      error_ ? split_region(image, s, *error_) : split_region(image, s);
+  return error_ ? split_region(image, s, *error_) : split_region(image, s);
+}
+
+void Coordinator::cut(double now, const std::vector<PixelRect>& parts) {
   size_t i = 0;
   for (auto& [id, m] : members_) {
     if (!(m.region == parts[i])) m.region_since = now;
@@ -129,18 +225,19 @@ void Coordinator::cut(double now) {
 }
 
 bool Coordinator::maybe_recut(double now) {
+  (void)measure(now);
   if (members_.empty()) {
     dirty_ = false;
     return false;
   }
   if (dirty_) {
-    cut(now);
+    cut(now, parts());
     return true;
   }
   if (now - last_cut_ < options_.recut_interval) return false;
-  // A sampler that just got a new region restarts its pool: its throughput and its tiles'
-  // error say little until it settles. Recutting on them would chase the restart (measured:
-  // regions swinging between 17% and 73% every second).
+  // A sampler that just got a new region restarts its pool: its rate and its tiles' error say
+  // little until it settles. Recutting on them would chase the restart (measured: regions
+  // swinging between 17% and 73% every second).
   for (const auto& [id, m] : members_) {
     if (now - m.region_since < options_.settle_seconds) return false;
   }
@@ -158,10 +255,22 @@ bool Coordinator::maybe_recut(double now) {
   for (const auto& [id, m] : members_) {
     const double want = s[i++] / total;
     const double have = fraction(m.region);
+    // A starved member's strip is the least a cut gives, not a share it carries.
+    if (m.starved) continue;
     if (!(want > 0.0) || have / want > 1.0 + options_.hysteresis) drift = true;
   }
   if (!drift) return false;
-  cut(now);
+  // A member slower than a strip's worth keeps its strip: when the cut would give the regions
+  // they have, there is nothing to send (and nothing to look at again for an interval).
+  const std::vector<PixelRect> next = parts();
+  i = 0;
+  bool same = true;
+  for (const auto& [id, m] : members_) same = same && m.region == next[i++];
+  if (same) {
+    last_cut_ = now;
+    return false;
+  }
+  cut(now, next);
   return true;
 }
 

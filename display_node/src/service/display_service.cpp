@@ -14,9 +14,12 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <map>
 #include <optional>
 #include <random>
+#include <string_view>
+#include <utility>
 
 namespace afr::service {
 
@@ -90,9 +93,11 @@ class DisplayService::Control {
   void send_heartbeats(double t);
   void publish_view(double t);
   void say_goodbye();
+  void measure(double t);
   // Helpers.
   bool send(const std::string& peer, const Message& m);
-  void welcome(const std::string& peer, uint32_t id);
+  void welcome(const std::string& peer, uint32_t id, uint64_t token);
+  uint64_t new_token();
   void send_layout(const std::string& peer);
   MassDensity error_density();
 
@@ -109,6 +114,7 @@ class DisplayService::Control {
   // The wall's follower displays, by peer (docs/wall.md); the lead is node 1.
   struct WallMember {
     uint32_t id = 0;
+    uint64_t token = 0;
     std::string name;
     int column = 0, row = 0;
     std::string endpoint;
@@ -121,6 +127,8 @@ class DisplayService::Control {
   uint64_t heartbeat_sequence_ = 0;
   double last_heartbeat_ = 0.0, last_expire_ = 0.0, last_error_ = 0.0, next_view_ = 0.0;
   std::optional<MassDensity> error_;  // smoothed
+  double last_measured_metrics_ = 0.0;
+  std::random_device random_;  // members' tokens
 };
 
 namespace {
@@ -269,11 +277,63 @@ void DisplayService::stop() {
 // ---------------------------------------------------------------------------------------------
 // Ingest: the sample channel into the sink
 
+namespace {
+
+// The log lines of one cause: the first at once, then at most one a second, each saying how
+// many happened since the line before, so that a peer sending thousands a second makes one line
+// a second and a rare fault is never hidden behind a frequent one.
+class CauseLog {
+ public:
+  // Counts one; returns the count since the last line when a line is due now, else 0.
+  uint64_t due() {
+    ++count_;
+    const auto now = std::chrono::steady_clock::now();
+    if (logged_ && now - last_ < std::chrono::seconds(1)) return 0;
+    logged_ = true;
+    last_ = now;
+    return std::exchange(count_, 0);
+  }
+
+ private:
+  std::chrono::steady_clock::time_point last_;
+  bool logged_ = false;
+  uint64_t count_ = 0;
+};
+
+// A CurveZMQ key for a log line: enough of it to tell keys apart.
+std::string short_key(std::string_view key) {
+  return key.empty() ? std::string("none") : std::string(key.substr(0, 8)) + "...";
+}
+
+}  // namespace
+
 void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metrics,
-                const std::function<bool(uint32_t)>& is_member, const std::atomic<bool>& running,
+                MemberGate* gate, const std::atomic<bool>& running,
                 const std::function<void(const TilingSnapshot&)>& on_tiling,
                 WallCoverageInbox* coverage) {
   uint64_t rejected = 0, unexpected_coverage = 0;
+  CauseLog non_member_log, spoofed_log;
+  // Whether a batch or snapshot comes from the member it names; logs (rate-limited) when not.
+  const auto from_member = [&](const char* what, uint32_t id, uint64_t token, uint64_t samples) {
+    const MemberGate::Verdict v =
+        gate ? gate->check(id, token, receiver.peer_key(), samples) : MemberGate::Verdict::kMember;
+    if (v == MemberGate::Verdict::kNonMember) {
+      if (const uint64_t n = non_member_log.due()) {
+        spdlog::warn(
+            "sample channel: dropped {} message(s) from no member (the last a {} naming sampler "
+            "{}, key {}): not stored",
+            n, what, id, short_key(receiver.peer_key()));
+      }
+    } else if (v == MemberGate::Verdict::kSpoofed) {
+      if (const uint64_t n = spoofed_log.due()) {
+        spdlog::warn(
+            "sample channel: dropped {} message(s) naming a member without its token or key (the "
+            "last a {} naming sampler {}, key {}): not stored",
+            n, what, id, short_key(receiver.peer_key()));
+      }
+    }
+    return v;
+  };
   while (running.load(std::memory_order_relaxed)) {
     switch (receiver.receive(50)) {
       case SampleReceiver::Got::kNothing:
@@ -281,12 +341,18 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
       case SampleReceiver::Got::kBatch: {
         const SampleBatch& b = receiver.batch();
         const size_t bytes = batch_message_bytes(b.fields, b.samples.size());
-        if (b.sampler_id == kWallPeerSamplerId) {
+        if (b.sampler_id == kWallPeerSamplerId && (gate == nullptr || coverage != nullptr)) {
           metrics.on_wall_strays_in(b.samples.size(), bytes);
-        } else {
-          metrics.on_batch(b, bytes, is_member(b.sampler_id));
+          sink.on_batch(std::move(receiver.batch()));
+          break;
         }
-        sink.on_batch(std::move(receiver.batch()));
+        const MemberGate::Verdict v = from_member("batch", b.sampler_id, b.token, b.samples.size());
+        if (v == MemberGate::Verdict::kSpoofed) {
+          metrics.on_spoofed_batch(b.samples.size());
+          break;
+        }
+        metrics.on_batch(b, bytes, v == MemberGate::Verdict::kMember);
+        if (v == MemberGate::Verdict::kMember) sink.on_batch(std::move(receiver.batch()));
         break;
       }
       case SampleReceiver::Got::kCoverage: {
@@ -308,8 +374,14 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
       }
       case SampleReceiver::Got::kTiling: {
         const TilingSnapshot& t = receiver.tiling();
+        const MemberGate::Verdict v = from_member("tiling snapshot", t.sampler_id, t.token, 0);
+        if (v == MemberGate::Verdict::kSpoofed) {
+          metrics.on_spoofed_tiling();
+          break;
+        }
         metrics.on_tiling(t.sampler_id, snapshot_message_bytes(t.tiles.size()),
-                          is_member(t.sampler_id));
+                          v == MemberGate::Verdict::kMember);
+        if (v != MemberGate::Verdict::kMember) break;
         if (on_tiling) on_tiling(t);
         sink.on_tiling(std::move(receiver.tiling()));
         break;
@@ -327,13 +399,7 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
 
 void DisplayService::ingest_loop() {
   run_ingest(
-      *samples_, sink_, metrics_,
-      [this](uint32_t id) {
-        std::lock_guard<std::mutex> lock(regions_mutex_);
-        return std::any_of(regions_.begin(), regions_.end(),
-                           [&](const auto& r) { return r.first == id; });
-      },
-      running_,
+      *samples_, sink_, metrics_, &gate_, running_,
       [this](const TilingSnapshot& t) {
         // The tile's luminance variance over its pixels: comparable between samplers (their
         // E_tile is normalised by each sampler's own sums, section 6.1).
@@ -365,6 +431,7 @@ void DisplayService::Control::run() {
       wall_changed_ = false;
       publish_layout();
     }
+    measure(t);
     update_error(t);
     if (coordinator_.maybe_recut(t)) send_regions();
     send_heartbeats(t);
@@ -455,16 +522,22 @@ std::string DisplayService::Control::admit_display(const std::string& peer, cons
   }
   auto it = wall_nodes_.find(peer);
   if (it == wall_nodes_.end()) {
-    uint32_t id = j.node_id;
-    const bool taken = id < 2 || std::any_of(wall_nodes_.begin(), wall_nodes_.end(),
-                                             [&](const auto& e) { return e.second.id == id; });
-    if (taken) id = next_node_id_;
-    next_node_id_ = std::max(next_node_id_, id + 1);
+    // The lead assigns node ids as it does sampler ids: the proposed one is not followed
+    // (asking for 0xFFFFFFFF once made every later node the same id), the counter wraps past
+    // the top to 2 (the lead is 1) and skips every live id.
+    uint32_t id = 0;
+    for (bool taken = true; taken;) {
+      id = next_node_id_;
+      next_node_id_ = next_node_id_ == std::numeric_limits<uint32_t>::max() ? 2 : next_node_id_ + 1;
+      taken = std::any_of(wall_nodes_.begin(), wall_nodes_.end(),
+                          [&](const auto& e) { return e.second.id == id; });
+    }
     FailureDetector liveness(options_.coordinator.heartbeat_interval,
                              options_.coordinator.liveness);
     liveness.reset(t);
     it = wall_nodes_
-             .emplace(peer, WallMember{id, j.name, j.column, j.row, j.samples_endpoint, liveness})
+             .emplace(peer, WallMember{id, new_token(), j.name, j.column, j.row, j.samples_endpoint,
+                                       liveness})
              .first;
     spdlog::info("display node {} joined the wall: {} shows cell {},{}, samples at {}", id, j.name,
                  j.column, j.row, j.samples_endpoint);
@@ -477,21 +550,24 @@ std::string DisplayService::Control::admit_display(const std::string& peer, cons
     wall_changed_ = true;
   }
   it->second.liveness.heard(t);
-  welcome(peer, it->second.id);
+  welcome(peer, it->second.id, it->second.token);
   if (!wall_changed_) send_layout(peer);  // a repeated join; a change is sent to everyone
   return "";
 }
 
+// A join: the display assigns the id (the one the join proposes is not asked for) and the token
+// that binds the member's sample batches to it (docs/service.md, "Identity").
 void DisplayService::Control::on_join(const ControlServer::Incoming& in, const Join& j, double t) {
   bool is_new = false;
-  Member& m =
-      coordinator_.join(in.peer, j.sampler_id, j.name, in.public_key, j.threads, t, &is_new);
+  const uint64_t token = coordinator_.find_peer(in.peer) ? 0 : new_token();
+  Member& m = coordinator_.join(in.peer, j.name, in.public_key, j.threads, token, t, &is_new);
   if (is_new) {
-    spdlog::info("sampler {} joined: {} ({} thread(s){})", m.id, j.name, j.threads,
+    service_.gate_.admit(m.id, m.token, m.public_key);
+    spdlog::info("sampler {} joined: {} ({} thread(s) claimed{})", m.id, j.name, j.threads,
                  in.public_key.empty() ? "" : ", key " + in.public_key);
     service_.metrics_.on_member(j.name, m.id, in.public_key, j.threads);
   }
-  welcome(m.peer, m.id);
+  welcome(m.peer, m.id, m.token);
   send_layout(m.peer);
   if (!is_new) {  // a repeated join: the region it may have missed
     send(m.peer, RegionAssignment{m.id, coordinator_.epoch(), options_.image.width,
@@ -510,8 +586,8 @@ void DisplayService::Control::on_member_message(Member& m, const std::string& pe
       transfers_[peer].next_chunk = r->first_chunk;
     }
   } else if (const auto* s = std::get_if<SamplerStats>(&msg)) {
+    // Shown in /stats and /metrics; the share follows what the display measures instead.
     service_.metrics_.on_reported(m.id, *s);
-    coordinator_.report_throughput(m.id, s->samples_per_second, t);
   } else if (const auto* l = std::get_if<Leave>(&msg)) {
     if (l->reason == LeaveReason::kError) {
       // The sampler cannot serve this session (its scene did not load, say): it said why.
@@ -520,6 +596,7 @@ void DisplayService::Control::on_member_message(Member& m, const std::string& pe
       spdlog::info("sampler {} ({}) left: {}", m.id, m.name, l->text);
     }
     service_.metrics_.on_member_gone(m.id, false);
+    service_.gate_.revoke(m.id);
     transfers_.erase(m.peer);
     coordinator_.remove(m.id);  // m is gone from here on
   }
@@ -574,6 +651,7 @@ void DisplayService::Control::expire_silent(double t) {
         dead.id, dead.name, dead.liveness.silence(t), dead.liveness.suspect_after(),
         dead.liveness.mean(), dead.liveness.deviation());
     service_.metrics_.on_member_gone(dead.id, true);
+    service_.gate_.revoke(dead.id);
     transfers_.erase(dead.peer);
     send(dead.peer, Leave{dead.id, LeaveReason::kTimeout, "no heartbeat: join again"});
   }
@@ -632,6 +710,30 @@ void DisplayService::Control::update_error(double t) {
     error_ = error_density();
   }
   coordinator_.set_error(*error_);
+}
+
+// The samples the ingest accepted from each member, into the coordinator's rates; who starved
+// or came back is logged, and the rates go to the metrics a few times a second.
+void DisplayService::Control::measure(double t) {
+  for (const auto& [id, n] : service_.gate_.take_accepted()) coordinator_.add_samples(id, n, t);
+  const std::vector<std::pair<uint32_t, bool>> changes = coordinator_.measure(t);
+  for (const auto& [id, starved] : changes) {
+    const Member* m = coordinator_.find(id);
+    if (!m) continue;
+    if (starved) {
+      spdlog::warn(
+          "sampler {} ({}) starved: no samples from it for {:.2f} s while others delivered; its "
+          "region goes to them until it delivers",
+          id, m->name, t - m->last_sample_at);
+    } else {
+      spdlog::info("sampler {} ({}) delivers samples again", id, m->name);
+    }
+  }
+  if (changes.empty() && t - last_measured_metrics_ < 0.25) return;
+  last_measured_metrics_ = t;
+  for (const auto& [id, m] : coordinator_.members()) {
+    service_.metrics_.set_measured(id, coordinator_.measured(m) ? m.rate : 0.0, m.starved);
+  }
 }
 
 void DisplayService::Control::send_regions() {
@@ -700,10 +802,11 @@ bool DisplayService::Control::send(const std::string& peer, const Message& m) {
 }
 
 // The answer to a sampler's join, and to a follower display's (id: its node id).
-void DisplayService::Control::welcome(const std::string& peer, uint32_t id) {
+void DisplayService::Control::welcome(const std::string& peer, uint32_t id, uint64_t token) {
   Welcome w;
   w.sampler_id = id;
   w.session = service_.session_;
+  w.token = token;
   w.image = options_.image;
   w.display_time = service_.now();
   w.refresh_interval = options_.refresh_interval;
@@ -712,6 +815,13 @@ void DisplayService::Control::welcome(const std::string& peer, uint32_t id) {
   w.scene_name = options_.scene.name;
   w.presets = options_.preset;
   send(peer, w);
+}
+
+// A member's token: random (the system's entropy source), never 0.
+uint64_t DisplayService::Control::new_token() {
+  uint64_t token = 0;
+  while (token == 0) token = (uint64_t(random_()) << 32) ^ uint64_t(random_());
+  return token;
 }
 
 void DisplayService::Control::send_layout(const std::string& peer) {

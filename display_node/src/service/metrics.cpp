@@ -65,12 +65,26 @@ void ServiceMetrics::on_wall_exchanged(uint64_t cells_applied, uint64_t coverage
 
 void ServiceMetrics::on_tiling(uint32_t sampler_id, size_t bytes, bool member) {
   std::lock_guard<std::mutex> lock(mutex_);
-  if (!member) return;
+  if (!member) {
+    ++display_.unknown_sampler_tilings;
+    return;
+  }
   SamplerMetrics& m = samplers_[sampler_id];
   m.id = sampler_id;
   ++m.tilings;
   m.bytes += bytes;
   m.period_bytes += bytes;
+}
+
+void ServiceMetrics::on_spoofed_batch(uint64_t samples) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++display_.spoofed_batches;
+  display_.spoofed_samples += samples;
+}
+
+void ServiceMetrics::on_spoofed_tiling() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++display_.spoofed_tilings;
 }
 
 void ServiceMetrics::on_rejected_sample_message() {
@@ -111,6 +125,14 @@ void ServiceMetrics::on_region(uint32_t id, const PixelRect& region, uint64_t ep
   samplers_[id].region = region;
   display_.region_epoch = epoch;
   display_.recuts = recuts;
+}
+
+void ServiceMetrics::set_measured(uint32_t id, double samples_per_second, bool starved) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = samplers_.find(id);
+  if (it == samplers_.end() || !it->second.member) return;
+  it->second.measured_samples_per_second = samples_per_second;
+  it->second.starved = starved;
 }
 
 void ServiceMetrics::on_reported(uint32_t member_id, const protocol::SamplerStats& stats) {

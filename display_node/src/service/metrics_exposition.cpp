@@ -55,8 +55,14 @@ std::string prometheus_text(const ServiceMetrics& metrics) {
               "batches missing from the sequence numbers received",
               [](const SamplerMetrics& s) { return s.sequence_gaps; });
   per_sampler("afr_sampler_reported_samples_per_second", "gauge",
-              "samples per second the sampler reports",
+              "samples per second the sampler reports (shown only: shares are measured)",
               [](const SamplerMetrics& s) { return s.reported.samples_per_second; });
+  per_sampler("afr_sampler_measured_samples_per_second", "gauge",
+              "samples per second accepted from the sampler, smoothed: what its share follows",
+              [](const SamplerMetrics& s) { return s.measured_samples_per_second; });
+  per_sampler("afr_sampler_starved", "gauge",
+              "1 while nothing arrives from the sampler and others deliver (its region is a strip)",
+              [](const SamplerMetrics& s) { return int(s.starved); });
   per_sampler("afr_sampler_region_pixels", "gauge", "pixels of the sampler's region",
               [](const SamplerMetrics& s) { return s.region.area(); });
   metric("afr_sampler_region", "gauge", "the sampler's region, labels x0 y0 x1 y1");
@@ -96,6 +102,24 @@ std::string prometheus_text(const ServiceMetrics& metrics) {
   scalar("afr_display_rejected_messages_total", "counter",
          "messages rejected on the sample and control channels",
          d.rejected_samples_channel + d.rejected_control);
+  metric("afr_display_dropped_batches_total", "counter",
+         "sample batches dropped before the store: from no member, or naming a member without "
+         "its token or key");
+  o += fmt::format("afr_display_dropped_batches_total{{cause=\"non_member\"}} {}\n",
+                   d.unknown_sampler_batches);
+  o +=
+      fmt::format("afr_display_dropped_batches_total{{cause=\"spoofed\"}} {}\n", d.spoofed_batches);
+  metric("afr_display_dropped_samples_total", "counter", "samples of the dropped batches");
+  o += fmt::format("afr_display_dropped_samples_total{{cause=\"non_member\"}} {}\n",
+                   d.unknown_sampler_samples);
+  o +=
+      fmt::format("afr_display_dropped_samples_total{{cause=\"spoofed\"}} {}\n", d.spoofed_samples);
+  metric("afr_display_dropped_tilings_total", "counter",
+         "tiling snapshots dropped: from no member, or naming a member without its token or key");
+  o += fmt::format("afr_display_dropped_tilings_total{{cause=\"non_member\"}} {}\n",
+                   d.unknown_sampler_tilings);
+  o +=
+      fmt::format("afr_display_dropped_tilings_total{{cause=\"spoofed\"}} {}\n", d.spoofed_tilings);
   scalar("afr_display_zap_refused_total", "counter", "CurveZMQ clients refused", d.zap_refused);
   scalar("afr_display_wall_nodes", "gauge", "display nodes in the wall (1: no wall)", d.wall_nodes);
   metric("afr_display_wall_cell", "gauge",
@@ -164,6 +188,10 @@ std::string stats_json(const ServiceMetrics& metrics) {
                   {"rejected_control_messages", d.rejected_control},
                   {"unknown_sampler_batches", d.unknown_sampler_batches},
                   {"unknown_sampler_samples", d.unknown_sampler_samples},
+                  {"unknown_sampler_tilings", d.unknown_sampler_tilings},
+                  {"spoofed_batches", d.spoofed_batches},
+                  {"spoofed_samples", d.spoofed_samples},
+                  {"spoofed_tilings", d.spoofed_tilings},
                   {"zap_accepted", d.zap_accepted},
                   {"zap_refused", d.zap_refused},
                   {"latency_p50", d.latency_p50},
@@ -203,6 +231,8 @@ std::string stats_json(const ServiceMetrics& metrics) {
                              {"bytes_per_second", s.bytes_per_second},
                              {"reported_samples", s.reported.samples},
                              {"reported_samples_per_second", s.reported.samples_per_second},
+                             {"measured_samples_per_second", s.measured_samples_per_second},
+                             {"starved", s.starved},
                              {"batches_dropped", s.reported.batches_dropped},
                              {"bytes_sent", s.reported.bytes_sent}});
   }

@@ -60,10 +60,8 @@ void WallFollower::start() {
   spdlog::info("wall follower {}: cell {},{} of the lead {}, samples at {}", options_.name,
                options_.column, options_.row, options_.lead, options_.advertise);
   control_thread_ = std::thread([this] { control_loop(); });
-  ingest_thread_ = std::thread([this] {
-    run_ingest(
-        *samples_, sink_, metrics_, [](uint32_t) { return true; }, running_, {}, &wall_coverage_);
-  });
+  ingest_thread_ = std::thread(
+      [this] { run_ingest(*samples_, sink_, metrics_, nullptr, running_, {}, &wall_coverage_); });
   if (http_) http_->start();
 }
 

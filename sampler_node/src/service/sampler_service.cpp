@@ -81,11 +81,13 @@ struct SampleRoute {
 
 class NetworkSink final : public SampleSink {
  public:
-  void attach(SampleSender* sender, uint32_t sampler_id, ImageExtent bounds) {
+  // `token`: the welcome's, which the display checks on every batch and snapshot.
+  void attach(SampleSender* sender, uint32_t sampler_id, uint64_t token, ImageExtent bounds) {
     std::lock_guard<std::mutex> lock(mutex_);
     retire_locked();
     routes_.push_back(SampleRoute{sender, PixelRect{}, 0});
     sampler_id_ = sampler_id;
+    token_ = token;
     bounds_ = bounds;
   }
   // A display wall's routes (each sender outlives its route). Keeps the ids and bounds of
@@ -132,6 +134,7 @@ class NetworkSink final : public SampleSink {
       return;
     }
     batch.sampler_id = sampler_id_;
+    batch.token = token_;
     if (routes_.size() == 1 && routes_[0].rect.empty()) {
       // One sequence per node: the pool's threads each count their own batches.
       batch.sequence = routes_[0].sequence++;
@@ -148,6 +151,7 @@ class NetworkSink final : public SampleSink {
   void on_tiling(TilingSnapshot&& snapshot) override {
     std::lock_guard<std::mutex> lock(mutex_);
     snapshot.sampler_id = sampler_id_;
+    snapshot.token = token_;
     for (SampleRoute& r : routes_) {
       if (r.rect.empty()) {
         if (Status s = r.sender->send(snapshot, bounds_); !s.ok()) report(s);
@@ -199,6 +203,7 @@ class NetworkSink final : public SampleSink {
   mutable std::mutex mutex_;
   std::vector<SampleRoute> routes_;
   uint32_t sampler_id_ = 0;
+  uint64_t token_ = 0;
   ImageExtent bounds_ = kMaxImageExtent;
   SampleBatch part_;      // the samples of one route (reused: no allocation per batch)
   TilingSnapshot tiles_;  // the tiles of one route
@@ -505,7 +510,7 @@ void SamplerService::Impl::on_welcome(const Welcome& w, DisplayLink& control,
   session = w.session;
   sampler_id = w.sampler_id;
   welcome = w;
-  sink.attach(&sender, sampler_id, w.image);
+  sink.attach(&sender, sampler_id, w.token, w.image);
   {
     std::lock_guard<std::mutex> lock(counters_mutex);
     ++counters.sessions;

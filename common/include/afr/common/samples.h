@@ -33,6 +33,9 @@ struct SampleBatch {
   uint64_t sequence = 0;  // per sampler, +1 per batch
   uint32_t fields = 0;    // SampleField bits
   std::vector<Sample> samples;
+  // The display's proof that the batch comes from the member `sampler_id` names: the token of
+  // that member's welcome (docs/protocol.md). 0 where samples stay in one process.
+  uint64_t token = 0;
 };
 
 // One tile of a tiling snapshot: what the reconstructor's tile field reads (section 4.2).
@@ -52,6 +55,7 @@ struct TilingSnapshot {
   double time = 0.0;  // display-clock seconds
   PixelRect region;   // the part of the image this sampler owns
   std::vector<TileInfo> tiles;
+  uint64_t token = 0;  // as SampleBatch::token
 };
 
 // Receives the sampler's output, on the sampler's thread. Batches are handed over by value

@@ -11,8 +11,10 @@
 // frame holds the connection), small high-water marks and kernel buffers on the sample channel
 // (marks count messages, not bytes: the defaults queue seconds of stale samples), CONFLATE on
 // the view subscriber (PUB drops silently for a slow subscriber; conflation makes "the latest
-// view" the only thing to lose), and retries on EINTR. A PULL socket cannot tell who sent a
-// message: sampler ids travel in the message headers; the control channel knows its peers.
+// view" the only thing to lose), and retries on EINTR. A PULL socket cannot tell which
+// connection sent a message: sampler ids and member tokens travel in the message headers, and
+// with CurveZMQ each message carries its connection's authenticated key (peer_key()); the
+// control channel knows its peers.
 //
 // None of the classes is thread-safe: each belongs to one thread (ZeroMQ sockets may move
 // between threads, but not be shared). All hold a reference to their Context, which must
@@ -32,6 +34,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace afr::protocol {
@@ -186,6 +189,9 @@ class SampleReceiver {
   const WallCoverage& coverage() const { return coverage_; }
   WallCoverage& coverage() { return coverage_; }
   const Status& rejection() const { return rejection_; }
+  // The CurveZMQ public key (Z85) of the connection the last message came on, as the ZAP
+  // handler authenticated it; empty without CurveZMQ. Valid until the next receive().
+  std::string_view peer_key() const;
 
   // Samples and tiles outside this image are rejected (default: the protocol's limit).
   // Safe from any thread while another receives (a wall's follower learns its image from the

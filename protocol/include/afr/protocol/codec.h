@@ -45,7 +45,7 @@ Result<Header> peek_header(Bytes message);
 // ---------------------------------------------------------------------------------------------
 // Sizes of sample batches (docs/protocol.md, "Bytes per sample")
 
-inline constexpr size_t kBatchHeaderBytes = 32;  // after the message header
+inline constexpr size_t kBatchHeaderBytes = 40;  // after the message header
 // Bytes of one packed sample for a batch's field flags: 12 (position in the image, time, miss,
 // color), + 12 with kFieldPosition, + 6 with kFieldVelocity.
 constexpr size_t packed_sample_bytes(uint32_t fields) {
@@ -56,7 +56,7 @@ constexpr size_t batch_message_bytes(uint32_t fields, size_t samples) {
   return kHeaderBytes + kBatchHeaderBytes + samples * packed_sample_bytes(fields);
 }
 inline constexpr size_t kTileBytes = 36;
-inline constexpr size_t kSnapshotHeaderBytes = 24;
+inline constexpr size_t kSnapshotHeaderBytes = 32;
 constexpr size_t snapshot_message_bytes(size_t tiles) {
   return kHeaderBytes + kSnapshotHeaderBytes + tiles * kTileBytes;
 }

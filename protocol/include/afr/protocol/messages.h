@@ -20,8 +20,9 @@ namespace afr::protocol {
 
 // Bumped on every change of a byte layout; a peer of another version is refused (a decoder
 // still reads the header of any version, so it can say why). Version 2 added the display wall
-// (DisplayJoin, WallLayout).
-inline constexpr uint16_t kProtocolVersion = 3;
+// (DisplayJoin, WallLayout), version 3 wall coverage, version 4 the member token (Welcome::token,
+// carried by every sample batch and tiling snapshot).
+inline constexpr uint16_t kProtocolVersion = 4;
 
 inline constexpr int32_t kMaxImageSize = 32768;          // pixels a side (DESIGN.md, "Samples")
 inline constexpr uint32_t kMaxSamplesPerBatch = 65536;   // the sampler's batch_size limit
@@ -88,7 +89,9 @@ using SceneHash = std::array<uint8_t, 32>;
 
 // sampler -> display, first message of a sampler.
 struct Join {
-  uint32_t sampler_id = 0;  // 0: assign one; else the id this sampler had before a reconnect
+  // The id this sampler had before a reconnect, or 0. A hint the display may ignore (afr's does:
+  // it assigns every id itself; the welcome says which).
+  uint32_t sampler_id = 0;
   uint16_t protocol_version = kProtocolVersion;
   uint16_t threads = 1;       // 1..kMaxThreads
   uint32_t capabilities = 0;  // Capability bits
@@ -105,6 +108,10 @@ struct Welcome {
   double refresh_interval = 0.0;  // seconds between tiling snapshots, (0, kMaxRefreshInterval]
   SceneHash scene_hash{};
   uint64_t scene_size = 0;  // bytes, 1..kMaxSceneBytes
+  // Random per membership, != 0, known only to the display and this member: the member puts it
+  // in every sample batch and tiling snapshot, and the display drops those whose token is not
+  // the one of the member their sampler_id names (docs/service.md, "Identity").
+  uint64_t token = 0;
   std::string scene_name;
   std::string presets;  // name of the sampler presets to run
   bool operator==(const Welcome&) const = default;

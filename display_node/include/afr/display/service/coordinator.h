@@ -1,12 +1,17 @@
 // The display's coordinator (DESIGN.md, "The closed loop", "Network"): who the samplers are
-// (membership by join, heartbeats and leave), and which part of the image each one samples.
-// The image is cut into one region per sampler with split_region, each region's share of the
-// image's error proportional to that sampler's measured throughput (DESIGN.md: the error is
-// what the samplers' tiling snapshots say, set with set_error(); before any, the area); the
-// cut is redone at once when a sampler joins, leaves or dies, and at most once per
-// recut_interval when a member's part of the error grows beyond its throughput share by more
-// than the hysteresis. Plain logic, no I/O: the display service feeds it and sends what it
-// decides.
+// (membership by join, heartbeats and leave; ids assigned here), and which part of the image
+// each one samples. The image is cut into one region per sampler with split_region, each
+// region's share of the image's error proportional to that sampler's throughput as the display
+// measured it: the samples it accepted from that member per second (add_samples), never what a
+// join or a stats message claims (docs/service.md, "Shares"). The error is what the samplers'
+// tiling snapshots say, set with set_error(); before any, the area. The cut is redone at once
+// when a sampler joins, leaves, dies, stops delivering (starves) or first delivers after
+// starving, and at most once per recut_interval when a member's part of the error grows beyond
+// its throughput share by more than the hysteresis. Plain logic, no I/O: the display service
+// feeds it and sends what it decides.
+//
+// Order of calls, on one thread: join / heard / add_samples / remove / expire as messages and
+// samples come; then, once per pass, measure() (rates and starvation) and maybe_recut().
 #pragma once
 
 #include <afr/common/failure_detector.h>
@@ -37,37 +42,76 @@ struct CoordinatorOptions {
   // A recut happens when a member's part of the error exceeds (1 + hysteresis) times its
   // share of the throughput.
   double hysteresis = 0.5;
-  // Throughput reports this soon after a region change are ignored (the pool restarts).
+  // For this long after a member's region changes its pool restarts: its rate is not measured
+  // then, and no drift recut happens until every member's region is this old.
   double settle_seconds = 2.0;
+  // The measured rate: samples accepted per second, smoothed exponentially with this time
+  // constant (seconds).
+  double rate_time_constant = 0.5;
+  // A member's rate decides its share once measured for this long (settling excluded); until
+  // then it gets the provisional share: the mean measured rate, or an equal share.
+  double measure_seconds = 1.0;
+  // A member from which nothing was accepted for this long while others delivered is starved:
+  // the next cut leaves it a strip of the image (kStarvedWeight), which it keeps until it
+  // delivers again. A member that has delivered before also gets settle_seconds after each
+  // region change (its pool restarts); one that never delivered counts from its join.
+  double starve_seconds = 0.75;
+  // measure() calls further apart than this are the display's own stall (its control thread
+  // held up), not the members' silence: the starvation clocks restart and the interval is not
+  // measured.
+  double max_measure_gap = 0.25;
+  // The first sampler id given; ids count up from it, wrap past the largest u32 to 1 and skip
+  // any a member holds. (Tests start near the top to see the wrap.)
+  uint32_t first_id = 1;
 };
+
+// A starved member's weight in the cut, relative to the mean weight of the others: enough for
+// split_region to leave it a non-empty strip, so it can show that it samples again.
+inline constexpr double kStarvedWeight = 1e-3;
 
 struct Member {
   uint32_t id = 0;
   std::string peer;        // control channel routing id
   std::string name;        // the sampler's name
   std::string public_key;  // CurveZMQ key, or empty
-  int threads = 1;
-  double joined_at = 0.0;         // coordinator time (seconds)
+  uint64_t token = 0;      // what its batches and snapshots must carry (protocol Welcome::token)
+  int threads = 1;         // as its join claimed: for logs only, never for its share
+  double joined_at = 0.0;  // coordinator time (seconds)
   FailureDetector liveness{0.2};  // its messages' arrivals, in coordinator time
-  double throughput = 0.0;        // samples per second, 0 until measured
   PixelRect region;
   double region_since = 0.0;
+  // Measured by the display.
+  uint64_t samples = 0;           // accepted since it joined
+  double rate = 0.0;              // samples per second, smoothed; meaningful once measured()
+  double measured_seconds = 0.0;  // how long the rate has been measured (settling excluded)
+  double last_sample_at = 0.0;    // when samples were last accepted (joined_at before any)
+  bool delivered = false;         // any sample accepted since it joined
+  bool starved = false;
+
+ private:
+  friend class Coordinator;
+  uint64_t pending_ = 0;    // accepted since the last measure()
+  double smoothed_ = 0.0;   // the exponential average before bias correction
+  double weight_ = 0.0;     // 1 - exp(-measured_seconds / time constant): its bias
+  bool came_back_ = false;  // has come back from starving once
 };
 
 class Coordinator {
  public:
   Coordinator(int width, int height, const CoordinatorOptions& options = {});
 
-  // A join from `peer`. A peer that is already a member keeps its id (a repeated join); a
-  // requested id (a sampler that had one before a display restart) is honoured when free.
+  // A join from `peer`. A peer that is already a member keeps its id and token (a repeated
+  // join); any other gets a fresh id, never one a member holds (a sampler's proposed id is not
+  // asked for: the display assigns them all), and `token`. A join never removes a member.
   // *is_new says whether membership changed.
-  Member& join(const std::string& peer, uint32_t requested_id, const std::string& name,
-               const std::string& public_key, int threads, double now, bool* is_new);
+  Member& join(const std::string& peer, const std::string& name, const std::string& public_key,
+               int threads, uint64_t token, double now, bool* is_new);
   Member* find(uint32_t id);
   Member* find_peer(const std::string& peer);
   // Any message from a member.
   void heard(uint32_t id, double now);
-  void report_throughput(uint32_t id, double samples_per_second, double now);
+  // Samples of member `id` that the display accepted (from its connection, with its token).
+  void add_samples(uint32_t id, uint64_t samples, double now);
   // The image's error as the samplers' tilings last said it (an empty density: unknown).
   void set_error(MassDensity density);
   // A leave. Returns whether it was a member.
@@ -75,11 +119,17 @@ class Coordinator {
   // Removes and returns the members whose silence the failure detector suspects.
   std::vector<Member> expire(double now);
 
-  // Recomputes the regions when membership changed since the last cut, or when throughput
-  // drifted (see above). Returns true when regions changed: send them (epoch() is new).
+  // Folds the samples added since the last call into the members' rates and decides who is
+  // starved. Returns the members whose starved state changed (id, starved now).
+  std::vector<std::pair<uint32_t, bool>> measure(double now);
+  // Recomputes the regions when membership or starvation changed since the last cut, or when
+  // throughput drifted (see above). Returns true when regions changed: send them (epoch() is
+  // new). Measures first.
   bool maybe_recut(double now);
   uint64_t epoch() const { return epoch_; }
   uint64_t recuts() const { return recuts_; }
+  // Whether the member's share follows its measured rate (else it is provisional or starved).
+  bool measured(const Member& m) const;
 
   const std::map<uint32_t, Member>& members() const { return members_; }
   int width() const { return width_; }
@@ -87,9 +137,12 @@ class Coordinator {
 
  private:
   std::vector<double> shares() const;
-  void cut(double now);
+  // The regions a cut by shares() gives, in the order of members_.
+  std::vector<PixelRect> parts() const;
+  void cut(double now, const std::vector<PixelRect>& parts);
   // What part of the image `r` holds: of the error when it is known, else of the area.
   double fraction(const PixelRect& r) const;
+  uint32_t next_free_id();
 
   int width_, height_;
   CoordinatorOptions options_;
@@ -98,6 +151,9 @@ class Coordinator {
   uint32_t next_id_ = 1;
   bool dirty_ = false;
   double last_cut_ = -1e9;
+  double last_measure_ = 0.0;
+  bool measured_once_ = false;
+  double watching_since_ = 0.0;  // the end of the display's last own stall
   uint64_t epoch_ = 0;
   uint64_t recuts_ = 0;
 };

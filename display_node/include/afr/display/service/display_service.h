@@ -14,6 +14,7 @@
 #include <afr/common/scene.h>
 #include <afr/display/service/coordinator.h>
 #include <afr/display/service/display_role.h>
+#include <afr/display/service/member_gate.h>
 #include <afr/display/service/metrics.h>
 #include <afr/display/service/metrics_server.h>
 #include <afr/display/service/wall.h>
@@ -82,14 +83,16 @@ void configure_security(const std::string& keys_dir, std::string key_file, std::
                         bool insecure, DisplayServiceOptions* o);
 
 // Reads the sample channel into `sink` until `running` turns false (waking every 50 ms to
-// check), counting in `metrics`; is_member(sampler id) says whether a batch comes from a known
-// member (for the metrics only: every valid batch goes to the sink). The ingest thread of a
-// display or of a wall's follower.
-// on_tiling, when set, sees every snapshot before the sink does. A display wall's peers send
-// strays (batches with sampler_id kWallPeerSamplerId: to the sink, counted apart) and
-// coverage (into `coverage`; rejected as unexpected when it is null).
+// check), counting in `metrics`. The ingest thread of a display or of a wall's follower.
+// `gate` says whether a batch or snapshot comes from the member it names (member_gate.h): those
+// that do not are dropped before the sink, counted, and logged at most once a second per cause.
+// Without a gate (a wall's follower, which does not know the lead's members) every id counts as
+// a member. on_tiling, when set, sees every accepted snapshot before the sink does. A display
+// wall's peers send strays (batches with sampler_id kWallPeerSamplerId: to the sink, counted
+// apart; from no member when a display with a gate is no wall) and coverage (into `coverage`;
+// rejected as unexpected when it is null).
 void run_ingest(protocol::SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metrics,
-                const std::function<bool(uint32_t)>& is_member, const std::atomic<bool>& running,
+                MemberGate* gate, const std::atomic<bool>& running,
                 const std::function<void(const TilingSnapshot&)>& on_tiling = {},
                 WallCoverageInbox* coverage = nullptr);
 
@@ -140,6 +143,8 @@ class DisplayService final : public DisplayRole {
   protocol::ServiceEndpoints endpoints_;
   std::unique_ptr<Control> control_;  // the control thread's sockets and coordinator
   std::unique_ptr<protocol::SampleReceiver> samples_;
+  // The members' tokens and keys: the control thread admits, the ingest thread checks.
+  MemberGate gate_;
   mutable std::mutex regions_mutex_;
   std::vector<std::pair<uint32_t, PixelRect>> regions_;
   protocol::WallLayout layout_;  // under regions_mutex_

@@ -43,7 +43,11 @@ struct SamplerMetrics {
   bool have_sequence = false;
   double samples_per_second = 0.0;  // received, over the last stats period
   double bytes_per_second = 0.0;
-  // Reported by the sampler (stats messages).
+  // What the coordinator cuts regions by: the samples per second the display accepted from
+  // it, smoothed (coordinator.h), and whether it is starved (nothing delivered while others did).
+  double measured_samples_per_second = 0.0;
+  bool starved = false;
+  // Reported by the sampler (stats messages): shown, never used for its share.
   protocol::SamplerStats reported;
   // For the rates.
   uint64_t period_samples = 0;
@@ -75,10 +79,15 @@ struct DisplayMetrics {
   uint64_t leaves = 0;
   uint64_t rejected_samples_channel = 0;
   uint64_t rejected_control = 0;
-  // Batches (and their samples) from ids that are not members: counted here alone, so that
-  // made-up ids cannot grow the per-sampler state.
+  // Sample-channel messages dropped before the store (docs/service.md, "Identity"), counted
+  // here alone so that made-up ids cannot grow the per-sampler state: those that name an id
+  // that is no member, and those that name a member without its token or CurveZMQ key.
   uint64_t unknown_sampler_batches = 0;
   uint64_t unknown_sampler_samples = 0;
+  uint64_t unknown_sampler_tilings = 0;
+  uint64_t spoofed_batches = 0;
+  uint64_t spoofed_samples = 0;
+  uint64_t spoofed_tilings = 0;
   uint64_t zap_accepted = 0;
   uint64_t zap_refused = 0;
   uint64_t views = 0;
@@ -112,10 +121,14 @@ class ServiceMetrics {
   // Stats periods a departed sampler's figures stay (a minute at the default 2 s period).
   static constexpr int kDepartedPeriods = 30;
 
-  // Ingest thread. `member`: whether batch.sampler_id is a member now; per-sampler figures
-  // are kept for members only.
+  // Ingest thread. `member`: whether the message comes from the member batch.sampler_id names;
+  // per-sampler figures are kept for members only, the others are counted as dropped from a
+  // non-member.
   void on_batch(const SampleBatch& batch, size_t bytes, bool member);
   void on_tiling(uint32_t sampler_id, size_t bytes, bool member);
+  // Ingest thread: a batch or snapshot that named a member without its token or key (dropped).
+  void on_spoofed_batch(uint64_t samples);
+  void on_spoofed_tiling();
   void on_rejected_sample_message();
   // A display wall's peers: coverage (pixels) and strays (samples) that arrived.
   void on_wall_coverage_in(uint64_t cells, size_t bytes);
@@ -124,6 +137,8 @@ class ServiceMetrics {
   void on_member(const std::string& name, uint32_t id, const std::string& public_key, int threads);
   void on_member_gone(uint32_t id, bool dead);
   void on_region(uint32_t id, const PixelRect& region, uint64_t epoch, uint64_t recuts);
+  // The coordinator's measured rate of a member and whether it is starved.
+  void set_measured(uint32_t id, double samples_per_second, bool starved);
   // A member's stats message, under the id its control connection belongs to (not the one the
   // message claims).
   void on_reported(uint32_t member_id, const protocol::SamplerStats& stats);

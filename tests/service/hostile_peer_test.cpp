@@ -1,0 +1,232 @@
+// display_node against peers that lie (issue 19): a join that claims the largest thread count,
+// the id next to the top of the range and an absurd sample rate, and sends no samples; batches
+// that name a real sampler's id or an id nobody holds. Real sampler_node processes beside them
+// keep their regions and their samples. The exact rules are tested on the coordinator and the
+// ingest alone (coordinator_test.cpp, member_gate_test.cpp); these check the display as run.
+#include "service_fixture.h"
+
+#include <afr/protocol/channels.h>
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <atomic>
+#include <cstdio>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <thread>
+
+namespace afr::testing {
+namespace {
+
+using namespace protocol;
+
+// A client that joins with whatever it claims, then heartbeats (so it stays a member) and sends
+// stats, on a thread of its own, until destroyed. It never sends a sample.
+class LyingMember {
+ public:
+  LyingMember(const std::string& endpoint, Join join, double claimed_rate)
+      : thread_([this, endpoint, join, claimed_rate] { run(endpoint, join, claimed_rate); }) {}
+  ~LyingMember() {
+    running_ = false;
+    thread_.join();
+  }
+  std::optional<Welcome> welcome() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return welcome_;
+  }
+
+ private:
+  void run(const std::string& endpoint, const Join& join, double claimed_rate) {
+    Context context;
+    ControlClient client(context, endpoint);
+    (void)client.send(join);
+    uint64_t beat = 0;
+    auto last = std::chrono::steady_clock::now() - std::chrono::seconds(1);
+    while (running_) {
+      while (auto m = client.receive(10)) {
+        if (m->ok() && std::holds_alternative<Welcome>(m->value())) {
+          std::lock_guard<std::mutex> lock(mutex_);
+          welcome_ = std::get<Welcome>(m->value());
+        }
+      }
+      const std::optional<Welcome> w = welcome();
+      if (!w || seconds_since(last) < 0.15) continue;
+      last = std::chrono::steady_clock::now();
+      (void)client.send(Heartbeat{w->sampler_id, w->session, beat++, 0.0});
+      SamplerStats s;
+      s.sampler_id = w->sampler_id;
+      s.samples = 1ull << 60;
+      s.samples_per_second = claimed_rate;
+      s.rays_per_second = claimed_rate;
+      s.threads = kMaxThreads;
+      (void)client.send(s);
+    }
+  }
+
+  std::atomic<bool> running_{true};
+  std::mutex mutex_;
+  std::optional<Welcome> welcome_;
+  std::thread thread_;  // last: starts once the rest is built
+};
+
+struct MemberView {
+  uint32_t id = 0;
+  std::string name;
+  int64_t area = 0;
+  bool starved = false;
+  uint64_t samples = 0;
+  uint64_t gaps = 0;
+};
+
+std::vector<MemberView> member_views(const nlohmann::json& st) {
+  std::vector<MemberView> out;
+  if (st.is_null() || st.is_discarded()) return out;
+  for (const auto& m : st["samplers"]) {
+    if (!m["member"].get<bool>()) continue;
+    const auto r = m["region"].get<std::array<int, 4>>();
+    out.push_back(MemberView{m["id"].get<uint32_t>(), m["name"].get<std::string>(),
+                             int64_t(r[2] - r[0]) * (r[3] - r[1]), m["starved"].get<bool>(),
+                             m["samples"].get<uint64_t>(), m["sequence_gaps"].get<uint64_t>()});
+  }
+  return out;
+}
+
+// The greedy join of issue 19 (4096 threads, 1e300 samples/s in its stats, id 0xFFFFFFFE asked
+// for, no sample ever) joins beside a real sampler, and a second real sampler joins after it.
+// The display assigns the ids (distinct, none at the top of the range), nobody is evicted,
+// membership stays as it is, and the liar's region shrinks to a strip about starve_seconds
+// after it joined while the real samplers share the image.
+TEST_F(ServiceTest, GreedyJoinGetsNoRegionAndLaterSamplersGetDistinctIds) {
+  auto d = display({"--size", "64x64", "--fps", "20"}, "display.log");
+  auto s1 = sampler({"--max-samples-per-second", "30000", "--name", "real-1"}, "s1.log");
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const std::vector<MemberView> ms = member_views(get_stats(metrics_port()));
+        return ms.size() == 1 && ms[0].samples > 0;
+      },
+      10.0))
+      << d->log();
+  Join greedy;
+  greedy.sampler_id = 0xFFFFFFFEu;
+  greedy.threads = kMaxThreads;
+  greedy.name = "greedy";
+  LyingMember liar(endpoint(), greedy, 1e300);
+  ASSERT_TRUE(wait_until([&] { return liar.welcome().has_value(); }, 5.0)) << d->log();
+  const uint32_t liar_id = liar.welcome()->sampler_id;
+  EXPECT_NE(liar_id, 0xFFFFFFFEu);  // a proposal, not followed
+  auto s2 = sampler({"--max-samples-per-second", "30000", "--name", "real-2"}, "s2.log");
+  ASSERT_TRUE(wait_members(3, 10.0)) << d->log();
+
+  const bool settled = wait_until(
+      [&] {
+        const std::vector<MemberView> ms = member_views(get_stats(metrics_port()));
+        if (ms.size() != 3) return false;
+        int64_t real = 0, lied = 0;
+        for (const MemberView& m : ms) (m.id == liar_id ? lied : real) += m.area;
+        return lied * 50 <= 64 * 64 && real + lied == 64 * 64;
+      },
+      15.0);
+  ASSERT_TRUE(settled) << d->log();
+  // Distinct ids, none at the top of the range; the claimed rate is shown, not believed.
+  const nlohmann::json st = get_stats(metrics_port());
+  std::set<uint32_t> ids;
+  for (const MemberView& m : member_views(st)) ids.insert(m.id);
+  EXPECT_EQ(ids.size(), 3u);
+  EXPECT_EQ(ids.count(0xFFFFFFFFu) + ids.count(0xFFFFFFFEu), 0u);
+  for (const auto& m : st["samplers"]) {
+    if (m["id"].get<uint32_t>() == liar_id) {
+      EXPECT_EQ(m["reported_samples_per_second"].get<double>(), 1e300);
+      EXPECT_TRUE(m["starved"].get<bool>());
+    }
+  }
+  // How long the liar held more than a strip: from its join to the display's "starved" line
+  // (the rule is starve_seconds, 0.75 s; the bound only catches a rule that does not work).
+  const std::string log = d->log();
+  const double joined = log_time(log, "joined: greedy");
+  const double starved = log_time(log, "(greedy) starved: no samples from it");
+  ASSERT_GE(joined, 0.0) << log;
+  ASSERT_GE(starved, 0.0) << log;
+  std::printf("greedy member starved %.3f s after it joined\n", seconds_between(joined, starved));
+  EXPECT_LT(seconds_between(joined, starved), scaled(3.0)) << log;
+
+  // Membership holds still: nobody evicted, nobody joining again.
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  EXPECT_EQ(members(get_stats(metrics_port())), 3) << d->log();
+  EXPECT_EQ(count_of(d->log(), " joined: "), 3u) << d->log();
+  EXPECT_EQ(d->log().find(" lost: "), std::string::npos) << d->log();
+  for (const auto* s : {s1.get(), s2.get()}) {
+    EXPECT_EQ(count_of(s->log(), "joined the display as sampler"), 1u) << s->log();
+  }
+}
+
+// Batches naming the real sampler's id (with a guessed token) and batches under an id nobody
+// holds: dropped, counted by cause in /stats and /metrics, logged once per cause a second; the
+// real sampler's figures are untouched (before, a spoofed sequence number made its gap counter
+// jump by 7e14) and it keeps streaming.
+TEST_F(ServiceTest, SpoofedAndNonMemberBatchesAreDroppedAndCounted) {
+  auto d = display({"--size", "64x64", "--fps", "20"}, "display.log");
+  auto s = sampler({"--max-samples-per-second", "50000"}, "s1.log");
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const std::vector<MemberView> ms = member_views(get_stats(metrics_port()));
+        return ms.size() == 1 && ms[0].samples > 0;
+      },
+      10.0))
+      << d->log();
+  const uint32_t real_id = member_views(get_stats(metrics_port()))[0].id;
+  {
+    Context context;
+    SampleSender hostile(context, service_endpoints(endpoint()).samples);
+    for (uint64_t k = 0; k < 200; ++k) {
+      SampleBatch b;
+      b.sampler_id = k % 2 ? real_id : 4242;
+      b.token = 0x0123456789abcdefull + k;
+      b.sequence = 0x7000000000000000ull + k;
+      b.samples.resize(64);
+      for (Sample& x : b.samples) {
+        x.time = 1.0;
+        x.x = x.y = 1.5f;
+        x.color = glm::vec3(1e4f);  // would show as a white smear where the real one samples
+      }
+      ASSERT_TRUE(hostile.send(b, {64, 64}).ok());
+      ASSERT_TRUE(hostile.flush(5000));
+    }
+  }
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const nlohmann::json st = get_stats(metrics_port());
+        return !st.is_null() && st["display"]["spoofed_batches"].get<int>() == 100 &&
+               st["display"]["unknown_sampler_batches"].get<int>() == 100;
+      },
+      10.0))
+      << d->log();
+  const nlohmann::json st = get_stats(metrics_port());
+  EXPECT_EQ(st["display"]["spoofed_samples"].get<int>(), 6400);
+  EXPECT_EQ(st["display"]["unknown_sampler_samples"].get<int>(), 6400);
+  const std::string metrics = get_text(metrics_port(), "/metrics");
+  EXPECT_NE(metrics.find("afr_display_dropped_batches_total{cause=\"spoofed\"} 100"),
+            std::string::npos);
+  EXPECT_NE(metrics.find("afr_display_dropped_batches_total{cause=\"non_member\"} 100"),
+            std::string::npos);
+  const std::string log = d->log();
+  EXPECT_NE(log.find("naming a member without its token or key"), std::string::npos) << log;
+  EXPECT_NE(log.find("from no member"), std::string::npos) << log;
+  // A second of 200 bad batches makes a few lines, not 200.
+  EXPECT_LE(count_of(log, "sample channel: dropped"), 10u) << log;
+  const std::vector<MemberView> ms = member_views(st);
+  ASSERT_EQ(ms.size(), 1u);
+  EXPECT_EQ(ms[0].id, real_id);
+  EXPECT_LT(ms[0].gaps, 1000u);  // its own sequence only
+  const uint64_t samples = ms[0].samples;
+  EXPECT_TRUE(wait_until(
+      [&] {
+        const std::vector<MemberView> now = member_views(get_stats(metrics_port()));
+        return now.size() == 1 && now[0].samples > samples;
+      },
+      5.0));
+}
+
+}  // namespace
+}  // namespace afr::testing

@@ -1,0 +1,207 @@
+// The binding of sample-channel messages to members (member_gate.h), alone and in the display's
+// ingest (run_ingest over a real sample channel, plain and with CurveZMQ): batches and
+// snapshots that name another member or no member are dropped and counted, and every real
+// sample still reaches the sink.
+#include <afr/display/service/display_service.h>
+#include <afr/display/service/member_gate.h>
+#include <afr/display/service/metrics.h>
+#include <afr/protocol/channels.h>
+
+#include "process.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <mutex>
+#include <thread>
+
+namespace afr::service {
+namespace {
+
+using protocol::Context;
+using protocol::SampleReceiver;
+using protocol::SampleSender;
+using protocol::Security;
+
+TEST(MemberGateTest, OnlyTheNamedMembersTokenAndKeyPass) {
+  MemberGate gate;
+  gate.admit(1, 111, "");
+  gate.admit(2, 222, "KEY-OF-TWO");
+  EXPECT_EQ(gate.check(1, 111, "", 10), MemberGate::Verdict::kMember);
+  EXPECT_EQ(gate.check(1, 222, "", 10), MemberGate::Verdict::kSpoofed);  // another's token
+  EXPECT_EQ(gate.check(1, 0, "", 10), MemberGate::Verdict::kSpoofed);
+  EXPECT_EQ(gate.check(2, 222, "KEY-OF-TWO", 5), MemberGate::Verdict::kMember);
+  EXPECT_EQ(gate.check(2, 222, "KEY-OF-ONE", 5),
+            MemberGate::Verdict::kSpoofed);  // its token, another key
+  EXPECT_EQ(gate.check(2, 222, "", 5), MemberGate::Verdict::kSpoofed);
+  EXPECT_EQ(gate.check(3, 333, "", 5), MemberGate::Verdict::kNonMember);
+  EXPECT_EQ(gate.check(0, 0, "", 5), MemberGate::Verdict::kNonMember);
+  // Only accepted samples count; taking them resets.
+  const auto taken = gate.take_accepted();
+  EXPECT_EQ(taken, (std::vector<std::pair<uint32_t, uint64_t>>{{1, 10}, {2, 5}}));
+  EXPECT_TRUE(gate.take_accepted().empty());
+  gate.revoke(1);
+  EXPECT_EQ(gate.check(1, 111, "", 10), MemberGate::Verdict::kNonMember);
+}
+
+// Counts what reaches the store, by sampler id.
+class CountingSink final : public SampleSink {
+ public:
+  void on_batch(SampleBatch&& b) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    samples_[b.sampler_id] += b.samples.size();
+  }
+  void on_tiling(TilingSnapshot&& t) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++tilings_[t.sampler_id];
+  }
+  uint64_t samples(uint32_t id) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return samples_[id];
+  }
+  uint64_t tilings(uint32_t id) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return tilings_[id];
+  }
+  uint64_t total_samples() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    uint64_t n = 0;
+    for (const auto& [id, k] : samples_) n += k;
+    return n;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::map<uint32_t, uint64_t> samples_, tilings_;
+};
+
+SampleBatch batch(uint32_t id, uint64_t token, uint64_t sequence, size_t n) {
+  SampleBatch b;
+  b.sampler_id = id;
+  b.token = token;
+  b.sequence = sequence;
+  b.samples.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    b.samples[i].time = 1.0 + 1e-6 * double(i);
+    b.samples[i].x = float(i % 64) + 0.5f;
+    b.samples[i].y = 3.5f;
+  }
+  return b;
+}
+
+TilingSnapshot tiling(uint32_t id, uint64_t token) {
+  TilingSnapshot t;
+  t.sampler_id = id;
+  t.token = token;
+  t.time = 1.0;
+  t.region = PixelRect{0, 0, 64, 64};
+  TileInfo tile;
+  tile.rect = t.region;
+  t.tiles.push_back(tile);
+  return t;
+}
+
+// The ingest thread of a display with the given gate, on a sample channel bound at `endpoint`.
+class Ingest {
+ public:
+  Ingest(Context& context, const std::string& endpoint, const Security& security, MemberGate& gate)
+      : receiver_(context, endpoint, security) {
+    receiver_.set_image_bounds({64, 64});
+    thread_ =
+        std::thread([this, &gate] { run_ingest(receiver_, sink_, metrics_, &gate, running_); });
+  }
+  ~Ingest() {
+    running_ = false;
+    thread_.join();
+  }
+  std::string endpoint() const { return receiver_.endpoint(); }
+  CountingSink& sink() { return sink_; }
+  ServiceMetrics& metrics() { return metrics_; }
+
+ private:
+  SampleReceiver receiver_;
+  CountingSink sink_;
+  ServiceMetrics metrics_;
+  std::atomic<bool> running_{true};
+  std::thread thread_;
+};
+
+void send_all(SampleSender& s, const SampleBatch& b) {
+  ASSERT_TRUE(s.send(b, {64, 64}).ok());
+  ASSERT_TRUE(s.flush(10000));
+}
+
+// The attack of issue 19 on plaintext channels: a peer that sends batches naming member 1 (the
+// id is in the batch header for anyone to write) and batches under an id nobody holds. Neither
+// reaches the store; each is counted by cause; every batch of the real member arrives.
+TEST(DisplayIngestTest, SpoofedAndNonMemberBatchesAreDroppedAndCountedAndNoRealSampleIsLost) {
+  Context context;
+  MemberGate gate;
+  const uint64_t token = 0x5eed5eed5eed5eedull;
+  gate.admit(1, token, "");
+  Ingest ingest(context, "tcp://127.0.0.1:*", Security::none(), gate);
+  Context peer_context;
+  SampleSender real(peer_context, ingest.endpoint());
+  SampleSender hostile(peer_context, ingest.endpoint());
+  for (uint64_t k = 0; k < 50; ++k) {
+    send_all(real, batch(1, token, k, 100));
+    send_all(hostile, batch(1, token + 1, k, 70));  // member 1's id, a guessed token
+    send_all(hostile, batch(1, 0, k, 70));          // member 1's id, no token
+    send_all(hostile, batch(9, token, k, 30));      // no member, even with a real token
+  }
+  ASSERT_TRUE(real.send(tiling(1, token), {64, 64}).ok());
+  ASSERT_TRUE(hostile.send(tiling(1, 77), {64, 64}).ok());
+  ASSERT_TRUE(hostile.send(tiling(9, 77), {64, 64}).ok());
+  ASSERT_TRUE(real.flush(10000) && hostile.flush(10000));
+  ASSERT_TRUE(afr::testing::wait_until(
+      [&] {
+        const DisplayMetrics d = ingest.metrics().display();
+        return ingest.sink().samples(1) == 5000 && d.spoofed_batches == 100 &&
+               d.unknown_sampler_batches == 50 && d.spoofed_tilings == 1 &&
+               d.unknown_sampler_tilings == 1 && ingest.sink().tilings(1) == 1;
+      },
+      20.0));
+  const DisplayMetrics d = ingest.metrics().display();
+  EXPECT_EQ(d.spoofed_samples, 100u * 70u);
+  EXPECT_EQ(d.unknown_sampler_samples, 50u * 30u);
+  EXPECT_EQ(ingest.sink().total_samples(), 5000u);  // nothing but the member's own
+  EXPECT_EQ(gate.take_accepted(), (std::vector<std::pair<uint32_t, uint64_t>>{{1, 5000}}));
+  const std::vector<SamplerMetrics> ss = ingest.metrics().samplers();
+  ASSERT_EQ(ss.size(), 1u);
+  EXPECT_EQ(ss[0].samples, 5000u);
+  EXPECT_EQ(ss[0].sequence_gaps, 0u);  // the spoofed sequences did not touch the member's
+}
+
+// With CurveZMQ the batch is bound to its connection's authenticated key as well: another
+// allowed sampler that learned member 1's id and token (say, from a packet capture before keys
+// were used) still cannot send as member 1.
+TEST(DisplayIngestTest, WithCurveABatchFromAnotherAllowedKeyIsDroppedEvenWithTheToken) {
+  ASSERT_TRUE(protocol::curve_available());
+  const protocol::CurveKeyPair display = protocol::generate_curve_keypair();
+  const protocol::CurveKeyPair one = protocol::generate_curve_keypair();
+  const protocol::CurveKeyPair other = protocol::generate_curve_keypair();
+  Context context;
+  context.allow_curve_clients({one.public_key, other.public_key});
+  MemberGate gate;
+  const uint64_t token = 42;
+  gate.admit(1, token, one.public_key);
+  Ingest ingest(context, "tcp://127.0.0.1:*", Security::server(display), gate);
+  Context peer_context;
+  SampleSender real(peer_context, ingest.endpoint(), Security::client(one, display.public_key));
+  SampleSender thief(peer_context, ingest.endpoint(), Security::client(other, display.public_key));
+  for (uint64_t k = 0; k < 20; ++k) {
+    send_all(real, batch(1, token, k, 50));
+    send_all(thief, batch(1, token, k, 40));
+  }
+  ASSERT_TRUE(afr::testing::wait_until(
+      [&] {
+        return ingest.sink().samples(1) == 1000 && ingest.metrics().display().spoofed_batches == 20;
+      },
+      20.0));
+  EXPECT_EQ(ingest.sink().total_samples(), 1000u);
+  EXPECT_EQ(ingest.metrics().display().spoofed_samples, 800u);
+}
+
+}  // namespace
+}  // namespace afr::service
