@@ -179,4 +179,17 @@ Crosshair DeepBuffer::pop_front(int32_t x, int32_t y) {
   return c;
 }
 
+void DeepBuffer::copy_pixels(const DeepBuffer& from, const PixelRect& rect) {
+  if (rect.empty()) return;
+  AFR_CHECK(from.depth_ == depth_ && from.fields_ == fields_);
+  AFR_CHECK(intersect(rect, region_) == rect && intersect(rect, from.region_) == rect);
+  for (int32_t y = rect.y0; y < rect.y1; ++y) {
+    for (int32_t x = rect.x0; x < rect.x1; ++x) {
+      AFR_CHECK(count(x, y) == 0);
+      // Oldest first, each to the front: the newest ends up at the front again.
+      for (int k = from.count(x, y) - 1; k >= 0; --k) push_front(x, y, from.at(x, y, k), nullptr);
+    }
+  }
+}
+
 }  // namespace afr

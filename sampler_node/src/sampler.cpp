@@ -177,12 +177,19 @@ Sampler::Sampler(const Scene& scene, Tracer& tracer, Clock& clock, const Sampler
   batch_.sampler_id = config_.sampler_id;
   batch_.fields = fields_;
   batch_.samples.reserve(size_t(config_.batch_size));
-  const int64_t pixels = region_.area();
-  config_.max_tiles = int(std::max<int64_t>(1, std::min<int64_t>(config_.max_tiles, pixels / 4)));
-  config_.min_tiles = std::min(config_.min_tiles, config_.max_tiles);
+  requested_min_tiles_ = config_.min_tiles;
+  requested_max_tiles_ = config_.max_tiles;
+  bound_tiles();
   target_tiles_ = config_.min_tiles;
   max_x_ = std::nextafter(float(config_.image.width), 0.0f);
   max_y_ = std::nextafter(float(config_.image.height), 0.0f);
+}
+
+void Sampler::bound_tiles() {
+  const int64_t pixels = region_.area();
+  config_.max_tiles =
+      int(std::max<int64_t>(1, std::min<int64_t>(requested_max_tiles_, pixels / 4)));
+  config_.min_tiles = std::min(requested_min_tiles_, config_.max_tiles);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -215,6 +222,8 @@ void Sampler::advance_scene_time() {
 }
 
 void Sampler::fill() {
+  filled_ = true;
+  handover_.clear();
   advance_scene_time();
   const double t0 = clock_.now();
   last_snapshot_time_ = t0;
@@ -229,28 +238,78 @@ void Sampler::fill() {
         insert_front(c);
       }
     }
-    for (int cell = 0; cell < tiling_.cell_count(); ++cell) rederive_cell(cell);
-    rederive(tiling_.root());
-    compute_errors();
-    target_tiles_ = config_.min_tiles;  // no temporal gradients yet: start from the fewest
-    while (tiling_.tile_count() < target_tiles_) {
-      int best = -1;
-      for (int t : tiling_.tiles()) {
-        if (tiling_.can_split(t) && (best == -1 || error_[t] > error_[best])) best = t;
-      }
-      if (best == -1) break;
-      int a, b;
-      tiling_.split(best, &a, &b);
-      on_split(best, a, b);
-    }
+    build_tiling(config_.min_tiles);  // no temporal gradients yet: start from the fewest
   }
   flush();
+}
+
+void Sampler::build_tiling(int tiles) {
+  for (int cell = 0; cell < tiling_.cell_count(); ++cell) rederive_cell(cell);
+  rederive(tiling_.root());
+  compute_errors();
+  target_tiles_ = std::clamp(tiles, config_.min_tiles, config_.max_tiles);
+  while (tiling_.tile_count() < target_tiles_) {
+    int best = -1;
+    for (int t : tiling_.tiles()) {
+      if (tiling_.can_split(t) && (best == -1 || error_[t] > error_[best])) best = t;
+    }
+    if (best == -1) break;
+    int a, b;
+    tiling_.split(best, &a, &b);
+    on_split(best, a, b);
+  }
+}
+
+// The tiling is rebuilt rather than clipped: a clipped K-D tree over the new region would have
+// leaves that no split of the new root makes, and cells that no longer form its complete tree,
+// so every invariant the statistics rest on (a tile is a run of cells, a split halves the longer
+// side) would need exceptions. A new tree seeded from the kept crosshairs costs one pass over
+// the kept pixels and a few hundred splits, once per recut.
+void Sampler::set_region(const PixelRect& region) {
+  AFR_CHECK(!region.empty() && intersect(region, config_.image.rect()) == region);
+  if (region == region_) return;
+  const PixelRect old = region_;
+  const int old_tiles = tiling_.tile_count();
+  region_ = region;
+  config_.region = region;
+  bound_tiles();
+  DeepBuffer kept(region_, config_.b, buffer_.fields());
+  kept.copy_pixels(buffer_, intersect(old, region_));
+  buffer_ = std::move(kept);
+  tiling_ = KdTiling(region_, 40, kCellPixels);
+  cells_.assign(size_t(tiling_.cell_count()), TileSums{});
+  records_.clear();  // pending crosshairs go with their tiles
+  error_.clear();
+  chunk_progress_ = 0;
+  sweep_next_ = 0;
+  handover_.clear();
+  if (!filled_ || config_.mode != SamplerMode::kAdaptive) {
+    target_tiles_ = config_.min_tiles;
+    return;
+  }
+  // Section 4.2's grid over the new region, where the old one did not reach; in random order,
+  // so that a part of the fill is spread over all of the gained pixels.
+  for (int32_t y = region_.y0; y < region_.y1; y += config_.fill_step) {
+    for (int32_t x = region_.x0; x < region_.x1; x += config_.fill_step) {
+      if (!old.contains(x, y)) handover_.push_back(FillPoint{x, y});
+    }
+  }
+  for (size_t k = handover_.size(); k > 1; --k) {
+    std::swap(handover_[k - 1], handover_[rng_.next_below(uint32_t(k))]);
+  }
+  // As many tiles per pixel as before: the gain control moves the count from there.
+  const double per_pixel = double(old_tiles) / double(old.area());
+  build_tiling(int(std::lround(per_pixel * double(region_.area()))));
 }
 
 void Sampler::step() {
   switch (config_.mode) {
     case SamplerMode::kAdaptive:
-      step_adaptive();
+      if (handover_.empty()) {
+        step_adaptive();
+      } else {
+        step_handover();
+      }
       break;
     case SamplerMode::kUniformRandom:
       step_uniform();
@@ -309,6 +368,16 @@ void Sampler::step_adaptive() {
     chunk_progress_ = 0;
     adjust_tiling();
   }
+}
+
+// One crosshair of a handover's fill (set_region), traced now.
+void Sampler::step_handover() {
+  advance_scene_time();
+  const FillPoint p = handover_.back();
+  handover_.pop_back();
+  std::array<ShadedSample, 5> s;
+  trace_crosshair(p.x + 0.5, p.y + 0.5, &s);
+  insert_front(make_crosshair(p.x + 0.5, p.y + 0.5, s));
 }
 
 void Sampler::step_uniform() {

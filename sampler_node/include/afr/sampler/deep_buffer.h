@@ -102,6 +102,12 @@ class DeepBuffer {
   // Removes and returns the newest crosshair. count(x, y) > 0.
   Crosshair pop_front(int32_t x, int32_t y);
 
+  // Copies the queues of the pixels of `rect` from `from` (a buffer of another region of the
+  // same image, depth and fields) into this one, whose pixels there must be empty: every
+  // crosshair stays in its pixel, in its order. `rect` lies inside both regions. What a region
+  // handover keeps (Sampler::set_region).
+  void copy_pixels(const DeepBuffer& from, const PixelRect& rect);
+
   // Calls f(const CrosshairStats&) for every crosshair of the pixels of `rect` (inside the
   // region), row by row, newest first within a pixel.
   template <typename F>

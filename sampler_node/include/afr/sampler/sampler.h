@@ -5,7 +5,8 @@
 //
 // Order of calls: construct, fill() once, then step() as often as wanted (each step is one
 // iteration of Figure 5, or one sample of a baseline mode), flush() to emit the last partial
-// batch. Not thread-safe: one sampler per thread, each with its own Tracer.
+// batch. set_region() may come between any two of these calls. Not thread-safe: one sampler per
+// thread, each with its own Tracer.
 #pragma once
 
 #include <afr/common/clock.h>
@@ -88,8 +89,19 @@ class Sampler {
   // Section 4.2: fills the deep buffer with a gridded, cotemporal pattern of crosshairs (all
   // traced at the clock's current time) and builds the first tiling.
   void fill();
-  // One iteration of the loop.
+  // One iteration of the loop; while a region handover is filling (set_region), one crosshair
+  // of that fill instead.
   void step();
+  // Hands the sampler over to another region of the same image (a recut). The deep buffer keeps
+  // the crosshairs of the pixels both regions share, as they were; the tiling is rebuilt over
+  // the new region with its statistics taken from them and about as many tiles per pixel as
+  // before. Pixels gained get the fill's grid of crosshairs, one crosshair per following
+  // step(), so the fill goes at the pace of the loop (and of whatever caps it) instead of in a
+  // burst; handover_remaining() counts what is left of it. set_region() itself traces nothing.
+  // Before fill() it only moves the region, which fill() then fills whole.
+  void set_region(const PixelRect& region);
+  // Crosshairs of the handover's fill not yet traced.
+  int64_t handover_remaining() const { return int64_t(handover_.size()); }
   // Emits the samples of the current, partial batch.
   void flush();
   // Takes the camera from `source` (when it gives one) instead of the scene's. The source
@@ -104,6 +116,7 @@ class Sampler {
   void adjust_tiling();
 
   const SamplerConfig& config() const { return config_; }
+  const PixelRect& region() const { return region_; }
   const SamplerCounters& counters() const { return counters_; }
   const KdTiling& tiling() const { return tiling_; }
   const DeepBuffer& buffer() const { return buffer_; }
@@ -133,6 +146,7 @@ class Sampler {
 
   // Loop steps.
   void step_adaptive();
+  void step_handover();
   void step_uniform();
   void step_framed();
   void advance_scene_time();
@@ -160,6 +174,11 @@ class Sampler {
   void on_merge(int parent, int a, int b);
   TileStats tile_stats(int tile, double now) const;
   void compute_errors();
+  // Tile count bounds for the current region: the config's, at most the region's pixels / 4.
+  void bound_tiles();
+  // Statistics of every cell and of the root from the buffer, then splits of the largest error
+  // up to `tiles` tiles. On a tiling that is one tile.
+  void build_tiling(int tiles);
 
   const Scene& scene_;
   Tracer& tracer_;
@@ -194,6 +213,14 @@ class Sampler {
   double last_snapshot_time_ = 0.0;
   uint64_t samples_at_snapshot_ = 0;
   double sample_rate_ = 0.0;
+  int requested_min_tiles_ = 0, requested_max_tiles_ = 0;  // the config's, before bound_tiles
+  bool filled_ = false;
+  // The pixels a handover gained that still wait for their fill crosshair, the next at the
+  // back.
+  struct FillPoint {
+    int32_t x = 0, y = 0;
+  };
+  std::vector<FillPoint> handover_;
 };
 
 }  // namespace afr

@@ -2,8 +2,9 @@
 // sub-region per thread (split_region, the same mechanism the service uses across nodes) and
 // each thread runs its own Sampler with its own Tracer on a shared wall clock.
 //
-// Order of calls: construct, start(), then stop() (or destroy). The sink is called from the
-// worker threads, so it must be thread-safe.
+// Order of calls: construct, start(), then stop() (or destroy); set_region() at any time in
+// between, from the thread that calls the others. The sink is called from the worker threads,
+// so it must be thread-safe.
 #pragma once
 
 #include <afr/common/clock.h>
@@ -39,6 +40,15 @@ class SamplerPool {
   void stop();
   // Counters summed over the threads (read while running: approximate, never torn per field).
   SamplerCounters counters() const;
+  // Moves the pool to another region of the same image (a recut) without stopping it: the
+  // region is cut into sub-regions as at construction and each worker takes the one it shares
+  // the most pixels with, where its Sampler::set_region keeps its crosshairs. Each worker
+  // switches at its next step; the fill of what it gains goes at the pool's capped rate.
+  // Throws afr::Error when the region is outside the image or has fewer pixels than threads.
+  void set_region(const PixelRect& region);
+  const PixelRect& region() const { return region_; }
+  // Worker t's sub-region (after set_region, the one it was given, whether or not it has
+  // switched yet).
   const std::vector<PixelRect>& regions() const { return regions_; }
 
  private:
@@ -50,6 +60,7 @@ class SamplerPool {
   SamplerPoolOptions options_;
   const Clock& clock_;
   SampleSink& sink_;
+  PixelRect region_;
   std::vector<PixelRect> regions_;
   std::vector<std::unique_ptr<Worker>> workers_;
   std::atomic<bool> running_{false};
