@@ -282,8 +282,12 @@ struct SamplerService::Impl {
   SceneHash scene_hash{};
   std::unique_ptr<SamplerPool> pool;
   PixelRect pool_region;
+  ImageExtent pool_image;  // what the pool was built for, besides the session's scene
+  SceneHash pool_scene{};
   std::future<std::unique_ptr<SamplerPool>> building;  // a pool being constructed
   PixelRect building_region;
+  ImageExtent building_image;
+  SceneHash building_scene{};
   // The control thread never waits for a scene or a pool (its heartbeats would stop): a scene
   // loads on a helper thread, and a pool whose construction is abandoned (a recut, a new
   // session) finishes on its own and is dropped here once built. Such pools read `scene`, so
@@ -735,6 +739,8 @@ void SamplerService::Impl::update_pool() {
     if (joined && region && region->region == building_region) {
       pool = std::move(built);
       pool_region = building_region;
+      pool_image = building_image;
+      pool_scene = building_scene;
       pool->set_camera_source(&view_camera);
       pool->start();
       spdlog::info("sampling region [{}, {}) x [{}, {}) with {} thread(s)", pool_region.x0,
@@ -743,6 +749,22 @@ void SamplerService::Impl::update_pool() {
   }
   if (!joined || !scene || scene_hash != welcome.scene_hash || loading.valid() || !region) return;
   if (pool && pool_region == region->region) return;
+  // A recut within the same image and scene: the running pool moves to the new region and keeps
+  // what its samplers hold of it (Sampler::set_region), instead of a new pool filling the whole
+  // region at once.
+  if (pool && pool_image == region->image && pool_scene == scene_hash &&
+      region->region.area() >= int64_t(pool->regions().size())) {
+    try {
+      pool->set_region(region->region);
+      spdlog::info("region [{}, {}) x [{}, {}) handed over to [{}, {}) x [{}, {})", pool_region.x0,
+                   pool_region.x1, pool_region.y0, pool_region.y1, region->region.x0,
+                   region->region.x1, region->region.y0, region->region.y1);
+      pool_region = region->region;
+      return;
+    } catch (const Error& e) {
+      spdlog::warn("region handover: {}; starting a new pool", e.what());
+    }
+  }
   stop_pool();
 
   SamplerConfig config = options.config;
@@ -767,6 +789,8 @@ void SamplerService::Impl::update_pool() {
   po.threads = int(std::min<int64_t>(options.threads, region->region.area()));
   po.max_samples_per_second = options.max_samples_per_second;
   building_region = region->region;
+  building_image = region->image;
+  building_scene = scene_hash;
   const Scene* s = scene.get();
   building = std::async(std::launch::async, [this, s, config, po] {
     return std::make_unique<SamplerPool>(*s, config, po, clock, sink);
