@@ -6,6 +6,8 @@ pkg_check_modules(AFR_HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
 
 add_library(afr_display_service
   ${CMAKE_CURRENT_LIST_DIR}/src/service/coordinator.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/service/dashboard.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/src/service/dashboard_page.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/display_app.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/display_service.cpp
   ${CMAKE_CURRENT_LIST_DIR}/src/service/fly_camera.cpp

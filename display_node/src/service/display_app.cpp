@@ -23,6 +23,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <thread>
 #include <vector>
 
@@ -198,6 +199,8 @@ struct DisplayApp::State {
   WindowInput input;
   std::vector<CameraKey> recorded;
   Image image;
+  std::set<uint32_t> dashboard_members;  // the members at the last stats period
+  uint64_t dashboard_recuts = 0, dashboard_deaths = 0;
   uint64_t frame = 0;
   double last_input = 0.0, last_stats = 0.0, next_stats = 0.0;
 
@@ -213,6 +216,8 @@ struct DisplayApp::State {
   void read_input(const Camera& camera, double t, std::atomic<bool>& stop);
   void save(const std::string& stem, double t);
   void report_stats(double t);
+  // The stats period and what changed in the membership into the dashboard's history.
+  void feed_dashboard(double t);
 };
 
 void DisplayApp::State::make_reconstructor(const ReconstructorConfig& rc) {
@@ -306,16 +311,27 @@ void DisplayApp::State::frame_at(double t, std::atomic<bool>& stop) {
     coverage_applied = links->apply(role.wall_coverage(), *recon);
   }
   bool cell_sized = true;  // headless: the image is the cell at its own size
+  ServiceMetrics& metrics = role.metrics();
+  // A dashboard page watching: a few images a second leave the reconstructor for it.
+  const bool dashboard = metrics.dashboard().wants_image();
+  bool read_back = false;  // `image` holds this frame's image at the cell's size
   if (window) {
     cell_sized = show_in_window(camera, t);
+    read_back = input.overlay != 0 && whole;
     read_input(camera, t, stop);
   } else {
     // The image leaves the reconstructor (a GPU's memory) only when it is written out.
     const bool saving = options.screenshot_every > 0 && frame > 0 &&
                         frame % uint64_t(options.screenshot_every) == 0;
-    recon->reconstruct(camera, t, out_w, out_h, saving ? &image : nullptr);
+    read_back = saving || dashboard;
+    recon->reconstruct(camera, t, out_w, out_h, read_back ? &image : nullptr);
   }
-  ServiceMetrics& metrics = role.metrics();
+  if (dashboard) {
+    if (!read_back) recon->reconstruct(camera, t, out_w, out_h, &image);
+    // (A wall node's overlays would be in whole-image pixels: its cell alone.)
+    metrics.dashboard().publish(
+        image, whole ? tiling_overlay(image, tee->tilings(), role.regions()) : image);
+  }
   if (links) links->send(*recon, camera, t, cell_sized, coverage_applied, metrics);
   const double done = role.now();
   metrics.on_frame(done, recon->frame_stats().milliseconds, recon->frame_stats().stored,
@@ -428,9 +444,49 @@ void DisplayApp::State::report_stats(double t) {
   last_stats = t;
   next_stats = t + options.stats_interval;
   input.stats = stats_line(metrics);
+  feed_dashboard(t);
   spdlog::info("{}", input.stats);
   // The window's title and HUD: the same figures.
   if (window) window->set_title("afr display | " + input.stats);
+}
+
+void DisplayApp::State::feed_dashboard(double t) {
+  ServiceMetrics& metrics = role.metrics();
+  const DisplayMetrics d = metrics.display();
+  DashboardPeriod p;
+  p.time = t;
+  p.refresh_hz = d.refresh_hz;
+  p.reconstruct_ms_mean = d.period_reconstruct_ms_mean;
+  p.reconstruct_ms_p99 = d.period_reconstruct_ms_p99;
+  p.latency_ms_p50 = d.window_latency_p50 * 1e3;
+  p.latency_ms_p99 = d.window_latency_p99 * 1e3;
+  p.store_fill = d.store_capacity > 0 ? double(d.store_stored) / double(d.store_capacity) : 0.0;
+  p.members = d.members;
+  const double area = double(std::max<int64_t>(1, int64_t(d.width) * int64_t(d.height)));
+  std::set<uint32_t> members;
+  for (const SamplerMetrics& s : metrics.samplers()) {
+    if (!s.member) continue;
+    members.insert(s.id);
+    p.samplers.push_back({s.id, s.samples_per_second, double(s.region.area()) / area});
+  }
+  DashboardFeed& feed = metrics.dashboard();
+  feed.add_period(p);
+  for (const uint32_t id : members) {
+    if (!dashboard_members.count(id)) feed.add_event(t, fmt::format("sampler #{} joined", id));
+  }
+  for (const uint32_t id : dashboard_members) {
+    if (!members.count(id)) {
+      feed.add_event(t, fmt::format("sampler #{} {}", id,
+                                    d.deaths > dashboard_deaths ? "lost (no heartbeat)" : "left"));
+    }
+  }
+  if (d.recuts > dashboard_recuts) {
+    feed.add_event(
+        t, fmt::format("regions recut (epoch {}, {} recut(s) in all)", d.region_epoch, d.recuts));
+  }
+  dashboard_members = std::move(members);
+  dashboard_recuts = d.recuts;
+  dashboard_deaths = d.deaths;
 }
 
 }  // namespace afr::service

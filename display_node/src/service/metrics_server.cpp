@@ -1,15 +1,21 @@
 #include <afr/display/service/metrics_server.h>
 
 #include <afr/common/error.h>
+#include <afr/display/service/dashboard.h>
 #include <afr/display/service/metrics_exposition.h>
 
 #include <fmt/format.h>
 #include <httplib.h>
 #include <spdlog/spdlog.h>
 
+#include <cmath>
 #include <thread>
 
 namespace afr::service {
+
+namespace {
+constexpr size_t kServerThreads = 96;
+}  // namespace
 
 struct MetricsServer::Impl {
   httplib::Server server;
@@ -28,6 +34,42 @@ MetricsServer::MetricsServer(const ServiceMetrics& metrics, const std::string& a
   impl_->server.Get("/stats", [&metrics](const httplib::Request&, httplib::Response& res) {
     res.set_content(stats_json(metrics), "application/json");
   });
+  // The dashboard (dashboard.h): its page, the latest image, the history.
+  impl_->server.Get("/", [](const httplib::Request&, httplib::Response& res) {
+    res.set_content(kDashboardPage, "text/html; charset=utf-8");
+  });
+  impl_->server.Get("/image.png", [&metrics](const httplib::Request& req, httplib::Response& res) {
+    const std::string png = metrics.dashboard().image_png(req.get_param_value("tiling") == "1");
+    if (png.empty()) {
+      res.status = 503;  // the display makes images once a page asks: ask again shortly
+      res.set_header("Retry-After", "1");
+      res.set_content("no image yet", "text/plain");
+      return;
+    }
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(png, "image/png");
+  });
+  impl_->server.Get("/history", [&metrics](const httplib::Request& req, httplib::Response& res) {
+    double since = -1e30;
+    if (req.has_param("since")) {
+      try {
+        since = std::stod(req.get_param_value("since"));
+      } catch (const std::exception&) {
+        res.status = 400;
+        res.set_content("since: not a number", "text/plain");
+        return;
+      }
+      if (!std::isfinite(since)) since = -1e30;
+    }
+    res.set_content(metrics.dashboard().history_json(since), "application/json");
+  });
+  // Slow or idle clients: each connection may wait at most 1 s for the request's next bytes
+  // and 2 s to take the answer, and keeps its connection 2 s between requests; the pool has
+  // room for 64 such clients hanging on while /metrics still finds a thread at once.
+  impl_->server.set_read_timeout(1, 0);
+  impl_->server.set_write_timeout(2, 0);
+  impl_->server.set_keep_alive_timeout(2);
+  impl_->server.new_task_queue = [] { return new httplib::ThreadPool(kServerThreads); };
   if (!impl_->server.bind_to_port(address.c_str(), port)) {
     throw Error(fmt::format("cannot serve metrics on {}:{} (port in use?)", address, port));
   }

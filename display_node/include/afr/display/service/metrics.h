@@ -10,6 +10,7 @@
 #include <afr/common/rect.h>
 #include <afr/common/samples.h>
 #include <afr/display/reconstructor.h>
+#include <afr/display/service/dashboard.h>
 #include <afr/display/service/latency_histogram.h>
 #include <afr/protocol/messages.h>
 
@@ -166,6 +167,9 @@ class ServiceMetrics {
   DisplayMetrics display() const;
   std::vector<SamplerMetrics> samplers() const;
   LatencyHistogram latency() const;
+  // What the web dashboard shows: the display thread feeds it, the metrics server reads it
+  // (it has its own lock).
+  DashboardFeed& dashboard() const { return dashboard_; }
 
  private:
   mutable std::mutex mutex_;
@@ -178,6 +182,7 @@ class ServiceMetrics {
   double last_frame_time_ = -1.0;
   uint64_t period_frames_ = 0;
   double reconstruct_ms_sum_ = 0.0;
+  mutable DashboardFeed dashboard_;
 };
 
 }  // namespace afr::service
