@@ -10,6 +10,12 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <chrono>
 #include <filesystem>
 #include <regex>
 #include <string>
@@ -87,6 +93,38 @@ TEST(DashboardFeedTest, ImagesWhileAskedAndABoundedHistory) {
   const nlohmann::json recent = nlohmann::json::parse(feed.history_json(997.0));
   EXPECT_EQ(recent["periods"].size(), 2u);
   EXPECT_EQ(recent["events"].size(), 2u);
+}
+
+// 64 clients that connect and send half a request, then nothing, must not hold up /metrics
+// (cpp-httplib's default, 8 threads waiting 5 s each, took about 40 s).
+TEST_F(DashboardTest, SlowClientsDoNotHoldUpMetrics) {
+  auto d = display({}, "display.log");
+  ASSERT_TRUE(wait_until([&] { return !get_stats(metrics_port()).is_null(); }, scaled(10.0)))
+      << d->log();
+  std::vector<int> slow;
+  for (int i = 0; i < 64; ++i) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    ASSERT_GE(fd, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_port = htons(uint16_t(metrics_port()));
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)), 0);
+    const char partial[] = "GET /metrics HTTP/1.1\r\nHost: x\r\n";
+    ASSERT_GT(::send(fd, partial, sizeof(partial) - 1, 0), 0);
+    slow.push_back(fd);
+  }
+  httplib::Client client("127.0.0.1", metrics_port());
+  client.set_read_timeout(std::chrono::duration<double>(scaled(10.0)));
+  const auto started = std::chrono::steady_clock::now();
+  const auto res = client.Get("/metrics");
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  for (int fd : slow) ::close(fd);
+  ASSERT_TRUE(res) << "no answer with 64 slow clients connected";
+  EXPECT_EQ(res->status, 200);
+  EXPECT_NE(res->body.find("afr_display"), std::string::npos);
+  RecordProperty("metrics_seconds", std::to_string(seconds));
 }
 
 TEST_F(DashboardTest, ThePageShowsTheLiveImageAndItsChartsMove) {
