@@ -70,12 +70,11 @@ void Coordinator::heard(uint32_t id, double now) {
 }
 
 void Coordinator::add_samples(uint32_t id, uint64_t samples, double now) {
+  (void)now;  // measure() dates them: the service calls it in the same pass
   Member* m = find(id);
   if (!m || samples == 0) return;
   m->pending_ += samples;
   m->samples += samples;
-  m->last_sample_at = std::max(m->last_sample_at, now);
-  m->delivered = true;
 }
 
 bool Coordinator::remove(uint32_t id) {
@@ -98,6 +97,21 @@ std::vector<Member> Coordinator::expire(double now) {
   return dead;
 }
 
+// When a member's silence started to count: its last batch, or its join when it never delivered;
+// for one that delivered, not before its pool has had settle_seconds on its current region; and
+// never before this display's last own stall ended.
+double Coordinator::quiet_from(const Member& m) const {
+  const double from = m.delivered
+                          ? std::max(m.last_sample_at, m.region_since + options_.settle_seconds)
+                          : m.joined_at;
+  return std::max(from, watching_since_);
+}
+
+double Coordinator::patience(const Member& m) const {
+  return std::clamp(kPatienceFactor * m.longest_gap_, options_.starve_seconds,
+                    std::max(options_.starve_seconds, options_.starve_ceiling));
+}
+
 std::vector<std::pair<uint32_t, bool>> Coordinator::measure(double now) {
   std::vector<std::pair<uint32_t, bool>> changes;
   if (!measured_once_) {
@@ -113,19 +127,35 @@ std::vector<std::pair<uint32_t, bool>> Coordinator::measure(double now) {
   const bool stalled = dt > options_.max_measure_gap;
   if (stalled) watching_since_ = now;
   const double alpha = 1.0 - std::exp(-dt / options_.rate_time_constant);
+  const double forget = std::exp(-dt / kGapMemorySeconds);
   for (auto& [id, m] : members_) {
     const uint64_t n = m.pending_;
     m.pending_ = 0;
+    m.longest_gap_ *= forget;
+    if (n > 0) {
+      // The silence this delivery ends, as far as it counted: the member's patience follows the
+      // longest of the recent ones (a loaded machine's samplers deliver in bursts).
+      if (m.delivered) m.longest_gap_ = std::max(m.longest_gap_, now - quiet_from(m));
+      m.last_sample_at = now;
+      m.delivered = true;
+    }
     if (n > 0 && m.starved) {
       m.starved = false;
       changes.emplace_back(id, false);
-      // Its first return recuts at once (a sampler that starved while it loaded the scene and
-      // built its pool); later ones wait for the drift check, so that a member cannot buy an
-      // immediate recut (every sampler's pool restart) with a batch now and then.
-      if (!m.came_back_) dirty_ = true;
-      m.came_back_ = true;
+      // A return recuts at once (a sampler that starved while it loaded the scene and built its
+      // pool, or while its machine was busy) at most once per recut_interval; others wait for
+      // the drift check, so that a member cannot buy recuts (every changed sampler's pool
+      // restart) with a batch now and then.
+      if (now - m.came_back_at_ >= options_.recut_interval) {
+        dirty_ = true;
+        m.came_back_at_ = now;
+      }
     }
-    if (stalled || dt <= 0.0 || now - m.region_since < options_.settle_seconds) continue;
+    // Not measured: across this display's stall, while the member's pool restarts, and while
+    // it is starved (it is measured afresh from its return).
+    if (stalled || dt <= 0.0 || m.starved || now - m.region_since < options_.settle_seconds) {
+      continue;
+    }
     // Exponential smoothing of the arrival rate over time steps of any length, and its bias
     // (the weight the average has gathered, which is less than 1 while it is young).
     m.smoothed_ += alpha * (double(n) / dt - m.smoothed_);
@@ -133,23 +163,22 @@ std::vector<std::pair<uint32_t, bool>> Coordinator::measure(double now) {
     m.measured_seconds += dt;
     m.rate = m.weight_ > 0.0 ? m.smoothed_ / m.weight_ : 0.0;
   }
-  // Starvation: silence that others' deliveries show is not the display's or the network's.
-  const auto delivering = [&](const Member& m) {
-    return m.delivered && now - m.last_sample_at < options_.starve_seconds;
+  // Starvation: silence while others' batches flow, so that it is not the display's, the
+  // network's or everyone's (all loading a scene).
+  const auto flowing = [&](const Member& m) {
+    return m.delivered && now - m.last_sample_at <= options_.max_measure_gap;
   };
   for (auto& [id, m] : members_) {
-    if (m.starved) continue;
-    double quiet_from = m.delivered
-                            ? std::max(m.last_sample_at, m.region_since + options_.settle_seconds)
-                            : m.joined_at;
-    quiet_from = std::max(quiet_from, watching_since_);
-    if (now - quiet_from < options_.starve_seconds) continue;
+    if (m.starved || now - quiet_from(m) < patience(m)) continue;
     const uint32_t self = id;
     const bool others = std::any_of(members_.begin(), members_.end(), [&](const auto& e) {
-      return e.first != self && delivering(e.second);
+      return e.first != self && flowing(e.second);
     });
     if (!others) continue;
     m.starved = true;
+    // What it delivered before says nothing about it now: measured afresh when it returns (until
+    // then, and for measure_seconds after, the provisional share).
+    m.smoothed_ = m.weight_ = m.rate = m.measured_seconds = 0.0;
     dirty_ = true;
     changes.emplace_back(id, true);
   }
@@ -212,6 +241,14 @@ std::vector<PixelRect> Coordinator::parts() const {
   return error_ ? split_region(image, s, *error_) : split_region(image, s);
 }
 
+bool Coordinator::same_regions(const std::vector<PixelRect>& parts) const {
+  size_t i = 0;
+  for (const auto& [id, m] : members_) {
+    if (!(m.region == parts[i++])) return false;
+  }
+  return true;
+}
+
 void Coordinator::cut(double now, const std::vector<PixelRect>& parts) {
   size_t i = 0;
   for (auto& [id, m] : members_) {
@@ -231,7 +268,13 @@ bool Coordinator::maybe_recut(double now) {
     return false;
   }
   if (dirty_) {
-    cut(now, parts());
+    // A change that moves no region (a member on a strip starving again) sends nothing.
+    const std::vector<PixelRect> next = parts();
+    if (same_regions(next)) {
+      dirty_ = false;
+      return false;
+    }
+    cut(now, next);
     return true;
   }
   if (now - last_cut_ < options_.recut_interval) return false;
@@ -263,10 +306,7 @@ bool Coordinator::maybe_recut(double now) {
   // A member slower than a strip's worth keeps its strip: when the cut would give the regions
   // they have, there is nothing to send (and nothing to look at again for an interval).
   const std::vector<PixelRect> next = parts();
-  i = 0;
-  bool same = true;
-  for (const auto& [id, m] : members_) same = same && m.region == next[i++];
-  if (same) {
+  if (same_regions(next)) {
     last_cut_ = now;
     return false;
   }

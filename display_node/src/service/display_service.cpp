@@ -722,9 +722,9 @@ void DisplayService::Control::measure(double t) {
     if (!m) continue;
     if (starved) {
       spdlog::warn(
-          "sampler {} ({}) starved: no samples from it for {:.2f} s while others delivered; its "
-          "region goes to them until it delivers",
-          id, m->name, t - m->last_sample_at);
+          "sampler {} ({}) starved: no samples from it for {:.2f} s (its patience {:.2f} s) while "
+          "others delivered; its region goes to them until it delivers",
+          id, m->name, t - m->last_sample_at, coordinator_.patience(*m));
     } else {
       spdlog::info("sampler {} ({}) delivers samples again", id, m->name);
     }

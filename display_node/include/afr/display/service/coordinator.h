@@ -54,8 +54,11 @@ struct CoordinatorOptions {
   // A member from which nothing was accepted for this long while others delivered is starved:
   // the next cut leaves it a strip of the image (kStarvedWeight), which it keeps until it
   // delivers again. A member that has delivered before also gets settle_seconds after each
-  // region change (its pool restarts); one that never delivered counts from its join.
+  // region change (its pool restarts); one that never delivered counts from its join. A member
+  // whose deliveries came with long gaps (a loaded machine) gets kPatienceFactor times the
+  // longest recent gap, up to starve_ceiling.
   double starve_seconds = 0.75;
+  double starve_ceiling = 3.0;
   // measure() calls further apart than this are the display's own stall (its control thread
   // held up), not the members' silence: the starvation clocks restart and the interval is not
   // measured.
@@ -68,6 +71,10 @@ struct CoordinatorOptions {
 // A starved member's weight in the cut, relative to the mean weight of the others: enough for
 // split_region to leave it a non-empty strip, so it can show that it samples again.
 inline constexpr double kStarvedWeight = 1e-3;
+// A member's patience before it starves: this times the longest gap between its deliveries,
+// remembered with this time constant (seconds).
+inline constexpr double kPatienceFactor = 1.5;
+inline constexpr double kGapMemorySeconds = 30.0;
 
 struct Member {
   uint32_t id = 0;
@@ -90,10 +97,11 @@ struct Member {
 
  private:
   friend class Coordinator;
-  uint64_t pending_ = 0;    // accepted since the last measure()
-  double smoothed_ = 0.0;   // the exponential average before bias correction
-  double weight_ = 0.0;     // 1 - exp(-measured_seconds / time constant): its bias
-  bool came_back_ = false;  // has come back from starving once
+  uint64_t pending_ = 0;          // accepted since the last measure()
+  double smoothed_ = 0.0;         // the exponential average before bias correction
+  double weight_ = 0.0;           // 1 - exp(-measured_seconds / time constant): its bias
+  double longest_gap_ = 0.0;      // between deliveries (the silence that counted), fading
+  double came_back_at_ = -1e300;  // its last return from starving that recut at once
 };
 
 class Coordinator {
@@ -130,6 +138,8 @@ class Coordinator {
   uint64_t recuts() const { return recuts_; }
   // Whether the member's share follows its measured rate (else it is provisional or starved).
   bool measured(const Member& m) const;
+  // The silence after which the member starves (starve_seconds, more after long gaps).
+  double patience(const Member& m) const;
 
   const std::map<uint32_t, Member>& members() const { return members_; }
   int width() const { return width_; }
@@ -139,10 +149,12 @@ class Coordinator {
   std::vector<double> shares() const;
   // The regions a cut by shares() gives, in the order of members_.
   std::vector<PixelRect> parts() const;
+  bool same_regions(const std::vector<PixelRect>& parts) const;
   void cut(double now, const std::vector<PixelRect>& parts);
   // What part of the image `r` holds: of the error when it is known, else of the area.
   double fraction(const PixelRect& r) const;
   uint32_t next_free_id();
+  double quiet_from(const Member& m) const;
 
   int width_, height_;
   CoordinatorOptions options_;
