@@ -68,8 +68,9 @@ echo "run-local: display on tcp://127.0.0.1:$port (metrics http://127.0.0.1:$met
   $display_args > >(tee "$output/logs/display.log") 2>&1 &
 start_node display display "$output/logs/display.log"
 for i in $(seq 1 "$n"); do
-  # Samplers at a lower priority: the display keeps its refresh when they share its cores.
-  nice -n 10 "$build/sampler_node/sampler_node" --display "tcp://127.0.0.1:$port" --threads "$threads" \
+  # Sampling threads at a lower priority: the display keeps its refresh when they share its
+  # cores, while each sampler's control thread (its heartbeats) keeps the normal priority.
+  "$build/sampler_node/sampler_node" --display "tcp://127.0.0.1:$port" --threads "$threads" --worker-nice 10 \
     --name "local-$i" --cache "$output/scene-cache" >"$output/logs/sampler-$i.log" 2>&1 &
   start_node sampler "sampler $i" "$output/logs/sampler-$i.log"
 done

@@ -47,6 +47,12 @@ int main(int argc, char** argv) {
                  "cap on samples per second over all threads (0 = none)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1e12));
+  app.add_option("--worker-nice", o.worker_nice,
+                 "lower the sampling threads' priority by this much (0-19), not the node's "
+                 "control thread: a display on the same cores keeps its refresh and the "
+                 "heartbeats stay on time")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 19));
   app.add_option("--key", key_file, "this sampler's CurveZMQ key pair file (enables CurveZMQ)");
   app.add_option("--server-key", server_key_file, "the display's public key file");
   app.add_option("--keys", keys_dir,

@@ -5,8 +5,16 @@
 
 #include <fmt/format.h>
 
+#include <spdlog/spdlog.h>
+
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
+#include <cstring>
 #include <mutex>
 #include <optional>
 
@@ -138,6 +146,16 @@ void SamplerPool::stop() {
 }
 
 void SamplerPool::run(Worker* w) {
+  if (options_.worker_nice > 0) {
+    // This thread only (Linux: a thread's id names it to setpriority).
+    const id_t self = id_t(::syscall(SYS_gettid));
+    errno = 0;
+    const int now = ::getpriority(PRIO_PROCESS, self);
+    if (errno == 0 &&
+        ::setpriority(PRIO_PROCESS, self, std::min(19, now + options_.worker_nice)) != 0) {
+      spdlog::warn("sampler worker: cannot lower its priority: {}", std::strerror(errno));
+    }
+  }
   using Steady = std::chrono::steady_clock;
   Sampler& s = *w->sampler;
   // The fill's samples count against the cap like any others: the loop below waits them off.

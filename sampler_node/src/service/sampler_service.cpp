@@ -788,6 +788,7 @@ void SamplerService::Impl::update_pool() {
   SamplerPoolOptions po;
   po.threads = int(std::min<int64_t>(options.threads, region->region.area()));
   po.max_samples_per_second = options.max_samples_per_second;
+  po.worker_nice = options.worker_nice;
   building_region = region->region;
   building_image = region->image;
   building_scene = scene_hash;

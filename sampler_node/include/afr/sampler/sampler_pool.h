@@ -23,6 +23,10 @@ struct SamplerPoolOptions {
   int threads = 1;
   // Samples per second over all threads; 0 = as fast as the machine allows.
   double max_samples_per_second = 0.0;
+  // Added to the worker threads' nice value (0-19; Linux keeps one per thread): tracing yields
+  // to a display sharing the cores while the node's control thread, and its heartbeats, keep
+  // the process's priority.
+  int worker_nice = 0;
 };
 
 class SamplerPool {

@@ -38,6 +38,7 @@ struct SamplerServiceOptions {
   std::string display;  // base endpoint of the display, "tcp://HOST:PORT"
   int threads = 1;
   double max_samples_per_second = 0.0;  // over all threads; 0 = no cap
+  int worker_nice = 0;                  // SamplerPoolOptions::worker_nice
   std::string preset;                   // empty: the preset the display names in its welcome
   SamplerConfig config;                 // knobs from flags; size and region come from the display
   PresetOverrides overrides;            // flags given explicitly: applied after the preset
