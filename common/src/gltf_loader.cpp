@@ -41,9 +41,9 @@ constexpr size_t kMaxMorphDisplacements = size_t(1) << 24;
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 4> kSupportedExtensions = {
-    "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_mesh_quantization",
-    "KHR_texture_transform"};
+constexpr std::array<std::string_view, 6> kSupportedExtensions = {
+    "KHR_lights_punctual",        "KHR_materials_emissive_strength", "KHR_materials_ior",
+    "KHR_materials_transmission", "KHR_mesh_quantization",           "KHR_texture_transform"};
 
 // The default lighting of a scene without lights (what glTF viewers do): a directional
 // headlight that moves with the scene's camera and a uniform sky term. The headlight comes from
@@ -168,6 +168,8 @@ class Loader {
   void load_skins();
   void drop_unused_joints();
   void load_materials();
+  void read_transmission_and_ior(const tinygltf::Material& in, const std::string& what,
+                                 Material* out);
   std::optional<glm::dmat3> read_texture_transform(const tinygltf::TextureInfo& info,
                                                    const std::string& what, int* tex_coord);
   void apply_texture_transforms();
@@ -805,6 +807,39 @@ glm::vec3 Loader::read_rgb_extra(const tinygltf::Value& extras, const char* key,
   return glm::vec3(float(rgb[0]), float(rgb[1]), float(rgb[2]));
 }
 
+// KHR_materials_transmission (transmissionFactor in [0, 1], default 0) and KHR_materials_ior
+// (ior >= 1 or exactly 0, default 1.5).
+void Loader::read_transmission_and_ior(const tinygltf::Material& in, const std::string& what,
+                                       Material* out) {
+  if (const auto ext = in.extensions.find("KHR_materials_transmission");
+      ext != in.extensions.end()) {
+    if (ext->second.Has("transmissionFactor")) {
+      const tinygltf::Value& f = ext->second.Get("transmissionFactor");
+      const double v = f.IsNumber() ? f.GetNumberAsDouble() : NAN;
+      if (!(v >= 0.0 && v <= 1.0)) {
+        fail(what +
+             " has an invalid KHR_materials_transmission transmissionFactor (a number "
+             "in [0, 1] is expected)");
+      }
+      out->transmission = float(v);
+    }
+    if (ext->second.Has("transmissionTexture")) {
+      warn_once("transmissionTexture",
+                "KHR_materials_transmission transmissionTexture is not supported "
+                "(transmissionFactor is used)");
+    }
+  }
+  if (const auto ext = in.extensions.find("KHR_materials_ior");
+      ext != in.extensions.end() && ext->second.Has("ior")) {
+    const tinygltf::Value& i = ext->second.Get("ior");
+    const double v = i.IsNumber() ? i.GetNumberAsDouble() : NAN;
+    if (!(v == 0.0 || (v >= 1.0 && std::isfinite(v)))) {
+      fail(what + " has an invalid KHR_materials_ior ior (a number >= 1, or 0, is expected)");
+    }
+    out->ior = float(v);
+  }
+}
+
 void Loader::load_materials() {
   image_to_texture_.assign(model_.images.size(), -1);
   uv_transforms_.assign(model_.materials.size(), std::nullopt);
@@ -839,6 +874,7 @@ void Loader::load_materials() {
       }
       out.emissive *= float(s.GetNumberAsDouble());
     }
+    read_transmission_and_ior(in, what, &out);
     out.double_sided = in.doubleSided;
     if (in.alphaMode != "OPAQUE") {
       warn_once("alphaMode",

@@ -1,7 +1,8 @@
 // Tests of what the loader does for glTF content made elsewhere (issue 18): the default
 // lighting of a scene without lights and its one log line, the default camera that frames a
-// whole animation, unknown required and used extensions, KHR_materials_emissive_strength and
-// KHR_texture_transform. References are written out by hand from the glTF texts.
+// whole animation, unknown required and used extensions, KHR_materials_emissive_strength,
+// KHR_materials_transmission, KHR_materials_ior and KHR_texture_transform. References are written
+// out by hand from the glTF texts.
 #include <afr/common/error.h>
 #include <afr/common/gltf_loader.h>
 #include <afr/common/image.h>
@@ -277,6 +278,80 @@ TEST(GltfUserContentTest, EmissiveStrengthScalesTheEmissiveFactor) {
       -1.0;
   g.write(dir / "negative.gltf");
   EXPECT_THROW(load_gltf(dir / "negative.gltf"), Error);
+}
+
+TEST(GltfUserContentTest, TransmissionAndIorAreReadWithTheirDefaults) {
+  TempFolder dir;
+  GltfContent g = unlit_box();
+  g.doc()["extensionsUsed"] = {"KHR_materials_transmission", "KHR_materials_ior"};
+  g.doc()["extensionsRequired"] = {"KHR_materials_transmission"};
+  g.doc()["materials"][0]["extensions"] = {
+      {"KHR_materials_transmission", {{"transmissionFactor", 0.85}}},
+      {"KHR_materials_ior", {{"ior", 1.33}}}};
+  // Both extensions present but empty: transmission 0, ior 1.5.
+  g.doc()["materials"].push_back(
+      {{"extensions",
+        {{"KHR_materials_transmission", json::object()}, {"KHR_materials_ior", json::object()}}}});
+  g.doc()["materials"].push_back(json::object());  // neither extension
+  // ior 0 is allowed by KHR_materials_ior (a Fresnel term of 1).
+  g.doc()["materials"].push_back({{"extensions", {{"KHR_materials_ior", {{"ior", 0.0}}}}}});
+  g.write(dir / "glass.gltf");
+  LogCapture log;
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir / "glass.gltf", &report);
+  ASSERT_EQ(scene.materials.size(), 4u);
+  EXPECT_FLOAT_EQ(scene.materials[0].transmission, 0.85f);
+  EXPECT_FLOAT_EQ(scene.materials[0].ior, 1.33f);
+  EXPECT_EQ(scene.materials[1].transmission, 0.0f);
+  EXPECT_EQ(scene.materials[1].ior, 1.5f);
+  EXPECT_EQ(scene.materials[2].transmission, 0.0f);
+  EXPECT_EQ(scene.materials[2].ior, 1.5f);
+  EXPECT_EQ(scene.materials[3].ior, 0.0f);
+  EXPECT_TRUE(report.warnings.empty());  // both are read, neither is "ignored"
+}
+
+TEST(GltfUserContentTest, ATransmissionTextureWarnsOnceAndTheFactorIsUsed) {
+  TempFolder dir;
+  GltfContent g = unlit_box();
+  g.doc()["extensionsUsed"] = {"KHR_materials_transmission"};
+  const json ext = {{"KHR_materials_transmission",
+                     {{"transmissionFactor", 0.5}, {"transmissionTexture", {{"index", 0}}}}}};
+  g.doc()["materials"][0]["extensions"] = ext;
+  g.doc()["materials"].push_back({{"extensions", ext}});
+  g.write(dir / "textured_glass.gltf");
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir / "textured_glass.gltf", &report);
+  EXPECT_EQ(scene.materials[1].transmission, 0.5f);
+  ASSERT_EQ(report.warnings.size(), 1u);
+  EXPECT_NE(report.warnings[0].find("transmissionTexture"), std::string::npos);
+}
+
+TEST(GltfUserContentTest, BadTransmissionOrIorFailsNamingTheMaterialAndValue) {
+  TempFolder dir;
+  const auto expect_failure = [&](const json& extensions, const std::string& part) {
+    GltfContent g = unlit_box();
+    g.doc()["extensionsUsed"] = {"KHR_materials_transmission", "KHR_materials_ior"};
+    g.doc()["materials"][0]["extensions"] = extensions;
+    g.write(dir / "bad.gltf");
+    try {
+      load_gltf(dir / "bad.gltf");
+      ADD_FAILURE() << "no error for " << extensions.dump();
+    } catch (const Error& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("material 0"), std::string::npos) << what;
+      EXPECT_NE(what.find(part), std::string::npos) << what;
+      EXPECT_NE(what.find("bad.gltf"), std::string::npos) << what;
+    }
+  };
+  expect_failure({{"KHR_materials_transmission", {{"transmissionFactor", 1.5}}}},
+                 "transmissionFactor");
+  expect_failure({{"KHR_materials_transmission", {{"transmissionFactor", -0.1}}}},
+                 "transmissionFactor");
+  expect_failure({{"KHR_materials_transmission", {{"transmissionFactor", "glass"}}}},
+                 "transmissionFactor");
+  expect_failure({{"KHR_materials_ior", {{"ior", 0.5}}}}, "ior");
+  expect_failure({{"KHR_materials_ior", {{"ior", -1.5}}}}, "ior");
+  expect_failure({{"KHR_materials_ior", {{"ior", "water"}}}}, "ior");
 }
 
 // The bytes of a 1x1 PNG, written through afr's image I/O.

@@ -89,6 +89,12 @@ struct Material {
   float roughness = 1.0f;
   glm::vec3 emissive{0.0f};
   std::optional<glm::vec3> ambient;  // reflectance of the scene's ambient light
+  // KHR_materials_transmission: the fraction of the non-metallic part that light passes
+  // through (refracted, tinted by the base color) instead of reflecting diffusely; 0 = opaque.
+  float transmission = 0.0f;
+  // KHR_materials_ior: the index of refraction inside the surface (outside is 1). Either >= 1,
+  // or 0, which the extension defines as a Fresnel term of 1 (all reflection).
+  float ior = 1.5f;
   bool double_sided = false;
 };
 
