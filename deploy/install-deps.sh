@@ -14,8 +14,8 @@ packages=(
   libembree-dev libglm-dev libtinygltf-dev nlohmann-json3-dev libopenimageio-dev openimageio-tools
   # display
   libglfw3-dev libegl-dev libepoxy-dev libgl1-mesa-dri xvfb xauth libstb-dev
-  # the dashboard's browser test
-  chromium
+  # the dashboard's browser test; promtool for deploy/monitoring's check
+  chromium prometheus
   # messaging
   libzmq3-dev cppzmq-dev libsodium-dev libcpp-httplib-dev iproute2 nftables
   # flags, logging
