@@ -176,23 +176,23 @@ TEST_F(ServiceTest, SpoofedAndNonMemberBatchesAreDroppedAndCounted) {
       10.0))
       << d->log();
   const uint32_t real_id = member_views(get_stats(metrics_port()))[0].id;
-  {
-    Context context;
-    SampleSender hostile(context, service_endpoints(endpoint()).samples);
-    for (uint64_t k = 0; k < 200; ++k) {
-      SampleBatch b;
-      b.sampler_id = k % 2 ? real_id : 4242;
-      b.token = 0x0123456789abcdefull + k;
-      b.sequence = 0x7000000000000000ull + k;
-      b.samples.resize(64);
-      for (Sample& x : b.samples) {
-        x.time = 1.0;
-        x.x = x.y = 1.5f;
-        x.color = glm::vec3(1e4f);  // would show as a white smear where the real one samples
-      }
-      ASSERT_TRUE(hostile.send(b, {64, 64}).ok());
-      ASSERT_TRUE(hostile.flush(5000));
+  // Kept until the display has counted everything: closing a sender drops what ZeroMQ has not
+  // yet written (ZMQ_LINGER 0 on the sample channel).
+  Context context;
+  SampleSender hostile(context, service_endpoints(endpoint()).samples);
+  for (uint64_t k = 0; k < 200; ++k) {
+    SampleBatch b;
+    b.sampler_id = k % 2 ? real_id : 4242;
+    b.token = 0x0123456789abcdefull + k;
+    b.sequence = 0x7000000000000000ull + k;
+    b.samples.resize(64);
+    for (Sample& x : b.samples) {
+      x.time = 1.0;
+      x.x = x.y = 1.5f;
+      x.color = glm::vec3(1e4f);  // would show as a white smear where the real one samples
     }
+    ASSERT_TRUE(hostile.send(b, {64, 64}).ok());
+    ASSERT_TRUE(hostile.flush(5000));
   }
   ASSERT_TRUE(wait_until(
       [&] {
