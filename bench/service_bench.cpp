@@ -25,6 +25,8 @@
 #include <afr/display/service/metrics.h>
 #include <afr/protocol/channels.h>
 #include <afr/protocol/codec.h>
+#include <afr/protocol/display_link.h>
+#include <afr/protocol/messages.h>
 
 #include <benchmark/benchmark.h>
 #include <fmt/format.h>
@@ -314,7 +316,11 @@ int send_main(int argc, char** argv) {
       ->check(CLI::IsMember({0u, 1u, 2u, 3u}))
       ->capture_default_str();
   app.add_option("--batch", batch, "samples per batch")->capture_default_str();
-  app.add_option("--id", id, "sampler id in the batches")->capture_default_str();
+  app.add_option("--id", id, "sampler id in the batches (without --join)")->capture_default_str();
+  bool join = false;
+  app.add_flag("--join", join,
+               "join the display first as a member (display_node drops batches from non-members) "
+               "and send heartbeats: the id and token are the welcome's");
   app.add_option("--width", width, "the display's image width")->capture_default_str();
   app.add_option("--height", height, "the display's image height")->capture_default_str();
   app.add_option("--seconds", seconds, "stop after this long (0: at SIGTERM or SIGINT)");
@@ -328,8 +334,42 @@ int send_main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   Context context;
+  // With --join: membership through the control channel, as a sampler has it.
+  std::unique_ptr<DisplayLink> link;
+  uint64_t token = 0, session = 0, heartbeats = 0;
+  const auto drain = [&] {
+    while (std::optional<Result<Message>> m = link->receive_control()) {
+      if (!m->ok()) continue;
+      if (const auto* w = std::get_if<Welcome>(&m->value()); w && !link->joined()) {
+        link->welcomed();
+        id = w->sampler_id;
+        token = w->token;
+        session = w->session;
+      }
+    }
+  };
+  if (join) {
+    DisplayLinkOptions lo;
+    lo.display = display;
+    link = std::make_unique<DisplayLink>(context, lo);
+    const auto asked = Clock::now();
+    while (!link->joined()) {
+      if (g_stop.load() || since(asked) > 20.0) {
+        std::fprintf(stderr, "send: no welcome from %s\n", display.c_str());
+        return 1;
+      }
+      if (link->join_due()) {
+        Join j;
+        j.name = "afr-bench-service";
+        (void)link->send(j);
+      }
+      link->wait(50);
+      drain();
+    }
+  }
   SampleSender sender(context, service_endpoints(display).samples, Security::none(), options);
   std::vector<SampleBatch> batches = make_batches(fields, batch, width, height, 64, id);
+  for (SampleBatch& b : batches) b.token = token;
   const ImageExtent bounds{width, height};
   std::printf("ready\n");
   std::fflush(stdout);
@@ -349,6 +389,10 @@ int send_main(int argc, char** argv) {
   while (!g_stop.load(std::memory_order_relaxed)) {
     if (g_report.exchange(false)) report();
     const double t = since(start);
+    if (link) {
+      drain();
+      if (link->heartbeat_due()) (void)link->send(Heartbeat{id, session, ++heartbeats, 0.0});
+    }
     if (seconds > 0.0 && t >= seconds) break;
     if (max_samples_per_second > 0.0) {
       if (next > t) {

@@ -118,8 +118,10 @@ for r in $(seq 1 "$repeats"); do
   receiver_pid=$!
   pids+=("$receiver_pid")
   sleep 0.5
+  join=()
+  [ "$receiver" = display ] && join=(--join)  # display_node takes batches from members only
   ip netns exec "$sh" "$bench_bin" send --display "$endpoint" --mode "$mode" --fields "$fields" \
-    --batch "$batch" --width "$width" --height "$height" --id 1 "${sender_args[@]}" \
+    --batch "$batch" --width "$width" --height "$height" --id 1 "${join[@]}" "${sender_args[@]}" \
     >"$out/sender-$r.log" 2>&1 &
   sender_pid=$!
   pids+=("$sender_pid")
