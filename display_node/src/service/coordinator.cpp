@@ -144,14 +144,14 @@ std::vector<std::pair<uint32_t, bool>> Coordinator::measure(double now) {
       changes.emplace_back(id, false);
       // A return recuts at once (a sampler that starved while it loaded the scene and built its
       // pool, or while its machine was busy) at most once per recut_interval; others wait for
-      // the drift check, so that a member cannot buy recuts (every changed sampler's pool
-      // restart) with a batch now and then.
+      // the drift check, so that a member cannot buy recuts (every changed sampler's
+      // handover) with a batch now and then.
       if (now - m.came_back_at_ >= options_.recut_interval) {
         dirty_ = true;
         m.came_back_at_ = now;
       }
     }
-    // Not measured: across this display's stall, while the member's pool restarts, and while
+    // Not measured: across this display's stall, while the member's pool hands over, and while
     // it is starved (it is measured afresh from its return).
     if (stalled || dt <= 0.0 || m.starved || now - m.region_since < options_.settle_seconds) {
       continue;
@@ -278,15 +278,16 @@ bool Coordinator::maybe_recut(double now) {
     return true;
   }
   if (now - last_cut_ < options_.recut_interval) return false;
-  // A sampler that just got a new region restarts its pool: its rate and its tiles' error say
-  // little until it settles. Recutting on them would chase the restart (measured: regions
+  // A sampler that just got a new region hands its pool over (tiling rebuilt, gained pixels
+  // filled): its rate and its tiles' error say little until it settles. Recutting on them would
+  // chase the handover (measured: regions
   // swinging between 17% and 73% every second).
   for (const auto& [id, m] : members_) {
     if (now - m.region_since < options_.settle_seconds) return false;
   }
   // The gain a recut would bring: the image's error is covered when the most loaded member
   // is done, so what counts is the largest ratio of a member's part to its share of the
-  // throughput. A recut costs every member whose region changes a pool restart; it is worth
+  // throughput. A recut costs every member whose region changes a handover; it is worth
   // that only when that member carries more than (1 + hysteresis) times its share. An
   // underloaded member alone is no reason (with two members at 9% against 20% wanted, the
   // other carries 91% against 80%: 14% slower than balanced).

@@ -33,16 +33,17 @@ struct CoordinatorOptions {
   FailureDetectorOptions liveness;
   // The samplers' and wall followers' heartbeat interval: the detector's first guess.
   double heartbeat_interval = protocol::kMemberHeartbeatInterval;
-  // Seconds at least between recuts that follow throughput and error. A recut restarts the
-  // pool of every sampler whose region changed (its deep buffer and tiling refill), which costs
-  // more image error than a better balance gains: on the built-in scene with two samplers the
-  // live error (bench/live.py) was 26.3 (25.5-27.2, 3 runs) with recuts at most once a second
-  // and 21.0 (17.7-24.3) at most once in 10 s (docs/benchmarks.md, "Live accuracy").
+  // Seconds at least between recuts that follow throughput and error. A recut costs every
+  // sampler whose region changed a handover (its tiling rebuilt, the pixels it gained filled),
+  // which cost more image error than a better balance gains when pools still restarted: on the
+  // built-in scene with two samplers the live error (bench/live.py) was 26.3 (25.5-27.2, 3 runs)
+  // with recuts at most once a second and 21.0 (17.7-24.3) at most once in 10 s
+  // (docs/benchmarks.md, "Live accuracy").
   double recut_interval = 10.0;
   // A recut happens when a member's part of the error exceeds (1 + hysteresis) times its
   // share of the throughput.
   double hysteresis = 0.5;
-  // For this long after a member's region changes its pool restarts: its rate is not measured
+  // For this long after a member's region changes its pool hands over: its rate is not measured
   // then, and no drift recut happens until every member's region is this old.
   double settle_seconds = 2.0;
   // The measured rate: samples accepted per second, smoothed exponentially with this time
@@ -54,7 +55,7 @@ struct CoordinatorOptions {
   // A member from which nothing was accepted for this long while others delivered is starved:
   // the next cut leaves it a strip of the image (kStarvedWeight), which it keeps until it
   // delivers again. A member that has delivered before also gets settle_seconds after each
-  // region change (its pool restarts); one that never delivered counts from its join. A member
+  // region change (its pool hands over); one that never delivered counts from its join. A member
   // whose deliveries came with long gaps (a loaded machine) gets kPatienceFactor times the
   // longest recent gap, up to starve_ceiling.
   double starve_seconds = 0.75;
