@@ -26,7 +26,9 @@ done
 
 run=()
 if [ -z "${DISPLAY:-}" ] && command -v xvfb-run >/dev/null; then
-  run=(xvfb-run -a)
+  # -noreset: Xvfb otherwise resets when its last client leaves (each window test closes its
+  # window), and a test that connects during the reset cannot open the display.
+  run=(xvfb-run -a -s "-screen 0 1280x1024x24 -noreset")
 fi
 jobs=$(nproc)
 

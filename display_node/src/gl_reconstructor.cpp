@@ -6,6 +6,7 @@
 #include <afr/display/hole_fill.h>
 #include <afr/display/reprojection.h>
 
+#include "gl_program.h"
 #include "gl_shaders.h"
 #include "parallel_copy.h"
 
@@ -31,45 +32,6 @@ constexpr int kGroup = 16;  // compute work group side
 void check_gl(const char* where) {
   const GLenum e = glGetError();
   if (e != GL_NO_ERROR) throw Error(fmt::format("OpenGL error 0x{:x} in {}", e, where));
-}
-
-GLuint compile(GLenum type, const char* source, const char* name) {
-  const GLuint s = glCreateShader(type);
-  glShaderSource(s, 1, &source, nullptr);
-  glCompileShader(s);
-  GLint ok = 0;
-  glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    std::array<char, 4096> log{};
-    glGetShaderInfoLog(s, GLsizei(log.size()), nullptr, log.data());
-    glDeleteShader(s);
-    throw Error(fmt::format("OpenGL: shader {} does not compile: {}", name, log.data()));
-  }
-  return s;
-}
-
-GLuint link(std::initializer_list<GLuint> shaders, const char* name) {
-  const GLuint p = glCreateProgram();
-  for (GLuint s : shaders) glAttachShader(p, s);
-  glLinkProgram(p);
-  for (GLuint s : shaders) glDeleteShader(s);
-  GLint ok = 0;
-  glGetProgramiv(p, GL_LINK_STATUS, &ok);
-  if (!ok) {
-    std::array<char, 4096> log{};
-    glGetProgramInfoLog(p, GLsizei(log.size()), nullptr, log.data());
-    glDeleteProgram(p);
-    throw Error(fmt::format("OpenGL: program {} does not link: {}", name, log.data()));
-  }
-  return p;
-}
-
-GLuint graphics_program(const char* vs, const char* fs, const char* name) {
-  return link({compile(GL_VERTEX_SHADER, vs, name), compile(GL_FRAGMENT_SHADER, fs, name)}, name);
-}
-
-GLuint compute_program(const char* cs, const char* name) {
-  return link({compile(GL_COMPUTE_SHADER, cs, name)}, name);
 }
 
 // A buffer only the GPU reads and writes (copies, clears and shaders; never a CPU map):

@@ -3,6 +3,8 @@
 #include <afr/common/error.h>
 #include <afr/display/gl_reconstructor.h>
 
+#include "gl_program.h"
+
 // epoxy before GLFW, and GLFW without its own GL header.
 #include <epoxy/egl.h>
 #include <epoxy/gl.h>
@@ -48,21 +50,6 @@ uniform vec4 u_color;
 out vec4 o_color;
 void main() { o_color = u_color; }
 )";
-
-GLuint compile(GLenum type, const char* source) {
-  const GLuint shader = glCreateShader(type);
-  glShaderSource(shader, 1, &source, nullptr);
-  glCompileShader(shader);
-  GLint ok = 0;
-  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[1024] = {};
-    glGetShaderInfoLog(shader, sizeof(log), nullptr, log);
-    glDeleteShader(shader);
-    throw Error(fmt::format("window text shader: {}", log));
-  }
-  return shader;
-}
 
 // The key presses a window keeps for take_key_presses() at most (a window nobody reads).
 constexpr size_t kMaxKeyPresses = 256;
@@ -191,14 +178,7 @@ void GlfwWindow::draw_text(const std::vector<std::string>& lines, int scale) {
   if (lines.empty()) return;
   make_current();
   if (text_program_ == 0) {
-    const GLuint vs = compile(GL_VERTEX_SHADER, kTextVertex);
-    const GLuint fs = compile(GL_FRAGMENT_SHADER, kTextFragment);
-    text_program_ = glCreateProgram();
-    glAttachShader(text_program_, vs);
-    glAttachShader(text_program_, fs);
-    glLinkProgram(text_program_);
-    glDeleteShader(vs);
-    glDeleteShader(fs);
+    text_program_ = graphics_program(kTextVertex, kTextFragment, "window text");
     glGenVertexArrays(1, &text_vao_);
     glGenBuffers(1, &text_buffer_);
     glBindVertexArray(text_vao_);
