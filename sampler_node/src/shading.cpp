@@ -30,13 +30,22 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
   const float r = std::max(roughness, kMinDirectRoughness);
   m.alpha = r * r;
   m.double_sided = mat.double_sided;
-  m.is_mirror = m.metallic > 0.0f && roughness <= mirror_roughness;
+  m.transmission = glm::clamp(mat.transmission, 0.0f, 1.0f);
+  m.is_glass = m.transmission > 0.0f;
+  m.diffuse_weight = (1.0f - m.metallic) * (1.0f - m.transmission);
+  m.is_mirror = !m.is_glass && m.metallic > 0.0f && roughness <= mirror_roughness;
   // The metallic part of a mirror sees its surroundings through the reflection ray, so only
-  // the rest of it takes ambient light.
+  // the rest of it takes ambient light; of glass, only its diffuse part.
   if (m.is_mirror) m.ambient *= 1.0f - m.metallic;
+  if (m.is_glass) {
+    m.ambient *= m.diffuse_weight;
+    m.ior = mat.ior;
+    const float r = (mat.ior - 1.0f) / (mat.ior + 1.0f);
+    m.f0_dielectric = mat.ior > 0.0f ? r * r : 1.0f;  // KHR_materials_ior: ior 0 means F = 1
+  }
   m.has_emission = !is_black(m.emissive);
   m.has_ambient = !is_black(scene.ambient * m.ambient);
-  m.has_diffuse = m.metallic < 1.0f && !is_black(m.base);
+  m.has_diffuse = m.diffuse_weight > 0.0f && !is_black(m.base);
   m.has_specular = !(roughness >= 1.0f && m.metallic <= 0.0f);
   return m;
 }

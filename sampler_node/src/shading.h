@@ -1,14 +1,14 @@
 // The shading model of afr's tracer, private to afr_sampler: material and light records
 // prepared once from a Scene (so the hot path branches on flags instead of re-deriving them),
 // and the local reflection model (emission, ambient, Lambert + GGX from punctual lights, the
-// Fresnel weight of mirror reflection). Ray casting itself is in tracer.cpp.
+// Fresnel weight of mirror reflection and of glass). Ray casting itself is in tracer.cpp.
 //
 // Conventions (those of the glTF 2.0 specification and the Khronos sample viewer):
 // - a punctual light of intensity I and color c gives irradiance c I / d^2 (inverse-square; a
 //   light with inverse_square_falloff = false gives c I at every distance), times the smooth
 //   range window of KHR_lights_punctual and, for spots, the cone falloff;
 // - BRDF = diffuse / pi + GGX (Trowbridge-Reitz D, height-correlated Smith visibility, Schlick
-//   Fresnel), diffuse = base (1 - metallic), F0 = mix(0.04, base, metallic);
+//   Fresnel), diffuse = base (1 - metallic) (1 - transmission), F0 = mix(0.04, base, metallic);
 // - base = base_color_factor x base-color texture; the ambient reflectance (Material::ambient,
 //   else the base color factor) is multiplied by the texture too, so textures show in ambient
 //   light.
@@ -34,13 +34,21 @@ struct ShadeMaterial {
   glm::vec3 emissive{0.0f};
   const Texture* texture = nullptr;  // base-color texture, or null
   float metallic = 1.0f;
+  // Weight of the base color in the diffuse lobe: (1 - metallic) (1 - transmission).
+  float diffuse_weight = 0.0f;
   float alpha = 1.0f;  // GGX alpha = roughness^2 for direct light (roughness clamped)
+  // Glass (KHR_materials_transmission, KHR_materials_ior): what tracer.cpp's glass() needs.
+  float transmission = 0.0f;
+  float ior = 1.5f;
+  float f0_dielectric = 0.04f;  // ((ior - 1) / (ior + 1))^2, 1 for ior 0
   bool double_sided = false;
   bool has_emission = false;
   bool has_ambient = false;   // scene ambient x ambient reflectance is not black
   bool has_diffuse = false;   // metallic < 1
   bool has_specular = false;  // not (roughness 1 and metallic 0)
-  bool is_mirror = false;     // metallic > 0 and roughness <= TracerOptions::mirror_roughness
+  bool is_mirror = false;     // metallic > 0 and roughness <= TracerOptions::mirror_roughness,
+                              // and not glass
+  bool is_glass = false;      // transmission > 0: reflects and refracts (Whitted), any roughness
 };
 
 // `material` may be null (the glTF default material). `textures` is the scene's list.

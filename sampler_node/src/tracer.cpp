@@ -236,7 +236,14 @@ struct Tracer::Impl {
                         TraceStats* stats) const;
   void shade_local8(const Surface* s, const glm::vec3* wo, const glm::vec3* tex, const bool* hit,
                     int n, glm::vec3* out, TraceStats* stats) const;
-  glm::vec3 mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, TraceStats* stats) const;
+  glm::vec3 mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, TraceStats* stats, int depth = 0,
+                         glm::vec3 throughput = glm::vec3(1.0f)) const;
+  // Out of line, so that the mirror chain of scenes without glass compiles as it did.
+  [[gnu::noinline]] glm::vec3 glass(const glm::vec3& d, const Surface& s, const glm::vec3& tex,
+                                    int depth, const glm::vec3& throughput,
+                                    TraceStats* stats) const;
+  glm::vec3 secondary(const glm::vec3& origin, const glm::vec3& d, int depth,
+                      const glm::vec3& throughput, TraceStats* stats) const;
   bool begin_sample(const Ray& ray, const HitRef& hit, ShadedSample* o, Surface* s,
                     TraceStats* stats) const;
   void sanitize(ShadedSample* o, TraceStats* stats) const;
@@ -717,7 +724,7 @@ bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const gl
   if (m.has_ambient) *c += scene_.ambient * m.ambient * tex;
   if (lights_.empty() || s.back_face || !(m.has_diffuse || m.has_specular)) return false;
   const glm::vec3 base = m.base * tex;
-  terms->diffuse = base * (1.0f - m.metallic);
+  terms->diffuse = base * m.diffuse_weight;
   terms->f0 = glm::mix(glm::vec3(0.04f), base, m.metallic);
   terms->offset = offset_at(s.p);
   terms->origin = s.p + terms->offset * s.ng;
@@ -811,14 +818,20 @@ glm::vec3 Tracer::Impl::texture_color(const Surface& s) const {
 }
 
 // The light reaching the viewer from surface s (seen along d, with texture color tex) by way
-// of mirror reflections, up to the depth limit. s's own local shading is not included.
-glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex,
-                                     TraceStats* stats) const {
+// of mirror reflections and glass, up to the depth limit, times `throughput` (what the path
+// before s passes on). s's own local shading is not included. `depth` counts the secondary
+// rays already on the path.
+glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, TraceStats* stats,
+                                     int depth, glm::vec3 throughput) const {
   glm::vec3 result(0.0f);
-  glm::vec3 throughput(1.0f);
-  for (int depth = 0;; ++depth) {
+  for (;; ++depth) {
     const ShadeMaterial& m = *s.material;
-    if (!m.is_mirror || s.back_face || depth >= options_.max_mirror_depth) break;
+    if (!m.is_mirror || s.back_face || depth >= options_.max_mirror_depth) {
+      // Glass (never is_mirror) branches; the test is here so that other surfaces pay nothing.
+      if (m.is_glass && depth < options_.max_mirror_depth)
+        result += glass(d, s, tex, depth, throughput, stats);
+      break;
+    }
     const float n_dot_v = -glm::dot(s.ns, d);
     glm::vec3 r = d - 2.0f * glm::dot(d, s.ns) * s.ns;
     // An interpolated normal can send the reflection under the surface: use the true one.
@@ -841,6 +854,96 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex,
     d = r;
     tex = texture_color(s);
     result += throughput * shade_local(s, -d, tex, stats);
+  }
+  return result;
+}
+
+// One secondary ray of glass, and what it brings back (local shading and further bounces) times
+// `throughput`; `depth` counts this ray.
+glm::vec3 Tracer::Impl::secondary(const glm::vec3& origin, const glm::vec3& d, int depth,
+                                  const glm::vec3& throughput, TraceStats* stats) const {
+  ++stats->reflection_rays;
+  const HitRef hit = intersect(origin, d, 0.0f);
+  if (hit.geom == RTC_INVALID_GEOMETRY_ID) return throughput * scene_.background;
+  Surface s;
+  make_surface(hit, origin, d, &s);
+  const glm::vec3 tex = texture_color(s);
+  return throughput * shade_local(s, -d, tex, stats) +
+         mirror_chain(d, s, tex, stats, depth, throughput);
+}
+
+// Whitted glass at s, hit along d (docs/scene-model.md, "Transmission and refraction"): a
+// reflected ray weighted by Schlick's Fresnel and a refracted one (Snell) weighted by the rest
+// times transmission and base color; total internal reflection past the critical angle.
+glm::vec3 Tracer::Impl::glass(const glm::vec3& d, const Surface& s, const glm::vec3& tex, int depth,
+                              const glm::vec3& throughput, TraceStats* stats) const {
+  const ShadeMaterial& m = *s.material;
+  // Entering or leaving: the side of the triangle's own geometric normal, before make_surface
+  // turned it toward the viewer for a double-sided material.
+  const uint32_t* tri = s.triangle;
+  const glm::vec3& p0 = s.geom->positions[tri[0]];
+  glm::vec3 face = glm::cross(s.geom->positions[tri[1]] - p0, s.geom->positions[tri[2]] - p0);
+  if (s.geom->flip_winding) face = -face;
+  if (s.instance->moves) face = s.instance->normal_matrix * face;
+  const bool entering = !(glm::dot(face, d) > 0.0f);
+
+  // Normals on the side the ray arrives from (a single-sided back face keeps its own).
+  const glm::vec3 ng = s.back_face ? -s.ng : s.ng;
+  glm::vec3 n = s.back_face ? -s.ns : s.ns;
+  float cos_i = -glm::dot(n, d);
+  if (!(cos_i > 0.0f)) {
+    n = ng;
+    cos_i = -glm::dot(n, d);
+  }
+  cos_i = glm::clamp(cos_i, 0.0f, 1.0f);
+  const glm::vec3 base = m.base * tex;
+
+  // Snell: eta = n_from / n_to; outside is 1.
+  glm::vec3 t(0.0f);
+  float F = 1.0f;  // ior 0, or total internal reflection
+  float cos_outer = cos_i;
+  if (m.ior > 0.0f) {
+    const float eta = entering ? 1.0f / m.ior : m.ior;
+    const float sin2_t = eta * eta * (1.0f - cos_i * cos_i);
+    if (sin2_t < 1.0f) {
+      const float cos_t = std::sqrt(1.0f - sin2_t);
+      t = eta * d + (eta * cos_i - cos_t) * n;
+      if (!entering) cos_outer = cos_t;
+      const float k = 1.0f - cos_outer;
+      const float k2 = k * k;
+      F = m.f0_dielectric + (1.0f - m.f0_dielectric) * (k2 * k2 * k);
+    }
+  }
+  // The metallic part reflects as a mirror tinted by the base color.
+  const glm::vec3 reflect_w =
+      F >= 1.0f ? glm::vec3(1.0f)
+                : glm::mix(glm::vec3(F), shading::fresnel_schlick(base, cos_outer), m.metallic);
+  const glm::vec3 transmit_w = (m.transmission * (1.0f - m.metallic) * (1.0f - F)) * base;
+
+  glm::vec3 result(0.0f);
+  const float offset = offset_at(s.p);
+  const glm::vec3 r_throughput = throughput * reflect_w;
+  if (std::max(r_throughput.r, std::max(r_throughput.g, r_throughput.b)) >= kMinThroughput) {
+    glm::vec3 r = d + 2.0f * cos_i * n;
+    if (glm::dot(r, ng) <= 0.0f) r = d - 2.0f * glm::dot(d, ng) * ng;
+    const float len2 = glm::dot(r, r);
+    if (len2 > 0.0f && std::isfinite(len2))
+      result += secondary(s.p + offset * ng, r * (1.0f / std::sqrt(len2)), depth + 1, r_throughput,
+                          stats);
+  }
+  const glm::vec3 t_throughput = throughput * transmit_w;
+  if (std::max(t_throughput.r, std::max(t_throughput.g, t_throughput.b)) >= kMinThroughput) {
+    // An interpolated normal can bend the ray back to the side it came from: use the true one.
+    if (glm::dot(t, ng) >= 0.0f) {
+      const float c = -glm::dot(ng, d);
+      const float eta = entering ? 1.0f / m.ior : m.ior;
+      const float sin2 = eta * eta * (1.0f - c * c);
+      t = sin2 < 1.0f ? eta * d + (eta * c - std::sqrt(1.0f - sin2)) * ng : glm::vec3(0.0f);
+    }
+    const float len2 = glm::dot(t, t);
+    if (len2 > 0.0f && std::isfinite(len2))
+      result += secondary(s.p - offset * ng, t * (1.0f / std::sqrt(len2)), depth + 1, t_throughput,
+                          stats);
   }
   return result;
 }

@@ -612,6 +612,152 @@ void expect_same_sample(const ShadedSample& a, const ShadedSample& b, float tol)
   expect_near3(a.velocity, b.velocity, tol, "velocity");
 }
 
+// ---------------------------------------------------------------------------------------------
+// Glass (KHR_materials_transmission, KHR_materials_ior)
+
+int add_glass(Scene* s, float ior, bool double_sided = false) {
+  const int m = add_material(s, glm::vec3(1.0f), 0.0f, 0.0f);
+  s->materials[size_t(m)].transmission = 1.0f;
+  s->materials[size_t(m)].ior = ior;
+  s->materials[size_t(m)].double_sided = double_sided;
+  return m;
+}
+
+int add_emitter(Scene* s, glm::vec3 emission) {
+  const int m = add_material(s, glm::vec3(0.0f), 0.0f, 1.0f);
+  s->materials[size_t(m)].emissive = emission;
+  return m;
+}
+
+// Schlick's Fresnel reflectance of a dielectric of index `ior` at cosine c (outer side).
+double schlick(double ior, double c) {
+  const double f0 = (ior - 1.0) * (ior - 1.0) / ((ior + 1.0) * (ior + 1.0));
+  return f0 + (1.0 - f0) * std::pow(1.0 - c, 5.0);
+}
+
+// A slab of glass (ior 1.5, 1 thick, between z = 0.5 and z = -0.5) and, at depth z_target, a
+// tiny red emitter where the closed form puts a ray that entered the top at 40 degrees: the
+// ray leaves parallel to its entry direction, shifted by h (tan theta - tan theta_t) in x. A
+// green emitter sits where the ray would land undeflected. Both emitters are 0.01 wide.
+TEST(TracerTest, RayThroughAGlassSlabLeavesParallelAndDisplaced) {
+  const double ior = 1.5, h = 1.0;
+  const double theta = 40.0 * M_PI / 180.0;
+  const double theta_t = std::asin(std::sin(theta) / ior);  // Snell
+  const glm::vec3 d(float(std::sin(theta)), 0.0f, -float(std::cos(theta)));
+  const glm::vec3 origin = glm::vec3(0.0f, 0.0f, 0.5f) - 2.0f * d;  // enters the top at x = 0
+  for (double z_target : {-3.0, -8.0}) {
+    const double below = -0.5 - z_target;
+    const double x_refracted = h * std::tan(theta_t) + below * std::tan(theta);
+    const double x_straight = (h + below) * std::tan(theta);
+    ASSERT_GT(x_straight - x_refracted, 0.3);  // the two targets are far apart
+    Scene s;
+    add_mesh_node(&s, box_mesh({50.0f, 50.0f, 0.5f}, add_glass(&s, float(ior))));
+    const float w = 0.01f;
+    add_mesh_node(&s, quad_mesh({float(x_refracted) - w / 2, -w / 2, float(z_target)}, {w, 0, 0},
+                                {0, w, 0}, add_emitter(&s, {1, 0, 0})));
+    add_mesh_node(&s, quad_mesh({float(x_straight) - w / 2, -w / 2, float(z_target)}, {w, 0, 0},
+                                {0, w, 0}, add_emitter(&s, {0, 1, 0})));
+    s.finalize();
+    Tracer tracer(s);
+    TraceStats stats;
+    const ShadedSample out = tracer.trace(Ray{origin, d}, &stats);
+    // Entering and leaving see the same outer angle, so the same Fresnel term; every other
+    // path within the depth limit ends in the black background.
+    const double t = 1.0 - schlick(ior, std::cos(theta));
+    EXPECT_NEAR(out.color.r, t * t, 1e-4) << "target at z = " << z_target;
+    EXPECT_EQ(out.color.g, 0.0f);
+    EXPECT_TRUE(finite(out.color));
+    EXPECT_EQ(stats.sanitized, 0u);
+  }
+}
+
+// A ray inside a slab of ior 1.5 meets its faces at the angle it starts with: below the
+// critical angle asin(1 / 1.5) = 41.81 degrees it leaves (and lights up the emitter below);
+// beyond it every bounce reflects totally, nothing leaves, and the depth limit ends the chain.
+TEST(TracerTest, TotalInternalReflectionBeyondTheCriticalAngle) {
+  const double critical = std::asin(1.0 / 1.5) * 180.0 / M_PI;
+  for (bool double_sided : {false, true}) {
+    Scene s;
+    add_mesh_node(&s, box_mesh({50.0f, 50.0f, 0.5f}, add_glass(&s, 1.5f, double_sided)));
+    add_mesh_node(
+        &s, quad_mesh({-100, -100, -3}, {200, 0, 0}, {0, 200, 0}, add_emitter(&s, {1, 0, 0})));
+    add_mesh_node(&s,
+                  quad_mesh({-100, -100, 3}, {0, 200, 0}, {200, 0, 0}, add_emitter(&s, {0, 1, 0})));
+    s.finalize();
+    Tracer tracer(s);
+    for (double degrees : {critical - 1.0, critical + 1.0}) {
+      const double a = degrees * M_PI / 180.0;
+      const Ray ray{{0, 0, 0}, {float(std::sin(a)), 0.0f, -float(std::cos(a))}};
+      TraceStats stats;
+      const ShadedSample out = tracer.trace(ray, &stats);
+      EXPECT_TRUE(finite(out.color));
+      if (degrees < critical) {
+        // Leaves through the bottom with 1 - F (F at the refracted angle's cosine), and once
+        // more after reflecting off the bottom and the top (F^2 (1 - F)); the depth limit
+        // ends the rest.
+        const double sin_t = 1.5 * std::sin(a);
+        const double F = schlick(1.5, std::sqrt(1.0 - sin_t * sin_t));
+        const double expected = (1.0 - F) * (1.0 + F * F);
+        EXPECT_NEAR(out.color.r, expected, 1e-3) << degrees << " double-sided " << double_sided;
+      } else {
+        EXPECT_EQ(out.color, glm::vec3(0.0f)) << degrees << " double-sided " << double_sided;
+        EXPECT_EQ(stats.reflection_rays, uint64_t(TracerOptions().max_mirror_depth));
+      }
+    }
+  }
+}
+
+// transmissionFactor 0 is opaque, whatever the ior: the same samples and rays as a material
+// without either extension.
+TEST(TracerTest, TransmissionZeroTracesAsBefore) {
+  const Scene plain = busy_scene();
+  Scene with_ior = plain;
+  for (Material& m : with_ior.materials) {
+    m.transmission = 0.0f;
+    m.ior = 1.2f;
+  }
+  Tracer a(plain), b(with_ior);
+  TraceStats sa, sb;
+  for (int k = 0; k < 64; ++k) {
+    const glm::vec3 to(float(k % 8) - 3.5f, float(k / 8) - 3.5f, -2.0f);
+    const Ray ray = ray_to({0.3f, 0.2f, 6.0f}, to);
+    const ShadedSample x = a.trace(ray, &sa), y = b.trace(ray, &sb);
+    EXPECT_EQ(x.color, y.color) << k;
+  }
+  EXPECT_EQ(sa.reflection_rays, sb.reflection_rays);
+  EXPECT_EQ(sa.shadow_rays, sb.shadow_rays);
+}
+
+// A glass sphere-like box seen from many directions, on a lit floor: every sample is finite
+// and a sample's secondary rays stay within 2 + 4 + ... + 2^depth (two per glass hit).
+TEST(TracerTest, GlassSamplesAreFiniteAndBoundedInRays) {
+  Scene s;
+  s.background = glm::vec3(0.2f, 0.3f, 0.5f);
+  s.ambient = glm::vec3(0.1f);
+  add_mesh_node(&s, box_mesh({1.0f, 1.0f, 1.0f}, add_glass(&s, 1.5f, true)));
+  add_mesh_node(&s, quad_mesh({-10, -2, 10}, {20, 0, 0}, {0, 0, -20},
+                              add_material(&s, glm::vec3(0.7f), 0.0f, 0.5f)));
+  Light sun;
+  sun.type = Light::Type::kDirectional;
+  add_light_node(&s, sun, {0, 5, 0}, pointing_down());
+  s.finalize();
+  Tracer tracer(s);
+  const int depth = tracer.options().max_mirror_depth;
+  uint64_t secondary = 0;
+  for (int k = 0; k < 200; ++k) {
+    const float a = float(k) * 0.0314f;
+    const Ray ray = ray_to({4.0f * std::cos(a), 1.5f, 4.0f * std::sin(a)},
+                           {0.3f * std::sin(3.0f * a), 0.2f, 0.0f});
+    TraceStats stats;
+    const ShadedSample out = tracer.trace(ray, &stats);
+    EXPECT_TRUE(finite(out.color)) << k;
+    EXPECT_EQ(stats.sanitized, 0u);
+    EXPECT_LE(stats.reflection_rays, uint64_t((2 << depth) - 2));
+    secondary += stats.reflection_rays;
+  }
+  EXPECT_GT(secondary, 200u);  // the rays do go through the glass
+}
+
 TEST(TracerTest, CrosshairEqualsFiveSingleRays) {
   const Scene s = busy_scene();
   for (bool packet : {true, false}) {

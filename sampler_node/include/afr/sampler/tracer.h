@@ -24,7 +24,9 @@
 namespace afr {
 
 struct TracerOptions {
-  int max_mirror_depth = 3;  // bounces of mirror reflection for smooth metals
+  // Secondary rays in a row: mirror reflections of smooth metals and the reflected and refracted
+  // rays of glass share it (docs/scene-model.md, "Transmission and refraction").
+  int max_mirror_depth = 3;
   bool shadows = true;
   // Roughness at or below which a metallic material reflects as a mirror.
   float mirror_roughness = 0.1f;
@@ -38,9 +40,9 @@ struct TracerOptions {
 struct TraceStats {
   uint64_t primary_rays = 0;
   uint64_t shadow_rays = 0;
-  uint64_t reflection_rays = 0;
-  uint64_t occlusion_rays = 0;  // visibility tests asked for by the sampler (occluded())
-  uint64_t sanitized = 0;       // shaded values that were NaN or Inf and were replaced
+  uint64_t reflection_rays = 0;  // mirror and glass reflections, and refractions
+  uint64_t occlusion_rays = 0;   // visibility tests asked for by the sampler (occluded())
+  uint64_t sanitized = 0;        // shaded values that were NaN or Inf and were replaced
 
   TraceStats& operator+=(const TraceStats& o);
 };
