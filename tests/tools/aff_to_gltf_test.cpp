@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -43,7 +44,7 @@ double same_rotation(const std::vector<double>& q, double degrees, glm::dvec3 ax
 }
 
 void expect_near(const std::vector<double>& a, const glm::dvec3& b, double tolerance) {
-  ASSERT_EQ(a.size(), 3u);
+  ASSERT_GE(a.size(), 3u);
   EXPECT_NEAR(a[0], b.x, tolerance);
   EXPECT_NEAR(a[1], b.y, tolerance);
   EXPECT_NEAR(a[2], b.z, tolerance);
@@ -107,20 +108,25 @@ TEST_F(HandSceneGltfTest, MapsMaterialsToMetallicRoughness) {
   const tinygltf::Material* textured = nullptr;
   for (const auto& mat : m().materials) {
     EXPECT_TRUE(mat.doubleSided);
-    const auto& c = mat.pbrMetallicRoughness.baseColorFactor;
-    if (c == std::vector<double>{0.8, 0.4, 0.2, 1.0}) f = &mat;
-    if (c == std::vector<double>{0.6, 0.5, 0.4, 1.0} &&
-        mat.pbrMetallicRoughness.baseColorTexture.index >= 0) {
+    const double shine = mat.extras.Get("afr_shine").GetNumberAsDouble();
+    if (shine == 20.0) f = &mat;
+    if (shine == 8.0 && mat.pbrMetallicRoughness.baseColorTexture.index >= 0) {
       const auto& tex = m().textures[size_t(mat.pbrMetallicRoughness.baseColorTexture.index)];
       if (m().images[size_t(tex.source)].uri == "checker.png") textured = &mat;
     }
   }
-  ASSERT_NE(f, nullptr);
-  EXPECT_DOUBLE_EQ(f->pbrMetallicRoughness.metallicFactor, 0.3);                     // Ks
+  // Diffuse D and mean specular s: metallic s / (d + s), base D / (1 - metallic), scaled to a
+  // largest channel of 1 where it exceeds 1 (docs/aff2gltf.md).
+  ASSERT_NE(f, nullptr);  // f 1 0.5 0.25 0.8 0.3 20: D = (0.8, 0.4, 0.2), d = 1.4 / 3, s = 0.3
+  const double f_metallic = 0.3 / (1.4 / 3.0 + 0.3);
+  EXPECT_NEAR(f->pbrMetallicRoughness.metallicFactor, f_metallic, 1e-12);
+  expect_near(f->pbrMetallicRoughness.baseColorFactor, {1.0, 0.5, 0.25}, 1e-12);  // 0.8 / 0.61 > 1
   EXPECT_DOUBLE_EQ(f->pbrMetallicRoughness.roughnessFactor, std::sqrt(2.0 / 22.0));  // shine 20
   EXPECT_EQ(f->extras.Get("afr_ambient").Get(0).GetNumberAsDouble(), 0.0);
-  ASSERT_NE(textured, nullptr);
-  EXPECT_NEAR(textured->pbrMetallicRoughness.metallicFactor, 0.2, 1e-15);  // mean specular
+  EXPECT_TRUE(f->extensions.empty());  // T = 0: opaque, no transmission or ior
+  ASSERT_NE(textured, nullptr);        // D = (0.6, 0.5, 0.4), s = 0.2: metallic 2 / 7, base 1.4 D
+  EXPECT_NEAR(textured->pbrMetallicRoughness.metallicFactor, 0.2 / 0.7, 1e-12);
+  expect_near(textured->pbrMetallicRoughness.baseColorFactor, {0.84, 0.7, 0.56}, 1e-12);
   EXPECT_DOUBLE_EQ(textured->pbrMetallicRoughness.roughnessFactor, std::sqrt(2.0 / 10.0));
   EXPECT_EQ(textured->extras.Get("afr_ambient").Get(1).GetNumberAsDouble(), 0.1);
   EXPECT_EQ(textured->emissiveFactor, (std::vector<double>{0, 0, 0}));
@@ -286,6 +292,94 @@ TEST(GltfTimelineTest, RepeatedKeyTimesAreBakedWithTheJump) {
   expect_near(node_property(g.model, obj, "translation", 2.0), {5, 0, 0}, 1e-6);
   EXPECT_NEAR(node_property(g.model, obj, "translation", 2.0 - 1e-3)[0], 2.0, 0.01);
   expect_near(node_property(g.model, obj, "translation", 3.0), {6, 0, 0}, 1e-6);
+}
+
+// ---- Materials as BART means them ----------------------------------------------------------
+
+// The diffuse part that afr's BRDF takes from a glTF material: base (1 - metallic).
+glm::dvec3 gltf_diffuse(const tinygltf::Material& mat) {
+  const auto& c = mat.pbrMetallicRoughness.baseColorFactor;
+  return glm::dvec3(c[0], c[1], c[2]) * (1.0 - mat.pbrMetallicRoughness.metallicFactor);
+}
+
+// BART's glass (kitchen: T 0.85, ior 1.55) becomes KHR_materials_transmission and
+// KHR_materials_ior, listed as used but not required; an opaque scene lists neither.
+TEST(AffMaterialsGltfTest, TransparentMaterialsWriteTransmissionAndIor) {
+  const GltfScene g = build_from_text(
+      "fm 0.065 0.065 0.065  0.065 0.065 0.065  0.05 0.05 0.05  20 0.85 1.55\n"
+      "p 3 0 0 0 1 0 0 0 1 0\n"
+      "fm 0 0 0  0.2 0.4 0.8  0 0 0  0 0.5 0\n"  // transmissive, index 0: no KHR_materials_ior
+      "p 3 0 0 1 1 0 1 0 1 1\n"
+      "fm 0.3 0.3 0.3  0.2 0.2 0.2  0 0 0  0 0 0\n"
+      "p 3 0 0 2 1 0 2 0 1 2\n");
+  ASSERT_EQ(g.model.materials.size(), 3u);
+  const tinygltf::Material& glass = g.model.materials[0];
+  ASSERT_TRUE(glass.extensions.count("KHR_materials_transmission"));
+  EXPECT_DOUBLE_EQ(glass.extensions.at("KHR_materials_transmission")
+                       .Get("transmissionFactor")
+                       .GetNumberAsDouble(),
+                   0.85);
+  ASSERT_TRUE(glass.extensions.count("KHR_materials_ior"));
+  EXPECT_DOUBLE_EQ(glass.extensions.at("KHR_materials_ior").Get("ior").GetNumberAsDouble(), 1.55);
+  // glTF tints transmitted light by the base color: grey glass gets white, not 0.065.
+  expect_near(glass.pbrMetallicRoughness.baseColorFactor, {1, 1, 1}, 1e-12);
+  EXPECT_EQ(glass.pbrMetallicRoughness.metallicFactor, 0.0);
+
+  const tinygltf::Material& tinted = g.model.materials[1];
+  ASSERT_TRUE(tinted.extensions.count("KHR_materials_transmission"));
+  EXPECT_FALSE(tinted.extensions.count("KHR_materials_ior"));
+  expect_near(tinted.pbrMetallicRoughness.baseColorFactor, {0.25, 0.5, 1.0}, 1e-12);  // hue
+  EXPECT_TRUE(g.model.materials[2].extensions.empty());
+
+  const auto& used = g.model.extensionsUsed;
+  EXPECT_NE(std::find(used.begin(), used.end(), "KHR_materials_transmission"), used.end());
+  EXPECT_NE(std::find(used.begin(), used.end(), "KHR_materials_ior"), used.end());
+  EXPECT_TRUE(g.model.extensionsRequired.empty());
+
+  const GltfScene opaque =
+      build_from_text("fm 0 0 0  0.5 0.5 0.5  0 0 0  0 0 0\np 3 0 0 0 1 0 0 0 1 0\n");
+  EXPECT_TRUE(opaque.model.extensionsUsed.empty());
+
+  // The afr loader reads both back.
+  const auto dir = test::fresh_temp_dir("aff-glass");
+  GltfScene written = g;
+  write_gltf(&written, dir / "glass.gltf");
+  const afr::Scene loaded = afr::load_gltf(dir / "glass.gltf");
+  std::filesystem::remove_all(dir);
+  ASSERT_EQ(loaded.materials.size(), 3u);
+  EXPECT_FLOAT_EQ(loaded.materials[0].transmission, 0.85f);
+  EXPECT_FLOAT_EQ(loaded.materials[0].ior, 1.55f);
+  EXPECT_FLOAT_EQ(loaded.materials[1].ior, 1.5f);
+  EXPECT_EQ(loaded.materials[2].transmission, 0.0f);
+}
+
+// A material with high specular and a real diffuse part keeps its diffuse (it rendered black
+// when the mean specular became metallicFactor); one without diffuse is a metal whose color is
+// its specular; one without specular is plain diffuse.
+TEST(AffMaterialsGltfTest, SpecularMaterialsKeepTheirDiffusePart) {
+  const GltfScene g = build_from_text(
+      "fm 0.2 0.1 0.1  0.5 0.2 0.2  0.9 0.9 0.9  100 0 0\n"
+      "p 3 0 0 0 1 0 0 0 1 0\n"
+      "fm 0 0 0  0 0 0  0.8 0.7 0.6  200 0 0\n"
+      "p 3 0 0 1 1 0 1 0 1 1\n"
+      "fm 0.1 0.1 0.1  0.3 0.6 0.9  0 0 0  5 0 0\n"
+      "p 3 0 0 2 1 0 2 0 1 2\n");
+  ASSERT_EQ(g.model.materials.size(), 3u);
+  // D = (0.5, 0.2, 0.2), d = 0.3, s = 0.9: metallic 0.75, base = 4 D = (2, 0.8, 0.8) scaled to
+  // (1, 0.4, 0.4); the diffuse part base (1 - metallic) = (0.25, 0.1, 0.1): half of D, not 0.
+  const tinygltf::Material& shiny = g.model.materials[0];
+  EXPECT_NEAR(shiny.pbrMetallicRoughness.metallicFactor, 0.75, 1e-12);
+  expect_near(shiny.pbrMetallicRoughness.baseColorFactor, {1.0, 0.4, 0.4}, 1e-12);
+  const glm::dvec3 diffuse = gltf_diffuse(shiny);
+  EXPECT_NEAR(diffuse.r, 0.25, 1e-12);
+  EXPECT_GT(std::min(diffuse.r, std::min(diffuse.g, diffuse.b)), 0.05);
+  // Specular RGB, metallic 1: a tinted mirror (shine 200: roughness 0.1, afr's mirror limit).
+  const tinygltf::Material& metal = g.model.materials[1];
+  EXPECT_EQ(metal.pbrMetallicRoughness.metallicFactor, 1.0);
+  expect_near(metal.pbrMetallicRoughness.baseColorFactor, {0.8, 0.7, 0.6}, 1e-12);
+  const tinygltf::Material& matte = g.model.materials[2];
+  EXPECT_EQ(matte.pbrMetallicRoughness.metallicFactor, 0.0);
+  expect_near(matte.pbrMetallicRoughness.baseColorFactor, {0.3, 0.6, 0.9}, 1e-12);
 }
 
 // Section 4.4: with only `transl`, the camera moves and keeps looking at v's `at`.

@@ -36,6 +36,47 @@ Value vec3_value(const glm::dvec3& v) {
   return Value(Value::Array{number(v.x), number(v.y), number(v.z)});
 }
 
+// Below this (largest diffuse channel) a material counts as having no diffuse part.
+constexpr double kNoDiffuse = 1e-3;
+
+struct PbrColor {
+  glm::dvec3 base{0.0};
+  double metallic = 0.0;
+};
+
+// The Phong material's diffuse (RGB D, mean d) and specular (mean s) as glTF metallic-roughness
+// (docs/aff2gltf.md, "Materials"). afr's BRDF takes base (1 - metallic) as its diffuse
+// reflectance and mix(0.04, base, metallic) as its specular one:
+// - no specular: base = D, metallic 0;
+// - specular but no diffuse: a metal, base = the specular RGB, metallic 1;
+// - both: metallic = s / (d + s) and base = D / (1 - metallic), so the diffuse part is D again
+//   and the specular one has mean about s (tinted by D's hue; Phong's is white). Where that
+//   base would exceed 1 it is scaled down to 1 (the diffuse loses the same factor);
+// - transmissive: metallic 0 and base = D's hue at full strength (white for grey or black D),
+//   because glTF tints the transmitted light by the base color and AFF does not.
+PbrColor phong_to_pbr(const Material& m) {
+  const glm::dvec3 diffuse = glm::clamp(m.diffuse, 0.0, 1.0);
+  const glm::dvec3 specular = glm::clamp(m.specular, 0.0, 1.0);
+  const double d = (diffuse.r + diffuse.g + diffuse.b) / 3.0;
+  const double s = (specular.r + specular.g + specular.b) / 3.0;
+  const double d_max = std::max(diffuse.r, std::max(diffuse.g, diffuse.b));
+  PbrColor out;
+  if (m.transmittance > 0.0) {
+    out.base = d_max > kNoDiffuse ? diffuse / d_max : glm::dvec3(1.0);
+  } else if (s <= 0.0) {
+    out.base = diffuse;
+  } else if (d_max <= kNoDiffuse) {
+    out.base = specular;
+    out.metallic = 1.0;
+  } else {
+    out.metallic = s / (d + s);
+    out.base = diffuse / (1.0 - out.metallic);
+    const double b_max = std::max(out.base.r, std::max(out.base.g, out.base.b));
+    if (b_max > 1.0) out.base /= b_max;
+  }
+  return out;
+}
+
 // Turn between two rotations, in radians, whichever sign the quaternions carry.
 double quat_angle(const glm::dquat& a, const glm::dquat& b) {
   return 2.0 * std::acos(std::min(1.0, std::abs(glm::dot(a, b))));
@@ -189,8 +230,20 @@ class Builder {
       g.doubleSided = true;
       g.emissiveFactor = {0.0, 0.0, 0.0};
       auto& pbr = g.pbrMetallicRoughness;
-      pbr.baseColorFactor = {m.diffuse.r, m.diffuse.g, m.diffuse.b, 1.0};
-      pbr.metallicFactor = std::clamp((m.specular.r + m.specular.g + m.specular.b) / 3.0, 0.0, 1.0);
+      const PbrColor pbr_color = phong_to_pbr(m);
+      pbr.baseColorFactor = {pbr_color.base.r, pbr_color.base.g, pbr_color.base.b, 1.0};
+      pbr.metallicFactor = pbr_color.metallic;
+      if (m.transmittance > 0.0) {
+        g.extensions["KHR_materials_transmission"] =
+            Value(Value::Object{{"transmissionFactor", number(std::min(m.transmittance, 1.0))}});
+        use_extension("KHR_materials_transmission");
+        // An index below 1 (0 is written for opaque materials) is no refraction glTF can say:
+        // the glTF default, 1.5, applies.
+        if (m.ior >= 1.0) {
+          g.extensions["KHR_materials_ior"] = Value(Value::Object{{"ior", number(m.ior)}});
+          use_extension("KHR_materials_ior");
+        }
+      }
       pbr.roughnessFactor = std::clamp(std::sqrt(2.0 / (std::max(m.shine, 0.0) + 2.0)), 0.02, 1.0);
       if (!m.texture.empty()) {
         auto it = textures.find(m.texture);
@@ -206,6 +259,13 @@ class Builder {
                                      {"afr_ior", number(m.ior)}});
       model_.materials.push_back(std::move(g));
     }
+  }
+
+  // Listed in extensionsUsed, never in extensionsRequired: a reader without them still shows
+  // the scene, opaque.
+  void use_extension(const std::string& name) {
+    auto& used = model_.extensionsUsed;
+    if (std::find(used.begin(), used.end(), name) == used.end()) used.push_back(name);
   }
 
   int add_texture(const std::filesystem::path& source, std::set<std::string>* uris) {
