@@ -273,16 +273,29 @@ void Loader::parse(std::span<const uint8_t> bytes) {
     }
     fail(fmt::format("invalid glTF: {}", problem.empty() ? "unknown error" : problem));
   }
-  // tinygltf warns about things such as a missing external image; pass them on.
-  size_t start = 0;
-  while (start < warn.size()) {
-    size_t end = warn.find('\n', start);
-    if (end == std::string::npos) end = warn.size();
-    if (end > start) {
-      const std::string line = warn.substr(start, end - start);
-      warn_once("tinygltf: " + line, line);
+  // tinygltf warns about things such as a missing external image, and tells in `err` what it
+  // skipped without failing (an animation channel without a target node: glTF allows those for
+  // extensions to drive, tinygltf drops them); pass them on.
+  for (const std::string* text : {&warn, &err}) {
+    size_t start = 0;
+    while (start < text->size()) {
+      size_t end = text->find('\n', start);
+      if (end == std::string::npos) end = text->size();
+      if (end > start) {
+        const std::string line = text->substr(start, end - start);
+        // (tinygltf says it in two lines: "'node' property is missing." and "`node` field is
+        // missing in animation.channels.target".)
+        if (line.find("`node` field is missing in animation.channels.target") !=
+                std::string::npos ||
+            line == "'node' property is missing.") {
+          warn_once("channel without node",
+                    "animation channels without a target node are not supported (skipped)");
+        } else {
+          warn_once("tinygltf: " + line, line);
+        }
+      }
+      start = end + 1;
     }
-    start = end + 1;
   }
 }
 

@@ -609,7 +609,8 @@ TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {
   GltfBuilder b;
   const int positions = add_quad(&b);
   // An unknown extension in two places, two line primitives, an orthographic camera, an
-  // unknown interpolation used twice and a morph target of texture coordinates used twice.
+  // unknown interpolation used twice, a morph target of texture coordinates used twice and two
+  // channels without a target node (glTF allows them, for extensions to drive).
   b.doc()["nodes"] = json::array({{{"mesh", 0}, {"children", {1}}}, {{"mesh", 0}, {"camera", 0}}});
   b.doc()["extensionsUsed"] = {"EXT_made_up"};
   b.doc()["materials"] = json::array({{{"extensions", {{"EXT_made_up", {{"x", 1}}}}}}});
@@ -632,7 +633,9 @@ TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {
       json::array({{{"channels",
                      {{{"sampler", 0}, {"target", {{"node", 0}, {"path", "translation"}}}},
                       {{"sampler", 0}, {"target", {{"node", 1}, {"path", "translation"}}}},
-                      {{"sampler", 1}, {"target", {{"node", 1}, {"path", "scale"}}}}}},
+                      {{"sampler", 1}, {"target", {{"node", 1}, {"path", "scale"}}}},
+                      {{"sampler", 1}, {"target", {{"path", "scale"}}}},
+                      {{"sampler", 1}, {"target", {{"path", "translation"}}}}}},
                     {"samplers",
                      {{{"input", times}, {"output", values}, {"interpolation", "SMOOTHSTEP"}},
                       {{"input", times}, {"output", values}}}}}});
@@ -649,7 +652,8 @@ TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {
   EXPECT_EQ(count_containing(report.warnings, "orthographic"), 1u);
   EXPECT_EQ(count_containing(report.warnings, "SMOOTHSTEP"), 1u);
   EXPECT_EQ(count_containing(report.warnings, "morph targets of TEXCOORD_0"), 1u);
-  EXPECT_EQ(report.warnings.size(), 5u);
+  EXPECT_EQ(count_containing(report.warnings, "without a target node"), 1u);
+  EXPECT_EQ(report.warnings.size(), 6u);
 
   ASSERT_EQ(scene.meshes.size(), 1u);
   ASSERT_EQ(scene.meshes[0].primitives.size(), 1u);
