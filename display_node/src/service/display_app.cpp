@@ -212,7 +212,9 @@ struct DisplayApp::State {
   void frame_at(double t, std::atomic<bool>& stop);
   // The window's frame: the image (or an overlay) drawn and shown, then the input read.
   // Returns whether the image is the cell at its own size (the wall exchange's scale).
-  bool show_in_window(const Camera& camera, double t);
+  // `want_image`: `image` should hold this frame's image at the cell's size (the dashboard);
+  // *read_back says whether it does.
+  bool show_in_window(const Camera& camera, double t, bool want_image, bool* read_back);
   void read_input(const Camera& camera, double t, std::atomic<bool>& stop);
   void save(const std::string& stem, double t);
   void report_stats(double t);
@@ -316,8 +318,7 @@ void DisplayApp::State::frame_at(double t, std::atomic<bool>& stop) {
   const bool dashboard = metrics.dashboard().wants_image();
   bool read_back = false;  // `image` holds this frame's image at the cell's size
   if (window) {
-    cell_sized = show_in_window(camera, t);
-    read_back = input.overlay != 0 && whole;
+    cell_sized = show_in_window(camera, t, dashboard, &read_back);
     read_input(camera, t, stop);
   } else {
     // The image leaves the reconstructor (a GPU's memory) only when it is written out.
@@ -327,6 +328,7 @@ void DisplayApp::State::frame_at(double t, std::atomic<bool>& stop) {
     recon->reconstruct(camera, t, out_w, out_h, read_back ? &image : nullptr);
   }
   if (dashboard) {
+    // (A window larger than the cell drew another size: one more image, at the cell's.)
     if (!read_back) recon->reconstruct(camera, t, out_w, out_h, &image);
     // (A wall node's overlays would be in whole-image pixels: its cell alone.)
     metrics.dashboard().publish(
@@ -345,15 +347,18 @@ void DisplayApp::State::frame_at(double t, std::atomic<bool>& stop) {
   if (done >= next_stats) report_stats(done);
 }
 
-bool DisplayApp::State::show_in_window(const Camera& camera, double t) {
+bool DisplayApp::State::show_in_window(const Camera& camera, double t, bool want_image,
+                                       bool* read_back) {
   bool cell_sized = false;
   if (input.overlay == 0 || !whole) {
     int fw = 0, fh = 0;
     window->framebuffer_size(&fw, &fh);
-    recon->reconstruct(camera, t, std::max(1, fw), std::max(1, fh), nullptr);
     cell_sized = fw == out_w && fh == out_h;
+    *read_back = want_image && cell_sized;
+    recon->reconstruct(camera, t, std::max(1, fw), std::max(1, fh), *read_back ? &image : nullptr);
     window->draw(*gl);
   } else {
+    *read_back = true;
     // An overlay: the image read back at the sampling size, drawn over, scaled up.
     recon->reconstruct(camera, t, out_w, out_h, &image);
     const auto tilings = tee->tilings();
