@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include <fcntl.h>
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <ctime>
@@ -191,10 +192,18 @@ inline bool port_free(int port) {
 }
 
 // A base port P with P..P+3 free (the display's three channels and its metrics port).
+// Four free ports in a row, below the kernel's ephemeral range (outgoing connections of
+// tests running beside, a browser's say, take ports from that range and could take one of
+// ours between this check and the display's bind).
 inline int free_base_port() {
   std::mt19937 rng(std::random_device{}());
+  int ephemeral_low = 32768;
+  if (std::ifstream range("/proc/sys/net/ipv4/ip_local_port_range"); range) {
+    range >> ephemeral_low;
+  }
+  const int lo = 10000, hi = std::max(lo + 1000, ephemeral_low - 4);
   for (int attempt = 0; attempt < 200; ++attempt) {
-    const int p = 20000 + int(rng() % 20000) * 1;
+    const int p = lo + int(rng() % uint32_t(hi - lo));
     if (port_free(p) && port_free(p + 1) && port_free(p + 2) && port_free(p + 3)) return p;
   }
   return 0;
