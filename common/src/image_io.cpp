@@ -1,6 +1,9 @@
 // The image files of image.h, through OpenImageIO. Kept apart from image.cpp (pixels, sRGB,
-// the error metric) so that a program that never reads or writes a file, a reconstruction
-// benchmark say, links without OpenImageIO and its hundreds of megabytes of dependencies.
+// the error metric) and image_decode.cpp (textures in memory, stb_image) so that a program that
+// never reads or writes an image file links without OpenImageIO and its hundreds of megabytes
+// of dependencies (every program links with --as-needed).
+#include "image_formats.h"
+
 #include <afr/common/image.h>
 
 #include <afr/common/error.h>
@@ -10,7 +13,6 @@
 // pulls this file, and OpenImageIO with it, into every program that formats a string.
 #include <fmt/format.h>
 
-#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
@@ -18,17 +20,16 @@
 #include <cctype>
 #include <cmath>
 #include <cstring>
+#include <fstream>
+#include <iterator>
 #include <string_view>
 #include <system_error>
 
 namespace afr {
 namespace {
 
-// Images larger than this are refused before any pixel memory is allocated: a file header is
-// untrusted input, and 2^28 pixels (16384 x 16384) is far beyond any texture or reference image
-// afr uses.
-constexpr uint64_t kMaxImagePixels = uint64_t(1) << 28;
-constexpr int kMaxImageSide = 1 << 16;
+using image_formats::kMaxImagePixels;
+using image_formats::kMaxImageSide;
 
 std::string trimmed(std::string s) {
   while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
@@ -49,26 +50,6 @@ std::string lower_extension(const std::filesystem::path& path) {
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return ext;
-}
-
-// The OIIO format of an encoded image, from its first bytes; empty when none matches. A name
-// such as "image 3 of scene.glb" carries no extension, so the bytes decide.
-std::string sniff_format(std::span<const uint8_t> b) {
-  auto starts_with = [&](std::initializer_list<uint8_t> magic) {
-    return b.size() >= magic.size() && std::equal(magic.begin(), magic.end(), b.begin());
-  };
-  if (starts_with({0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A})) return "png";
-  if (starts_with({0xFF, 0xD8, 0xFF})) return "jpeg";
-  if (starts_with({'B', 'M'})) return "bmp";
-  if (starts_with({'G', 'I', 'F', '8'})) return "gif";
-  if (starts_with({0x76, 0x2F, 0x31, 0x01})) return "openexr";
-  if (starts_with({'I', 'I', '*', 0}) || starts_with({'M', 'M', 0, '*'})) return "tiff";
-  if (starts_with({'#', '?'})) return "hdr";
-  if (b.size() >= 12 && starts_with({'R', 'I', 'F', 'F'}) && std::memcmp(&b[8], "WEBP", 4) == 0) {
-    return "webp";
-  }
-  if (b.size() >= 2 && b[0] == 'P' && b[1] >= '1' && b[1] <= '6') return "pnm";
-  return {};
 }
 
 // Asks readers for the values as stored: without it, OIIO premultiplies color by alpha (PNG),
@@ -182,31 +163,24 @@ Image read_image(const std::filesystem::path& path) {
 
 // ---- 8-bit images ----
 
-DecodedImage decode_image(std::span<const uint8_t> bytes, const std::string& name) {
-  if (bytes.empty()) throw Error(fmt::format("{}: image data is empty", name));
-  const std::string format = sniff_format(bytes);
-  if (format.empty()) {
-    throw Error(fmt::format("{}: not an image format afr can decode (expected PNG or JPEG)", name));
-  }
-  auto in = OIIO::ImageInput::create(format);
-  if (!in || !in->supports("ioproxy")) {
-    throw Error(fmt::format("{}: {} images cannot be decoded from memory: {}", name, format,
-                            oiio_error(in.get())));
-  }
-  OIIO::Filesystem::IOMemReader proxy(bytes.data(), bytes.size());
-  in->set_ioproxy(&proxy);
-  OIIO::ImageSpec spec;
-  if (!in->open(name, spec, as_stored_config())) {
-    throw Error(fmt::format("{}: cannot decode {} image: {}", name, format, oiio_error(in.get())));
-  }
-  return read_8bit(in.get(), name);
-}
-
 DecodedImage decode_image_file(const std::filesystem::path& path) {
   const std::string name = path.string();
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) {
     throw Error(fmt::format("{}: no such image file", name));
+  }
+  // The formats decode_image reads go through it, so that a texture decodes to the same values
+  // from a file and from inside a .glb; OpenImageIO reads the rest (ASCII PNM, TIFF, ...).
+  std::ifstream file(path, std::ios::binary);
+  std::array<uint8_t, 16> head{};
+  file.read(reinterpret_cast<char*>(head.data()), std::streamsize(head.size()));
+  const auto got = size_t(file.gcount());
+  if (image_formats::decoded_in_memory(image_formats::sniff({head.data(), got}))) {
+    file.clear();
+    file.seekg(0);
+    const std::vector<uint8_t> bytes{std::istreambuf_iterator<char>(file),
+                                     std::istreambuf_iterator<char>()};
+    return decode_image(bytes, name);
   }
   const OIIO::ImageSpec config = as_stored_config();
   auto in = OIIO::ImageInput::open(name, &config);

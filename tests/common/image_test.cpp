@@ -2,6 +2,7 @@
 
 #include <afr/common/error.h>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -201,7 +202,7 @@ TEST_F(ImageTest, DecodeFromMemoryEqualsDecodeFromFile) {
   EXPECT_EQ(jpg_memory.data, jpg_file.data);
 }
 
-TEST_F(ImageTest, DecodesBinaryAndAsciiPpm) {
+TEST_F(ImageTest, DecodesBinaryAndAsciiPpmFilesAndBinaryPpmBytes) {
   const fs::path p6 = dir_ / "binary.ppm";
   write_bytes(p6, std::string("P6\n2 1\n255\n") + std::string("\x0a\x14\x1e\xff\x00\x80", 6));
   const fs::path p3 = dir_ / "ascii.ppm";
@@ -213,7 +214,15 @@ TEST_F(ImageTest, DecodesBinaryAndAsciiPpm) {
     EXPECT_EQ(image.height, 1) << path;
     EXPECT_EQ(image.channels, 3) << path;
     EXPECT_EQ(image.data, expected) << path;
-    EXPECT_EQ(decode_image(read_bytes(path), path.string()).data, expected) << path;
+  }
+  // In memory (a texture inside a .glb) only the binary form decodes; the ASCII one is refused
+  // by name, not misread.
+  EXPECT_EQ(decode_image(read_bytes(p6), p6.string()).data, expected);
+  try {
+    decode_image(read_bytes(p3), "ascii in memory");
+    FAIL() << "ASCII PNM bytes decoded";
+  } catch (const Error& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("ascii in memory: ASCII PNM"));
   }
 }
 

@@ -44,8 +44,12 @@ struct DecodedImage {
   int channels = 0;           // 1..4
   std::vector<uint8_t> data;  // width * height * channels, row 0 at the top
 };
-// `name` is used in error messages (a file name or "image 3 of scene.glb").
+// Decodes PNG, JPEG, BMP, GIF and binary PNM bytes (stb_image; glTF's images are PNG or JPEG);
+// other formats are refused by name. `name` is used in error messages (a file name or
+// "image 3 of scene.glb").
 DecodedImage decode_image(std::span<const uint8_t> bytes, const std::string& name);
+// Decodes a file: the formats above as decode_image does, any other OpenImageIO reads (ASCII
+// PNM, TIFF, ...) through OpenImageIO.
 DecodedImage decode_image_file(const std::filesystem::path& path);
 // Writes 8-bit pixels as they are (no color conversion) to PNG or any format by extension.
 void write_image8(const DecodedImage& image, const std::filesystem::path& path);
