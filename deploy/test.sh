@@ -2,11 +2,13 @@
 # Builds afr and runs its tests. Three builds, each in its own folder (CMakePresets.json):
 #   release  g++ -O2: every target, every test, the format check included       (build/)
 #   asan     clang, AddressSanitizer + UndefinedBehaviorSanitizer: the programs the tests run
-#            (target afr_tests) and the tests again, plus a 30 s run of each libFuzzer target;
-#            left out: the format check, two resident-memory bounds and the two largest
-#            seam comparisons (1024-pixel and OpenGL walls: minutes of arithmetic under the
-#            sanitizer, with no memory path the smaller seam and wall tests do not take;
-#            the release build runs them)                                 (build-asan/)
+#            (target afr_tests) and the tests again, plus a 15 s run of each libFuzzer target;
+#            left out: the format check, two resident-memory bounds, the three largest
+#            seam comparisons (1024-pixel and OpenGL walls, six refreshes without exchange),
+#            the 64-image stability comparison and the eval's method ranking: 30 s to
+#            minutes of arithmetic each under the sanitizer, with no memory path the smaller
+#            seam, wall, reconstructor and eval tests do not take; the release build runs
+#            them)                                                        (build-asan/)
 #   tsan     clang, ThreadSanitizer: the tests of the concurrent parts (sample ingest and
 #            reconstruction, the sampler's worker threads, the channels)       (build-tsan/)
 # The sanitizer builds' test selection and options are the test presets (ctest --preset asan,
