@@ -17,7 +17,7 @@ packages=(
   # the dashboard's browser test; promtool for deploy/monitoring's check
   chromium prometheus
   # messaging
-  libzmq3-dev cppzmq-dev libsodium-dev libcpp-httplib-dev iproute2 nftables
+  libzmq3-dev cppzmq-dev libsodium-dev libcpp-httplib-dev prometheus-cpp-dev iproute2 nftables
   # flags, logging
   libcli11-dev libspdlog-dev libfmt-dev
   # tests and benchmarks

@@ -2,6 +2,7 @@
 # clock and views, ingest, metrics over HTTP, overlays, the display wall. docs/service.md,
 # docs/wall.md.
 find_package(PkgConfig REQUIRED)
+find_package(prometheus-cpp REQUIRED)
 pkg_check_modules(AFR_HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
 
 add_library(afr_display_service
@@ -24,7 +25,7 @@ add_library(afr_display_service
 target_include_directories(afr_display_service PUBLIC ${CMAKE_CURRENT_LIST_DIR}/include)
 target_link_libraries(afr_display_service
   PUBLIC afr_display afr_protocol Threads::Threads
-  PRIVATE PkgConfig::AFR_HTTPLIB nlohmann_json::nlohmann_json glfw)
+  PRIVATE PkgConfig::AFR_HTTPLIB nlohmann_json::nlohmann_json glfw prometheus-cpp::core)
 
 add_executable(display_node ${CMAKE_CURRENT_LIST_DIR}/main.cpp)
 target_link_libraries(display_node PRIVATE afr_display_service CLI11::CLI11)

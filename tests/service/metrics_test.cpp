@@ -3,8 +3,17 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <random>
+#include <set>
+#include <sstream>
+#include <string>
 
 namespace afr::service {
 namespace {
@@ -141,6 +150,87 @@ TEST(ServiceMetricsTest, RefreshAndReconstructionFiguresCoverTheWholeStatsPeriod
   d = m.display();
   EXPECT_NEAR(d.period_reconstruct_ms_mean, 30.0, 0.2);
   EXPECT_NEAR(d.period_frame_interval_ms_p99, 100.0, 0.2);
+}
+
+// A service with two members, frames, latencies, a GPU backend and a wall cell: every family
+// of the exposition has series.
+void make_busy(ServiceMetrics& m) {
+  m.on_member("a", 1, "", 2);
+  m.on_member("b", 2, "", 4);
+  m.on_region(1, PixelRect{0, 0, 64, 128}, 1, 0);
+  m.on_region(2, PixelRect{64, 0, 128, 128}, 1, 0);
+  for (uint32_t id : {1u, 2u}) {
+    SampleBatch b;
+    b.sampler_id = id;
+    b.sequence = 1;
+    b.samples.resize(100);
+    for (Sample& s : b.samples) s.time = 1.0;
+    m.on_batch(b, 3000, true);
+  }
+  GpuTimes gpu;
+  gpu.timed = true;
+  gpu.upload = 0.5;
+  gpu.splat = 2.0;
+  m.set_gpu(gpu);
+  m.set_wall(0, PixelRect{0, 0, 128, 128}, 1, 1);
+  for (int i = 0; i < 30; ++i) m.on_frame(1.01 + 0.02 * i, 4.0 + i, 200, 1000);
+  m.end_period(1.0);
+}
+
+// The series names (with their labels) of an exposition, comments left out.
+std::set<std::string> series(const std::string& text) {
+  std::set<std::string> out;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    out.insert(line.substr(0, line.rfind(' ')));
+  }
+  return out;
+}
+
+TEST(ServiceMetricsTest, PromtoolAcceptsTheExposition) {
+  // promtool (Debian package prometheus, installed by deploy/install-deps.sh) checks the text
+  // format and the naming conventions: base units, _total on counters.
+  if (std::system("promtool --version >/dev/null 2>&1") != 0) {
+    GTEST_SKIP() << "promtool is not installed (Debian package prometheus)";
+  }
+  const std::filesystem::path file =
+      std::filesystem::temp_directory_path() / ("afr_metrics_" + std::to_string(getpid()));
+  ServiceMetrics m;
+  make_busy(m);
+  std::ofstream(file) << prometheus_text(m);
+  const std::string command = "promtool check metrics < " + file.string() + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::string output;
+  char buffer[512];
+  while (fgets(buffer, sizeof buffer, pipe) != nullptr) output += buffer;
+  const int status = pclose(pipe);
+  std::filesystem::remove(file);
+  EXPECT_EQ(status, 0) << output;
+  EXPECT_EQ(output, "");
+}
+
+TEST(ServiceMetricsTest, UnitsAreSecondsAndRecutsStartNoNewSeries) {
+  ServiceMetrics m;
+  make_busy(m);
+  const std::string before = prometheus_text(m);
+  // 30 reconstructions of 4-33 ms: the histogram in seconds, the last one as a gauge.
+  EXPECT_NE(before.find("afr_display_reconstruct_seconds_count 30"), std::string::npos) << before;
+  EXPECT_NE(before.find("afr_display_reconstruct_seconds_bucket{le=\"0.01\"} 6"),
+            std::string::npos);
+  EXPECT_NE(before.find("afr_display_last_reconstruct_seconds 0.033"), std::string::npos);
+  EXPECT_NE(before.find("afr_display_gpu_pass_seconds{pass=\"splat\"} 0.002"), std::string::npos);
+  EXPECT_NE(before.find("afr_sampler_region_edge_pixels{edge=\"x1\",sampler=\"1\"} 64"),
+            std::string::npos);
+  EXPECT_EQ(before.find("_ms"), std::string::npos) << "a metric in milliseconds";
+  // A recut moves the regions: the same series carry the new edges.
+  m.on_region(1, PixelRect{0, 0, 80, 128}, 2, 1);
+  m.on_region(2, PixelRect{80, 0, 128, 128}, 2, 1);
+  const std::string after = prometheus_text(m);
+  EXPECT_EQ(series(before), series(after));
+  EXPECT_NE(after.find("afr_sampler_region_edge_pixels{edge=\"x1\",sampler=\"1\"} 80"),
+            std::string::npos);
 }
 
 }  // namespace

@@ -174,6 +174,7 @@ void ServiceMetrics::on_frame(double time, double ms, uint64_t stored, uint64_t 
   ++display_.frames;
   ++period_frames_;
   period_reconstruct_.add(ms * 1e-3, 1);
+  reconstruct_.add(ms * 1e-3, 1);
   if (last_frame_time_ >= 0.0 && time >= last_frame_time_) {
     period_interval_.add(time - last_frame_time_, 1);
   }
@@ -260,6 +261,11 @@ std::vector<SamplerMetrics> ServiceMetrics::samplers() const {
 LatencyHistogram ServiceMetrics::latency() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return latency_;
+}
+
+LatencyHistogram ServiceMetrics::reconstruct_times() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return reconstruct_;
 }
 
 }  // namespace afr::service

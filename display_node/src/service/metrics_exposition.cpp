@@ -1,7 +1,15 @@
 #include <afr/display/service/metrics_exposition.h>
 
 #include <fmt/format.h>
+#include <prometheus/metric_family.h>
+#include <prometheus/text_serializer.h>
 #include <nlohmann/json.hpp>
+
+#include <array>
+#include <limits>
+#include <string>
+#include <utility>
+#include <vector>
 
 namespace afr::service {
 
@@ -22,139 +30,187 @@ nlohmann::json gpu_json(const GpuTimes& g) {
 
 }  // namespace
 
+// The Prometheus exposition: the families are built from one reading of ServiceMetrics and
+// written by prometheus-cpp's TextSerializer (names, escaping and the text format are its).
+// Conventions (https://prometheus.io/docs/practices/naming/): base units (seconds, bytes), a
+// counter's name ends in _total, and labels take a bounded set of values (a sampler's id, a
+// pass, an edge), never a measurement such as a region's coordinates, which would start new
+// series at every recut.
 std::string prometheus_text(const ServiceMetrics& metrics) {
+  using prometheus::ClientMetric;
+  using prometheus::MetricFamily;
+  using prometheus::MetricType;
   const DisplayMetrics d = metrics.display();
   const std::vector<SamplerMetrics> ss = metrics.samplers();
-  const LatencyHistogram lat = metrics.latency();
-  std::string o;
-  auto metric = [&](const char* name, const char* type, const char* help) {
-    o += fmt::format("# HELP {} {}\n# TYPE {} {}\n", name, help, name, type);
+  std::vector<MetricFamily> families;
+
+  auto family = [&](std::string name, MetricType type, std::string help) -> MetricFamily& {
+    families.push_back({std::move(name), std::move(help), type, {}});
+    return families.back();
   };
-  auto per_sampler = [&](const char* name, const char* type, const char* help, auto value) {
-    metric(name, type, help);
+  auto sample = [](MetricType type, double value, std::vector<ClientMetric::Label> labels = {}) {
+    ClientMetric m;
+    m.label = std::move(labels);
+    if (type == MetricType::Counter)
+      m.counter.value = value;
+    else
+      m.gauge.value = value;
+    return m;
+  };
+  auto scalar = [&](std::string name, MetricType type, std::string help, double value) {
+    family(std::move(name), type, std::move(help)).metric.push_back(sample(type, value));
+  };
+  auto per_sampler = [&](std::string name, MetricType type, std::string help, auto value) {
+    MetricFamily& f = family(std::move(name), type, std::move(help));
     for (const SamplerMetrics& s : ss) {
-      o += fmt::format("{}{{sampler=\"{}\"}} {}\n", name, s.id, value(s));
+      f.metric.push_back(sample(type, double(value(s)), {{"sampler", std::to_string(s.id)}}));
     }
   };
-  per_sampler("afr_sampler_member", "gauge", "1 while the sampler is a member",
+  auto edges = [](const PixelRect& r) {
+    return std::array<std::pair<const char*, int>, 4>{
+        {{"x0", r.x0}, {"y0", r.y0}, {"x1", r.x1}, {"y1", r.y1}}};
+  };
+  // Upper bounds from 1 ms to 2 s (LatencyHistogram's range), and +Inf.
+  auto histogram = [&](std::string name, std::string help, const LatencyHistogram& h) {
+    ClientMetric m;
+    for (double le : {0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0}) {
+      m.histogram.bucket.push_back({h.count_at_most(le), le});
+    }
+    m.histogram.bucket.push_back({h.count(), std::numeric_limits<double>::infinity()});
+    m.histogram.sample_count = h.count();
+    m.histogram.sample_sum = h.sum();
+    family(std::move(name), MetricType::Histogram, std::move(help)).metric.push_back(m);
+  };
+  constexpr auto counter = MetricType::Counter;
+  constexpr auto gauge = MetricType::Gauge;
+
+  per_sampler("afr_sampler_member", gauge, "1 while the sampler is a member",
               [](const SamplerMetrics& s) { return int(s.member); });
-  per_sampler("afr_sampler_samples_total", "counter", "samples received",
+  per_sampler("afr_sampler_samples_total", counter, "samples received",
               [](const SamplerMetrics& s) { return s.samples; });
-  per_sampler("afr_sampler_samples_per_second", "gauge", "samples received per second",
+  per_sampler("afr_sampler_samples_per_second", gauge,
+              "samples received per second over the last stats period",
               [](const SamplerMetrics& s) { return s.samples_per_second; });
-  per_sampler("afr_sampler_bytes_total", "counter", "bytes received on the sample channel",
+  per_sampler("afr_sampler_bytes_total", counter, "bytes received on the sample channel",
               [](const SamplerMetrics& s) { return s.bytes; });
-  per_sampler("afr_sampler_bytes_per_second", "gauge", "bytes received per second",
+  per_sampler("afr_sampler_bytes_per_second", gauge,
+              "bytes received per second over the last stats period",
               [](const SamplerMetrics& s) { return s.bytes_per_second; });
-  per_sampler("afr_sampler_batches_total", "counter", "batches received",
+  per_sampler("afr_sampler_batches_total", counter, "batches received",
               [](const SamplerMetrics& s) { return s.batches; });
-  per_sampler("afr_sampler_batches_dropped_total", "counter",
+  per_sampler("afr_sampler_batches_dropped_total", counter,
               "batches the sampler dropped (its queue was full), as it reports",
               [](const SamplerMetrics& s) { return s.reported.batches_dropped; });
-  per_sampler("afr_sampler_sequence_gaps_total", "counter",
+  per_sampler("afr_sampler_sequence_gaps_total", counter,
               "batches missing from the sequence numbers received",
               [](const SamplerMetrics& s) { return s.sequence_gaps; });
-  per_sampler("afr_sampler_reported_samples_per_second", "gauge",
+  per_sampler("afr_sampler_reported_samples_per_second", gauge,
               "samples per second the sampler reports (shown only: shares are measured)",
               [](const SamplerMetrics& s) { return s.reported.samples_per_second; });
-  per_sampler("afr_sampler_measured_samples_per_second", "gauge",
+  per_sampler("afr_sampler_measured_samples_per_second", gauge,
               "samples per second accepted from the sampler, smoothed: what its share follows",
               [](const SamplerMetrics& s) { return s.measured_samples_per_second; });
-  per_sampler("afr_sampler_starved", "gauge",
+  per_sampler("afr_sampler_starved", gauge,
               "1 while nothing arrives from the sampler and others deliver (its region is a strip)",
               [](const SamplerMetrics& s) { return int(s.starved); });
-  per_sampler("afr_sampler_region_pixels", "gauge", "pixels of the sampler's region",
+  per_sampler("afr_sampler_region_pixels", gauge, "pixels of the sampler's region",
               [](const SamplerMetrics& s) { return s.region.area(); });
-  metric("afr_sampler_region", "gauge", "the sampler's region, labels x0 y0 x1 y1");
-  for (const SamplerMetrics& s : ss) {
-    o += fmt::format(
-        "afr_sampler_region{{sampler=\"{}\",x0=\"{}\",y0=\"{}\",x1=\"{}\",y1=\"{}\"}} 1\n", s.id,
-        s.region.x0, s.region.y0, s.region.x1, s.region.y1);
-  }
-  auto scalar = [&](const char* name, const char* type, const char* help, auto value) {
-    metric(name, type, help);
-    o += fmt::format("{} {}\n", name, value);
-  };
-  scalar("afr_display_members", "gauge", "samplers in the session", d.members);
-  scalar("afr_display_frames_total", "counter", "images reconstructed", d.frames);
-  scalar("afr_display_reconstruct_ms", "gauge", "wall time of the last reconstruction",
-         d.reconstruct_ms);
-  scalar("afr_display_refresh_hz", "gauge", "images per second", d.refresh_hz);
-  if (d.gpu.timed) {
-    metric("afr_display_gpu_pass_ms", "gauge",
-           "GPU time of each pass of the latest image the GPU finished (GL_TIME_ELAPSED)");
-    for (const auto& [pass, ms] : gpu_passes(d.gpu)) {
-      o += fmt::format("afr_display_gpu_pass_ms{{pass=\"{}\"}} {}\n", pass, ms);
+  {
+    MetricFamily& f = family("afr_sampler_region_edge_pixels", gauge,
+                             "the sampler's region: its edges x0 y0 (inclusive), x1 y1 "
+                             "(exclusive) in pixels of the whole image");
+    for (const SamplerMetrics& s : ss) {
+      for (const auto& [edge, value] : edges(s.region)) {
+        f.metric.push_back(
+            sample(gauge, value, {{"edge", edge}, {"sampler", std::to_string(s.id)}}));
+      }
     }
   }
-  scalar("afr_display_period_reconstruct_ms_mean", "gauge",
-         "mean reconstruction time over the last stats period", d.period_reconstruct_ms_mean);
-  scalar("afr_display_period_reconstruct_ms_p99", "gauge",
-         "99th percentile of the reconstruction time over the last stats period",
-         d.period_reconstruct_ms_p99);
-  scalar("afr_display_period_frame_interval_ms_p99", "gauge",
-         "99th percentile of the time between images over the last stats period",
-         d.period_frame_interval_ms_p99);
-  scalar("afr_display_store_samples", "gauge", "samples in the store", d.store_stored);
-  scalar("afr_display_store_capacity", "gauge", "capacity of the store", d.store_capacity);
-  scalar("afr_display_recuts_total", "counter", "region recuts", d.recuts);
-  scalar("afr_display_deaths_total", "counter", "samplers declared dead", d.deaths);
-  scalar("afr_display_rejected_messages_total", "counter",
-         "messages rejected on the sample and control channels",
-         d.rejected_samples_channel + d.rejected_control);
-  metric("afr_display_dropped_batches_total", "counter",
-         "sample batches dropped before the store: from no member, or naming a member without "
-         "its token or key");
-  o += fmt::format("afr_display_dropped_batches_total{{cause=\"non_member\"}} {}\n",
-                   d.unknown_sampler_batches);
-  o +=
-      fmt::format("afr_display_dropped_batches_total{{cause=\"spoofed\"}} {}\n", d.spoofed_batches);
-  metric("afr_display_dropped_samples_total", "counter", "samples of the dropped batches");
-  o += fmt::format("afr_display_dropped_samples_total{{cause=\"non_member\"}} {}\n",
-                   d.unknown_sampler_samples);
-  o +=
-      fmt::format("afr_display_dropped_samples_total{{cause=\"spoofed\"}} {}\n", d.spoofed_samples);
-  metric("afr_display_dropped_tilings_total", "counter",
-         "tiling snapshots dropped: from no member, or naming a member without its token or key");
-  o += fmt::format("afr_display_dropped_tilings_total{{cause=\"non_member\"}} {}\n",
-                   d.unknown_sampler_tilings);
-  o +=
-      fmt::format("afr_display_dropped_tilings_total{{cause=\"spoofed\"}} {}\n", d.spoofed_tilings);
-  scalar("afr_display_zap_refused_total", "counter", "CurveZMQ clients refused", d.zap_refused);
-  scalar("afr_display_wall_nodes", "gauge", "display nodes in the wall (1: no wall)", d.wall_nodes);
-  metric("afr_display_wall_cell", "gauge",
-         "this node's part of the virtual display, labels node x0 y0 x1 y1");
-  o += fmt::format(
-      "afr_display_wall_cell{{node=\"{}\",x0=\"{}\",y0=\"{}\",x1=\"{}\",y1=\"{}\"}} 1\n",
-      d.wall_node, d.wall_cell.x0, d.wall_cell.y0, d.wall_cell.x1, d.wall_cell.y1);
-  const DisplayMetrics::WallExchange& w = d.wall_exchange;
-  scalar("afr_display_wall_coverage_in_total", "counter",
-         "coverage messages from the wall's other nodes", w.coverage_in);
-  scalar("afr_display_wall_coverage_applied_pixels_total", "counter",
-         "pixels of this node's coverage map replaced by its peers'", w.coverage_cells_applied);
-  scalar("afr_display_wall_strays_in_total", "counter",
-         "samples forwarded by the wall's other nodes", w.strays_in);
-  scalar("afr_display_wall_coverage_out_total", "counter",
-         "coverage messages sent to the wall's other nodes", w.coverage_out);
-  scalar("afr_display_wall_strays_out_total", "counter",
-         "samples forwarded to the wall's other nodes", w.strays_out);
-  scalar("afr_display_wall_exchange_bytes_in_total", "counter",
-         "bytes of coverage and strays from the wall's other nodes", w.bytes_in);
-  scalar("afr_display_wall_exchange_bytes_out_total", "counter",
-         "bytes of coverage and strays to the wall's other nodes", w.bytes_out);
-  scalar("afr_display_wall_exchange_dropped_total", "counter",
-         "coverage and stray messages the peers' queues had no room for", w.dropped_out);
-  metric("afr_display_sample_latency_seconds", "histogram",
-         "sample-to-display latency: display time of the frame that first shows a sample "
-         "minus the sample's time");
-  for (double le : {0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0}) {
-    o += fmt::format("afr_display_sample_latency_seconds_bucket{{le=\"{}\"}} {}\n", le,
-                     lat.count_at_most(le));
+
+  scalar("afr_display_members", gauge, "samplers in the session", double(d.members));
+  scalar("afr_display_frames_total", counter, "images reconstructed", double(d.frames));
+  scalar("afr_display_last_reconstruct_seconds", gauge, "wall time of the last reconstruction",
+         d.reconstruct_ms * 1e-3);
+  histogram("afr_display_reconstruct_seconds", "wall time of each reconstruction",
+            metrics.reconstruct_times());
+  scalar("afr_display_refresh_hz", gauge, "images per second over the last stats period",
+         d.refresh_hz);
+  if (d.gpu.timed) {
+    MetricFamily& f =
+        family("afr_display_gpu_pass_seconds", gauge,
+               "GPU time of each pass of the latest image the GPU finished (GL_TIME_ELAPSED)");
+    for (const auto& [pass, ms] : gpu_passes(d.gpu)) {
+      f.metric.push_back(sample(gauge, ms * 1e-3, {{"pass", pass}}));
+    }
   }
-  o += fmt::format("afr_display_sample_latency_seconds_bucket{{le=\"+Inf\"}} {}\n", lat.count());
-  o += fmt::format("afr_display_sample_latency_seconds_sum {}\n", lat.sum());
-  o += fmt::format("afr_display_sample_latency_seconds_count {}\n", lat.count());
-  return o;
+  scalar("afr_display_period_reconstruct_mean_seconds", gauge,
+         "mean reconstruction time over the last stats period",
+         d.period_reconstruct_ms_mean * 1e-3);
+  scalar("afr_display_period_reconstruct_p99_seconds", gauge,
+         "99th percentile of the reconstruction time over the last stats period",
+         d.period_reconstruct_ms_p99 * 1e-3);
+  scalar("afr_display_period_frame_interval_p99_seconds", gauge,
+         "99th percentile of the time between images over the last stats period",
+         d.period_frame_interval_ms_p99 * 1e-3);
+  scalar("afr_display_store_samples", gauge, "samples in the store", double(d.store_stored));
+  scalar("afr_display_store_capacity", gauge, "capacity of the store", double(d.store_capacity));
+  scalar("afr_display_recuts_total", counter, "region recuts", double(d.recuts));
+  scalar("afr_display_deaths_total", counter, "samplers declared dead", double(d.deaths));
+  scalar("afr_display_rejected_messages_total", counter,
+         "messages rejected on the sample and control channels",
+         double(d.rejected_samples_channel + d.rejected_control));
+  auto by_cause = [&](std::string name, std::string help, uint64_t non_member, uint64_t spoofed) {
+    MetricFamily& f = family(std::move(name), counter, std::move(help));
+    f.metric.push_back(sample(counter, double(non_member), {{"cause", "non_member"}}));
+    f.metric.push_back(sample(counter, double(spoofed), {{"cause", "spoofed"}}));
+  };
+  by_cause("afr_display_dropped_batches_total",
+           "sample batches dropped before the store: from no member, or naming a member without "
+           "its token or key",
+           d.unknown_sampler_batches, d.spoofed_batches);
+  by_cause("afr_display_dropped_samples_total", "samples of the dropped batches",
+           d.unknown_sampler_samples, d.spoofed_samples);
+  by_cause("afr_display_dropped_tilings_total",
+           "tiling snapshots dropped: from no member, or naming a member without its token or key",
+           d.unknown_sampler_tilings, d.spoofed_tilings);
+  scalar("afr_display_zap_refused_total", counter, "CurveZMQ clients refused",
+         double(d.zap_refused));
+
+  scalar("afr_display_wall_nodes", gauge, "display nodes in the wall (1: no wall)",
+         double(d.wall_nodes));
+  scalar("afr_display_wall_node", gauge, "this node's id in the wall (0: the lead)",
+         double(d.wall_node));
+  {
+    MetricFamily& f = family("afr_display_wall_cell_edge_pixels", gauge,
+                             "this node's part of the virtual display: its edges x0 y0 "
+                             "(inclusive), x1 y1 (exclusive) in pixels");
+    for (const auto& [edge, value] : edges(d.wall_cell)) {
+      f.metric.push_back(sample(gauge, value, {{"edge", edge}}));
+    }
+  }
+  const DisplayMetrics::WallExchange& w = d.wall_exchange;
+  scalar("afr_display_wall_coverage_in_total", counter,
+         "coverage messages from the wall's other nodes", double(w.coverage_in));
+  scalar("afr_display_wall_coverage_applied_pixels_total", counter,
+         "pixels of this node's coverage map replaced by its peers'",
+         double(w.coverage_cells_applied));
+  scalar("afr_display_wall_strays_in_total", counter, "samples forwarded by the wall's other nodes",
+         double(w.strays_in));
+  scalar("afr_display_wall_coverage_out_total", counter,
+         "coverage messages sent to the wall's other nodes", double(w.coverage_out));
+  scalar("afr_display_wall_strays_out_total", counter,
+         "samples forwarded to the wall's other nodes", double(w.strays_out));
+  scalar("afr_display_wall_exchange_in_bytes_total", counter,
+         "bytes of coverage and strays from the wall's other nodes", double(w.bytes_in));
+  scalar("afr_display_wall_exchange_out_bytes_total", counter,
+         "bytes of coverage and strays to the wall's other nodes", double(w.bytes_out));
+  scalar("afr_display_wall_exchange_dropped_total", counter,
+         "coverage and stray messages the peers' queues had no room for", double(w.dropped_out));
+  histogram("afr_display_sample_latency_seconds",
+            "sample-to-display latency: display time of the frame that first shows a sample "
+            "minus the sample's time",
+            metrics.latency());
+  return prometheus::TextSerializer().Serialize(families);
 }
 
 std::string stats_json(const ServiceMetrics& metrics) {

@@ -167,6 +167,8 @@ class ServiceMetrics {
   DisplayMetrics display() const;
   std::vector<SamplerMetrics> samplers() const;
   LatencyHistogram latency() const;
+  // The wall time of every reconstruction since the start, in seconds.
+  LatencyHistogram reconstruct_times() const;
   // What the web dashboard shows: the display thread feeds it, the metrics server reads it
   // (it has its own lock).
   DashboardFeed& dashboard() const { return dashboard_; }
@@ -177,7 +179,7 @@ class ServiceMetrics {
   std::map<uint32_t, SamplerMetrics> samplers_;
   // Batches received since the last frame: (mean sample time, count).
   std::vector<std::pair<double, uint64_t>> pending_;
-  LatencyHistogram latency_, window_latency_;
+  LatencyHistogram latency_, window_latency_, reconstruct_;
   LatencyHistogram period_reconstruct_, period_interval_;  // seconds, this stats period
   double last_frame_time_ = -1.0;
   uint64_t period_frames_ = 0;
