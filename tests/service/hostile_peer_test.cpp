@@ -4,6 +4,7 @@
 // keep their regions and their samples. The exact rules are tested on the coordinator and the
 // ingest alone (coordinator_test.cpp, member_gate_test.cpp); these check the display as run.
 #include "service_fixture.h"
+#include "support/promtool.h"
 
 #include <afr/protocol/channels.h>
 
@@ -210,6 +211,11 @@ TEST_F(ServiceTest, SpoofedAndNonMemberBatchesAreDroppedAndCounted) {
             std::string::npos);
   EXPECT_NE(metrics.find("afr_display_dropped_batches_total{cause=\"non_member\"} 100"),
             std::string::npos);
+  // The live exposition, hostile traffic counted in it, follows Prometheus' conventions.
+  if (const auto verdict = testing::promtool_check_metrics(metrics)) {
+    EXPECT_EQ(verdict->status, 0) << verdict->output;
+    EXPECT_EQ(verdict->output, "");
+  }
   const std::string log = d->log();
   EXPECT_NE(log.find("naming a member without its token or key"), std::string::npos) << log;
   EXPECT_NE(log.find("from no member"), std::string::npos) << log;
