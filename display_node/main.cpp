@@ -126,6 +126,10 @@ int main(int argc, char** argv) {
                  "throughput and error (joins, leaves and deaths recut at once)")
       ->capture_default_str()
       ->check(CLI::Range(0.1, 3600.0));
+  app.add_option("--max-samplers", o.coordinator.max_members,
+                 "samplers admitted at once; a join beyond them is refused with the reason")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 65536));
   app.add_option("--recut-hysteresis", o.coordinator.hysteresis,
                  "recut when a sampler's part of the image's error exceeds (1 + this) times its "
                  "share of the throughput")

@@ -140,6 +140,16 @@ TEST_F(DashboardTest, ThePageShowsTheLiveImageAndItsChartsMove) {
   // first, until an image is there.
   ASSERT_TRUE(
       wait_until([&] { return !get_text(metrics_port(), "/image.png").empty(); }, scaled(10.0)));
+  // ...and until a stats period has ended (the charts' first point): on a busy machine the
+  // sampler can join and the first image come within the display's first second.
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const nlohmann::json h =
+            nlohmann::json::parse(get_text(metrics_port(), "/history"), nullptr, false);
+        return !h.is_discarded() && h.contains("periods") && !h["periods"].empty();
+      },
+      scaled(10.0)))
+      << d->log();
   const PageLoads first = loads(chromium({"--dump-dom"}, "dom1.log"));
   if (first.images < 0) {
     GTEST_SKIP() << "Chromium did not render the page (cannot start here?): "

@@ -9,13 +9,17 @@
 #include <afr/protocol/channels.h>
 
 #include <gtest/gtest.h>
+#include <zmq.hpp>
 
 #include <array>
 #include <atomic>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <mutex>
 #include <optional>
 #include <set>
+#include <sstream>
 #include <thread>
 
 namespace afr::testing {
@@ -232,6 +236,111 @@ TEST_F(ServiceTest, SpoofedAndNonMemberBatchesAreDroppedAndCounted) {
         return now.size() == 1 && now[0].samples > samples;
       },
       5.0));
+}
+
+// A display that admits two samplers (--max-samplers 2) refuses a third join with the reason;
+// a flood of malformed control messages of two kinds costs at most a log line per kind a second,
+// each with its count; the real samplers keep their regions and keep streaming.
+TEST_F(ServiceTest, ControlFloodAndJoinsBeyondTheLimitCostALineASecondAndNoMember) {
+  auto d = display({"--size", "64x64", "--fps", "20", "--max-samplers", "2"}, "display.log");
+  auto s1 = sampler({"--max-samples-per-second", "30000", "--name", "real-1"}, "s1.log");
+  auto s2 = sampler({"--max-samples-per-second", "30000", "--name", "real-2"}, "s2.log");
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const std::vector<MemberView> ms = member_views(get_stats(metrics_port()));
+        return ms.size() == 2 && ms[0].samples > 0 && ms[1].samples > 0;
+      },
+      10.0))
+      << d->log();
+
+  {
+    Context context;
+    ControlClient third(context, endpoint());
+    Join join;
+    join.name = "third";
+    ASSERT_TRUE(third.send(join).ok());
+    std::optional<Leave> refused;
+    ASSERT_TRUE(wait_until(
+        [&] {
+          while (auto m = third.receive(10)) {
+            if (m->ok() && std::holds_alternative<Leave>(m->value())) {
+              refused = std::get<Leave>(m->value());
+            }
+          }
+          return refused.has_value();
+        },
+        5.0))
+        << d->log();
+    EXPECT_EQ(refused->reason, LeaveReason::kRefused);
+    EXPECT_NE(refused->text.find("at most 2 samplers"), std::string::npos) << refused->text;
+  }
+
+  // 20000 malformed messages: half too short for a header, half of the wrong magic.
+  const auto started = std::chrono::steady_clock::now();
+  constexpr int kFlood = 20000;
+  {
+    zmq::context_t ctx;
+    zmq::socket_t dealer(ctx, zmq::socket_type::dealer);
+    dealer.set(zmq::sockopt::linger, 5000);
+    dealer.set(zmq::sockopt::sndhwm, 0);
+    dealer.connect("tcp://127.0.0.1:" + std::to_string(port_));
+    const std::string short_junk = "xy", wrong_magic(64, 'J');
+    for (int i = 0; i < kFlood; ++i) {
+      const std::string& junk = i % 2 ? short_junk : wrong_magic;
+      dealer.send(zmq::buffer(junk), zmq::send_flags::none);
+    }
+  }
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const nlohmann::json st = get_stats(metrics_port());
+        return !st.is_null() && st["display"]["rejected_control_messages"].get<int>() >= kFlood;
+      },
+      20.0))
+      << d->log();
+  // Every malformed message is accounted for in the log: the lines of each kind, what they
+  // held back included (logged once their second has passed), add up to the messages sent.
+  const auto logged = [&](const std::string& kind) {
+    uint64_t total = 0;
+    std::istringstream in(d->log());
+    for (std::string line; std::getline(in, line);) {
+      if (line.find(kind) == std::string::npos) continue;
+      for (const char* lead : {"control: rejected ", "control: "}) {
+        const size_t at = line.find(lead);
+        if (at == std::string::npos) continue;
+        const char* digits = line.c_str() + at + std::strlen(lead);
+        if (*digits >= '0' && *digits <= '9') {
+          total += std::strtoull(digits, nullptr, 10);
+          break;
+        }
+      }
+    }
+    return total;
+  };
+  EXPECT_TRUE(wait_until(
+      [&] { return logged("wrong magic") == kFlood / 2 && logged("shorter than") == kFlood / 2; },
+      10.0))
+      << "logged " << logged("wrong magic") << " and " << logged("shorter than") << "\n"
+      << d->log();
+  const double seconds = seconds_since(started);
+  const std::string log = d->log();
+  const size_t lines = count_of(log, "control: ");
+  std::printf("%d malformed control messages in %.2f s: %zu log lines\n", kFlood, seconds, lines);
+  // At most a line per kind per second, and the first line of each.
+  EXPECT_LE(double(lines), 2.0 * (seconds + 1.0)) << log;
+  EXPECT_NE(log.find("sampler join(s) refused"), std::string::npos) << log;
+
+  // The real samplers: still the two members, still streaming, nobody lost.
+  const std::vector<MemberView> before = member_views(get_stats(metrics_port()));
+  std::this_thread::sleep_for(std::chrono::milliseconds(800));
+  const std::vector<MemberView> after = member_views(get_stats(metrics_port()));
+  ASSERT_EQ(before.size(), 2u);
+  ASSERT_EQ(after.size(), 2u);
+  for (size_t i = 0; i < 2; ++i) {
+    EXPECT_GT(after[i].samples, before[i].samples) << after[i].name;
+    EXPECT_GT(after[i].area, 0) << after[i].name;
+    EXPECT_EQ(after[i].gaps, 0u) << after[i].name;
+  }
+  EXPECT_EQ(log.find(" lost: "), std::string::npos) << log;
 }
 
 }  // namespace

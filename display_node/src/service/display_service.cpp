@@ -1,5 +1,7 @@
 #include <afr/display/service/display_service.h>
 
+#include <afr/common/log.h>
+
 #include <afr/common/camera_path.h>
 
 #include <afr/common/error.h>
@@ -111,6 +113,7 @@ class DisplayService::Control {
   };
   std::map<std::string, Transfer> transfers_;   // by peer
   std::map<std::string, double> told_unknown_;  // peers told to join again, when
+  LogLimiter log_;  // what peers can repeat at will: a line per cause a second
   // The wall's follower displays, by peer (docs/wall.md); the lead is node 1.
   struct WallMember {
     uint32_t id = 0;
@@ -207,9 +210,11 @@ DisplayService::DisplayService(DisplayServiceOptions options, SampleSink& sink)
     context_.allow_curve_clients(options_.allowed_keys, [this](const ZapDecision& d) {
       if (d.accepted) {
         spdlog::info("CurveZMQ: admitted key {} from {}", d.public_key, d.address);
-      } else {
-        spdlog::warn("CurveZMQ: REFUSED {} key {} from {}: not on the allow-list", d.mechanism,
-                     d.public_key.empty() ? "(none)" : d.public_key, d.address);
+      } else if (const uint64_t n = zap_log_.due(d.mechanism)) {
+        spdlog::warn(
+            "CurveZMQ: REFUSED {} client(s) ({}), the last key {} from {}: not on the "
+            "allow-list",
+            n, d.mechanism, d.public_key.empty() ? "(none)" : d.public_key, d.address);
       }
     });
   }
@@ -279,27 +284,6 @@ void DisplayService::stop() {
 
 namespace {
 
-// The log lines of one cause: the first at once, then at most one a second, each saying how
-// many happened since the line before, so that a peer sending thousands a second makes one line
-// a second and a rare fault is never hidden behind a frequent one.
-class CauseLog {
- public:
-  // Counts one; returns the count since the last line when a line is due now, else 0.
-  uint64_t due() {
-    ++count_;
-    const auto now = std::chrono::steady_clock::now();
-    if (logged_ && now - last_ < std::chrono::seconds(1)) return 0;
-    logged_ = true;
-    last_ = now;
-    return std::exchange(count_, 0);
-  }
-
- private:
-  std::chrono::steady_clock::time_point last_;
-  bool logged_ = false;
-  uint64_t count_ = 0;
-};
-
 // A CurveZMQ key for a log line: enough of it to tell keys apart.
 std::string short_key(std::string_view key) {
   return key.empty() ? std::string("none") : std::string(key.substr(0, 8)) + "...";
@@ -311,21 +295,21 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
                 MemberGate* gate, const std::atomic<bool>& running,
                 const std::function<void(const TilingSnapshot&)>& on_tiling,
                 WallCoverageInbox* coverage) {
-  uint64_t rejected = 0, unexpected_coverage = 0;
-  CauseLog non_member_log, spoofed_log;
+  uint64_t rejected = 0;
+  LogLimiter log;
   // Whether a batch or snapshot comes from the member it names; logs (rate-limited) when not.
   const auto from_member = [&](const char* what, uint32_t id, uint64_t token, uint64_t samples) {
     const MemberGate::Verdict v =
         gate ? gate->check(id, token, receiver.peer_key(), samples) : MemberGate::Verdict::kMember;
     if (v == MemberGate::Verdict::kNonMember) {
-      if (const uint64_t n = non_member_log.due()) {
+      if (const uint64_t n = log.due("non-member")) {
         spdlog::warn(
             "sample channel: dropped {} message(s) from no member (the last a {} naming sampler "
             "{}, key {}): not stored",
             n, what, id, short_key(receiver.peer_key()));
       }
     } else if (v == MemberGate::Verdict::kSpoofed) {
-      if (const uint64_t n = spoofed_log.due()) {
+      if (const uint64_t n = log.due("spoofed")) {
         spdlog::warn(
             "sample channel: dropped {} message(s) naming a member without its token or key (the "
             "last a {} naming sampler {}, key {}): not stored",
@@ -335,6 +319,9 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
     return v;
   };
   while (running.load(std::memory_order_relaxed)) {
+    log.flush([](const std::string& cause, uint64_t n) {
+      spdlog::warn("sample channel: {} more like this since its last line: {}", n, cause);
+    });
     switch (receiver.receive(50)) {
       case SampleReceiver::Got::kNothing:
         break;
@@ -359,11 +346,11 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
         WallCoverage& c = receiver.coverage();
         if (coverage == nullptr) {
           metrics.on_rejected_sample_message();
-          if (unexpected_coverage++ % 1000 == 0) {
+          if (const uint64_t n = log.due("coverage outside a wall")) {
             spdlog::warn(
-                "sample channel: rejected wall_coverage from node {}: this display is "
-                "not part of a wall",
-                c.node_id);
+                "sample channel: rejected {} wall_coverage message(s), the last from node {}: "
+                "this display is not part of a wall",
+                n, c.node_id);
           }
           break;
         }
@@ -388,9 +375,10 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
       }
       case SampleReceiver::Got::kRejected:
         metrics.on_rejected_sample_message();
-        if (rejected++ % 1000 == 0) {
-          spdlog::warn("sample channel: rejected a message ({} so far): {}", rejected,
-                       receiver.rejection().message());
+        ++rejected;
+        if (const uint64_t n = log.due(LogLimiter::cause_of(receiver.rejection().message()))) {
+          spdlog::warn("sample channel: rejected {} message(s) like this one ({} in all): {}", n,
+                       rejected, receiver.rejection().message());
         }
         break;
     }
@@ -436,6 +424,9 @@ void DisplayService::Control::run() {
     if (coordinator_.maybe_recut(t)) send_regions();
     send_heartbeats(t);
     publish_view(t);
+    log_.flush([](const std::string& cause, uint64_t n) {
+      spdlog::warn("control: {} more like this since its last line: {}", n, cause);
+    });
   }
   say_goodbye();
 }
@@ -456,8 +447,10 @@ void DisplayService::Control::receive_pending(double wait) {
 void DisplayService::Control::on_message(const ControlServer::Incoming& in, double t) {
   if (!in.message.ok()) {
     service_.metrics_.on_rejected_control();
-    spdlog::warn("control: rejected a message from peer {}{}: {}", to_hex_peer(in.peer),
-                 in.public_key.empty() ? "" : " key " + in.public_key, in.message.error());
+    if (const uint64_t n = log_.due(LogLimiter::cause_of(in.message.error()))) {
+      spdlog::warn("control: rejected {} message(s) like this one from peer {} key {}: {}", n,
+                   to_hex_peer(in.peer), short_key(in.public_key), in.message.error());
+    }
     if (in.message.error().find("version") != std::string::npos) {
       send(in.peer,
            Leave{0, LeaveReason::kVersionMismatch,
@@ -487,7 +480,9 @@ bool DisplayService::Control::on_wall_message(const std::string& peer, const Mes
                                               double t) {
   if (const auto* j = std::get_if<DisplayJoin>(&msg)) {
     if (std::string refusal = admit_display(peer, *j, t); !refusal.empty()) {
-      spdlog::warn("display {} refused: {}", j->name, refusal);
+      if (const uint64_t n = log_.due(LogLimiter::cause_of(refusal))) {
+        spdlog::warn("display {} refused ({} like this): {}", j->name, n, refusal);
+      }
       send(peer, Leave{0, LeaveReason::kRefused, refusal});
     }
     return true;
@@ -558,6 +553,18 @@ std::string DisplayService::Control::admit_display(const std::string& peer, cons
 // A join: the display assigns the id (the one the join proposes is not asked for) and the token
 // that binds the member's sample batches to it (docs/service.md, "Identity").
 void DisplayService::Control::on_join(const ControlServer::Incoming& in, const Join& j, double t) {
+  if (!coordinator_.find_peer(in.peer) &&
+      coordinator_.members().size() >= options_.coordinator.max_members) {
+    const std::string refusal =
+        fmt::format("the display admits at most {} samplers (--max-samplers)",
+                    options_.coordinator.max_members);
+    if (const uint64_t n = log_.due("join refused: full")) {
+      spdlog::warn("sampler join(s) refused ({} like this, the last from {}): {}", n, j.name,
+                   refusal);
+    }
+    send(in.peer, Leave{0, LeaveReason::kRefused, refusal});
+    return;
+  }
   bool is_new = false;
   const uint64_t token = coordinator_.find_peer(in.peer) ? 0 : new_token();
   Member& m = coordinator_.join(in.peer, j.name, in.public_key, j.threads, token, t, &is_new);
@@ -580,8 +587,12 @@ void DisplayService::Control::on_member_message(Member& m, const std::string& pe
   coordinator_.heard(m.id, t);
   if (const auto* r = std::get_if<SceneRequest>(&msg)) {
     if (r->scene_hash != options_.scene.hash) {
-      spdlog::warn("sampler {} asked for scene {}, not this session's: ignored", m.id,
-                   to_hex(r->scene_hash).substr(0, 16));
+      if (const uint64_t n = log_.due("scene request: another scene")) {
+        spdlog::warn(
+            "sampler {} asked for scene {}, not this session's ({} such request(s)): "
+            "ignored",
+            m.id, to_hex(r->scene_hash).substr(0, 16), n);
+      }
     } else {
       transfers_[peer].next_chunk = r->first_chunk;
     }

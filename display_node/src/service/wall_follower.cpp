@@ -1,6 +1,7 @@
 #include <afr/display/service/wall_follower.h>
 
 #include <afr/common/error.h>
+#include <afr/common/log.h>
 #include <afr/display/service/display_service.h>
 #include <afr/protocol/display_link.h>
 
@@ -149,6 +150,7 @@ void WallFollower::control_loop() {
   lo.silence_floor = options_.lead_timeout;
   lo.heartbeat_interval = options_.heartbeat_interval;
   uint64_t heartbeat_sequence = 0;
+  LogLimiter log;  // what the lead (or whoever holds its address) can repeat at will
   while (running_.load() && !failed_.load()) {
     DisplayLink link(context_, lo);
     bool over = false;
@@ -176,9 +178,15 @@ void WallFollower::control_loop() {
         }
       }
       link.wait(10);
+      log.flush([](const std::string& cause, uint64_t n) {
+        spdlog::warn("control channel: {} more like this since its last line: {}", n, cause);
+      });
       while (std::optional<Result<Message>> m = link.receive_control()) {
         if (!m->ok()) {
-          spdlog::warn("control channel: rejected a message from the lead: {}", m->error());
+          if (const uint64_t n = log.due(LogLimiter::cause_of(m->error()))) {
+            spdlog::warn("control channel: rejected {} message(s) like this one from the lead: {}",
+                         n, m->error());
+          }
           continue;
         }
         const Message& msg = m->value();

@@ -2,6 +2,7 @@
 
 #include <afr/common/clock.h>
 #include <afr/common/error.h>
+#include <afr/common/log.h>
 #include <afr/common/presets.h>
 #include <afr/protocol/display_link.h>
 #include <afr/protocol/scene_hash.h>
@@ -239,6 +240,10 @@ std::string leave_text(std::string text) {
 struct SamplerService::Impl {
   explicit Impl(SamplerServiceOptions o) : options(std::move(o)), cache(options.cache_dir) {}
 
+  // What a display (or whoever holds its address) can repeat at will: a line per cause a
+  // second. The control thread's only.
+  LogLimiter log;
+
   SessionEnd run_session(const std::atomic<bool>& stop);
   void handle(const Message& m, DisplayLink& control, SampleSender& sender, double now,
               SessionEnd* end);
@@ -367,6 +372,7 @@ SessionEnd SamplerService::Impl::run_session(const std::atomic<bool>& stop) {
   fetching = false;
   SessionEnd end = SessionEnd::kRetry;
   bool done = false;
+  uint64_t views_rejected = 0;
 
   while (!done) {
     if (stop.load()) {
@@ -397,11 +403,17 @@ SessionEnd SamplerService::Impl::run_session(const std::atomic<bool>& stop) {
     }
 
     control.wait(5);
+    log.flush([](const std::string& cause, uint64_t n) {
+      spdlog::warn("{} more like this since its last line: {}", n, cause);
+    });
     while (std::optional<Result<Message>> m = control.receive_control()) {
       if (!m->ok()) {
         std::lock_guard<std::mutex> lock(counters_mutex);
         ++counters.rejected_messages;
-        spdlog::warn("control channel: rejected a message from the display: {}", m->error());
+        if (const uint64_t n = log.due(LogLimiter::cause_of(m->error()))) {
+          spdlog::warn("control channel: rejected {} message(s) like this one from the display: {}",
+                       n, m->error());
+        }
         continue;
       }
       handle(m->value(), control, sender, steady_seconds(), &end);
@@ -416,8 +428,13 @@ SessionEnd SamplerService::Impl::run_session(const std::atomic<bool>& stop) {
       clock.observe(v->time);
       view_camera.observe(*v, scene.get());
     }
-    if (control.views().rejected() == 1 && control.views().rejection().message().size()) {
-      spdlog::warn("view channel: rejected a view: {}", control.views().rejection().message());
+    if (control.views().rejected() > views_rejected) {
+      views_rejected = control.views().rejected();
+      const std::string& why = control.views().rejection().message();
+      if (const uint64_t n = log.due("view: " + LogLimiter::cause_of(why))) {
+        spdlog::warn("view channel: rejected views ({} in all; {} since the last line): {}",
+                     views_rejected, n, why);
+      }
     }
 
     if (joined) {
@@ -670,8 +687,10 @@ void SamplerService::Impl::finish_background_work(DisplayLink& control) {
 
 void SamplerService::Impl::on_region(const RegionAssignment& r) {
   if (r.sampler_id != sampler_id) {
-    spdlog::warn("region assignment for sampler {} reached sampler {}: ignored", r.sampler_id,
-                 sampler_id);
+    if (const uint64_t n = log.due("region for another sampler")) {
+      spdlog::warn("region assignment for sampler {} reached sampler {} ({} such): ignored",
+                   r.sampler_id, sampler_id, n);
+    }
     return;
   }
   if (r.epoch < epoch) return;
@@ -686,8 +705,10 @@ void SamplerService::Impl::on_region(const RegionAssignment& r) {
 void SamplerService::Impl::on_wall(const WallLayout& w, SampleSender& sender) {
   if (!joined || w.epoch < wall_epoch) return;
   if (w.image != welcome.image) {
-    spdlog::warn("wall layout {}x{} does not match the display's image {}x{}: ignored",
-                 w.image.width, w.image.height, welcome.image.width, welcome.image.height);
+    if (const uint64_t n = log.due("wall layout of another image")) {
+      spdlog::warn("wall layout {}x{} does not match the display's image {}x{} ({} such): ignored",
+                   w.image.width, w.image.height, welcome.image.width, welcome.image.height, n);
+    }
     return;
   }
   wall_epoch = w.epoch;

@@ -3,6 +3,11 @@
 
 #include <spdlog/spdlog.h>
 
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <string>
 #include <string_view>
 
 namespace afr {
@@ -10,5 +15,57 @@ namespace afr {
 // Sets the process-wide log level ("trace", "debug", "info", "warn", "error", "off") and the
 // line format. Throws afr::Error naming the level if it is not one of those.
 void init_logging(std::string_view level);
+
+// Log lines for events a peer can repeat at will (bad messages, refused keys, stray requests):
+// at most one line per cause per interval, each telling how many events it stands for, so a
+// flood of one fault costs a line a second and a different fault still gets its own line.
+//
+//   if (const uint64_t n = limiter.due(LogLimiter::cause_of(error))) {
+//     spdlog::warn("control: rejected {} message(s) like this one: {}", n, error);
+//   }
+//
+// A cause is a short string; cause_of() makes one from an error message by blanking its
+// numbers, so "unknown type 7" and "unknown type 9" are one cause. At most max_causes causes
+// are tracked (the state a peer can grow is bounded): beyond them, events share one cause,
+// "other". Not thread-safe: one limiter per thread.
+class LogLimiter {
+ public:
+  explicit LogLimiter(std::chrono::steady_clock::duration interval = std::chrono::seconds(1),
+                      size_t max_causes = 32)
+      : interval_(interval), max_causes_(max_causes) {}
+
+  // Counts one event of `cause` at `now`; returns the events of that cause since its last line
+  // (this one included) when a line is due, else 0.
+  uint64_t due(std::string_view cause,
+               std::chrono::steady_clock::time_point now = std::chrono::steady_clock::now());
+
+  // The events held back since their cause's last line, once that line is an interval old:
+  // calls f(cause, count) for each and clears it, so the end of a flood is logged too. Call
+  // it from the loop that logs (a few times a second is enough).
+  template <typename F>
+  void flush(F&& f, std::chrono::steady_clock::time_point now = std::chrono::steady_clock::now()) {
+    for (auto& [cause, c] : causes_) {
+      if (c.count == 0 || now - c.last_line < interval_) continue;
+      f(cause, c.count);
+      c.count = 0;
+      c.last_line = now;
+    }
+  }
+
+  // The cause of an error message: its first 80 characters, each run of digits as '#'.
+  static std::string cause_of(std::string_view message);
+
+  size_t causes() const { return causes_.size(); }
+
+ private:
+  struct Cause {
+    std::chrono::steady_clock::time_point last_line;
+    bool logged = false;
+    uint64_t count = 0;
+  };
+  std::chrono::steady_clock::duration interval_;
+  size_t max_causes_;
+  std::map<std::string, Cause, std::less<>> causes_;
+};
 
 }  // namespace afr

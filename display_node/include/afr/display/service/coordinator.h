@@ -40,6 +40,10 @@ struct CoordinatorOptions {
   // with recuts at most once a second and 21.0 (17.7-24.3) at most once in 10 s
   // (docs/benchmarks.md, "Live accuracy").
   double recut_interval = 10.0;
+  // Samplers admitted at once (display_node --max-samplers). A join beyond it is refused with
+  // the reason: membership is state a peer could otherwise grow without end, and each member
+  // costs a region, a heartbeat and per-sampler metrics.
+  size_t max_members = 256;
   // A recut happens when a member's part of the error exceeds (1 + hysteresis) times its
   // share of the throughput.
   double hysteresis = 0.5;

@@ -10,6 +10,7 @@
 
 #include <afr/common/camera.h>
 #include <afr/common/camera_path.h>
+#include <afr/common/log.h>
 #include <afr/common/samples.h>
 #include <afr/common/scene.h>
 #include <afr/display/service/coordinator.h>
@@ -155,6 +156,7 @@ class DisplayService final : public DisplayRole {
   std::atomic<bool> running_{false};
   std::thread control_thread_, ingest_thread_;
   std::unique_ptr<MetricsServer> http_;
+  LogLimiter zap_log_;  // refused CurveZMQ clients (the ZAP thread's only)
 };
 
 }  // namespace afr::service
