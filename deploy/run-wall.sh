@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Runs a display wall on this machine (docs/wall.md): a lead display_node for cell 0,0 of a
 # COLUMNSxROWS grid over a WxH virtual display, one follower display_node per other cell, and
-# N sampler nodes, all headless on loopback. At the end each node writes its cell's image and
-# the script stitches them into OUTPUT/wall.png. Exits 1 with the reason when a node fails: a
-# display exits with an error, or a sampler exits.
+# N sampler nodes, all headless on loopback. Near the end the lead asks every cell for its image
+# of one display time (POST /snapshot) and the script stitches those into OUTPUT/wall.png (a cell
+# whose node died is drawn dark gray); each node's last image stays in OUTPUT/cell-C-R/final.png.
+# Exits 1 with the reason when a node fails: a display exits with an error, or a sampler exits.
 #
 #   deploy/run-wall.sh 2x2 2                         4 display nodes, 2 samplers, 512x512, 20 s
 #   deploy/run-wall.sh 2x2 2 --size 8192x8192 --seconds 30 --preset fast
@@ -72,22 +73,32 @@ for i in $(seq 1 "$n"); do
     --max-samples-per-second "$cap" --cache "$output/scene-cache" >"$output/logs/sampler-$i.log" 2>&1 &
   start_node sampler "sampler $i" "$output/logs/sampler-$i.log"
 done
+# A snapshot of one moment, 1.5 s before the cells stop: every node writes its image of the same
+# display time (docs/wall.md, "Snapshots").
+snap_at=$(( seconds > 3 ? seconds - 2 : 1 ))
+(sleep "$snap_at"; curl -s -X POST -d "" "http://127.0.0.1:$((port + 3))/snapshot?delay=0.5" \
+   >"$output/snapshot.json" 2>/dev/null || true) &
 # The lead runs 2 s longer than the cells, so each cell has exited (0) when the lead does.
 status=0
 watch_nodes run-wall || status=1
 cleanup
 trap - EXIT
 
-# Stitch the cells (row by row) into one image.
-tiles=()
-for r in $(seq 0 $((rows - 1))); do
-  for c in $(seq 0 $((cols - 1))); do tiles+=("$output/cell-$c-$r/final.png"); done
-done
-if command -v oiiotool >/dev/null && oiiotool "${tiles[@]}" --mosaic "${cols}x${rows}" -o "$output/wall.png" 2>/dev/null; then
-  echo "run-wall: stitched $output/wall.png; cells in $output/cell-*/final.png, logs in $output/logs/"
+# Stitch the snapshot's cells into one image (the lead's cell is cell-0-0).
+id=$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["id"])' \
+       "$output/snapshot.json" 2>/dev/null || true)
+if [ -n "$id" ]; then
+  stem=$(printf 'snapshot_%06d' "$id")
+  if python3 deploy/wall_stitch.py --grid "${cols}x${rows}" --size "$size" --cells "$output" \
+       --stem "$stem" -o "$output/wall.png"; then
+    echo "run-wall: stitched $output/wall.png: every cell's image of one moment ($stem)"
+  else
+    echo "run-wall: stitched $output/wall.png from the cells that wrote $stem (see above)"
+  fi
 else
-  echo "run-wall: cells in $output/cell-*/final.png (not stitched: a cell image is missing or oiiotool is absent)"
+  echo "run-wall: no snapshot (the lead did not answer POST /snapshot); cells in $output/cell-*/final.png"
 fi
+echo "run-wall: logs in $output/logs/"
 grep -E "wall layout|joined the wall|lost" "$output/logs/lead.log" | tail -n 6 || true
 if [ "$status" != 0 ]; then
   echo "run-wall: failed; logs in $output/logs/" >&2

@@ -415,7 +415,8 @@ bool allowed_to_display(MessageType type) {
 bool allowed_to_sampler(MessageType type) {
   return type == MessageType::kWelcome || type == MessageType::kSceneChunk ||
          type == MessageType::kRegionAssignment || type == MessageType::kHeartbeat ||
-         type == MessageType::kLeave || type == MessageType::kWallLayout;
+         type == MessageType::kLeave || type == MessageType::kWallLayout ||
+         type == MessageType::kSnapshotRequest;
 }
 
 namespace {

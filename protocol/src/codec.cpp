@@ -46,6 +46,8 @@ const char* message_type_name(MessageType type) {
       return "wall_layout";
     case MessageType::kWallCoverage:
       return "wall_coverage";
+    case MessageType::kSnapshotRequest:
+      return "snapshot_request";
   }
   return "unknown";
 }
@@ -68,6 +70,7 @@ static_assert(kAlternativeIs<MessageType::kJoin, Join> &&
               kAlternativeIs<MessageType::kDisplayJoin, DisplayJoin> &&
               kAlternativeIs<MessageType::kWallLayout, WallLayout> &&
               kAlternativeIs<MessageType::kWallCoverage, WallCoverage> &&
+              kAlternativeIs<MessageType::kSnapshotRequest, SnapshotRequest> &&
               std::variant_size_v<Message> == kLastMessageType);
 
 MessageType message_type(const Message& message) {
@@ -442,6 +445,24 @@ Status decode(Bytes message, Heartbeat* out) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// SnapshotRequest: u64 id, f64 time
+
+Status encode(const SnapshotRequest& m, std::vector<uint8_t>* out) {
+  out->clear();
+  if (Status s = validate(m); !s) return s;
+  Writer w = wire::begin_message(MessageType::kSnapshotRequest, 16, out);
+  w.u64(m.id);
+  w.f64(m.time);
+  AFR_CHECK(w.done());
+  return {};
+}
+
+Status decode(Bytes message, SnapshotRequest* out) {
+  return decode_with(message, MessageType::kSnapshotRequest, out,
+                     [&](Reader& r) { r.u64(&out->id, "id") && r.f64(&out->time, "time"); });
+}
+
+// ---------------------------------------------------------------------------------------------
 // Leave: u32 sampler_id, u16 reason, string text
 
 Status encode(const Leave& m, std::vector<uint8_t>* out) {
@@ -604,6 +625,9 @@ Result<Message> decode_message(Bytes message, const ImageExtent& bounds) {
       break;
     case MessageType::kWallCoverage:
       m.emplace<WallCoverage>();
+      break;
+    case MessageType::kSnapshotRequest:
+      m.emplace<SnapshotRequest>();
       break;
   }
   AFR_CHECK(message_type(m) == h->type);

@@ -177,6 +177,11 @@ Status validate(const SamplerStats& m) {
 
 Status validate(const Heartbeat& m) { return check_time("heartbeat", "time", m.time); }
 
+Status validate(const SnapshotRequest& m) {
+  if (m.id == 0) return field_error("snapshot_request", "id", "0 (ids start at 1)");
+  return check_time("snapshot_request", "time", m.time);
+}
+
 Status validate(const DisplayJoin& m) {
   if (m.protocol_version != kProtocolVersion) {
     return field_error("display_join", "protocol_version",

@@ -63,6 +63,9 @@ TEST(CodecTest, ControlMessagesRoundTripExactly) {
               kHeaderBytes + 14 + display_join.samples_endpoint.size() + display_join.name.size());
     const WallLayout layout = random_wall_layout(rng);
     EXPECT_EQ(round_trip(layout, &bytes), layout);
+    const SnapshotRequest snapshot = random_snapshot_request(rng);
+    EXPECT_EQ(round_trip(snapshot, &bytes), snapshot);
+    EXPECT_EQ(bytes.size(), kHeaderBytes + 16);
   }
 }
 

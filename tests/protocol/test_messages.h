@@ -180,6 +180,10 @@ inline Heartbeat random_heartbeat(Pcg32& rng) {
   return Heartbeat{rng.next_u32(), random_u64(rng), random_u64(rng), random_time(rng)};
 }
 
+inline SnapshotRequest random_snapshot_request(Pcg32& rng) {
+  return SnapshotRequest{1 + random_u64(rng) % (~uint64_t(0)), random_time(rng)};
+}
+
 inline Leave random_leave(Pcg32& rng) {
   return Leave{rng.next_u32(), LeaveReason(rng.next_below(kLastLeaveReason + 1)), random_name(rng)};
 }
@@ -260,6 +264,7 @@ inline std::vector<Message> random_messages(Pcg32& rng) {
   all.push_back(random_display_join(rng));
   all.push_back(random_wall_layout(rng));
   all.push_back(random_wall_coverage(rng));
+  all.push_back(random_snapshot_request(rng));
   return all;
 }
 

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # deploy/run-local.sh and deploy/run-wall.sh end with status 1 and the reason when a node fails
-# (the display exits with an error, or every sampler exits), and with 0 after a good run.
+# (the display exits with an error, or every sampler exits), and with 0 after a good run; a good
+# wall run stitches the lead's snapshot, and a missing cell is drawn, not the whole image lost.
 #
 #   tests/service/deploy_scripts_test.sh BUILD_DIR SCENE     (the ctest deploy_scripts)
 set -uo pipefail
@@ -46,5 +47,18 @@ deploy/run-wall.sh 2x1 1 --threads 0 --size 64x32 --seconds 30 --build "$build" 
 check "run-wall, every sampler exits" 1 $? "$out/wall.txt" \
   "run-wall: sampler 1 failed (exit status 105)" "run-wall: every sampler has exited" \
   "run-wall: failed"
+
+# A good wall run: the lead's snapshot of one moment, stitched from both cells.
+deploy/run-wall.sh 2x1 1 --size 64x32 --seconds 4 --build "$build" --port "$port" \
+  --scene "$scene" --output "$out/good-wall" >"$out/good-wall.txt" 2>&1
+check "run-wall, a good run stitches a snapshot" 0 $? "$out/good-wall.txt" \
+  "run-wall: stitched $out/good-wall/wall.png: every cell's image of one moment (snapshot_000001)"
+
+# A cell whose node died: drawn dark gray, the others stitched all the same (status 3).
+rm -f "$out/good-wall/cell-1-0/snapshot_000001.png"
+python3 deploy/wall_stitch.py --grid 2x1 --size 64x32 --cells "$out/good-wall" \
+  --stem snapshot_000001 -o "$out/missing.png" >"$out/missing.txt" 2>&1
+check "wall_stitch, a missing cell" 3 $? "$out/missing.txt" "cell(s) 1,0 missing (drawn dark gray)"
+[ -s "$out/missing.png" ] || { echo "FAIL wall_stitch wrote no image"; failures=$((failures + 1)); }
 
 exit $((failures > 0))

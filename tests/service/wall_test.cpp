@@ -3,11 +3,18 @@
 // /stats, logs and images.
 #include "process.h"
 
+#include <afr/bench/ideal_renderer.h>
+#include <afr/common/builtin_scene.h>
 #include <afr/common/image.h>
+#include <afr/common/rect.h>
+#include <afr/sampler/tracer.h>
+
+#include <fmt/format.h>
 
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <utility>
 
 namespace afr::testing {
 namespace {
@@ -21,7 +28,8 @@ class WallTest : public ProcessTest {
  protected:
   WallTest() : ProcessTest("afr-wall-") {}
 
-  std::unique_ptr<Process> lead(std::vector<std::string> extra) {
+  std::unique_ptr<Process> lead(std::vector<std::string> extra,
+                                const std::string& size = "128x128") {
     std::vector<std::string> argv = {kDisplay,
                                      "--headless",
                                      "--bind",
@@ -35,7 +43,7 @@ class WallTest : public ProcessTest {
                                      "--stats-interval",
                                      "1",
                                      "--size",
-                                     "128x128",
+                                     size,
                                      "--fps",
                                      "20"};
     argv.insert(argv.end(), extra.begin(), extra.end());
@@ -64,10 +72,10 @@ class WallTest : public ProcessTest {
                                      "20"};
     return std::make_unique<Process>(argv, path(name + ".log"));
   }
-  std::unique_ptr<Process> sampler(const std::string& log) {
+  std::unique_ptr<Process> sampler(const std::string& log, int rate = 40000) {
     return std::make_unique<Process>(
         std::vector<std::string>{kSampler, "--display", endpoint(port_), "--cache", path("cache"),
-                                 "--max-samples-per-second", "40000"},
+                                 "--max-samples-per-second", std::to_string(rate)},
         path(log));
   }
   // Samples a node has received from all samplers (its /stats), -1 when it does not answer.
@@ -236,6 +244,91 @@ TEST_F(WallTest, CapacityFlagSetsTheSamplesEachNodeKeeps) {
   // The follower was not given --capacity: 4 samples per pixel (the lead's balanced preset)
   // of its 64 x 128 cell grown by the 66-pixel margin inside the 128 x 128 image: all of it.
   EXPECT_TRUE(wait_until([&] { return capacity(port + 3) == 4 * 128 * 128; }, 5.0)) << f->log();
+}
+
+// The RMS difference of `image` against the part `rect` of `whole`.
+double rms_in(const Image& image, const Image& whole, const PixelRect& rect) {
+  Image part(rect.width(), rect.height());
+  for (int y = 0; y < part.height; ++y) {
+    for (int x = 0; x < part.width; ++x) part.at(x, y) = whole.at(rect.x0 + x, rect.y0 + y);
+  }
+  return rms_error_255(image, part);
+}
+
+// A snapshot of a 2 x 1 wall (docs/wall.md, "Snapshots"): the lead asks, over HTTP, for every
+// cell's image of one display time; each node writes its cell's image of that time, and the
+// cells, stitched, are the image of that moment of a moving scene (the built-in scene's camera
+// turns): each cell and the whole are nearer the ideal image of that time than of 0.3 s
+// before or after. Before snapshots each node wrote its last image at its own moment.
+TEST_F(WallTest, ASnapshotIsEveryCellsImageOfOneMoment) {
+  auto l = lead({"--wall", "2x1"}, "128x64");
+  const int lead_metrics = port_ + 3;
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 1; }, 5.0)) << l->log();
+  const int port = free_base_port();
+  ASSERT_NE(port, 0);
+  auto f = follower(1, 0, port);
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 2; }, 5.0)) << l->log();
+  auto s = sampler("s1.log", 150000);
+  ASSERT_TRUE(
+      wait_until([&] { return received(lead_metrics) > 0 && received(port + 3) > 0; }, scaled(8.0)))
+      << l->log() << f->log() << s->log();
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+
+  httplib::Client client("127.0.0.1", lead_metrics);
+  client.set_read_timeout(std::chrono::seconds(5));
+  const auto res = client.Post("/snapshot?delay=0.3");
+  ASSERT_TRUE(res) << "no answer from POST /snapshot";
+  ASSERT_EQ(res->status, 200) << res->body;
+  const nlohmann::json ticket = nlohmann::json::parse(res->body);
+  const uint64_t id = ticket["id"].get<uint64_t>();
+  const double t = ticket["time"].get<double>();
+  ASSERT_EQ(ticket["cells"].size(), 2u) << res->body;
+  // A second request at once is refused with the reason, not queued without end.
+  const auto again = client.Post("/snapshot");
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->status, 409) << again->body;
+  // Both nodes say they made the image of that time (after writing it).
+  const std::string stem = fmt::format("snapshot_{:06d}", id);
+  const std::string made = fmt::format("snapshot {}: the image of t={:.3f}s", id, t);
+  ASSERT_TRUE(wait_until(
+      [&] {
+        return l->log().find(made) != std::string::npos && f->log().find(made) != std::string::npos;
+      },
+      scaled(5.0)))
+      << made << "\n"
+      << l->log() << f->log();
+
+  const Image left = read_image(path("lead/" + stem + ".exr"));
+  const Image right = read_image(path("cell-1-0/" + stem + ".exr"));
+  ASSERT_EQ(left.width, 64);
+  ASSERT_EQ(right.width, 64);
+  Image whole(128, 64);
+  for (int y = 0; y < 64; ++y) {
+    for (int x = 0; x < 64; ++x) {
+      whole.at(x, y) = left.at(x, y);
+      whole.at(64 + x, y) = right.at(x, y);
+    }
+  }
+  const Scene scene = make_builtin_scene();
+  Tracer tracer(scene);
+  const auto ideal = [&](double time) {
+    IdealRenderOptions o;
+    o.width = 128;
+    o.height = 64;
+    o.strata = 3;
+    o.time = time;
+    return render_ideal(tracer, o);
+  };
+  const Image at = ideal(t), before = ideal(t - 0.3), after = ideal(t + 0.3);
+  const PixelRect all{0, 0, 128, 64}, l_cell{0, 0, 64, 64}, r_cell{64, 0, 128, 64};
+  std::printf("snapshot of t=%.3f s against the ideal of t-0.3, t, t+0.3: %.1f %.1f %.1f\n", t,
+              rms_in(whole, before, all), rms_in(whole, at, all), rms_in(whole, after, all));
+  EXPECT_LT(rms_in(whole, at, all), rms_in(whole, before, all));
+  EXPECT_LT(rms_in(whole, at, all), rms_in(whole, after, all));
+  for (const auto& [image, rect] : {std::pair{&left, l_cell}, std::pair{&right, r_cell}}) {
+    EXPECT_LT(rms_in(*image, at, rect), rms_in(*image, before, rect)) << rect.x0;
+    EXPECT_LT(rms_in(*image, at, rect), rms_in(*image, after, rect)) << rect.x0;
+  }
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include <afr/display/service/metrics.h>
 #include <afr/display/service/metrics_exposition.h>
 #include <afr/display/service/overlays.h>
+#include <afr/display/service/snapshots.h>
 #include <afr/display/service/wall.h>
 #include <afr/display/service/wall_exchange.h>
 
@@ -209,7 +210,7 @@ struct DisplayApp::State {
 
   void make_reconstructor(const ReconstructorConfig& rc);
   // One image: the peers' coverage in, reconstruct (and show), the own coverage out.
-  void frame_at(double t, std::atomic<bool>& stop);
+  void frame_at(double now, std::atomic<bool>& stop);
   // The window's frame: the image (or an overlay) drawn and shown, then the input read.
   // Returns whether the image is the cell at its own size (the wall exchange's scale).
   // `want_image`: `image` should hold this frame's image at the cell's size (the dashboard);
@@ -301,7 +302,11 @@ int DisplayApp::run(std::atomic<bool>& stop) {
   return s.role.failed() ? 2 : 0;
 }
 
-void DisplayApp::State::frame_at(double t, std::atomic<bool>& stop) {
+void DisplayApp::State::frame_at(double now, std::atomic<bool>& stop) {
+  // A snapshot whose moment has come (snapshots.h): this image is of that moment, a frame
+  // period ago at most, with that moment's camera, and is written out.
+  const std::optional<Snapshot> snapshot = role.snapshots().take_due(now);
+  const double t = snapshot ? snapshot->time : now;
   const Camera camera = role.camera_at(t);
   if (!options.record.empty()) recorded.push_back(camera_key(t, camera));
   // Before the image: the current layout, and the peers' coverage into the reconstructor.
@@ -324,8 +329,12 @@ void DisplayApp::State::frame_at(double t, std::atomic<bool>& stop) {
     // The image leaves the reconstructor (a GPU's memory) only when it is written out.
     const bool saving = options.screenshot_every > 0 && frame > 0 &&
                         frame % uint64_t(options.screenshot_every) == 0;
-    read_back = saving || dashboard;
+    read_back = saving || dashboard || snapshot.has_value();
     recon->reconstruct(camera, t, out_w, out_h, read_back ? &image : nullptr);
+  }
+  if (snapshot && !read_back) {  // a window of another size, or an overlay drawn
+    recon->reconstruct(camera, t, out_w, out_h, &image);
+    read_back = true;
   }
   if (dashboard) {
     // (A window larger than the cell drew another size: one more image, at the cell's.)
@@ -342,6 +351,16 @@ void DisplayApp::State::frame_at(double t, std::atomic<bool>& stop) {
   if (!window && options.screenshot_every > 0 && frame > 0 &&
       frame % uint64_t(options.screenshot_every) == 0) {
     save(fmt::format("frame_{:06d}", frame), t);
+  }
+  if (snapshot) {
+    if (options.output.empty()) {
+      spdlog::warn("snapshot {} of t={:.3f}s: no --output folder, nothing written", snapshot->id,
+                   snapshot->time);
+    } else {
+      save(fmt::format("snapshot_{:06d}", snapshot->id), t);
+      spdlog::info("snapshot {}: the image of t={:.3f}s, made at t={:.3f}s", snapshot->id,
+                   snapshot->time, now);
+    }
   }
   ++frame;
   if (done >= next_stats) report_stats(done);

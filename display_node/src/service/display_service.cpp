@@ -11,8 +11,10 @@
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -96,6 +98,7 @@ class DisplayService::Control {
   void publish_view(double t);
   void say_goodbye();
   void measure(double t);
+  void send_snapshot_requests();
   // Helpers.
   bool send(const std::string& peer, const Message& m);
   void welcome(const std::string& peer, uint32_t id, uint64_t token);
@@ -230,6 +233,17 @@ DisplayService::DisplayService(DisplayServiceOptions options, SampleSink& sink)
   if (options_.metrics_port > 0) {
     http_ =
         std::make_unique<MetricsServer>(metrics_, options_.metrics_address, options_.metrics_port);
+    http_->on_snapshot([this](double delay) {
+      const SnapshotTicket ticket = request_snapshot(delay);
+      nlohmann::json j = {{"id", ticket.id}, {"time", ticket.time}};
+      j["cells"] = nlohmann::json::array();
+      for (const WallNode& n : ticket.layout.nodes) {
+        j["cells"].push_back(
+            {{"node", n.node_id}, {"cell", {n.cell.x0, n.cell.y0, n.cell.x1, n.cell.y1}}});
+      }
+      j["image"] = {ticket.layout.image.width, ticket.layout.image.height};
+      return j.dump();
+    });
   }
   check_wall_grid(options_.wall, options_.image.width, options_.image.height);
   check_wall_cell(options_.wall, options_.wall_column, options_.wall_row);
@@ -242,6 +256,29 @@ DisplayService::DisplayService(DisplayServiceOptions options, SampleSink& sink)
 PixelRect DisplayService::cell() const {
   return options_.wall.cell(options_.wall_column, options_.wall_row, options_.image.width,
                             options_.image.height);
+}
+
+DisplayService::SnapshotTicket DisplayService::request_snapshot(double delay) {
+  if (!std::isfinite(delay) || delay < 0.0 || delay > 10.0) {
+    throw Error(fmt::format("snapshot delay {} s is outside 0..10", delay));
+  }
+  SnapshotTicket ticket;
+  ticket.layout = wall_layout();
+  std::lock_guard<std::mutex> lock(snapshot_mutex_);
+  const double t = now();
+  if (t - last_snapshot_request_ < 0.2) {
+    throw Error("a snapshot was asked less than 0.2 s ago: ask again shortly");
+  }
+  last_snapshot_request_ = t;
+  ticket.id = next_snapshot_id_++;
+  ticket.time = t + delay;
+  if (!snapshots_.request({ticket.id, ticket.time})) {
+    throw Error(fmt::format("{} snapshots are pending already", SnapshotQueue::kMaxPending));
+  }
+  snapshot_outbox_.push_back(protocol::SnapshotRequest{ticket.id, ticket.time});
+  spdlog::info("snapshot {}: every cell's image of t={:.3f}s ({} node(s))", ticket.id, ticket.time,
+               ticket.layout.nodes.size());
+  return ticket;
 }
 
 WallLayout DisplayService::wall_layout() const {
@@ -427,6 +464,7 @@ void DisplayService::Control::run() {
     log_.flush([](const std::string& cause, uint64_t n) {
       spdlog::warn("control: {} more like this since its last line: {}", n, cause);
     });
+    send_snapshot_requests();
   }
   say_goodbye();
 }
@@ -679,6 +717,18 @@ void DisplayService::Control::expire_silent(double t) {
     send(it->first, Leave{it->second.id, LeaveReason::kTimeout, "no heartbeat: join again"});
     it = wall_nodes_.erase(it);
     wall_changed_ = true;
+  }
+}
+
+// Snapshots of one moment: each request goes to every follower of the wall.
+void DisplayService::Control::send_snapshot_requests() {
+  std::vector<SnapshotRequest> requests;
+  {
+    std::lock_guard<std::mutex> lock(service_.snapshot_mutex_);
+    requests.swap(service_.snapshot_outbox_);
+  }
+  for (const SnapshotRequest& r : requests) {
+    for (const auto& [peer, node] : wall_nodes_) send(peer, r);
   }
 }
 

@@ -77,6 +77,28 @@ MetricsServer::MetricsServer(const ServiceMetrics& metrics, const std::string& a
 
 MetricsServer::~MetricsServer() { stop(); }
 
+void MetricsServer::on_snapshot(std::function<std::string(double delay)> handler) {
+  impl_->server.Post("/snapshot", [handler = std::move(handler)](const httplib::Request& req,
+                                                                 httplib::Response& res) {
+    double delay = 0.5;
+    if (req.has_param("delay")) {
+      try {
+        delay = std::stod(req.get_param_value("delay"));
+      } catch (const std::exception&) {
+        res.status = 400;
+        res.set_content("delay: not a number", "text/plain");
+        return;
+      }
+    }
+    try {
+      res.set_content(handler(delay), "application/json");
+    } catch (const Error& e) {
+      res.status = 409;
+      res.set_content(e.what(), "text/plain");
+    }
+  });
+}
+
 void MetricsServer::start() {
   if (impl_->thread.joinable()) return;
   impl_->thread = std::thread([this] { impl_->server.listen_after_bind(); });

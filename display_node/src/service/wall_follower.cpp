@@ -9,6 +9,7 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
+#include <cmath>
 #include <thread>
 
 namespace afr::service {
@@ -102,10 +103,16 @@ PixelRect WallFollower::cell() const {
   return {};
 }
 
-Camera WallFollower::camera_at(double) const {
-  const std::optional<Camera> c = camera();
-  if (!c) throw Error("wall follower: no view from the lead yet (wait_until_admitted first)");
-  return *c;
+Camera WallFollower::camera_at(double t) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (views_.empty()) {
+    throw Error("wall follower: no view from the lead yet (wait_until_admitted first)");
+  }
+  const protocol::View* nearest = &views_.back();
+  for (const protocol::View& v : views_) {
+    if (std::abs(v.time - t) < std::abs(nearest->time - t)) nearest = &v;
+  }
+  return nearest->camera;
 }
 
 std::optional<WallPosition> WallFollower::wall_position() const {
@@ -212,6 +219,11 @@ void WallFollower::control_loop() {
               metrics_.set_wall(n.node_id, n.cell, l->nodes.size(), l->epoch);
             }
           }
+        } else if (const auto* sr = std::get_if<SnapshotRequest>(&msg)) {
+          if (!snapshots_.request({sr->id, sr->time})) {
+            spdlog::warn("snapshot {} of t={:.3f}s refused: {} snapshots are pending already",
+                         sr->id, sr->time, SnapshotQueue::kMaxPending);
+          }
         } else if (const auto* hb = std::get_if<Heartbeat>(&msg)) {
           if (link.joined() && hb->session != session) {
             spdlog::info("the lead display restarted: joining again");
@@ -233,6 +245,10 @@ void WallFollower::control_loop() {
         clock_.observe(v->time);  // views carry no session: only control messages are life
         std::lock_guard<std::mutex> lock(mutex_);
         camera_ = v->camera;
+        // A restarted lead's clock starts again: its views replace the old session's.
+        if (!views_.empty() && v->time < views_.back().time) views_.clear();
+        views_.push_back(*v);
+        if (views_.size() > kViewHistory) views_.pop_front();
       }
       if (link.heartbeat_due()) {
         (void)link.send(Heartbeat{node_id(), session, heartbeat_sequence++, clock_.now()});

@@ -98,6 +98,7 @@ Status encode(const TilingSnapshot& m, std::vector<uint8_t>* out,
               const ImageExtent& bounds = kMaxImageExtent);
 Status encode(const SamplerStats& m, std::vector<uint8_t>* out);
 Status encode(const Heartbeat& m, std::vector<uint8_t>* out);
+Status encode(const SnapshotRequest& m, std::vector<uint8_t>* out);
 Status encode(const Leave& m, std::vector<uint8_t>* out);
 Status encode(const DisplayJoin& m, std::vector<uint8_t>* out);
 Status encode(const WallLayout& m, std::vector<uint8_t>* out);
@@ -120,6 +121,7 @@ Status decode(Bytes message, SampleBatch* out, const ImageExtent& bounds = kMaxI
 Status decode(Bytes message, TilingSnapshot* out, const ImageExtent& bounds = kMaxImageExtent);
 Status decode(Bytes message, SamplerStats* out);
 Status decode(Bytes message, Heartbeat* out);
+Status decode(Bytes message, SnapshotRequest* out);
 Status decode(Bytes message, Leave* out);
 Status decode(Bytes message, DisplayJoin* out);
 Status decode(Bytes message, WallLayout* out);
@@ -141,6 +143,7 @@ Status validate(const SampleBatch& m, const ImageExtent& bounds = kMaxImageExten
 Status validate(const TilingSnapshot& m, const ImageExtent& bounds = kMaxImageExtent);
 Status validate(const SamplerStats& m);
 Status validate(const Heartbeat& m);
+Status validate(const SnapshotRequest& m);
 Status validate(const Leave& m);
 Status validate(const DisplayJoin& m);
 Status validate(const WallLayout& m);

@@ -63,9 +63,10 @@ enum class MessageType : uint16_t {
   kDisplayJoin = 12,
   kWallLayout = 13,
   kWallCoverage = 14,
+  kSnapshotRequest = 15,
 };
 inline constexpr uint16_t kFirstMessageType = 1;
-inline constexpr uint16_t kLastMessageType = 14;
+inline constexpr uint16_t kLastMessageType = 15;
 
 // "join", "sample_batch", ...; "unknown" for values outside the enum.
 const char* message_type_name(MessageType type);
@@ -277,9 +278,18 @@ void select_samples(const SampleBatch& batch, const PixelRect& rect, SampleBatch
 void select_tiles(const TilingSnapshot& snapshot, const PixelRect& rect, TilingSnapshot* out);
 
 // Any message, for channels that carry several types.
+// lead display -> follower display, on the control channel: "write your cell's image at display
+// time `time` as snapshot `id`" (docs/wall.md, "Snapshots"). Every node's image of one moment,
+// stitched, is the wall's image of that moment.
+struct SnapshotRequest {
+  uint64_t id = 0;    // >= 1; names the files (snapshot_<id>.png)
+  double time = 0.0;  // display time, finite, >= 0
+  bool operator==(const SnapshotRequest&) const = default;
+};
+
 using Message = std::variant<Join, Welcome, SceneRequest, SceneChunk, RegionAssignment, View,
                              SampleBatch, TilingSnapshot, SamplerStats, Heartbeat, Leave,
-                             DisplayJoin, WallLayout, WallCoverage>;
+                             DisplayJoin, WallLayout, WallCoverage, SnapshotRequest>;
 
 MessageType message_type(const Message& message);
 

@@ -18,6 +18,7 @@
 namespace afr::service {
 
 class ServiceMetrics;
+class SnapshotQueue;
 class WallCoverageInbox;
 
 // The wall as one node of it sees it: the layout and the node's own id in it.
@@ -46,6 +47,9 @@ class DisplayRole {
   virtual std::optional<WallPosition> wall_position() const = 0;
   virtual WallCoverageInbox& wall_coverage() = 0;
   virtual std::string lead_samples_endpoint() const = 0;
+  // Snapshots this node is asked to write (snapshots.h): the lead's own, a follower's from the
+  // lead.
+  virtual SnapshotQueue& snapshots() = 0;
   // True once the role cannot go on (a follower the lead refused for good).
   virtual bool failed() const = 0;
   // Tells the peers (samplers leave, a follower leaves the lead) and joins the threads.

@@ -18,6 +18,7 @@
 #include <afr/display/service/member_gate.h>
 #include <afr/display/service/metrics.h>
 #include <afr/display/service/metrics_server.h>
+#include <afr/display/service/snapshots.h>
 #include <afr/display/service/wall.h>
 #include <afr/display/service/wall_exchange.h>
 #include <afr/protocol/channels.h>
@@ -128,6 +129,17 @@ class DisplayService final : public DisplayRole {
   WallCoverageInbox& wall_coverage() override { return wall_coverage_; }
   std::string lead_samples_endpoint() const override { return ""; }
   bool failed() const override { return false; }
+  SnapshotQueue& snapshots() override { return snapshots_; }
+
+  // A snapshot of one moment (docs/wall.md, "Snapshots"): this node and every follower write
+  // their image of display time now() + delay as snapshot_<id>. Throws afr::Error when the
+  // delay is out of 0..10 s or one was asked less than 0.2 s ago (the HTTP answer says why).
+  struct SnapshotTicket {
+    uint64_t id = 0;
+    double time = 0.0;
+    protocol::WallLayout layout;  // the cells that are asked (the lead's own included)
+  };
+  SnapshotTicket request_snapshot(double delay);
 
  private:
   void control_loop();
@@ -156,7 +168,13 @@ class DisplayService final : public DisplayRole {
   std::atomic<bool> running_{false};
   std::thread control_thread_, ingest_thread_;
   std::unique_ptr<MetricsServer> http_;
-  LogLimiter zap_log_;  // refused CurveZMQ clients (the ZAP thread's only)
+  SnapshotQueue snapshots_;
+  // Snapshot requests for the followers: the HTTP thread adds, the control thread sends.
+  std::mutex snapshot_mutex_;
+  std::vector<protocol::SnapshotRequest> snapshot_outbox_;
+  uint64_t next_snapshot_id_ = 1;        // under snapshot_mutex_
+  double last_snapshot_request_ = -1e9;  // under snapshot_mutex_
+  LogLimiter zap_log_;                   // refused CurveZMQ clients (the ZAP thread's only)
 };
 
 }  // namespace afr::service

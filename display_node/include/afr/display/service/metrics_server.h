@@ -3,6 +3,7 @@
 
 #include <afr/display/service/metrics.h>
 
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -17,6 +18,10 @@ class MetricsServer {
   ~MetricsServer();
   MetricsServer(const MetricsServer&) = delete;
   MetricsServer& operator=(const MetricsServer&) = delete;
+  // POST /snapshot?delay=SECONDS (default 0.5): calls `handler` with the delay and answers its
+  // JSON; an afr::Error it throws is answered 409 with its text. Set before start() (the lead
+  // display only; elsewhere the path answers 404).
+  void on_snapshot(std::function<std::string(double delay)> handler);
   void start();
   void stop();
 

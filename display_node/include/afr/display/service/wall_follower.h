@@ -15,10 +15,12 @@
 #include <afr/display/service/display_role.h>
 #include <afr/display/service/metrics.h>
 #include <afr/display/service/metrics_server.h>
+#include <afr/display/service/snapshots.h>
 #include <afr/display/service/wall_exchange.h>
 #include <afr/protocol/channels.h>
 
 #include <atomic>
+#include <deque>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -64,8 +66,10 @@ class WallFollower final : public DisplayRole {
   // The lead's clock (display time, seconds) and the camera of its latest view.
   double now() const override { return clock_.now(); }
   std::optional<Camera> camera() const;
-  // The image of a follower shows the lead's latest view, whatever the time.
-  Camera camera_at(double) const override;
+  // The camera of the lead's view nearest display time t among the last kViewHistory (the
+  // latest one for an image of now; for a snapshot of a moment just past, that moment's).
+  Camera camera_at(double t) const override;
+  static constexpr size_t kViewHistory = 128;
   // The layout once admitted, and this node's id and cell in it.
   std::optional<protocol::WallLayout> layout() const;
   uint32_t node_id() const;
@@ -84,6 +88,8 @@ class WallFollower final : public DisplayRole {
   WallCoverageInbox& wall_coverage() override { return wall_coverage_; }
   // The lead's sample endpoint (the layout leaves the lead's own entry empty).
   std::string lead_samples_endpoint() const override;
+  // Snapshots the lead asked for (snapshot_request).
+  SnapshotQueue& snapshots() override { return snapshots_; }
 
  private:
   void control_loop();
@@ -98,6 +104,8 @@ class WallFollower final : public DisplayRole {
   std::unique_ptr<MetricsServer> http_;
   mutable std::mutex mutex_;
   std::optional<Camera> camera_;
+  std::deque<protocol::View> views_;  // the latest kViewHistory views, oldest first
+  SnapshotQueue snapshots_;
   std::optional<protocol::WallLayout> layout_;
   uint32_t node_id_ = 0;
   std::string preset_;
