@@ -33,6 +33,10 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
   m.transmission = glm::clamp(mat.transmission, 0.0f, 1.0f);
   m.is_glass = m.transmission > 0.0f;
   m.diffuse_weight = (1.0f - m.metallic) * (1.0f - m.transmission);
+  if (m.is_glass) {
+    m.shadow_transmittance =
+        glm::clamp(m.transmission * (1.0f - m.metallic) * m.base, glm::vec3(0.0f), glm::vec3(1.0f));
+  }
   m.is_mirror = !m.is_glass && m.metallic > 0.0f && roughness <= mirror_roughness;
   // The metallic part of a mirror sees its surroundings through the reflection ray, so only
   // the rest of it takes ambient light; of glass, only its diffuse part.

@@ -49,6 +49,9 @@ struct ShadeMaterial {
   bool is_mirror = false;     // metallic > 0 and roughness <= TracerOptions::mirror_roughness,
                               // and not glass
   bool is_glass = false;      // transmission > 0: reflects and refracts (Whitted), any roughness
+  // What a shadow ray keeps of the light crossing this surface: transmission x (1 - metallic) x
+  // base color factor (glass only; 0 for every other surface, which blocks).
+  glm::vec3 shadow_transmittance{0.0f};
 };
 
 // `material` may be null (the glTF default material). `textures` is the scene's list.

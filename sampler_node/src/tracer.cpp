@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -159,6 +160,67 @@ void set_lane(RTCRay8* r, int k, const glm::vec3& o, const glm::vec3& d, float t
   r->flags[k] = 0;
 }
 
+// ---- Shadows through glass ----
+//
+// A shadow ray passes through glass, dimmed by each glass surface it crosses
+// (ShadeMaterial::shadow_transmittance): a Whitted-style filter shadow, as BART's scenes
+// expect of their light behind a glass ceiling. The shadow ray is not refracted, and neither
+// Fresnel nor the texture dims it. Embree reports each glass surface on the ray's way to
+// glass_shadow_filter, which multiplies it into the ray's transmittance and lets the ray go
+// on, in whatever order (products commute); any other surface ends the ray. The high-quality
+// BVH's spatial splits can report one triangle twice, so each ray remembers the ones it has
+// counted. Only shadow rays (id kShadowRayId + lane, with a ShadowContext) are filtered:
+// other occlusion queries (Tracer::occluded) stop at glass as at any surface.
+constexpr unsigned kShadowRayId = 0x5ad0u;
+constexpr float kShadowCutoff = 1e-3f;  // a ray dimmer than this is blocked
+
+struct ShadowContext {
+  RTCIntersectContext embree;  // first: Embree hands the filter this address
+  static constexpr int kLanes = 8;
+  static constexpr int kMaxCrossed = 16;  // more glass surfaces than this: blocked
+  struct Crossed {
+    unsigned inst, geom, prim;
+  };
+  glm::vec3 transmittance[kLanes];
+  Crossed crossed[kLanes][kMaxCrossed];
+  int n_crossed[kLanes];
+
+  ShadowContext() {
+    rtcInitIntersectContext(&embree);
+    for (int k = 0; k < kLanes; ++k) {
+      transmittance[k] = glm::vec3(1.0f);
+      n_crossed[k] = 0;
+    }
+  }
+};
+static_assert(offsetof(ShadowContext, embree) == 0);
+
+void glass_shadow_filter(const RTCFilterFunctionNArguments* args) {
+  const auto* m = static_cast<const shading::ShadeMaterial*>(args->geometryUserPtr);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] != -1) continue;
+    const unsigned lane = RTCRayN_id(args->ray, args->N, i) - kShadowRayId;
+    if (lane >= unsigned(ShadowContext::kLanes)) continue;  // not a shadow ray: a blocker
+    auto* ctx = reinterpret_cast<ShadowContext*>(args->context);
+    const ShadowContext::Crossed c{RTCHitN_instID(args->hit, args->N, i, 0),
+                                   RTCHitN_geomID(args->hit, args->N, i),
+                                   RTCHitN_primID(args->hit, args->N, i)};
+    bool seen = false;
+    for (int k = 0; k < ctx->n_crossed[lane]; ++k) {
+      const ShadowContext::Crossed& o = ctx->crossed[lane][k];
+      seen |= o.inst == c.inst && o.geom == c.geom && o.prim == c.prim;
+    }
+    if (!seen) {
+      if (ctx->n_crossed[lane] == ShadowContext::kMaxCrossed) continue;
+      ctx->crossed[lane][ctx->n_crossed[lane]++] = c;
+      ctx->transmittance[lane] *= m->shadow_transmittance;
+    }
+    const glm::vec3& tr = ctx->transmittance[lane];
+    if (std::max(tr.r, std::max(tr.g, tr.b)) < kShadowCutoff) continue;
+    args->valid[i] = 0;  // the ray goes on through the glass
+  }
+}
+
 void error_callback(void* /*user*/, RTCError code, const char* message) {
   spdlog::error("embree error {}: {}", int(code), message ? message : "");
 }
@@ -182,10 +244,11 @@ struct Tracer::Impl {
   std::vector<Blas> blas_;
   std::vector<Instance> instances_;
   std::vector<ShadeMaterial> materials_;  // scene materials, then the default material
-  std::vector<int> light_nodes_;          // scene nodes that carry a light
-  std::vector<int> camera_lights_;        // lights on the camera (Light::on_camera)
-  std::vector<LightRecord> lights_;       // placed at the current time: nodes', then camera's
-  size_t node_light_count_ = 0;           // how many of lights_ come from nodes
+  bool has_glass_ = false;           // some geometry lets shadow rays through (glass_shadow_filter)
+  std::vector<int> light_nodes_;     // scene nodes that carry a light
+  std::vector<int> camera_lights_;   // lights on the camera (Light::on_camera)
+  std::vector<LightRecord> lights_;  // placed at the current time: nodes', then camera's
+  size_t node_light_count_ = 0;      // how many of lights_ come from nodes
   // Static geometry transformed to world space (GeomRecord points into these).
   std::vector<std::vector<glm::vec3>> static_positions_;
   std::vector<std::vector<glm::vec3>> static_normals_;
@@ -207,8 +270,11 @@ struct Tracer::Impl {
   void release();
 
   void check_device(const char* what) const;
-  RTCGeometry new_triangle_geometry(const glm::vec3* positions, size_t vertex_count,
-                                    const uint32_t* indices, size_t triangle_count) const;
+  // Glass lets shadow rays through (glass_shadow_filter).
+  void let_shadows_through_glass(RTCGeometry g, uint32_t material);
+  RTCGeometry new_triangle_geometry(uint32_t material, const glm::vec3* positions,
+                                    size_t vertex_count, const uint32_t* indices,
+                                    size_t triangle_count);
   void build();
   void build_deforming(const std::vector<int>& nodes, uint32_t default_material);
   void deform(double before, double after);
@@ -225,6 +291,9 @@ struct Tracer::Impl {
   // ---- queries (const, thread-safe) ----
   HitRef intersect(const glm::vec3& o, const glm::vec3& d, float tnear) const;
   bool blocked(const glm::vec3& o, const glm::vec3& d, float tnear, float tfar) const;
+  // What a shadow ray from o along d (unit) up to tfar keeps: 0 when an opaque surface blocks
+  // it, the product of the glass surfaces' transmittances it crosses otherwise.
+  glm::vec3 shadow_transmittance(const glm::vec3& o, const glm::vec3& d, float tfar) const;
   void make_surface(const HitRef& hit, const glm::vec3& o, const glm::vec3& d, Surface* s) const;
   glm::vec3 texture_color(const Surface& s) const;
   bool prepare_local(const Surface& s, const glm::vec3& wo, const glm::vec3& tex, glm::vec3* c,
@@ -293,9 +362,18 @@ void Tracer::Impl::check_device(const char* what) const {
                 ") for scene " + scene_.source);
 }
 
-RTCGeometry Tracer::Impl::new_triangle_geometry(const glm::vec3* positions, size_t vertex_count,
-                                                const uint32_t* indices,
-                                                size_t triangle_count) const {
+void Tracer::Impl::let_shadows_through_glass(RTCGeometry g, uint32_t material) {
+  AFR_DCHECK(material < materials_.size());
+  const shading::ShadeMaterial& m = materials_[material];
+  if (!m.is_glass) return;
+  has_glass_ = true;
+  rtcSetGeometryUserData(g, const_cast<shading::ShadeMaterial*>(&m));
+  rtcSetGeometryOccludedFilterFunction(g, &glass_shadow_filter);
+}
+
+RTCGeometry Tracer::Impl::new_triangle_geometry(uint32_t material, const glm::vec3* positions,
+                                                size_t vertex_count, const uint32_t* indices,
+                                                size_t triangle_count) {
   RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
   // Embree's own buffers carry the padding its SIMD loads need.
   auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
@@ -309,6 +387,7 @@ RTCGeometry Tracer::Impl::new_triangle_geometry(const glm::vec3* positions, size
   }
   std::copy_n(&positions[0].x, 3 * vertex_count, v);
   std::copy_n(indices, 3 * triangle_count, i);
+  let_shadows_through_glass(g, material);
   rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_HIGH);
   rtcCommitGeometry(g);
   return g;
@@ -376,8 +455,8 @@ void Tracer::Impl::build() {
             normals[i] = glm::vec3(normal_matrix * glm::dvec3(p.normals[i]));
         }
       }
-      RTCGeometry g = new_triangle_geometry(positions.data(), positions.size(), p.indices.data(),
-                                            p.triangle_count());
+      RTCGeometry g = new_triangle_geometry(material_of(p), positions.data(), positions.size(),
+                                            p.indices.data(), p.triangle_count());
       rtcAttachGeometryByID(statics.scene, g, unsigned(statics.geoms.size()));
       rtcReleaseGeometry(g);
       static_positions_.push_back(std::move(positions));
@@ -413,8 +492,9 @@ void Tracer::Impl::build() {
       b.scene = rtcNewScene(device_);
       for (const Primitive& p : scene_.meshes[size_t(mesh)].primitives) {
         if (!usable(p)) continue;
-        RTCGeometry g = new_triangle_geometry(p.positions.data(), p.positions.size(),
-                                              p.indices.data(), p.triangle_count());
+        RTCGeometry g =
+            new_triangle_geometry(material_of(p), p.positions.data(), p.positions.size(),
+                                  p.indices.data(), p.triangle_count());
         rtcAttachGeometryByID(b.scene, g, unsigned(b.geoms.size()));
         rtcReleaseGeometry(g);
         GeomRecord r;
@@ -506,6 +586,9 @@ void Tracer::Impl::build_deforming(const std::vector<int>& nodes, uint32_t defau
       throw Error("embree: cannot allocate geometry buffers for scene " + scene_.source);
     }
     std::copy_n(p.indices.data(), 3 * p.triangle_count(), i);
+    let_shadows_through_glass(g, p.material >= 0 && size_t(p.material) < scene_.materials.size()
+                                     ? uint32_t(p.material)
+                                     : default_material);
     rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
     rtcCommitGeometry(g);
     rtcAttachGeometryByID(b.scene, g, unsigned(b.geoms.size()));
@@ -653,6 +736,17 @@ HitRef Tracer::Impl::intersect(const glm::vec3& o, const glm::vec3& d, float tne
   return h;
 }
 
+glm::vec3 Tracer::Impl::shadow_transmittance(const glm::vec3& o, const glm::vec3& d,
+                                             float tfar) const {
+  if (!has_glass_) return blocked(o, d, 0.0f, tfar) ? glm::vec3(0.0f) : glm::vec3(1.0f);
+  ShadowContext ctx;
+  RTCRay r;
+  init_ray(&r, o, d, 0.0f, tfar);
+  r.id = kShadowRayId;
+  rtcOccluded1(top_, &ctx.embree, &r);
+  return r.tfar < 0.0f ? glm::vec3(0.0f) : ctx.transmittance[0];
+}
+
 bool Tracer::Impl::blocked(const glm::vec3& o, const glm::vec3& d, float tnear, float tfar) const {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
@@ -764,7 +858,7 @@ glm::vec3 Tracer::Impl::shade_local(const Surface& s, const glm::vec3& wo, const
     if (!light_contribution(light, s, terms, wo, &contribution, &l, &tfar)) continue;
     if (options_.shadows) {
       ++stats->shadow_rays;
-      if (blocked(terms.origin, l, 0.0f, tfar)) continue;
+      contribution *= shadow_transmittance(terms.origin, l, tfar);
     }
     c += contribution;
   }
@@ -805,11 +899,20 @@ void Tracer::Impl::shade_local8(const Surface* s, const glm::vec3* wo, const glm
       ++stats->shadow_rays;
     }
     if (!any_ray) continue;
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    rtcOccluded8(valid, top_, &ctx, &rays);
-    for (int k = 0; k < n; ++k)
-      if (valid[k] && rays.tfar[k] >= 0.0f) out[k] += contribution[k];
+    if (!has_glass_) {  // the shadow rays of scenes without glass skip the filter's context
+      RTCIntersectContext ctx;
+      rtcInitIntersectContext(&ctx);
+      rtcOccluded8(valid, top_, &ctx, &rays);
+      for (int k = 0; k < n; ++k)
+        if (valid[k] && rays.tfar[k] >= 0.0f) out[k] += contribution[k];
+      continue;
+    }
+    for (int k = 0; k < 8; ++k) rays.id[k] = kShadowRayId + unsigned(k);
+    ShadowContext ctx;
+    rtcOccluded8(valid, top_, &ctx.embree, &rays);
+    for (int k = 0; k < n; ++k) {
+      if (valid[k] && rays.tfar[k] >= 0.0f) out[k] += contribution[k] * ctx.transmittance[k];
+    }
   }
 }
 

@@ -728,6 +728,73 @@ TEST(TracerTest, TransmissionZeroTracesAsBefore) {
   EXPECT_EQ(sa.shadow_rays, sb.shadow_rays);
 }
 
+// Shadows through glass (a filter shadow): a floor lit by a sun straight above, under a box of
+// glass between y = 1 and y = 2. A shadow ray crosses the box's bottom and top, each keeping
+// transmission x base color, so the floor below gets the sun times base^2 (a clear box: all of
+// it; an opaque box: none; a glass of transmission 0.5, tinted: (0.5 base)^2 per channel),
+// beside the box the whole sun. The crosshair's 8-wide shadow packets agree with single rays,
+// and the sampler's occlusion rays still stop at glass (it is a visible surface).
+TEST(TracerTest, ShadowRaysPassThroughGlassDimmedByEachSurface) {
+  const glm::vec3 floor_base(0.8f, 0.6f, 0.4f);
+  const float intensity = 3.0f;
+  struct Case {
+    const char* name;
+    float transmission;
+    glm::vec3 base;
+    glm::vec3 kept;  // what the two surfaces keep of the sun
+  };
+  const Case cases[] = {
+      {"clear", 1.0f, glm::vec3(1.0f), glm::vec3(1.0f)},
+      {"tinted", 0.5f, glm::vec3(1.0f, 0.5f, 0.25f),
+       glm::vec3(0.25f, 0.0625f, 0.015625f)},  // (0.5 base)^2
+      {"opaque", 0.0f, glm::vec3(1.0f), glm::vec3(0.0f)},
+  };
+  for (const Case& c : cases) {
+    for (bool packet : {true, false}) {
+      SCOPED_TRACE(std::string(c.name) + (packet ? ", packets" : ", single rays"));
+      Scene s;
+      const int floor = add_material(&s, floor_base, 0.0f, 1.0f);
+      add_mesh_node(&s, quad_mesh({-5, 0, 5}, {10, 0, 0}, {0, 0, -10}, floor));
+      const int glass = add_material(&s, c.base, 0.0f, 0.0f);
+      s.materials[size_t(glass)].transmission = c.transmission;
+      s.materials[size_t(glass)].ior = 1.5f;
+      add_mesh_node(&s, box_mesh({2.0f, 0.5f, 2.0f}, glass), glm::dvec3(0.0, 1.5, 0.0));
+      Light sun;
+      sun.type = Light::Type::kDirectional;
+      sun.intensity = intensity;
+      add_light_node(&s, sun, {0, 5, 0}, pointing_down());
+      s.finalize();
+      TracerOptions o;
+      o.packet_crosshair = packet;
+      Tracer tracer(s, o);
+      // Seen from the side, below the box: the view does not cross the glass.
+      const Camera cam = Camera::look_at({4.5, 0.6, 0.0}, {0.0, 0.0, 0.0}, {0, 1, 0}, 1.2, 0.01);
+      const int w = 64, h = 48;
+      const glm::vec3 lit = floor_base / kPi * intensity;
+      TraceStats stats;
+      int under = 0, beside = 0;
+      for (int j = 1; j < h - 1; j += 2) {
+        for (int i = 1; i < w - 1; i += 2) {
+          std::array<ShadedSample, 5> cross;
+          tracer.trace_crosshair(cam, i + 0.5, j + 0.5, w, h, &cross, &stats);
+          const ShadedSample& x = cross[0];
+          if (!x.hit || std::abs(x.position.y) > 1e-3f) continue;  // the floor only
+          const bool shaded = std::abs(x.position.x) < 1.9f && std::abs(x.position.z) < 1.9f;
+          const bool clear = std::abs(x.position.x) > 2.1f || std::abs(x.position.z) > 2.1f;
+          if (!shaded && !clear) continue;  // the edge of the box's shadow
+          expect_near3(x.color, shaded ? lit * c.kept : lit, 1e-4f, "floor");
+          expect_same_sample(x, tracer.trace(cam.ray(i + 0.5, j + 0.5, w, h), &stats), 1e-4f);
+          (shaded ? under : beside) += 1;
+        }
+      }
+      EXPECT_GT(under, 30);
+      EXPECT_GT(beside, 30);
+      // The occlusion ray of the sampler: glass is a surface it sees.
+      EXPECT_TRUE(tracer.occluded({0, 0.01f, 0}, {0, 4, 0}, &stats));
+    }
+  }
+}
+
 // A glass sphere-like box seen from many directions, on a lit floor: every sample is finite
 // and a sample's secondary rays stay within 2 + 4 + ... + 2^depth (two per glass hit).
 TEST(TracerTest, GlassSamplesAreFiniteAndBoundedInRays) {
