@@ -60,7 +60,11 @@ Image render_ideal(Tracer& tracer, const IdealRenderOptions& o, IdealRenderStats
             for (int sx = 0; sx < o.strata; ++sx) {
               const double px = x + (sx + rng.next_double()) / o.strata;
               const double py = y + (sy + rng.next_double()) / o.strata;
-              const ShadedSample s = tracer.trace(camera.ray(px, py, o.width, o.height), &ts);
+              // Each of the S x S samples stands for 1 / S of the pixel's width: its ray cone
+              // filters textures over that much (docs/scene-model.md, "Texture filtering").
+              Ray ray = camera.ray(px, py, o.width, o.height);
+              ray.spread /= float(o.strata);
+              const ShadedSample s = tracer.trace(ray, &ts);
               // Splat into the pixels of this block within the filter radius.
               for (int qy = std::max(y0, y - reach); qy <= std::min(y1 - 1, y + reach); ++qy) {
                 const double wy = filter_1d(py - (qy + 0.5));

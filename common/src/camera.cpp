@@ -51,7 +51,10 @@ Ray Camera::ray(double x, double y, int width, int height) const {
   const double sx = (2.0 * x / width - 1.0) * tan_half * aspect;
   const double sy = (1.0 - 2.0 * y / height) * tan_half;
   const glm::dvec3 d = glm::normalize(forward + sx * right + sy * up);
-  return Ray{glm::vec3(eye), glm::vec3(d)};
+  // A pixel is 2 tan(yfov / 2) / height wide on the image plane at distance 1 along forward;
+  // seen along d that plane is 1 / cos away and tilted by the same angle: cos^2 of it.
+  const double c = glm::dot(d, forward);
+  return Ray{glm::vec3(eye), glm::vec3(d), float(2.0 * tan_half / height * c * c)};
 }
 
 bool Camera::project(const glm::dvec3& p, int width, int height, glm::dvec2* xy,

@@ -13,8 +13,9 @@ namespace afr {
 // ---------------------------------------------------------------------------------------------
 // Textures
 
-glm::vec3 Texture::sample_bilinear(glm::vec2 uv) const {
-  if (width <= 0 || height <= 0) return glm::vec3(1.0f);
+namespace {
+
+glm::vec3 bilinear(const glm::vec3* texels, int width, int height, glm::vec2 uv) {
   // Keep only the fractional part first (REPEAT), so huge UVs keep their precision.
   double u = std::isfinite(uv.x) ? uv.x - std::floor(double(uv.x)) : 0.0;
   double v = std::isfinite(uv.y) ? uv.y - std::floor(double(uv.y)) : 0.0;
@@ -31,6 +32,56 @@ glm::vec3 Texture::sample_bilinear(glm::vec2 uv) const {
   const glm::vec3 top = glm::mix(at(x0, y0), at(x1, y0), ax);
   const glm::vec3 bottom = glm::mix(at(x0, y1), at(x1, y1), ax);
   return glm::mix(top, bottom, ay);
+}
+
+}  // namespace
+
+glm::vec3 Texture::sample_bilinear(glm::vec2 uv) const {
+  if (width <= 0 || height <= 0 || texels.size() != size_t(width) * size_t(height)) {
+    return glm::vec3(1.0f);
+  }
+  return bilinear(texels.data(), width, height, uv);
+}
+
+void Texture::build_mips() {
+  mips.clear();
+  if (width <= 0 || height <= 0 || texels.size() != size_t(width) * size_t(height)) return;
+  const glm::vec3* src = texels.data();
+  int w = width, h = height;
+  while (w > 1 || h > 1) {
+    Level l;
+    l.width = (w + 1) / 2;
+    l.height = (h + 1) / 2;
+    l.texels.resize(size_t(l.width) * size_t(l.height));
+    for (int y = 0; y < l.height; ++y) {
+      const int y0 = (2 * y) % h, y1 = (2 * y + 1) % h;
+      for (int x = 0; x < l.width; ++x) {
+        const int x0 = (2 * x) % w, x1 = (2 * x + 1) % w;
+        const auto at = [&](int i, int j) { return src[size_t(j) * size_t(w) + size_t(i)]; };
+        l.texels[size_t(y) * size_t(l.width) + size_t(x)] =
+            0.25f * (at(x0, y0) + at(x1, y0) + at(x0, y1) + at(x1, y1));
+      }
+    }
+    mips.push_back(std::move(l));
+    src = mips.back().texels.data();
+    w = mips.back().width;
+    h = mips.back().height;
+  }
+}
+
+glm::vec3 Texture::sample(glm::vec2 uv, float lod) const {
+  if (!(lod > 0.0f) || mips.empty()) return sample_bilinear(uv);
+  const float top = float(mips.size());
+  lod = std::min(lod, top);
+  const int lower = int(lod);
+  const float f = lod - float(lower);
+  const auto level = [&](int i) {
+    if (i == 0) return sample_bilinear(uv);
+    const Level& l = mips[size_t(std::min(i, int(mips.size()))) - 1];
+    return bilinear(l.texels.data(), l.width, l.height, uv);
+  };
+  const glm::vec3 a = level(lower);
+  return f > 0.0f ? glm::mix(a, level(lower + 1), f) : a;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -85,6 +136,7 @@ constexpr size_t kMaxDeformationWork = size_t(1) << 24;
 }  // namespace
 
 void Scene::finalize() {
+  for (Texture& t : textures) t.build_mips();
   const auto err = [&](const std::string& what) {
     return Error(fmt::format("{}: {}", source, what));
   };

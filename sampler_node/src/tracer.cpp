@@ -80,7 +80,8 @@ struct Instance {
   bool moves = false;
   bool enabled = true;
   glm::mat3 normal_matrix{1.0f};  // inverse transpose of the world transform's linear part
-  glm::mat4 velocity{0.0f};       // maps a world point to its world velocity (affine)
+  float area_scale = 1.0f;   // |det| of that linear part: world area = it x |normal_matrix x n|
+  glm::mat4 velocity{0.0f};  // maps a world point to its world velocity (affine)
 };
 
 // What one Embree ray query returned, whether from a single ray or a packet lane.
@@ -105,6 +106,11 @@ struct Surface {
   glm::vec3 barycentric{0.0f};         // of the hit, weights of triangle[0], [1], [2]
   int node = -1;
   bool back_face = false;  // a single-sided surface seen from behind
+  // The ray cone (docs/scene-model.md, "Texture filtering"): its width at p, how fast it grows,
+  // and the texture's level of detail that width asks for.
+  float cone = 0.0f;
+  float spread = 0.0f;
+  float lod = 0.0f;
 };
 
 // One primitive of a deforming mesh node (Scene::node_geometry_moves): an Embree geometry whose
@@ -158,6 +164,28 @@ void set_lane(RTCRay8* r, int k, const glm::vec3& o, const glm::vec3& d, float t
   r->mask[k] = 0xffffffffu;
   r->id[k] = unsigned(k);
   r->flags[k] = 0;
+}
+
+// ---- Texture filtering (ray cones) ----
+//
+// The level of detail of a texture lookup (docs/scene-model.md, "Texture filtering"): log2 of
+// the cone's footprint on the surface in level-0 texels. The footprint is the cone's width
+// over the cosine of the incidence (the long axis of its ellipse, so a grazing floor blurs
+// rather than aliases), times the texels per unit of length on the triangle: the square root of
+// its area in texels over its area in the world. Both areas come as twice the area (cross
+// products); 0 for a degenerate triangle or one without uv area (then no filtering).
+constexpr float kMinLodCosine = 0.05f;  // at most 20x the cone's width
+
+float texture_lod(const Texture& texture, glm::vec2 t0, glm::vec2 t1, glm::vec2 t2,
+                  float world_area2, float cone, float cosine) {
+  const glm::vec2 e1 = t1 - t0, e2 = t2 - t0;
+  const float texel_area2 =
+      std::abs(e1.x * e2.y - e1.y * e2.x) * float(texture.width) * float(texture.height);
+  if (!(texel_area2 > 0.0f) || !(world_area2 > 0.0f)) return 0.0f;
+  const float footprint =
+      cone / std::max(cosine, kMinLodCosine) * std::sqrt(texel_area2 / world_area2);
+  const float lod = std::log2(footprint);
+  return std::isfinite(lod) ? std::max(lod, 0.0f) : 0.0f;
 }
 
 // ---- Shadows through glass ----
@@ -294,7 +322,10 @@ struct Tracer::Impl {
   // What a shadow ray from o along d (unit) up to tfar keeps: 0 when an opaque surface blocks
   // it, the product of the glass surfaces' transmittances it crosses otherwise.
   glm::vec3 shadow_transmittance(const glm::vec3& o, const glm::vec3& d, float tfar) const;
-  void make_surface(const HitRef& hit, const glm::vec3& o, const glm::vec3& d, Surface* s) const;
+  // The surface of `hit` on the ray from o along d, whose cone was `cone` wide at o and grows by
+  // `spread` per unit of distance.
+  void make_surface(const HitRef& hit, const glm::vec3& o, const glm::vec3& d, float cone,
+                    float spread, Surface* s) const;
   glm::vec3 texture_color(const Surface& s) const;
   bool prepare_local(const Surface& s, const glm::vec3& wo, const glm::vec3& tex, glm::vec3* c,
                      LocalTerms* terms) const;
@@ -311,7 +342,7 @@ struct Tracer::Impl {
   [[gnu::noinline]] glm::vec3 glass(const glm::vec3& d, const Surface& s, const glm::vec3& tex,
                                     int depth, const glm::vec3& throughput,
                                     TraceStats* stats) const;
-  glm::vec3 secondary(const glm::vec3& origin, const glm::vec3& d, int depth,
+  glm::vec3 secondary(const glm::vec3& origin, const glm::vec3& d, const Surface& from, int depth,
                       const glm::vec3& throughput, TraceStats* stats) const;
   bool begin_sample(const Ray& ray, const HitRef& hit, ShadedSample* o, Surface* s,
                     TraceStats* stats) const;
@@ -669,6 +700,7 @@ void Tracer::Impl::set_time(double t) {
       to_float3x4(m, xfm);
       rtcSetGeometryTransform(inst.geom, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm);
       inst.normal_matrix = glm::mat3(glm::transpose(glm::inverse(glm::dmat3(m))));
+      inst.area_scale = float(std::abs(glm::determinant(glm::dmat3(m))));
       // v(p) = dM/dt M^-1 p, with dM/dt from the difference quotient above.
       const glm::dmat4 dm =
           (state_plus_.world[size_t(inst.node)] - state_minus_.world[size_t(inst.node)]) *
@@ -757,7 +789,7 @@ bool Tracer::Impl::blocked(const glm::vec3& o, const glm::vec3& d, float tnear, 
 }
 
 void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm::vec3& d,
-                                Surface* s) const {
+                                float cone, float spread, Surface* s) const {
   AFR_DCHECK(hit.inst < instances_.size());
   const Instance& inst = instances_[hit.inst];
   AFR_DCHECK(hit.geom < blas_[size_t(inst.blas)].geoms.size());
@@ -784,6 +816,7 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   // Degenerate triangles and zero or broken vertex normals fall back to whatever is valid.
   const float ng_len2 = glm::dot(ng, ng);
   const float ns_len2 = glm::dot(ns, ns);
+  const float world_area2 = std::sqrt(ng_len2) * (inst.moves ? inst.area_scale : 1.0f);
   const bool ng_ok = ng_len2 > 1e-30f && std::isfinite(ng_len2);
   const bool ns_ok = ns_len2 > 1e-20f && std::isfinite(ns_len2);
   if (ns_ok) ns *= 1.0f / std::sqrt(ns_len2);
@@ -807,6 +840,13 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   s->uv = g.uvs && s->material->texture
               ? w * g.uvs[tri[0]] + hit.u * g.uvs[tri[1]] + hit.v * g.uvs[tri[2]]
               : glm::vec2(0.0f);
+  s->spread = spread;
+  s->cone = cone + spread * hit.t;
+  s->lod = 0.0f;
+  if (g.uvs && s->material->texture && s->cone > 0.0f) {
+    s->lod = texture_lod(*s->material->texture, g.uvs[tri[0]], g.uvs[tri[1]], g.uvs[tri[2]],
+                         world_area2, s->cone, std::abs(glm::dot(d, ng)));
+  }
 }
 
 // Emission and ambient light, and whether the surface takes direct light (then `terms` is set).
@@ -917,7 +957,7 @@ void Tracer::Impl::shade_local8(const Surface* s, const glm::vec3* wo, const glm
 }
 
 glm::vec3 Tracer::Impl::texture_color(const Surface& s) const {
-  return s.material->texture ? s.material->texture->sample_bilinear(s.uv) : glm::vec3(1.0f);
+  return s.material->texture ? s.material->texture->sample(s.uv, s.lod) : glm::vec3(1.0f);
 }
 
 // The light reaching the viewer from surface s (seen along d, with texture color tex) by way
@@ -953,7 +993,7 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
       result += throughput * scene_.background;
       break;
     }
-    make_surface(hit, origin, r, &s);
+    make_surface(hit, origin, r, s.cone, s.spread, &s);
     d = r;
     tex = texture_color(s);
     result += throughput * shade_local(s, -d, tex, stats);
@@ -963,13 +1003,13 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
 
 // One secondary ray of glass, and what it brings back (local shading and further bounces) times
 // `throughput`; `depth` counts this ray.
-glm::vec3 Tracer::Impl::secondary(const glm::vec3& origin, const glm::vec3& d, int depth,
-                                  const glm::vec3& throughput, TraceStats* stats) const {
+glm::vec3 Tracer::Impl::secondary(const glm::vec3& origin, const glm::vec3& d, const Surface& from,
+                                  int depth, const glm::vec3& throughput, TraceStats* stats) const {
   ++stats->reflection_rays;
   const HitRef hit = intersect(origin, d, 0.0f);
   if (hit.geom == RTC_INVALID_GEOMETRY_ID) return throughput * scene_.background;
   Surface s;
-  make_surface(hit, origin, d, &s);
+  make_surface(hit, origin, d, from.cone, from.spread, &s);
   const glm::vec3 tex = texture_color(s);
   return throughput * shade_local(s, -d, tex, stats) +
          mirror_chain(d, s, tex, stats, depth, throughput);
@@ -1031,8 +1071,8 @@ glm::vec3 Tracer::Impl::glass(const glm::vec3& d, const Surface& s, const glm::v
     if (glm::dot(r, ng) <= 0.0f) r = d - 2.0f * glm::dot(d, ng) * ng;
     const float len2 = glm::dot(r, r);
     if (len2 > 0.0f && std::isfinite(len2))
-      result += secondary(s.p + offset * ng, r * (1.0f / std::sqrt(len2)), depth + 1, r_throughput,
-                          stats);
+      result += secondary(s.p + offset * ng, r * (1.0f / std::sqrt(len2)), s, depth + 1,
+                          r_throughput, stats);
   }
   const glm::vec3 t_throughput = throughput * transmit_w;
   if (std::max(t_throughput.r, std::max(t_throughput.g, t_throughput.b)) >= kMinThroughput) {
@@ -1045,8 +1085,8 @@ glm::vec3 Tracer::Impl::glass(const glm::vec3& d, const Surface& s, const glm::v
     }
     const float len2 = glm::dot(t, t);
     if (len2 > 0.0f && std::isfinite(len2))
-      result += secondary(s.p - offset * ng, t * (1.0f / std::sqrt(len2)), depth + 1, t_throughput,
-                          stats);
+      result += secondary(s.p - offset * ng, t * (1.0f / std::sqrt(len2)), s, depth + 1,
+                          t_throughput, stats);
   }
   return result;
 }
@@ -1064,7 +1104,7 @@ bool Tracer::Impl::begin_sample(const Ray& ray, const HitRef& hit, ShadedSample*
     o->hit = false;
     return false;
   }
-  make_surface(hit, ray.origin, ray.direction, s);
+  make_surface(hit, ray.origin, ray.direction, 0.0f, ray.spread, s);
   o->position = s->p;
   if (s->instance->moves) {
     o->velocity = glm::vec3(s->instance->velocity * glm::vec4(s->p, 1.0f));

@@ -175,5 +175,46 @@ TEST(SceneTest, TextureSamplingIsBilinearAndRepeats) {
   EXPECT_TRUE(std::isfinite(t.sample_bilinear({NAN, INFINITY}).x));
 }
 
+// Mip levels: each the 2 x 2 mean of the one before (REPEAT at odd edges), down to 1 x 1; a
+// lookup at lod 0 is the bilinear one, at lod 1 the first level's, in between a blend.
+TEST(SceneTest, MipLevelsAverageAndTrilinearLookupBlendsThem) {
+  Texture t;
+  t.width = 4;
+  t.height = 4;
+  for (int y = 0; y < 4; ++y) {
+    for (int x = 0; x < 4; ++x) t.texels.push_back(glm::vec3(float((x + y) % 2)));  // checker
+  }
+  t.build_mips();
+  ASSERT_EQ(t.mips.size(), 2u);  // 2 x 2, 1 x 1
+  EXPECT_EQ(t.mips[0].width, 2);
+  EXPECT_EQ(t.mips[1].width, 1);
+  for (const glm::vec3& v : t.mips[0].texels) EXPECT_FLOAT_EQ(v.x, 0.5f);
+  EXPECT_FLOAT_EQ(t.mips[1].texels[0].x, 0.5f);
+  const glm::vec2 texel_center(0.125f, 0.125f);  // texel (0, 0): black
+  EXPECT_FLOAT_EQ(t.sample(texel_center, 0.0f).x, 0.0f);
+  EXPECT_FLOAT_EQ(t.sample(texel_center, -3.0f).x, 0.0f);  // magnification: level 0
+  EXPECT_FLOAT_EQ(t.sample(texel_center, 1.0f).x, 0.5f);
+  EXPECT_FLOAT_EQ(t.sample(texel_center, 0.5f).x, 0.25f);
+  EXPECT_FLOAT_EQ(t.sample(texel_center, 40.0f).x, 0.5f);  // beyond the last level: the last
+  EXPECT_FLOAT_EQ(t.sample(texel_center, NAN).x, 0.0f);
+
+  // Odd sizes: 3 x 1 -> 2 x 1 (the last texel pairs with the first, REPEAT) -> 1 x 1.
+  Texture odd;
+  odd.width = 3;
+  odd.height = 1;
+  odd.texels = {glm::vec3(0.0f), glm::vec3(0.3f), glm::vec3(0.9f)};
+  odd.build_mips();
+  ASSERT_EQ(odd.mips.size(), 2u);
+  EXPECT_FLOAT_EQ(odd.mips[0].texels[0].x, 0.15f);
+  EXPECT_FLOAT_EQ(odd.mips[0].texels[1].x, 0.45f);
+  EXPECT_FLOAT_EQ(odd.mips[1].texels[0].x, 0.3f);
+  // A scene's textures get their levels when it is finalized.
+  Scene scene;
+  scene.textures.push_back(t);
+  scene.textures[0].mips.clear();
+  scene.finalize();
+  EXPECT_EQ(scene.textures[0].mips.size(), 2u);
+}
+
 }  // namespace
 }  // namespace afr

@@ -520,6 +520,72 @@ TEST(TracerTest, TextureColorMultipliesBaseColor) {
   expect_near3(blue.color, {0.0f, 0.0f, 0.6f}, 1e-5f, "blue texel");
 }
 
+// Texture minification by ray cones: a floor with a one-texel checker (1024 x 1024 texels over
+// 1 x 1, repeated 20 times over the 20 x 20 floor), lit by ambient light only, seen from 1 above
+// at 64 x 48 pixels. Every pixel covers many texels: with the camera's ray cones the samples are
+// the checker's mean, 0.5, near and far (a grazing floor blurs, it does not alias); thin rays
+// (spread 0) read single texels and alias to 0 and 1. Near the camera, where a texel is larger
+// than the cone, the cone reads the texture as thin rays do (no blur where none is needed).
+TEST(TracerTest, RayConesFilterMinifiedTexturesAndLeaveMagnifiedOnesSharp) {
+  const auto checker_floor = [](int size, float repeats) {
+    Scene s;
+    s.ambient = glm::vec3(1.0f);
+    Texture tex;
+    tex.width = tex.height = size;
+    for (int y = 0; y < size; ++y) {
+      for (int x = 0; x < size; ++x) tex.texels.push_back(glm::vec3(float((x + y) % 2)));
+    }
+    s.textures.push_back(tex);
+    const int mat = add_material(&s, glm::vec3(1.0f), 0.0f, 1.0f);
+    s.materials[size_t(mat)].base_color_texture = 0;
+    Mesh floor = quad_mesh({-10, 0, 10}, {20, 0, 0}, {0, 0, -20}, mat);
+    for (glm::vec2& uv : floor.primitives[0].uvs) uv *= repeats;
+    add_mesh_node(&s, floor);
+    s.finalize();
+    return s;
+  };
+  const Camera cam = Camera::look_at({0.0, 1.0, 5.0}, {0.0, 0.0, -5.0}, {0, 1, 0}, 0.9, 0.01);
+  const int w = 64, h = 48;
+  const auto spread_of = [&](const Scene& s, bool cones) {
+    Tracer tracer(s);
+    TraceStats stats;
+    double sum = 0.0, sum2 = 0.0;
+    int n = 0;
+    for (int y = h / 2 + 2; y < h; ++y) {  // the floor, from far to near
+      for (int x = 0; x < w; ++x) {
+        Ray ray = cam.ray(x + 0.5, y + 0.5, w, h);
+        if (!cones) ray.spread = 0.0f;
+        const ShadedSample o = tracer.trace(ray, &stats);
+        if (!o.hit) continue;
+        sum += o.color.g;
+        sum2 += double(o.color.g) * o.color.g;
+        ++n;
+      }
+    }
+    const double mean = sum / n;
+    return std::pair{mean, std::sqrt(std::max(0.0, sum2 / n - mean * mean))};
+  };
+  const Scene fine = checker_floor(1024, 20.0f);
+  const auto [filtered_mean, filtered_sd] = spread_of(fine, true);
+  const auto [thin_mean, thin_sd] = spread_of(fine, false);
+  std::printf("one-texel checker: mean %.3f sd %.3f with cones, sd %.3f with thin rays\n",
+              filtered_mean, filtered_sd, thin_sd);
+  EXPECT_NEAR(filtered_mean, 0.5, 0.02);
+  EXPECT_LT(filtered_sd, 0.03);
+  EXPECT_GT(thin_sd, 0.1);  // bilinear at random points of a one-texel checker: 1/6
+  // A coarse checker (2 x 2 texels over the floor's unit square: each texel half a unit, many
+  // pixels wide here): the cones change nothing.
+  const Scene coarse = checker_floor(2, 1.0f);
+  Tracer a(coarse);
+  TraceStats stats;
+  for (int x = 4; x < w; x += 8) {
+    Ray ray = cam.ray(x + 0.5, h - 2.5, w, h);
+    const ShadedSample cone = a.trace(ray, &stats);
+    ray.spread = 0.0f;
+    expect_near3(cone.color, a.trace(ray, &stats).color, 1e-6f, "magnified texel");
+  }
+}
+
 // A mirror square in z = -3 facing +Z and an emissive red wall in z = +1 facing it.
 Scene mirror_scene(glm::vec3 mirror_base) {
   Scene s;

@@ -33,6 +33,7 @@ uint64_t mix(uint64_t h, const T& v) {
 std::string ideal_cache_key(uint64_t fingerprint, const IdealRenderOptions& o,
                             const TracerOptions& t) {
   uint64_t h = 0xcbf29ce484222325ULL;
+  h = mix(h, kIdealRendererVersion);
   h = mix(h, o.seed);
   h = mix(h, o.filter_radius);
   h = mix(h, o.filter_alpha);

@@ -12,6 +12,12 @@
 
 namespace afr {
 
+// The version of the pictures the tracer and this renderer make, part of every ideal cache key
+// (bench/eval/ideal_cache.h): raise it with any change that changes an ideal image, so that a
+// cache never serves images of an older renderer. 2: shadows through glass, texture filtering
+// by ray cones.
+inline constexpr uint32_t kIdealRendererVersion = 2;
+
 struct IdealRenderOptions {
   int width = 256;
   int height = 256;

@@ -12,6 +12,10 @@ namespace afr {
 struct Ray {
   glm::vec3 origin;
   glm::vec3 direction;  // unit length
+  // The ray's cone (ray cones, docs/scene-model.md "Texture filtering"): its width grows by
+  // `spread` per unit of distance; a camera ray's is its pixel's. 0: a thin ray, textures read
+  // without minification filtering.
+  float spread = 0.0f;
 };
 
 struct Camera {

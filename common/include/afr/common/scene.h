@@ -77,6 +77,21 @@ struct Texture {
 
   // Bilinear lookup with REPEAT wrapping in both directions (the only wrap mode afr models).
   glm::vec3 sample_bilinear(glm::vec2 uv) const;
+
+  // Minification (docs/scene-model.md, "Texture filtering"): mip levels 1, 2, ... down to
+  // 1 x 1 (level 0 is `texels`), each (w + 1) / 2 x (h + 1) / 2 of the one before, every texel
+  // the mean of the 2 x 2 it covers (REPEAT at odd edges). Made by build_mips(), which
+  // Scene::finalize() calls for every texture.
+  struct Level {
+    int width = 0;
+    int height = 0;
+    std::vector<glm::vec3> texels;
+  };
+  std::vector<Level> mips;
+  void build_mips();
+  // Trilinear lookup: `lod` is log2 of the lookup's footprint in level-0 texels. lod <= 0 (or
+  // not finite, or no mips) is sample_bilinear; above, the two levels around lod, blended.
+  glm::vec3 sample(glm::vec2 uv, float lod) const;
 };
 
 // The part of glTF's metallic-roughness material that afr shades, plus an ambient reflectance
