@@ -447,11 +447,13 @@ class Builder {
   }
 
   // Sample times and values of a channel whose keys sit at `key_times` (n >= 4; the value moves
-  // only between t_1 and t_{n-2}): every key and frame time in that range, a sample just before
-  // each jump (two keys at one time), then halving where `needs_split(a, mid, b)` says the
-  // straight interpolation from a to b misses the value at the midpoint.
+  // only between t_1 and t_{n-2}): every key time (and, with `frames`, every frame time) in that
+  // range, a sample just before each jump (two keys at one time), then halving where
+  // `needs_split(a, mid, b)` says the straight interpolation from a to b misses the value at
+  // the midpoint.
   template <typename T, typename Eval, typename NeedsSplit>
-  Samples<T> bake(const std::vector<double>& key_times, Eval eval, NeedsSplit needs_split) {
+  Samples<T> bake(bool frames, const std::vector<double>& key_times, Eval eval,
+                  NeedsSplit needs_split) {
     const size_t n = key_times.size();
     const double lo = std::max(key_times[1] + time_offset_, 0.0);
     const double hi = std::max(key_times[n - 2] + time_offset_, lo);
@@ -471,7 +473,7 @@ class Builder {
         times.push_back(float(t));
       }
     }
-    if (scene_.animation) {
+    if (frames && scene_.animation) {
       for (int f = 0; f < scene_.animation->frames; ++f) {
         const double t = scene_.animation->frame_time(f) + time_offset_;
         if (t > lo && t < hi) times.push_back(float(t));
@@ -512,7 +514,7 @@ class Builder {
     }
     const double tolerance = std::max(options_.position_tolerance * largest, 1e-7);
     const Samples<glm::dvec3> s = bake<glm::dvec3>(
-        spline.times(), [&](double t) { return spline.evaluate(t); },
+        /*frames=*/true, spline.times(), [&](double t) { return spline.evaluate(t); },
         [&](const glm::dvec3& a, const glm::dvec3& m, const glm::dvec3& b) {
           return glm::length(0.5 * (a + b) - m) > tolerance;
         });
@@ -547,10 +549,12 @@ class Builder {
   template <typename Eval>
   BakedChannel rotation_channel(const std::vector<double>& key_times, Eval eval) {
     const double max_step = options_.max_rotation_step_deg * std::numbers::pi / 180.0;
+    const double rotation_tolerance = options_.rotation_tolerance_deg * std::numbers::pi / 180.0;
     const Samples<glm::dquat> s = bake<glm::dquat>(
-        key_times, eval, [&](const glm::dquat& a, const glm::dquat& m, const glm::dquat& b) {
+        /*frames=*/false, key_times, eval,
+        [&](const glm::dquat& a, const glm::dquat& m, const glm::dquat& b) {
           return quat_angle(a, m) + quat_angle(m, b) > max_step ||
-                 quat_angle(shortest_slerp(a, b, 0.5), m) > options_.rotation_tolerance;
+                 quat_angle(shortest_slerp(a, b, 0.5), m) > rotation_tolerance;
         });
     // glTF order x, y, z, w; consecutive samples in one hemisphere so LINEAR (slerp) takes the
     // short way, which is the way the spline turns since samples are at most max_step apart.

@@ -17,11 +17,12 @@
 namespace afr::aff {
 
 struct GltfOptions {
-  // Baked rotations: a LINEAR sample at least every frame of `a` and at every key time, then
-  // halving intervals until consecutive samples turn by at most `max_rotation_step_deg` and
-  // the slerp between them is within `rotation_tolerance` radians of squad at the midpoint.
+  // Baked rotations: a LINEAR sample at every key time, then halving intervals until
+  // consecutive samples turn by at most `max_rotation_step_deg` and the slerp between them is
+  // within `rotation_tolerance_deg` of squad at the midpoint. (Frame times are not sampled:
+  // only as many samples as the tolerance needs, docs/aff2gltf.md "Animation".)
   double max_rotation_step_deg = 10.0;
-  double rotation_tolerance = 1e-5;
+  double rotation_tolerance_deg = 0.01;
   // Baked translations/scales (only where key times repeat): midpoint error at most this
   // fraction of the channel's largest absolute value (and at least 1e-7 absolute).
   double position_tolerance = 1e-5;

@@ -42,6 +42,11 @@ int main(int argc, char** argv) {
                  "Baked rotations: largest turn between samples, degrees")
       ->capture_default_str()
       ->check(CLI::Range(0.01, 180.0));
+  app.add_option("--rotation-tolerance", gltf_options.rotation_tolerance_deg,
+                 "Baked rotations: largest angle between the spline and the samples' slerp at the "
+                 "middle of two samples, degrees")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-6, 10.0));
   afr::refuse_non_finite(app);
   CLI11_PARSE(app, argc, argv);
   if (output.empty()) output = std::filesystem::path(input).replace_extension(".gltf").filename();
