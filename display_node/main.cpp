@@ -129,7 +129,7 @@ int main(int argc, char** argv) {
   app.add_option("--max-samplers", o.coordinator.max_members,
                  "samplers admitted at once; a join beyond them is refused with the reason")
       ->capture_default_str()
-      ->check(CLI::Range(1, 65536));
+      ->check(CLI::Range(1u, afr::protocol::kMaxMembers));
   app.add_option("--recut-hysteresis", o.coordinator.hysteresis,
                  "recut when a sampler's part of the image's error exceeds (1 + this) times its "
                  "share of the throughput")

@@ -416,7 +416,7 @@ bool allowed_to_sampler(MessageType type) {
   return type == MessageType::kWelcome || type == MessageType::kSceneChunk ||
          type == MessageType::kRegionAssignment || type == MessageType::kHeartbeat ||
          type == MessageType::kLeave || type == MessageType::kWallLayout ||
-         type == MessageType::kSnapshotRequest;
+         type == MessageType::kSnapshotRequest || type == MessageType::kMemberList;
 }
 
 namespace {

@@ -48,6 +48,8 @@ const char* message_type_name(MessageType type) {
       return "wall_coverage";
     case MessageType::kSnapshotRequest:
       return "snapshot_request";
+    case MessageType::kMemberList:
+      return "member_list";
   }
   return "unknown";
 }
@@ -71,6 +73,7 @@ static_assert(kAlternativeIs<MessageType::kJoin, Join> &&
               kAlternativeIs<MessageType::kWallLayout, WallLayout> &&
               kAlternativeIs<MessageType::kWallCoverage, WallCoverage> &&
               kAlternativeIs<MessageType::kSnapshotRequest, SnapshotRequest> &&
+              kAlternativeIs<MessageType::kMemberList, MemberList> &&
               std::variant_size_v<Message> == kLastMessageType);
 
 MessageType message_type(const Message& message) {
@@ -463,6 +466,50 @@ Status decode(Bytes message, SnapshotRequest* out) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// MemberList: u64 epoch, u32 count, then per member: u32 sampler_id, u64 token, string public_key
+
+Status encode(const MemberList& m, std::vector<uint8_t>* out) {
+  out->clear();
+  if (Status s = validate(m); !s) return s;
+  size_t bytes = 12;
+  for (const MemberEntry& e : m.members) bytes += 12 + wire::string_bytes(e.public_key);
+  Writer w = wire::begin_message(MessageType::kMemberList, bytes, out);
+  w.u64(m.epoch);
+  w.u32(uint32_t(m.members.size()));
+  for (const MemberEntry& e : m.members) {
+    w.u32(e.sampler_id);
+    w.u64(e.token);
+    w.string(e.public_key);
+  }
+  AFR_CHECK(w.done());
+  return {};
+}
+
+Status decode(Bytes message, MemberList* out) {
+  return decode_with(message, MessageType::kMemberList, out, [&](Reader& r) {
+    uint32_t count = 0;
+    if (!(r.u64(&out->epoch, "epoch") && r.u32(&count, "count"))) return;
+    // Each member takes at least 14 bytes: a count the bytes cannot hold is refused before any
+    // allocation.
+    if (count > kMaxMembers) {
+      r.fail("count", std::to_string(count) + " is outside 0.." + std::to_string(kMaxMembers));
+      return;
+    }
+    if (r.remaining() < size_t(count) * 14) {
+      r.fail("count", std::to_string(count) + " members do not fit in the message");
+      return;
+    }
+    out->members.resize(count);
+    for (MemberEntry& e : out->members) {
+      if (!(r.u32(&e.sampler_id, "sampler_id") && r.u64(&e.token, "token") &&
+            r.string(&e.public_key, "public_key", kMaxNameBytes))) {
+        return;
+      }
+    }
+  });
+}
+
+// ---------------------------------------------------------------------------------------------
 // Leave: u32 sampler_id, u16 reason, string text
 
 Status encode(const Leave& m, std::vector<uint8_t>* out) {
@@ -628,6 +675,9 @@ Result<Message> decode_message(Bytes message, const ImageExtent& bounds) {
       break;
     case MessageType::kSnapshotRequest:
       m.emplace<SnapshotRequest>();
+      break;
+    case MessageType::kMemberList:
+      m.emplace<MemberList>();
       break;
   }
   AFR_CHECK(message_type(m) == h->type);

@@ -2,6 +2,7 @@
 
 #include "wire.h"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <string>
@@ -176,6 +177,35 @@ Status validate(const SamplerStats& m) {
 }
 
 Status validate(const Heartbeat& m) { return check_time("heartbeat", "time", m.time); }
+
+Status validate(const MemberList& m) {
+  if (m.members.size() > kMaxMembers) {
+    return field_error(
+        "member_list", "count",
+        std::to_string(m.members.size()) + " is outside 0.." + std::to_string(kMaxMembers));
+  }
+  std::vector<uint32_t> ids;
+  ids.reserve(m.members.size());
+  for (size_t i = 0; i < m.members.size(); ++i) {
+    const MemberEntry& e = m.members[i];
+    const std::string at = "members[" + std::to_string(i) + "]";
+    if (e.sampler_id == 0) return field_error("member_list", at + ".sampler_id", "0 is not an id");
+    if (!e.public_key.empty() && e.public_key.size() != 40) {
+      return field_error(
+          "member_list", at + ".public_key",
+          std::to_string(e.public_key.size()) + " characters: a Z85 CurveZMQ key has 40");
+    }
+    if (Status s = check_text("member_list", (at + ".public_key").c_str(), e.public_key); !s) {
+      return s;
+    }
+    ids.push_back(e.sampler_id);
+  }
+  std::sort(ids.begin(), ids.end());
+  if (const auto dup = std::adjacent_find(ids.begin(), ids.end()); dup != ids.end()) {
+    return field_error("member_list", "sampler_id", std::to_string(*dup) + " appears twice");
+  }
+  return {};
+}
 
 Status validate(const SnapshotRequest& m) {
   if (m.id == 0) return field_error("snapshot_request", "id", "0 (ids start at 1)");

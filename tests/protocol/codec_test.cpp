@@ -66,7 +66,32 @@ TEST(CodecTest, ControlMessagesRoundTripExactly) {
     const SnapshotRequest snapshot = random_snapshot_request(rng);
     EXPECT_EQ(round_trip(snapshot, &bytes), snapshot);
     EXPECT_EQ(bytes.size(), kHeaderBytes + 16);
+    const MemberList members = random_member_list(rng);
+    EXPECT_EQ(round_trip(members, &bytes), members);
   }
+}
+
+TEST(CodecTest, LargestMemberListFitsTheControlChannelLimitAndBadListsAreRefused) {
+  MemberList m;
+  for (uint32_t i = 0; i < kMaxMembers; ++i) {
+    m.members.push_back(MemberEntry{i + 1, uint64_t(i) * 977, std::string(40, 'k')});
+  }
+  std::vector<uint8_t> bytes;
+  ASSERT_TRUE(encode(m, &bytes).ok());
+  EXPECT_LE(bytes.size(), kMaxControlChannelMessage);
+  MemberList back;
+  ASSERT_TRUE(decode(bytes, &back).ok());
+  EXPECT_EQ(back, m);
+  // One more, a repeated id, an id 0, a key that is no CurveZMQ key: refused by name.
+  MemberList bad = m;
+  bad.members.push_back(MemberEntry{kMaxMembers + 1, 1, ""});
+  EXPECT_NE(encode(bad, &bytes).message().find("member_list.count"), std::string::npos);
+  bad = MemberList{1, {{3, 1, ""}, {3, 2, ""}}};
+  EXPECT_NE(encode(bad, &bytes).message().find("3 appears twice"), std::string::npos);
+  bad = MemberList{1, {{0, 1, ""}}};
+  EXPECT_NE(encode(bad, &bytes).message().find("sampler_id: 0 is not an id"), std::string::npos);
+  bad = MemberList{1, {{5, 1, "short"}}};
+  EXPECT_NE(encode(bad, &bytes).message().find("a Z85 CurveZMQ key has 40"), std::string::npos);
 }
 
 TEST(CodecTest, LargestWallLayoutFitsTheControlChannelLimit) {

@@ -180,6 +180,20 @@ inline Heartbeat random_heartbeat(Pcg32& rng) {
   return Heartbeat{rng.next_u32(), random_u64(rng), random_u64(rng), random_time(rng)};
 }
 
+inline MemberList random_member_list(Pcg32& rng) {
+  MemberList m;
+  m.epoch = random_u64(rng);
+  const uint32_t n = rng.next_below(6);
+  for (uint32_t i = 0; i < n; ++i) {
+    MemberEntry e;
+    e.sampler_id = 1 + i * 7 + rng.next_below(7);
+    e.token = random_u64(rng);
+    if (rng.next_below(2)) e.public_key = std::string(40, char('A' + rng.next_below(26)));
+    m.members.push_back(e);
+  }
+  return m;
+}
+
 inline SnapshotRequest random_snapshot_request(Pcg32& rng) {
   return SnapshotRequest{1 + random_u64(rng) % (~uint64_t(0)), random_time(rng)};
 }
@@ -265,6 +279,7 @@ inline std::vector<Message> random_messages(Pcg32& rng) {
   all.push_back(random_wall_layout(rng));
   all.push_back(random_wall_coverage(rng));
   all.push_back(random_snapshot_request(rng));
+  all.push_back(random_member_list(rng));
   return all;
 }
 

@@ -7,6 +7,7 @@
 #include <afr/common/builtin_scene.h>
 #include <afr/common/image.h>
 #include <afr/common/rect.h>
+#include <afr/protocol/channels.h>
 #include <afr/sampler/tracer.h>
 
 #include <fmt/format.h>
@@ -329,6 +330,61 @@ TEST_F(WallTest, ASnapshotIsEveryCellsImageOfOneMoment) {
     EXPECT_LT(rms_in(*image, at, rect), rms_in(*image, before, rect)) << rect.x0;
     EXPECT_LT(rms_in(*image, at, rect), rms_in(*image, after, rect)) << rect.x0;
   }
+}
+
+// A follower stores only the batches of the lead's members, with their tokens (member_list):
+// batches naming the real sampler with a guessed token, and batches under an id nobody holds,
+// sent straight to the follower's sample channel, are dropped and counted by cause, and the
+// real sampler's samples keep arriving there. Before, a follower counted every id as a member.
+TEST_F(WallTest, AFollowerDropsBatchesThatAreNotFromTheLeadsMembers) {
+  auto l = lead({"--wall", "2x1"}, "128x64");
+  const int lead_metrics = port_ + 3;
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 1; }, 5.0)) << l->log();
+  const int port = free_base_port();
+  ASSERT_NE(port, 0);
+  auto f = follower(1, 0, port);
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 2; }, 5.0)) << l->log();
+  auto s = sampler("s1.log");
+  ASSERT_TRUE(wait_until([&] { return received(port + 3) > 0; }, scaled(8.0)))
+      << l->log() << f->log() << s->log();
+  const nlohmann::json lead_stats = get_stats(lead_metrics);
+  ASSERT_EQ(lead_stats["samplers"].size(), 1u);
+  const uint32_t real_id = lead_stats["samplers"][0]["id"].get<uint32_t>();
+
+  protocol::Context context;
+  protocol::SampleSender hostile(context, protocol::service_endpoints(endpoint(port)).samples);
+  for (uint64_t k = 0; k < 100; ++k) {
+    SampleBatch b;
+    b.sampler_id = k % 2 ? real_id : 4242;
+    b.token = 0x0123456789abcdefull + k;
+    b.sequence = 0x7000000000000000ull + k;
+    b.samples.resize(32);
+    for (Sample& x : b.samples) {
+      x.time = 1.0;
+      x.x = 100.5f;  // in the follower's cell
+      x.y = 30.5f;
+      x.color = glm::vec3(1e4f);
+    }
+    const protocol::Status sent = hostile.send(b, {128, 64});
+    ASSERT_TRUE(sent.ok()) << sent.message();
+    ASSERT_TRUE(hostile.flush(5000));
+  }
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const nlohmann::json st = get_stats(port + 3);
+        return !st.is_null() && !st.is_discarded() &&
+               st["display"]["spoofed_batches"].get<int>() == 50 &&
+               st["display"]["unknown_sampler_batches"].get<int>() == 50;
+      },
+      scaled(10.0)))
+      << get_stats(port + 3).dump() << f->log();
+  const nlohmann::json st = get_stats(port + 3);
+  ASSERT_EQ(st["samplers"].size(), 1u) << st.dump();  // no state for the made-up id
+  EXPECT_EQ(st["samplers"][0]["id"].get<uint32_t>(), real_id);
+  EXPECT_EQ(st["samplers"][0]["sequence_gaps"].get<uint64_t>(), 0u);
+  const int64_t before = received(port + 3);
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  EXPECT_GT(received(port + 3), before);
 }
 
 }  // namespace

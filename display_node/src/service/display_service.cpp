@@ -99,6 +99,7 @@ class DisplayService::Control {
   void say_goodbye();
   void measure(double t);
   void send_snapshot_requests();
+  void publish_members();
   // Helpers.
   bool send(const std::string& peer, const Message& m);
   void welcome(const std::string& peer, uint32_t id, uint64_t token);
@@ -117,6 +118,10 @@ class DisplayService::Control {
   std::map<std::string, Transfer> transfers_;   // by peer
   std::map<std::string, double> told_unknown_;  // peers told to join again, when
   LogLimiter log_;  // what peers can repeat at will: a line per cause a second
+  // The members' ids, tokens and keys go to the wall's followers on every change, so that they
+  // drop batches that are not from the member they name (member_list).
+  bool members_changed_ = false;
+  uint64_t members_epoch_ = 0;
   // The wall's follower displays, by peer (docs/wall.md); the lead is node 1.
   struct WallMember {
     uint32_t id = 0;
@@ -455,6 +460,11 @@ void DisplayService::Control::run() {
     if (wall_changed_) {
       wall_changed_ = false;
       publish_layout();
+      members_changed_ = true;  // a new node needs the members too
+    }
+    if (members_changed_) {
+      members_changed_ = false;
+      publish_members();
     }
     measure(t);
     update_error(t);
@@ -608,6 +618,7 @@ void DisplayService::Control::on_join(const ControlServer::Incoming& in, const J
   Member& m = coordinator_.join(in.peer, j.name, in.public_key, j.threads, token, t, &is_new);
   if (is_new) {
     service_.gate_.admit(m.id, m.token, m.public_key);
+    members_changed_ = true;
     spdlog::info("sampler {} joined: {} ({} thread(s) claimed{})", m.id, j.name, j.threads,
                  in.public_key.empty() ? "" : ", key " + in.public_key);
     service_.metrics_.on_member(j.name, m.id, in.public_key, j.threads);
@@ -646,6 +657,7 @@ void DisplayService::Control::on_member_message(Member& m, const std::string& pe
     }
     service_.metrics_.on_member_gone(m.id, false);
     service_.gate_.revoke(m.id);
+    members_changed_ = true;
     transfers_.erase(m.peer);
     coordinator_.remove(m.id);  // m is gone from here on
   }
@@ -701,6 +713,7 @@ void DisplayService::Control::expire_silent(double t) {
         dead.liveness.mean(), dead.liveness.deviation());
     service_.metrics_.on_member_gone(dead.id, true);
     service_.gate_.revoke(dead.id);
+    members_changed_ = true;
     transfers_.erase(dead.peer);
     send(dead.peer, Leave{dead.id, LeaveReason::kTimeout, "no heartbeat: join again"});
   }
@@ -718,6 +731,17 @@ void DisplayService::Control::expire_silent(double t) {
     it = wall_nodes_.erase(it);
     wall_changed_ = true;
   }
+}
+
+// The members, for the followers' gates (docs/wall.md, "Identity on a wall").
+void DisplayService::Control::publish_members() {
+  if (wall_nodes_.empty()) return;
+  MemberList list;
+  list.epoch = ++members_epoch_;
+  for (const auto& [id, m] : coordinator_.members()) {
+    list.members.push_back(MemberEntry{id, m.token, m.public_key});
+  }
+  for (const auto& [peer, node] : wall_nodes_) send(peer, list);
 }
 
 // Snapshots of one moment: each request goes to every follower of the wall.

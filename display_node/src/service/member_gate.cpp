@@ -15,6 +15,24 @@ void MemberGate::revoke(uint32_t id) {
   members_.erase(id);
 }
 
+void MemberGate::replace(const std::vector<Member>& members) {
+  std::map<uint32_t, Entry> next;
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (const Member& m : members) {
+    Entry e;
+    e.token = m.token;
+    e.public_key = m.public_key;
+    if (const auto it = members_.find(m.id); it != members_.end()) e.accepted = it->second.accepted;
+    next[m.id] = std::move(e);
+  }
+  members_.swap(next);
+}
+
+size_t MemberGate::size() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return members_.size();
+}
+
 MemberGate::Verdict MemberGate::check(uint32_t id, uint64_t token, std::string_view key,
                                       uint64_t samples) {
   std::lock_guard<std::mutex> lock(mutex_);

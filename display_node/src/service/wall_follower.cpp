@@ -63,7 +63,7 @@ void WallFollower::start() {
                options_.column, options_.row, options_.lead, options_.advertise);
   control_thread_ = std::thread([this] { control_loop(); });
   ingest_thread_ = std::thread(
-      [this] { run_ingest(*samples_, sink_, metrics_, nullptr, running_, {}, &wall_coverage_); });
+      [this] { run_ingest(*samples_, sink_, metrics_, &gate_, running_, {}, &wall_coverage_); });
   if (http_) http_->start();
 }
 
@@ -157,7 +157,8 @@ void WallFollower::control_loop() {
   lo.silence_floor = options_.lead_timeout;
   lo.heartbeat_interval = options_.heartbeat_interval;
   uint64_t heartbeat_sequence = 0;
-  LogLimiter log;  // what the lead (or whoever holds its address) can repeat at will
+  LogLimiter log;              // what the lead (or whoever holds its address) can repeat at will
+  uint64_t members_epoch = 0;  // of the last member_list (a new session numbers them anew)
   while (running_.load() && !failed_.load()) {
     DisplayLink link(context_, lo);
     bool over = false;
@@ -203,7 +204,11 @@ void WallFollower::control_loop() {
                          w->sampler_id, w->session, w->image.width, w->image.height);
           }
           std::lock_guard<std::mutex> lock(mutex_);
-          if (w->session != session) layout_.reset();  // a new session numbers layouts anew
+          if (w->session != session) {  // a new session numbers layouts and member lists anew
+            layout_.reset();
+            members_epoch = 0;
+            gate_.replace({});
+          }
           link.welcomed();
           session = w->session;
           clock_.reset_to(w->display_time);
@@ -218,6 +223,16 @@ void WallFollower::control_loop() {
             if (n.node_id == node_id_) {
               metrics_.set_wall(n.node_id, n.cell, l->nodes.size(), l->epoch);
             }
+          }
+        } else if (const auto* ml = std::get_if<MemberList>(&msg)) {
+          // The lead's members: only their batches, with their tokens (and keys), are stored.
+          if (ml->epoch > members_epoch) {
+            members_epoch = ml->epoch;
+            std::vector<MemberGate::Member> members;
+            for (const MemberEntry& e : ml->members) {
+              members.push_back({e.sampler_id, e.token, e.public_key});
+            }
+            gate_.replace(members);
           }
         } else if (const auto* sr = std::get_if<SnapshotRequest>(&msg)) {
           if (!snapshots_.request({sr->id, sr->time})) {

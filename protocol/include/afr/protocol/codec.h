@@ -99,6 +99,7 @@ Status encode(const TilingSnapshot& m, std::vector<uint8_t>* out,
 Status encode(const SamplerStats& m, std::vector<uint8_t>* out);
 Status encode(const Heartbeat& m, std::vector<uint8_t>* out);
 Status encode(const SnapshotRequest& m, std::vector<uint8_t>* out);
+Status encode(const MemberList& m, std::vector<uint8_t>* out);
 Status encode(const Leave& m, std::vector<uint8_t>* out);
 Status encode(const DisplayJoin& m, std::vector<uint8_t>* out);
 Status encode(const WallLayout& m, std::vector<uint8_t>* out);
@@ -122,6 +123,7 @@ Status decode(Bytes message, TilingSnapshot* out, const ImageExtent& bounds = kM
 Status decode(Bytes message, SamplerStats* out);
 Status decode(Bytes message, Heartbeat* out);
 Status decode(Bytes message, SnapshotRequest* out);
+Status decode(Bytes message, MemberList* out);
 Status decode(Bytes message, Leave* out);
 Status decode(Bytes message, DisplayJoin* out);
 Status decode(Bytes message, WallLayout* out);
@@ -144,6 +146,7 @@ Status validate(const TilingSnapshot& m, const ImageExtent& bounds = kMaxImageEx
 Status validate(const SamplerStats& m);
 Status validate(const Heartbeat& m);
 Status validate(const SnapshotRequest& m);
+Status validate(const MemberList& m);
 Status validate(const Leave& m);
 Status validate(const DisplayJoin& m);
 Status validate(const WallLayout& m);

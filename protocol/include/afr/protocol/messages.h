@@ -33,6 +33,9 @@ inline constexpr uint32_t kMaxNameBytes = 255;           // names, presets, leav
 inline constexpr uint16_t kMaxThreads = 4096;
 // A display wall: at most this many display nodes, and this many pixels of margin.
 inline constexpr uint32_t kMaxWallNodes = 1024;
+// Samplers a display admits at most (display_node --max-samplers), and so the entries of a
+// member_list: 4096 entries of at most 54 bytes (a 40-character key) fit the control channel.
+inline constexpr uint32_t kMaxMembers = 4096;
 inline constexpr int32_t kMaxWallMargin = 1024;
 // The sampler_id of sample batches one display node of a wall forwards to another (strays,
 // docs/wall.md "Seams"): 0, which the coordinator never assigns to a sampler.
@@ -64,9 +67,10 @@ enum class MessageType : uint16_t {
   kWallLayout = 13,
   kWallCoverage = 14,
   kSnapshotRequest = 15,
+  kMemberList = 16,
 };
 inline constexpr uint16_t kFirstMessageType = 1;
-inline constexpr uint16_t kLastMessageType = 15;
+inline constexpr uint16_t kLastMessageType = 16;
 
 // "join", "sample_batch", ...; "unknown" for values outside the enum.
 const char* message_type_name(MessageType type);
@@ -287,9 +291,25 @@ struct SnapshotRequest {
   bool operator==(const SnapshotRequest&) const = default;
 };
 
+// lead display -> follower display, on the control channel, on every change of membership: the
+// samplers that are members, with the token of their welcome and the CurveZMQ key they joined
+// with, so that a follower drops batches that do not come from the member they name, as the
+// lead does (docs/wall.md, "Identity on a wall").
+struct MemberEntry {
+  uint32_t sampler_id = 0;  // >= 1, distinct
+  uint64_t token = 0;
+  std::string public_key;  // Z85 (40 characters), empty without CurveZMQ
+  bool operator==(const MemberEntry&) const = default;
+};
+struct MemberList {
+  uint64_t epoch = 0;                // +1 per change; older epochs are ignored
+  std::vector<MemberEntry> members;  // 0..kMaxMembers
+  bool operator==(const MemberList&) const = default;
+};
+
 using Message = std::variant<Join, Welcome, SceneRequest, SceneChunk, RegionAssignment, View,
                              SampleBatch, TilingSnapshot, SamplerStats, Heartbeat, Leave,
-                             DisplayJoin, WallLayout, WallCoverage, SnapshotRequest>;
+                             DisplayJoin, WallLayout, WallCoverage, SnapshotRequest, MemberList>;
 
 MessageType message_type(const Message& message);
 

@@ -30,6 +30,15 @@ class MemberGate {
   // Control thread. `public_key` empty: the member joined without CurveZMQ.
   void admit(uint32_t id, uint64_t token, const std::string& public_key);
   void revoke(uint32_t id);
+  // A wall follower: the lead's members, all at once (member_list). Members that stay keep
+  // their accepted counts.
+  struct Member {
+    uint32_t id = 0;
+    uint64_t token = 0;
+    std::string public_key;
+  };
+  void replace(const std::vector<Member>& members);
+  size_t size();
   // Ingest thread: is a message that names member `id`, carries `token` and came with CurveZMQ
   // key `key` (empty: none) that member's? A member's accepted samples are counted for
   // take_accepted() (pass 0 for a tiling snapshot).

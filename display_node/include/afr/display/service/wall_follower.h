@@ -13,6 +13,7 @@
 #include <afr/common/clock.h>
 #include <afr/common/samples.h>
 #include <afr/display/service/display_role.h>
+#include <afr/display/service/member_gate.h>
 #include <afr/display/service/metrics.h>
 #include <afr/display/service/metrics_server.h>
 #include <afr/display/service/snapshots.h>
@@ -106,6 +107,8 @@ class WallFollower final : public DisplayRole {
   std::optional<Camera> camera_;
   std::deque<protocol::View> views_;  // the latest kViewHistory views, oldest first
   SnapshotQueue snapshots_;
+  // The lead's members (member_list): the ingest stores only their batches.
+  MemberGate gate_;
   std::optional<protocol::WallLayout> layout_;
   uint32_t node_id_ = 0;
   std::string preset_;
