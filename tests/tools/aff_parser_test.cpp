@@ -1,11 +1,13 @@
 #include "aff_parser.h"
 
 #include "hand_scene.h"
+#include "support/log_capture.h"
 #include "support/timing.h"
 #include "test_paths.h"
 
 #include <afr/common/error.h>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -228,6 +230,37 @@ TEST(AffParserTest, TransformsNestedTooDeepAreRefused) {
     ADD_FAILURE() << "no error";
   } catch (const Error& e) {
     EXPECT_STREQ(e.what(), "deep.aff:1001: transforms nested more than 1000 deep");
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// A long parse says how far it is: with lines as often as they may come, a file of 10,000
+// polygons gets progress lines naming it, the bytes read of its size and the triangles so far,
+// rising; with the default interval (2 s) a small file gets none.
+TEST(AffParserTest, ALongParseLogsItsProgress) {
+  std::string text = "f 1 1 1 1 0 0 0 0\n";
+  for (int i = 0; i < 10000; ++i) {
+    const std::string x = std::to_string(i);
+    text += "p 3\n" + x + " 0 0\n" + x + " 1 0\n" + x + " 0 1\n";
+  }
+  const auto dir = test::fresh_temp_dir("aff-progress");
+  {
+    testing::LogCapture log;
+    ParseOptions often;
+    often.progress_interval = 0.0;
+    parse_aff_text(text, "big.aff", dir, often);
+    const std::vector<std::string> lines = log.lines_with("parsing big.aff: ");
+    ASSERT_GE(lines.size(), 2u);  // one per 4096 directives
+    EXPECT_NE(lines.back().find(fmt::format("of {:.1f} MB", double(text.size()) / 1e6)),
+              std::string::npos)
+        << lines.back();
+    // The material, then 8191 polygons, at the last line (after 2 x 4096 directives).
+    EXPECT_NE(lines.back().find("8191 triangles so far"), std::string::npos) << lines.back();
+  }
+  {
+    testing::LogCapture log;
+    parse_aff_text(text, "big.aff", dir);
+    EXPECT_TRUE(log.lines_with("parsing big.aff").empty());
   }
   std::filesystem::remove_all(dir);
 }

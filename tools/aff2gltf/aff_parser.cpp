@@ -2,8 +2,11 @@
 
 #include <afr/common/error.h>
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <charconv>
+#include <chrono>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -44,7 +47,14 @@ std::string read_bytes(const std::filesystem::path& path) {
 class Cursor {
  public:
   Cursor(std::string_view text, std::string file)
-      : p_(text.data()), end_(text.data() + text.size()), file_(std::move(file)) {}
+      : begin_(text.data()),
+        p_(text.data()),
+        end_(text.data() + text.size()),
+        file_(std::move(file)) {}
+
+  // Bytes read, and in all.
+  size_t consumed() const { return size_t(p_ - begin_); }
+  size_t size() const { return size_t(end_ - begin_); }
 
   const std::string& file() const { return file_; }
   Location here() const { return {file_, line_}; }
@@ -173,6 +183,7 @@ class Cursor {
     return value;
   }
 
+  const char* begin_;
   const char* p_;
   const char* end_;
   int line_ = 1;
@@ -188,6 +199,7 @@ class Parser {
     scene_->nodes.emplace_back();  // the root
     merged_.emplace_back();
     stack_.push_back({0, {}});
+    started_ = last_progress_ = std::chrono::steady_clock::now();
   }
 
   void parse_root(std::string_view text, const std::string& name) {
@@ -199,6 +211,7 @@ class Parser {
   }
 
  private:
+  std::chrono::steady_clock::time_point started_, last_progress_;
   struct OpenNode {
     int node;
     Location opened;
@@ -210,7 +223,8 @@ class Parser {
   void parse_file(std::string_view text, const std::string& name, const std::filesystem::path& dir,
                   int depth) {
     Cursor in(text, name);
-    for (;;) {
+    for (uint64_t directives = 0;; ++directives) {
+      if (directives % 4096 == 0) progress(in);
       in.skip_space();
       if (in.at_end()) return;
       const char c = in.peek();
@@ -227,6 +241,24 @@ class Parser {
       if (c == '{') in.fail("'{' outside the header of x, xs or k");
       directive(in, dir, depth);
     }
+  }
+
+  // A line now and then on a long parse (ParseOptions::progress_interval).
+  void progress(const Cursor& in) {
+    const auto now = std::chrono::steady_clock::now();
+    if (options_.progress_interval > 0.0 &&
+        now - last_progress_ < std::chrono::duration<double>(options_.progress_interval)) {
+      return;
+    }
+    if (options_.progress_interval > 0.0 && in.consumed() == 0) return;  // a file's start
+    last_progress_ = now;
+    size_t triangles = 0;
+    for (const Node& n : scene_->nodes) {
+      for (const TriangleSet& t : n.meshes) triangles += t.triangle_count();
+    }
+    spdlog::info("parsing {}: {:.1f} of {:.1f} MB, {} triangles so far ({:.1f} s)", in.file(),
+                 double(in.consumed()) / 1e6, double(in.size()) / 1e6, triangles,
+                 std::chrono::duration<double>(now - started_).count());
   }
 
   void directive(Cursor& in, const std::filesystem::path& dir, int depth) {

@@ -16,6 +16,9 @@ namespace afr::aff {
 struct ParseOptions {
   TessellationOptions tessellation;
   int detail_level = 0;  // D before any `d`: includes with a level above it are skipped
+  // A long parse says how far it is: a log line (info) at most this often, naming the file, how
+  // much of it is read, and the triangles so far. <= 0: a line per file read.
+  double progress_interval = 2.0;
 };
 
 // Parses `path` and its includes. Includes and textures are resolved as the format says:
