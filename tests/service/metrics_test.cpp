@@ -2,6 +2,7 @@
 #include <afr/display/service/metrics_exposition.h>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "support/promtool.h"
 
@@ -182,6 +183,18 @@ std::set<std::string> series(const std::string& text) {
     out.insert(line.substr(0, line.rfind(' ')));
   }
   return out;
+}
+
+// The scene's transfer to a member, for the dashboard's progress: in /stats, members only.
+TEST(ServiceMetricsTest, SceneTransferProgressIsInStats) {
+  ServiceMetrics m;
+  m.on_member("a", 1, "", 1);
+  m.on_scene_progress(1, 3, 12);
+  m.on_scene_progress(99, 1, 2);  // no member: no state
+  const nlohmann::json st = nlohmann::json::parse(stats_json(m));
+  ASSERT_EQ(st["samplers"].size(), 1u);
+  EXPECT_EQ(st["samplers"][0]["scene"]["chunks_sent"].get<int>(), 3);
+  EXPECT_EQ(st["samplers"][0]["scene"]["chunks"].get<int>(), 12);
 }
 
 TEST(ServiceMetricsTest, PromtoolAcceptsTheExposition) {

@@ -26,7 +26,7 @@ table { border-collapse: collapse; } td, th { padding: 1px 8px; text-align: righ
     <label><input type="checkbox" id="tiling"> tiling and regions</label>
     <span id="loads" data-images="0" data-history="0" data-periods="0" data-last=""></span></div>
   <div>
-    <table id="samplers"><tr><th>sampler</th><th>samples/s</th><th>share</th><th>region</th></tr></table>
+    <table id="samplers"><tr><th>sampler</th><th>state</th><th>samples/s</th><th>share</th><th>region</th></tr></table>
     <p>Events</p><div id="events"></div>
     <div id="wall"></div>
   </div>
@@ -109,12 +109,19 @@ async function poll_stats() {
       `| ${d.width}x${d.height} ${d.backend} ${d.mode} | ${d.members} sampler(s) | ` +
       `${d.refresh_hz.toFixed(1)} Hz | up ${d.uptime.toFixed(0)} s`;
     const area = d.width * d.height;
+    // What a member is doing: receiving the scene (its transfer's progress), loading it (the
+    // transfer is done, no sample yet), or sampling.
+    const state = x => x.scene.chunks > 0 && x.scene.chunks_sent < x.scene.chunks
+      ? `receiving the scene ${Math.floor(100 * x.scene.chunks_sent / x.scene.chunks)}%`
+      : x.samples == 0 ? "loading the scene" : x.starved ? "starved" : "sampling";
     const rows = s.samplers.filter(x => x.member).map(x =>
-      `<tr><td>#${x.id} ${x.name}</td><td>${(x.samples_per_second / 1e3).toFixed(0)} k</td>` +
+      `<tr><td>#${x.id} ${x.name}</td><td>${state(x)}</td>` +
+      `<td>${(x.samples_per_second / 1e3).toFixed(0)} k</td>` +
       `<td>${(100 * (x.region[2] - x.region[0]) * (x.region[3] - x.region[1]) / area).toFixed(0)}%</td>` +
       `<td>[${x.region[0]}, ${x.region[2]}) x [${x.region[1]}, ${x.region[3]})</td></tr>`);
     document.getElementById("samplers").innerHTML =
-      "<tr><th>sampler</th><th>samples/s</th><th>share</th><th>region</th></tr>" + rows.join("");
+      "<tr><th>sampler</th><th>state</th><th>samples/s</th><th>share</th><th>region</th></tr>" +
+      rows.join("");
     const wall = d.wall;
     document.getElementById("wall").textContent = wall.nodes > 1
       ? `wall: node ${wall.node} of ${wall.nodes}, cell [${wall.cell}], coverage in ${wall.exchange.coverage_in}, strays in ${wall.exchange.strays_in}, out ${wall.exchange.strays_out}`

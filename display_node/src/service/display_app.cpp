@@ -201,6 +201,7 @@ struct DisplayApp::State {
   std::vector<CameraKey> recorded;
   Image image;
   std::set<uint32_t> dashboard_members;  // the members at the last stats period
+  std::set<uint32_t> dashboard_scenes;   // members whose scene transfer the events told of
   uint64_t dashboard_recuts = 0, dashboard_deaths = 0;
   uint64_t frame = 0;
   double last_input = 0.0, last_stats = 0.0, next_stats = 0.0;
@@ -492,7 +493,14 @@ void DisplayApp::State::feed_dashboard(double t) {
     if (!s.member) continue;
     members.insert(s.id);
     p.samplers.push_back({s.id, s.samples_per_second, double(s.region.area()) / area});
+    // A member that received the scene from the display (not from its cache): said once.
+    if (s.scene_chunks > 0 && s.scene_chunks_sent >= s.scene_chunks &&
+        dashboard_scenes.insert(s.id).second) {
+      metrics.dashboard().add_event(
+          t, fmt::format("sampler #{} received the scene ({} chunk(s))", s.id, s.scene_chunks));
+    }
   }
+  std::erase_if(dashboard_scenes, [&](uint32_t id) { return !members.count(id); });
   DashboardFeed& feed = metrics.dashboard();
   feed.add_period(p);
   for (const uint32_t id : members) {

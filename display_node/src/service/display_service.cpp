@@ -691,6 +691,9 @@ void DisplayService::Control::send_scene_chunks() {
       ++sent;
     }
     service_.metrics_.on_chunks_sent(sent);
+    if (const Member* m = coordinator_.find_peer(it->first)) {
+      service_.metrics_.on_scene_progress(m->id, it->second.next_chunk, count);
+    }
     if (!stalled && it->second.next_chunk >= count) {
       it = transfers_.erase(it);
     } else {

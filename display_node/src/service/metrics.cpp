@@ -153,6 +153,14 @@ void ServiceMetrics::on_view() {
   ++display_.views;
 }
 
+void ServiceMetrics::on_scene_progress(uint32_t id, uint32_t sent, uint32_t count) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = samplers_.find(id);
+  if (it == samplers_.end()) return;  // members only
+  it->second.scene_chunks_sent = sent;
+  it->second.scene_chunks = count;
+}
+
 void ServiceMetrics::on_chunks_sent(uint64_t n) {
   std::lock_guard<std::mutex> lock(mutex_);
   display_.scene_chunks_sent += n;

@@ -272,25 +272,27 @@ std::string stats_json(const ServiceMetrics& metrics) {
                       {"dropped_out", d.wall_exchange.dropped_out}}}}}};
   j["samplers"] = nlohmann::json::array();
   for (const SamplerMetrics& s : metrics.samplers()) {
-    j["samplers"].push_back({{"id", s.id},
-                             {"name", s.name},
-                             {"member", s.member},
-                             {"threads", s.threads},
-                             {"region", {s.region.x0, s.region.y0, s.region.x1, s.region.y1}},
-                             {"samples", s.samples},
-                             {"bytes", s.bytes},
-                             {"batch_bytes", s.batch_bytes},
-                             {"batches", s.batches},
-                             {"tilings", s.tilings},
-                             {"sequence_gaps", s.sequence_gaps},
-                             {"samples_per_second", s.samples_per_second},
-                             {"bytes_per_second", s.bytes_per_second},
-                             {"reported_samples", s.reported.samples},
-                             {"reported_samples_per_second", s.reported.samples_per_second},
-                             {"measured_samples_per_second", s.measured_samples_per_second},
-                             {"starved", s.starved},
-                             {"batches_dropped", s.reported.batches_dropped},
-                             {"bytes_sent", s.reported.bytes_sent}});
+    j["samplers"].push_back(
+        {{"id", s.id},
+         {"name", s.name},
+         {"member", s.member},
+         {"threads", s.threads},
+         {"region", {s.region.x0, s.region.y0, s.region.x1, s.region.y1}},
+         {"samples", s.samples},
+         {"bytes", s.bytes},
+         {"batch_bytes", s.batch_bytes},
+         {"batches", s.batches},
+         {"tilings", s.tilings},
+         {"sequence_gaps", s.sequence_gaps},
+         {"samples_per_second", s.samples_per_second},
+         {"bytes_per_second", s.bytes_per_second},
+         {"reported_samples", s.reported.samples},
+         {"reported_samples_per_second", s.reported.samples_per_second},
+         {"measured_samples_per_second", s.measured_samples_per_second},
+         {"starved", s.starved},
+         {"scene", {{"chunks_sent", s.scene_chunks_sent}, {"chunks", s.scene_chunks}}},
+         {"batches_dropped", s.reported.batches_dropped},
+         {"bytes_sent", s.reported.bytes_sent}});
   }
   return j.dump(1);
 }

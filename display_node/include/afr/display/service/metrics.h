@@ -48,6 +48,10 @@ struct SamplerMetrics {
   // it, smoothed (coordinator.h), and whether it is starved (nothing delivered while others did).
   double measured_samples_per_second = 0.0;
   bool starved = false;
+  // The scene's transfer to it (chunks the display has sent of the scene's count; 0 of 0: it had
+  // the scene cached, or no transfer yet), for the dashboard's progress.
+  uint32_t scene_chunks_sent = 0;
+  uint32_t scene_chunks = 0;
   // Reported by the sampler (stats messages): shown, never used for its share.
   protocol::SamplerStats reported;
   // For the rates.
@@ -146,6 +150,8 @@ class ServiceMetrics {
   void on_rejected_control();
   void on_view();
   void on_chunks_sent(uint64_t n);
+  // Control thread: how far the scene's transfer to member `id` is.
+  void on_scene_progress(uint32_t id, uint32_t sent, uint32_t count);
   void set_zap(uint64_t accepted, uint64_t refused);
   // Display thread: a frame finished at display time `time` (samples received before it are
   // now on screen).
