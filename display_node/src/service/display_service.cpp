@@ -220,9 +220,9 @@ DisplayService::DisplayService(DisplayServiceOptions options, SampleSink& sink)
         spdlog::info("CurveZMQ: admitted key {} from {}", d.public_key, d.address);
       } else if (const uint64_t n = zap_log_.due(d.mechanism)) {
         spdlog::warn(
-            "CurveZMQ: REFUSED {} client(s) ({}), the last key {} from {}: not on the "
-            "allow-list",
-            n, d.mechanism, d.public_key.empty() ? "(none)" : d.public_key, d.address);
+            "CurveZMQ: REFUSED {} key {} from {}: not on the allow-list ({} refusal(s) since the "
+            "last line)",
+            d.mechanism, d.public_key.empty() ? "(none)" : d.public_key, d.address, n);
       }
     });
   }
