@@ -15,6 +15,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <map>
 #include <utility>
 
 namespace afr::testing {
@@ -181,10 +182,27 @@ TEST_F(WallTest, FourNodesEachReceiveTheirCellAndAKilledNodeIsNoticedWithinOneSe
   const int64_t before = received(ports[0] + 3);
   std::this_thread::sleep_for(std::chrono::milliseconds(700));
   EXPECT_GT(received(ports[0] + 3), before);
+  // The lead's /stats (and its dashboard) list every cell of the grid and who shows it: the
+  // killed node's cell is dark.
+  const auto cell_nodes = [&] {
+    std::map<std::string, uint32_t> out;
+    const nlohmann::json st = get_stats(lead_metrics);
+    for (const auto& c : st["display"]["wall"]["cells"]) {
+      out[c["cell"].dump()] = c["node"].get<uint32_t>();
+    }
+    return out;
+  };
+  std::map<std::string, uint32_t> shown = cell_nodes();
+  ASSERT_EQ(shown.size(), 4u);
+  EXPECT_EQ(shown["[64,64,128,128]"], 0u);
+  EXPECT_EQ(shown["[0,0,64,64]"], 1u);
+  EXPECT_NE(shown["[64,0,128,64]"], 0u);
 
   // It comes back on the same cell.
   followers[2] = follower(1, 1, ports[2]);
   ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 4; }, 5.0)) << l->log();
+  shown = cell_nodes();
+  EXPECT_NE(shown["[64,64,128,128]"], 0u);
   // Until its first image (a follower reconstructs once the lead's layout and views arrive).
   ASSERT_TRUE(wait_until(
       [&] {

@@ -123,8 +123,12 @@ async function poll_stats() {
       "<tr><th>sampler</th><th>state</th><th>samples/s</th><th>share</th><th>region</th></tr>" +
       rows.join("");
     const wall = d.wall;
-    document.getElementById("wall").textContent = wall.nodes > 1
-      ? `wall: node ${wall.node} of ${wall.nodes}, cell [${wall.cell}], coverage in ${wall.exchange.coverage_in}, strays in ${wall.exchange.strays_in}, out ${wall.exchange.strays_out}`
+    // On the lead, every cell of the grid and who shows it (dark: no node, or it was lost).
+    const cells = (wall.cells || []).length > 1
+      ? " | cells: " + wall.cells.map(c => `[${c.cell}] ` + (c.node ? `#${c.node}` : "dark")).join(", ")
+      : "";
+    document.getElementById("wall").textContent = wall.nodes > 1 || cells
+      ? `wall: node ${wall.node} of ${wall.nodes}, cell [${wall.cell}], coverage in ${wall.exchange.coverage_in}, strays in ${wall.exchange.strays_in}, out ${wall.exchange.strays_out}` + cells
       : "";
   } catch (e) {}
 }

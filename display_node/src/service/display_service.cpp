@@ -144,6 +144,23 @@ class DisplayService::Control {
 
 namespace {
 
+// Every cell of a wall's grid, row by row, and the node of `layout` that shows it (0: none, as
+// for a node that was lost), for the lead's /stats and dashboard.
+std::vector<DisplayMetrics::WallCell> grid_cells(const WallGrid& grid, const WallLayout& layout) {
+  std::vector<DisplayMetrics::WallCell> cells;
+  for (int r = 0; r < grid.rows; ++r) {
+    for (int c = 0; c < grid.columns; ++c) {
+      DisplayMetrics::WallCell cell;
+      cell.cell = grid.cell(c, r, layout.image.width, layout.image.height);
+      for (const WallNode& n : layout.nodes) {
+        if (n.cell == cell.cell) cell.node = n.node_id;
+      }
+      cells.push_back(cell);
+    }
+  }
+  return cells;
+}
+
 // Control messages handled in one pass of the control loop before its timed work (expiry,
 // recuts, heartbeats, views): enough to drain what a few hundred peers send in a pass.
 constexpr int kMaxMessagesPerPass = 1024;
@@ -256,6 +273,7 @@ DisplayService::DisplayService(DisplayServiceOptions options, SampleSink& sink)
   layout_.margin = options_.wall.margin;
   layout_.nodes = {WallNode{1, cell(), ""}};
   metrics_.set_wall(1, cell(), 1, 0);
+  metrics_.set_wall_cells(grid_cells(options_.wall, layout_));
 }
 
 PixelRect DisplayService::cell() const {
@@ -776,6 +794,7 @@ void DisplayService::Control::publish_layout() {
     service_.layout_ = l;
   }
   service_.metrics_.set_wall(1, service_.cell(), l.nodes.size(), l.epoch);
+  service_.metrics_.set_wall_cells(grid_cells(options_.wall, l));
   spdlog::info("wall layout {}: {} display node(s)", l.epoch, l.nodes.size());
   for (const auto& [id, m] : coordinator_.members()) send(m.peer, l);
   for (const auto& [peer, n] : wall_nodes_) send(peer, l);

@@ -209,6 +209,11 @@ void ServiceMetrics::set_display(uint64_t session, int width, int height,
   display_.mode = mode;
 }
 
+void ServiceMetrics::set_wall_cells(std::vector<DisplayMetrics::WallCell> cells) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  display_.wall_cells = std::move(cells);
+}
+
 void ServiceMetrics::set_wall(uint32_t node_id, const PixelRect& cell, uint64_t nodes,
                               uint64_t epoch) {
   std::lock_guard<std::mutex> lock(mutex_);

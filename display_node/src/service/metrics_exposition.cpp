@@ -20,6 +20,15 @@ std::vector<std::pair<const char*, double>> gpu_passes(const GpuTimes& g) {
           {"fill", g.fill},     {"readback", g.readback}, {"image", g.total()}};
 }
 
+// A wall lead's cells: [{"cell": [x0, y0, x1, y1], "node": id or 0 (dark)}, ...].
+nlohmann::json wall_cells_json(const std::vector<DisplayMetrics::WallCell>& cells) {
+  nlohmann::json j = nlohmann::json::array();
+  for (const DisplayMetrics::WallCell& c : cells) {
+    j.push_back({{"cell", {c.cell.x0, c.cell.y0, c.cell.x1, c.cell.y1}}, {"node", c.node}});
+  }
+  return j;
+}
+
 // null for a CPU backend (no GPU times yet).
 nlohmann::json gpu_json(const GpuTimes& g) {
   if (!g.timed) return nullptr;
@@ -258,6 +267,7 @@ std::string stats_json(const ServiceMetrics& metrics) {
                    {{"node", d.wall_node},
                     {"cell", {d.wall_cell.x0, d.wall_cell.y0, d.wall_cell.x1, d.wall_cell.y1}},
                     {"nodes", d.wall_nodes},
+                    {"cells", wall_cells_json(d.wall_cells)},
                     {"epoch", d.wall_epoch},
                     {"exchange",
                      {{"coverage_in", d.wall_exchange.coverage_in},

@@ -103,6 +103,13 @@ struct DisplayMetrics {
   PixelRect wall_cell;
   uint64_t wall_nodes = 1;
   uint64_t wall_epoch = 0;
+  // On a wall's lead: every cell of the grid and the node that shows it (0: none, the cell is
+  // dark), for the dashboard.
+  struct WallCell {
+    PixelRect cell;
+    uint32_t node = 0;
+  };
+  std::vector<WallCell> wall_cells;
   // What this node exchanged with the other nodes of its wall (WallExchange, docs/wall.md
   // "Seams"): coverage messages and their pixels, stray samples, bytes.
   struct WallExchange {
@@ -166,6 +173,8 @@ class ServiceMetrics {
                          uint64_t strays_out, uint64_t bytes_out_total, uint64_t dropped_out_total);
   // Either thread: the wall as this node knows it.
   void set_wall(uint32_t node_id, const PixelRect& cell, uint64_t nodes, uint64_t epoch);
+  // The lead: the grid's cells and who shows each.
+  void set_wall_cells(std::vector<DisplayMetrics::WallCell> cells);
 
   // Rates and windowed latencies: call once per stats period (the log line's).
   void end_period(double seconds);
