@@ -215,6 +215,26 @@ TEST_F(HandSceneGltfTest, AnimatedTriangleMorphsLinearly) {
   for (size_t i = 2; i < base.size(); i += 3) EXPECT_NEAR(base[i] + w[0] * delta[i], 0.5, 1e-6);
 }
 
+// The same triangle through afr's own loader: its morph target animates (section 5: z goes
+// from 0 at time 0 to 1 at time 2, linearly, clamped outside), as the sampler traces it.
+TEST_F(HandSceneGltfTest, AnimatedTriangleMovesInAfrsLoader) {
+  const afr::Scene scene = afr::load_gltf(*dir_ / "out" / "scene.gltf");
+  int tpa = -1;
+  for (size_t i = 0; i < scene.nodes.size(); ++i) {
+    if (scene.nodes[i].name.rfind("tpa ", 0) == 0) tpa = int(i);
+  }
+  ASSERT_GE(tpa, 0);
+  ASSERT_TRUE(scene.node_deforms(tpa));
+  const afr::Mesh& mesh = scene.meshes[size_t(scene.nodes[size_t(tpa)].mesh)];
+  ASSERT_EQ(mesh.primitives.size(), 1u);
+  std::vector<glm::vec3> positions(mesh.primitives[0].positions.size());
+  for (const double t : {-1.0, 0.0, 0.5, 1.0, 2.0, 3.0}) {
+    scene.deform(tpa, 0, scene.evaluate(t), positions.data(), nullptr);
+    const float z = float(std::clamp(t / 2.0, 0.0, 1.0));
+    for (const glm::vec3& p : positions) EXPECT_NEAR(p.z, z, 1e-5) << "t = " << t;
+  }
+}
+
 TEST_F(HandSceneGltfTest, WritesCameraLightsAndSceneExtras) {
   ASSERT_EQ(m().cameras.size(), 1u);
   const auto& p = m().cameras[0].perspective;
