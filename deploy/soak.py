@@ -30,8 +30,15 @@ At the end it prints a report and exits non-zero when a check fails:
     cut for a joining sampler none until its pool has filled it. Those screenshots are reported,
     and at least half the screenshots after warm-up must lie outside the recovery windows.
 
+  - with --hostile RATE, a hostile peer runs beside the samplers for the whole soak: it pushes
+    RATE samples/s of well-formed batches that name sampler 1 without its token (afr-bench-service
+    send, no join) into the display's sample channel; the display must drop and count them
+    (/stats spoofed_* and unknown_sampler_*), and every check above must still hold: nothing
+    of the flood reaches the image, the store or the members.
+
   deploy/soak.py --build build --minutes 10 --samplers 4 --kill-every 30
   deploy/soak.py --minutes 1 --kill-every 10        (a short smoke run)
+  deploy/soak.py --minutes 2 --samplers 2 --kill-every 30 --hostile 200000
 
 Writes everything (logs, screenshots, soak.json with every reading) to --output.
 """
@@ -153,6 +160,8 @@ def main():
                     help="seconds after a sampler gets a larger region than before until its RSS "
                          "is checked again")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--hostile", type=float, default=0.0,
+                    help="samples/s of spoofed batches from a hostile peer beside the samplers")
     args = ap.parse_args()
     if not 1 <= args.samplers <= 64:
         ap.error(f"--samplers must be 1..64, got {args.samplers}")
@@ -164,7 +173,9 @@ def main():
     display_bin = os.path.join(args.build, "display_node", "display_node")
     sampler_bin = os.path.join(args.build, "sampler_node", "sampler_node")
     render_bin = os.path.join(args.build, "bench", "afr-render")
-    for b in (display_bin, sampler_bin, render_bin):
+    bench_bin = os.path.join(args.build, "bench", "afr-bench-service")
+    needed = (display_bin, sampler_bin, render_bin) + ((bench_bin,) if args.hostile > 0 else ())
+    for b in needed:
         if not os.access(b, os.X_OK):
             sys.exit(f"soak: {b} is missing: build first (cmake --build {args.build})")
     os.makedirs(os.path.join(args.output, "logs"), exist_ok=True)
@@ -198,6 +209,13 @@ def main():
                     os.path.join(args.output, "logs", f"sampler-{i + 1}.log"))
 
     samplers = [start_sampler(i) for i in range(args.samplers)]
+    hostile = None
+    if args.hostile > 0:
+        # Batches naming sampler 1 (a real member once it has joined) without its token.
+        hostile = Node([bench_bin, "send", "--display", endpoint, "--id", "1", "--width", str(w),
+                        "--height", str(h), "--max-samples-per-second", str(args.hostile),
+                        "--seconds", str(args.minutes * 60.0)],
+                       os.path.join(args.output, "logs", "hostile.log"))
     t0 = time.monotonic()
     t0_wall = time.time()  # screenshots are placed in time by their files' modification times
     duration = args.minutes * 60.0
@@ -255,11 +273,15 @@ def main():
                                                   if x["member"])
                     r["batches_dropped"] = sum(x["batches_dropped"] for x in st["samplers"])
                     r["sequence_gaps"] = sum(x["sequence_gaps"] for x in st["samplers"])
+                    r["dropped_hostile_batches"] = (d["spoofed_batches"] +
+                                                    d["unknown_sampler_batches"])
                 readings.append(r)
             time.sleep(0.2)
     finally:
         for s in samplers:
             s.kill(signal.SIGTERM)
+        if hostile:
+            hostile.kill(signal.SIGTERM)
         display.kill(signal.SIGTERM)
 
     # Image error of every screenshot, in time order.
@@ -342,6 +364,11 @@ def main():
               f"rejected messages: {last['rejected']}")
         if last["rejected"]:
             failures.append(f"{last['rejected']} messages rejected")
+        if args.hostile > 0:
+            print(f"hostile peer: {last['dropped_hostile_batches']} of its batches dropped and "
+                  "counted by the display")
+            if not last["dropped_hostile_batches"]:
+                failures.append("the hostile peer's batches were not dropped and counted")
     else:
         failures.append("no /stats reading")
     logs = os.path.join(args.output, "logs")
