@@ -88,6 +88,16 @@ class WallTest : public ProcessTest {
     for (const auto& m : s["samplers"]) n += m["samples"].get<int64_t>();
     return n;
   }
+  // A 2 x 1 wall of 128 x 64: the lead (cell 0,0) and a follower for cell 1,0 on a base port
+  // of its own, both admitted.
+  void two_by_one_wall(std::unique_ptr<Process>* l, std::unique_ptr<Process>* f, int* port) {
+    *l = lead({"--wall", "2x1"}, "128x64");
+    ASSERT_TRUE(wait_until([&] { return wall_nodes(port_ + 3) == 1; }, 5.0)) << (*l)->log();
+    *port = free_base_port();
+    ASSERT_NE(*port, 0);
+    *f = follower(1, 0, *port);
+    ASSERT_TRUE(wait_until([&] { return wall_nodes(port_ + 3) == 2; }, 5.0)) << (*l)->log();
+  }
   static int wall_nodes(int metrics_port) {
     const nlohmann::json s = get_stats(metrics_port);
     if (s.is_null() || s.is_discarded()) return -1;
@@ -280,13 +290,10 @@ double rms_in(const Image& image, const Image& whole, const PixelRect& rect) {
 // turns): each cell and the whole are nearer the ideal image of that time than of 0.3 s
 // before or after. Before snapshots each node wrote its last image at its own moment.
 TEST_F(WallTest, ASnapshotIsEveryCellsImageOfOneMoment) {
-  auto l = lead({"--wall", "2x1"}, "128x64");
   const int lead_metrics = port_ + 3;
-  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 1; }, 5.0)) << l->log();
-  const int port = free_base_port();
-  ASSERT_NE(port, 0);
-  auto f = follower(1, 0, port);
-  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 2; }, 5.0)) << l->log();
+  int port = 0;
+  std::unique_ptr<Process> l, f;
+  ASSERT_NO_FATAL_FAILURE(two_by_one_wall(&l, &f, &port));
   auto s = sampler("s1.log", 150000);
   ASSERT_TRUE(
       wait_until([&] { return received(lead_metrics) > 0 && received(port + 3) > 0; }, scaled(8.0)))
@@ -355,13 +362,10 @@ TEST_F(WallTest, ASnapshotIsEveryCellsImageOfOneMoment) {
 // sent straight to the follower's sample channel, are dropped and counted by cause, and the
 // real sampler's samples keep arriving there. Before, a follower counted every id as a member.
 TEST_F(WallTest, AFollowerDropsBatchesThatAreNotFromTheLeadsMembers) {
-  auto l = lead({"--wall", "2x1"}, "128x64");
   const int lead_metrics = port_ + 3;
-  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 1; }, 5.0)) << l->log();
-  const int port = free_base_port();
-  ASSERT_NE(port, 0);
-  auto f = follower(1, 0, port);
-  ASSERT_TRUE(wait_until([&] { return wall_nodes(lead_metrics) == 2; }, 5.0)) << l->log();
+  int port = 0;
+  std::unique_ptr<Process> l, f;
+  ASSERT_NO_FATAL_FAILURE(two_by_one_wall(&l, &f, &port));
   auto s = sampler("s1.log");
   ASSERT_TRUE(wait_until([&] { return received(port + 3) > 0; }, scaled(8.0)))
       << l->log() << f->log() << s->log();
