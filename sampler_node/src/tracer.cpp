@@ -617,9 +617,10 @@ void Tracer::Impl::build_deforming(const std::vector<int>& nodes, uint32_t defau
       throw Error("embree: cannot allocate geometry buffers for scene " + scene_.source);
     }
     std::copy_n(p.indices.data(), 3 * p.triangle_count(), i);
-    let_shadows_through_glass(g, p.material >= 0 && size_t(p.material) < scene_.materials.size()
-                                     ? uint32_t(p.material)
-                                     : default_material);
+    const uint32_t material = p.material >= 0 && size_t(p.material) < scene_.materials.size()
+                                  ? uint32_t(p.material)
+                                  : default_material;
+    let_shadows_through_glass(g, material);
     rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
     rtcCommitGeometry(g);
     rtcAttachGeometryByID(b.scene, g, unsigned(b.geoms.size()));
@@ -631,9 +632,7 @@ void Tracer::Impl::build_deforming(const std::vector<int>& nodes, uint32_t defau
     r.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
     r.velocities = d.velocities.data();
     r.indices = p.indices.data();
-    r.material = p.material >= 0 && size_t(p.material) < scene_.materials.size()
-                     ? uint32_t(p.material)
-                     : default_material;
+    r.material = material;
     r.node = d.node;
     r.flip_winding = flips_winding(d.node, state_);
     b.geoms.push_back(r);
