@@ -25,8 +25,8 @@ TEST(CoverageMapTest, SplatRadiusFollowsSection62) {
   CoverageCell dense{40.0f, 80.0f};  // mean 2; half way (in log) to the band's count
   EXPECT_FLOAT_EQ(splat_radius(&dense, 3.0f, rule),
                   3.0f * base(2.0f) * std::sqrt(std::sqrt(32.0f / 40.0f)));
-  CoverageCell very_dense{4000.0f, 4000.0f};  // the factor is at least `shrink`
-  EXPECT_FLOAT_EQ(splat_radius(&very_dense, 3.0f, rule), 3.0f * base(1.0f) * rule.shrink);
+  CoverageCell very_dense{40000.0f, 40000.0f};  // the factor is at least `shrink`
+  EXPECT_FLOAT_EQ(splat_radius(&very_dense, 12.0f, rule), 12.0f * base(1.0f) * rule.shrink);
   CoverageCell fine{10.0f, 25.0f};  // mean 2.5, in the band: only the pull toward 1
   EXPECT_FLOAT_EQ(splat_radius(&fine, 2.0f, rule), 2.0f * base(2.5f));
   // The factor is continuous: 1 at both ends of the band.

@@ -438,8 +438,12 @@ TEST(CpuReconstructorTest, CoverageMapGrowsSparseSplatsAndShrinksDenseOnes) {
   const auto [sparse1_n, sparse1_r] = mean(first, 36, 60);
   const auto [sparse2_n, sparse2_r] = mean(second, 36, 60);
   EXPECT_GT(dense1_n, 32.0);
-  EXPECT_NEAR(dense1_r, 1.0, 0.01);             // the filter's own radius
-  EXPECT_NEAR(dense2_r / dense1_r, 0.7, 0.02);  // shrunk by at most x0.7 per image
+  EXPECT_NEAR(dense1_r, 1.0, 0.01);  // the filter's own radius
+  // Shrunk half way (in log) to the band: (32 / c)^(1/4), at least `shrink`.
+  const double half_way =
+      std::max(double(cfg.splat.shrink), std::pow(double(cfg.splat.shrink_above) / dense1_n, 0.25));
+  EXPECT_LT(half_way, 0.7);
+  EXPECT_NEAR(dense2_r / dense1_r, half_way, 0.02);
   EXPECT_LT(sparse1_n, 4.0);
   EXPECT_GT(sparse2_r / sparse1_r, 1.5);  // grown toward the band (sqrt(4 / 1) = 2 at most
                                           // where one splat reached; some land where dense)

@@ -272,7 +272,7 @@ TEST(ViewportTest, AViewportIsTheSameImageScaledAndItsTileRatesCountTheReceivedP
     r->set_tiling(tiling);
   }
   const Camera cam = Camera::look_at({0, 0, 0}, {0, 0, -1}, {0, 1, 0}, 1.0, 0.01);
-  const Image p = part.reconstruct(cam, 1.0, 96, 96);
+  part.reconstruct(cam, 1.0, 96, 96);
   whole.reconstruct(cam, 1.0, 2 * kSide, 2 * kSide);
   // The tiles as the part measured them: the pieces of the lattice's cells x in [32, 64) and
   // [64, 96) (its grid starts at x = 32) of the upper tile (y [0, 32) and [32, 50)) and of the
@@ -297,8 +297,10 @@ TEST(ViewportTest, AViewportIsTheSameImageScaledAndItsTileRatesCountTheReceivedP
     EXPECT_EQ(whole.tile_states()[i].counted, whole.tile_states()[i].rect);
   }
   EXPECT_EQ(whole.tile_states().size(), 1u + 3u * 2u + 3u * 2u);
-  // The image: the same splats over the same pixels (the part's rates differ by the counting
-  // region only, a fraction of a percent here).
+  // The second images (each sizing its splats from its first's coverage): the same splats over
+  // the same pixels (the part's rates differ by the counting region only, a fraction of a
+  // percent here).
+  const Image p = part.reconstruct(cam, 1.0, 96, 96);
   Image whole_image = whole.reconstruct(cam, 1.0, 2 * kSide, 2 * kSide);
   Image cropped(96, 96);
   for (int y = 0; y < 96; ++y) {

@@ -23,13 +23,16 @@ struct CoverageCell {
 // shrink, each image by the factor that would bring the count into the band if the count
 // grows with the splats' area (count ~ r^2), within [shrink, grow]. Growing goes there at once,
 // shrinking half way (in log) per image: fast where undersampled, gradual where oversampled.
+// `shrink` bounds only gross oversampling (over 32 / shrink^4 splats a pixel: 8192 at 0.25):
+// the store's density jumps when a sampler's first fill lands, and wide splats grown while it
+// was sparse then cost seconds of reconstruction unless they shrink within an image or two.
 // Every image also pulls the growth a fraction `relax` of the way back to 1 (the filter's own
 // size), so that the map has one fixed point for a given sample density, whatever the history.
 struct SplatSizeRule {
   float grow_below = 4.0f;     // fewer samples than this reached the pixel: undersampled
   float grow = 4.0f;           // the most a splat grows per image (and a hole's growth)
   float shrink_above = 32.0f;  // more than this: oversampled
-  float shrink = 0.7f;         // the most it shrinks per image
+  float shrink = 0.25f;        // the most it shrinks per image
   float relax = 0.05f;         // per image, toward growth 1
   float min_radius = 1.0f;     // a splat always reaches the pixel it falls in
   float max_radius = 32.0f;    // bounds cost; GL point sprites are 2 r + 1 <= 65 pixels
