@@ -284,9 +284,14 @@ struct CpuReconstructor::Impl {
       const size_t p1 = size_t(height * (task + 1) / row_tasks) * size_t(width);
       const CoverageCell* cells = previous.valid() ? previous.cells().data() : nullptr;
       for (size_t p = p0; p < p1; ++p) {
-        const TileFilter& f = setup.filters[index_map[p]];
+        const uint32_t tile = index_map[p];
+        const TileFilter& f = setup.filters[tile];
         const float r_filter = cutoff * std::max(f.sigma_x, f.sigma_y);
-        const float r = splat_radius(cells != nullptr ? cells + p : nullptr, r_filter, rule);
+        // The coverage map's size, no wider than the tile's density calls for (nor than the
+        // filter's own radius needs).
+        const float r =
+            std::min(splat_radius(cells != nullptr ? cells + p : nullptr, r_filter, rule),
+                     std::max({setup.radius_caps[tile], r_filter, rule.min_radius}));
         // A splat the coverage map grew beyond the filter's radius widens its Gaussian by the
         // same factor (keeping its shape); a shrunk one cuts the Gaussian short.
         const float grown = std::max(1.0f, r / r_filter);

@@ -158,6 +158,7 @@ struct GlReconstructor::Impl {
 
   // Tile field.
   GLuint tile_filters_buffer = 0, tile_filters = 0;
+  GLuint tile_caps_buffer = 0, tile_caps = 0;  // FrameSetup::radius_caps, one R32F a tile
   // Per grid (the viewport with its margin: accumulation, coverage, tile index, pyramid) and
   // per output (the viewport's pixels).
   int width = 0, height = 0;          // grid
@@ -481,6 +482,12 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
   glGenTextures(1, &m.tile_filters);
   glBindTexture(GL_TEXTURE_BUFFER, m.tile_filters);
   glTexBuffer(GL_TEXTURE_BUFFER, GL_RGBA32F, m.tile_filters_buffer);
+  glGenBuffers(1, &m.tile_caps_buffer);
+  glBindBuffer(GL_TEXTURE_BUFFER, m.tile_caps_buffer);
+  glBufferData(GL_TEXTURE_BUFFER, sizeof(float), nullptr, GL_STREAM_DRAW);
+  glGenTextures(1, &m.tile_caps);
+  glBindTexture(GL_TEXTURE_BUFFER, m.tile_caps);
+  glTexBuffer(GL_TEXTURE_BUFFER, GL_R32F, m.tile_caps_buffer);
 
   glGetIntegerv(GL_MAX_VIEWPORT_DIMS, m.max_viewport);
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &m.max_texture);
@@ -510,8 +517,10 @@ GlReconstructor::~GlReconstructor() {
   glDeleteVertexArrays(1, &m.empty_vao);
   glDeleteBuffers(1, &m.samples);
   glDeleteBuffers(1, &m.tile_filters_buffer);
+  glDeleteBuffers(1, &m.tile_caps_buffer);
   glDeleteBuffers(1, &m.tile_spans);
   glDeleteTextures(1, &m.tile_filters);
+  glDeleteTextures(1, &m.tile_caps);
 }
 
 uint32_t GlReconstructor::output_texture() const { return impl_->output; }
@@ -610,6 +619,9 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
   glBindBuffer(GL_TEXTURE_BUFFER, m.tile_filters_buffer);
   glBufferData(GL_TEXTURE_BUFFER, GLsizeiptr(setup.filters.size() * sizeof(TileFilter)),
                setup.filters.data(), GL_STREAM_DRAW);
+  glBindBuffer(GL_TEXTURE_BUFFER, m.tile_caps_buffer);
+  glBufferData(GL_TEXTURE_BUFFER, GLsizeiptr(setup.radius_caps.size() * sizeof(float)),
+               setup.radius_caps.data(), GL_STREAM_DRAW);
 
   const ReconstructionMode current_mode = mode();
   const FilterLimits& limits = config_.filter;
@@ -653,12 +665,15 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     u.set("u_tile_index", 0);
     u.set("u_tile_filters", 1);
     u.set("u_coverage", 2);
+    u.set("u_tile_caps", 3);
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_2D, m.tile_index);
     glActiveTexture(GL_TEXTURE1);
     glBindTexture(GL_TEXTURE_BUFFER, m.tile_filters);
     glActiveTexture(GL_TEXTURE2);
     glBindTexture(GL_TEXTURE_2D, m.coverage[size_t(1 - m.current)]);
+    glActiveTexture(GL_TEXTURE3);
+    glBindTexture(GL_TEXTURE_BUFFER, m.tile_caps);
     glActiveTexture(GL_TEXTURE0);
   };
 

@@ -47,6 +47,7 @@ uniform float u_max_radius;
 
 uniform usampler2D u_tile_index;       // per output pixel: index into u_tile_filters
 uniform samplerBuffer u_tile_filters;  // sigma_x, sigma_y, k_t, e_t
+uniform samplerBuffer u_tile_caps;     // the widest splat the tile's density calls for
 uniform sampler2D u_coverage;          // previous image: count, growth sum
 
 // quantize_position (reprojection.h): 1/256 pixel in the whole image's coordinates.
@@ -115,9 +116,11 @@ bool prepare_splat(double time, vec2 xy, uint flags, vec3 position, vec3 velocit
     return false;
   }
   ivec2 pix = clamp(ivec2(floor(p)), ivec2(0), u_size - 1);
-  vec4 f = texelFetch(u_tile_filters, int(texelFetch(u_tile_index, pix, 0).r));
+  int tile = int(texelFetch(u_tile_index, pix, 0).r);
+  vec4 f = texelFetch(u_tile_filters, tile);
   float r_filter = u_cutoff * max(f.x, f.y);
-  float r = splat_radius(texelFetch(u_coverage, pix, 0).xy, r_filter);
+  float cap = max(max(texelFetch(u_tile_caps, tile).r, r_filter), u_min_radius);
+  float r = min(splat_radius(texelFetch(u_coverage, pix, 0).xy, r_filter), cap);
   float grown = max(1.0, r / r_filter);
   float sigma_x = f.x * grown;
   float sigma_y = f.y * grown;

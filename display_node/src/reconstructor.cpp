@@ -196,6 +196,7 @@ void Reconstructor::prepare_frame(double time, int width, int height,
 
   const std::vector<FieldTile>& tiles = field_.tiles();
   setup->filters.resize(tiles.size());
+  setup->radius_caps.resize(tiles.size());
   tile_states_.resize(tiles.size());
   for (size_t i = 0; i < tiles.size(); ++i) {
     const FieldTile& t = tiles[i];
@@ -210,6 +211,9 @@ void Reconstructor::prepare_frame(double time, int width, int height,
     if (inside > 0) R_l = float(double(inside) / (double(counts_.area(i)) * depth));
     const FilterExtents e = filter_extents(t.G_x, t.G_y, t.G_t, R_l, float(depth), limits);
     setup->filters[i] = make_tile_filter(e, setup->scale_x, setup->scale_y);
+    const double area_out = double(counts_.area(i)) * double(setup->scale_x) * setup->scale_y;
+    setup->radius_caps[i] =
+        splat_density_cap(area_out > 0.0 ? float(double(inside) / area_out) : 0.0f, config_.splat);
     TileState& state = tile_states_[i];
     state.rect = t.rect;
     state.counted = intersect(t.rect, received_);

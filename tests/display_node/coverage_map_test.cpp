@@ -117,5 +117,20 @@ TEST(CoverageMapTest, ResetDropsThePreviousImage) {
   EXPECT_EQ(map.cells()[4].count, 0.0f);
 }
 
+// The widest splat a tile's density calls for: reached by at most 4 x shrink_above others.
+TEST(CoverageMapTest, TheDensityCapKeepsTheExpectedCountAtFourTimesTheBand) {
+  const SplatSizeRule rule;
+  for (float density : {0.01f, 0.5f, 4.0f, 64.0f}) {
+    const float r = splat_density_cap(density, rule);
+    EXPECT_NEAR(density * (2.0f * r) * (2.0f * r), 4.0f * rule.shrink_above,
+                1e-4f * rule.shrink_above);
+  }
+  EXPECT_FLOAT_EQ(splat_density_cap(4.0f, rule), std::sqrt(8.0f));
+  // No stored sample, or garbage: no cap.
+  for (float density : {0.0f, -1.0f, std::numeric_limits<float>::quiet_NaN()}) {
+    EXPECT_EQ(splat_density_cap(density, rule), std::numeric_limits<float>::max());
+  }
+}
+
 }  // namespace
 }  // namespace afr

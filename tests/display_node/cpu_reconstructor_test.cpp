@@ -461,6 +461,40 @@ TEST(CpuReconstructorTest, CoverageMapGrowsSparseSplatsAndShrinksDenseOnes) {
   EXPECT_LT(sparse_n, 8.0);
 }
 
+// A store that fills at once (a sampler's first fill landing) after images of a sparse one:
+// the splats the map grew over the sparse store would cover thousands of pixels each, a
+// thousand splats a pixel at the new density even after the first shrink; the tile's stored
+// density caps them (splat_density_cap) from the first image that holds the new samples.
+TEST(CpuReconstructorTest, SplatsGrownOverASparseStoreFitTheDensityOnceItFills) {
+  const int W = 64, H = 48;
+  ReconstructorConfig cfg = config(W, H);
+  cfg.capacity = 4 * W * H + 200;
+  cfg.filter.min_spatial_extent = cfg.filter.max_spatial_extent = 1.0f;  // r_f = 3 px
+  CpuReconstructor rec(cfg);
+  rec.set_tiling(uniform_tiling(W, H, 0.0f, 0.0f, 0.0f, 1.0f));
+  Pcg32 rng(12);
+  rec.add_batch(random_batch(rng, 60, W, H, 0.0, 0.5));
+  std::vector<CoverageCell> cells;
+  const auto mean = [&](bool growth) {
+    double count = 0, sum = 0;
+    for (const CoverageCell& c : cells) {
+      count += c.count;
+      sum += c.growth_sum;
+    }
+    return growth ? sum / std::max(count, 1.0) : count / double(cells.size());
+  };
+  for (int i = 0; i < 5; ++i) rec.reconstruct(kCamera, 0.5, W, H);
+  rec.read_coverage(&cells);
+  EXPECT_GT(mean(true), 3.0);  // grown: splats of 9 px and more
+  rec.add_batch(random_batch(rng, 4 * W * H, W, H, 0.5, 1.0));
+  rec.reconstruct(kCamera, 1.0, W, H);
+  rec.read_coverage(&cells);
+  // At 4 samples a pixel the cap is 0.5 sqrt(4 x 32 / 4) = 2.8 px, below the filter's 3 px:
+  // splats of 3 px, about 4 x 6^2 = 144 a pixel (the shrunk map alone: ~1000).
+  EXPECT_LT(mean(false), 200.0);
+  EXPECT_NEAR(mean(true), 1.0, 0.05);
+}
+
 TEST(CpuReconstructorTest, TraditionalFramelessShowsTheNewestSampleAtEachPixel) {
   const int W = 40, H = 30;
   ReconstructorConfig cfg = config(W, H);

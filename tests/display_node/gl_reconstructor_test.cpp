@@ -139,6 +139,49 @@ TEST(GlReconstructorTest, WeightsAndCoverageMatchTheCpuBackend) {
   }
 }
 
+// The density cap (splat_density_cap) on the GPU: a sparse store's grown splats, then the store
+// filled at once; the image that holds the new samples has the CPU backend's weights and
+// coverage, splats the size of the new density rather than of the old map.
+TEST(GlReconstructorTest, SplatsFitTheDensityOnceTheStoreFillsAsOnTheCpu) {
+  AFR_REQUIRE_GL(context);
+  for (const GlSplat splat : kSplatPasses) {
+    SCOPED_TRACE(gl_splat_name(splat));
+    const int W = 64, H = 48;
+    ReconstructorConfig cfg = config(W, H, ReconstructionMode::kAdaptive);
+    cfg.capacity = 4 * W * H + 200;
+    cfg.filter.min_spatial_extent = cfg.filter.max_spatial_extent = 1.0f;
+    CpuReconstructor cpu(cfg);
+    GlReconstructor gl(cfg, context, GlReconstructorOptions{splat});
+    Pcg32 rng(12);
+    const SampleBatch sparse = test::random_batch(rng, 60, W, H, 0.0, 0.5);
+    const SampleBatch dense = test::random_batch(rng, 4 * W * H, W, H, 0.5, 1.0);
+    const TilingSnapshot tiling = test::uniform_tiling(W, H, 0.0f, 0.0f, 0.0f, 1.0f);
+    for (Reconstructor* r : {static_cast<Reconstructor*>(&cpu), static_cast<Reconstructor*>(&gl)}) {
+      r->set_tiling(tiling);
+      r->add_batch(sparse);
+      for (int i = 0; i < 5; ++i) r->reconstruct(Camera{}, 0.5, W, H);
+      r->add_batch(dense);
+    }
+    const Image a = cpu.reconstruct(Camera{}, 1.0, W, H);
+    const Image g = gl.reconstruct(Camera{}, 1.0, W, H);
+    const test::Diff8 d = diff8(a, g);
+    EXPECT_LE(d.rms, 1.0);
+    EXPECT_LE(d.max, 4);
+    std::vector<CoverageCell> cc, cg;
+    cpu.read_coverage(&cc);
+    gl.read_coverage(&cg);
+    ASSERT_EQ(cc.size(), cg.size());
+    double count = 0;
+    int same = 0;
+    for (size_t p = 0; p < cc.size(); ++p) {
+      count += cg[p].count;
+      same += cc[p].count == cg[p].count;
+    }
+    EXPECT_GE(same, int(cc.size()) * 99 / 100);
+    EXPECT_LT(count / double(cg.size()), 200.0);  // ~144; the shrunk map alone: ~1000
+  }
+}
+
 // Splats of at least 6 pixels on 4-pixel tiles reach about 18 tiles each, far beyond the
 // lists' first room (4 entries a stored sample): the first image overflows them, is drawn
 // again with room, and still agrees with the CPU backend.

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstddef>
+#include <limits>
 #include <vector>
 
 namespace afr {
@@ -87,6 +88,17 @@ inline float splat_radius(const CoverageCell* previous, float filter_radius,
   const float r = g * filter_radius;
   if (!(r >= rule.min_radius)) return rule.min_radius;  // NaN too
   return r < rule.max_radius ? r : rule.max_radius;
+}
+
+// The widest splat a tile's stored density calls for: at `density` samples per output pixel, a
+// splat of radius r is reached by about density (2 r)^2 others, and none needs more than 4 x
+// shrink_above of them. The map sizes splats from the last image's counts; when the store's
+// density jumped since (a sampler's first fill), they would be that many times too wide, and an
+// image's cost grows with their area. The largest float (no cap) where the density is not
+// positive.
+inline float splat_density_cap(float density, const SplatSizeRule& rule) {
+  if (!(density > 0.0f)) return std::numeric_limits<float>::max();
+  return 0.5f * std::sqrt(4.0f * rule.shrink_above / density);
 }
 
 // What a splat of radius r records in the map: its growth r / filter_radius.

@@ -220,6 +220,9 @@ class Reconstructor : public SampleSink {
     double scaled_height = 0.0;
     bool field_changed = false;       // the tile index map was rebuilt
     std::vector<TileFilter> filters;  // one per field_.tiles() entry
+    // Per field_.tiles() entry: the widest splat its stored density calls for (output pixels;
+    // the largest float where it stores no sample): splat_density_cap.
+    std::vector<float> radius_caps;
   };
 
   // write_coverage's check of its arguments: throws afr::Error unless cells.size() equals
