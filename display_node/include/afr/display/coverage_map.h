@@ -26,7 +26,8 @@ struct CoverageCell {
 // shrinking half way (in log) per image: fast where undersampled, gradual where oversampled.
 // `shrink` bounds only gross oversampling (over 32 / shrink^4 splats a pixel: 8192 at 0.25):
 // the store's density jumps when a sampler's first fill lands, and wide splats grown while it
-// was sparse then cost seconds of reconstruction unless they shrink within an image or two.
+// was sparse would cost seconds of reconstruction; the floor lets them come down within two
+// or three images, splat_density_cap (below) bounds them from the first.
 // Every image also pulls the growth a fraction `relax` of the way back to 1 (the filter's own
 // size), so that the map has one fixed point for a given sample density, whatever the history.
 struct SplatSizeRule {
