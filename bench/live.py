@@ -36,6 +36,8 @@ def run_service(args, out):
         cmd += ["--scene", args.scene]
     if args.display_args:
         cmd += ["--display-args", args.display_args]
+    if getattr(args, "worker_priority", ""):
+        cmd += ["--worker-priority", args.worker_priority]
     done = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                           text=True)
     if done.returncode != 0:
@@ -147,6 +149,8 @@ def main():
     p.add_argument("--port", type=int, default=7700)
     p.add_argument("--display-args", default="",
                    help="more display_node options, e.g. '--recut-interval 10'")
+    p.add_argument("--worker-priority", default="nice",
+                   help="the samplers' tracing threads (run-local.sh): idle, nice or normal")
     p.add_argument("--eval", action="store_true", help="afr-eval at the measured rate beside")
     p.add_argument("--seeds", type=int, default=3, help="afr-eval's seeds")
     p.add_argument("--eval-seconds", type=float, default=0.0,
@@ -176,6 +180,8 @@ def main():
             f" --warmup {args.warmup:g} --every {args.every} --size {args.size}"
             + (f" --scene {os.path.relpath(args.scene, ROOT)}" if args.scene else "")
             + (f" --display-args '{args.display_args}'" if args.display_args else "")
+            + (f" --worker-priority {args.worker_priority}"
+               if args.worker_priority != "nice" else "")
             + (" --eval" if args.eval else "")
             + (f" --seeds {args.seeds}" if args.eval else "")
             + (f" --eval-seconds {args.eval_seconds:g}" if args.eval_seconds > 0 else "") + "`", "",

@@ -16,6 +16,7 @@ usage() {
   echo "         --preset fast|balanced|accurate --window --output DIR --build DIR --every K"
   echo "         --backend gl|cpu|auto --gpu N (the display's reconstructor and EGL device)"
   echo "         --display-args \"ARGS\" (more display_node options, e.g. \"--recut-interval 10\")"
+  echo "         --worker-priority idle|nice|normal (the samplers' tracing threads; default nice)"
   exit "${1:-0}"
 }
 
@@ -24,7 +25,7 @@ case "$1" in -h|--help) usage 0 ;; esac
 n=$1; shift
 [[ "$n" =~ ^[0-9]+$ ]] && [ "$n" -ge 1 ] && [ "$n" -le 64 ] || { echo "run-local: N must be 1..64, got '$n'" >&2; exit 1; }
 seconds=20 size=256x256 scene="" threads=1 port=7100 metrics_port=9100 preset=balanced
-window=0 output=out build=build every=0 backend=auto gpu=-1 display_args=""
+window=0 output=out build=build every=0 backend=auto gpu=-1 display_args="" worker_priority=nice
 while [ $# -gt 0 ]; do
   case "$1" in
     --seconds) seconds=$2; shift 2 ;;
@@ -41,10 +42,18 @@ while [ $# -gt 0 ]; do
     --backend) backend=$2; shift 2 ;;
     --gpu) gpu=$2; shift 2 ;;
     --display-args) display_args=$2; shift 2 ;;
+    --worker-priority) worker_priority=$2; shift 2 ;;
     -h|--help) usage 0 ;;
     *) echo "run-local: unknown option '$1'" >&2; usage 1 ;;
   esac
 done
+
+case "$worker_priority" in
+  idle) worker_flags=--worker-idle ;;
+  nice) worker_flags="--worker-nice 10" ;;
+  normal) worker_flags="" ;;
+  *) echo "run-local: --worker-priority must be idle, nice or normal, got '$worker_priority'" >&2; exit 1 ;;
+esac
 
 # shellcheck source=deploy/nodes.sh
 . deploy/nodes.sh
@@ -70,7 +79,8 @@ start_node display display "$output/logs/display.log"
 for i in $(seq 1 "$n"); do
   # Sampling threads at a lower priority: the display keeps its refresh when they share its
   # cores, while each sampler's control thread (its heartbeats) keeps the normal priority.
-  "$build/sampler_node/sampler_node" --display "tcp://127.0.0.1:$port" --threads "$threads" --worker-nice 10 \
+  # shellcheck disable=SC2086
+  "$build/sampler_node/sampler_node" --display "tcp://127.0.0.1:$port" --threads "$threads" $worker_flags \
     --name "local-$i" --cache "$output/scene-cache" >"$output/logs/sampler-$i.log" 2>&1 &
   start_node sampler "sampler $i" "$output/logs/sampler-$i.log"
 done

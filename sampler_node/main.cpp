@@ -47,6 +47,10 @@ int main(int argc, char** argv) {
                  "cap on samples per second over all threads (0 = none)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1e12));
+  app.add_flag("--worker-idle", o.worker_idle,
+               "run the sampling threads only when no other thread wants the core (Linux "
+               "SCHED_IDLE), not the node's control thread: a display on the same cores never "
+               "waits for them");
   app.add_option("--worker-nice", o.worker_nice,
                  "lower the sampling threads' priority by this much (0-19), not the node's "
                  "control thread: a display on the same cores keeps its refresh and the "

@@ -7,6 +7,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <sched.h>
 #include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
@@ -154,6 +155,13 @@ void SamplerPool::run(Worker* w) {
     if (errno == 0 &&
         ::setpriority(PRIO_PROCESS, self, std::min(19, now + options_.worker_nice)) != 0) {
       spdlog::warn("sampler worker: cannot lower its priority: {}", std::strerror(errno));
+    }
+  }
+  if (options_.worker_idle) {
+    // This thread only: pid 0 names the calling thread.
+    sched_param param{};
+    if (::sched_setscheduler(0, SCHED_IDLE, &param) != 0) {
+      spdlog::warn("sampler worker: cannot run under SCHED_IDLE: {}", std::strerror(errno));
     }
   }
   using Steady = std::chrono::steady_clock;

@@ -4,6 +4,11 @@
 
 #include <gtest/gtest.h>
 
+#include <sched.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
 #include <chrono>
 #include <mutex>
 #include <thread>
@@ -53,6 +58,50 @@ TEST(SamplerPoolTest, ThreadsOwnDisjointRegionsAndAllProduce) {
     for (int k = 0; k < 2; ++k) saw[k] |= r == pool.regions()[k];
   }
   EXPECT_TRUE(saw[0] && saw[1]);
+}
+
+// The threads that trace (the sink hears from them) take the priority the options give; the
+// thread that made the pool keeps its own.
+TEST(SamplerPoolTest, WorkersRunNicedOrIdleAndTheCallerKeepsItsPriority) {
+  struct PrioritySink : LockedSink {
+    int policy = -1, nice = 0;
+    void on_batch(SampleBatch&& b) override {
+      const int p = ::sched_getscheduler(0);
+      const int n = ::getpriority(PRIO_PROCESS, id_t(::syscall(SYS_gettid)));
+      std::lock_guard<std::mutex> lock(mutex);
+      samples += b.samples.size();
+      policy = p;
+      nice = n;
+    }
+  };
+  const int caller_policy = ::sched_getscheduler(0);
+  const int caller_nice = ::getpriority(PRIO_PROCESS, id_t(::syscall(SYS_gettid)));
+  for (const bool idle : {false, true}) {
+    SCOPED_TRACE(idle ? "SCHED_IDLE" : "nice");
+    const Scene scene = testing::edge_scene();
+    WallClock clock;
+    PrioritySink sink;
+    SamplerConfig config;
+    config.image.width = 16;
+    config.image.height = 16;
+    SamplerPoolOptions options;
+    options.worker_nice = idle ? 0 : 5;
+    options.worker_idle = idle;
+    SamplerPool pool(scene, config, options, clock, sink);
+    pool.start();
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    pool.stop();
+    std::lock_guard<std::mutex> lock(sink.mutex);
+    ASSERT_GT(sink.samples, 0u);
+    if (idle) {
+      EXPECT_EQ(sink.policy, SCHED_IDLE);
+    } else {
+      EXPECT_EQ(sink.policy, caller_policy);
+      EXPECT_EQ(sink.nice, std::min(19, caller_nice + 5));
+    }
+  }
+  EXPECT_EQ(::sched_getscheduler(0), caller_policy);
+  EXPECT_EQ(::getpriority(PRIO_PROCESS, id_t(::syscall(SYS_gettid))), caller_nice);
 }
 
 TEST(SamplerPoolTest, RateCapHoldsSamplesBack) {

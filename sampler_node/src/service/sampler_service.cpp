@@ -810,6 +810,7 @@ void SamplerService::Impl::update_pool() {
   po.threads = int(std::min<int64_t>(options.threads, region->region.area()));
   po.max_samples_per_second = options.max_samples_per_second;
   po.worker_nice = options.worker_nice;
+  po.worker_idle = options.worker_idle;
   building_region = region->region;
   building_image = region->image;
   building_scene = scene_hash;

@@ -27,6 +27,11 @@ struct SamplerPoolOptions {
   // to a display sharing the cores while the node's control thread, and its heartbeats, keep
   // the process's priority.
   int worker_nice = 0;
+  // The worker threads run under SCHED_IDLE (Linux): only when no other thread wants the core.
+  // A display on the same cores then never waits for them (on Linux 6.x a waking thread does
+  // not always preempt a niced one at once), but the samplers trace fewer and older samples,
+  // and the live error was higher for it (docs/service.md, "What each node does").
+  bool worker_idle = false;
 };
 
 class SamplerPool {
