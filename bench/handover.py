@@ -17,7 +17,7 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import live  # noqa: E402  (run_service, parse_log)
+import live  # noqa: E402  (add_service_arguments, run_service, parse_log)
 
 
 def main():
@@ -27,11 +27,7 @@ def main():
     p.add_argument("--seconds", type=float, default=63.0)
     p.add_argument("--warmup", type=float, default=3.0, help="seconds left out at the start")
     p.add_argument("--runs", type=int, default=3)
-    p.add_argument("--scene", default="", help="glTF scene (default: the built-in scene)")
-    p.add_argument("--size", default="256x256")
-    p.add_argument("--preset", default="balanced")
-    p.add_argument("--backend", default="auto")
-    p.add_argument("--port", type=int, default=7750)
+    live.add_service_arguments(p, 7750)
     p.add_argument("--display-args", default="")
     p.add_argument("--worker-priority", action="append", default=[],
                    help="the samplers' tracing threads: idle, nice or normal (repeat to compare: "

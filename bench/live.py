@@ -27,6 +27,15 @@ import tempfile
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
+def add_service_arguments(p, port):
+    """The options of the service run_service starts: scene, size, preset, backend, port."""
+    p.add_argument("--scene", default="", help="glTF scene (default: the built-in scene)")
+    p.add_argument("--size", default="256x256")
+    p.add_argument("--preset", default="balanced")
+    p.add_argument("--backend", default="auto")
+    p.add_argument("--port", type=int, default=port)
+
+
 def run_service(args, out):
     cmd = [os.path.join(ROOT, "deploy", "run-local.sh"), str(args.samplers),
            "--seconds", str(args.seconds), "--every", str(args.every), "--output", out,
@@ -142,11 +151,7 @@ def main():
     p.add_argument("--seconds", type=float, default=20.0)
     p.add_argument("--warmup", type=float, default=3.0, help="seconds left out at the start")
     p.add_argument("--every", type=int, default=15, help="an image every K display frames")
-    p.add_argument("--scene", default="", help="glTF scene (default: the built-in scene)")
-    p.add_argument("--size", default="256x256")
-    p.add_argument("--preset", default="balanced")
-    p.add_argument("--backend", default="auto")
-    p.add_argument("--port", type=int, default=7700)
+    add_service_arguments(p, 7700)
     p.add_argument("--display-args", default="",
                    help="more display_node options, e.g. '--recut-interval 10'")
     p.add_argument("--worker-priority", default="nice",

@@ -24,7 +24,7 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import live  # noqa: E402  (run_service, ROOT)
+import live  # noqa: E402  (add_service_arguments, run_service, ROOT)
 
 STATS = re.compile(r"info t=([0-9.]+)s \d+ sampler\(s\) \| display ([0-9.]+) Hz.*?"
                    r"reconstruct mean ([0-9.]+) ms p99 ([0-9.]+) ms")
@@ -74,11 +74,7 @@ def main():
     p.add_argument("--seconds", type=float, default=6.0)
     p.add_argument("--span", type=float, default=3.0, help="the first seconds judged")
     p.add_argument("--runs", type=int, default=5, help="runs per build")
-    p.add_argument("--scene", default="", help="glTF scene (default: the built-in scene)")
-    p.add_argument("--size", default="256x256")
-    p.add_argument("--preset", default="balanced")
-    p.add_argument("--backend", default="auto")
-    p.add_argument("--port", type=int, default=7850)
+    live.add_service_arguments(p, 7850)
     p.add_argument("--write", default="", help="also write the report to this file")
     args = p.parse_args()
     if args.seconds < args.span + 2:
