@@ -76,11 +76,7 @@ def main():
         lines.append(f"| {pr} | median | {med['dropped']:.1f} | {med['gaps']:.1f} | "
                      f"{med['recuts']:.1f} | {med['rate'] / 1e3:.0f}K | {med['hz']:.1f} | "
                      f"{med['recon']:.1f} |")
-    report = "\n".join(lines) + "\n"
-    print(report)
-    if args.write:
-        with open(args.write, "w") as f:
-            f.write(report)
+    live.publish(lines, args.write)
 
 
 def args_priorities(priorities):

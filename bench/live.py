@@ -36,6 +36,15 @@ def add_service_arguments(p, port):
     p.add_argument("--port", type=int, default=port)
 
 
+def publish(lines, path):
+    """Prints a report's lines, and writes them to `path` too unless it is empty."""
+    report = "\n".join(lines) + "\n"
+    print(report)
+    if path:
+        with open(path, "w") as f:
+            f.write(report)
+
+
 def run_service(args, out):
     cmd = [os.path.join(ROOT, "deploy", "run-local.sh"), str(args.samplers),
            "--seconds", str(args.seconds), "--every", str(args.every), "--output", out,
@@ -223,11 +232,7 @@ def main():
                       f"| {len(inside)} | {live:.1f} | {adaptive[0]:.1f} [{adaptive[1]:.1f}, {adaptive[2]:.1f}] | "
                       f"{live / adaptive[0]:.2f} | {framed[0]:.1f} [{framed[1]:.1f}, "
                       f"{framed[2]:.1f}] |"]
-        report = "\n".join(lines) + "\n"
-        print(report)
-        if args.write:
-            with open(args.write, "w") as f:
-                f.write(report)
+        publish(lines, args.write)
 
 
 if __name__ == "__main__":

@@ -111,11 +111,7 @@ def main():
                  for c, d in zip(cols, (0, 0, 2))]
         lines.append(f"| {os.path.relpath(b, live.ROOT)} ({describe(b)}) | " + " | ".join(cells)
                      + " |")
-    report = "\n".join(lines) + "\n"
-    print(report)
-    if args.write:
-        with open(args.write, "w") as f:
-            f.write(report)
+    live.publish(lines, args.write)
 
 
 if __name__ == "__main__":
