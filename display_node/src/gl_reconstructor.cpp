@@ -82,6 +82,17 @@ std::array<GLuint, 2> groups_for(size_t n) {
   return {GLuint(x), GLuint((groups + x - 1) / x)};
 }
 
+// A buffer texture over a new buffer of `bytes` (filled per image with glBufferData): the
+// per-tile tables the splat's preparation fetches by tile index.
+void make_buffer_texture(GLenum format, size_t bytes, GLuint* buffer, GLuint* texture) {
+  glGenBuffers(1, buffer);
+  glBindBuffer(GL_TEXTURE_BUFFER, *buffer);
+  glBufferData(GL_TEXTURE_BUFFER, GLsizeiptr(bytes), nullptr, GL_STREAM_DRAW);
+  glGenTextures(1, texture);
+  glBindTexture(GL_TEXTURE_BUFFER, *texture);
+  glTexBuffer(GL_TEXTURE_BUFFER, format, *buffer);
+}
+
 }  // namespace
 
 GlSplat parse_gl_splat(std::string_view text) {
@@ -476,18 +487,8 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
   for (GLuint i = 0; i < 6; ++i) glEnableVertexAttribArray(i);
   glBindVertexArray(0);
 
-  glGenBuffers(1, &m.tile_filters_buffer);
-  glBindBuffer(GL_TEXTURE_BUFFER, m.tile_filters_buffer);
-  glBufferData(GL_TEXTURE_BUFFER, sizeof(TileFilter), nullptr, GL_STREAM_DRAW);
-  glGenTextures(1, &m.tile_filters);
-  glBindTexture(GL_TEXTURE_BUFFER, m.tile_filters);
-  glTexBuffer(GL_TEXTURE_BUFFER, GL_RGBA32F, m.tile_filters_buffer);
-  glGenBuffers(1, &m.tile_caps_buffer);
-  glBindBuffer(GL_TEXTURE_BUFFER, m.tile_caps_buffer);
-  glBufferData(GL_TEXTURE_BUFFER, sizeof(float), nullptr, GL_STREAM_DRAW);
-  glGenTextures(1, &m.tile_caps);
-  glBindTexture(GL_TEXTURE_BUFFER, m.tile_caps);
-  glTexBuffer(GL_TEXTURE_BUFFER, GL_R32F, m.tile_caps_buffer);
+  make_buffer_texture(GL_RGBA32F, sizeof(TileFilter), &m.tile_filters_buffer, &m.tile_filters);
+  make_buffer_texture(GL_R32F, sizeof(float), &m.tile_caps_buffer, &m.tile_caps);
 
   glGetIntegerv(GL_MAX_VIEWPORT_DIMS, m.max_viewport);
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &m.max_texture);
