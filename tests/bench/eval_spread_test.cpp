@@ -5,6 +5,7 @@
 #include <afr/eval/animations.h>
 #include <afr/eval/evaluation.h>
 #include <afr/eval/report.h>
+#include <afr/eval/sweep.h>
 
 #include <gtest/gtest.h>
 
@@ -151,6 +152,84 @@ TEST(AnimationsTest, AnyGltfSceneRunsWithItsOwnCameraOrACameraPath) {
   // are older than the ideal ones, which shows only where the view moves.
   EXPECT_EQ(results[0].runs[1].method, Method::kFramed60);
   EXPECT_LT(results[0].runs[1].mean_rms, results[1].runs[1].mean_rms);
+}
+
+// A sweep point is the mean and range of its seeds' runs; it differs from the defaults only
+// beyond the spread, and the Pareto front is taken on the means.
+TEST(SpreadTest, SweepPointsGiveMeanAndRangeOverSeedsAgainstTheDefaults) {
+  const auto runs = [](std::initializer_list<double> rms, double sample_seconds) {
+    std::vector<RunResult> out;
+    for (double v : rms) {
+      RunResult r = run_with(Method::kAdaptive, 4e5, out.size() + 1, v);
+      r.animation = "test";
+      r.stats.virtual_seconds = 2.0;
+      r.stats.sample_seconds = sample_seconds;
+      r.stats.reconstruct_seconds = 0.5;
+      out.push_back(r);
+    }
+    return out;
+  };
+  const SweepPoint defaults{"default", "defaults", Method::kAdaptive, 4e5, nullptr};
+  const SweepPoint b1{"b", "b=1", Method::kAdaptive, 4e5, nullptr};
+  const SweepPoint r0{"r", "r=0", Method::kAdaptive, 4e5, nullptr};
+  const SweepPoint r10{"r", "r=10", Method::kAdaptive, 4e5, nullptr};
+  // 1 s of frames shown: cost = sampling / 2 virtual seconds + 0.5.
+  std::vector<SweepResult> results = {
+      sweep_result(defaults, runs({10.0, 12.0, 11.0}, 2.0), 1.0),
+      sweep_result(b1, runs({11.5, 13.0, 14.0}, 1.0), 1.0),  // overlaps the defaults
+      sweep_result(r0, runs({20.0, 21.0, 22.0}, 1.0), 1.0),  // higher beyond the spread
+      sweep_result(r10, runs({8.0, 9.0, 9.5}, 4.0), 1.0),    // lower beyond the spread
+  };
+  const SweepResult& d = results[0];
+  EXPECT_EQ(d.runs, 3);
+  EXPECT_DOUBLE_EQ(d.mean_rms, 11.0);
+  EXPECT_DOUBLE_EQ(d.min_rms, 10.0);
+  EXPECT_DOUBLE_EQ(d.max_rms, 12.0);
+  EXPECT_DOUBLE_EQ(d.cost, 1.5);
+  EXPECT_DOUBLE_EQ(results[3].cost, 2.5);
+  mark_pareto(&results);
+  compare_with_defaults(&results);
+  EXPECT_EQ(results[0].vs_default, Comparison::kWithinSpread);
+  EXPECT_EQ(results[1].vs_default, Comparison::kWithinSpread);
+  EXPECT_EQ(results[2].vs_default, Comparison::kHigher);
+  EXPECT_EQ(results[3].vs_default, Comparison::kLower);
+  // b=1 (cost 1.0, 12.8) is cheaper than the defaults (1.5, 11.0) but less accurate: both on
+  // the front; r=0 is as cheap as b=1 and worse; r=10 is the most accurate.
+  EXPECT_TRUE(results[0].pareto);
+  EXPECT_TRUE(results[1].pareto);
+  EXPECT_FALSE(results[2].pareto);
+  EXPECT_TRUE(results[3].pareto);
+  const std::string table = sweep_markdown(results);
+  EXPECT_NE(table.find("| 11.0 (10.0-12.0) |"), std::string::npos) << table;
+  EXPECT_NE(table.find("| 21.0 (20.0-22.0) | **higher** |"), std::string::npos) << table;
+  EXPECT_NE(table.find("| 12.8 (11.5-14.0) | within spread |"), std::string::npos) << table;
+}
+
+// run_sweep runs a seeded point once per seed and a seedless baseline once, in parallel as in
+// the table, and each point's range holds its mean.
+TEST(SpreadTest, SweepRunsEverySeededPointOncePerSeed) {
+  EvalConfig config = tiny_config();
+  config.animations = {scene_animation("", "own", 2.0)};
+  config.seeds = 3;
+  config.jobs = 2;
+  config.base.threads = 2;
+  const std::vector<SweepPoint> points = {
+      SweepPoint{"default", "defaults", Method::kAdaptive, 2e5, nullptr},
+      SweepPoint{"b", "b=1", Method::kAdaptive, 2e5, [](RunSettings* s) { s->sampler.b = 1; }},
+      SweepPoint{"framed 60 Hz", "200K", Method::kFramed60, 2e5, nullptr}};
+  const std::vector<SweepResult> results = run_sweep(config, points);
+  ASSERT_EQ(results.size(), 3u);
+  EXPECT_EQ(results[0].runs, 3);
+  EXPECT_EQ(results[1].runs, 3);
+  EXPECT_EQ(results[2].runs, 1);
+  EXPECT_LT(results[0].min_rms, results[0].max_rms) << "the seeds changed nothing";
+  for (const SweepResult& r : results) {
+    EXPECT_EQ(r.animation, "builtin");
+    EXPECT_LE(r.min_rms, r.mean_rms);
+    EXPECT_LE(r.mean_rms, r.max_rms);
+    EXPECT_GT(r.cost, 0.0);
+  }
+  EXPECT_DOUBLE_EQ(results[2].min_rms, results[2].max_rms);
 }
 
 }  // namespace

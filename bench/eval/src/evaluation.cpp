@@ -116,6 +116,60 @@ JobSplit job_split(const EvalConfig& config) {
   return split;
 }
 
+std::vector<RunResult> run_all(const Scene& scene, Tracer& tracer,
+                               const std::vector<RunSettings>& runs,
+                               const std::vector<Image>& ideal, int jobs,
+                               const std::string& animation, const std::vector<int>& strips,
+                               uint64_t strip_seed, Progress* progress) {
+  // Started costliest first (cost ~ rays per second), so that the last ones to end are short.
+  std::vector<size_t> order(runs.size());
+  std::iota(order.begin(), order.end(), size_t(0));
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return runs[a].rate > runs[b].rate; });
+  std::vector<RunResult> done(runs.size());
+  std::atomic<size_t> next{0}, finished{0};
+  std::mutex error_mutex;
+  std::exception_ptr error;
+  const std::vector<int> none;
+  const auto work = [&](Tracer* own) {
+    for (size_t k = next++; k < order.size(); k = next++) {
+      const RunSettings& s = runs[order[k]];
+      try {
+        RunResult r =
+            run_and_compare(scene, *own, s, ideal, s.seed == strip_seed ? strips : none, progress);
+        r.animation = animation;
+        spdlog::debug(
+            "{} {} {:.0f} seed {}: mean RMS {:.2f}, {:.1f} s sampling, {:.1f} s reconstruction",
+            animation, method_name(s.method), r.rate, s.seed, r.mean_rms, r.stats.sample_seconds,
+            r.stats.reconstruct_seconds);
+        done[order[k]] = std::move(r);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        if (!error) error = std::current_exception();
+        next = order.size();
+      }
+      if (progress) {
+        progress->set_task(
+            fmt::format("{}: {} of {} runs done", animation, ++finished, runs.size()));
+      }
+    }
+  };
+  if (progress) {
+    progress->set_task(fmt::format("{}: {} runs, {} at a time", animation, runs.size(), jobs));
+  }
+  // A tracer per worker: a tracer holds the scene at one time (Tracer::set_time).
+  std::vector<std::unique_ptr<Tracer>> tracers;
+  for (int w = 1; w < std::min<int>(jobs, int(runs.size())); ++w) {
+    tracers.push_back(std::make_unique<Tracer>(scene));
+  }
+  std::vector<std::thread> workers;
+  for (auto& t : tracers) workers.emplace_back(work, t.get());
+  work(&tracer);
+  for (std::thread& w : workers) w.join();
+  if (error) std::rethrow_exception(error);
+  return done;
+}
+
 std::vector<AnimationResult> evaluate(const EvalConfig& config) {
   const std::vector<Method> methods =
       config.methods.empty() ? std::vector<Method>(all_methods().begin(), all_methods().end())
@@ -167,49 +221,8 @@ std::vector<AnimationResult> evaluate(const EvalConfig& config) {
         }
       }
     }
-    // Started costliest first (cost ~ rays per second), so that the last ones to end are short.
-    std::vector<size_t> order(runs.size());
-    std::iota(order.begin(), order.end(), size_t(0));
-    std::stable_sort(order.begin(), order.end(),
-                     [&](size_t a, size_t b) { return runs[a].rate > runs[b].rate; });
-    std::vector<RunResult> done(runs.size());
-    std::atomic<size_t> next{0}, finished{0};
-    std::mutex error_mutex;
-    std::exception_ptr error;
-    const auto work = [&](Tracer* own) {
-      for (size_t k = next++; k < order.size(); k = next++) {
-        const RunSettings& s = runs[order[k]];
-        try {
-          // Strips show the first seed's images.
-          const std::vector<int> none;
-          RunResult r = run_and_compare(scene, *own, s, ideal,
-                                        s.seed == config.base.seed ? strips : none, &progress);
-          r.animation = spec.name;
-          spdlog::debug(
-              "{} {} {:.0f} seed {}: mean RMS {:.2f}, {:.1f} s sampling, {:.1f} s reconstruction",
-              spec.name, method_name(s.method), r.rate, s.seed, r.mean_rms, r.stats.sample_seconds,
-              r.stats.reconstruct_seconds);
-          done[order[k]] = std::move(r);
-        } catch (...) {
-          std::lock_guard<std::mutex> lock(error_mutex);
-          if (!error) error = std::current_exception();
-          next = order.size();
-        }
-        progress.set_task(
-            fmt::format("{}: {} of {} runs done", spec.name, ++finished, runs.size()));
-      }
-    };
-    progress.set_task(fmt::format("{}: {} runs, {} at a time", spec.name, runs.size(), jobs));
-    // A tracer per worker: a tracer holds the scene at one time (Tracer::set_time).
-    std::vector<std::unique_ptr<Tracer>> tracers;
-    for (int w = 1; w < std::min<int>(jobs, int(runs.size())); ++w) {
-      tracers.push_back(std::make_unique<Tracer>(scene));
-    }
-    std::vector<std::thread> workers;
-    for (auto& t : tracers) workers.emplace_back(work, t.get());
-    work(&tracer);
-    for (std::thread& w : workers) w.join();
-    if (error) std::rethrow_exception(error);
+    std::vector<RunResult> done =
+        run_all(scene, tracer, runs, ideal, jobs, spec.name, strips, config.base.seed, &progress);
     for (RunResult& r : done) ar.runs.push_back(std::move(r));
     results.push_back(std::move(ar));
   }

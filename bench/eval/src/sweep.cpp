@@ -1,5 +1,6 @@
 #include <afr/eval/sweep.h>
 
+#include <afr/common/check.h>
 #include <afr/common/error.h>
 #include <afr/common/log.h>
 #include <afr/eval/report.h>
@@ -13,6 +14,13 @@
 #include <set>
 
 namespace afr::eval {
+namespace {
+
+const char* comparison_word(Comparison c) {
+  return c == Comparison::kLower ? "lower" : c == Comparison::kHigher ? "higher" : "within spread";
+}
+
+}  // namespace
 
 std::vector<SweepPoint> default_sweep() {
   std::vector<SweepPoint> p;
@@ -138,10 +146,63 @@ void mark_pareto(std::vector<SweepResult>* results) {
   }
 }
 
+void compare_with_defaults(std::vector<SweepResult>* results) {
+  std::map<std::string, const SweepResult*> defaults;
+  for (const SweepResult& r : *results) {
+    if (r.point.knob == "default") defaults.emplace(r.animation, &r);
+  }
+  const auto cell = [](const SweepResult& r) {
+    Cell c;
+    c.runs = r.runs;
+    c.mean = r.mean_rms;
+    c.min = r.min_rms;
+    c.max = r.max_rms;
+    return c;
+  };
+  for (SweepResult& r : *results) {
+    const auto d = defaults.find(r.animation);
+    r.vs_default = d == defaults.end() || d->second == &r ? Comparison::kWithinSpread
+                                                          : compare(cell(r), cell(*d->second));
+  }
+}
+
+SweepResult sweep_result(const SweepPoint& point, const std::vector<RunResult>& runs,
+                         double seconds_shown) {
+  AFR_CHECK(!runs.empty());
+  SweepResult sr;
+  sr.animation = runs.front().animation;
+  sr.point = point;
+  sr.runs = int(runs.size());
+  sr.min_rms = runs.front().mean_rms;
+  sr.max_rms = runs.front().mean_rms;
+  for (const RunResult& r : runs) {
+    sr.mean_rms += r.mean_rms;
+    sr.min_rms = std::min(sr.min_rms, r.mean_rms);
+    sr.max_rms = std::max(sr.max_rms, r.mean_rms);
+    sr.sample_seconds += r.stats.sample_seconds;
+    sr.reconstruct_seconds += r.stats.reconstruct_seconds;
+    sr.cost +=
+        (r.stats.virtual_seconds > 0.0 ? r.stats.sample_seconds / r.stats.virtual_seconds : 0.0) +
+        r.stats.reconstruct_seconds / seconds_shown;
+  }
+  const double n = double(runs.size());
+  sr.mean_rms /= n;
+  sr.sample_seconds /= n;
+  sr.reconstruct_seconds /= n;
+  sr.cost /= n;
+  return sr;
+}
+
 std::vector<SweepResult> run_sweep(const EvalConfig& config,
                                    const std::vector<SweepPoint>& points) {
   const int frames = std::max(1, int(std::lround(config.seconds * config.base.fps)));
-  Progress progress(config.animations.size() * uint64_t(frames) * (1 + points.size()),
+  const int seeds = std::max(1, config.seeds);
+  const JobSplit split = job_split(config);
+  uint64_t runs_per_animation = 0;
+  for (const SweepPoint& point : points) {
+    runs_per_animation += method_uses_seed(point.method) ? uint64_t(seeds) : 1;
+  }
+  Progress progress(config.animations.size() * uint64_t(frames) * (1 + runs_per_animation),
                     config.progress);
   std::vector<SweepResult> out;
   for (const AnimationSpec& spec : config.animations) {
@@ -151,42 +212,52 @@ std::vector<SweepResult> run_sweep(const EvalConfig& config,
     progress.set_task(fmt::format("{}: ideal frames", spec.name));
     const std::vector<Image> ideal =
         ideal_frames(scene, tracer, config, spec.start, frames, &progress, nullptr);
-    for (const SweepPoint& point : points) {
-      RunSettings s = config.base;
-      s.method = point.method;
-      s.rate = point.rate;
-      s.first_time = spec.start;
-      s.frames = frames;
-      if (point.apply) point.apply(&s);
-      progress.set_task(fmt::format("{}: {} {}", spec.name, point.knob, point.value));
-      const RunResult r = run_and_compare(scene, tracer, s, ideal, {}, &progress);
-      SweepResult sr;
-      sr.animation = spec.name;
-      sr.point = point;
-      sr.mean_rms = r.mean_rms;
-      sr.sample_seconds = r.stats.sample_seconds;
-      sr.reconstruct_seconds = r.stats.reconstruct_seconds;
-      const double shown = double(frames) / s.fps;
-      sr.cost =
-          (r.stats.virtual_seconds > 0.0 ? r.stats.sample_seconds / r.stats.virtual_seconds : 0.0) +
-          r.stats.reconstruct_seconds / shown;
-      out.push_back(std::move(sr));
+    // Every (point, seed) run, the seeds of a point after each other.
+    std::vector<RunSettings> runs;
+    std::vector<size_t> point_of;
+    for (size_t p = 0; p < points.size(); ++p) {
+      const SweepPoint& point = points[p];
+      for (int k = 0; k < (method_uses_seed(point.method) ? seeds : 1); ++k) {
+        RunSettings s = config.base;
+        s.method = point.method;
+        s.rate = point.rate;
+        s.seed = config.base.seed + uint64_t(k);
+        s.first_time = spec.start;
+        s.frames = frames;
+        s.threads = split.threads_per_run;
+        if (point.apply) point.apply(&s);
+        runs.push_back(s);
+        point_of.push_back(p);
+      }
+    }
+    const std::vector<RunResult> done =
+        run_all(scene, tracer, runs, ideal, split.jobs, spec.name, {}, 0, &progress);
+    const double shown = double(frames) / config.base.fps;
+    for (size_t p = 0; p < points.size(); ++p) {
+      std::vector<RunResult> of_point;
+      for (size_t k = 0; k < done.size(); ++k) {
+        if (point_of[k] == p) of_point.push_back(done[k]);
+      }
+      out.push_back(sweep_result(points[p], of_point, shown));
     }
   }
   progress.finish();
   mark_pareto(&out);
+  compare_with_defaults(&out);
   return out;
 }
 
 void write_sweep_csv(const std::vector<SweepResult>& results, const std::filesystem::path& file) {
   if (file.has_parent_path()) std::filesystem::create_directories(file.parent_path());
   std::ofstream out(file);
-  out << "animation,knob,value,method,rate,mean_rms,cost,sample_wall_s,reconstruct_wall_s,"
-         "pareto\n";
+  out << "animation,knob,value,method,rate,runs,mean_rms,min_rms,max_rms,cost,sample_wall_s,"
+         "reconstruct_wall_s,pareto,vs_default\n";
   for (const SweepResult& r : results) {
-    out << fmt::format("{},{},{},{},{},{:.4f},{:.4f},{:.3f},{:.3f},{}\n", r.animation, r.point.knob,
-                       r.point.value, method_name(r.point.method), r.point.rate, r.mean_rms, r.cost,
-                       r.sample_seconds, r.reconstruct_seconds, r.pareto ? 1 : 0);
+    out << fmt::format("{},{},{},{},{},{},{:.4f},{:.4f},{:.4f},{:.4f},{:.3f},{:.3f},{},{}\n",
+                       r.animation, r.point.knob, r.point.value, method_name(r.point.method),
+                       r.point.rate, r.runs, r.mean_rms, r.min_rms, r.max_rms, r.cost,
+                       r.sample_seconds, r.reconstruct_seconds, r.pareto ? 1 : 0,
+                       comparison_word(r.vs_default));
   }
 }
 
@@ -196,14 +267,21 @@ std::string sweep_markdown(const std::vector<SweepResult>& results) {
   for (const SweepResult& first : results) {
     if (!done.insert(first.animation).second) continue;
     out += fmt::format(
-        "\n**{}**\n\n| knob | value | method | R | mean RMS | cost (wall s per s) | "
-        "Pareto |\n|---|---|---|---:|---:|---:|:-:|\n",
+        "\n**{}**\n\n| knob | value | method | R | mean RMS (range) | against the defaults | "
+        "cost (wall s per s) | Pareto |\n|---|---|---|---:|---:|:-:|---:|:-:|\n",
         first.animation);
     for (const SweepResult& r : results) {
       if (r.animation != first.animation) continue;
-      out += fmt::format("| {} | {} | {} | {} | {:.1f} | {:.2f} | {} |\n", r.point.knob,
-                         r.point.value, method_name(r.point.method), rate_label(r.point.rate),
-                         r.mean_rms, r.cost, r.pareto ? "*" : "");
+      const std::string rms =
+          r.runs > 1 ? fmt::format("{:.1f} ({:.1f}-{:.1f})", r.mean_rms, r.min_rms, r.max_rms)
+                     : fmt::format("{:.1f}", r.mean_rms);
+      const std::string word = comparison_word(r.vs_default);
+      const std::string vs = r.point.knob == "default"                   ? ""
+                             : r.vs_default == Comparison::kWithinSpread ? word
+                                                                         : "**" + word + "**";
+      out += fmt::format("| {} | {} | {} | {} | {} | {} | {:.2f} | {} |\n", r.point.knob,
+                         r.point.value, method_name(r.point.method), rate_label(r.point.rate), rms,
+                         vs, r.cost, r.pareto ? "*" : "");
     }
   }
   return out;
@@ -235,7 +313,8 @@ std::vector<std::filesystem::path> write_sweep_plots(const std::vector<SweepResu
         out << "# " << knob << "\n";
         for (const SweepResult& r : results) {
           if (r.animation == anim && r.point.knob == knob) {
-            out << fmt::format("{:.5f} {:.4f} \"{}\"\n", r.cost, r.mean_rms, r.point.value);
+            out << fmt::format("{:.5f} {:.4f} {:.4f} {:.4f} \"{}\"\n", r.cost, r.mean_rms,
+                               r.min_rms, r.max_rms, r.point.value);
           }
         }
         out << "\n\n";
@@ -248,8 +327,8 @@ std::vector<std::filesystem::path> write_sweep_plots(const std::vector<SweepResu
                 [](const SweepResult* a, const SweepResult* b) { return a->cost < b->cost; });
       out << "# pareto\n";
       for (const SweepResult* r : front) {
-        out << fmt::format("{:.5f} {:.4f} \"{} {}\"\n", r->cost, r->mean_rms, r->point.knob,
-                           r->point.value);
+        out << fmt::format("{:.5f} {:.4f} {:.4f} {:.4f} \"{} {}\"\n", r->cost, r->mean_rms,
+                           r->min_rms, r->max_rms, r->point.knob, r->point.value);
       }
       out << "\n\n";
     }
@@ -257,17 +336,20 @@ std::vector<std::filesystem::path> write_sweep_plots(const std::vector<SweepResu
       std::ofstream out(gp);
       out << "set terminal pngcairo noenhanced size 1000,560 font 'DejaVu Sans,10'\n"
           << fmt::format("set output '{}'\n", png.string())
-          << fmt::format("set title '{}: mean RMS error against wall-clock cost'\n", anim)
+          << fmt::format(
+                 "set title '{}: mean RMS error (range over the seeds) against wall-clock "
+                 "cost'\n",
+                 anim)
           << "set xlabel 'wall seconds per second of animation (this machine)'\n"
           << "set ylabel 'mean RMS error (0-255)'\nset logscale x\nset grid\n"
           << "set key outside right top\nplot";
       for (size_t k = 0; k < knobs.size(); ++k) {
-        out << fmt::format("{} '{}' index {} using 1:2 with points pt {} ps 1.3 title '{}'",
+        out << fmt::format("{} '{}' index {} using 1:2:3:4 with yerrorbars pt {} ps 1.3 title '{}'",
                            k ? "," : "", dat.string(), k, int(k % 12) + 1, knobs[k]);
       }
       out << fmt::format(
           ", '{}' index {} using 1:2 with lines lw 2 lc rgb 'black' title 'Pareto front', "
-          "'{}' index {} using 1:2:3 with labels font ',8' offset 0.5,0.6 left notitle\n",
+          "'{}' index {} using 1:2:5 with labels font ',8' offset 0.5,0.6 left notitle\n",
           dat.string(), knobs.size(), dat.string(), knobs.size());
     }
     if (run_gnuplot(gp)) pngs.push_back(png);

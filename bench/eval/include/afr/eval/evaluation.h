@@ -82,6 +82,16 @@ std::vector<Image> ideal_frames(const Scene& scene, Tracer& tracer, const EvalCo
 // the seeds of one (method, rate) after each other.
 std::vector<AnimationResult> evaluate(const EvalConfig& config);
 
+// Runs `runs` (all of one animation, compared with its `ideal` frames) `jobs` at a time, each
+// on its own tracer, the highest rates first; the results are in the order of `runs`. The runs
+// with seed `strip_seed` keep the images of `strips`. Rethrows the first run's error after
+// every worker has stopped.
+std::vector<RunResult> run_all(const Scene& scene, Tracer& tracer,
+                               const std::vector<RunSettings>& runs,
+                               const std::vector<Image>& ideal, int jobs,
+                               const std::string& animation, const std::vector<int>& strips,
+                               uint64_t strip_seed, Progress* progress);
+
 // Renders (or finds in the cache) the ideal frames of every animation and nothing else: a
 // cold cache made warm before a timed run.
 void render_ideal_only(const EvalConfig& config);

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <afr/eval/evaluation.h>
+#include <afr/eval/report.h>
 
 #include <filesystem>
 #include <functional>
@@ -28,14 +29,22 @@ struct SweepPoint {
 struct SweepResult {
   std::string animation;
   SweepPoint point;
+  // Over the point's runs, one per seed (one for methods no seed changes: method_uses_seed):
+  // the mean of their mean RMS, and the lowest and highest.
+  int runs = 0;
   double mean_rms = 0.0;
-  // Wall seconds per second of animation: sampling wall time over the virtual seconds sampled
-  // plus reconstruction wall time over the seconds of frames shown. 1 is real time on this
-  // machine.
+  double min_rms = 0.0;
+  double max_rms = 0.0;
+  // Wall seconds per second of animation, mean over the runs: sampling wall time over the
+  // virtual seconds sampled plus reconstruction wall time over the seconds of frames shown.
+  // 1 is real time on this machine.
   double cost = 0.0;
-  double sample_seconds = 0.0;
+  double sample_seconds = 0.0;  // means over the runs
   double reconstruct_seconds = 0.0;
   bool pareto = false;
+  // Against the defaults point of the same animation, beyond the spread over the seeds
+  // (compare() of report.h); kWithinSpread for the defaults point itself.
+  Comparison vs_default = Comparison::kWithinSpread;
 };
 
 // The default sweep around `base` (knob values in docs/tradeoffs.md).
@@ -55,18 +64,27 @@ std::vector<std::string> sweep_knobs();
 // unknown knob and the known ones.
 std::vector<SweepPoint> select_sweep(const std::vector<std::string>& knobs);
 
-// Runs every point on every animation of `config` (config.methods and config.rates are not
-// used) and marks the Pareto fronts.
+// Runs every point on every animation of `config` with config.seeds seeds (config.methods and
+// config.rates are not used), config.jobs runs at a time (job_split), marks the Pareto fronts
+// and compares every point with the defaults point.
 std::vector<SweepResult> run_sweep(const EvalConfig& config, const std::vector<SweepPoint>& points);
 
-// Sets `pareto` on the points no other point of the same animation dominates (cost <= and
-// RMS <=, one of them strictly).
+// Sets `pareto` on the points no other point of the same animation dominates (mean cost <= and
+// mean RMS <=, one of them strictly).
 void mark_pareto(std::vector<SweepResult>* results);
+
+// Sets `vs_default` of every point against the first point of its animation whose knob is
+// "default" (none: every point stays kWithinSpread).
+void compare_with_defaults(std::vector<SweepResult>* results);
+
+// A point's result from its runs (one per seed, all of one animation).
+SweepResult sweep_result(const SweepPoint& point, const std::vector<RunResult>& runs,
+                         double seconds_shown);
 
 void write_sweep_csv(const std::vector<SweepResult>& results, const std::filesystem::path& file);
 std::string sweep_markdown(const std::vector<SweepResult>& results);
 // tradeoff-<animation>.png per animation (gnuplot): RMS against cost, one series per knob,
-// the Pareto front as a line. Returns the PNGs made.
+// each point with its range over the seeds, the Pareto front as a line. Returns the PNGs made.
 std::vector<std::filesystem::path> write_sweep_plots(const std::vector<SweepResult>& results,
                                                      const std::filesystem::path& folder);
 
