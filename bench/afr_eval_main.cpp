@@ -106,6 +106,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> rate_texts{"100K", "400K", "800K"}, method_names, starts, knobs;
   std::vector<int> strip_frames;
   double seconds = 3.0, warmup = 1.0, capacity_per_pixel = 4.0;
+  std::string coverage_rule = "continuous";
   double latency_frames = 1.0, occlusion_ray_cost = 1.0;
   int spp = 16, threads = 0, jobs = 0, seeds = 3;
   bool sweep = false, no_progress = false, no_plots = false, no_cache = false, ideal_only = false;
@@ -192,6 +193,11 @@ int main(int argc, char** argv) {
   app.add_option("--capacity", capacity_per_pixel, "reconstructor N in samples per pixel")
       ->capture_default_str()
       ->check(CLI::Range(0.25, 64.0));
+  app.add_option("--coverage-rule", coverage_rule,
+                 "continuous (afr's), or thresholds: the former x4 / x0.7 rule, for comparison "
+                 "(docs/reconstruction.md, \"Why continuous\")")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"continuous", "thresholds"}));
   app.add_option("--min-extent", recon.filter.min_spatial_extent, "filter: smallest e_x, e_y")
       ->capture_default_str();
   app.add_option("--max-extent", recon.filter.max_spatial_extent, "filter: largest e_x, e_y")
@@ -231,6 +237,10 @@ int main(int argc, char** argv) {
     config.base.sampler = sampler;
     config.base.sampler.image = size;
     config.base.sampler.validate();
+    if (coverage_rule == "thresholds") {
+      recon.splat.thresholds = true;
+      recon.splat.shrink = 0.7f;  // the former rule's factor
+    }
     config.base.reconstructor = recon;
     config.base.reconstructor.capacity =
         size_t(capacity_per_pixel * double(size.width) * double(size.height));

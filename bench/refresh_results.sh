@@ -91,6 +91,9 @@ add eval-512 eval-table-512.md "Table 1 at 512 x 512" \
 add eval-timing eval-timing.md "Cost of a full Table 1 run" \
   "Wall minutes of a whole Table-1 run of 20 s per kitchen animation at 256 x 256, every method at 100K, 400K and 800K, 3 seeds, with the 9-spp ideal frames read from a warm cache (the first command renders any that are missing); the target is 30 minutes (docs/evaluation.md, \"Cost of a full Table 1 run\"); the program's table.md." \
   'need_kitchen && "$BUILD"/bench/afr-eval --ideal-only --size 256x256 --seconds 20 --spp 9 --animations bart,toycar,interactive >&2 && "$BUILD"/bench/afr-eval --size 256x256 --seconds 20 --spp 9 --animations bart,toycar,interactive --out out/eval/table1-timing >&2 && cat out/eval/table1-timing/table.md'
+add coverage-rule coverage-rule.md "Table 1 with the former and the current coverage rule" \
+  "The adaptive cells of Table 1 (256 x 256, 3 s, 100K/400K/800K, 3 seeds, the fair rules) with the former thresholds rule (x4 below 4 splats, x0.7 above 32) and with the continuous one, side by side at one commit; a cell differs only where the ranges over the seeds do not overlap (docs/reconstruction.md, \"Why continuous\")." \
+  'need_kitchen && for rule in thresholds continuous; do "$BUILD"/bench/afr-eval --methods adaptive --coverage-rule $rule --size 256x256 --seconds 3 --spp 9 --jobs 1 --threads 1 --no-progress --out out/eval/rule-$rule >&2 || exit 1; done && compare_cells "thresholds" out/eval/rule-thresholds "continuous" out/eval/rule-continuous'
 add eval-robots eval-robots-256.md "The targets on BART robots at 256 x 256" \
   "Every method at 100K, 400K and 800K rays/s on BART's robots from 14 s (the camera closes in on a robot and turns away), 3 s, 3 seeds, the rules of eval-256 (docs/results.md, \"Other scenes\"); the program's table.md." \
   'need_robots && "$BUILD"/bench/afr-eval --scene out/robots/robots.gltf --camera own --start 14 --size 256x256 --seconds 3 --spp 9 --no-progress --out out/eval/robots-256 >&2 && cat out/eval/robots-256/table.md'
@@ -134,6 +137,29 @@ need_kitchen() {
     -o out/kitchen/kitchen.gltf >&2
 }
 
+# compare_cells LABEL_A DIR_A LABEL_B DIR_B: the cells of two afr-eval runs side by side (their
+# cells.csv), with B against A beyond the spread over the seeds.
+compare_cells() {
+  python3 - "$@" <<'PY'
+import csv, sys
+la, da, lb, db = sys.argv[1:5]
+def cells(d):
+    with open(f"{d}/cells.csv") as f:
+        return {(r["animation"], r["method"], float(r["rate"])): r for r in csv.DictReader(f)}
+a, b = cells(da), cells(db)
+print(f"| animation | method | R | {la} | {lb} | {lb} against {la} |")
+print("|---|---|---:|---:|---:|:-:|")
+for key in a:
+    if key not in b:
+        continue
+    x, y = a[key], b[key]
+    lo_x, hi_x, lo_y, hi_y = (float(x["min_rms"]), float(x["max_rms"]),
+                              float(y["min_rms"]), float(y["max_rms"]))
+    verdict = "**lower**" if hi_y < lo_x else "**higher**" if lo_y > hi_x else "within spread"
+    show = lambda r: f'{float(r["mean_rms"]):.2f} ({float(r["min_rms"]):.2f}-{float(r["max_rms"]):.2f})'
+    print(f"| {key[0]} | {key[1]} | {key[2] / 1e3:.0f}K | {show(x)} | {show(y)} | {verdict} |")
+PY
+}
 # seed_means LABEL DIR...: the mean and range over the seeds of mean_rms in the DIRs'
 # sweep.csv, per knob value and animation, as a markdown table.
 seed_means() {

@@ -380,6 +380,11 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
       options_(options),
       impl_(std::make_unique<Impl>()) {
   AFR_CHECK(context_ != nullptr);
+  if (config.splat.thresholds) {
+    throw Error(
+        "the OpenGL backend has only the continuous coverage rule (the thresholds rule "
+        "is the CPU backend's baseline for afr-eval)");
+  }
   context_->make_current();
   if (options_.splat == GlSplat::kAuto) {
     options_.splat = context_->software() ? GlSplat::kRaster : GlSplat::kGather;

@@ -39,6 +39,24 @@ TEST(CoverageMapTest, SplatRadiusFollowsSection62) {
   EXPECT_FLOAT_EQ(splat_growth(6.0f, 2.0f), 3.0f);
 }
 
+// The former rule, the baseline afr-eval --coverage-rule thresholds compares with: hard
+// factors at the band's ends, no pull toward 1, so a count one splat across an end moves the
+// radius by 4x or 0.7x.
+TEST(CoverageMapTest, TheThresholdsRuleMultipliesTheMeanGrowthAtTheBandsEnds) {
+  SplatSizeRule rule;
+  rule.thresholds = true;
+  rule.shrink = 0.7f;
+  EXPECT_FLOAT_EQ(splat_radius(nullptr, 2.5f, rule), 2.5f);
+  CoverageCell hole{0.0f, 0.0f};
+  EXPECT_FLOAT_EQ(splat_radius(&hole, 2.5f, rule), 10.0f);
+  CoverageCell just_below{3.999f, 7.998f}, inside{4.0f, 8.0f}, just_above{32.001f, 64.002f};
+  EXPECT_FLOAT_EQ(splat_radius(&just_below, 1.5f, rule), 1.5f * 2.0f * 4.0f);
+  EXPECT_FLOAT_EQ(splat_radius(&inside, 1.5f, rule), 1.5f * 2.0f);
+  EXPECT_FLOAT_EQ(splat_radius(&just_above, 1.5f, rule), 1.5f * 2.0f * 0.7f);
+  CoverageCell huge{8.0f, 8000.0f};  // mean growth 1000: clamped to max_radius
+  EXPECT_FLOAT_EQ(splat_radius(&huge, 1.5f, rule), rule.max_radius);
+}
+
 TEST(CoverageMapTest, GrowthConvergesToOneStateWhateverItStartsFrom) {
   // A pixel in a region of `density` samples per pixel, every splat of radius r = g r_f: it
   // is reached by about density x pi r^2 splats, each with growth g. Iterated image after

@@ -185,6 +185,20 @@ TEST(GlReconstructorTest, SplatsFitTheDensityOnceTheStoreFillsAsOnTheCpu) {
 // Splats of at least 6 pixels on 4-pixel tiles reach about 18 tiles each, far beyond the
 // lists' first room (4 entries a stored sample): the first image overflows them, is drawn
 // again with room, and still agrees with the CPU backend.
+// The former coverage rule is a CPU baseline for afr-eval; the GL backend names what it lacks
+// rather than run another rule under its name.
+TEST(GlReconstructorTest, RefusesTheThresholdsCoverageRule) {
+  AFR_REQUIRE_GL(context);
+  ReconstructorConfig cfg = config(32, 24, ReconstructionMode::kAdaptive);
+  cfg.splat.thresholds = true;
+  try {
+    GlReconstructor gl(cfg, context);
+    ADD_FAILURE() << "the thresholds rule was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("thresholds rule"), std::string::npos) << e.what();
+  }
+}
+
 TEST(GlReconstructorTest, GatherListsTooShortGrowAndTheImageIsDrawnAgain) {
   AFR_REQUIRE_GL(context);
   const int W = 64, H = 48;

@@ -38,6 +38,10 @@ struct SplatSizeRule {
   float relax = 0.05f;         // per image, toward growth 1
   float min_radius = 1.0f;     // a splat always reaches the pixel it falls in
   float max_radius = 32.0f;    // bounds cost; GL point sprites are 2 r + 1 <= 65 pixels
+  // The former rule, kept as the baseline of docs/reconstruction.md's comparison (afr-eval
+  // --coverage-rule thresholds; the CPU backend only): the mean growth times `grow` below the
+  // band, times `shrink` above it (0.7 then), as it is inside; no pull toward 1.
+  bool thresholds = false;
 };
 
 // Reconstructors clamp SplatSizeRule::max_radius to this: llvmpipe's largest point sprite is
@@ -76,6 +80,14 @@ inline float splat_radius(const CoverageCell* previous, float filter_radius,
       g = rule.grow;
     } else {
       const float mean = previous->growth_sum / c;
+      if (rule.thresholds) {
+        g = c < rule.grow_below     ? rule.grow * mean
+            : c > rule.shrink_above ? rule.shrink * mean
+                                    : mean;
+        const float r = g * filter_radius;
+        if (!(r >= rule.min_radius)) return rule.min_radius;
+        return r < rule.max_radius ? r : rule.max_radius;
+      }
       const float base = mean + rule.relax * (1.0f - mean);
       if (c < rule.grow_below) {
         g = base * std::fmin(rule.grow, std::sqrt(rule.grow_below / c));
