@@ -49,6 +49,21 @@ constexpr uint16_t kNoBand = 0xffff;
 // outnumber threads several times over (for balance).
 int band_height_for(int height) { return std::clamp(height / 32, 8, 64); }
 
+// The hot passes are compiled twice with GCC, for the baseline x86-64 and for x86-64-v3 (AVX2,
+// FMA: Haswell and later); the dynamic loader picks one per machine (an ifunc that tests the
+// ISA level). flatten inlines every helper they call (fast_exp, the projection, the coverage
+// rule), so those are compiled for the clone's target too. The v3 clone fuses multiply-adds:
+// its images differ from the baseline's in the last bits, as they do between compilers (every
+// comparison across machines and backends has a tolerance). Clang 14's resolver for ISA levels
+// tests the wrong thing, so Clang builds (the sanitizer builds) keep the baseline only.
+// Measured in docs/reconstruction.md ("Benchmark").
+#if defined(__x86_64__) && defined(__linux__) && defined(__GNUC__) && !defined(__clang__) && \
+    __GNUC__ >= 12 && !defined(AFR_NO_CLONES)
+#define AFR_HOT_CLONES __attribute__((target_clones("arch=x86-64-v3", "default"), flatten))
+#else
+#define AFR_HOT_CLONES
+#endif
+
 // floor and ceil to int without a libm call (the baseline x86-64 target has no roundss);
 // |v| < 2^31.
 inline int floor_int(float v) {
@@ -267,6 +282,40 @@ struct CpuReconstructor::Impl {
     return c;
   }
 
+  // shape_splats_and_clear_sums' work on pixels [p0, p1).
+  AFR_HOT_CLONES void shape_pixels(size_t p0, size_t p1, const FrameSetup& setup,
+                                   const std::vector<uint32_t>& index_map, float cutoff,
+                                   const SplatSizeRule& rule) {
+    const CoverageCell* cells = previous.valid() ? previous.cells().data() : nullptr;
+    for (size_t p = p0; p < p1; ++p) {
+      const uint32_t tile = index_map[p];
+      const TileFilter& f = setup.filters[tile];
+      const float r_filter = cutoff * std::max(f.sigma_x, f.sigma_y);
+      // The coverage map's size, no wider than the tile's density calls for (nor than the
+      // filter's own radius needs).
+      const float r = std::min(splat_radius(cells != nullptr ? cells + p : nullptr, r_filter, rule),
+                               std::max({setup.radius_caps[tile], r_filter, rule.min_radius}));
+      // A splat the coverage map grew beyond the filter's radius widens its Gaussian by the
+      // same factor (keeping its shape); a shrunk one cuts the Gaussian short.
+      const float grown = std::max(1.0f, r / r_filter);
+      const float sigma_x = f.sigma_x * grown, sigma_y = f.sigma_y * grown;
+      PixelShape& shape = shapes[p];
+      shape.k_x = 0.5f / (sigma_x * sigma_x);
+      shape.k_y = 0.5f / (sigma_y * sigma_y);
+      // The splat is the square of radius r cut to the Gaussian's own cutoff box, rounded
+      // as positions are, so that a splat's pixel range is exact (reprojection.h).
+      shape.r_x = quantize_position(std::min(r, cutoff * sigma_x));
+      shape.r_y = quantize_position(std::min(r, cutoff * sigma_y));
+      shape.off_x = fast_exp(-shape.r_x * shape.r_x * shape.k_x);
+      shape.off_y = fast_exp(-shape.r_y * shape.r_y * shape.k_y);
+      shape.k_t = f.k_t;
+      shape.norm = 1.0f / (sigma_x * sigma_y);
+      shape.r = r;
+      shape.growth = splat_growth(r, r_filter);
+      reach[p] = uint8_t(std::min(ceil_int(shape.r_y), 255));
+    }
+  }
+
   // Per pixel, what a splat landing there gets (shapes, and reach for binning): its tile's
   // filter and, section 6.2, the size from the previous image's coverage there. Clears this
   // image's sums and coverage while here.
@@ -282,39 +331,53 @@ struct CpuReconstructor::Impl {
     pool.run(row_tasks, [&](int task) {
       const size_t p0 = size_t(height * task / row_tasks) * size_t(width);
       const size_t p1 = size_t(height * (task + 1) / row_tasks) * size_t(width);
-      const CoverageCell* cells = previous.valid() ? previous.cells().data() : nullptr;
-      for (size_t p = p0; p < p1; ++p) {
-        const uint32_t tile = index_map[p];
-        const TileFilter& f = setup.filters[tile];
-        const float r_filter = cutoff * std::max(f.sigma_x, f.sigma_y);
-        // The coverage map's size, no wider than the tile's density calls for (nor than the
-        // filter's own radius needs).
-        const float r =
-            std::min(splat_radius(cells != nullptr ? cells + p : nullptr, r_filter, rule),
-                     std::max({setup.radius_caps[tile], r_filter, rule.min_radius}));
-        // A splat the coverage map grew beyond the filter's radius widens its Gaussian by the
-        // same factor (keeping its shape); a shrunk one cuts the Gaussian short.
-        const float grown = std::max(1.0f, r / r_filter);
-        const float sigma_x = f.sigma_x * grown, sigma_y = f.sigma_y * grown;
-        PixelShape& shape = shapes[p];
-        shape.k_x = 0.5f / (sigma_x * sigma_x);
-        shape.k_y = 0.5f / (sigma_y * sigma_y);
-        // The splat is the square of radius r cut to the Gaussian's own cutoff box, rounded
-        // as positions are, so that a splat's pixel range is exact (reprojection.h).
-        shape.r_x = quantize_position(std::min(r, cutoff * sigma_x));
-        shape.r_y = quantize_position(std::min(r, cutoff * sigma_y));
-        shape.off_x = fast_exp(-shape.r_x * shape.r_x * shape.k_x);
-        shape.off_y = fast_exp(-shape.r_y * shape.r_y * shape.k_y);
-        shape.k_t = f.k_t;
-        shape.norm = 1.0f / (sigma_x * sigma_y);
-        shape.r = r;
-        shape.growth = splat_growth(r, r_filter);
-        reach[p] = uint8_t(std::min(ceil_int(shape.r_y), 255));
-      }
+      shape_pixels(p0, p1, setup, index_map, cutoff, rule);
       std::fill(accum.begin() + ptrdiff_t(p0), accum.begin() + ptrdiff_t(p1), glm::vec4(0.0f));
       std::fill(coverage_next.begin() + ptrdiff_t(p0), coverage_next.begin() + ptrdiff_t(p1),
                 CoverageCell{});
     });
+  }
+
+  // reproject_and_bin's work on the stored samples [begin, end).
+  AFR_HOT_CLONES void reproject_chunk(size_t begin, size_t end, Counts* counts_out,
+                                      uint32_t* chunk_counts, const Projector& projector,
+                                      const FrameSetup& setup, const Grid& grid, const Bands& bands,
+                                      double time, double max_future, bool reproject, float guard) {
+    const int width = grid.width, height = grid.height;
+    const float origin_x = grid.origin_x, origin_y = grid.origin_y;
+    Counts& c = *counts_out;
+    for (size_t i = begin; i < end; ++i) {
+      home[i] = kNoBand;
+      const StoredSample& s = mirror[i];
+      const double age_d = time - s.time;
+      if (age_d < -max_future) {
+        ++c.future;
+        continue;
+      }
+      const float age_signed = float(age_d);
+      float x, y;
+      if (reproject && (s.flags & kStoredHasPosition)) {
+        if (!projector.project(s, age_signed, &x, &y)) {
+          ++c.behind;
+          continue;
+        }
+      } else {
+        x = quantize_position(s.x * setup.scale_x) - origin_x;
+        y = quantize_position(s.y * setup.scale_y) - origin_y;
+      }
+      if (!(x > -guard && x < float(width) + guard && y > -guard && y < float(height) + guard)) {
+        ++c.off_screen;
+        continue;
+      }
+      projected[i] = Projected{x, y, std::max(age_signed, 0.0f), s.color};
+      const int py = std::clamp(floor_int(y), 0, height - 1);
+      const int px = std::clamp(floor_int(x), 0, width - 1);
+      const int band = reach[size_t(py) * size_t(width) + size_t(px)] < bands.height
+                           ? (py + bands.offset) / bands.height
+                           : bands.count;
+      home[i] = uint16_t(band);
+      ++chunk_counts[band];
+    }
   }
 
   // Reprojects each stored sample into `projected` (with `reproject` and a position; else it
@@ -324,8 +387,6 @@ struct CpuReconstructor::Impl {
   Counts reproject_and_bin(const Camera& camera, const FrameSetup& setup, const Grid& grid,
                            const Bands& bands, int chunks, double time, double max_future,
                            bool reproject, float guard) {
-    const int width = grid.width, height = grid.height;
-    const float origin_x = grid.origin_x, origin_y = grid.origin_y;
     const size_t n = stored;
     const size_t count_stride = bands.count_stride;
     const Projector projector(camera, setup.scaled_width, setup.scaled_height, setup.grid.origin_x,
@@ -338,40 +399,9 @@ struct CpuReconstructor::Impl {
     pool.run(chunks, [&](int chunk) {
       const size_t begin = n * size_t(chunk) / size_t(chunks);
       const size_t end = n * size_t(chunk + 1) / size_t(chunks);
-      Counts& c = task_counts[size_t(chunk)];
       uint32_t* chunk_counts = counts.data() + size_t(chunk) * count_stride;
-      for (size_t i = begin; i < end; ++i) {
-        home[i] = kNoBand;
-        const StoredSample& s = mirror[i];
-        const double age_d = time - s.time;
-        if (age_d < -max_future) {
-          ++c.future;
-          continue;
-        }
-        const float age_signed = float(age_d);
-        float x, y;
-        if (reproject && (s.flags & kStoredHasPosition)) {
-          if (!projector.project(s, age_signed, &x, &y)) {
-            ++c.behind;
-            continue;
-          }
-        } else {
-          x = quantize_position(s.x * setup.scale_x) - origin_x;
-          y = quantize_position(s.y * setup.scale_y) - origin_y;
-        }
-        if (!(x > -guard && x < float(width) + guard && y > -guard && y < float(height) + guard)) {
-          ++c.off_screen;
-          continue;
-        }
-        projected[i] = Projected{x, y, std::max(age_signed, 0.0f), s.color};
-        const int py = std::clamp(floor_int(y), 0, height - 1);
-        const int px = std::clamp(floor_int(x), 0, width - 1);
-        const int band = reach[size_t(py) * size_t(width) + size_t(px)] < bands.height
-                             ? (py + bands.offset) / bands.height
-                             : bands.count;
-        home[i] = uint16_t(band);
-        ++chunk_counts[band];
-      }
+      reproject_chunk(begin, end, &task_counts[size_t(chunk)], chunk_counts, projector, setup, grid,
+                      bands, time, max_future, reproject, guard);
     });
     return sum_counts();
   }
@@ -405,7 +435,7 @@ struct CpuReconstructor::Impl {
 
   // Splats the samples of one home band (or of the oversize bucket) into the sums and this
   // image's coverage. Counts those splatted and those whose splat covers no pixel (off_screen).
-  void splat_band(int band, const Grid& grid, float min_wt) {
+  AFR_HOT_CLONES void splat_band(int band, const Grid& grid, float min_wt) {
     const int width = grid.width, height = grid.height;
     Counts& c = task_counts[size_t(band)];
     std::array<float, 2 * int(kSplatRadiusLimit) + 4> wx, wy;
