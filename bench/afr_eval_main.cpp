@@ -198,6 +198,11 @@ int main(int argc, char** argv) {
                  "(docs/reconstruction.md, \"Why continuous\")")
       ->capture_default_str()
       ->check(CLI::IsMember({"continuous", "thresholds"}));
+  app.add_option("--grow-below", recon.splat.grow_below,
+                 "coverage map: splats grow where fewer splats than this reached a pixel "
+                 "(the lower end of the band)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 32.0));
   app.add_option("--min-extent", recon.filter.min_spatial_extent, "filter: smallest e_x, e_y")
       ->capture_default_str();
   app.add_option("--max-extent", recon.filter.max_spatial_extent, "filter: largest e_x, e_y")
