@@ -66,6 +66,9 @@ add reconstruct reconstruct.md "Reconstruction time by resolution and backend" \
 add reconstruct-goal reconstruct-goal.md "Reconstruction at 256 x 256: the 60 Hz goal" \
   "The CPU backend at 256x256, N = 262 144, on 1 and 2 threads; the goal is <= 16.7 ms per refresh on 2 threads (docs/reconstruction.md, \"Benchmark\")." \
   '"$BUILD"/bench/afr-bench-reconstruct --sizes 256 --backends cpu --threads 1,2 --repeats 31 --warmup 10'
+add reconstruct-clones reconstruct-clones.md "CPU reconstructor: the x86-64-v3 clones against the baseline build" \
+  "The CPU backend at 256x256, N = 262 144, on 1 and 2 threads, and the naive 3x3 yardstick, in a build with the hot passes' x86-64-v3 clones (the default) and one without (-DAFR_CPU_CLONES=OFF, build-noclones/), 5 runs of each alternating; per build the median over the runs of each row's median and of the 1-thread row over the yardstick (docs/reconstruction.md, \"Benchmark\"). Make build-noclones first: cmake -S . -B build-noclones -G Ninja -DCMAKE_BUILD_TYPE=Release -DAFR_CPU_CLONES=OFF && cmake --build build-noclones --target afr-bench-reconstruct" \
+  'clone_table build-noclones "$BUILD" 5'
 add service-cap40k service-cap40k.md "Service on loopback: k samplers capped at 40 000 samples/s" \
   "k = 1..4 capped samplers and a headless display (128x128, CPU backend, 60 Hz): received / sum of caps (goal >= 0.95), latency p50 / p99 (goal p50 <= 18.7 ms), batch bytes per sample (docs/service.md, \"Figures\")." \
   'deploy/lan/bench.sh --build "$BUILD" --cap 40000'
@@ -137,6 +140,41 @@ need_kitchen() {
     -o out/kitchen/kitchen.gltf >&2
 }
 
+# clone_table BUILD_A BUILD_B RUNS: afr-bench-reconstruct at 256x256 (CPU, 1 and 2 threads,
+# the naive yardstick) from two build folders, RUNS runs each alternating; per build the median
+# over the runs of each row's median ms and of the 1-thread row over the yardstick, then every
+# run's ratio.
+clone_table() {
+  local a=$1 b=$2 runs=$3 raw
+  raw=$(mktemp)
+  for i in $(seq 1 "$runs"); do
+    for d in "$a" "$b"; do
+      "$d"/bench/afr-bench-reconstruct --sizes 256 --backends cpu --threads 1,2 --repeats 31 \
+        --warmup 10 | grep -E '^\| (naive|cpu)' | sed "s|^|$d |" >>"$raw" || return 1
+    done
+  done
+  python3 - "$raw" "$a" "$b" "$runs" <<'PY'
+import statistics, sys
+raw, builds, runs = sys.argv[1], sys.argv[2:4], int(sys.argv[4])
+lines = {b: [] for b in builds}  # per build: (row, median ms) in the order printed
+for line in open(raw):
+    build, rest = line.split(" ", 1)
+    cells = [c.strip() for c in rest.strip().strip("|").split("|")]
+    lines[build].append(float(cells[4]))
+# Each run printed three rows: the yardstick, then the CPU backend on 1 and on 2 threads.
+merged = {b: [dict(zip(("naive", "cpu1", "cpu2"), v[k:k + 3])) for k in range(0, len(v), 3)]
+          for b, v in lines.items()}
+print("| build | naive 3x3 ms | cpu 1 thread ms | cpu 2 threads ms | 1 thread / naive | each run's 1 thread / naive |")
+print("|---|---:|---:|---:|---:|---|")
+for b in builds:
+    r = merged[b]
+    med = lambda k: statistics.median(x[k] for x in r)
+    ratios = [x["cpu1"] / x["naive"] for x in r]
+    print(f"| {b} | {med('naive'):.2f} | {med('cpu1'):.2f} | {med('cpu2'):.2f} | "
+          f"{statistics.median(ratios):.2f} | {', '.join(f'{v:.2f}' for v in ratios)} |")
+PY
+  rm -f "$raw"
+}
 # compare_cells LABEL_A DIR_A LABEL_B DIR_B: the cells of two afr-eval runs side by side (their
 # cells.csv), with B against A beyond the spread over the seeds.
 compare_cells() {
