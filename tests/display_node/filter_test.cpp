@@ -62,7 +62,8 @@ TEST(FilterTest, SpatialClampKeepsTheVolumeInTime) {
   const FilterExtents e = filter_extents(0.0f, 0.0f, 50.0f, 1.0f, 10.0f, limits);
   EXPECT_FLOAT_EQ(e.e_x, limits.max_spatial_extent);
   EXPECT_FLOAT_EQ(e.e_y, limits.max_spatial_extent);
-  EXPECT_NEAR(e.e_t, 1.0 / (16.0 * 16.0), 1e-7);
+  EXPECT_NEAR(e.e_t, 1.0 / (double(limits.max_spatial_extent) * double(limits.max_spatial_extent)),
+              1e-7);
   // An edge along y (change only across x): narrow in x, wide in y, but at most
   // max_anisotropy times wider; without that cap, as wide as the clamp allows.
   const FilterExtents g = filter_extents(1.0f, 0.0f, 0.1f, 4.0f, 10.0f, limits);

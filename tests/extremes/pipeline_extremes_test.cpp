@@ -633,6 +633,9 @@ TEST(ExtremesTest, DisplayOf32768ImageIndexesWithoutOverflowAndAllocatesForItsOu
   ReconstructorConfig cfg = rec_config(kSide, kSide);
   EXPECT_THROW(CpuReconstructor{cfg}, Error);  // the default N = 4 x pixels is over the limit
   cfg.capacity = size_t(1) << 18;
+  // Splats wide enough (16 px before the downscale) that the far corner's samples reach its
+  // output pixel whatever the default largest extent.
+  cfg.filter.max_spatial_extent = 16.0f;
   const long rss_before = peak_rss_kib();
   CpuReconstructor rec(cfg);
   Pcg32 rng(21);
@@ -868,14 +871,16 @@ TEST(ExtremesTest, FilterExtentsAtBothClampsGiveFiniteImages) {
   EXPECT_TRUE(hit[0][0]);
   EXPECT_TRUE(hit[1][0]);
   EXPECT_TRUE(hit[0][1]);
-  // Wide in space and long in time at once is out of reach under the cap: e_x = 16 px needs
-  // e_y >= 16 / 4 = 4 px, and e_t = 60 s then a volume V_s = e_x e_y e_t >= 3840 pixel
-  // seconds, while V_s = 1 / R_l <= 1 / min_rate = 1000 (the extents only shrink below the
-  // volume when clamped, never grow past it in both space and time).
-  EXPECT_GT(lim.max_spatial_extent * lim.max_spatial_extent / lim.max_anisotropy *
-                lim.max_temporal_extent,
-            1.0f / lim.min_rate);
-  EXPECT_FALSE(hit[1][1]);
+  // Wide in space and long in time at once needs, under the cap, e_x at its largest, e_y >=
+  // e_x / max_anisotropy and e_t at its largest: a volume V_s = e_x e_y e_t of at least
+  // max^2 / max_anisotropy x max_t pixel seconds, while V_s = 1 / R_l <= 1 / min_rate (the
+  // extents only shrink below the volume when clamped, never grow past it in both space and
+  // time). It is reached exactly when the clamps allow that volume (at 16 px: 3840 > 1000,
+  // out of reach; at 4 px: 240, reached).
+  const bool wide_and_long = lim.max_spatial_extent * lim.max_spatial_extent / lim.max_anisotropy *
+                                 lim.max_temporal_extent <=
+                             1.0f / lim.min_rate;
+  EXPECT_EQ(hit[1][1], wide_and_long);
   // The cutoff's own range is enforced; splat radii are clamped to what GL can draw.
   ReconstructorConfig bad = rec_config(16, 16);
   bad.filter.cutoff = 0.99f;
