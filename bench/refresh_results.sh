@@ -156,10 +156,10 @@ clone_table() {
         --warmup 10 | grep -E '^\| (naive|cpu)' | sed "s|^|$d |" >>"$raw" || return 1
     done
   done
-  python3 - "$raw" "$a" "$b" "$runs" <<'PY'
+  python3 - "$raw" "$a" "$b" <<'PY'
 import statistics, sys
-raw, builds, runs = sys.argv[1], sys.argv[2:4], int(sys.argv[4])
-lines = {b: [] for b in builds}  # per build: (row, median ms) in the order printed
+raw, builds = sys.argv[1], sys.argv[2:4]
+lines = {b: [] for b in builds}  # per build: each row's median ms, in the order printed
 for line in open(raw):
     build, rest = line.split(" ", 1)
     cells = [c.strip() for c in rest.strip().strip("|").split("|")]

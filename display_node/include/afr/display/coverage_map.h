@@ -80,16 +80,12 @@ inline float splat_radius(const CoverageCell* previous, float filter_radius,
       g = rule.grow;
     } else {
       const float mean = previous->growth_sum / c;
+      const float base = mean + rule.relax * (1.0f - mean);
       if (rule.thresholds) {
         g = c < rule.grow_below     ? rule.grow * mean
             : c > rule.shrink_above ? rule.shrink * mean
                                     : mean;
-        const float r = g * filter_radius;
-        if (!(r >= rule.min_radius)) return rule.min_radius;
-        return r < rule.max_radius ? r : rule.max_radius;
-      }
-      const float base = mean + rule.relax * (1.0f - mean);
-      if (c < rule.grow_below) {
+      } else if (c < rule.grow_below) {
         g = base * std::fmin(rule.grow, std::sqrt(rule.grow_below / c));
       } else if (c > rule.shrink_above) {
         g = base * std::fmax(rule.shrink, std::sqrt(std::sqrt(rule.shrink_above / c)));
