@@ -3,6 +3,7 @@
 #include <afr/common/builtin_scene.h>
 #include <afr/common/error.h>
 #include <afr/common/presets.h>
+#include <afr/display/filter.h>
 #include <afr/eval/scene_setup.h>
 #include <afr/sampler/sampler_config.h>
 
@@ -70,6 +71,11 @@ TEST(PresetsTest, NamedPresetsSetTheirKnobsAndValidate) {
   EXPECT_EQ(balanced.b, defaults.b);
   EXPECT_EQ(balanced.r, defaults.r);
   EXPECT_EQ(balanced.chunk, defaults.chunk);
+  const FilterLimits limits;
+  const ReconstructionPreset& recon = find_preset("balanced").reconstruction;
+  EXPECT_EQ(recon.min_spatial_extent, limits.min_spatial_extent);
+  EXPECT_EQ(recon.max_spatial_extent, limits.max_spatial_extent);
+  EXPECT_EQ(recon.max_temporal_extent, limits.max_temporal_extent);
   try {
     find_preset("fastest");
     FAIL();

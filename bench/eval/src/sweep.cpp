@@ -52,10 +52,10 @@ std::vector<SweepPoint> default_sweep() {
       s->sampler.max_tiles = hi;
     });
   }
-  add("filter", "max e_xy 4", A, 4e5,
-      [](RunSettings* s) { s->reconstructor.filter.max_spatial_extent = 4.0f; });
   add("filter", "max e_xy 8", A, 4e5,
       [](RunSettings* s) { s->reconstructor.filter.max_spatial_extent = 8.0f; });
+  add("filter", "max e_xy 16", A, 4e5,
+      [](RunSettings* s) { s->reconstructor.filter.max_spatial_extent = 16.0f; });
   add("filter", "min e_xy 0.6", A, 4e5,
       [](RunSettings* s) { s->reconstructor.filter.min_spatial_extent = 0.6f; });
   add("filter", "max e_t 0.25", A, 4e5,

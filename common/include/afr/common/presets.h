@@ -21,7 +21,7 @@ namespace afr {
 struct ReconstructionPreset {
   double samples_per_pixel = 4.0;   // N = this x width x height (section 5.2: at least 4)
   float min_spatial_extent = 0.3f;  // FilterLimits, pixels
-  float max_spatial_extent = 16.0f;
+  float max_spatial_extent = 4.0f;
   float max_temporal_extent = 60.0f;  // FilterLimits, seconds
 };
 
@@ -42,13 +42,13 @@ struct Preset {
 // less for a few percent of error; a larger store and more reprojections and tiles lower the
 // error where it is high (fast motion).
 inline constexpr std::array<Preset, 3> kPresets = {{
-    {"fast", "less work per sample: r = 2, chunk 100, N = 2 W H, splats at most 8 px", /*b=*/4,
+    {"fast", "less work per sample: r = 2, chunk 100, N = 2 W H", /*b=*/4,
      /*r=*/2, /*chunk=*/100, /*min_tiles=*/16, /*max_tiles=*/1024,
-     ReconstructionPreset{2.0, 0.3f, 8.0f, 60.0f}},
+     ReconstructionPreset{2.0, 0.3f, 4.0f, 60.0f}},
     {"balanced", "the paper's settings, afr's defaults: b = 4, r = 5, chunk 25, N = 4 W H", 4, 5,
-     25, 16, 1024, ReconstructionPreset{4.0, 0.3f, 16.0f, 60.0f}},
+     25, 16, 1024, ReconstructionPreset{4.0, 0.3f, 4.0f, 60.0f}},
     {"accurate", "lower error under fast motion: r = 10, up to 4096 tiles, N = 8 W H", 4, 10, 25,
-     16, 4096, ReconstructionPreset{8.0, 0.3f, 16.0f, 60.0f}},
+     16, 4096, ReconstructionPreset{8.0, 0.3f, 4.0f, 60.0f}},
 }};
 
 inline std::span<const Preset> presets() { return kPresets; }

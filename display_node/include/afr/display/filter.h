@@ -33,9 +33,10 @@ struct FilterLimits {
   float min_rate = 1e-3f;
   float max_rate = 1e7f;
   // Spatial standard deviations, pixels. 0.3 keeps at least a few samples under a splat at
-  // the densest sampling the store holds; 16 bounds blur and splat cost.
+  // the densest sampling the store holds; 4 bounds blur and splat cost (Table 1's adaptive
+  // cells are lower or level with 4 than with 16: bench/results/filter-extent.md).
   float min_spatial_extent = 0.3f;
-  float max_spatial_extent = 16.0f;
+  float max_spatial_extent = 4.0f;
   // The larger spatial extent is at most this many times the smaller (the smaller spatial
   // gradient is raised to 1 / max_anisotropy of the larger).
   float max_anisotropy = 4.0f;
