@@ -202,7 +202,12 @@ int main(int argc, char** argv) {
                  "coverage map: splats grow where fewer splats than this reached a pixel "
                  "(the lower end of the band)")
       ->capture_default_str()
-      ->check(CLI::Range(0.0, 32.0));
+      ->check(CLI::Range(0.0, 1024.0));
+  app.add_option("--shrink-above", recon.splat.shrink_above,
+                 "coverage map: splats shrink where more splats than this reached a pixel "
+                 "(the upper end of the band; above --grow-below)")
+      ->capture_default_str()
+      ->check(CLI::Range(1.0, 1024.0));
   app.add_option("--min-extent", recon.filter.min_spatial_extent, "filter: smallest e_x, e_y")
       ->capture_default_str();
   app.add_option("--max-extent", recon.filter.max_spatial_extent, "filter: largest e_x, e_y")
@@ -230,6 +235,10 @@ int main(int argc, char** argv) {
       recon.filter.max_temporal_extent = p.reconstruction.max_temporal_extent;
     }
     const afr::ImageExtent size = afr::parse_image_size(size_text);
+    if (!(recon.splat.grow_below < recon.splat.shrink_above)) {
+      throw afr::Error(fmt::format("--grow-below ({}) must be below --shrink-above ({})",
+                                   recon.splat.grow_below, recon.splat.shrink_above));
+    }
 
     EvalConfig config;
     config.seconds = seconds;

@@ -354,6 +354,7 @@ int main(int argc, char** argv) {
   std::string backends = "cpu,gl";
   std::string mode_text = "adaptive", log_level = "warn";
   int repeats = 15, warmup = 3, gl_repeats = 7, gpu = -1, spp = 4;
+  float shrink_above = afr::SplatSizeRule{}.shrink_above;
   bool readback = true, naive = true, gl_debug = false, check = false;
   app.add_option("--sizes", size_texts, "outputs, comma separated: S (square) or WxH")
       ->delimiter(',');
@@ -378,6 +379,9 @@ int main(int argc, char** argv) {
       ->delimiter(',');
   app.add_option("--spp", spp, "samples stored per pixel: N = spp x pixels")
       ->check(CLI::Range(1, 64));
+  app.add_option("--shrink-above", shrink_above,
+                 "coverage map: splats shrink where more splats than this reached a pixel")
+      ->check(CLI::Range(4.0, 1024.0));
   app.add_flag("--gl-debug", gl_debug,
                "a debug GL context; the driver's messages are logged (with --log debug)");
   app.add_flag("--check", check,
@@ -423,6 +427,7 @@ int main(int argc, char** argv) {
       cfg.mode = mode;
       const size_t n = size_t(spp) * size_t(size.area());
       cfg.capacity = n;
+      cfg.splat.shrink_above = shrink_above;
       const auto row = [&](const std::string& backend, const std::string& threads, Timing t) {
         // A GPU backend's call returns before the GPU is done (unless it reads the image
         // back): the rate is the refreshes back to back, until the GPU has finished.
