@@ -113,6 +113,9 @@ add results-doc ../../docs/results.md "The tables of docs/results.md" \
 add sweep sweep-256.md "Speed/accuracy sweep at 256 x 256" \
   "Mean RMS (mean and range over 3 seeds) and wall-clock cost on one thread of one knob at a time and of the baselines, each point against the defaults beyond the spread, Pareto fronts marked (docs/tradeoffs.md); the program's sweep.md." \
   'need_kitchen && "$BUILD"/bench/afr-eval --sweep --size 256x256 --seconds 2 --spp 9 --seeds 3 --jobs 1 --threads 1 --no-progress --out out/eval/sweep-256 >&2 && cat out/eval/sweep-256/sweep.md'
+add latency latency.md "Adaptive's latency between 0 and 1 refresh" \
+  "Mean RMS (mean and range over 3 seeds) of adaptive at 400K, 256 x 256, with the display's latency at 0, 1/4, 1/2 and 1 refresh (a reconstruction that takes that much of a refresh), beside framed 60 Hz and framed 60 Hz + TAA at their one refresh; where adaptive is below or above each baseline beyond the spread (docs/results.md, \"Where the targets are not met\")." \
+  'need_kitchen && for l in 0 0.25 0.5 1; do "$BUILD"/bench/afr-eval --methods adaptive --rates 400K --latency $l --size 256x256 --seconds 3 --spp 9 --no-progress --no-plots --out out/eval/latency-$l >&2 || exit 1; done && "$BUILD"/bench/afr-eval --methods framed-60hz,framed-taa --rates 400K --size 256x256 --seconds 3 --spp 9 --no-progress --no-plots --out out/eval/latency-base >&2 && latency_table out/eval/latency-base out/eval/latency-{0,0.25,0.5,1}'
 add presets presets.md "Presets at 400K" \
   "Mean RMS per animation and wall seconds of each preset at 400K on the four animations (docs/tradeoffs.md, \"Presets\"); the three runs' table.md." \
   'need_kitchen && for p in fast balanced accurate; do "$BUILD"/bench/afr-eval --methods adaptive --rates 400K --seconds 2 --spp 9 --preset $p --out out/eval/preset-$p >&2 || exit 1; echo "## --preset $p"; echo; cat out/eval/preset-$p/table.md; echo; done'
@@ -130,15 +133,18 @@ add lossy lossy-lan.md "Lossy LAN" \
   'deploy/lan/lossy.sh --build "$BUILD" --repeats 3' \
   root
 
-# The BART kitchen in glTF, for the results that use it (docs/benchmarks.md).
+# The BART scenes in glTF, for the results that use them (docs/benchmarks.md), converted again
+# whenever the converter is newer than the conversion: a conversion left from an older
+# aff2gltf would give figures of another scene (the ideal frames' cache is keyed by the
+# scene's content, so a conversion that changed nothing reuses them).
 need_robots() {
-  [ -f out/robots/robots.gltf ] && return 0
+  [ out/robots/robots.gltf -nt "$BUILD"/tools/aff2gltf/aff2gltf ] && return 0
   "$BUILD"/tools/aff2gltf/aff2gltf ../shared/scenes/bart-robots/aff/Robot.aff \
     -o out/robots/robots.gltf >&2
 }
 
 need_kitchen() {
-  [ -f out/kitchen/kitchen.gltf ] && return 0
+  [ out/kitchen/kitchen.gltf -nt "$BUILD"/tools/aff2gltf/aff2gltf ] && return 0
   "$BUILD"/tools/aff2gltf/aff2gltf ../shared/scenes/bart-kitchen/aff/kitchen.aff \
     -o out/kitchen/kitchen.gltf >&2
 }
@@ -203,6 +209,42 @@ PY
 }
 # seed_means LABEL DIR...: the mean and range over the seeds of mean_rms in the DIRs'
 # sweep.csv, per knob value and animation, as a markdown table.
+# latency_table BASE DIR...: adaptive's cells of each DIR (afr-eval outputs at one latency
+# each, read from run.json) against framed 60 Hz and framed 60 Hz + TAA of BASE, per animation.
+latency_table() {
+  python3 - "$@" <<'PY'
+import csv, json, sys
+base, dirs = sys.argv[1], sys.argv[2:]
+def cells(d):
+    with open(f"{d}/cells.csv") as f:
+        return {(r["animation"], r["method"]): r for r in csv.DictReader(f)}
+def latency(d):
+    with open(f"{d}/run.json") as f:
+        return json.load(f)["latency_refreshes"]
+b = cells(base)
+runs = [(latency(d), cells(d)) for d in dirs]
+show = lambda r: f'{float(r["mean_rms"]):.2f} ({float(r["min_rms"]):.2f}-{float(r["max_rms"]):.2f})'
+def verdict(a, r):
+    if float(a["max_rms"]) < float(r["min_rms"]): return "below"
+    if float(a["min_rms"]) > float(r["max_rms"]): return "above"
+    return "level"
+head = " | ".join(f"adaptive, latency {l:g}" for l, _ in runs)
+print(f"| animation | {head} | framed 60 Hz | framed 60 Hz + TAA |")
+print("|---|" + "---:|" * (len(runs) + 2))
+anims = [a for (a, m) in b if m == "framed-60hz"]
+for anim in anims:
+    f60, taa = b[(anim, "framed-60hz")], b[(anim, "framed-taa")]
+    row = []
+    for _, c in runs:
+        a = c[(anim, "adaptive")]
+        row.append(f"{show(a)}; {verdict(a, f60)} / {verdict(a, taa)}")
+    print(f"| {anim} | " + " | ".join(row) + f" | {show(f60)} | {show(taa)} |")
+print()
+print("Each adaptive cell: mean (range) over the seeds; below / above / level against framed "
+      "60 Hz, then against framed 60 Hz + TAA, beyond the spread.")
+PY
+}
+
 seed_means() {
   local label=$1
   shift
