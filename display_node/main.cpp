@@ -135,6 +135,10 @@ int main(int argc, char** argv) {
                  "share of the throughput")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 100.0));
+  app.add_option("--recut-min-gain", o.coordinator.min_gain,
+                 "recut only when the new cut lowers the largest such ratio by this fraction")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 10.0));
   app.add_option(
          "--wall", wall_text,
          "display wall: COLUMNSxROWS cells over --size, this display leading (docs/wall.md)")

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <map>
 #include <set>
 
@@ -184,10 +185,15 @@ TEST(CoordinatorTest, NoDriftRecutUntilEveryRegionHasSettled) {
   ASSERT_EQ(cuts.size(), 1u);  // settled, and the error is far from half and half
   EXPECT_GE(cuts[0], 2.0 - 1e-9);
   EXPECT_LT(c.members().at(1).region.x1, 20);
-  // The joining of a third sampler recuts at once, settled or not.
+  // The left half held all the error against half of the throughput: load 2 before, about 1
+  // after (the log line of a drift cut).
+  EXPECT_NEAR(c.drift_loads().first, 2.0, 0.01);
+  EXPECT_NEAR(c.drift_loads().second, 1.0, 0.1);
+  // The joining of a third sampler recuts at once, settled or not; not a drift cut.
   join(&c, "c", 2.5);
   EXPECT_TRUE(c.maybe_recut(2.5));
   EXPECT_TRUE(partitions(c));
+  EXPECT_EQ(c.drift_loads().first, 0.0);
 }
 
 TEST(CoordinatorTest, ErrorSharesFollowRatesOnceTheErrorIsKnown) {
@@ -217,6 +223,58 @@ TEST(CoordinatorTest, ErrorSharesFollowRatesOnceTheErrorIsKnown) {
   c.set_error(MassDensity(200, 100, 50, 25));
   EXPECT_EQ(run(&c, 2.2, 3.3, rates).size(), 1u);
   EXPECT_EQ(c.members().at(1).region, (PixelRect{0, 0, 100, 100}));
+}
+
+TEST(CoordinatorTest, ErrorThatNoCutCanShareOutMovesNoBorder) {
+  // Nine tenths of the error in one column that moves between x = 60 and x = 61 from one
+  // interval to the next: every cut leaves the column's owner about 0.9 of the error against
+  // half of the throughput, beyond the hysteresis, and a cut can only move the border by a
+  // pixel. With no least gain the border follows the column (a handover for both samplers each
+  // time); with the default min_gain no cut is made, since none lowers the worst load.
+  const auto spike = [](int x) {
+    MassDensity e(200, 100, 200, 100);
+    e.add(PixelRect{x, 0, x + 1, 100}, 900.0);
+    e.add_uniform(100.0 / (200.0 * 100.0));
+    return e;
+  };
+  const std::map<uint32_t, double> rates = {{1, 100000.0}, {2, 100000.0}};
+  const auto recuts = [&](double min_gain) {
+    CoordinatorOptions o;
+    o.settle_seconds = 0.0;
+    o.recut_interval = 1.0;
+    o.min_gain = min_gain;
+    Coordinator c(200, 100, o);
+    join_two(&c);
+    EXPECT_TRUE(run(&c, 0.0, 1.0, rates).empty());  // rates measured, no error known yet
+    size_t n = 0;
+    for (int k = 0; k < 6; ++k) {
+      c.set_error(spike(60 + k % 2));
+      n += run(&c, 1.0 + k * 1.1, 2.1 + k * 1.1, rates).size();
+      EXPECT_TRUE(partitions(c));
+    }
+    return n;
+  };
+  EXPECT_GE(recuts(0.0), 4u);
+  EXPECT_EQ(recuts(CoordinatorOptions{}.min_gain), 0u);
+}
+
+TEST(CoordinatorTest, ATileCountsNoMoreErrorThanTheDisplayCanShow) {
+  const PixelRect pixel{24, 116, 25, 117}, tile{0, 0, 16, 16};
+  EXPECT_DOUBLE_EQ(shown_error_mass(0.01f, tile), double(0.01f) * 256.0);
+  // A specular highlight's variance in unclamped radiance counts as a shown one's largest.
+  EXPECT_DOUBLE_EQ(shown_error_mass(4.0e6f, pixel), 0.25);
+  EXPECT_DOUBLE_EQ(shown_error_mass(std::numeric_limits<float>::infinity(), pixel), 0.25);
+  EXPECT_EQ(shown_error_mass(std::numeric_limits<float>::quiet_NaN(), tile), 0.0);
+  EXPECT_EQ(shown_error_mass(-1.0f, tile), 0.0);
+  // So one such pixel beside 1000 ordinary tiles of a 256 x 256 image holds a small part of
+  // the error instead of nearly all of it.
+  MassDensity error(256, 256, 64, 64);
+  for (int k = 0; k < 256; ++k) {
+    const PixelRect t{(k % 16) * 16, (k / 16) * 16, (k % 16) * 16 + 16, (k / 16) * 16 + 16};
+    error.add(t, shown_error_mass(0.01f, t));
+  }
+  error.add(pixel, shown_error_mass(4.0e6f, pixel));
+  EXPECT_LT(error.mass(pixel) / error.total(), 0.001);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -259,6 +259,7 @@ void Coordinator::cut(double now, const std::vector<PixelRect>& parts) {
   ++recuts_;
   last_cut_ = now;
   dirty_ = false;
+  drift_loads_ = {0.0, 0.0};
 }
 
 bool Coordinator::maybe_recut(double now) {
@@ -305,14 +306,34 @@ bool Coordinator::maybe_recut(double now) {
   }
   if (!drift) return false;
   // A member slower than a strip's worth keeps its strip: when the cut would give the regions
-  // they have, there is nothing to send (and nothing to look at again for an interval).
+  // they have, there is nothing to send (and nothing to look at again for an interval). Nor
+  // when the cut would not lower the worst load by min_gain: error it cannot share out.
   const std::vector<PixelRect> next = parts();
-  if (same_regions(next)) {
+  std::vector<PixelRect> current;
+  for (const auto& [id, m] : members_) current.push_back(m.region);
+  const double before = worst_load(current, s), after = worst_load(next, s);
+  if (same_regions(next) || !(after * (1.0 + options_.min_gain) < before)) {
     last_cut_ = now;
     return false;
   }
   cut(now, next);
+  drift_loads_ = {before, after};
   return true;
+}
+
+double Coordinator::worst_load(const std::vector<PixelRect>& parts,
+                               const std::vector<double>& s) const {
+  double total = 0.0;
+  for (double x : s) total += x;
+  double worst = 0.0;
+  size_t i = 0;
+  for (const auto& [id, m] : members_) {
+    const size_t k = i++;
+    if (m.starved) continue;
+    const double want = s[k] / total;
+    if (want > 0.0) worst = std::max(worst, fraction(parts[k]) / want);
+  }
+  return worst;
 }
 
 }  // namespace afr::service

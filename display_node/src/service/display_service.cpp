@@ -450,11 +450,12 @@ void DisplayService::ingest_loop() {
       *samples_, sink_, metrics_, &gate_, running_,
       [this](const TilingSnapshot& t) {
         // The tile's luminance variance over its pixels: comparable between samplers (their
-        // E_tile is normalised by each sampler's own sums, section 6.1).
+        // E_tile is normalised by each sampler's own sums, section 6.1), capped at what the
+        // display can show (shown_error_mass).
         std::vector<std::pair<PixelRect, double>> tiles;
         tiles.reserve(t.tiles.size());
         for (const TileInfo& tile : t.tiles) {
-          tiles.emplace_back(tile.rect, double(tile.v) * double(tile.rect.area()));
+          tiles.emplace_back(tile.rect, shown_error_mass(tile.v, tile.rect));
         }
         std::lock_guard<std::mutex> lock(errors_mutex_);
         tile_errors_[t.sampler_id] = std::move(tiles);
@@ -845,6 +846,12 @@ void DisplayService::Control::measure(double t) {
 
 void DisplayService::Control::send_regions() {
   std::vector<std::pair<uint32_t, PixelRect>> regions;
+  if (const auto [before, after] = coordinator_.drift_loads(); before > 0.0) {
+    spdlog::info(
+        "regions recut for drift: the most loaded sampler's part of the error over its "
+        "share of the throughput {:.2f} before, {:.2f} after",
+        before, after);
+  }
   for (const auto& [id, m] : coordinator_.members()) {
     send(m.peer, RegionAssignment{id, coordinator_.epoch(), options_.image.width,
                                   options_.image.height, m.region});
