@@ -62,9 +62,9 @@ struct CoordinatorOptions {
   // share of the throughput ...
   double hysteresis = 0.5;
   // ... and the new cut lowers the largest such ratio by at least this fraction. Error that no
-  // cut can share out (most of it in one column) would otherwise move a border by a pixel
-  // every recut_interval, each move a handover for both samplers (measured on the built-in
-  // scene: 33, 34, 33, 34 columns, a recut every 10 s).
+  // cut can share out (most of it in one narrow column) would otherwise move a border by a
+  // pixel every recut_interval for no gain, each move a handover for both samplers
+  // (CoordinatorTest.ErrorThatNoCutCanShareOutMovesNoBorder).
   double min_gain = 0.2;
   // For this long after a member's region changes its pool hands over: its rate is not measured
   // then, and no drift recut happens until every member's region is this old.
