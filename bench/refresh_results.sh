@@ -207,8 +207,6 @@ for key in a:
     print(f"| {key[0]} | {key[1]} | {key[2] / 1e3:.0f}K | {show(x)} | {show(y)} | {verdict} |")
 PY
 }
-# seed_means LABEL DIR...: the mean and range over the seeds of mean_rms in the DIRs'
-# sweep.csv, per knob value and animation, as a markdown table.
 # latency_table BASE DIR...: adaptive's cells of each DIR (afr-eval outputs at one latency
 # each, read from run.json) against framed 60 Hz and framed 60 Hz + TAA of BASE, per animation.
 latency_table() {
@@ -245,6 +243,8 @@ print("Each adaptive cell: mean (range) over the seeds; below / above / level ag
 PY
 }
 
+# seed_means LABEL DIR...: the mean and range over the seeds of mean_rms in the DIRs'
+# sweep.csv, per knob value and animation, as a markdown table.
 seed_means() {
   local label=$1
   shift

@@ -266,7 +266,7 @@ TEST(CoordinatorTest, ATileCountsNoMoreErrorThanTheDisplayCanShow) {
   EXPECT_DOUBLE_EQ(shown_error_mass(std::numeric_limits<float>::infinity(), pixel), 0.25);
   EXPECT_EQ(shown_error_mass(std::numeric_limits<float>::quiet_NaN(), tile), 0.0);
   EXPECT_EQ(shown_error_mass(-1.0f, tile), 0.0);
-  // So one such pixel beside 1000 ordinary tiles of a 256 x 256 image holds a small part of
+  // So one such pixel beside the 256 ordinary tiles of a 256 x 256 image holds a small part of
   // the error instead of nearly all of it.
   MassDensity error(256, 256, 64, 64);
   for (int k = 0; k < 256; ++k) {

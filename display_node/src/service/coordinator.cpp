@@ -293,25 +293,15 @@ bool Coordinator::maybe_recut(double now) {
   // underloaded member alone is no reason (with two members at 9% against 20% wanted, the
   // other carries 91% against 80%: 14% slower than balanced).
   const std::vector<double> s = shares();
-  double total = 0.0;
-  for (double x : s) total += x;
-  size_t i = 0;
-  bool drift = false;
-  for (const auto& [id, m] : members_) {
-    const double want = s[i++] / total;
-    const double have = fraction(m.region);
-    // A starved member's strip is the least a cut gives, not a share it carries.
-    if (m.starved) continue;
-    if (!(want > 0.0) || have / want > 1.0 + options_.hysteresis) drift = true;
-  }
-  if (!drift) return false;
+  std::vector<PixelRect> current;
+  for (const auto& [id, m] : members_) current.push_back(m.region);
+  const double before = worst_load(current, s);
+  if (!(before > 1.0 + options_.hysteresis)) return false;
   // A member slower than a strip's worth keeps its strip: when the cut would give the regions
   // they have, there is nothing to send (and nothing to look at again for an interval). Nor
   // when the cut would not lower the worst load by min_gain: error it cannot share out.
   const std::vector<PixelRect> next = parts();
-  std::vector<PixelRect> current;
-  for (const auto& [id, m] : members_) current.push_back(m.region);
-  const double before = worst_load(current, s), after = worst_load(next, s);
+  const double after = worst_load(next, s);
   if (same_regions(next) || !(after * (1.0 + options_.min_gain) < before)) {
     last_cut_ = now;
     return false;
@@ -329,9 +319,11 @@ double Coordinator::worst_load(const std::vector<PixelRect>& parts,
   size_t i = 0;
   for (const auto& [id, m] : members_) {
     const size_t k = i++;
+    // A starved member's strip is the least a cut gives, not a share it carries.
     if (m.starved) continue;
     const double want = s[k] / total;
-    if (want > 0.0) worst = std::max(worst, fraction(parts[k]) / want);
+    if (!(want > 0.0)) return std::numeric_limits<double>::infinity();
+    worst = std::max(worst, fraction(parts[k]) / want);
   }
   return worst;
 }

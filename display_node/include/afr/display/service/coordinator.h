@@ -179,7 +179,8 @@ class Coordinator {
   std::vector<PixelRect> parts() const;
   bool same_regions(const std::vector<PixelRect>& parts) const;
   // The largest ratio of a member's part of the error under `parts` (in the order of
-  // members_) to its share `s` of the throughput; starved members do not count.
+  // members_) to its share `s` of the throughput; starved members do not count, a member
+  // with no share is infinitely loaded.
   double worst_load(const std::vector<PixelRect>& parts, const std::vector<double>& s) const;
   void cut(double now, const std::vector<PixelRect>& parts);
   // What part of the image `r` holds: of the error when it is known, else of the area.
