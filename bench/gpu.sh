@@ -43,20 +43,42 @@ common=(--naive false --readback false --gpu "$gpu" --gl-repeats "$repeats" --re
   --gl-splat gather,raster --gl-tiles 8,16 | tee "$tmp/small.md"
 renderer=$(sed -n 's/^OpenGL: \(.*\) on .*/\1/p' "$tmp/small.md" | head -1)
 [ -n "$renderer" ] || { echo "gpu.sh: no OpenGL context (see above)" >&2; exit 1; }
+hardware=1
 if echo "$renderer" | grep -qiE 'llvmpipe|softpipe|swrast|swiftshader'; then
+  hardware=0
   echo "(1920x1080 and 3840x2160 skipped: $renderer is a software rasteriser)" | tee "$tmp/large.md"
 else
   "${bench[@]}" "${common[@]}" --backends gl --sizes 1920x1080,3840x2160 --gl-splat gather,raster \
     --gl-tiles 8,16 | tee "$tmp/large.md"
 fi
 
+# The display runs: deploy/run-local.sh with the nodes of build/ or of the bundle (which must
+# hold display_node and sampler_node: deploy/bundle.sh DIR build/display_node/display_node
+# build/sampler_node/sampler_node build/bench/afr-bench-reconstruct). 256x256 everywhere; on a
+# hardware GPU also 1920x1080, the samplers given the cores the display leaves.
+nodes=()
+if [ -n "$bin" ]; then
+  [ -x "$bin/bin/display_node" ] && [ -x "$bin/bin/sampler_node" ] && nodes=(--bundle "$bin")
+elif [ -x build/display_node/display_node ] && [ -x build/sampler_node/sampler_node ]; then
+  nodes=(--build build)
+fi
+runs=("256x256 1")
+if [ "$hardware" = 1 ]; then
+  runs+=("1920x1080 $(( $(nproc) / 2 > 2 ? $(nproc) / 2 - 1 : 1 ))")
+fi
 display=""
-if [ -z "$bin" ] && [ -x build/display_node/display_node ] && [ -x build/sampler_node/sampler_node ]; then
-  deploy/run-local.sh 2 --seconds 12 --backend gl --gpu "$gpu" --output "$tmp/run" \
-    --port 7390 --metrics-port 9390 >/dev/null 2>&1 || true
-  log=$tmp/run/logs/display.log
-  display=$( (grep -m1 "reconstruction backend" "$log"; grep "display .* Hz" "$log" | tail -2) \
-    2>/dev/null || true)
+if [ ${#nodes[@]} -gt 0 ]; then
+  for r in "${runs[@]}"; do
+    read -r size threads <<<"$r"
+    rm -rf "$tmp/run"
+    deploy/run-local.sh 2 "${nodes[@]}" --seconds 12 --size "$size" --threads "$threads" \
+      --backend gl --gpu "$gpu" --output "$tmp/run" --port 7390 --metrics-port 9390 \
+      >/dev/null 2>&1 || true
+    log=$tmp/run/logs/display.log
+    display+="--- $size, 2 samplers x $threads threads"$'\n'
+    display+=$( (grep -m1 "reconstruction backend" "$log"; grep "display .* Hz" "$log" | tail -2) \
+      2>/dev/null || echo "(no display log)")$'\n'
+  done
 fi
 
 slug=$(echo "$renderer" | tr 'A-Z' 'a-z' | sed 's/[^a-z0-9]\{1,\}/-/g; s/^-//; s/-$//' | cut -c1-40)
@@ -77,10 +99,10 @@ dirty=$(git status --porcelain 2>/dev/null | grep -qv '^??' && echo " (with unco
   cat "$tmp/large.md"
   if [ -n "$display" ]; then
     echo
-    echo "A headless display run (deploy/run-local.sh 2, 12 s, GL backend), its log:"
+    echo "Headless display runs (deploy/run-local.sh 2, 12 s, GL backend, the built-in scene), their logs:"
     echo
     echo '```'
-    echo "$display"
+    printf '%s' "$display"
     echo '```'
   fi
 } >"$out"

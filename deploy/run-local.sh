@@ -7,13 +7,15 @@
 #   deploy/run-local.sh 2                          2 samplers, 20 s, built-in scene, out/
 #   deploy/run-local.sh 3 --seconds 60 --window    a window (needs $DISPLAY)
 #   deploy/run-local.sh 2 --scene kitchen.glb --size 512x512 --threads 2 --port 7300
+#   deploy/run-local.sh 2 --bundle DIR             programs from deploy/bundle.sh DIR (no build)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 usage() {
-  sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,10p' "$0" | sed 's/^# \{0,1\}//'
   echo "options: --seconds S --size WxH --scene FILE --threads T --port P --metrics-port P"
   echo "         --preset fast|balanced|accurate --window --output DIR --build DIR --every K"
+  echo "         --bundle DIR (display_node and sampler_node from deploy/bundle.sh DIR, not built)"
   echo "         --backend gl|cpu|auto --gpu N (the display's reconstructor and EGL device)"
   echo "         --display-args \"ARGS\" (more display_node options, e.g. \"--recut-interval 10\")"
   echo "         --worker-priority idle|nice|normal (the samplers' tracing threads; default nice)"
@@ -25,7 +27,7 @@ case "$1" in -h|--help) usage 0 ;; esac
 n=$1; shift
 [[ "$n" =~ ^[0-9]+$ ]] && [ "$n" -ge 1 ] && [ "$n" -le 64 ] || { echo "run-local: N must be 1..64, got '$n'" >&2; exit 1; }
 seconds=20 size=256x256 scene="" threads=1 port=7100 metrics_port=9100 preset=balanced
-window=0 output=out build=build every=0 backend=auto gpu=-1 display_args="" worker_priority=nice
+window=0 output=out build=build bundle="" every=0 backend=auto gpu=-1 display_args="" worker_priority=nice
 while [ $# -gt 0 ]; do
   case "$1" in
     --seconds) seconds=$2; shift 2 ;;
@@ -38,6 +40,7 @@ while [ $# -gt 0 ]; do
     --window) window=1; shift ;;
     --output) output=$2; shift 2 ;;
     --build) build=$2; shift 2 ;;
+    --bundle) bundle=$2; shift 2 ;;
     --every) every=$2; shift 2 ;;
     --backend) backend=$2; shift 2 ;;
     --gpu) gpu=$2; shift 2 ;;
@@ -57,8 +60,19 @@ esac
 
 # shellcheck source=deploy/nodes.sh
 . deploy/nodes.sh
-# Always brings the two programs up to date (a no-op when they are).
-build_nodes "$build" run-local
+# Always brings the two programs up to date (a no-op when they are), unless they come from a
+# bundle: a machine without afr's build dependencies (a GPU server).
+if [ -n "$bundle" ]; then
+  for program in display_node sampler_node; do
+    [ -x "$bundle/bin/$program" ] || { echo "run-local: $bundle/bin/$program not found (deploy/bundle.sh)" >&2; exit 1; }
+  done
+  display_program=("$bundle/run" display_node)
+  sampler_program=("$bundle/run" sampler_node)
+else
+  build_nodes "$build" run-local
+  display_program=("$build/display_node/display_node")
+  sampler_program=("$build/sampler_node/sampler_node")
+fi
 
 mkdir -p "$output" "$output/logs"
 headless=--headless
@@ -71,7 +85,7 @@ trap 'cleanup; exit 130' INT TERM
 
 echo "run-local: display on tcp://127.0.0.1:$port (metrics http://127.0.0.1:$metrics_port/stats), $n sampler(s), $seconds s"
 # shellcheck disable=SC2086
-"$build/display_node/display_node" $scene $headless --bind "tcp://127.0.0.1:$port" \
+"${display_program[@]}" $scene $headless --bind "tcp://127.0.0.1:$port" \
   --size "$size" --preset "$preset" --seconds "$seconds" --output "$output" \
   --screenshot-every "$every" --metrics-port "$metrics_port" --backend "$backend" --gpu "$gpu" \
   $display_args > >(tee "$output/logs/display.log") 2>&1 &
@@ -80,7 +94,7 @@ for i in $(seq 1 "$n"); do
   # Sampling threads at a lower priority: the display keeps its refresh when they share its
   # cores, while each sampler's control thread (its heartbeats) keeps the normal priority.
   # shellcheck disable=SC2086
-  "$build/sampler_node/sampler_node" --display "tcp://127.0.0.1:$port" --threads "$threads" $worker_flags \
+  "${sampler_program[@]}" --display "tcp://127.0.0.1:$port" --threads "$threads" $worker_flags \
     --name "local-$i" --cache "$output/scene-cache" >"$output/logs/sampler-$i.log" 2>&1 &
   start_node sampler "sampler $i" "$output/logs/sampler-$i.log"
 done
