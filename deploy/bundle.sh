@@ -26,6 +26,10 @@ for program in "$@"; do
     if [[ ! "$name" =~ $skip ]]; then cp -L "$lib" "$dest/lib/$name"; fi
   done
 done
+# The commit the programs were built from, for the results they give (bench/gpu.sh --bin).
+commit=$(git -C "$(dirname "$0")" rev-parse --short HEAD 2>/dev/null || echo unknown)
+git -C "$(dirname "$0")" status --porcelain 2>/dev/null | grep -qv '^??' && commit+=" with uncommitted changes"
+echo "$commit" >"$dest/COMMIT"
 cat >"$dest/run" <<'EOF'
 #!/usr/bin/env bash
 # Runs a bundled program with the bundle's libraries: run PROGRAM [ARGS...]
