@@ -169,6 +169,7 @@ void make_busy(ServiceMetrics& m) {
   gpu.upload = 0.5;
   gpu.splat = 2.0;
   m.set_gpu(gpu);
+  m.add_call(CallTimes{0.1, 0.2, 3.0, 0.4, 0.5});
   m.set_wall(0, PixelRect{0, 0, 128, 128}, 1, 1);
   for (int i = 0; i < 30; ++i) m.on_frame(1.01 + 0.02 * i, 4.0 + i, 200, 1000);
   m.end_period(1.0);
@@ -186,6 +187,38 @@ std::set<std::string> series(const std::string& text) {
 }
 
 // The scene's transfer to a member, for the dashboard's progress: in /stats, members only.
+// A GPU backend's call phases: each the mean over the stats period, in /stats, the
+// exposition and the log line; a CPU backend (phases all zero) shows none, and a period
+// without calls clears the figures.
+TEST(ServiceMetricsTest, CallPhasesAreMeansOverThePeriodAndAbsentWithoutAGpuBackend) {
+  ServiceMetrics m;
+  m.add_call(CallTimes{});  // the CPU backend's
+  m.end_period(1.0);
+  EXPECT_TRUE(nlohmann::json::parse(stats_json(m))["display"]["period_call_ms"].is_null());
+  EXPECT_EQ(prometheus_text(m).find("afr_display_period_call_phase_seconds"), std::string::npos);
+  EXPECT_EQ(stats_line(m).find("(call:"), std::string::npos);
+
+  m.add_call(CallTimes{1.0, 2.0, 10.0, 4.0, 0.5});
+  m.add_call(CallTimes{3.0, 2.0, 20.0, 2.0, 1.5});
+  m.end_period(1.0);
+  const nlohmann::json call = nlohmann::json::parse(stats_json(m))["display"]["period_call_ms"];
+  EXPECT_DOUBLE_EQ(call["wait"].get<double>(), 2.0);
+  EXPECT_DOUBLE_EQ(call["copy"].get<double>(), 2.0);
+  EXPECT_DOUBLE_EQ(call["prepare"].get<double>(), 15.0);
+  EXPECT_DOUBLE_EQ(call["upload"].get<double>(), 3.0);
+  EXPECT_DOUBLE_EQ(call["passes"].get<double>(), 1.0);
+  EXPECT_NE(
+      prometheus_text(m).find("afr_display_period_call_phase_seconds{phase=\"prepare\"} 0.015"),
+      std::string::npos)
+      << prometheus_text(m);
+  EXPECT_NE(stats_line(m).find("(call: wait 2.0 copy 2.0 prepare 15.0 upload 3.0 passes 1.0 ms)"),
+            std::string::npos)
+      << stats_line(m);
+
+  m.end_period(1.0);
+  EXPECT_TRUE(nlohmann::json::parse(stats_json(m))["display"]["period_call_ms"].is_null());
+}
+
 TEST(ServiceMetricsTest, SceneTransferProgressIsInStats) {
   ServiceMetrics m;
   m.on_member("a", 1, "", 1);

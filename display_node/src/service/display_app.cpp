@@ -349,6 +349,7 @@ void DisplayApp::State::frame_at(double now, std::atomic<bool>& stop) {
   metrics.on_frame(done, recon->frame_stats().milliseconds, recon->frame_stats().stored,
                    recon->capacity());
   metrics.set_gpu(recon->frame_stats().gpu);
+  metrics.add_call(recon->frame_stats().call);
   if (!window && options.screenshot_every > 0 && frame > 0 &&
       frame % uint64_t(options.screenshot_every) == 0) {
     save(fmt::format("frame_{:06d}", frame), t);

@@ -199,6 +199,17 @@ void ServiceMetrics::set_gpu(const GpuTimes& gpu) {
   display_.gpu = gpu;
 }
 
+void ServiceMetrics::add_call(const CallTimes& call) {
+  if (call.wait + call.copy + call.prepare + call.upload + call.passes <= 0.0) return;
+  std::lock_guard<std::mutex> lock(mutex_);
+  period_call_sum_.wait += call.wait;
+  period_call_sum_.copy += call.copy;
+  period_call_sum_.prepare += call.prepare;
+  period_call_sum_.upload += call.upload;
+  period_call_sum_.passes += call.passes;
+  ++period_calls_;
+}
+
 void ServiceMetrics::set_display(uint64_t session, int width, int height,
                                  const std::string& backend, const std::string& mode) {
   std::lock_guard<std::mutex> lock(mutex_);
@@ -246,6 +257,15 @@ void ServiceMetrics::end_period(double seconds) {
           : 0.0;
   display_.period_reconstruct_ms_p99 = 1e3 * period_reconstruct_.quantile(0.99);
   display_.period_frame_interval_ms_p99 = 1e3 * period_interval_.quantile(0.99);
+  display_.call_timed = period_calls_ > 0;
+  if (period_calls_ > 0) {
+    const double n = double(period_calls_);
+    const CallTimes& c = period_call_sum_;
+    display_.period_call =
+        CallTimes{c.wait / n, c.copy / n, c.prepare / n, c.upload / n, c.passes / n};
+  }
+  period_call_sum_ = CallTimes{};
+  period_calls_ = 0;
   period_reconstruct_.clear();
   period_interval_.clear();
   display_.window_latency_p50 = window_latency_.quantile(0.5);

@@ -20,6 +20,14 @@ std::vector<std::pair<const char*, double>> gpu_passes(const GpuTimes& g) {
           {"fill", g.fill},     {"readback", g.readback}, {"image", g.total()}};
 }
 
+std::vector<std::pair<const char*, double>> call_phases(const CallTimes& c) {
+  return {{"wait", c.wait},
+          {"copy", c.copy},
+          {"prepare", c.prepare},
+          {"upload", c.upload},
+          {"passes", c.passes}};
+}
+
 // A wall lead's cells: [{"cell": [x0, y0, x1, y1], "node": id or 0 (dark)}, ...].
 nlohmann::json wall_cells_json(const std::vector<DisplayMetrics::WallCell>& cells) {
   nlohmann::json j = nlohmann::json::array();
@@ -34,6 +42,14 @@ nlohmann::json gpu_json(const GpuTimes& g) {
   if (!g.timed) return nullptr;
   nlohmann::json j;
   for (const auto& [pass, ms] : gpu_passes(g)) j[pass] = ms;
+  return j;
+}
+
+// The GPU backend's call phases over the last stats period, or null (the CPU backend).
+nlohmann::json call_json(const DisplayMetrics& d) {
+  if (!d.call_timed) return nullptr;
+  nlohmann::json j = nlohmann::json::object();
+  for (const auto& [phase, ms] : call_phases(d.period_call)) j[phase] = ms;
   return j;
 }
 
@@ -152,6 +168,14 @@ std::string prometheus_text(const ServiceMetrics& metrics) {
       f.metric.push_back(sample(gauge, ms * 1e-3, {{"pass", pass}}));
     }
   }
+  if (d.call_timed) {
+    MetricFamily& f = family("afr_display_period_call_phase_seconds", gauge,
+                             "mean wall time of each phase of a GPU backend's reconstruction call "
+                             "over the last stats period");
+    for (const auto& [phase, ms] : call_phases(d.period_call)) {
+      f.metric.push_back(sample(gauge, ms * 1e-3, {{"phase", phase}}));
+    }
+  }
   scalar("afr_display_period_reconstruct_mean_seconds", gauge,
          "mean reconstruction time over the last stats period",
          d.period_reconstruct_ms_mean * 1e-3);
@@ -239,6 +263,7 @@ std::string stats_json(const ServiceMetrics& metrics) {
                   {"period_reconstruct_ms_mean", d.period_reconstruct_ms_mean},
                   {"period_reconstruct_ms_p99", d.period_reconstruct_ms_p99},
                   {"period_frame_interval_ms_p99", d.period_frame_interval_ms_p99},
+                  {"period_call_ms", call_json(d)},
                   {"store_samples", d.store_stored},
                   {"store_capacity", d.store_capacity},
                   {"members", d.members},
@@ -317,6 +342,12 @@ std::string stats_line(const ServiceMetrics& metrics) {
       d.store_capacity ? 100.0 * double(d.store_stored) / double(d.store_capacity) : 0.0,
       d.window_latency_p50 * 1e3, d.window_latency_p99 * 1e3);
   if (d.gpu.timed) o += fmt::format(", GPU {:.2f} ms", d.gpu.total());
+  if (d.call_timed) {
+    const CallTimes& c = d.period_call;
+    o += fmt::format(
+        " (call: wait {:.1f} copy {:.1f} prepare {:.1f} upload {:.1f} passes {:.1f} ms)", c.wait,
+        c.copy, c.prepare, c.upload, c.passes);
+  }
   for (const SamplerMetrics& s : metrics.samplers()) {
     if (!s.member) continue;
     o += fmt::format(" | #{} {:.0f} k/s dropped {} gaps {}", s.id, s.samples_per_second * 1e-3,

@@ -66,8 +66,12 @@ struct DisplayMetrics {
   std::string backend;
   std::string mode;
   uint64_t frames = 0;
-  double reconstruct_ms = 0.0;       // last frame
-  GpuTimes gpu;                      // a GPU backend: the latest image the GPU finished
+  double reconstruct_ms = 0.0;  // last frame
+  GpuTimes gpu;                 // a GPU backend: the latest image the GPU finished
+  // A GPU backend: the mean of each phase of its reconstruct() calls over the last stats
+  // period (CallTimes: wall time on the display thread); call_timed says there were any.
+  CallTimes period_call;
+  bool call_timed = false;
   double reconstruct_ms_mean = 0.0;  // over the whole run
   double refresh_hz = 0.0;           // frames per second over the last stats period
   // Over the last stats period: the reconstruction time's mean and 99th percentile, and the
@@ -164,6 +168,8 @@ class ServiceMetrics {
   // now on screen).
   void on_frame(double time, double reconstruct_ms, uint64_t stored, uint64_t capacity);
   void set_gpu(const GpuTimes& gpu);
+  // Display thread: the phases of a GPU backend's reconstruct() call (all zero: none timed).
+  void add_call(const CallTimes& call);
   void set_display(uint64_t session, int width, int height, const std::string& backend,
                    const std::string& mode);
   void set_uptime(double seconds);
@@ -198,6 +204,8 @@ class ServiceMetrics {
   LatencyHistogram period_reconstruct_, period_interval_;  // seconds, this stats period
   double last_frame_time_ = -1.0;
   uint64_t period_frames_ = 0;
+  CallTimes period_call_sum_;  // this stats period's sums of add_call()'s phases
+  uint64_t period_calls_ = 0;
   double reconstruct_ms_sum_ = 0.0;
   mutable DashboardFeed dashboard_;
 };
