@@ -278,39 +278,59 @@ vec4 texel(int k, int x, int y) {
   return imageLoad(u_atlas, ivec2(clamp(x, 0, L.x - 1), L.z + clamp(y, 0, L.y - 1)));
 }
 
+// The counts are summed per work group in shared memory and added to the buffer once per
+// group: one global counter that every hole pixel increments serialised the pass (25 ms at
+// 3840x2160 on an H200 with many holes, against 2 ms with few).
+shared uint group_holes;
+shared uint group_empty;
+shared uint group_nonfinite;
+
 void main() {
+  if (gl_LocalInvocationIndex == 0u) {
+    group_holes = 0u;
+    group_empty = 0u;
+    group_nonfinite = 0u;
+  }
+  barrier();
   ivec2 o = ivec2(gl_GlobalInvocationID.xy);
-  if (o.x >= u_size.x || o.y >= u_size.y) return;
-  ivec2 p = o + u_offset;
-  vec4 a = imageLoad(u_accum, p);
-  vec3 c = vec3(0.0);
-  if (a.w > 0.0) {
-    c = a.rgb / a.w;
-  } else {
-    atomicAdd(holes, 1u);
-    bool found = false;
-    for (int k = 1; k <= u_levels; ++k) {
-      float inv = 1.0 / float(1 << k);
-      float px = (float(p.x) + 0.5) * inv - 0.5;
-      float py = (float(p.y) + 0.5) * inv - 0.5;
-      float fx0 = floor(px), fy0 = floor(py);
-      float fx = px - fx0, fy = py - fy0;
-      int ix = int(fx0), iy = int(fy0);
-      vec4 s = texel(k, ix, iy) * ((1.0 - fx) * (1.0 - fy)) + texel(k, ix + 1, iy) * (fx * (1.0 - fy)) +
-               texel(k, ix, iy + 1) * ((1.0 - fx) * fy) + texel(k, ix + 1, iy + 1) * (fx * fy);
-      if (s.w > 0.0) {
-        c = s.rgb / s.w;
-        found = true;
-        break;
+  if (o.x < u_size.x && o.y < u_size.y) {
+    ivec2 p = o + u_offset;
+    vec4 a = imageLoad(u_accum, p);
+    vec3 c = vec3(0.0);
+    if (a.w > 0.0) {
+      c = a.rgb / a.w;
+    } else {
+      atomicAdd(group_holes, 1u);
+      bool found = false;
+      for (int k = 1; k <= u_levels; ++k) {
+        float inv = 1.0 / float(1 << k);
+        float px = (float(p.x) + 0.5) * inv - 0.5;
+        float py = (float(p.y) + 0.5) * inv - 0.5;
+        float fx0 = floor(px), fy0 = floor(py);
+        float fx = px - fx0, fy = py - fy0;
+        int ix = int(fx0), iy = int(fy0);
+        vec4 s = texel(k, ix, iy) * ((1.0 - fx) * (1.0 - fy)) + texel(k, ix + 1, iy) * (fx * (1.0 - fy)) +
+                 texel(k, ix, iy + 1) * ((1.0 - fx) * fy) + texel(k, ix + 1, iy + 1) * (fx * fy);
+        if (s.w > 0.0) {
+          c = s.rgb / s.w;
+          found = true;
+          break;
+        }
       }
+      if (!found) atomicAdd(group_empty, 1u);
     }
-    if (!found) atomicAdd(empty, 1u);
+    if (any(isnan(c)) || any(isinf(c))) {
+      atomicAdd(group_nonfinite, 1u);
+      c = vec3(0.0);
+    }
+    imageStore(u_out, o, vec4(c, 1.0));
   }
-  if (any(isnan(c)) || any(isinf(c))) {
-    atomicAdd(nonfinite, 1u);
-    c = vec3(0.0);
+  barrier();
+  if (gl_LocalInvocationIndex == 0u) {
+    if (group_holes > 0u) atomicAdd(holes, group_holes);
+    if (group_empty > 0u) atomicAdd(empty, group_empty);
+    if (group_nonfinite > 0u) atomicAdd(nonfinite, group_nonfinite);
   }
-  imageStore(u_out, o, vec4(c, 1.0));
 }
 )";
 

@@ -170,6 +170,7 @@ void make_busy(ServiceMetrics& m) {
   gpu.splat = 2.0;
   m.set_gpu(gpu);
   m.add_call(CallTimes{0.1, 0.2, 3.0, 0.4, 0.5});
+  m.set_image_counts(12, 3);
   m.set_wall(0, PixelRect{0, 0, 128, 128}, 1, 1);
   for (int i = 0; i < 30; ++i) m.on_frame(1.01 + 0.02 * i, 4.0 + i, 200, 1000);
   m.end_period(1.0);
@@ -252,6 +253,8 @@ TEST(ServiceMetricsTest, UnitsAreSecondsAndRecutsStartNoNewSeries) {
             std::string::npos);
   EXPECT_NE(before.find("afr_display_last_reconstruct_seconds 0.033"), std::string::npos);
   EXPECT_NE(before.find("afr_display_gpu_pass_seconds{pass=\"splat\"} 0.002"), std::string::npos);
+  EXPECT_NE(before.find("afr_display_hole_pixels 12"), std::string::npos);
+  EXPECT_NE(before.find("afr_display_empty_pixels 3"), std::string::npos);
   EXPECT_NE(before.find("afr_sampler_region_edge_pixels{edge=\"x1\",sampler=\"1\"} 64"),
             std::string::npos);
   EXPECT_EQ(before.find("_ms"), std::string::npos) << "a metric in milliseconds";

@@ -350,6 +350,7 @@ void DisplayApp::State::frame_at(double now, std::atomic<bool>& stop) {
                    recon->capacity());
   metrics.set_gpu(recon->frame_stats().gpu);
   metrics.add_call(recon->frame_stats().call);
+  metrics.set_image_counts(recon->frame_stats().hole_pixels, recon->frame_stats().empty_pixels);
   if (!window && options.screenshot_every > 0 && frame > 0 &&
       frame % uint64_t(options.screenshot_every) == 0) {
     save(fmt::format("frame_{:06d}", frame), t);

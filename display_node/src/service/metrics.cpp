@@ -210,6 +210,12 @@ void ServiceMetrics::add_call(const CallTimes& call) {
   ++period_calls_;
 }
 
+void ServiceMetrics::set_image_counts(uint64_t hole_pixels, uint64_t empty_pixels) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  display_.hole_pixels = hole_pixels;
+  display_.empty_pixels = empty_pixels;
+}
+
 void ServiceMetrics::set_display(uint64_t session, int width, int height,
                                  const std::string& backend, const std::string& mode) {
   std::lock_guard<std::mutex> lock(mutex_);

@@ -168,6 +168,12 @@ std::string prometheus_text(const ServiceMetrics& metrics) {
       f.metric.push_back(sample(gauge, ms * 1e-3, {{"pass", pass}}));
     }
   }
+  scalar("afr_display_hole_pixels", gauge,
+         "pixels of the latest image no splat reached (filled from wider support)",
+         double(d.hole_pixels));
+  scalar("afr_display_empty_pixels", gauge,
+         "pixels of the latest image with no sample weight anywhere (black)",
+         double(d.empty_pixels));
   if (d.call_timed) {
     MetricFamily& f = family("afr_display_period_call_phase_seconds", gauge,
                              "mean wall time of each phase of a GPU backend's reconstruction call "
@@ -264,6 +270,8 @@ std::string stats_json(const ServiceMetrics& metrics) {
                   {"period_reconstruct_ms_p99", d.period_reconstruct_ms_p99},
                   {"period_frame_interval_ms_p99", d.period_frame_interval_ms_p99},
                   {"period_call_ms", call_json(d)},
+                  {"hole_pixels", d.hole_pixels},
+                  {"empty_pixels", d.empty_pixels},
                   {"store_samples", d.store_stored},
                   {"store_capacity", d.store_capacity},
                   {"members", d.members},

@@ -72,6 +72,9 @@ struct DisplayMetrics {
   // period (CallTimes: wall time on the display thread); call_timed says there were any.
   CallTimes period_call;
   bool call_timed = false;
+  // The latest image's pixels that no splat reached (filled from wider support) and those
+  // with no weight anywhere (black): where the samples are too sparse for the filter.
+  uint64_t hole_pixels = 0, empty_pixels = 0;
   double reconstruct_ms_mean = 0.0;  // over the whole run
   double refresh_hz = 0.0;           // frames per second over the last stats period
   // Over the last stats period: the reconstruction time's mean and 99th percentile, and the
@@ -170,6 +173,7 @@ class ServiceMetrics {
   void set_gpu(const GpuTimes& gpu);
   // Display thread: the phases of a GPU backend's reconstruct() call (all zero: none timed).
   void add_call(const CallTimes& call);
+  void set_image_counts(uint64_t hole_pixels, uint64_t empty_pixels);
   void set_display(uint64_t session, int width, int height, const std::string& backend,
                    const std::string& mode);
   void set_uptime(double seconds);
