@@ -279,8 +279,10 @@ vec4 texel(int k, int x, int y) {
 }
 
 // The counts are summed per work group in shared memory and added to the buffer once per
-// group: one global counter that every hole pixel increments serialised the pass (25 ms at
-// 3840x2160 on an H200 with many holes, against 2 ms with few).
+// group. The buffer is the persistently mapped status buffer, which the driver may keep in
+// the host's memory: with an atomic add per hole pixel the pass took 1-13 ms at 3840x2160 on
+// an H200, live, with thousands of holes, and the display fell from 30 to 21 images/s; with
+// one per group 1-3 ms (docs/benchmarks.md, "GPU reconstructor").
 shared uint group_holes;
 shared uint group_empty;
 shared uint group_nonfinite;
