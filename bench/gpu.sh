@@ -37,7 +37,9 @@ fi
 
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-common=(--naive false --readback false --gpu "$gpu" --gl-repeats "$repeats" --repeats "$repeats")
+# --gl-sync-passes times each pass on a software rasteriser (no timer queries); a GPU ignores it.
+common=(--naive false --readback false --gpu "$gpu" --gl-repeats "$repeats" --repeats "$repeats"
+  --gl-sync-passes)
 
 "${bench[@]}" "${common[@]}" --backends cpu,gl --threads "$(nproc)" --sizes 256,512 \
   --gl-splat gather,raster --gl-tiles 8,16 | tee "$tmp/small.md"

@@ -355,7 +355,7 @@ int main(int argc, char** argv) {
   std::string mode_text = "adaptive", log_level = "warn";
   int repeats = 15, warmup = 3, gl_repeats = 7, gpu = -1, spp = 4;
   float shrink_above = afr::SplatSizeRule{}.shrink_above;
-  bool readback = true, naive = true, gl_debug = false, check = false;
+  bool readback = true, naive = true, gl_debug = false, check = false, sync_passes = false;
   app.add_option("--sizes", size_texts, "outputs, comma separated: S (square) or WxH")
       ->delimiter(',');
   app.add_option("--threads", thread_counts, "CPU backend thread counts, comma separated")
@@ -384,6 +384,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(4.0, 1024.0));
   app.add_flag("--gl-debug", gl_debug,
                "a debug GL context; the driver's messages are logged (with --log debug)");
+  app.add_flag("--gl-sync-passes", sync_passes,
+               "a software rasteriser: wait for each GL pass and time it on the CPU (its timer "
+               "queries measure nothing); the passes then no longer overlap");
   app.add_flag("--check", check,
                "also compare each GL row's image with the CPU backend's (8-bit sRGB RMS, max)");
   app.add_option("--log", log_level, "log level");
@@ -449,7 +452,7 @@ int main(int argc, char** argv) {
         for (const afr::GlSplat splat : splats) {
           const bool gather = splat == afr::GlSplat::kGather;
           for (const auto& [tile, chunk] : gather_variants(gather, tiles, chunk_mibs)) {
-            afr::GlReconstructorOptions options{splat, tile, chunk << 20};
+            afr::GlReconstructorOptions options{splat, tile, chunk << 20, sync_passes};
             // "gl gather TILE" (the chunk size named only when several are timed)
             std::string name = gather ? fmt::format("gl gather {}", tile) : "gl raster";
             if (gather && chunk_mibs.size() > 1) name += fmt::format(" / {} MiB", chunk);
@@ -475,17 +478,26 @@ int main(int argc, char** argv) {
         }
       }
     }
-    if (gl && gl->software()) {
+    const bool waited = gl && gl->software() && sync_passes;
+    if (gl && gl->software() && !sync_passes) {
       fmt::print(
           "\nNo GPU times: {} runs the work when it is waited for, so its timer queries "
-          "measure nothing; with at most three images in flight its call ms measure its rate.\n",
+          "measure nothing; with at most three images in flight its call ms measure its rate "
+          "(--gl-sync-passes times each pass).\n",
           gl->renderer());
     }
     if (!passes.empty()) {
-      fmt::print(
-          "\nGPU time per pass, median ms (GL_TIME_ELAPSED; a pass's time can include the tail "
-          "of the image before it), and of the whole image (GL_TIMESTAMP, from the moment the "
-          "image before it was done)\n\n");
+      if (waited) {
+        fmt::print(
+            "\nTime per pass, median ms, each pass waited for (glFinish) and timed on the CPU "
+            "(--gl-sync-passes: {} has no timer queries); the image is their sum\n\n",
+            gl->renderer());
+      } else {
+        fmt::print(
+            "\nGPU time per pass, median ms (GL_TIME_ELAPSED; a pass's time can include the "
+            "tail of the image before it), and of the whole image (GL_TIMESTAMP, from the "
+            "moment the image before it was done)\n\n");
+      }
       fmt::print("| backend | resolution | upload | bin | splat | fill | read-back | image |\n");
       fmt::print("|---|---|---|---|---|---|---|---|\n");
       for (const std::string& line : passes) fmt::print("{}\n", line);

@@ -138,6 +138,9 @@ struct GlReconstructor::Impl {
     std::array<GLuint, kPasses> queries{};
     std::array<bool, kPasses> timed{};
     std::array<GLuint, 2> stamps{};  // GL_TIMESTAMP at its start and end
+    // GlReconstructorOptions::sync_passes: each pass's wall time, waited for on the CPU.
+    std::array<double, kPasses> waited_ms{};
+    bool waited = false;
   };
   std::array<InFlight, kInFlight> flight;
   GLuint status = 0;
@@ -279,7 +282,13 @@ struct GlReconstructor::Impl {
       *pass_ms[p] = double(ns) * 1e-6;
       f.timed[size_t(p)] = false;
     }
-    if (t.timed) {
+    if (f.waited) {  // no queries: the passes were waited for one by one
+      t.timed = true;
+      for (int p = 0; p < kPasses; ++p) *pass_ms[p] = f.waited_ms[size_t(p)];
+      t.image_ms = t.upload + t.bin + t.splat + t.fill + t.readback;
+      f.waited_ms = {};
+      f.waited = false;
+    } else if (t.timed) {
       GLuint64 start = 0, end = 0;
       glGetQueryObjectui64v(f.stamps[0], GL_QUERY_RESULT, &start);
       glGetQueryObjectui64v(f.stamps[1], GL_QUERY_RESULT, &end);
@@ -558,10 +567,23 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
   const GLintptr status_at = GLintptr(size_t(&f - m.flight.data()) * kStatusStride);
   // llvmpipe runs the work when it is waited for, so its GL_TIME_ELAPSED measures nothing.
   const bool queries = !context_->software();
+  const bool wait_passes = !queries && options_.sync_passes;
   const auto timed = [&](Pass pass, auto&& body) {
     if (queries) glBeginQuery(GL_TIME_ELAPSED, f.queries[size_t(pass)]);
+    std::chrono::steady_clock::time_point start;
+    if (wait_passes) {
+      glFinish();
+      start = std::chrono::steady_clock::now();
+    }
     body();
     if (queries) glEndQuery(GL_TIME_ELAPSED);
+    if (wait_passes) {
+      glFinish();
+      f.waited_ms[size_t(pass)] +=
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+              .count();
+      f.waited = true;
+    }
     f.timed[size_t(pass)] = queries;
   };
   // Recorded once everything before it is done: the image's start (its end, in draw()).

@@ -49,6 +49,11 @@ struct GlReconstructorOptions {
   // random reads spread over more memory than the GPU's address translation covers at once
   // cost far more than the reads (measured: docs/benchmarks.md, "GPU reconstructor").
   size_t chunk_bytes = size_t(256) << 20;
+  // Where the driver's timer queries measure nothing (a software rasteriser, which runs the
+  // work when it is waited for): wait for the GPU (glFinish) before and after each pass and
+  // time it on the CPU, so that FrameStats::gpu has per-pass times there too. It serialises
+  // the passes with the calling thread: for benchmarks, not for a display.
+  bool sync_passes = false;
 };
 
 class GlReconstructor final : public Reconstructor {
