@@ -320,9 +320,10 @@ int main(int argc, char** argv) {
     }
     const std::string setup = fmt::format(
         "{}x{}, {} s ({} frames at 60 Hz) per animation, ideal {} spp, warm-up {} s, {}; latency "
-        "{} refresh(es) for every method, occlusion rays charged as {} ray(s) each; {} runs at a "
-        "time, {} threads each",
+        "{} refresh(es) for every method{}, occlusion rays charged as {} ray(s) each; {} runs at "
+        "a time, {} threads each",
         size.width, size.height, seconds, frames, spp, warmup, seed_text, latency_frames,
+        latency_frames < 1.0 ? " (a framed method's at least the refresh its frame takes)" : "",
         occlusion_ray_cost, split.jobs, split.threads_per_run);
     const std::string commit = source_commit(source);
 

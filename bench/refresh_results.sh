@@ -106,6 +106,12 @@ add eval-robots eval-robots-256.md "The targets on BART robots at 256 x 256" \
 add eval-boxanimated eval-boxanimated-256.md "The targets on a Khronos glTF sample model at 256 x 256" \
   "Every method at 100K, 400K and 800K rays/s on BoxAnimated (tests/data/khronos: no lights, no camera: the default headlight and camera) from 0.5 s, 3 s, 3 seeds, the rules of eval-256 (docs/results.md, \"Other scenes\"); the program's table.md." \
   '"$BUILD"/bench/afr-eval --scene tests/data/khronos/BoxAnimated.gltf --camera own --start 0.5 --size 256x256 --seconds 3 --spp 9 --no-progress --out out/eval/boxanimated-256 >&2 && cat out/eval/boxanimated-256/table.md'
+add eval-256-gpu-display eval-table-256-gpu-display.md "Table 1 for a GPU display at 256 x 256" \
+  "As eval-256 with the display's latency at 1/4 refresh (--latency 0.25): what a display that reconstructs on a GPU pays (docs/benchmarks.md, \"GPU reconstructor\": 0.6-0.7 ms of GPU time at 256 x 256 on an H200, a live call of 1.9 ms). The framed methods keep their one refresh: a frame traced at rate R takes the whole refresh (docs/results.md, \"For a GPU display\"); the program's table.md." \
+  'need_kitchen && "$BUILD"/bench/afr-eval --latency 0.25 --size 256x256 --seconds 3 --spp 9 --no-progress --out out/eval/table-256-gpu-display >&2 && cat out/eval/table-256-gpu-display/table.md'
+add eval-robots-gpu-display eval-robots-256-gpu-display.md "BART robots for a GPU display at 256 x 256" \
+  "As eval-robots with the display's latency at 1/4 refresh (--latency 0.25), the framed methods at their one refresh (docs/results.md, \"For a GPU display\"); the program's table.md." \
+  'need_robots && "$BUILD"/bench/afr-eval --latency 0.25 --scene out/robots/robots.gltf --camera own --start 14 --size 256x256 --seconds 3 --spp 9 --no-progress --out out/eval/robots-256-gpu-display >&2 && cat out/eval/robots-256-gpu-display/table.md'
 add results-doc ../../docs/results.md "The tables of docs/results.md" \
   "The targets, other-scene and timing tables of docs/results.md, made by bench/eval_tables.py from the outputs of eval-256, eval-robots, eval-boxanimated and eval-timing (run those first)." \
   'python3 bench/eval_tables.py --table out/eval/table-256 $([ -d out/eval/table1-timing ] && echo --timing out/eval/table1-timing) --scene out/eval/robots-256 --scene out/eval/boxanimated-256 --write docs/results.md' \
