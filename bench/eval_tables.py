@@ -18,6 +18,8 @@ in the document (--write), or prints the tables (default). Tables:
              counts the whole run, with the ideal frames (9 spp) read from a warm cache.
     scenes   from --scene DIR (repeatable): the same targets on scenes beyond the kitchen
              and the built-in scene (afr-eval --scene runs), one table per run.
+    gpu-display  from --gpu-display DIR (repeatable): the same targets from runs at a GPU
+             display's latency (afr-eval --latency 0.25), one table per run.
 
     python3 bench/eval_tables.py --table out/eval/table-256 --timing out/eval/table1-timing
     python3 bench/eval_tables.py --table out/eval/table-256 --timing out/eval/table1-timing \\
@@ -193,13 +195,16 @@ def main():
     parser.add_argument("--timing", help="afr-eval output folder of the timed Table 1 run")
     parser.add_argument("--scene", action="append", default=[],
                         help="afr-eval output folder of a --scene run (repeatable)")
+    parser.add_argument("--gpu-display", action="append", default=[],
+                        help="afr-eval output folder of a run at a GPU display's latency "
+                        "(repeatable)")
     parser.add_argument("--rate", default="400K", help="rate of the targets table")
     parser.add_argument("--animations", default="",
                         help="animations of the targets table (default: all of the run)")
     parser.add_argument("--write", metavar="DOC", help="replace the tables' blocks in DOC")
     args = parser.parse_args()
-    if not args.table and not args.timing and not args.scene:
-        fail("nothing to do: give --table, --timing and/or --scene")
+    if not args.table and not args.timing and not args.scene and not args.gpu_display:
+        fail("nothing to do: give --table, --timing, --scene and/or --gpu-display")
     tables = {}
     if args.table:
         meta, cells = read_run(args.table)
@@ -208,6 +213,10 @@ def main():
     if args.scene:
         tables["scenes"] = "\n\n".join(
             targets_table(*read_run(folder), parse_rate(args.rate), []) for folder in args.scene)
+    if args.gpu_display:
+        tables["gpu-display"] = "\n\n".join(
+            targets_table(*read_run(folder), parse_rate(args.rate), [])
+            for folder in args.gpu_display)
     if args.timing:
         meta, _ = read_run(args.timing)
         tables["timing"] = timing_table(meta)

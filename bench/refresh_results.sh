@@ -113,8 +113,8 @@ add eval-robots-gpu-display eval-robots-256-gpu-display.md "BART robots for a GP
   "As eval-robots with the display's latency at 1/4 refresh (--latency 0.25), the framed methods at their one refresh (docs/results.md, \"For a GPU display\"); the program's table.md." \
   'need_robots && "$BUILD"/bench/afr-eval --latency 0.25 --scene out/robots/robots.gltf --camera own --start 14 --size 256x256 --seconds 3 --spp 9 --no-progress --out out/eval/robots-256-gpu-display >&2 && cat out/eval/robots-256-gpu-display/table.md'
 add results-doc ../../docs/results.md "The tables of docs/results.md" \
-  "The targets, other-scene and timing tables of docs/results.md, made by bench/eval_tables.py from the outputs of eval-256, eval-robots, eval-boxanimated and eval-timing (run those first)." \
-  'python3 bench/eval_tables.py --table out/eval/table-256 $([ -d out/eval/table1-timing ] && echo --timing out/eval/table1-timing) --scene out/eval/robots-256 --scene out/eval/boxanimated-256 --write docs/results.md' \
+  "The targets, other-scene, GPU-display and timing tables of docs/results.md, made by bench/eval_tables.py from the outputs of eval-256, eval-robots, eval-boxanimated, eval-256-gpu-display, eval-robots-gpu-display and eval-timing (run those first)." \
+  'python3 bench/eval_tables.py --table out/eval/table-256 $([ -d out/eval/table1-timing ] && echo --timing out/eval/table1-timing) --scene out/eval/robots-256 --scene out/eval/boxanimated-256 $(for d in table-256-gpu-display robots-256-gpu-display; do [ -d out/eval/$d ] && echo --gpu-display out/eval/$d; done) --write docs/results.md' \
   self
 add sweep sweep-256.md "Speed/accuracy sweep at 256 x 256" \
   "Mean RMS (mean and range over 3 seeds) and wall-clock cost on one thread of one knob at a time and of the baselines, each point against the defaults beyond the spread, Pareto fronts marked (docs/tradeoffs.md); the program's sweep.md." \
