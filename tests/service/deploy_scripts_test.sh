@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # deploy/run-local.sh and deploy/run-wall.sh end with status 1 and the reason when a node fails
-# (the display exits with an error, or every sampler exits), and with 0 after a good run; a good
-# wall run stitches the lead's snapshot, and a missing cell is drawn, not the whole image lost.
+# (the display exits with an error, or every sampler exits), and with 0 after a good run (from
+# the build or from a bundle); a good wall run stitches the lead's snapshot, and a missing cell
+# is drawn, not the whole image lost.
 #
 #   tests/service/deploy_scripts_test.sh BUILD_DIR SCENE     (the ctest deploy_scripts)
 set -uo pipefail
@@ -41,6 +42,20 @@ check "run-local, the display fails" 1 $? "$out/broken.txt" \
 
 local_run 1 --scene "$scene" --seconds 3 --output "$out/good" >"$out/good.txt" 2>&1
 check "run-local, a good run" 0 $? "$out/good.txt" "run-local: images in"
+
+# --bundle: the nodes of a deploy/bundle.sh folder, nothing built (a bundle of /bin/true, its
+# bin/ then given links to the built nodes); a bundle without the nodes is refused by name.
+deploy/bundle.sh "$out/bundle" /bin/true >"$out/bundle.txt" 2>&1
+ln -s "$build/display_node/display_node" "$build/sampler_node/sampler_node" "$out/bundle/bin/"
+deploy/run-local.sh 1 --bundle "$out/bundle" --port "$port" --metrics-port "$((port + 3))" \
+  --size 64x64 --backend cpu --scene "$scene" --seconds 3 --output "$out/bundled" \
+  >"$out/bundled.txt" 2>&1
+check "run-local, a good run from a bundle" 0 $? "$out/bundled.txt" "run-local: images in"
+rm "$out/bundle/bin/sampler_node"
+deploy/run-local.sh 1 --bundle "$out/bundle" --port "$port" --seconds 3 --output "$out/unbundled" \
+  >"$out/unbundled.txt" 2>&1
+check "run-local, a bundle without sampler_node" 1 $? "$out/unbundled.txt" \
+  "run-local: $out/bundle/bin/sampler_node not found (deploy/bundle.sh)"
 
 deploy/run-wall.sh 2x1 1 --threads 0 --size 64x32 --seconds 30 --build "$build" --port "$port" \
   --output "$out/wall" >"$out/wall.txt" 2>&1
