@@ -5,14 +5,17 @@
 #      splat passes (gather, raster), GPU time per pass from GL_TIME_ELAPSED queries;
 #   2. the OpenGL backend alone at 1920x1080 and 3840x2160 (on a hardware GPU only: llvmpipe
 #      takes seconds an image there);
-#   3. a short headless display run with two samplers (deploy/run-local.sh) on the GL backend,
-#      where display_node and sampler_node are built (the display's stats line names its GPU
-#      time per image).
+#   3. short headless display runs with two samplers (deploy/run-local.sh) on the GL backend,
+#      where display_node and sampler_node are built or bundled: 256x256, and on a hardware
+#      GPU 1920x1080 at 60 images/s and 3840x2160 at 30 (the display's stats line names its
+#      GPU time per image and its call's phases).
 # It writes bench/results/gpu-<renderer>.md (or OUT) with a header naming the renderer, the
 # EGL device, the commit and the date, and prints it.
 #
 #   bench/gpu.sh                                  build/ of this checkout
-#   bench/gpu.sh --bin DIR                        a bundle (deploy/bundle.sh DIR build/bench/afr-bench-reconstruct)
+#   bench/gpu.sh --bin DIR                        a bundle (deploy/bundle.sh DIR build/bench/afr-bench-reconstruct,
+#                                                 with build/display_node/display_node build/sampler_node/sampler_node
+#                                                 for the display runs)
 #   bench/gpu.sh --out FILE --repeats 20 --gpu 1
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -24,7 +27,7 @@ while [ $# -gt 0 ]; do
     --out) out=$2; shift 2 ;;
     --repeats) repeats=$2; shift 2 ;;
     --gpu) gpu=$2; shift 2 ;;
-    -h|--help) sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "gpu.sh: unknown option '$1'" >&2; exit 2 ;;
   esac
 done
