@@ -79,7 +79,7 @@ if [ ${#nodes[@]} -gt 0 ]; then
     read -r size threads fps <<<"$r"
     rm -rf "$tmp/run"
     deploy/run-local.sh 2 "${nodes[@]}" --seconds 12 --size "$size" --threads "$threads" \
-      --backend gl --gpu "$gpu" --display-args "--fps $fps" --output "$tmp/run" --port 7390 \
+      --backend gl --gpu "$gpu" --fps "$fps" --output "$tmp/run" --port 7390 \
       --metrics-port 9390 \
       >/dev/null 2>&1 || true
     log=$tmp/run/logs/display.log

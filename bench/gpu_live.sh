@@ -61,7 +61,7 @@ for round in $(seq 1 "$rounds"); do
     echo "--- round $round, display: $p"
     rm -rf "$tmp/run"
     deploy/run-local.sh 2 --bundle "$bin" --seconds "$seconds" --size "$size" --threads "$threads" \
-      --backend gl --gpu "$gpu" --display-args "--fps $fps" --output "$tmp/run" --port 7390 \
+      --backend gl --gpu "$gpu" --fps "$fps" --output "$tmp/run" --port 7390 \
       --metrics-port 9390 >/dev/null 2>&1 &
     run=$!
     # /stats at three moments of the run's second half.

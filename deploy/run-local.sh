@@ -17,6 +17,8 @@ usage() {
   echo "         --preset fast|balanced|accurate --window --output DIR --build DIR --every K"
   echo "         --bundle DIR (display_node and sampler_node from deploy/bundle.sh DIR, not built)"
   echo "         --backend gl|cpu|auto --gpu N (the display's reconstructor and EGL device)"
+  echo "         --fps F (the display's refresh; default 60 where the samplers' threads leave it a"
+  echo "         core of its own, else 30)"
   echo "         --display-args \"ARGS\" (more display_node options, e.g. \"--recut-interval 10\")"
   echo "         --worker-priority idle|nice|normal (the samplers' tracing threads; default nice)"
   exit "${1:-0}"
@@ -27,7 +29,7 @@ case "$1" in -h|--help) usage 0 ;; esac
 n=$1; shift
 [[ "$n" =~ ^[0-9]+$ ]] && [ "$n" -ge 1 ] && [ "$n" -le 64 ] || { echo "run-local: N must be 1..64, got '$n'" >&2; exit 1; }
 seconds=20 size=256x256 scene="" threads=1 port=7100 metrics_port=9100 preset=balanced
-window=0 output=out build=build bundle="" every=0 backend=auto gpu=-1 display_args="" worker_priority=nice
+window=0 output=out build=build bundle="" every=0 fps="" backend=auto gpu=-1 display_args="" worker_priority=nice
 while [ $# -gt 0 ]; do
   case "$1" in
     --seconds) seconds=$2; shift 2 ;;
@@ -42,6 +44,7 @@ while [ $# -gt 0 ]; do
     --build) build=$2; shift 2 ;;
     --bundle) bundle=$2; shift 2 ;;
     --every) every=$2; shift 2 ;;
+    --fps) fps=$2; shift 2 ;;
     --backend) backend=$2; shift 2 ;;
     --gpu) gpu=$2; shift 2 ;;
     --display-args) display_args=$2; shift 2 ;;
@@ -74,6 +77,13 @@ else
   sampler_program=("$build/sampler_node/sampler_node")
 fi
 
+# The display's refresh: 60 images/s when it has a core of its own (more cores than the
+# samplers' tracing threads), else 30, which a display sharing its cores with the samplers
+# holds (docs/service.md, "Refresh").
+if [ -z "$fps" ]; then
+  if [ "$(nproc)" -gt $((n * threads)) ]; then fps=60; else fps=30; fi
+fi
+
 mkdir -p "$output" "$output/logs"
 headless=--headless
 if [ "$window" = 1 ]; then
@@ -83,11 +93,12 @@ fi
 trap cleanup EXIT
 trap 'cleanup; exit 130' INT TERM
 
-echo "run-local: display on tcp://127.0.0.1:$port (metrics http://127.0.0.1:$metrics_port/stats), $n sampler(s), $seconds s"
+echo "run-local: display on tcp://127.0.0.1:$port (metrics http://127.0.0.1:$metrics_port/stats) at $fps images/s, $n sampler(s), $seconds s"
 # shellcheck disable=SC2086
 "${display_program[@]}" $scene $headless --bind "tcp://127.0.0.1:$port" \
   --size "$size" --preset "$preset" --seconds "$seconds" --output "$output" \
   --screenshot-every "$every" --metrics-port "$metrics_port" --backend "$backend" --gpu "$gpu" \
+  --fps "$fps" \
   $display_args > >(tee "$output/logs/display.log") 2>&1 &
 start_node display display "$output/logs/display.log"
 for i in $(seq 1 "$n"); do

@@ -40,8 +40,13 @@ local_run 1 --scene "$out/broken.gltf" --seconds 30 --output "$out/broken" >"$ou
 check "run-local, the display fails" 1 $? "$out/broken.txt" \
   "run-local: display failed (exit status 1): " "broken.gltf: invalid glTF" "run-local: failed"
 
+# A good run; the display refreshes 60 times a second where the sampler's one thread leaves it a
+# core, else 30, unless told (--fps).
 local_run 1 --scene "$scene" --seconds 3 --output "$out/good" >"$out/good.txt" 2>&1
-check "run-local, a good run" 0 $? "$out/good.txt" "run-local: images in"
+if [ "$(nproc)" -gt 1 ]; then want_fps=60; else want_fps=30; fi
+check "run-local, a good run" 0 $? "$out/good.txt" "run-local: images in" "at $want_fps images/s"
+local_run 1 --scene "$scene" --seconds 3 --fps 12 --output "$out/fps" >"$out/fps.txt" 2>&1
+check "run-local, --fps" 0 $? "$out/fps.txt" "at 12 images/s" "run-local: images in"
 
 # --bundle: the nodes of a deploy/bundle.sh folder, nothing built (a bundle of /bin/true, its
 # bin/ then given links to the built nodes); a bundle without the nodes is refused by name.
