@@ -6,7 +6,8 @@
 #   sampler render@10.0.0.3   8
 #   wall    render@10.0.0.4   1,0      (a display wall: the follower display for cell 1,0)
 # Usage: deploy/lan/ssh-launch.sh HOSTS start|stop|status [--keys DIR] [--port P] [--bin DIR]
-#        [--seconds S] [--scene FILE-ON-DISPLAY-HOST] [--wall CxR] [--size WxH]
+#        [--seconds S] [--scene FILE-ON-DISPLAY-HOST] [--wall CxR] [--size WxH] [--fps F]
+# The display hosts refresh at --fps (default 60: each display host is a machine of its own).
 # With `wall` hosts, give --wall COLUMNSxROWS: the display leads and shows cell 0,0, each wall
 # host shows its cell (docs/wall.md).
 # The binaries must be at --bin (default /usr/local/bin) on every host. With --keys DIR (made by
@@ -15,7 +16,7 @@
 set -euo pipefail
 [ $# -ge 2 ] || { sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'; exit 1; }
 hosts=$1 action=$2; shift 2
-keys="" port=7100 bin=/usr/local/bin seconds=0 scene="" wall=1x1 size=256x256
+keys="" port=7100 bin=/usr/local/bin seconds=0 scene="" wall=1x1 size=256x256 fps=60
 while [ $# -gt 0 ]; do
   case "$1" in
     --keys) keys=$2; shift 2 ;;
@@ -25,6 +26,7 @@ while [ $# -gt 0 ]; do
     --scene) scene=$2; shift 2 ;;
     --wall) wall=$2; shift 2 ;;
     --size) size=$2; shift 2 ;;
+    --fps) fps=$2; shift 2 ;;
     *) echo "ssh-launch: unknown option '$1'" >&2; exit 1 ;;
   esac
 done
@@ -49,7 +51,7 @@ case "$action" in
       scp -q "$keys/display.key" "$keys/samplers.allow" "$display:.afr-keys/"
       dsec=(--keys .afr-keys)
     fi
-    ssh "$display" "nohup $bin/display_node $scene --headless --bind tcp://0.0.0.0:$port --size $size --wall $wall --seconds $seconds ${dsec[*]} --metrics-port 9100 --metrics-address 0.0.0.0 --output afr-out >afr-display.log 2>&1 & echo \$! >afr-display.pid; echo display started on $display"
+    ssh "$display" "nohup $bin/display_node $scene --headless --bind tcp://0.0.0.0:$port --size $size --wall $wall --fps $fps --seconds $seconds ${dsec[*]} --metrics-port 9100 --metrics-address 0.0.0.0 --output afr-out >afr-display.log 2>&1 & echo \$! >afr-display.pid; echo display started on $display"
     for w in "${walls[@]}"; do
       read -r target cell <<<"$w"
       wsec=(--insecure)
@@ -58,7 +60,7 @@ case "$action" in
         scp -q "$keys/display.key" "$keys/samplers.allow" "$target:.afr-keys/"
         wsec=(--keys .afr-keys)
       fi
-      ssh "$target" "nohup $bin/display_node --headless --follow tcp://$display_ip:$port --cell $cell --bind tcp://0.0.0.0:$port --advertise tcp://${target#*@}:$((port + 2)) --seconds $seconds ${wsec[*]} --metrics-port 9100 --metrics-address 0.0.0.0 --output afr-out >afr-display.log 2>&1 & echo \$! >afr-display.pid; echo wall cell $cell started on $target"
+      ssh "$target" "nohup $bin/display_node --headless --follow tcp://$display_ip:$port --cell $cell --bind tcp://0.0.0.0:$port --advertise tcp://${target#*@}:$((port + 2)) --fps $fps --seconds $seconds ${wsec[*]} --metrics-port 9100 --metrics-address 0.0.0.0 --output afr-out >afr-display.log 2>&1 & echo \$! >afr-display.pid; echo wall cell $cell started on $target"
     done
     i=0
     for s in "${samplers[@]}"; do
