@@ -1,0 +1,112 @@
+#!/usr/bin/env python3
+"""bench/eval_tables.py on constructed afr-eval outputs (the ctest eval_tables).
+
+Two runs of one animation, written as afr-eval writes them (run.json, cells.csv): in one every
+target is met, in the other adaptive's range overlaps framed 60 Hz's and its worst run is above
+0.6 of traditional frameless. The script must judge each target by the spread (the ranges, the
+ratio at its worst end), put both runs' tables between the gpu-display markers of a document
+and leave the rest of it as it was, and refuse a document without the markers, naming them.
+"""
+import csv
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+SCRIPT = os.path.join(ROOT, "bench", "eval_tables.py")
+FIELDS = ["animation", "method", "rate", "runs", "mean_rms", "min_rms", "max_rms"]
+
+
+def write_run(folder, commit, cells):
+    """An afr-eval output folder: run.json and cells.csv; cells: method -> (mean, min, max)."""
+    os.makedirs(folder)
+    meta = {"command": f"afr-eval --latency 0.25 --out {folder}", "commit": commit,
+            "setup": "64x64, test set-up", "minutes": 1.5, "animations": [{"name": "anim"}]}
+    with open(os.path.join(folder, "run.json"), "w") as f:
+        json.dump(meta, f)
+    with open(os.path.join(folder, "cells.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(FIELDS)
+        for method, (mean, lo, hi) in cells.items():
+            rate = 4e6 if method == "full-res-60hz" else 4e5
+            runs = 1 if lo == hi else 3
+            w.writerow(["anim", method, rate, runs, mean, lo, hi])
+
+
+def run(*args):
+    return subprocess.run([sys.executable, SCRIPT, *args], capture_output=True, text=True)
+
+
+class EvalTablesTest(unittest.TestCase):
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory()
+        self.addCleanup(self.tmp.cleanup)
+        d = self.tmp.name
+        self.met = os.path.join(d, "met")
+        write_run(self.met, "aaaaaaa", {
+            "adaptive": (10.0, 9.8, 10.2), "frameless": (20.0, 19.9, 20.1),
+            "framed-60hz": (12.0, 12.0, 12.0), "framed-full-res": (30.0, 29.0, 31.0),
+            "full-res-60hz": (9.0, 9.0, 9.0), "framed-taa": (11.0, 10.9, 11.1)})
+        self.unmet = os.path.join(d, "unmet")
+        # Mean ratio 0.59, worst end 12.5 / 19.9 = 0.63; 12.5 overlaps framed 60 Hz's 12.2.
+        write_run(self.unmet, "bbbbbbb", {
+            "adaptive": (11.8, 11.1, 12.5), "frameless": (20.0, 19.9, 20.1),
+            "framed-60hz": (12.2, 12.2, 12.2), "framed-full-res": (30.0, 29.0, 31.0),
+            "full-res-60hz": (9.0, 9.0, 9.0), "framed-taa": (11.0, 10.9, 11.1)})
+
+    def rows(self, table):
+        return {line.split(" | ")[0].lstrip("| "): line for line in table.splitlines()
+                if line.startswith("| ")}
+
+    def test_targets_are_judged_by_the_spread(self):
+        r = run("--gpu-display", self.met, "--gpu-display", self.unmet)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        met_part, unmet_part = r.stdout.split("Made by ")[1:3]
+        self.assertIn("at commit aaaaaaa", met_part)
+        self.assertIn("at commit bbbbbbb", unmet_part)
+        met, unmet = self.rows(met_part), self.rows(unmet_part)
+        ratio = "adaptive / traditional frameless <= 0.6"
+        self.assertIn("= 0.50 (at worst 0.51)", met[ratio])
+        self.assertTrue(met[ratio].endswith("| yes |"), met[ratio])
+        self.assertIn("= 0.59 (at worst 0.63)", unmet[ratio])
+        self.assertTrue(unmet[ratio].endswith("| no |"), unmet[ratio])
+        below = "adaptive below framed 60 Hz"
+        self.assertIn("10.0 vs 12.0: lower", met[below])
+        self.assertTrue(met[below].endswith("| yes |"))
+        self.assertIn("11.8 vs 12.2: within spread", unmet[below])
+        self.assertTrue(unmet[below].endswith("| no |"))
+        # 10.2 / 9.0 at worst: within 1.25 x full res 60 Hz.
+        self.assertTrue(met["adaptive <= 1.25 x full res 60 Hz"].endswith("| yes |"))
+
+    def test_the_tables_replace_only_the_marked_block(self):
+        doc = os.path.join(self.tmp.name, "results.md")
+        before = "# Results\n\nText above.\n\n"
+        after = "\n\nText below.\n"
+        with open(doc, "w") as f:
+            f.write(before + "<!-- eval_tables.py gpu-display: begin -->\nold table\n"
+                    "<!-- eval_tables.py gpu-display: end -->" + after)
+        r = run("--gpu-display", self.met, "--write", doc)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(doc) as f:
+            text = f.read()
+        self.assertTrue(text.startswith(before), text)
+        self.assertTrue(text.endswith(after), text)
+        self.assertNotIn("old table", text)
+        self.assertIn("at commit aaaaaaa", text)
+
+    def test_a_document_without_the_markers_is_refused_by_name(self):
+        doc = os.path.join(self.tmp.name, "plain.md")
+        with open(doc, "w") as f:
+            f.write("# Results\n")
+        r = run("--gpu-display", self.met, "--write", doc)
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("no '<!-- eval_tables.py gpu-display: begin -->'", r.stderr)
+        with open(doc) as f:
+            self.assertEqual(f.read(), "# Results\n")
+
+
+if __name__ == "__main__":
+    unittest.main()
