@@ -210,13 +210,10 @@ def main():
         meta, cells = read_run(args.table)
         animations = [a for a in args.animations.split(",") if a]
         tables["targets"] = targets_table(meta, cells, parse_rate(args.rate), animations)
-    if args.scene:
-        tables["scenes"] = "\n\n".join(
-            targets_table(*read_run(folder), parse_rate(args.rate), []) for folder in args.scene)
-    if args.gpu_display:
-        tables["gpu-display"] = "\n\n".join(
-            targets_table(*read_run(folder), parse_rate(args.rate), [])
-            for folder in args.gpu_display)
+    for block, folders in (("scenes", args.scene), ("gpu-display", args.gpu_display)):
+        if folders:
+            tables[block] = "\n\n".join(
+                targets_table(*read_run(folder), parse_rate(args.rate), []) for folder in folders)
     if args.timing:
         meta, _ = read_run(args.timing)
         tables["timing"] = timing_table(meta)

@@ -5,7 +5,7 @@
 #      splat passes (gather, raster), GPU time per pass from GL_TIME_ELAPSED queries;
 #   2. the OpenGL backend alone at 1920x1080 and 3840x2160 (on a hardware GPU only: llvmpipe
 #      takes seconds an image there);
-#   3. short headless display runs with two samplers (deploy/run-local.sh) on the GL backend,
+#   3. short headless display runs with two samplers (bench/gpu_live.sh) on the GL backend,
 #      where display_node and sampler_node are built or bundled: 256x256, and on a hardware
 #      GPU 1920x1080 at 60 images/s and 3840x2160 at 30 (the display's stats line names its
 #      GPU time per image and its call's phases).
@@ -57,35 +57,28 @@ else
     --gl-tiles 8,16 | tee "$tmp/large.md"
 fi
 
-# The display runs: deploy/run-local.sh with the nodes of build/ or of the bundle (which must
+# The display runs (bench/gpu_live.sh) with the nodes of build/ or of the bundle (which must
 # hold display_node and sampler_node: deploy/bundle.sh DIR build/display_node/display_node
 # build/sampler_node/sampler_node build/bench/afr-bench-reconstruct). 256x256 everywhere; on a
 # hardware GPU also 1920x1080 at 60 images/s and 3840x2160 at 30 (the targets of the benchmark
-# above, live), the samplers given the cores the display leaves.
+# above, live), the samplers given the cores the display leaves (gpu_live.sh's default).
 nodes=()
 if [ -n "$bin" ]; then
-  [ -x "$bin/bin/display_node" ] && [ -x "$bin/bin/sampler_node" ] && nodes=(--bundle "$bin")
+  [ -x "$bin/bin/display_node" ] && [ -x "$bin/bin/sampler_node" ] && nodes=(--bin "$bin")
 elif [ -x build/display_node/display_node ] && [ -x build/sampler_node/sampler_node ]; then
   nodes=(--build build)
 fi
-runs=("256x256 1 30")
+runs=("256x256 30 --threads 1")
 if [ "$hardware" = 1 ]; then
-  threads=$(( $(nproc) / 2 > 2 ? $(nproc) / 2 - 1 : 1 ))
-  runs+=("1920x1080 $threads 60" "3840x2160 $threads 30")
+  runs+=("1920x1080 60" "3840x2160 30")
 fi
 display=""
 if [ ${#nodes[@]} -gt 0 ]; then
   for r in "${runs[@]}"; do
-    read -r size threads fps <<<"$r"
-    rm -rf "$tmp/run"
-    deploy/run-local.sh 2 "${nodes[@]}" --seconds 12 --size "$size" --threads "$threads" \
-      --backend gl --gpu "$gpu" --fps "$fps" --output "$tmp/run" --port 7390 \
-      --metrics-port 9390 \
-      >/dev/null 2>&1 || true
-    log=$tmp/run/logs/display.log
-    display+="--- $size at $fps images/s, 2 samplers x $threads threads"$'\n'
-    display+=$( (grep -m1 "reconstruction backend" "$log"; grep "display .* Hz" "$log" | tail -2) \
-      2>/dev/null || echo "(no display log)")$'\n'
+    read -r size fps more <<<"$r"
+    # shellcheck disable=SC2086
+    display+=$(bench/gpu_live.sh "${nodes[@]}" --size "$size" --fps "$fps" $more --rounds 1 \
+      --seconds 12 --gpu "$gpu" 2>&1 || true)$'\n'
   done
 fi
 
@@ -111,7 +104,7 @@ fi
   cat "$tmp/large.md"
   if [ -n "$display" ]; then
     echo
-    echo "Headless display runs (deploy/run-local.sh 2, 12 s, GL backend, the built-in scene), their logs:"
+    echo "Headless display runs (bench/gpu_live.sh: deploy/run-local.sh 2, 12 s, GL backend, the built-in scene):"
     echo
     echo '```'
     printf '%s' "$display"

@@ -268,7 +268,8 @@ TEST(GlReconstructorTest, ImagesNotReadBackFinishAndReportTheirGpuTimes) {
 
 // sync_passes: where the timer queries measure nothing (a software rasteriser, as in CI),
 // every image gets each pass's time waited for on the CPU, and the image's time is their sum;
-// on a hardware GPU the queries time it as before. The image is the same either way.
+// on a hardware GPU the queries time it as before. The image is the same either way, up to the
+// order the gather's atomics list a tile's splats in (its sums' last bits).
 TEST(GlReconstructorTest, PassesWaitedForAreTimedWhereTheDriverHasNoQueries) {
   AFR_REQUIRE_GL(context);
   const int W = 48, H = 32;
@@ -298,7 +299,8 @@ TEST(GlReconstructorTest, PassesWaitedForAreTimedWhereTheDriverHasNoQueries) {
         EXPECT_NEAR(g.total(), g.upload + g.bin + g.splat + g.fill + g.readback, 1e-9);
       }
       const test::Diff8 d = diff8(a, b);
-      EXPECT_EQ(d.max, 0);
+      EXPECT_LE(d.rms, 0.1);
+      EXPECT_LE(d.max, 1);
     }
   }
 }
