@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 namespace afr {
 namespace {
@@ -32,55 +33,105 @@ namespace {
 uint8_t srgb8_by_formula(float c) { return uint8_t(std::lround(linear_to_srgb_exact(c) * 255.0)); }
 
 // The code is a step function of c: thresholds[k] is the smallest positive float whose code is
-// at least k (k = 1..255), found once by bisection over the ordered float bit patterns, so
-// that a lookup gives the formula's code for every float, with 8 comparisons instead of a pow.
-struct Srgb8Thresholds {
-  std::array<float, 256> thresholds{};
-  Srgb8Thresholds() {
+// at least k (k = 1..255), found once by bisection over the ordered float bit patterns, so that
+// a lookup gives the formula's code for every float without a pow. Positive floats order like
+// their bit patterns; bucket_code[b] is the code of the first float whose bits >> kBucketShift
+// are b. No bucket holds two thresholds (checked here), so a float's code is its bucket's code,
+// plus one where it is at or past the next threshold: one table read and one comparison.
+struct Srgb8Table {
+  static constexpr int kBucketShift = 16;
+  static constexpr uint32_t kOne = 0x3f800000u;  // 1.0f
+  std::array<float, 257> thresholds{};           // [256]: +inf, never reached
+  std::array<uint8_t, (kOne >> kBucketShift)> bucket_code{};
+
+  Srgb8Table() {
+    std::array<uint32_t, 256> bits{};
     for (int k = 1; k < 256; ++k) {
-      // Positive floats order like their bit patterns; the code of 1.0f's predecessor is 255.
-      uint32_t lo = 0, hi = 0x3f800000u;  // code(lo) < k <= code(hi) (0 and 1.0f)
+      uint32_t lo = 0, hi = kOne;  // code(lo) < k <= code(hi) (0 and 1.0f)
       while (hi - lo > 1) {
         const uint32_t mid = lo + (hi - lo) / 2;
         float v;
         std::memcpy(&v, &mid, sizeof v);
         (srgb8_by_formula(v) >= k ? hi : lo) = mid;
       }
+      bits[size_t(k)] = hi;
       std::memcpy(&thresholds[size_t(k)], &hi, sizeof(float));
+      if (k > 1 && (bits[size_t(k - 1)] >> kBucketShift) == (hi >> kBucketShift)) {
+        throw Error(fmt::format("sRGB table: codes {} and {} share a bucket", k - 1, k));
+      }
+    }
+    thresholds[256] = std::numeric_limits<float>::infinity();
+    int code = 0;
+    for (uint32_t b = 0; b < bucket_code.size(); ++b) {
+      while (code < 255 && bits[size_t(code) + 1] <= (b << kBucketShift)) ++code;
+      bucket_code[b] = uint8_t(code);
     }
   }
 };
 
-}  // namespace
+const Srgb8Table& srgb8_table() {
+  static const Srgb8Table table;
+  return table;
+}
 
-uint8_t linear_to_srgb8(float c) {
+inline uint8_t srgb8_code(const Srgb8Table& table, float c) {
   if (!(c > 0.0f)) return 0;  // also NaN
   if (c >= 1.0f) return 255;
-  static const Srgb8Thresholds table;
-  const float* t = table.thresholds.data();
-  int code = 0;  // the largest k with t[k] <= c: binary search over 1..255
-  for (int step = 128; step > 0; step /= 2) {
-    if (code + step <= 255 && t[code + step] <= c) code += step;
+  uint32_t bits;
+  std::memcpy(&bits, &c, sizeof bits);
+  const int code = table.bucket_code[bits >> Srgb8Table::kBucketShift];
+  return uint8_t(code + (c >= table.thresholds[size_t(code) + 1]));
+}
+
+}  // namespace
+
+uint8_t linear_to_srgb8(float c) { return srgb8_code(srgb8_table(), c); }
+
+Srgb8Image to_srgb8(const Image& image) {
+  const Srgb8Table& table = srgb8_table();
+  Srgb8Image out;
+  out.width = image.width;
+  out.height = image.height;
+  out.codes.resize(3 * image.pixels.size());
+  for (size_t i = 0; i < image.pixels.size(); ++i) {
+    for (int c = 0; c < 3; ++c)
+      out.codes[3 * i + size_t(c)] = srgb8_code(table, image.pixels[i][c]);
   }
-  return uint8_t(code);
+  return out;
 }
 
 // ---- Error metric ----
 
-double rms_error_255(const Image& a, const Image& b) {
-  if (a.width != b.width || a.height != b.height || a.pixels.size() != b.pixels.size()) {
-    throw Error(fmt::format("cannot compare images of different sizes: {} x {} and {} x {}",
-                            a.width, a.height, b.width, b.height));
+namespace {
+
+// a and b: width, height and channel values (3 per pixel).
+void check_comparable(int aw, int ah, size_t a_values, int bw, int bh, size_t b_values) {
+  if (aw != bw || ah != bh || a_values != b_values) {
+    throw Error(fmt::format("cannot compare images of different sizes: {} x {} and {} x {}", aw, ah,
+                            bw, bh));
   }
+}
+
+}  // namespace
+
+double rms_error_255(const Image& a, const Image& b) {
+  check_comparable(a.width, a.height, a.pixels.size(), b.width, b.height, b.pixels.size());
+  return rms_error_255(a, to_srgb8(b));
+}
+
+double rms_error_255(const Image& a, const Srgb8Image& b) {
+  check_comparable(a.width, a.height, 3 * a.pixels.size(), b.width, b.height, b.codes.size());
   if (a.pixels.empty()) return 0.0;
-  double sum = 0.0;
+  const Srgb8Table& table = srgb8_table();
+  // Integer sums: exact, so the result does not depend on the order of the pixels.
+  uint64_t sum = 0;
   for (size_t i = 0; i < a.pixels.size(); ++i) {
     for (int c = 0; c < 3; ++c) {
-      const double d = double(linear_to_srgb8(a.pixels[i][c])) - linear_to_srgb8(b.pixels[i][c]);
-      sum += d * d;
+      const int d = int(srgb8_code(table, a.pixels[i][c])) - int(b.codes[3 * i + size_t(c)]);
+      sum += uint64_t(d * d);
     }
   }
-  return std::sqrt(sum / (3.0 * double(a.pixels.size())));
+  return std::sqrt(double(sum) / (3.0 * double(a.pixels.size())));
 }
 
 }  // namespace afr

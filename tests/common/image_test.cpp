@@ -250,6 +250,33 @@ TEST(RmsErrorTest, OneDifferingPixelMatchesHandComputedValue) {
 
 TEST(RmsErrorTest, DifferentSizesThrow) {
   EXPECT_THROW(rms_error_255(Image(2, 3), Image(3, 2)), Error);
+  EXPECT_THROW(rms_error_255(Image(2, 3), to_srgb8(Image(3, 2))), Error);
+  Srgb8Image short_codes = to_srgb8(Image(2, 3));
+  short_codes.codes.pop_back();
+  EXPECT_THROW(rms_error_255(Image(2, 3), short_codes), Error);
+}
+
+// An image compared through its display codes (what afr-eval does with its ideal frames) gives
+// what comparing the images gives, and the codes are linear_to_srgb8 of each channel in order.
+TEST(RmsErrorTest, ComparingWithDisplayCodesEqualsComparingImages) {
+  const Image a = test_pattern(7, 5);
+  Image b(7, 5);
+  for (size_t i = 0; i < b.pixels.size(); ++i) {
+    const float f = float(i) / float(b.pixels.size());
+    b.pixels[i] = {f * f, 1.2f - f, i % 3 == 0 ? -0.5f : 0.5f * f};
+  }
+  const Srgb8Image codes = to_srgb8(b);
+  ASSERT_EQ(codes.width, 7);
+  ASSERT_EQ(codes.height, 5);
+  ASSERT_EQ(codes.codes.size(), 3 * b.pixels.size());
+  for (size_t i = 0; i < b.pixels.size(); ++i) {
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_EQ(codes.codes[3 * i + size_t(c)], linear_to_srgb8(b.pixels[i][c])) << i << " " << c;
+    }
+  }
+  EXPECT_GT(rms_error_255(a, codes), 10.0);
+  EXPECT_EQ(rms_error_255(a, codes), rms_error_255(a, b));
+  EXPECT_EQ(rms_error_255(b, to_srgb8(b)), 0.0);
 }
 
 TEST_F(ImageTest, CorruptFileFailsNamingIt) {

@@ -80,9 +80,20 @@ std::vector<Image> ideal_frames(const Scene& scene, Tracer& tracer, const EvalCo
   return out;
 }
 
-RunResult run_and_compare(const Scene& scene, Tracer& tracer, const RunSettings& settings,
-                          const std::vector<Image>& ideal, const std::vector<int>& strip_frames,
-                          Progress* progress) {
+namespace {
+
+// The ideal frames as the display codes their comparisons read: converted once per animation,
+// not once per run.
+std::vector<Srgb8Image> display_codes(const std::vector<Image>& frames) {
+  std::vector<Srgb8Image> out;
+  out.reserve(frames.size());
+  for (const Image& f : frames) out.push_back(to_srgb8(f));
+  return out;
+}
+
+RunResult compare_run(const Scene& scene, Tracer& tracer, const RunSettings& settings,
+                      const std::vector<Srgb8Image>& ideal, const std::vector<int>& strip_frames,
+                      Progress* progress) {
   AFR_CHECK(ideal.size() == size_t(settings.frames));
   RunResult r;
   r.method = settings.method;
@@ -107,6 +118,14 @@ RunResult run_and_compare(const Scene& scene, Tracer& tracer, const RunSettings&
   return r;
 }
 
+}  // namespace
+
+RunResult run_and_compare(const Scene& scene, Tracer& tracer, const RunSettings& settings,
+                          const std::vector<Image>& ideal, const std::vector<int>& strip_frames,
+                          Progress* progress) {
+  return compare_run(scene, tracer, settings, display_codes(ideal), strip_frames, progress);
+}
+
 JobSplit job_split(const EvalConfig& config) {
   const int cores = config.base.threads > 0 ? config.base.threads
                                             : std::max(1, int(std::thread::hardware_concurrency()));
@@ -126,6 +145,7 @@ std::vector<RunResult> run_all(const Scene& scene, Tracer& tracer,
   std::iota(order.begin(), order.end(), size_t(0));
   std::stable_sort(order.begin(), order.end(),
                    [&](size_t a, size_t b) { return runs[a].rate > runs[b].rate; });
+  const std::vector<Srgb8Image> ideal_codes = display_codes(ideal);
   std::vector<RunResult> done(runs.size());
   std::atomic<size_t> next{0}, finished{0};
   std::mutex error_mutex;
@@ -135,8 +155,8 @@ std::vector<RunResult> run_all(const Scene& scene, Tracer& tracer,
     for (size_t k = next++; k < order.size(); k = next++) {
       const RunSettings& s = runs[order[k]];
       try {
-        RunResult r =
-            run_and_compare(scene, *own, s, ideal, s.seed == strip_seed ? strips : none, progress);
+        RunResult r = compare_run(scene, *own, s, ideal_codes, s.seed == strip_seed ? strips : none,
+                                  progress);
         r.animation = animation;
         spdlog::debug(
             "{} {} {:.0f} seed {}: mean RMS {:.2f}, {:.1f} s sampling, {:.1f} s reconstruction",

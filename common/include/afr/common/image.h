@@ -27,8 +27,17 @@ struct Image {
 
 float srgb_to_linear(float c);
 float linear_to_srgb(float c);
-// A linear value as the 8-bit sRGB value a display shows (clamped, rounded).
+// A linear value as the 8-bit sRGB value a display shows (clamped, rounded): exactly the
+// formula's code for every float, by a table.
 uint8_t linear_to_srgb8(float c);
+
+// An image as a display shows it: linear_to_srgb8 of each channel, r, g, b per pixel, rows top
+// to bottom. What rms_error_255 compares; made once for an image compared many times.
+struct Srgb8Image {
+  int width = 0, height = 0;
+  std::vector<uint8_t> codes;
+};
+Srgb8Image to_srgb8(const Image& image);
 
 // Writes by extension: .exr keeps linear floats; .png/.jpg/.ppm/.tif store 8-bit sRGB.
 // Throws afr::Error naming the file on failure.
@@ -58,5 +67,7 @@ void write_image8(const DecodedImage& image, const std::filesystem::path& path);
 // 8-bit sRGB display values, over all pixels and the three channels (the metric of the
 // paper's Table 1). Throws afr::Error if the sizes differ.
 double rms_error_255(const Image& a, const Image& b);
+// The same against an image already as its display codes.
+double rms_error_255(const Image& a, const Srgb8Image& b);
 
 }  // namespace afr
