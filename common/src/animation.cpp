@@ -36,6 +36,56 @@ std::string_view to_string(AnimatedPath path) {
   return "?";
 }
 
+AnimationChannel::KeyRepair AnimationChannel::repair_key_order() {
+  KeyRepair result;
+  const size_t n = times.size();
+  const size_t per_key = interpolation == Interpolation::kCubicSpline ? 3 : 1;
+  bool ordered = true;
+  for (size_t i = 0; i < n; ++i) {
+    if (!std::isfinite(times[i])) return result;
+    if (i > 0 && !(times[i] > times[i - 1])) ordered = false;
+  }
+  const bool weighted = path == AnimatedPath::kWeights;
+  const size_t values_per_key = weighted ? per_key * weight_count : per_key;
+  const size_t stored = weighted ? weights.size() : values.size();
+  if (ordered || values_per_key == 0 || stored != n * values_per_key) return result;
+
+  std::vector<size_t> order(n);
+  for (size_t i = 0; i < n; ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return times[a] < times[b]; });
+  std::vector<size_t> kept;
+  for (size_t k : order) {
+    if (!kept.empty() && times[kept.back()] == times[k]) {
+      kept.back() = k;  // the later in the file
+    } else {
+      kept.push_back(k);
+    }
+  }
+  std::vector<double> new_times;
+  std::vector<glm::dvec4> new_values;
+  std::vector<double> new_weights;
+  for (size_t k : kept) {
+    new_times.push_back(times[k]);
+    for (size_t j = 0; j < values_per_key; ++j) {
+      if (weighted) {
+        new_weights.push_back(weights[k * values_per_key + j]);
+      } else {
+        new_values.push_back(values[k * values_per_key + j]);
+      }
+    }
+  }
+  result.repaired = true;
+  result.dropped = n - kept.size();
+  times = std::move(new_times);
+  if (weighted) {
+    weights = std::move(new_weights);
+  } else {
+    values = std::move(new_values);
+  }
+  return result;
+}
+
 void AnimationChannel::validate(std::string_view what) const {
   if (times.empty()) throw Error(fmt::format("{}: animation channel has no keyframes", what));
   const size_t per_key = interpolation == Interpolation::kCubicSpline ? 3 : 1;

@@ -145,9 +145,15 @@ class Loader {
   }
   // Logs one warning per feature key, however often the feature occurs.
   void warn_once(const std::string& feature, const std::string& message);
+  // AnimationChannel::repair_key_order with a warning naming the channel when it repairs.
+  void repair_key_order(AnimationChannel* channel, const std::string& what);
 
   std::vector<uint8_t> read_file() const;
   void parse(std::span<const uint8_t> bytes);
+  // Fails naming what is wrong with a .glb's header and chunks; *kept: the chunks (header and
+  // data) of the JSON and the BIN chunk, in order, those of unknown types left out (warned).
+  void check_glb_layout(std::span<const uint8_t> bytes,
+                        std::vector<std::span<const uint8_t>>* kept);
   void check_extensions();
   void add_default_lighting();
 
@@ -204,6 +210,18 @@ void Loader::warn_once(const std::string& feature, const std::string& message) {
   if (report_ != nullptr) report_->warnings.push_back(std::move(line));
 }
 
+void Loader::repair_key_order(AnimationChannel* channel, const std::string& what) {
+  const size_t before = channel->times.size();
+  const AnimationChannel::KeyRepair fix = channel->repair_key_order();
+  if (!fix.repaired) return;
+  std::string line = fmt::format(
+      "{}: {}: keyframe times are not strictly increasing, as glTF requires; keys sorted by "
+      "time, {} of {} dropped where a later key has the same time",
+      path_.string(), what, fix.dropped, before);
+  spdlog::warn("{}", line);
+  if (report_ != nullptr) report_->warnings.push_back(std::move(line));
+}
+
 std::vector<uint8_t> Loader::read_file() const {
   std::error_code ec;
   if (!fs::exists(path_, ec)) fail("no such file");
@@ -217,6 +235,81 @@ std::vector<uint8_t> Loader::read_file() const {
     fail("cannot read the file");
   }
   return bytes;
+}
+
+namespace {
+
+// tinygltf's messages, one problem per line, as one line: "a; b; c".
+std::string one_line(const std::string& text) {
+  std::string out;
+  size_t start = 0;
+  while (start <= text.size()) {
+    size_t end = text.find('\n', start);
+    if (end == std::string::npos) end = text.size();
+    std::string line = text.substr(start, end - start);
+    while (!line.empty() && (line.back() == ' ' || line.back() == '\r')) line.pop_back();
+    if (!line.empty()) out += (out.empty() ? "" : "; ") + line;
+    start = end + 1;
+  }
+  return out;
+}
+
+uint32_t read_u32_le(std::span<const uint8_t> bytes, size_t at) {
+  uint32_t v = 0;
+  for (size_t i = 0; i < 4; ++i) v |= uint32_t(bytes[at + i]) << (8 * i);
+  return v;
+}
+
+}  // namespace
+
+// tinygltf says only "Invalid glTF binary." for most broken .glb files; say what is wrong
+// (glTF 2.0, 4.4: a 12-byte header of magic, version 2 and the total length, then chunks of
+// an 8-byte header, the length and type, the JSON chunk first and at most one BIN chunk).
+void Loader::check_glb_layout(std::span<const uint8_t> bytes,
+                              std::vector<std::span<const uint8_t>>* kept) {
+  constexpr uint32_t kJson = 0x4E4F534Au, kBin = 0x004E4942u;
+  if (bytes.size() < 12) {
+    fail(fmt::format("truncated .glb: {} bytes, shorter than its 12-byte header", bytes.size()));
+  }
+  const uint32_t version = read_u32_le(bytes, 4), declared = read_u32_le(bytes, 8);
+  if (version != 2) fail(fmt::format(".glb of version {}: afr reads version 2", version));
+  if (declared > bytes.size()) {
+    fail(fmt::format("truncated .glb: the header declares {} bytes but the file has {}", declared,
+                     bytes.size()));
+  }
+  const size_t end = declared;  // bytes past the declared length are not the file's
+  size_t at = 12;
+  bool seen_bin = false;
+  for (int chunk = 0; at < end; ++chunk) {
+    if (end - at < 8) {
+      fail(fmt::format("truncated .glb: chunk {} at byte {} has {} of its 8 header bytes", chunk,
+                       at, end - at));
+    }
+    const uint32_t length = read_u32_le(bytes, at), type = read_u32_le(bytes, at + 4);
+    if (length > end - at - 8) {
+      fail(fmt::format("truncated .glb: chunk {} declares {} bytes but {} follow its header", chunk,
+                       length, end - at - 8));
+    }
+    if (chunk == 0 && type != kJson) {
+      fail(fmt::format(".glb's first chunk is of type 0x{:08x}, not JSON (0x{:08x})", type, kJson));
+    }
+    if (chunk == 0 && length == 0) fail(".glb's JSON chunk is empty");
+    if (chunk > 0 && type == kJson) fail(fmt::format(".glb has a second JSON chunk ({})", chunk));
+    if (chunk > 0 && type != kBin) {
+      // Readers must skip chunks of types they do not know (4.4.3.1); tinygltf refuses them.
+      warn_once("glb chunk",
+                fmt::format(".glb chunk {} of unknown type 0x{:08x} ignored", chunk, type));
+    } else if (type == kBin && seen_bin) {
+      warn_once(
+          "glb bin",
+          fmt::format(".glb chunk {} is a second BIN chunk (one is allowed): ignored", chunk));
+    } else {
+      seen_bin = seen_bin || type == kBin;
+      kept->push_back(bytes.subspan(at, 8 + size_t(length)));
+    }
+    at += 8 + size_t(length);
+  }
+  if (at == 12) fail("truncated .glb: no JSON chunk after its 12-byte header");
 }
 
 void Loader::parse(std::span<const uint8_t> bytes) {
@@ -236,15 +329,17 @@ void Loader::parse(std::span<const uint8_t> bytes) {
   std::string warn;
   const std::string base_dir = access_.root.string();
   const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
+  std::vector<uint8_t> compacted;  // a .glb without its chunks of unknown types
   if (binary) {
-    // tinygltf says only "Invalid glTF binary." for a cut-off file; say what is wrong.
-    uint32_t declared = 0;  // little-endian, at byte 8
-    for (size_t i = 0; i < 4 && 8 + i < bytes.size(); ++i) {
-      declared |= uint32_t(bytes[8 + i]) << (8 * i);
-    }
-    if (bytes.size() < 20 || declared > bytes.size()) {
-      fail(fmt::format("truncated .glb: the header declares {} bytes but the file has {}", declared,
-                       bytes.size()));
+    std::vector<std::span<const uint8_t>> chunks;
+    check_glb_layout(bytes, &chunks);
+    size_t kept_bytes = 12;
+    for (const auto& c : chunks) kept_bytes += c.size();
+    if (kept_bytes != size_t(read_u32_le(bytes, 8))) {
+      compacted.assign(bytes.begin(), bytes.begin() + 12);
+      for (int i = 0; i < 4; ++i) compacted[size_t(8 + i)] = uint8_t(kept_bytes >> (8 * i));
+      for (const auto& c : chunks) compacted.insert(compacted.end(), c.begin(), c.end());
+      bytes = compacted;
     }
   }
   bool ok = false;
@@ -264,10 +359,7 @@ void Loader::parse(std::span<const uint8_t> bytes) {
   }
   if (!ok) {
     // Some failures (an empty image file) are told only as a warning.
-    std::string problem = err.empty() ? warn : err;
-    while (!problem.empty() && (problem.back() == '\n' || problem.back() == ' ')) {
-      problem.pop_back();
-    }
+    std::string problem = one_line(err.empty() ? warn : err);
     for (const std::string& file : access_.refused) {
       problem += fmt::format(" (refused to read {}: outside the folder of the glTF file)", file);
     }
@@ -372,8 +464,14 @@ std::string_view type_name(int type) {
       return "VEC3";
     case TINYGLTF_TYPE_VEC4:
       return "VEC4";
+    case TINYGLTF_TYPE_MAT2:
+      return "MAT2";
+    case TINYGLTF_TYPE_MAT3:
+      return "MAT3";
+    case TINYGLTF_TYPE_MAT4:
+      return "MAT4";
     default:
-      return "a matrix type";
+      return "an unknown type";
   }
 }
 
@@ -1381,6 +1479,7 @@ void Loader::load_animations() {
         channel.times.assign(times.begin(), times.end());
         channel.weights.assign(values.begin(), values.end());
         channel.weight_count = targets;
+        repair_key_order(&channel, what);
         channel.validate(fmt::format("{} of {}", what, path_.string()));
         scene_.channels.push_back(std::move(channel));
         continue;
@@ -1396,6 +1495,7 @@ void Loader::load_animations() {
         const float* v = &values[i * width];
         channel.values[i] = glm::dvec4(v[0], v[1], v[2], width == 4 ? v[3] : 0.0f);
       }
+      repair_key_order(&channel, what);
       channel.validate(fmt::format("{} of {}", what, path_.string()));
       scene_.channels.push_back(std::move(channel));
     }

@@ -117,6 +117,65 @@ TEST(AnimationTest, ValidateRejectsBadChannels) {
   }
 }
 
+// Keys out of order or at repeated times are sorted (stable) and, of keys at one time, the last
+// kept, their values (three each for CUBICSPLINE) and weights moving with them; ordered
+// channels and channels validate must refuse (a NaN time, a wrong value count) are left alone.
+TEST(AnimationTest, RepairKeyOrderSortsKeysAndKeepsTheLastOfEqualTimes) {
+  AnimationChannel ch;
+  ch.interpolation = Interpolation::kLinear;
+  ch.times = {0.0, 2.0, 1.0, 1.0, 3.0};
+  ch.values = {{0, 0, 0, 0}, {2, 0, 0, 0}, {10, 0, 0, 0}, {11, 0, 0, 0}, {3, 0, 0, 0}};
+  const AnimationChannel::KeyRepair fix = ch.repair_key_order();
+  EXPECT_TRUE(fix.repaired);
+  EXPECT_EQ(fix.dropped, 1u);
+  EXPECT_EQ(ch.times, (std::vector<double>{0.0, 1.0, 2.0, 3.0}));
+  ASSERT_EQ(ch.values.size(), 4u);
+  EXPECT_EQ(ch.values[1].x, 11.0);  // the later of the two keys at t = 1
+  EXPECT_EQ(ch.values[2].x, 2.0);
+  EXPECT_NO_THROW(ch.validate("repaired"));
+  EXPECT_DOUBLE_EQ(ch.evaluate(1.5).x, 6.5);
+
+  // Ordered: nothing to do.
+  EXPECT_FALSE(ch.repair_key_order().repaired);
+
+  // CUBICSPLINE: in-tangent, value and out-tangent travel together.
+  AnimationChannel cubic;
+  cubic.interpolation = Interpolation::kCubicSpline;
+  cubic.times = {1.0, 0.0};
+  cubic.values = {{-1, 0, 0, 0}, {1, 0, 0, 0}, {-2, 0, 0, 0},
+                  {-3, 0, 0, 0}, {3, 0, 0, 0}, {-4, 0, 0, 0}};
+  EXPECT_TRUE(cubic.repair_key_order().repaired);
+  EXPECT_EQ(cubic.times, (std::vector<double>{0.0, 1.0}));
+  ASSERT_EQ(cubic.values.size(), 6u);
+  EXPECT_EQ(cubic.values[0].x, -3.0);
+  EXPECT_EQ(cubic.values[1].x, 3.0);
+  EXPECT_EQ(cubic.values[3].x, -1.0);
+  EXPECT_EQ(cubic.values[5].x, -2.0);
+
+  // Weights: weight_count numbers per key.
+  AnimationChannel w;
+  w.path = AnimatedPath::kWeights;
+  w.interpolation = Interpolation::kStep;
+  w.weight_count = 2;
+  w.times = {0.5, 0.5, 0.0};
+  w.weights = {1, 2, 3, 4, 5, 6};
+  const AnimationChannel::KeyRepair wfix = w.repair_key_order();
+  EXPECT_TRUE(wfix.repaired);
+  EXPECT_EQ(wfix.dropped, 1u);
+  EXPECT_EQ(w.times, (std::vector<double>{0.0, 0.5}));
+  EXPECT_EQ(w.weights, (std::vector<double>{5, 6, 3, 4}));
+
+  // What validate refuses stays for it to name.
+  AnimationChannel bad;
+  bad.times = {1.0, NAN, 0.0};
+  bad.values = {{0, 0, 0, 0}, {1, 0, 0, 0}, {2, 0, 0, 0}};
+  EXPECT_FALSE(bad.repair_key_order().repaired);
+  EXPECT_THROW(bad.validate("nan"), Error);
+  bad.times = {1.0, 0.0};
+  EXPECT_FALSE(bad.repair_key_order().repaired);  // 3 values for 2 keys
+  EXPECT_THROW(bad.validate("count"), Error);
+}
+
 // A weights channel interpolates each of its weights on its own, as a scalar channel would:
 // the reference is a translation channel per weight.
 TEST(AnimationTest, WeightsChannelsInterpolateEveryWeightLikeAScalarChannel) {

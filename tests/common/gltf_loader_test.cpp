@@ -665,6 +665,29 @@ TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {
   EXPECT_EQ(scene.channels[0].path, AnimatedPath::kScale);
 }
 
+// glTF requires strictly increasing keyframe times, but exporters write repeated and unordered
+// ones: the channel is repaired with a warning naming it, not the whole scene refused.
+TEST_F(GltfLoaderTest, KeyframeTimesOutOfOrderAreSortedWithAWarning) {
+  GltfBuilder b;
+  add_quad(&b);
+  const int times = b.add_floats({0, 2, 1, 1}, 1);
+  const int values = b.add_floats({0, 0, 0, 2, 0, 0, 5, 0, 0, 1, 0, 0}, 3);
+  b.doc()["animations"] = json::array(
+      {{{"channels", {{{"sampler", 0}, {"target", {{"node", 0}, {"path", "translation"}}}}}},
+        {"samplers", {{{"input", times}, {"output", values}}}}}});
+  const fs::path path = dir_ / "unordered.gltf";
+  b.write_embedded(path);
+  GltfLoadReport report;
+  const Scene scene = load_gltf(path, &report);
+  ASSERT_EQ(report.warnings.size(), 1u);
+  EXPECT_NE(report.warnings[0].find("animation 0 channel 0"), std::string::npos)
+      << report.warnings[0];
+  EXPECT_NE(report.warnings[0].find("1 of 4 dropped"), std::string::npos) << report.warnings[0];
+  ASSERT_EQ(scene.channels.size(), 1u);
+  EXPECT_EQ(scene.channels[0].times, (std::vector<double>{0.0, 1.0, 2.0}));
+  EXPECT_DOUBLE_EQ(scene.channels[0].evaluate(1.5).x, 1.5);  // keys (1, 1) and (2, 2)
+}
+
 // ---- Broken files ----
 
 TEST_F(GltfLoaderTest, MissingFileFails) { expect_error(dir_ / "absent.gltf", "no such file"); }
@@ -679,6 +702,64 @@ TEST_F(GltfLoaderTest, TruncatedGlbFails) {
   bytes.resize(bytes.size() / 2);
   write_bytes(path, bytes.data(), bytes.size());
   expect_error(path, "truncated");
+}
+
+// What is wrong with a .glb's header and chunks is named (tinygltf says only "Invalid glTF
+// binary."), and a chunk of an unknown type is skipped, as glTF 2.0 (4.4.3.1) asks.
+TEST_F(GltfLoaderTest, GlbLayoutErrorsAreNamedAndUnknownChunksSkipped) {
+  GltfBuilder b;
+  add_quad(&b);
+  const fs::path good = dir_ / "good.glb";
+  b.write_glb(good);
+  const std::vector<uint8_t> bytes = read_bytes(good);
+  const auto u32 = [](std::vector<uint8_t>* v, size_t at, uint32_t x) {
+    for (int i = 0; i < 4; ++i) (*v)[at + size_t(i)] = uint8_t(x >> (8 * i));
+  };
+  const auto variant = [&](const std::string& name, std::vector<uint8_t> v) {
+    const fs::path path = dir_ / name;
+    write_bytes(path, v.data(), v.size());
+    return path;
+  };
+  std::vector<uint8_t> v = bytes;
+  u32(&v, 4, 1);
+  expect_error(variant("version.glb", v), "version 1");
+  v.assign(bytes.begin(), bytes.begin() + 12);
+  u32(&v, 8, 12);
+  expect_error(variant("header_only.glb", v), "no JSON chunk");
+  v.assign(bytes.begin(), bytes.begin() + 16);
+  u32(&v, 8, 16);
+  expect_error(variant("half_chunk_header.glb", v), "has 4 of its 8 header bytes");
+  v = bytes;
+  u32(&v, 12, 1u << 30);
+  expect_error(variant("chunk_too_long.glb", v), "chunk 0 declares 1073741824 bytes");
+  v = bytes;
+  u32(&v, 16, 0x004E4942);
+  expect_error(variant("bin_first.glb", v), "not JSON");
+
+  // An unknown chunk between the JSON and the BIN chunk: skipped, with a warning.
+  const uint32_t json_length = uint32_t(bytes[12]) | uint32_t(bytes[13]) << 8 |
+                               uint32_t(bytes[14]) << 16 | uint32_t(bytes[15]) << 24;
+  v.assign(bytes.begin(), bytes.begin() + 20 + json_length);
+  const std::vector<uint8_t> extra = {4, 0, 0, 0, 'X', 'T', 'R', 'A', 1, 2, 3, 4};
+  v.insert(v.end(), extra.begin(), extra.end());
+  v.insert(v.end(), bytes.begin() + 20 + json_length, bytes.end());
+  u32(&v, 8, uint32_t(v.size()));
+  GltfLoadReport report;
+  const Scene scene = load_gltf(variant("extra_chunk.glb", v), &report);
+  EXPECT_EQ(scene.meshes.at(0).primitives.at(0).positions.size(), 4u);
+  ASSERT_EQ(report.warnings.size(), 1u);
+  EXPECT_NE(report.warnings[0].find("unknown type"), std::string::npos) << report.warnings[0];
+
+  // A second BIN chunk (one is allowed): the first is the buffer, the second is skipped.
+  v = bytes;
+  const std::vector<uint8_t> second_bin = {4, 0, 0, 0, 'B', 'I', 'N', 0, 9, 9, 9, 9};
+  v.insert(v.end(), second_bin.begin(), second_bin.end());
+  u32(&v, 8, uint32_t(v.size()));
+  GltfLoadReport report2;
+  const Scene scene2 = load_gltf(variant("two_bin.glb", v), &report2);
+  EXPECT_EQ(scene2.meshes.at(0).primitives.at(0).positions.at(2), glm::vec3(1, 1, 0));
+  ASSERT_EQ(report2.warnings.size(), 1u);
+  EXPECT_NE(report2.warnings[0].find("second BIN chunk"), std::string::npos) << report2.warnings[0];
 }
 
 TEST_F(GltfLoaderTest, TruncatedBinFails) {

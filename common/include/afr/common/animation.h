@@ -33,6 +33,18 @@ struct AnimationChannel {
   std::vector<double> weights;  // kWeights only
   size_t weight_count = 0;      // kWeights only: morph targets of the node's mesh
 
+  // Keys whose times are not strictly increasing (out of order, or repeated: glTF 2.0 forbids
+  // both, and exporters write them) put right: the keys sorted by time (stable), and of keys
+  // that share a time only the last in the file kept, as aff2gltf repairs AFF key blocks. A
+  // key's values (three for CUBICSPLINE) and weights move with it. Leaves the channel as it
+  // is when its times are already in order, or when a time is not finite or the value count
+  // does not match (validate names those).
+  struct KeyRepair {
+    bool repaired = false;
+    size_t dropped = 0;  // keys dropped for a later key at the same time
+  };
+  KeyRepair repair_key_order();
+
   // Throws afr::Error if times are not strictly increasing and finite, the value count does
   // not match the interpolation (and, for weights, the weight count), a value is not finite,
   // or the channel is empty. `what` names the channel in the message.
