@@ -395,6 +395,14 @@ int main(int argc, char** argv) {
       md << fmt::format("- {}: {} rendered ({:.0f} s), {} from the cache\n", a.spec.name,
                         a.ideal_rendered, a.ideal_seconds, a.ideal_cached);
     }
+    for (const AnimationResult& a : results) {
+      if (a.still_frames == 0) continue;
+      md << fmt::format(
+          "\n**{}: {} of its {} frames show a still scene** (its animation ends at {:.3f} s; "
+          "the window starts at {:.3f} s): every method converges there, and its cells mix "
+          "motion with stillness.\n",
+          a.spec.name, a.still_frames, a.frame_times.size(), a.duration, a.spec.start);
+    }
     {
       // What eval_tables.py (docs/results.md) needs besides cells.csv.
       std::ofstream json(out / "run.json");
@@ -421,9 +429,12 @@ int main(int argc, char** argv) {
       for (size_t i = 0; i < results.size(); ++i) {
         const AnimationSpec& a = results[i].spec;
         json << fmt::format(
-            "{}\n    {{\"name\": {}, \"scene\": {}, \"camera\": {}, \"start\": {}}}", i ? "," : "",
-            json_string(a.name), json_string(a.scene.empty() ? "builtin" : a.scene.string()),
-            json_string(a.camera_path.empty() ? "own" : a.camera_path.string()), a.start);
+            "{}\n    {{\"name\": {}, \"scene\": {}, \"camera\": {}, \"start\": {}, "
+            "\"duration\": {}, \"still_frames\": {}}}",
+            i ? "," : "", json_string(a.name),
+            json_string(a.scene.empty() ? "builtin" : a.scene.string()),
+            json_string(a.camera_path.empty() ? "own" : a.camera_path.string()), a.start,
+            results[i].duration, results[i].still_frames);
       }
       json << "\n  ]\n}\n";
     }

@@ -217,6 +217,10 @@ std::vector<AnimationResult> evaluate(const EvalConfig& config) {
     progress.set_task(fmt::format("{}: loading", spec.name));
     const Scene scene = load_animation_scene(spec);
     warn_about_window(spec, scene, config.seconds);
+    ar.duration = scene.is_animated() ? scene.duration() : 0.0;
+    for (int j = 0; j < frames; ++j) {
+      if (spec.start + j / config.base.fps > ar.duration + 1e-9) ++ar.still_frames;
+    }
     Tracer tracer(scene);
     progress.set_task(fmt::format("{}: ideal frames ({} spp)", spec.name, config.ideal_spp));
     const std::vector<Image> ideal =

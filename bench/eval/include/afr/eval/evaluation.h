@@ -66,6 +66,10 @@ struct AnimationResult {
   std::vector<RunResult> runs;
   double ideal_seconds = 0.0;  // wall time rendering ideal frames (0 when all were cached)
   uint64_t ideal_cached = 0, ideal_rendered = 0;
+  // The scene's animation ends at duration seconds (0: it does not move); still_frames of
+  // the window's frames come after that and show its last pose, a still scene.
+  double duration = 0.0;
+  int still_frames = 0;
 };
 
 // Loads an animation's scene and applies its camera path. Throws afr::Error naming the file.
