@@ -329,7 +329,7 @@ void Loader::parse(std::span<const uint8_t> bytes) {
   std::string warn;
   const std::string base_dir = access_.root.string();
   const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
-  std::vector<uint8_t> compacted;  // a .glb without its chunks of unknown types
+  std::vector<uint8_t> compacted;  // a .glb without the chunks check_glb_layout skips
   if (binary) {
     std::vector<std::span<const uint8_t>> chunks;
     check_glb_layout(bytes, &chunks);
