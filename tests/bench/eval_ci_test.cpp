@@ -80,5 +80,33 @@ TEST(EvalCiTest, RunsAtTheSameTimeGiveTheSameResultsAsOneAfterTheOther) {
   }
 }
 
+// A window that runs past the end of the animation's keys shows a still scene there: the result
+// says for how many frames, counted by the frames' own times against the scene's duration.
+TEST(EvalCiTest, FramesAfterTheAnimationsEndAreCountedAsStill) {
+  const double duration = make_builtin_scene().duration();
+  ASSERT_GT(duration, 1.0);
+  EvalConfig config;
+  config.animations = {AnimationSpec{"builtin", "", "", duration - 0.04}};
+  config.rates = {1e5};
+  config.methods = {Method::kFramed60};
+  config.seconds = 0.1;  // 6 frames, 1/60 s apart: 3 before the end, 3 after it (none at it)
+  config.ideal_spp = 1;
+  config.base.width = 32;
+  config.base.height = 24;
+  config.progress = false;
+  config.seeds = 1;
+  const std::vector<AnimationResult> r = evaluate(config);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].duration, duration);
+  ASSERT_EQ(r[0].frame_times.size(), 6u);
+  int after = 0;
+  for (double t : r[0].frame_times) after += t > duration + 1e-9 ? 1 : 0;
+  EXPECT_EQ(after, 3);
+  EXPECT_EQ(r[0].still_frames, 3);
+
+  config.animations = {AnimationSpec{"builtin", "", "", 1.0}};
+  EXPECT_EQ(evaluate(config)[0].still_frames, 0);
+}
+
 }  // namespace
 }  // namespace afr::eval

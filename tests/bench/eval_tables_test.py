@@ -20,20 +20,23 @@ SCRIPT = os.path.join(ROOT, "bench", "eval_tables.py")
 FIELDS = ["animation", "method", "rate", "runs", "mean_rms", "min_rms", "max_rms"]
 
 
-def write_run(folder, commit, cells):
-    """An afr-eval output folder: run.json and cells.csv; cells: method -> (mean, min, max)."""
+def write_run(folder, commit, cells, **more):
+    """An afr-eval output folder: run.json and cells.csv; cells: method -> (mean, min, max);
+    more: run.json fields added or replaced."""
     os.makedirs(folder)
     meta = {"command": f"afr-eval --latency 0.25 --out {folder}", "commit": commit,
             "setup": "64x64, test set-up", "minutes": 1.5, "animations": [{"name": "anim"}]}
+    meta.update(more)
     with open(os.path.join(folder, "run.json"), "w") as f:
         json.dump(meta, f)
     with open(os.path.join(folder, "cells.csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(FIELDS)
-        for method, (mean, lo, hi) in cells.items():
-            rate = 4e6 if method == "full-res-60hz" else 4e5
-            runs = 1 if lo == hi else 3
-            w.writerow(["anim", method, rate, runs, mean, lo, hi])
+        for animation in meta["animations"]:
+            for method, (mean, lo, hi) in cells.items():
+                rate = 4e6 if method == "full-res-60hz" else 4e5
+                runs = 1 if lo == hi else 3
+                w.writerow([animation["name"], method, rate, runs, mean, lo, hi])
 
 
 def run(*args):
@@ -96,6 +99,32 @@ class EvalTablesTest(unittest.TestCase):
         self.assertTrue(text.endswith(after), text)
         self.assertNotIn("old table", text)
         self.assertIn("at commit aaaaaaa", text)
+
+    def test_a_timed_run_ending_on_a_still_scene_is_not_a_full_table(self):
+        cells = {"adaptive": (10.0, 9.8, 10.2), "frameless": (20.0, 19.9, 20.1),
+                 "framed-60hz": (12.0, 12.0, 12.0), "framed-full-res": (30.0, 29.0, 31.0),
+                 "full-res-60hz": (9.0, 9.0, 9.0), "framed-taa": (11.0, 10.9, 11.1)}
+        timing = {"seconds": 20, "rates": [1e5, 4e5, 8e5], "methods": ["m"] * 7, "seeds": 3,
+                  "ideal_spp": 9, "ideal_rendered": 0, "ideal_cached": 3600,
+                  "ideal_minutes": 0.0, "cpu_minutes": 40.0, "minutes": 20.0}
+        names = ("bart", "toycar", "interactive")
+        moving = os.path.join(self.tmp.name, "moving")
+        write_run(moving, "ccccccc", cells, **timing, animations=[
+            {"name": n, "duration": 20, "still_frames": 0} for n in names])
+        still = os.path.join(self.tmp.name, "still")
+        write_run(still, "ddddddd", cells, **timing, animations=[
+            {"name": n, "duration": 20, "still_frames": 510 if n == "bart" else 0}
+            for n in names])
+        r = run("--timing", moving)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertNotIn("Still scenes", r.stdout)
+        self.assertIn("| yes |", r.stdout.split("## timing")[1])
+        r = run("--timing", still)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        full, timed = r.stdout.split("## timing")
+        self.assertIn("Still scenes in the window (bart: 510 of the frames after its animation "
+                      "ends at 20 s)", full)
+        self.assertIn("| no (not a full Table 1", timed)
 
     def test_a_document_without_the_markers_is_refused_by_name(self):
         doc = os.path.join(self.tmp.name, "plain.md")

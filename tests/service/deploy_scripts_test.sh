@@ -42,8 +42,8 @@ check "run-local, the display fails" 1 $? "$out/broken.txt" \
 
 # A good run; the display refreshes 60 times a second where the sampler's one thread leaves it a
 # core, else 30, unless told (--fps).
-local_run 1 --scene "$scene" --seconds 3 --output "$out/good" >"$out/good.txt" 2>&1
 if [ "$(nproc)" -gt 1 ]; then want_fps=60; else want_fps=30; fi
+local_run 1 --scene "$scene" --seconds 3 --output "$out/good" >"$out/good.txt" 2>&1
 check "run-local, a good run" 0 $? "$out/good.txt" "run-local: images in" "at $want_fps images/s"
 local_run 1 --scene "$scene" --seconds 3 --fps 12 --output "$out/fps" >"$out/fps.txt" 2>&1
 check "run-local, --fps" 0 $? "$out/fps.txt" "at 12 images/s" "run-local: images in"

@@ -217,15 +217,14 @@ std::vector<AnimationResult> evaluate(const EvalConfig& config) {
     progress.set_task(fmt::format("{}: loading", spec.name));
     const Scene scene = load_animation_scene(spec);
     warn_about_window(spec, scene, config.seconds);
-    ar.duration = scene.is_animated() ? scene.duration() : 0.0;
-    for (int j = 0; j < frames; ++j) {
-      if (spec.start + j / config.base.fps > ar.duration + 1e-9) ++ar.still_frames;
-    }
     Tracer tracer(scene);
     progress.set_task(fmt::format("{}: ideal frames ({} spp)", spec.name, config.ideal_spp));
     const std::vector<Image> ideal =
         ideal_frames(scene, tracer, config, spec.start, frames, &progress, &ar);
     for (int j = 0; j < frames; ++j) ar.frame_times.push_back(spec.start + j / config.base.fps);
+    ar.duration = scene.is_animated() ? scene.duration() : 0.0;
+    ar.still_frames = int(std::count_if(ar.frame_times.begin(), ar.frame_times.end(),
+                                        [&](double t) { return t > ar.duration + 1e-9; }));
     for (int f : strips) ar.ideal_strip_images[f] = ideal[size_t(f)];
     // Every (method, rate, seed) run of the animation, in table order.
     std::vector<RunSettings> runs;
