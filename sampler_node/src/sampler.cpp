@@ -48,7 +48,7 @@ void add_to_sums(TileSums& s, const CrosshairStats& c, double sign) {
   }
   const double w = std::exp(kAgeDecay * (c.time - s.t_ref));
   const double d = double(c.luminance) - s.shift;
-  const double w_before = s.w, wt_before = s.wt;
+  const double w_before = s.w, wt_before = s.wt, wo_before = s.wo;
   s.w += sign * w;
   s.wl += sign * w * d;
   s.wll += sign * w * d * d;
@@ -62,13 +62,18 @@ void add_to_sums(TileSums& s, const CrosshairStats& c, double sign) {
   }
   s.t_sum += sign * (c.time - s.t_ref);
   s.count += sign > 0.0 ? 1 : -1;
-  if (c.has(Crosshair::kOccluded)) s.occluded += sign > 0.0 ? 1 : -1;
+  if (c.has(Crosshair::kOccluded)) {
+    s.wo += sign * w;
+    s.occluded += sign > 0.0 ? 1 : -1;
+    if (s.occluded == 0) s.wo = 0.0;
+  }
   ++s.updates;
   if (c.time - s.t_ref > kMaxReferenceAge) s.updates = kRederiveNow;
   // The crosshair held nearly all of the weight (crosshairs of a block seconds apart): what is
   // left is rounding, not the weight of the others.
   if (sign < 0.0 && s.count > 0 &&
-      (s.w < kCancellation * w_before || (s.temporal > 0 && s.wt < kCancellation * wt_before))) {
+      (s.w < kCancellation * w_before || (s.temporal > 0 && s.wt < kCancellation * wt_before) ||
+       (s.occluded > 0 && s.wo < kCancellation * wo_before))) {
     s.updates = kRederiveNow;
   }
 }
@@ -112,7 +117,10 @@ TileSums sums_from_buffer(const DeepBuffer& buffer, const PixelRect& rect, doubl
     }
     s.t_sum += c.time - s.t_ref;
     ++s.count;
-    if (c.has(Crosshair::kOccluded)) ++s.occluded;
+    if (c.has(Crosshair::kOccluded)) {
+      s.wo += w;
+      ++s.occluded;
+    }
   });
   return s;
 }
@@ -143,6 +151,7 @@ TileSums sums_from_parts(const TileSums* parts, int n, double shift) {
     out.wgt += f * s.wgt;
     out.t_sum += s.t_sum + s.count * (s.t_ref - out.t_ref);
     out.count += s.count;
+    out.wo += f * s.wo;
     out.temporal += s.temporal;
     out.occluded += s.occluded;
   }
@@ -712,8 +721,11 @@ TileStats Sampler::tile_stats(int tile, double now) const {
   const TileSums& s = records_[size_t(tile)].sums;
   TileStats st;
   st.count = s.count;
-  st.occluded = std::max(0, s.occluded);
   if (s.count <= 0 || !(s.w > 0.0)) return st;
+  // The weights are relative to t_ref: exp(-3.47 (now - t_ref)) makes them absolute.
+  if (s.occluded > 0) {
+    st.occluded = std::max(0.0, s.wo) * std::exp(-kAgeDecay * std::max(0.0, now - s.t_ref));
+  }
   const double mean = s.wl / s.w;
   st.v = std::max(0.0, s.wll / s.w - mean * mean);
   st.G_x = std::max(0.0, s.wgx / s.w);
@@ -741,16 +753,16 @@ double gain_tile_count(double dC_ds, double dC_dt, double T, double i, double pi
 }
 
 // One pass over the tiles: section 6.1's error
-//   E_tile = s (kappa v / sum v + lambda u / sum u + (1 - kappa - lambda) o / sum o)
-// for every tile, and section 4.1's gain control, dC/ds S = i dC/dt T, from the image-wide
-// gradients and the mean sample age.
+//   E_tile = s (kappa v / sum v + lambda u / sum u + (1 - kappa - lambda) f o / sum o)
+// for every tile, with f in [0, 1] the occlusion term's share (below), and section 4.1's gain
+// control, dC/ds S = i dC/dt T, from the image-wide gradients and the mean sample age.
 void Sampler::compute_errors() {
   record(tiling_.node_capacity() - 1);  // sizes error_
   const auto& tiles = tiling_.tiles();
   const double b = config_.b;
   const double empty_total = double(buffer_.capacity() - buffer_.size());
   const double mean_empty = empty_total / tiles.size();
-  double sum_v = 0.0, sum_u = 0.0, sum_o = 0.0;
+  double sum_v = 0.0, sum_u = 0.0, sum_o = 0.0, occluded = 0.0;
   double area = 0.0, spatial = 0.0, temporal = 0.0, age = 0.0;
   terms_.resize(tiles.size());
   const double now = clock_.now();
@@ -764,12 +776,21 @@ void Sampler::compute_errors() {
     sum_v += st.v;
     sum_u += u;
     sum_o += o;
+    occluded += st.occluded;
     area += s;
     spatial += s * 0.5 * (st.G_x + st.G_y);
     temporal += s * st.G_t;
     age += st.mean_age;
   }
-  const double kv = config_.kappa, ku = config_.lambda, ko = 1.0 - kv - ku;
+  const double kv = config_.kappa, ku = config_.lambda;
+  // The occlusion term takes its whole share only while the recent occlusions (age-weighted)
+  // amount to at least a tile's block of crosshairs, and a part in proportion below that:
+  // normalised by its sum alone, a handful of occlusions anywhere in the region would draw
+  // (1 - kappa - lambda) of all the error, and so of the tiles, to themselves (docs/sampler.md,
+  // "The occlusion term").
+  const double block = double(buffer_.size()) / double(tiles.size());
+  occlusion_share_ = block > 0.0 ? std::min(1.0, occluded / block) : 0.0;
+  const double ko = (1.0 - kv - ku) * occlusion_share_;
   for (size_t k = 0; k < tiles.size(); ++k) {
     const double s = double(tiling_.node(tiles[k]).rect.area());
     double e = 0.0;
@@ -907,13 +928,16 @@ TileSums combine(const TileSums& a, const TileSums& b, double sign) {
     out.t_sum += signs[k] * (s->t_sum + s->count * (s->t_ref - out.t_ref));
     out.count += int32_t(signs[k]) * s->count;
     out.temporal += int32_t(signs[k]) * s->temporal;
+    out.wo += f * s->wo;
     out.occluded += int32_t(signs[k]) * s->occluded;
   }
   out.updates = a.updates + b.updates;
   if (out.temporal <= 0) out.wt = out.wgt = 0.0;
+  if (out.occluded <= 0) out.wo = 0.0;
   // Block b held nearly all of a's weight: the difference is mostly rounding.
   if (sign < 0.0 &&
-      (out.w < kCancellation * a.w || (out.temporal > 0 && out.wt < kCancellation * a.wt))) {
+      (out.w < kCancellation * a.w || (out.temporal > 0 && out.wt < kCancellation * a.wt) ||
+       (out.occluded > 0 && out.wo < kCancellation * a.wo))) {
     out.updates = kRederiveNow;
   }
   return out;

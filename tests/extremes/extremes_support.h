@@ -76,7 +76,8 @@ inline ::testing::AssertionResult stats_match_buffer(const Sampler& s, double no
                  {"G_x", inc.G_x, ref.G_x, 1e-9},
                  {"G_y", inc.G_y, ref.G_y, 1e-9},
                  {"G_t", inc.G_t, ref.G_t, 1e-9},
-                 {"age", inc.mean_age, ref.mean_age, 8.0 * time_ulp}};
+                 {"age", inc.mean_age, ref.mean_age, 8.0 * time_ulp},
+                 {"occluded", inc.occluded, ref.occluded, 1e-9}};
     for (const auto& p : pairs) {
       const double tol = rel * std::abs(p.b) + p.floor;
       if (!std::isfinite(p.a) || std::abs(p.a - p.b) > tol) {

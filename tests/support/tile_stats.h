@@ -13,7 +13,7 @@ namespace afr::testing {
 
 // The statistics of a tile straight from the crosshairs in its block: weights exp(-3.47 age)
 // taken relative to the newest crosshair (the same ratios, finite for any age), variance as
-// E[L^2] - E[L]^2 in long double.
+// E[L^2] - E[L]^2 in long double; the occluded count with each crosshair's absolute weight.
 inline TileStats brute_force_stats(const Sampler& s, int tile, double now) {
   const PixelRect rect = s.tiling().node(tile).rect;
   const DeepBuffer& b = s.buffer();
@@ -24,7 +24,7 @@ inline TileStats brute_force_stats(const Sampler& s, int tile, double now) {
       for (int k = 0; k < b.count(x, y); ++k) newest = std::max(newest, b.at(x, y, k).time);
     }
   }
-  long double w = 0, wl = 0, wll = 0, wgx = 0, wgy = 0, wt = 0, wgt = 0, age = 0;
+  long double w = 0, wl = 0, wll = 0, wgx = 0, wgy = 0, wt = 0, wgt = 0, age = 0, occluded = 0;
   for (int32_t y = rect.y0; y < rect.y1; ++y) {
     for (int32_t x = rect.x0; x < rect.x1; ++x) {
       for (int k = 0; k < b.count(x, y); ++k) {
@@ -41,6 +41,9 @@ inline TileStats brute_force_stats(const Sampler& s, int tile, double now) {
         }
         age += now - c.time;
         ++st.count;
+        if (c.has(Crosshair::kOccluded)) {
+          occluded += std::exp(-(long double)kAgeDecay * (now - c.time));
+        }
       }
     }
   }
@@ -51,6 +54,7 @@ inline TileStats brute_force_stats(const Sampler& s, int tile, double now) {
   st.G_y = double(wgy / w);
   st.G_t = wt > 0 ? double(wgt / wt) : 0.0;
   st.mean_age = double(age / st.count);
+  st.occluded = double(occluded);
   return st;
 }
 

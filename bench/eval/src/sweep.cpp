@@ -80,7 +80,7 @@ std::vector<SweepPoint> control_sweep() {
       s->sampler.lambda = std::min(s->sampler.lambda, 1.0 - kappa);
     });
   }
-  for (double lambda : {0.0, 0.1, 0.4}) {
+  for (double lambda : {0.0, 0.1, 0.2}) {
     add("lambda", fmt::format("lambda={}", lambda), [lambda](RunSettings* s) {
       s->sampler.lambda = lambda;
       s->sampler.kappa = std::min(s->sampler.kappa, 1.0 - lambda);

@@ -56,6 +56,7 @@ struct TileSums {
   int32_t count = 0;            // crosshairs in the block
   int32_t temporal = 0;         // of them, with a temporal gradient (those in wt)
   int32_t occluded = 0;         // of them, made to replace an occluded crosshair
+  double wo = 0.0;              // their sum of weights (the occlusion term's age-weighted count)
   int32_t updates = 0;          // adds and removes since the sums were last re-derived, or a
                                 // large value when they must be re-derived before use
 };
@@ -70,7 +71,11 @@ struct TileStats {
   double G_x = 0.0, G_y = 0.0, G_t = 0.0;
   double mean_age = 0.0;  // seconds
   int32_t count = 0;
-  int32_t occluded = 0;
+  // Section 6.1's |O|, age-weighted as the other statistics: the crosshairs made to replace an
+  // occluded one, each counting exp(-3.47 a) at age a. An occlusion is an event: a crosshair
+  // that recorded one seconds ago says nothing of occlusion now, and would otherwise keep
+  // drawing samples to where a moving object used to be for as long as it stays in the buffer.
+  double occluded = 0.0;
 };
 
 // Section 4.1, gain control: dC/ds S = i dC/dt T solved for the mean tile width S, as a tile
@@ -126,6 +131,10 @@ class Sampler {
   double tile_error(int tile) const { return error_[tile]; }
   // Gain control's current target tile count (section 4.1).
   int target_tiles() const { return target_tiles_; }
+  // The occlusion term's share at the last tiling adjustment, in [0, 1]: the recent
+  // (age-weighted) occlusions against a tile's block of crosshairs, at most 1
+  // (docs/sampler.md, "The occlusion term").
+  double occlusion_share() const { return occlusion_share_; }
   TilingSnapshot snapshot() const;
   // Samples per second emitted, as measured over recent refresh intervals.
   double sample_rate() const { return sample_rate_; }
@@ -209,6 +218,7 @@ class Sampler {
   TraceStats trace_stats_;
   int chunk_progress_ = 0;
   int target_tiles_ = 1;
+  double occlusion_share_ = 0.0;
   int64_t sweep_next_ = 0;
   double last_snapshot_time_ = 0.0;
   uint64_t samples_at_snapshot_ = 0;

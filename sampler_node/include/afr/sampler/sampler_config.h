@@ -26,10 +26,10 @@ struct SamplerConfig {
   int r = 5;       // reprojections per tile visit (section 6.1); 0 = no reprojection
   int chunk = 25;  // crosshairs between tiling adjustments (section 4.2)
   // Error weights of section 6.1: kappa (variance), lambda (undersampling), the rest occlusion.
-  // kappa, lambda, m and i were chosen with afr-eval --sweep --knobs kappa,lambda,m,i
-  // (docs/sampler.md).
+  // kappa, lambda, m and i were chosen with afr-eval --sweep --knobs kappa,lambda,m,i, and
+  // lambda 0.4 (occlusion none) over whole animations (docs/sampler.md, "The occlusion term").
   double kappa = 0.6;
-  double lambda = 0.2;
+  double lambda = 0.4;
   double m = 1.0;  // undersampling threshold (section 6.1)
   // Importance of temporal against spatial change in gain control (section 4.1). With i = 1
   // the built-in scene's moving camera drives the count to min_tiles (afr-sample --i 1).

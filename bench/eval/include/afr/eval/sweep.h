@@ -52,7 +52,7 @@ std::vector<SweepPoint> default_sweep();
 
 // The sampler's control weights one at a time around `base`, adaptive at R = 400K: kappa
 // (variance) 0.2, 0.4, 0.8 and 1 (lambda lowered to 1 - kappa where the sum would pass 1),
-// lambda (undersampling) 0, 0.1, 0.4, m (undersampling threshold) 0.5, 1, 2, 4, 8, i (temporal
+// lambda (undersampling) 0, 0.1, 0.2, m (undersampling threshold) 0.5, 1, 2, 4, 8, i (temporal
 // importance in gain control) 0.01, 0.03, 0.3, 1, and the defaults point.
 std::vector<SweepPoint> control_sweep();
 
