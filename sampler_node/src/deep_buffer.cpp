@@ -42,6 +42,10 @@ DeepBuffer::DeepBuffer(PixelRect region, int depth, uint32_t fields)
     old_sample_at_ = int(rest_stride_);
     rest_stride_ += kOldSampleBytes;
   }
+  if (fields_ & kKeepSpaces) {
+    spaces_at_ = int(rest_stride_);
+    rest_stride_ += sizeof(Crosshair::space);
+  }
   const size_t pixels = size_t(region.area());
   AFR_CHECK(pixels < size_t(UINT32_MAX));
   stats_.resize(pixels * size_t(depth));
@@ -92,6 +96,7 @@ void DeepBuffer::store(size_t p, int s, const Crosshair& c) {
     put(r + old_sample_at_, c.old_time);
     put(r + old_sample_at_ + sizeof(double), c.old_luminance);
   }
+  if (spaces_at_ >= 0) put(r + spaces_at_, c.space);
 }
 
 glm::vec2 DeepBuffer::image_position(int32_t x, int32_t y, int k) const {
@@ -128,6 +133,7 @@ Crosshair DeepBuffer::at(int32_t x, int32_t y, int k) const {
     get(r + old_sample_at_, &c.old_time);
     get(r + old_sample_at_ + sizeof(double), &c.old_luminance);
   }
+  if (spaces_at_ >= 0) get(r + spaces_at_, &c.space);
   return c;
 }
 

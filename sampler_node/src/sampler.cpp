@@ -159,12 +159,24 @@ TileSums sums_from_parts(const TileSums* parts, int n, double shift) {
 }
 
 // What the deep buffer keeps of a crosshair: only what the run reads. Reprojection (every step
-// with r > 0, and reproject() when called) reads positions and neighbours, and velocities
-// where something moves (the tracer gives zero velocity elsewhere); nothing reads the old
-// sample back. The baselines never fill the buffer.
+// with r > 0, and reproject() when called) reads positions and neighbours, and velocities and
+// the spaces of points where something moves (the tracer gives zero velocity and no moving
+// node elsewhere); nothing reads the old sample back. The baselines never fill the buffer.
 uint32_t buffer_fields(const SamplerConfig& config, const Scene& scene) {
   if (config.mode != SamplerMode::kAdaptive) return 0;
-  return kKeepReprojection | (scene.has_moving_geometry() ? kKeepVelocity : 0u);
+  return kKeepReprojection | (scene.has_moving_geometry() ? kKeepVelocity | kKeepSpaces : 0u);
+}
+
+// A traced point as a crosshair keeps it (Crosshair::space): in the space of the node it hit
+// when that node moves rigidly, in the world otherwise.
+glm::vec3 kept_point(const Tracer& tracer, const ShadedSample& s, uint32_t* space) {
+  glm::dmat4 inverse;
+  if (s.hit && tracer.rigid_transform(s.object_id, nullptr, &inverse)) {
+    *space = s.object_id;
+    return glm::vec3(inverse * glm::dvec4(glm::dvec3(s.position), 1.0));
+  }
+  *space = Crosshair::kWorld;
+  return s.position;
 }
 
 }  // namespace
@@ -406,9 +418,11 @@ void Sampler::step_framed() {
 }
 
 // Section 6.1: relocates the newest crosshair of a random pixel of the tile to where the
-// current view and its velocity put it, and tests that it is still visible. A crosshair keeps
-// the world positions and the time it was traced at: every move extrapolates from them,
-// v (now - time), so moving it again never adds motion already counted.
+// current view and the motion of its points put it, and tests that it is still visible. A
+// crosshair keeps the points and the time it was traced at, and every move starts from them,
+// so moving it again never adds motion already counted: a point on a rigidly moving object is
+// where the object's transform now puts it (exact, however long ago it was traced), a world
+// point of deforming geometry extrapolates its velocity, v (now - time).
 void Sampler::reproject(int tile) {
   const PixelRect rect = tiling_.node(tile).rect;
   const int32_t px = rect.x0 + int32_t(rng_.next_below(uint32_t(rect.width())));
@@ -420,19 +434,31 @@ void Sampler::reproject(int tile) {
   add_to_tile(tile, cell, stats_of(c), -1.0);
   settle(tile, cell);
 
+  // The scene (its objects' transforms) and the view of the current time; within a step this
+  // was done already and costs nothing.
+  advance_scene_time();
   const double now = clock_.now();
   const double dt = now - c.time;
+  // A world point moves with the center's velocity (zero but on deforming geometry).
   const glm::dvec3 motion = glm::dvec3(c.velocity) * dt;
-  // Where a traced point is now: moved by the motion since it was traced; a miss stays a
-  // direction far away.
-  const auto now_at = [&](const glm::vec3& position, bool hit) {
-    return hit ? glm::dvec3(position) + motion
-               : camera_.eye + glm::dvec3(position) * (1e3 * (1.0 + camera_.znear));
+  // Where traced point k is now (false: on an object hidden now); a miss stays a direction
+  // far away.
+  const auto now_at = [&](const glm::vec3& position, bool hit, uint32_t space, glm::dvec3* p) {
+    if (!hit) {
+      *p = camera_.eye + glm::dvec3(position) * (1e3 * (1.0 + camera_.znear));
+    } else if (space == Crosshair::kWorld) {
+      *p = glm::dvec3(position) + motion;
+    } else {
+      glm::dmat4 world;
+      if (!tracer_.rigid_transform(space, &world, nullptr)) return false;
+      *p = glm::dvec3(world * glm::dvec4(glm::dvec3(position), 1.0));
+    }
+    return true;
   };
   glm::dvec2 xy;
   const bool hit = c.has(Crosshair::kCenterHit);
-  const glm::dvec3 center = now_at(c.position, hit);
-  if (!project_point(center, &xy) ||
+  glm::dvec3 center;
+  if (!now_at(c.position, hit, c.space[0], &center) || !project_point(center, &xy) ||
       !region_.contains(int32_t(std::floor(xy.x)), int32_t(std::floor(xy.y)))) {
     ++counters_.reprojections_dropped;  // left the region or went behind the camera
     return;
@@ -446,7 +472,9 @@ void Sampler::reproject(int tile) {
   for (int k = 0; k < 4; ++k) {
     glm::dvec2 nxy;
     const double dl = std::abs(double(c.luminance) - c.neighbor_luminance[k]);
-    if (project_point(now_at(c.neighbor_position[k], c.neighbor_hit(k)), &nxy)) {
+    glm::dvec3 neighbor;
+    if (now_at(c.neighbor_position[k], c.neighbor_hit(k), c.space[k + 1], &neighbor) &&
+        project_point(neighbor, &nxy)) {
       g[k] = dl / std::max(glm::length(nxy - xy), kMinPixelDistance);
     } else {
       g[k] = dl;  // the neighbour went behind the camera: keep its one-pixel estimate
@@ -580,13 +608,13 @@ Crosshair Sampler::make_crosshair(double x, double y, const std::array<ShadedSam
   c.time = scene_time_;
   c.x = float(x);
   c.y = float(y);
-  c.position = s[0].position;
+  c.position = kept_point(tracer_, s[0], &c.space[0]);
   c.velocity = s[0].velocity;
   c.luminance = sample_luminance(s[0]);
   if (s[0].hit) c.flags |= Crosshair::kCenterHit;
   for (int k = 0; k < 4; ++k) {
     c.neighbor_luminance[k] = sample_luminance(s[k + 1]);
-    c.neighbor_position[k] = s[k + 1].position;
+    c.neighbor_position[k] = kept_point(tracer_, s[k + 1], &c.space[k + 1]);
     if (s[k + 1].hit) c.flags |= uint8_t(Crosshair::kNeighborHit0 << k);
   }
   // Section 4.1: the average absolute differences to the neighbours one pixel away.

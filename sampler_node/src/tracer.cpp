@@ -82,6 +82,8 @@ struct Instance {
   glm::mat3 normal_matrix{1.0f};  // inverse transpose of the world transform's linear part
   float area_scale = 1.0f;   // |det| of that linear part: world area = it x |normal_matrix x n|
   glm::mat4 velocity{0.0f};  // maps a world point to its world velocity (affine)
+  // A moving instance's world transform at the current time and its inverse (rigid_transform).
+  glm::dmat4 world{1.0}, inverse_world{1.0};
 };
 
 // What one Embree ray query returned, whether from a single ray or a packet lane.
@@ -271,7 +273,8 @@ struct Tracer::Impl {
   RTCScene top_ = nullptr;
   std::vector<Blas> blas_;
   std::vector<Instance> instances_;
-  std::vector<ShadeMaterial> materials_;  // scene materials, then the default material
+  std::vector<int> moving_instance_of_node_;  // per scene node: its moving instance or -1
+  std::vector<ShadeMaterial> materials_;      // scene materials, then the default material
   bool has_glass_ = false;           // some geometry lets shadow rays through (glass_shadow_filter)
   std::vector<int> light_nodes_;     // scene nodes that carry a light
   std::vector<int> camera_lights_;   // lights on the camera (Light::on_camera)
@@ -559,8 +562,10 @@ void Tracer::Impl::build() {
   }
   lights_.reserve(light_nodes_.size() + camera_lights_.size());
 
+  moving_instance_of_node_.assign(scene_.nodes.size(), -1);
   for (size_t i = 0; i < instances_.size(); ++i) {
     Instance& inst = instances_[i];
+    if (inst.moves && inst.node >= 0) moving_instance_of_node_[size_t(inst.node)] = int(i);
     inst.geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
     rtcSetGeometryInstancedScene(inst.geom, blas_[size_t(inst.blas)].scene);
     float identity[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
@@ -705,6 +710,8 @@ void Tracer::Impl::set_time(double t) {
           (state_plus_.world[size_t(inst.node)] - state_minus_.world[size_t(inst.node)]) *
           (1.0 / (after - before));
       inst.velocity = glm::mat4(dm * glm::inverse(m));
+      inst.world = m;
+      inst.inverse_world = glm::inverse(m);
     }
     if (ok != inst.enabled) {
       if (ok)
@@ -1162,6 +1169,18 @@ void Tracer::set_view(const Camera& view) { impl_->place_camera_lights(view); }
 double Tracer::time() const { return impl_->state_.time; }
 const Camera& Tracer::camera() const { return impl_->camera_; }
 const TracerOptions& Tracer::options() const { return impl_->options_; }
+
+bool Tracer::rigid_transform(uint32_t node, glm::dmat4* world, glm::dmat4* inverse) const {
+  const Impl& m = *impl_;
+  if (node >= m.moving_instance_of_node_.size()) return false;
+  const int i = m.moving_instance_of_node_[node];
+  if (i < 0) return false;
+  const Instance& inst = m.instances_[size_t(i)];
+  if (!inst.enabled) return false;
+  if (world != nullptr) *world = inst.world;
+  if (inverse != nullptr) *inverse = inst.inverse_world;
+  return true;
+}
 
 ShadedSample Tracer::trace(const Ray& ray, TraceStats* stats) const {
   ShadedSample s;

@@ -516,6 +516,108 @@ TEST(SamplerTest, CrosshairsMovedManyTimesSitWhereTheObjectIsNotFurther) {
   EXPECT_EQ(misplaced, 0) << "of " << checked << " crosshairs";
 }
 
+// A disc of `sectors` equal sectors, sector i glowing i / sectors, one unit in front of the
+// camera and wider than the view, turning about the view axis at `spin` radians per second: a
+// point's luminance names its sector, so a fresh trace says which sector is at an image
+// position.
+Scene spinning_sectors_scene(int sectors, double spin) {
+  Scene s = testing::camera_scene();
+  Mesh mesh{"sectors", {}};
+  const float radius = 5.0f;
+  for (int i = 0; i < sectors; ++i) {
+    Material m;
+    m.base_color_factor = glm::vec4(0, 0, 0, 1);
+    m.metallic = 0.0f;
+    m.emissive = glm::vec3(float(i) / float(sectors));
+    s.materials.push_back(m);
+    const double a0 = 2.0 * glm::pi<double>() * i / sectors;
+    const double a1 = 2.0 * glm::pi<double>() * (i + 1) / sectors;
+    Primitive p;
+    p.positions = {{0, 0, -1},
+                   {radius * float(std::cos(a0)), radius * float(std::sin(a0)), -1},
+                   {radius * float(std::cos(a1)), radius * float(std::sin(a1)), -1}};
+    p.indices = {0, 1, 2};
+    p.material = int(s.materials.size()) - 1;
+    mesh.primitives.push_back(p);
+  }
+  s.meshes.push_back(mesh);
+  Node n;
+  n.mesh = 0;
+  s.nodes.push_back(n);
+  AnimationChannel ch;
+  ch.node = int(s.nodes.size()) - 1;
+  ch.path = AnimatedPath::kRotation;
+  ch.interpolation = Interpolation::kLinear;  // slerp between keys 0.1 rad apart
+  for (int k = 0; k <= 100; ++k) {
+    const double t = 0.1 * k, half = 0.5 * spin * t;
+    ch.times.push_back(t);
+    ch.values.push_back({0.0, 0.0, std::sin(half), std::cos(half)});
+  }
+  s.channels.push_back(ch);
+  s.finalize();
+  return s;
+}
+
+TEST(SamplerTest, CrosshairsOnATurningObjectTurnWithIt) {
+  // Every crosshair lies on the turning disc. It is moved at t1 = 0.5 s and at t2 = 1 s (the
+  // disc has turned 29 and 57 degrees), many times each. A move must put it where the disc's
+  // transform at that time puts its point: a fresh trace through its image position at the
+  // time it was traced, at t1 or at t2 sees its own sector. Extrapolating the point's velocity
+  // along a straight line instead would leave it 12 degrees (3 sectors) behind at t2.
+  constexpr int kSectors = 90;  // 4 degrees each
+  constexpr int kSize = 64;
+  const double t1 = 0.5, t2 = 1.0;
+  SamplerConfig config = small_config(kSize, kSize);
+  config.fill_step = 2;
+  config.min_tiles = config.max_tiles = 1;
+  config.r = 0;                   // moves only when the test says so
+  config.occlusion_rays = false;  // nothing hides anything
+  config.loop_animation = false;
+  SamplerRig rig(spinning_sectors_scene(kSectors, 1.0), 2e5, config);
+  Sampler& sampler = rig.sampler;
+  VirtualClock& clock = rig.clock;
+  Tracer& tracer = rig.tracer;
+  sampler.fill();
+  ASSERT_LT(clock.now(), 0.1);
+  const int tile = sampler.tiling().tiles()[0];
+  for (const double t : {t1, t2}) {
+    clock.primary_rays_traced(uint64_t((t - clock.now()) * clock.rate()));
+    for (int k = 0; k < 8 * kSize * kSize; ++k) sampler.reproject(tile);
+  }
+  EXPECT_GT(sampler.counters().reprojections, uint64_t(2 * kSize * kSize));
+
+  // The sector a fresh trace at time t sees through image position (x, y).
+  const auto sector_at = [&](double t, double x, double y) {
+    tracer.set_time(t);
+    TraceStats stats;
+    const ShadedSample fresh = tracer.trace(tracer.camera().ray(x, y, kSize, kSize), &stats);
+    return fresh.hit ? int(std::lround(luminance(fresh.color) * kSectors)) : -1000;
+  };
+  const auto apart = [&](int a, int b) {
+    const int d = std::abs(a - b) % kSectors;
+    return std::min(d, kSectors - d);
+  };
+  int checked = 0, misplaced = 0;
+  const PixelRect r = sampler.tiling().region();
+  for (int32_t y = r.y0; y < r.y1; ++y) {
+    for (int32_t x = r.x0; x < r.x1; ++x) {
+      for (int k = 0; k < sampler.buffer().count(x, y); ++k) {
+        const Crosshair& c = sampler.buffer().at(x, y, k);
+        ASSERT_TRUE(c.has(Crosshair::kCenterHit));
+        const int own = int(std::lround(c.luminance * kSectors));
+        bool placed = false;
+        for (const double t : {c.time, t1, t2}) {
+          placed = placed || apart(sector_at(t, c.x, c.y), own) <= 1;
+        }
+        misplaced += placed ? 0 : 1;
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GT(checked, kSize * kSize / 8);
+  EXPECT_EQ(misplaced, 0) << "of " << checked << " crosshairs";
+}
+
 TEST(SamplerTest, OcclusionRaysCatchAnObjectMovingInFront) {
   SamplerRig rig(testing::moving_scene(), 2e5, small_config(64, 64));
   auto& [scene, tracer, clock, sink, sampler] = rig;
@@ -527,8 +629,7 @@ TEST(SamplerTest, OcclusionRaysCatchAnObjectMovingInFront) {
 
 TEST(SamplerTest, OcclusionsCountForTheirAgeNotForAsLongAsTheirCrosshairsStay) {
   // The square moves in front of the background until 2 s and then stands still: occlusions
-  // happen until then, and a while after (crosshairs traced while it moved carry its velocity,
-  // and reprojection extrapolates them), then stop. The deep buffer is far from full at this
+  // happen until then, and stop soon after. The deep buffer is far from full at this
   // rate, so the crosshairs that replaced occluded ones stay in it; the occlusion term must
   // still fade with their age (section 6.1's |O| counts occlusions now), as the other
   // statistics do: counted by their number, they kept drawing samples to where a moving object

@@ -37,6 +37,13 @@ struct Crosshair {
   float neighbor_luminance[4] = {};
   float G_x = 0.0f, G_y = 0.0f, G_t = 0.0f;  // this crosshair's gradients
   uint8_t flags = 0;
+  // The scene node in whose space each traced point (the center's, then the neighbours') is
+  // kept: a point on a rigidly moving object is kept in the object's space, and reprojection
+  // puts it where the object's transform at the new time does (extrapolating a velocity would
+  // carry the points of a turning or stopping object off it). kWorld for a world point: static
+  // or deforming geometry (moved by `velocity`), or a miss's direction.
+  static constexpr uint32_t kWorld = 0xffffffffu;
+  uint32_t space[5] = {kWorld, kWorld, kWorld, kWorld, kWorld};
 
   bool has(uint8_t flag) const { return (flags & flag) != 0; }
   bool neighbor_hit(int k) const { return (flags & (kNeighborHit0 << k)) != 0; }
@@ -65,7 +72,8 @@ enum DeepBufferFields : uint32_t {
   kKeepReprojection = 1u << 0,
   kKeepVelocity = 1u << 1,   // 12 bytes; zero in a scene where nothing moves
   kKeepOldSample = 1u << 2,  // old_time and old_luminance, 12 bytes; the sampler never reads them
-  kKeepAll = kKeepReprojection | kKeepVelocity | kKeepOldSample,
+  kKeepSpaces = 1u << 3,     // space, 20 bytes; kWorld in a scene where nothing moves rigidly
+  kKeepAll = kKeepReprojection | kKeepVelocity | kKeepOldSample | kKeepSpaces,
 };
 
 class DeepBuffer {
@@ -165,7 +173,7 @@ class DeepBuffer {
   // The rest of a slot, packed without padding: the fields that `fields_` keeps, at these
   // byte offsets (the image position first); -1 for one not kept.
   size_t rest_stride_ = 0;
-  int velocity_at_ = -1, old_sample_at_ = -1;
+  int velocity_at_ = -1, old_sample_at_ = -1, spaces_at_ = -1;
   // The statistics part of slot s of pixel p at p * depth + s, for every pixel.
   std::vector<CrosshairStats> stats_;
   std::vector<Queue> queues_;

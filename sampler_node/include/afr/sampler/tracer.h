@@ -81,6 +81,12 @@ class Tracer {
 
   const TracerOptions& options() const;
 
+  // The world transform at the current time, and its inverse, of a scene node whose geometry
+  // moves rigidly (an animated mesh instance): a point on it in the node's space is at
+  // world x p at this time. False for any other node (static or deforming geometry, a light,
+  // a camera, kNoObject) and for one that a singular transform hides at this time.
+  bool rigid_transform(uint32_t node, glm::dmat4* world, glm::dmat4* inverse) const;
+
   ShadedSample trace(const Ray& ray, TraceStats* stats) const;
   // The crosshair of section 4.1: the center sample at image position (x, y) and its four
   // neighbours one pixel away, in the order center, x-1, x+1, y-1, y+1.
