@@ -458,62 +458,78 @@ Scene sliding_strips_scene(int strips, float strip_width, double speed) {
   return s;
 }
 
-TEST(SamplerTest, CrosshairsMovedManyTimesSitWhereTheObjectIsNotFurther) {
-  // Every crosshair lies on the sliding plane. It is moved at t1 = 1 s, then at t2 = 1.5 s,
-  // many times each (reprojection picks pixels at random), so most are moved twice or more.
-  // A move may only put it where its point is at the time of that move: wherever it was last
-  // moved, a fresh trace through its image position at the time it was traced, at t1 or at t2
-  // sees its own strip. Counting the motion again on a second move would carry it 2 v t1 or
-  // more from where it was traced, past anything a single move reaches (v t2): 5 pixels, 2.7
-  // strips beyond.
-  constexpr int kStrips = 200;
-  constexpr int kSize = 64;
-  const double speed = 0.2, t1 = 1.0, t2 = 1.5;
-  SamplerConfig config = small_config(kSize, kSize);
+// What move_crosshairs_and_check found.
+struct MovedCrosshairs {
+  uint64_t reprojections = 0;
+  int checked = 0, misplaced = 0;
+};
+
+// A sampler of one tile over a size x size image of `scene` (every crosshair on a moving
+// object whose points glow in classes of their luminance), filled at once, whose crosshairs
+// are moved at each of `times`, many times each (reprojection picks pixels at random, so most
+// move more than once). A move may only put a crosshair where its point is at the time of that
+// move: counts those that sit where a fresh trace at the time each was traced, or at one of
+// `times`, sees no point of its class (`apart(a, b)`: how many classes a luminance a is from
+// b; 1 is allowed, for a point on a class boundary).
+template <typename Apart>
+MovedCrosshairs move_crosshairs_and_check(Scene scene, int size, std::vector<double> times,
+                                          Apart apart) {
+  SamplerConfig config = small_config(size, size);
   config.fill_step = 2;
   config.min_tiles = config.max_tiles = 1;
   config.r = 0;                   // moves only when the test says so
   config.occlusion_rays = false;  // nothing hides anything
   config.loop_animation = false;
-  SamplerRig rig(sliding_strips_scene(kStrips, 0.036f, speed), 2e5, config);
+  SamplerRig rig(std::move(scene), 2e5, config);
   Sampler& sampler = rig.sampler;
   VirtualClock& clock = rig.clock;
   Tracer& tracer = rig.tracer;
   sampler.fill();
-  ASSERT_LT(clock.now(), 0.1);
+  EXPECT_LT(clock.now(), 0.1);
   const int tile = sampler.tiling().tiles()[0];
-  for (const double t : {t1, t2}) {
+  for (const double t : times) {
     clock.primary_rays_traced(uint64_t((t - clock.now()) * clock.rate()));
-    for (int k = 0; k < 8 * kSize * kSize; ++k) sampler.reproject(tile);
+    for (int k = 0; k < 8 * size * size; ++k) sampler.reproject(tile);
   }
-  EXPECT_GT(sampler.counters().reprojections, uint64_t(2 * kSize * kSize));
-
-  // The strip a fresh trace at display time t sees through image position (x, y).
-  const auto strip_at = [&](double t, double x, double y) {
+  // Whether a fresh trace at time t through image position (x, y) sees a point of the class
+  // of luminance l.
+  const auto sees = [&](double t, double x, double y, float l) {
     tracer.set_time(t);
     TraceStats stats;
-    const ShadedSample fresh = tracer.trace(tracer.camera().ray(x, y, kSize, kSize), &stats);
-    return fresh.hit ? int(std::lround(luminance(fresh.color) * kStrips)) : -1000;
+    const ShadedSample fresh = tracer.trace(tracer.camera().ray(x, y, size, size), &stats);
+    return fresh.hit && apart(luminance(fresh.color), l) <= 1;
   };
-  int checked = 0, misplaced = 0;
+  MovedCrosshairs out;
+  out.reprojections = sampler.counters().reprojections;
   const PixelRect r = sampler.tiling().region();
   for (int32_t y = r.y0; y < r.y1; ++y) {
     for (int32_t x = r.x0; x < r.x1; ++x) {
       for (int k = 0; k < sampler.buffer().count(x, y); ++k) {
         const Crosshair& c = sampler.buffer().at(x, y, k);
-        ASSERT_TRUE(c.has(Crosshair::kCenterHit));
-        const int own = int(std::lround(c.luminance * kStrips));
-        bool placed = false;
-        for (const double t : {c.time, t1, t2}) {
-          placed = placed || std::abs(strip_at(t, c.x, c.y) - own) <= 1;
-        }
-        misplaced += placed ? 0 : 1;
-        ++checked;
+        EXPECT_TRUE(c.has(Crosshair::kCenterHit));
+        bool placed = sees(c.time, c.x, c.y, c.luminance);
+        for (const double t : times) placed = placed || sees(t, c.x, c.y, c.luminance);
+        out.misplaced += placed ? 0 : 1;
+        ++out.checked;
       }
     }
   }
-  EXPECT_GT(checked, kSize * kSize / 8);
-  EXPECT_EQ(misplaced, 0) << "of " << checked << " crosshairs";
+  return out;
+}
+
+TEST(SamplerTest, CrosshairsMovedManyTimesSitWhereTheObjectIsNotFurther) {
+  // Every crosshair lies on the sliding plane; it is moved at 1 s, then at 1.5 s. Counting the
+  // motion again on a second move would carry it 2 v t1 or more from where it was traced, past
+  // anything a single move reaches (v t2): 5 pixels, 2.7 strips beyond.
+  constexpr int kStrips = 200;
+  constexpr int kSize = 64;
+  const MovedCrosshairs moved = move_crosshairs_and_check(
+      sliding_strips_scene(kStrips, 0.036f, 0.2), kSize, {1.0, 1.5}, [](float a, float b) {
+        return std::abs(std::lround(a * kStrips) - std::lround(b * kStrips));
+      });
+  EXPECT_GT(moved.reprojections, uint64_t(2 * kSize * kSize));
+  EXPECT_GT(moved.checked, kSize * kSize / 8);
+  EXPECT_EQ(moved.misplaced, 0) << "of " << moved.checked << " crosshairs";
 }
 
 // A disc of `sectors` equal sectors, sector i glowing i / sectors, one unit in front of the
@@ -559,63 +575,20 @@ Scene spinning_sectors_scene(int sectors, double spin) {
 }
 
 TEST(SamplerTest, CrosshairsOnATurningObjectTurnWithIt) {
-  // Every crosshair lies on the turning disc. It is moved at t1 = 0.5 s and at t2 = 1 s (the
-  // disc has turned 29 and 57 degrees), many times each. A move must put it where the disc's
-  // transform at that time puts its point: a fresh trace through its image position at the
-  // time it was traced, at t1 or at t2 sees its own sector. Extrapolating the point's velocity
-  // along a straight line instead would leave it 12 degrees (3 sectors) behind at t2.
+  // Every crosshair lies on the turning disc; it is moved at 0.5 s and at 1 s, when the disc
+  // has turned 29 and 57 degrees. The disc's transform at the time of a move says where its
+  // point is; extrapolating the point's velocity along a straight line instead would leave it
+  // 12 degrees (3 sectors) behind at 1 s.
   constexpr int kSectors = 90;  // 4 degrees each
   constexpr int kSize = 64;
-  const double t1 = 0.5, t2 = 1.0;
-  SamplerConfig config = small_config(kSize, kSize);
-  config.fill_step = 2;
-  config.min_tiles = config.max_tiles = 1;
-  config.r = 0;                   // moves only when the test says so
-  config.occlusion_rays = false;  // nothing hides anything
-  config.loop_animation = false;
-  SamplerRig rig(spinning_sectors_scene(kSectors, 1.0), 2e5, config);
-  Sampler& sampler = rig.sampler;
-  VirtualClock& clock = rig.clock;
-  Tracer& tracer = rig.tracer;
-  sampler.fill();
-  ASSERT_LT(clock.now(), 0.1);
-  const int tile = sampler.tiling().tiles()[0];
-  for (const double t : {t1, t2}) {
-    clock.primary_rays_traced(uint64_t((t - clock.now()) * clock.rate()));
-    for (int k = 0; k < 8 * kSize * kSize; ++k) sampler.reproject(tile);
-  }
-  EXPECT_GT(sampler.counters().reprojections, uint64_t(2 * kSize * kSize));
-
-  // The sector a fresh trace at time t sees through image position (x, y).
-  const auto sector_at = [&](double t, double x, double y) {
-    tracer.set_time(t);
-    TraceStats stats;
-    const ShadedSample fresh = tracer.trace(tracer.camera().ray(x, y, kSize, kSize), &stats);
-    return fresh.hit ? int(std::lround(luminance(fresh.color) * kSectors)) : -1000;
-  };
-  const auto apart = [&](int a, int b) {
-    const int d = std::abs(a - b) % kSectors;
-    return std::min(d, kSectors - d);
-  };
-  int checked = 0, misplaced = 0;
-  const PixelRect r = sampler.tiling().region();
-  for (int32_t y = r.y0; y < r.y1; ++y) {
-    for (int32_t x = r.x0; x < r.x1; ++x) {
-      for (int k = 0; k < sampler.buffer().count(x, y); ++k) {
-        const Crosshair& c = sampler.buffer().at(x, y, k);
-        ASSERT_TRUE(c.has(Crosshair::kCenterHit));
-        const int own = int(std::lround(c.luminance * kSectors));
-        bool placed = false;
-        for (const double t : {c.time, t1, t2}) {
-          placed = placed || apart(sector_at(t, c.x, c.y), own) <= 1;
-        }
-        misplaced += placed ? 0 : 1;
-        ++checked;
-      }
-    }
-  }
-  EXPECT_GT(checked, kSize * kSize / 8);
-  EXPECT_EQ(misplaced, 0) << "of " << checked << " crosshairs";
+  const MovedCrosshairs moved = move_crosshairs_and_check(
+      spinning_sectors_scene(kSectors, 1.0), kSize, {0.5, 1.0}, [](float a, float b) {
+        const long d = std::abs(std::lround(a * kSectors) - std::lround(b * kSectors)) % kSectors;
+        return std::min(d, kSectors - d);
+      });
+  EXPECT_GT(moved.reprojections, uint64_t(2 * kSize * kSize));
+  EXPECT_GT(moved.checked, kSize * kSize / 8);
+  EXPECT_EQ(moved.misplaced, 0) << "of " << moved.checked << " crosshairs";
 }
 
 TEST(SamplerTest, OcclusionRaysCatchAnObjectMovingInFront) {
