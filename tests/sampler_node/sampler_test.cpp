@@ -423,23 +423,24 @@ TEST(SamplerTest, ReprojectedCrosshairsLandWhereAFreshTraceSeesTheirPoint) {
   EXPECT_GT(checked, 50);
 }
 
-// A plane of kStrips vertical strips, strip i glowing i / kStrips, wider than the view at
-// every time of the test, sliding right at `speed` units per second one unit in front of the
-// camera: a point's luminance names the strip it belongs to, so a fresh trace says where on
-// the plane an image position is.
-Scene sliding_strips_scene(int strips, float strip_width, double speed) {
+// One animated mesh, `motion` moving its node: piece i of `pieces` (a convex polygon, taken
+// as a triangle fan) glows i / pieces.size(), so a point's luminance names the piece it
+// belongs to, and a fresh trace says which piece is at an image position.
+Scene glowing_pieces_scene(const std::vector<std::vector<glm::vec3>>& pieces,
+                           AnimationChannel motion) {
   Scene s = testing::camera_scene();
-  Mesh mesh{"strips", {}};
-  for (int i = 0; i < strips; ++i) {
+  Mesh mesh{"pieces", {}};
+  for (size_t i = 0; i < pieces.size(); ++i) {
     Material m;
     m.base_color_factor = glm::vec4(0, 0, 0, 1);
     m.metallic = 0.0f;
-    m.emissive = glm::vec3(float(i) / float(strips));
+    m.emissive = glm::vec3(float(i) / float(pieces.size()));
     s.materials.push_back(m);
-    const float x0 = (float(i) - 0.5f * float(strips)) * strip_width, x1 = x0 + strip_width;
     Primitive p;
-    p.positions = {{x0, -10, -1}, {x1, -10, -1}, {x1, 10, -1}, {x0, 10, -1}};
-    p.indices = {0, 1, 2, 0, 2, 3};
+    p.positions = pieces[i];
+    for (uint32_t k = 1; k + 1 < uint32_t(pieces[i].size()); ++k) {
+      p.indices.insert(p.indices.end(), {0u, k, k + 1});
+    }
     p.material = int(s.materials.size()) - 1;
     mesh.primitives.push_back(p);
   }
@@ -447,15 +448,49 @@ Scene sliding_strips_scene(int strips, float strip_width, double speed) {
   Node n;
   n.mesh = 0;
   s.nodes.push_back(n);
+  motion.node = int(s.nodes.size()) - 1;
+  s.channels.push_back(motion);
+  s.finalize();
+  return s;
+}
+
+// `strips` vertical strips one unit in front of the camera, wider than the view at every time
+// of the test, sliding right at `speed` units per second.
+Scene sliding_strips_scene(int strips, float strip_width, double speed) {
+  std::vector<std::vector<glm::vec3>> pieces;
+  for (int i = 0; i < strips; ++i) {
+    const float x0 = (float(i) - 0.5f * float(strips)) * strip_width, x1 = x0 + strip_width;
+    pieces.push_back({{x0, -10, -1}, {x1, -10, -1}, {x1, 10, -1}, {x0, 10, -1}});
+  }
   AnimationChannel ch;
-  ch.node = int(s.nodes.size()) - 1;
   ch.path = AnimatedPath::kTranslation;
   ch.interpolation = Interpolation::kLinear;
   ch.times = {0.0, 10.0};
   ch.values = {{0, 0, 0, 0}, {10.0 * speed, 0, 0, 0}};
-  s.channels.push_back(ch);
-  s.finalize();
-  return s;
+  return glowing_pieces_scene(pieces, ch);
+}
+
+// A disc of `sectors` equal sectors one unit in front of the camera, wider than the view,
+// turning about the view axis at `spin` radians per second.
+Scene spinning_sectors_scene(int sectors, double spin) {
+  std::vector<std::vector<glm::vec3>> pieces;
+  const float radius = 5.0f;
+  for (int i = 0; i < sectors; ++i) {
+    const double a0 = 2.0 * glm::pi<double>() * i / sectors;
+    const double a1 = 2.0 * glm::pi<double>() * (i + 1) / sectors;
+    pieces.push_back({{0, 0, -1},
+                      {radius * float(std::cos(a0)), radius * float(std::sin(a0)), -1},
+                      {radius * float(std::cos(a1)), radius * float(std::sin(a1)), -1}});
+  }
+  AnimationChannel ch;
+  ch.path = AnimatedPath::kRotation;
+  ch.interpolation = Interpolation::kLinear;  // slerp between keys 0.1 rad apart
+  for (int k = 0; k <= 100; ++k) {
+    const double t = 0.1 * k, half = 0.5 * spin * t;
+    ch.times.push_back(t);
+    ch.values.push_back({0.0, 0.0, std::sin(half), std::cos(half)});
+  }
+  return glowing_pieces_scene(pieces, ch);
 }
 
 // What move_crosshairs_and_check found.
@@ -530,48 +565,6 @@ TEST(SamplerTest, CrosshairsMovedManyTimesSitWhereTheObjectIsNotFurther) {
   EXPECT_GT(moved.reprojections, uint64_t(2 * kSize * kSize));
   EXPECT_GT(moved.checked, kSize * kSize / 8);
   EXPECT_EQ(moved.misplaced, 0) << "of " << moved.checked << " crosshairs";
-}
-
-// A disc of `sectors` equal sectors, sector i glowing i / sectors, one unit in front of the
-// camera and wider than the view, turning about the view axis at `spin` radians per second: a
-// point's luminance names its sector, so a fresh trace says which sector is at an image
-// position.
-Scene spinning_sectors_scene(int sectors, double spin) {
-  Scene s = testing::camera_scene();
-  Mesh mesh{"sectors", {}};
-  const float radius = 5.0f;
-  for (int i = 0; i < sectors; ++i) {
-    Material m;
-    m.base_color_factor = glm::vec4(0, 0, 0, 1);
-    m.metallic = 0.0f;
-    m.emissive = glm::vec3(float(i) / float(sectors));
-    s.materials.push_back(m);
-    const double a0 = 2.0 * glm::pi<double>() * i / sectors;
-    const double a1 = 2.0 * glm::pi<double>() * (i + 1) / sectors;
-    Primitive p;
-    p.positions = {{0, 0, -1},
-                   {radius * float(std::cos(a0)), radius * float(std::sin(a0)), -1},
-                   {radius * float(std::cos(a1)), radius * float(std::sin(a1)), -1}};
-    p.indices = {0, 1, 2};
-    p.material = int(s.materials.size()) - 1;
-    mesh.primitives.push_back(p);
-  }
-  s.meshes.push_back(mesh);
-  Node n;
-  n.mesh = 0;
-  s.nodes.push_back(n);
-  AnimationChannel ch;
-  ch.node = int(s.nodes.size()) - 1;
-  ch.path = AnimatedPath::kRotation;
-  ch.interpolation = Interpolation::kLinear;  // slerp between keys 0.1 rad apart
-  for (int k = 0; k <= 100; ++k) {
-    const double t = 0.1 * k, half = 0.5 * spin * t;
-    ch.times.push_back(t);
-    ch.values.push_back({0.0, 0.0, std::sin(half), std::cos(half)});
-  }
-  s.channels.push_back(ch);
-  s.finalize();
-  return s;
 }
 
 TEST(SamplerTest, CrosshairsOnATurningObjectTurnWithIt) {
