@@ -125,6 +125,25 @@ TileSums sums_from_buffer(const DeepBuffer& buffer, const PixelRect& rect, doubl
   return s;
 }
 
+// The temporal gradient of a block straight from the deep buffer: the weighted mean of G_t over
+// its crosshairs that have one, weights relative to the newest of those. For a block whose sums
+// lost them (below).
+double temporal_gradient_from_buffer(const DeepBuffer& buffer, const PixelRect& rect) {
+  double newest = -std::numeric_limits<double>::infinity();
+  buffer.for_each_stats(rect, [&](const CrosshairStats& c) {
+    if (c.has(Crosshair::kHasTemporalGradient)) newest = std::max(newest, c.time);
+  });
+  if (!std::isfinite(newest)) return 0.0;
+  double wt = 0.0, wgt = 0.0;
+  buffer.for_each_stats(rect, [&](const CrosshairStats& c) {
+    if (!c.has(Crosshair::kHasTemporalGradient)) return;
+    const double w = std::exp(kAgeDecay * (c.time - newest));
+    wt += w;
+    wgt += w * c.G_t;
+  });
+  return wt > 0.0 ? std::max(0.0, wgt / wt) : 0.0;
+}
+
 // The sums of a block made of `n` disjoint blocks, moved to a common shift and to the newest of
 // their reference times. Every part's own weights stay below exp(kAgeDecay * kMaxReferenceAge)
 // and the factors below 1, so nothing overflows.
@@ -758,7 +777,14 @@ TileStats Sampler::tile_stats(int tile, double now) const {
   st.v = std::max(0.0, s.wll / s.w - mean * mean);
   st.G_x = std::max(0.0, s.wgx / s.w);
   st.G_y = std::max(0.0, s.wgy / s.w);
-  st.G_t = s.wt > 0.0 ? std::max(0.0, s.wgt / s.wt) : 0.0;
+  if (s.temporal > 0 && !(s.wt >= std::numeric_limits<double>::min())) {
+    // Every crosshair of the block with a temporal gradient is so much older than its newest
+    // (over 200 s: a tile visited once every few minutes) that their weights underflowed in
+    // sums referred to the newest; G_t is still their weighted mean.
+    st.G_t = temporal_gradient_from_buffer(buffer_, tiling_.node(tile).rect);
+  } else {
+    st.G_t = s.wt > 0.0 ? std::max(0.0, s.wgt / s.wt) : 0.0;
+  }
   st.mean_age = std::max(0.0, now - (s.t_ref + s.t_sum / s.count));
   return st;
 }
