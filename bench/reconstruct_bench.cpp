@@ -86,11 +86,12 @@ afr::TilingSnapshot make_tiling(afr::Pcg32& rng, afr::ImageExtent size, double t
 
 struct Timing {
   double median = 0.0, p10 = 0.0, p90 = 0.0;
-  double cpu = 0.0;        // median CPU time of the whole process (all its threads) per refresh
-  double gpu = 0.0;        // median GPU time per refresh (timer queries); 0 for the CPU backend
-  afr::GpuTimes passes;    // median of each pass
-  afr::CallTimes call;     // median of each phase of the call (GL backend)
-  double sustained = 0.0;  // ms per refresh, back to back, until the last one is finished
+  double cpu = 0.0;      // median CPU time of the whole process (all its threads) per refresh
+  double gpu = 0.0;      // median GPU time per refresh (timer queries); 0 for the CPU backend
+  afr::GpuTimes passes;  // median of each pass
+  afr::CallTimes call;   // median of each phase of the call (GL backend)
+  afr::CpuPhaseTimes cpu_phases;  // median of each phase of the call (CPU backend)
+  double sustained = 0.0;         // ms per refresh, back to back, until the last one is finished
 };
 
 double median_of(std::vector<double> v) {
@@ -235,6 +236,7 @@ Timing run(afr::Reconstructor& rec, afr::ImageExtent size, int repeats, int warm
   std::vector<double> ms, cpu;
   std::vector<afr::GpuTimes> gpu;
   std::vector<afr::CallTimes> calls;
+  std::vector<afr::CpuPhaseTimes> cpu_phases;
   afr::Image image;
   using Clock = std::chrono::steady_clock;
   Clock::time_point start;
@@ -254,6 +256,7 @@ Timing run(afr::Reconstructor& rec, afr::ImageExtent size, int repeats, int warm
       ms.push_back(rec.frame_stats().milliseconds);
       cpu.push_back(process_cpu_ms() - c0);
       calls.push_back(rec.frame_stats().call);
+      cpu_phases.push_back(rec.frame_stats().cpu);
     }
     collect(rec.frame_stats().gpu, warmup, &gpu);
   }
@@ -274,6 +277,17 @@ Timing run(afr::Reconstructor& rec, afr::ImageExtent size, int repeats, int warm
   timing.call.prepare = median_phase(&afr::CallTimes::prepare);
   timing.call.upload = median_phase(&afr::CallTimes::upload);
   timing.call.passes = median_phase(&afr::CallTimes::passes);
+  const auto median_cpu = [&](double afr::CpuPhaseTimes::*phase) {
+    std::vector<double> v;
+    for (const afr::CpuPhaseTimes& c : cpu_phases) v.push_back(c.*phase);
+    return median_of(v);
+  };
+  timing.cpu_phases.prepare = median_cpu(&afr::CpuPhaseTimes::prepare);
+  timing.cpu_phases.shape = median_cpu(&afr::CpuPhaseTimes::shape);
+  timing.cpu_phases.reproject = median_cpu(&afr::CpuPhaseTimes::reproject);
+  timing.cpu_phases.sort = median_cpu(&afr::CpuPhaseTimes::sort);
+  timing.cpu_phases.splat = median_cpu(&afr::CpuPhaseTimes::splat);
+  timing.cpu_phases.fill = median_cpu(&afr::CpuPhaseTimes::fill);
   if (!gpu.empty() && gpu.back().timed) {
     const auto median_pass = [&](double afr::GpuTimes::*pass) {
       std::vector<double> v;
@@ -423,7 +437,7 @@ int main(int argc, char** argv) {
     fmt::print("|---|---|---|---|---|---|---|---|---|---|\n");
     std::vector<afr::GlSplat> splats;
     for (const std::string& text : splat_texts) splats.push_back(afr::parse_gl_splat(text));
-    std::vector<std::string> passes, phases, checks;
+    std::vector<std::string> passes, phases, cpu_phases, checks;
     for (const afr::ImageExtent size : sizes) {
       afr::ReconstructorConfig cfg;
       cfg.image = size;
@@ -445,7 +459,12 @@ int main(int argc, char** argv) {
         for (int threads : thread_counts) {
           cfg.threads = threads;
           afr::CpuReconstructor rec(cfg);
-          row("cpu", std::to_string(threads), run(rec, size, repeats, warmup, readback, 1));
+          const Timing t = run(rec, size, repeats, warmup, readback, 1);
+          row("cpu", std::to_string(threads), t);
+          const afr::CpuPhaseTimes& p = t.cpu_phases;
+          cpu_phases.push_back(fmt::format(
+              "| {} | {}x{} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |", threads,
+              size.width, size.height, p.prepare, p.shape, p.reproject, p.sort, p.splat, p.fill));
         }
       }
       if (gl) {
@@ -477,6 +496,16 @@ int main(int argc, char** argv) {
           }
         }
       }
+    }
+    if (!cpu_phases.empty()) {
+      fmt::print(
+          "\nThe CPU backend's call by phase, median wall ms (prepare: new samples, tile field, "
+          "filters; shape: each pixel's splat shape; reproject: every sample projected and "
+          "binned; sort: into band order; splat: the Gaussian splats; fill: normalisation and "
+          "holes)\n\n");
+      fmt::print("| threads | resolution | prepare | shape | reproject | sort | splat | fill |\n");
+      fmt::print("|---|---|---|---|---|---|---|---|\n");
+      for (const std::string& line : cpu_phases) fmt::print("{}\n", line);
     }
     const bool waited = gl && gl->software() && sync_passes;
     if (gl && gl->software() && !sync_passes) {

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <thread>
@@ -31,7 +32,6 @@ struct PixelShape {
   float r_x = 0.0f, r_y = 0.0f;      // the splat: the square of radius r cut to cutoff sigma
   float k_t = 0.0f;                  // 1 / (2 e_t^2)
   float norm = 1.0f;                 // 1 / (sigma_x sigma_y): the Gaussian's area
-  float r = 1.0f;                    // splat size
   float growth = 1.0f;               // r / filter radius (what the coverage map records)
 };
 
@@ -42,12 +42,17 @@ struct alignas(64) Counts {
   uint64_t holes = 0, empty = 0, nonfinite = 0;
 };
 
-constexpr uint16_t kNoBand = 0xffff;
+constexpr uint32_t kNoBin = 0xffffffffu;
 
 // Rows per band of splat_bands, whatever the thread count (so that the image does not depend
 // on it): tall enough that few splats reach beyond the next band, short enough that bands
 // outnumber threads several times over (for balance).
 int band_height_for(int height) { return std::clamp(height / 32, 8, 64); }
+// Pixels per block of a band (Bands): 36 bytes of splat shape and 24 of sums and coverage each.
+constexpr int kBlockArea = 128;
+// Blocks are widened where the whole image would have more bins than this (the binning counts
+// are bins x chunks).
+constexpr double kMaxBins = 8192.0;
 
 // The hot passes are compiled twice with GCC, for the baseline x86-64 and for x86-64-v3 (AVX2,
 // FMA: Haswell and later); the dynamic loader picks one per machine (an ifunc that tests the
@@ -93,7 +98,6 @@ inline void gaussian_row(int i0, int i1, float center, float k_, float offset, f
 #endif
 }
 
-#if defined(__SSE2__)
 // GCC/Clang vector types for splat_band's sums: 8 floats are one AVX register in the
 // x86-64-v3 clone and two SSE registers in the baseline. The 8-float loads and stores are
 // unaligned and may alias the float sums.
@@ -101,7 +105,53 @@ typedef float Float8 __attribute__((vector_size(32), aligned(4), may_alias));
 typedef int32_t Int8 __attribute__((vector_size(32), aligned(4), may_alias));
 typedef float Float4 __attribute__((vector_size(16)));
 typedef int32_t Int4 __attribute__((vector_size(16)));
+
+// The helpers below take and return 8-lane vectors by value; they are inlined into the hot
+// passes (GCC notes that such a function's ABI would differ without AVX).
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wpsabi"
 #endif
+
+// Lane-wise a where m is set, else b (m: all ones or zeros per lane, as comparisons give).
+inline Float8 select8(Int8 m, Float8 a, Float8 b) { return Float8((Int8(a) & m) | (Int8(b) & ~m)); }
+inline Int8 select8(Int8 m, Int8 a, Int8 b) { return (a & m) | (b & ~m); }
+inline Float8 splat8(float v) { return Float8{v, v, v, v, v, v, v, v}; }
+inline Int8 splat8(int32_t v) { return Int8{v, v, v, v, v, v, v, v}; }
+inline Float8 abs8(Float8 v) { return Float8(Int8(v) & splat8(0x7fffffff)); }
+// quantize_position (reprojection.h) on eight lanes, with its operations.
+inline Float8 quantize8(Float8 v) {
+  const Float8 t = v * 256.0f;
+  const Float8 q = ((t + 12582912.0f) - 12582912.0f) * kPositionStep;
+  return select8(abs8(v) < splat8(16384.0f), q, v);
+}
+// floor_int and ceil_int on eight lanes.
+inline Int8 floor_int8(Float8 v) {
+  const Int8 i = __builtin_convertvector(v, Int8);
+  return i + Int8(v < __builtin_convertvector(i, Float8));  // true is -1
+}
+inline Int8 ceil_int8(Float8 v) {
+  const Int8 i = __builtin_convertvector(v, Int8);
+  return i - Int8(v > __builtin_convertvector(i, Float8));
+}
+// fast_exp (fast_exp.h) on eight lanes, with its operations.
+inline Float8 fast_exp8(Float8 x) {
+  const Float8 lowest = splat8(-87.0f), zero = splat8(0.0f);
+  const Int8 valid = x > lowest;  // false for NaN and x <= -87: result 0
+  x = select8(x < zero, x, zero);
+  x = select8(x > lowest, x, lowest);
+  const Int8 i = __builtin_convertvector(x * 1.44269504088896341f - 0.5f, Int8);
+  const Float8 fi = __builtin_convertvector(i, Float8);
+  const Float8 u = (x - fi * 0.693145751953125f) - fi * 1.42860682030941723e-6f;
+  Float8 p = splat8(1.0f / 720.0f);
+  p = p * u + 1.0f / 120.0f;
+  p = p * u + 1.0f / 24.0f;
+  p = p * u + 1.0f / 6.0f;
+  p = p * u + 0.5f;
+  p = p * u + 1.0f;
+  p = p * u + 1.0f;
+  const Int8 bits = (i + 127) << 23;
+  return Float8(Int8(p * Float8(bits)) & valid);
+}
 
 int default_threads(int requested) {
   if (requested > 0) return std::min(requested, 256);
@@ -125,21 +175,36 @@ struct Bands {
   int height = 0;  // rows per band
   int first = 0;   // the whole image's index of the band holding grid row 0
   int offset = 0;  // grid row 0's row in that band
-  int count = 0;   // bands over the grid; index `count` is the oversize bucket
-  // Entries per chunk in the binning counts and cursors: count + 1 padded to whole cache lines
+  int count = 0;   // bands over the grid
+  // Each band is binned in blocks of columns of the whole image's lattice (block k: columns
+  // [k w, (k + 1) w)), so that a band's samples are splatted block after block: the shapes and
+  // sums a block touches fit in the first-level cache, where a whole band's would not.
+  int block_width = 0;   // columns per block
+  int block_offset = 0;  // grid column 0's column in its block
+  int blocks = 0;        // blocks over the grid
+  // Bin of band b, block k: b * blocks + k; bin `oversize()` is the oversize bucket.
+  uint32_t oversize() const { return uint32_t(count) * uint32_t(blocks); }
+  // Entries per chunk in the binning counts and cursors: the bins padded to whole cache lines
   // (chunks run on different threads).
   size_t count_stride = 0;
 };
 
-Bands bands_for(const PixelGrid& grid, double scaled_height, int grid_height) {
+Bands bands_for(const PixelGrid& grid, double scaled_width, double scaled_height, int grid_width,
+                int grid_height) {
   Bands b;
-  b.height = std::max(band_height_for(int(std::min(scaled_height, 1e9))),
-                      (grid_height + kNoBand - 2) / (kNoBand - 2));
+  b.height = band_height_for(int(std::min(scaled_height, 1e9)));
+  // From the whole image's size, so that a viewport's blocks are the whole image's.
+  const double whole_bands = std::ceil(std::min(scaled_height, 1e9) / double(b.height));
+  b.block_width = int(std::clamp(std::ceil(std::min(scaled_width, 1e9) * whole_bands / kMaxBins),
+                                 double(kBlockArea / b.height), 1e9));
   const int first_row = int(std::floor(grid.origin_y));
   b.first = first_row / b.height;
   b.offset = first_row - b.first * b.height;
   b.count = (b.offset + grid_height + b.height - 1) / b.height;
-  b.count_stride = (size_t(b.count) + 1 + 15) / 16 * 16;
+  const int first_column = int(std::floor(grid.origin_x));
+  b.block_offset = first_column % b.block_width;
+  b.blocks = (b.block_offset + grid_width + b.block_width - 1) / b.block_width;
+  b.count_stride = (size_t(b.oversize()) + 1 + 15) / 16 * 16;
   return b;
 }
 
@@ -153,19 +218,23 @@ int chunks_for(size_t samples, int threads) {
 // The adaptive modes run in four phases, each touching memory in order where it can:
 //   shape_splats_and_clear_sums (rows of pixels): the splat shape every pixel would give a
 //     sample, from its tile's filter and the coverage; first, since binning needs its reach;
-//   reproject_and_bin (chunks of the ring): reproject each sample, note its home band (the
-//     band of horizontal rows its center falls in, or the oversize bucket for a splat taller
-//     than a band) and count samples per chunk and home band;
-//   sort_by_home_band (chunks): copy the projected samples into home-band order (stable:
-//     sample order within a band, whatever the thread count);
-//   splat_bands (home bands): look up each sample's shape and splat it. A splat in a band
+//   reproject_and_bin (chunks of the ring): reproject each sample, note its bin (the block
+//     of columns of the band of horizontal rows its center falls in, or the oversize bucket
+//     for a splat taller than a band) and count samples per chunk and bin;
+//   sort_by_home_band (chunks): copy the projected samples into bin order (stable: sample
+//     order within a bin, whatever the thread count);
+//   splat_bands (home bands): look up each sample's shape and splat it, block after block
+//     (the shapes and sums of a block stay in the first-level cache). A splat in a band
 //     reaches only its home band and the two next to it (taller ones went to the oversize
 //     bucket); bands are done in three rounds (home band index mod 3), and within a round no
 //     two bands reach the same row: no two threads ever write the same pixel. Then the
 //     oversize bucket, on one thread (well under 1% of samples: grown splats in undersampled
 //     regions). The shape table and the accumulation rows a band touches stay in cache, which
 //     random sample order would not.
-// Every mode ends with normalize_and_fill_holes (rows of the output).
+// Every mode ends with normalize_and_fill_holes (rows of the output). The per-sample work of
+// reproject_and_bin and splat_bands runs eight samples at a time in 8-lane vector arithmetic
+// (GCC/Clang vector extensions: AVX in the x86-64-v3 clone) where it is arithmetic, and one
+// sample at a time where it writes.
 struct CpuReconstructor::Impl {
   explicit Impl(int threads, size_t capacity) : pool(threads) { mirror.resize(capacity); }
 
@@ -177,13 +246,15 @@ struct CpuReconstructor::Impl {
   size_t stored = 0;
 
   std::vector<Projected> projected;  // per stored sample (reproject_and_bin)
-  std::vector<uint16_t> home;        // per stored sample: home band or kNoBand
-  std::vector<uint32_t> counts;      // [chunk * count_stride + band]
-  std::vector<size_t> cursor;        // [chunk * count_stride + band]: write positions
-  std::vector<size_t> band_start;    // bands + 2
-  std::vector<Projected> sorted;     // in home-band order (sort_by_home_band)
-  std::vector<PixelShape> shapes;    // per pixel (shape_splats_and_clear_sums)
-  std::vector<uint8_t> reach;        // per pixel: ceil(shape.r_y), at most 255 (likewise)
+  std::vector<uint32_t> home;        // per stored sample: its bin (Bands) or kNoBin
+  // A pixel's bin is row_bin[y] + column_bin[x] (reproject_and_bin).
+  std::vector<uint32_t> row_bin, column_bin;
+  std::vector<uint32_t> counts;    // [chunk * count_stride + band]
+  std::vector<size_t> cursor;      // [chunk * count_stride + band]: write positions
+  std::vector<size_t> band_start;  // bands + 2
+  std::vector<Projected> sorted;   // in home-band order (sort_by_home_band)
+  std::vector<PixelShape> shapes;  // per pixel (shape_splats_and_clear_sums)
+  std::vector<uint8_t> reach;      // per pixel: ceil(shape.r_y), at most 255 (likewise)
   std::vector<Counts> task_counts;
   std::vector<glm::vec4> accum;             // (sum w c, sum w) per grid pixel
   std::vector<CoverageCell> coverage_next;  // this image's coverage
@@ -320,7 +391,6 @@ struct CpuReconstructor::Impl {
       shape.off_y = fast_exp(-shape.r_y * shape.r_y * shape.k_y);
       shape.k_t = f.k_t;
       shape.norm = 1.0f / (sigma_x * sigma_y);
-      shape.r = r;
       shape.growth = splat_growth(r, r_filter);
       reach[p] = uint8_t(std::min(ceil_int(shape.r_y), 255));
     }
@@ -348,45 +418,97 @@ struct CpuReconstructor::Impl {
     });
   }
 
-  // reproject_and_bin's work on the stored samples [begin, end).
+  // reproject_and_bin's work on the stored samples [begin, end): eight at a time, the
+  // projection (Projector::project and the unreprojected position, the same arithmetic) in
+  // vector arithmetic, then each sample's checks, record and band.
   AFR_HOT_CLONES void reproject_chunk(size_t begin, size_t end, Counts* counts_out,
-                                      uint32_t* chunk_counts, const Projector& projector,
+                                      uint32_t* chunk_counts, const Projector& pr,
                                       const FrameSetup& setup, const Grid& grid, const Bands& bands,
                                       double time, double max_future, bool reproject, float guard) {
     const int width = grid.width, height = grid.height;
     const float origin_x = grid.origin_x, origin_y = grid.origin_y;
     Counts& c = *counts_out;
-    for (size_t i = begin; i < end; ++i) {
-      home[i] = kNoBand;
-      const StoredSample& s = mirror[i];
-      const double age_d = time - s.time;
-      if (age_d < -max_future) {
-        ++c.future;
-        continue;
+    const Int8 zero = splat8(0), all = splat8(-1);
+    for (size_t i0 = begin; i0 < end; i0 += 8) {
+      const size_t n = std::min<size_t>(8, end - i0);
+      const StoredSample* r[8];
+      double age_d[8];
+      for (size_t l = 0; l < 8; ++l) {
+        r[l] = &mirror[i0 + std::min(l, n - 1)];
+        age_d[l] = time - r[l]->time;
       }
-      const float age_signed = float(age_d);
-      float x, y;
-      if (reproject && (s.flags & kStoredHasPosition)) {
-        if (!projector.project(s, age_signed, &x, &y)) {
+      // Field f of the eight samples, as one vector.
+#define AFR_LANES(f) \
+  { r[0]->f, r[1]->f, r[2]->f, r[3]->f, r[4]->f, r[5]->f, r[6]->f, r[7]->f }
+      const Float8 age = {float(age_d[0]), float(age_d[1]), float(age_d[2]), float(age_d[3]),
+                          float(age_d[4]), float(age_d[5]), float(age_d[6]), float(age_d[7])};
+      const Float8 sx = AFR_LANES(x), sy = AFR_LANES(y);
+      const Float8 px = AFR_LANES(position.x), py = AFR_LANES(position.y),
+                   pz = AFR_LANES(position.z);
+      const Float8 vx = AFR_LANES(velocity.x), vy = AFR_LANES(velocity.y),
+                   vz = AFR_LANES(velocity.z);
+      const Int8 flags = {int32_t(r[0]->flags), int32_t(r[1]->flags), int32_t(r[2]->flags),
+                          int32_t(r[3]->flags), int32_t(r[4]->flags), int32_t(r[5]->flags),
+                          int32_t(r[6]->flags), int32_t(r[7]->flags)};
+#undef AFR_LANES
+      // Projector::project: a hit's point, moved by its velocity over its age when it has one,
+      // or a miss's direction, with the current camera.
+      const Int8 miss = (flags & int32_t(kStoredMiss)) != zero;
+      const Int8 moving = ~miss & ((flags & int32_t(kStoredHasVelocity)) != zero);
+      const Float8 fzero = splat8(0.0f);
+      const Float8 qx = px + select8(moving, vx * age, fzero);
+      const Float8 qy = py + select8(moving, vy * age, fzero);
+      const Float8 qz = pz + select8(moving, vz * age, fzero);
+      const Float8 dx = qx - select8(miss, fzero, splat8(pr.eye.x));
+      const Float8 dy = qy - select8(miss, fzero, splat8(pr.eye.y));
+      const Float8 dz = qz - select8(miss, fzero, splat8(pr.eye.z));
+      const Float8 z = dx * pr.forward.x + dy * pr.forward.y + dz * pr.forward.z;
+      const Int8 in_front =
+          select8(miss, Int8(z > splat8(Projector::kMinDirectionZ)), Int8(z >= splat8(pr.znear)));
+      const Float8 ix =
+          pr.half_width + (dx * pr.axis_x.x + dy * pr.axis_x.y + dz * pr.axis_x.z) / z;
+      const Float8 iy =
+          pr.half_height - (dx * pr.axis_y.x + dy * pr.axis_y.y + dz * pr.axis_y.z) / z;
+      const Float8 max_coordinate = splat8(Projector::kMaxCoordinate);
+      const Int8 projects = in_front & (abs8(ix) < max_coordinate) & (abs8(iy) < max_coordinate);
+      // Where the sample lands: reprojected, or where it was traced.
+      const Int8 moved = reproject ? ((flags & int32_t(kStoredHasPosition)) != zero) : zero;
+      const Float8 x8 = select8(moved, quantize8(ix), quantize8(sx * setup.scale_x)) - origin_x;
+      const Float8 y8 = select8(moved, quantize8(iy), quantize8(sy * setup.scale_y)) - origin_y;
+      const Int8 lost = moved & (projects ^ all);
+      // The pixel each lands in (the nearest, beyond the grid) and its splat's reach, read
+      // for the eight at once (independent loads, where one at a time would wait for each).
+      const Int8 fx = floor_int8(x8), fy = floor_int8(y8);
+      const Int8 cx =
+          select8(fx < zero, zero, select8(fx > splat8(width - 1), splat8(width - 1), fx));
+      const Int8 cy =
+          select8(fy < zero, zero, select8(fy > splat8(height - 1), splat8(height - 1), fy));
+      const Int8 pixel = cy * width + cx;
+      uint8_t reach8[8];
+      for (size_t l = 0; l < 8; ++l) reach8[l] = reach[size_t(uint32_t(pixel[l]))];
+      for (size_t l = 0; l < n; ++l) {
+        const size_t i = i0 + l;
+        home[i] = kNoBin;
+        if (age_d[l] < -max_future) {
+          ++c.future;
+          continue;
+        }
+        if (lost[l]) {
           ++c.behind;
           continue;
         }
-      } else {
-        x = quantize_position(s.x * setup.scale_x) - origin_x;
-        y = quantize_position(s.y * setup.scale_y) - origin_y;
+        const float x = x8[l], y = y8[l];
+        if (!(x > -guard && x < float(width) + guard && y > -guard && y < float(height) + guard)) {
+          ++c.off_screen;
+          continue;
+        }
+        projected[i] = Projected{x, y, std::max(age[l], 0.0f), r[l]->color};
+        const uint32_t band = reach8[l] < bands.height
+                                  ? row_bin[size_t(cy[l])] + column_bin[size_t(cx[l])]
+                                  : bands.oversize();
+        home[i] = band;
+        ++chunk_counts[band];
       }
-      if (!(x > -guard && x < float(width) + guard && y > -guard && y < float(height) + guard)) {
-        ++c.off_screen;
-        continue;
-      }
-      projected[i] = Projected{x, y, std::max(age_signed, 0.0f), s.color};
-      const int py = std::clamp(floor_int(y), 0, height - 1);
-      const int px = std::clamp(floor_int(x), 0, width - 1);
-      const int band = reach[size_t(py) * size_t(width) + size_t(px)] < bands.height
-                           ? (py + bands.offset) / bands.height
-                           : bands.count;
-      home[i] = uint16_t(band);
-      ++chunk_counts[band];
     }
   }
 
@@ -403,6 +525,14 @@ struct CpuReconstructor::Impl {
                               setup.grid.origin_y);
     projected.resize(std::max<size_t>(n, 1));
     home.resize(std::max<size_t>(n, 1));
+    row_bin.resize(size_t(grid.height));
+    for (int y = 0; y < grid.height; ++y) {
+      row_bin[size_t(y)] = uint32_t((y + bands.offset) / bands.height) * uint32_t(bands.blocks);
+    }
+    column_bin.resize(size_t(grid.width));
+    for (int x = 0; x < grid.width; ++x) {
+      column_bin[size_t(x)] = uint32_t((x + bands.block_offset) / bands.block_width);
+    }
     counts.assign(size_t(chunks) * count_stride, 0u);
     cursor.resize(counts.size());
     task_counts.assign(size_t(chunks), Counts{});
@@ -423,8 +553,8 @@ struct CpuReconstructor::Impl {
     const size_t count_stride = bands.count_stride;
     band_start.resize(size_t(bands.count) + 2);
     size_t total = 0;
-    for (int b = 0; b <= bands.count; ++b) {
-      band_start[size_t(b)] = total;
+    for (uint32_t b = 0; b <= bands.oversize(); ++b) {
+      if (b % uint32_t(bands.blocks) == 0) band_start[b / uint32_t(bands.blocks)] = total;
       for (int c = 0; c < chunks; ++c) {
         const size_t k = size_t(c) * count_stride + size_t(b);
         cursor[k] = total;
@@ -438,83 +568,105 @@ struct CpuReconstructor::Impl {
       const size_t end = n * size_t(chunk + 1) / size_t(chunks);
       size_t* chunk_cursor = cursor.data() + size_t(chunk) * count_stride;
       for (size_t i = begin; i < end; ++i) {
-        if (home[i] != kNoBand) sorted[chunk_cursor[home[i]]++] = projected[i];
+        if (home[i] != kNoBin) sorted[chunk_cursor[home[i]]++] = projected[i];
       }
     });
   }
 
   // Splats the samples of one home band (or of the oversize bucket) into the sums and this
   // image's coverage. Counts those splatted and those whose splat covers no pixel (off_screen).
+  // Eight samples at a time (the last group padded with copies, so that every sample goes
+  // through the same arithmetic whichever group it falls in: a viewport's band holds other
+  // groups than the whole image's), their shapes, pixel ranges and temporal weights in vector
+  // arithmetic; then each sample's splat.
   AFR_HOT_CLONES void splat_band(int band, const Grid& grid, float min_wt) {
     const int width = grid.width, height = grid.height;
     Counts& c = task_counts[size_t(band)];
     std::array<float, 2 * int(kSplatRadiusLimit) + 4> wx, wy;
     const size_t q_end = band_start[size_t(band) + 1];
-    for (size_t q = band_start[size_t(band)]; q < q_end; ++q) {
-      const Projected& s = sorted[q];
-      if (q + 8 < q_end) {  // the shape table is read in random order: fetch ahead
-        const Projected& ahead = sorted[q + 8];
-        const int ax = std::clamp(int(ahead.x), 0, width - 1);
-        const int ay = std::clamp(int(ahead.y), 0, height - 1);
-        __builtin_prefetch(&shapes[size_t(ay) * size_t(width) + size_t(ax)]);
-      }
-      const int px = std::clamp(floor_int(s.x), 0, width - 1);
-      const int py = std::clamp(floor_int(s.y), 0, height - 1);
-      const PixelShape& shape = shapes[size_t(py) * size_t(width) + size_t(px)];
-      const float r_x = shape.r_x, r_y = shape.r_y, g = shape.growth;
+    for (size_t q0 = band_start[size_t(band)]; q0 < q_end; q0 += 8) {
+      const size_t n = std::min<size_t>(8, q_end - q0);
+      // The group's positions and ages, and the shape of the pixel each lands in.
+      const Projected* g[8];
+      for (size_t l = 0; l < 8; ++l) g[l] = &sorted[q0 + std::min(l, n - 1)];
+#define AFR_LANES(a, f) \
+  { a[0]->f, a[1]->f, a[2]->f, a[3]->f, a[4]->f, a[5]->f, a[6]->f, a[7]->f }
+      const Float8 x = AFR_LANES(g, x), y = AFR_LANES(g, y), age = AFR_LANES(g, age);
+      const Int8 zero = splat8(0);
+      const Int8 fx = floor_int8(x), fy = floor_int8(y);
+      const Int8 px =
+          select8(fx < zero, zero, select8(fx > splat8(width - 1), splat8(width - 1), fx));
+      const Int8 py =
+          select8(fy < zero, zero, select8(fy > splat8(height - 1), splat8(height - 1), fy));
+      const Int8 pixel = py * width + px;
+      const PixelShape* shape_of[8];
+      for (size_t l = 0; l < 8; ++l) shape_of[l] = &shapes[size_t(uint32_t(pixel[l]))];
+      const Float8 r_x = AFR_LANES(shape_of, r_x), r_y = AFR_LANES(shape_of, r_y);
+      const Float8 k_t = AFR_LANES(shape_of, k_t), norm = AFR_LANES(shape_of, norm);
+#undef AFR_LANES
       // Pixels i with |i + 0.5 - x| < r_x, rows likewise.
-      const int x0 = std::max(0, floor_int(s.x - r_x - 0.5f) + 1);
-      const int x1 = std::min(width - 1, ceil_int(s.x + r_x - 0.5f) - 1);
-      const int y0 = std::max(0, floor_int(s.y - r_y - 0.5f) + 1);
-      const int y1 = std::min(height - 1, ceil_int(s.y + r_y - 0.5f) - 1);
-      if (x0 > x1 || y0 > y1) {
-        ++c.off_screen;
-        continue;
-      }
-      ++c.splatted;
-      const float w_t = std::max(fast_exp(-s.age * s.age * shape.k_t), min_wt) * shape.norm;
-#if defined(__SSE2__)
-      const Float8 color2 = {s.color.r, s.color.g, s.color.b, 1.0f,
-                             s.color.r, s.color.g, s.color.b, 1.0f};
-      const Float8 one_g = {1.0f, g, 1.0f, g, 1.0f, g, 1.0f, g};
-#endif
-      // The Gaussian of every column and row of the splat.
-      gaussian_row(x0, x1, s.x, shape.k_x, shape.off_x, wx.data());
-      gaussian_row(y0, y1, s.y, shape.k_y, shape.off_y, wy.data());
-      for (int j = y0; j <= y1; ++j) {
-        const float wyj = wy[size_t(j - y0)];
-        if (!(wyj > 0.0f)) continue;
-        const float wyt = wyj * w_t;
-        glm::vec4* acc = accum.data() + size_t(j) * size_t(width);
-        CoverageCell* cov = coverage_next.data() + size_t(j) * size_t(width);
-        int i = x0;
-#if defined(__SSE2__)
-        // Four pixels at a time without a branch per pixel: lanes past x1 or with a weight
-        // at or below kMinSplatWeight add exactly 0 (and nothing to the coverage). The sums
-        // of two pixels (r, g, b, w, r, g, b, w) and the coverage of four (count, growth x 4)
-        // are 8-float vectors: one operation each in the x86-64-v3 clone, two in the
-        // baseline.
-        const __m128 wyt4 = _mm_set1_ps(wyt);
-        for (; i + 3 < width && i <= x1; i += 4) {
-          const __m128 lane = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
-          const __m128 inside = _mm_cmplt_ps(lane, _mm_set1_ps(float(x1 - i + 1)));
-          const __m128 w4 = _mm_mul_ps(_mm_loadu_ps(&wx[size_t(i - x0)]), wyt4);
-          const __m128 ok = _mm_and_ps(inside, _mm_cmpgt_ps(w4, _mm_set1_ps(kMinSplatWeight)));
-          const Float4 w = Float4(_mm_and_ps(w4, ok));
-          Float8* sums = reinterpret_cast<Float8*>(&acc[i].x);  // pixels i, i + 1; i + 2, i + 3
-          sums[0] += color2 * __builtin_shufflevector(w, w, 0, 0, 0, 0, 1, 1, 1, 1);
-          sums[1] += color2 * __builtin_shufflevector(w, w, 2, 2, 2, 2, 3, 3, 3, 3);
-          const Int4 m = Int4(ok);
-          *reinterpret_cast<Float8*>(&cov[i].count) +=
-              Float8(Int8(one_g) & __builtin_shufflevector(m, m, 0, 0, 1, 1, 2, 2, 3, 3));
+      const Int8 x0v = floor_int8(x - r_x - 0.5f) + 1, x1v = ceil_int8(x + r_x - 0.5f) - 1;
+      const Int8 y0v = floor_int8(y - r_y - 0.5f) + 1, y1v = ceil_int8(y + r_y - 0.5f) - 1;
+      const Int8 x0s = select8(x0v < zero, zero, x0v), y0s = select8(y0v < zero, zero, y0v);
+      const Int8 x1s = select8(x1v > splat8(width - 1), splat8(width - 1), x1v);
+      const Int8 y1s = select8(y1v > splat8(height - 1), splat8(height - 1), y1v);
+      // The temporal weight of section 5.1 at each sample's age, at least min_wt, over its
+      // splat's Gaussian area.
+      const Float8 e = fast_exp8(-age * age * k_t);
+      const Float8 w_t8 = select8(e < splat8(min_wt), splat8(min_wt), e) * norm;
+      for (size_t l = 0; l < n; ++l) {
+        const Projected& s = sorted[q0 + l];
+        const PixelShape& shape = *shape_of[l];
+        const int x0 = x0s[l], x1 = x1s[l], y0 = y0s[l], y1 = y1s[l];
+        if (x0 > x1 || y0 > y1) {
+          ++c.off_screen;
+          continue;
         }
+        ++c.splatted;
+        const float w_t = w_t8[l], g = shape.growth;
+#if defined(__SSE2__)
+        const Float8 color2 = {s.color.r, s.color.g, s.color.b, 1.0f,
+                               s.color.r, s.color.g, s.color.b, 1.0f};
+        const Float8 one_g = {1.0f, g, 1.0f, g, 1.0f, g, 1.0f, g};
 #endif
-        for (; i <= x1; ++i) {  // the image's last columns (and builds without SSE2)
-          const float w = wx[size_t(i - x0)] * wyt;
-          if (!(w > kMinSplatWeight)) continue;
-          acc[i] += glm::vec4(s.color * w, w);
-          cov[i].count += 1.0f;
-          cov[i].growth_sum += g;
+        // The Gaussian of every column and row of the splat.
+        gaussian_row(x0, x1, s.x, shape.k_x, shape.off_x, wx.data());
+        gaussian_row(y0, y1, s.y, shape.k_y, shape.off_y, wy.data());
+        for (int j = y0; j <= y1; ++j) {
+          const float wyj = wy[size_t(j - y0)];
+          if (!(wyj > 0.0f)) continue;
+          const float wyt = wyj * w_t;
+          glm::vec4* acc = accum.data() + size_t(j) * size_t(width);
+          CoverageCell* cov = coverage_next.data() + size_t(j) * size_t(width);
+          int i = x0;
+#if defined(__SSE2__)
+          // Four pixels at a time without a branch per pixel: lanes past x1 or with a weight
+          // at or below kMinSplatWeight add exactly 0 (and nothing to the coverage). The sums
+          // of two pixels (r, g, b, w, r, g, b, w) and the coverage of four (count, growth x 4)
+          // are 8-float vectors: one operation each in the x86-64-v3 clone, two in the
+          // baseline.
+          const __m128 wyt4 = _mm_set1_ps(wyt);
+          for (; i + 3 < width && i <= x1; i += 4) {
+            const __m128 lane = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
+            const __m128 inside = _mm_cmplt_ps(lane, _mm_set1_ps(float(x1 - i + 1)));
+            const __m128 w4 = _mm_mul_ps(_mm_loadu_ps(&wx[size_t(i - x0)]), wyt4);
+            const __m128 ok = _mm_and_ps(inside, _mm_cmpgt_ps(w4, _mm_set1_ps(kMinSplatWeight)));
+            const Float4 w = Float4(_mm_and_ps(w4, ok));
+            Float8* sums = reinterpret_cast<Float8*>(&acc[i].x);  // pixels i, i + 1; i + 2, i + 3
+            sums[0] += color2 * __builtin_shufflevector(w, w, 0, 0, 0, 0, 1, 1, 1, 1);
+            sums[1] += color2 * __builtin_shufflevector(w, w, 2, 2, 2, 2, 3, 3, 3, 3);
+            const Int4 m = Int4(ok);
+            *reinterpret_cast<Float8*>(&cov[i].count) +=
+                Float8(Int8(one_g) & __builtin_shufflevector(m, m, 0, 0, 1, 1, 2, 2, 3, 3));
+          }
+#endif
+          for (; i <= x1; ++i) {  // the image's last columns (and builds without SSE2)
+            const float w = wx[size_t(i - x0)] * wyt;
+            if (!(w > kMinSplatWeight)) continue;
+            acc[i] += glm::vec4(s.color * w, w);
+            cov[i].count += 1.0f;
+            cov[i].growth_sum += g;
+          }
         }
       }
     }
@@ -632,6 +784,14 @@ size_t CpuReconstructor::write_coverage(const PixelRect& rect,
 void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int width, int height,
                                       Image* out) {
   Impl& m = *impl_;
+  // Each phase's wall time into frame_.cpu.
+  frame_.cpu = CpuPhaseTimes{};
+  auto mark = std::chrono::steady_clock::now();
+  const auto lap = [&mark](double* phase) {
+    const auto now = std::chrono::steady_clock::now();
+    *phase = std::chrono::duration<double, std::milli>(now - mark).count();
+    mark = now;
+  };
   // The samples that arrived since the last image join the mirror of the store's ring; the
   // base class places the grid (viewport and margin) and computes each tile's filter.
   SampleStore::Delta delta;
@@ -643,6 +803,7 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
   const ReconstructionMode current_mode = mode();
   const FilterLimits& limits = config_.filter;
   const double max_future = double(limits.max_future);
+  lap(&frame_.cpu.prepare);
 
   if (current_mode == ReconstructionMode::kTraditionalFrameless) {
     // The baseline [BFMS94]: each pixel shows its newest sample; no filter, no splat sizes.
@@ -650,22 +811,28 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
     frame_.splatted = c.splatted;
     frame_.off_screen = c.off_screen;
     frame_.future = c.future;
+    lap(&frame_.cpu.splat);  // placing the newest samples
   } else {
     // Each pixel's splat shape first: binning needs its reach (a splat taller than a band
     // goes to the oversize bucket).
     m.shape_splats_and_clear_sums(setup, grid, limits, config_.splat, field_.index_map());
-    const Bands bands = bands_for(setup.grid, setup.scaled_height, grid.height);
+    lap(&frame_.cpu.shape);
+    const Bands bands =
+        bands_for(setup.grid, setup.scaled_width, setup.scaled_height, grid.width, grid.height);
     const int chunks = chunks_for(m.stored, m.pool.size());
     // Where each sample lands now, and its band. Samples within the guard band beyond the grid
     // (whole pixels, as the GL backend's viewport) are kept: their splats may reach it.
     const Counts binned = m.reproject_and_bin(camera, setup, grid, bands, chunks, time, max_future,
                                               current_mode == ReconstructionMode::kAdaptive,
                                               float(splat_guard_band(config_.splat)));
+    lap(&frame_.cpu.reproject);
     // Stable home-band order: each band is then one task, its rows and shapes in cache.
     m.sort_by_home_band(bands, chunks);
+    lap(&frame_.cpu.sort);
     // Sections 5.1 and 6.2: the Gaussian splats, in rounds of bands that share no row: no
     // locks, and each pixel's sums in an order that does not depend on the thread count.
     const Counts splats = m.splat_bands(grid, bands, limits.min_temporal_weight);
+    lap(&frame_.cpu.splat);
     frame_.splatted = splats.splatted;
     frame_.behind_camera = binned.behind;
     frame_.off_screen = binned.off_screen + splats.off_screen;
@@ -677,6 +844,7 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
   frame_.hole_pixels = pixels.holes;
   frame_.empty_pixels = pixels.empty;
   frame_.nonfinite_pixels = pixels.nonfinite;
+  lap(&frame_.cpu.fill);
   // The next image sizes its splats from this one's coverage (the baseline sizes none).
   if (current_mode != ReconstructionMode::kTraditionalFrameless) m.keep_coverage();
 }

@@ -289,6 +289,38 @@ TEST(CpuReconstructorTest, TheThreadCountDoesNotChangeABit) {
   EXPECT_EQ(images[0].pixels, images[2].pixels);
 }
 
+TEST(CpuReconstructorTest, PhaseTimesAreTheCallsParts) {
+  // FrameStats::cpu: no phase is negative, together they take no more than the whole call,
+  // the splat pass takes time when samples reach the image, and traditional frameless has no
+  // splat shapes, reprojection or sort.
+  Pcg32 rng(3);
+  const TilingSnapshot tiling = test::random_tiling(rng, 64, 64, 16, 1.0);
+  const SampleBatch batch = random_batch(rng, 20000, 64, 64, 0.0, 1.0);
+  for (const ReconstructionMode mode :
+       {ReconstructionMode::kAdaptive, ReconstructionMode::kTraditionalFrameless}) {
+    SCOPED_TRACE(mode_name(mode));
+    ReconstructorConfig cfg = config(64, 64, 1);
+    cfg.mode = mode;
+    CpuReconstructor rec(cfg);
+    rec.set_tiling(tiling);
+    rec.add_batch(batch);
+    rec.reconstruct(kCamera, 1.0, 64, 64);
+    const FrameStats& f = rec.frame_stats();
+    const CpuPhaseTimes& p = f.cpu;
+    for (const double v : {p.prepare, p.shape, p.reproject, p.sort, p.splat, p.fill}) {
+      EXPECT_GE(v, 0.0);
+    }
+    EXPECT_LE(p.prepare + p.shape + p.reproject + p.sort + p.splat + p.fill, f.milliseconds);
+    EXPECT_GT(f.splatted, 0u);
+    EXPECT_GT(p.splat, 0.0);
+    if (mode == ReconstructionMode::kTraditionalFrameless) {
+      EXPECT_EQ(p.shape + p.reproject + p.sort, 0.0);
+    } else {
+      EXPECT_GT(p.reproject, 0.0);
+    }
+  }
+}
+
 TEST(CpuReconstructorTest, BadInputsAreCountedAndNeverReachTheImage) {
   const float inf = std::numeric_limits<float>::infinity();
   const float nan = std::numeric_limits<float>::quiet_NaN();

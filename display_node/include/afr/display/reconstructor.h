@@ -90,6 +90,16 @@ struct CallTimes {
   double passes = 0.0;   // the index map, the filters and every pass's commands
 };
 
+// Where a CPU backend's reconstruct() call went, wall milliseconds (all zero on a GPU backend).
+struct CpuPhaseTimes {
+  double prepare = 0.0;    // new samples into the reconstructor's copy, tile field, filters
+  double shape = 0.0;      // each pixel's splat shape from the coverage map; sums cleared
+  double reproject = 0.0;  // every stored sample projected and binned to its band
+  double sort = 0.0;       // the binned samples into band order
+  double splat = 0.0;      // the Gaussian splats into the sums and the coverage
+  double fill = 0.0;       // each pixel's weighted mean, holes filled
+};
+
 // What the last reconstruct() did.
 struct FrameStats {
   uint64_t stored = 0;         // samples in the store
@@ -107,6 +117,7 @@ struct FrameStats {
   double milliseconds = 0.0;      // wall time of the reconstruct() call
   GpuTimes gpu;                   // GPU backend: the latest image the GPU has finished
   CallTimes call;                 // GPU backend: this call's phases
+  CpuPhaseTimes cpu;              // CPU backend: this call's phases
 };
 
 // One tile of the last image as the filter saw it (Reconstructor::tile_states()).
