@@ -18,6 +18,7 @@
 
 #include <epoxy/gl.h>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <CLI/CLI.hpp>
 
 #include <time.h>
@@ -98,6 +99,27 @@ double median_of(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   const size_t n = v.size();
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// A Markdown table, unless it has no rows: its caption, the header of `columns`, the rows.
+void print_table(const std::string& caption, const std::vector<std::string>& columns,
+                 const std::vector<std::string>& rows) {
+  if (rows.empty()) return;
+  fmt::print("\n{}\n\n| {} |\n|", caption, fmt::join(columns, " | "));
+  for (size_t k = 0; k < columns.size(); ++k) fmt::print("---|");
+  fmt::print("\n");
+  for (const std::string& row : rows) fmt::print("{}\n", row);
+}
+
+// Each of `fields` of *out: that field's median over `rows`.
+template <typename Row>
+void median_fields(const std::vector<Row>& rows, std::initializer_list<double Row::*> fields,
+                   Row* out) {
+  for (double Row::*field : fields) {
+    std::vector<double> v;
+    for (const Row& r : rows) v.push_back(r.*field);
+    out->*field = median_of(v);
+  }
 }
 
 Timing summarize(std::vector<double> ms, const std::vector<double>& cpu_ms) {
@@ -267,41 +289,23 @@ Timing run(afr::Reconstructor& rec, afr::ImageExtent size, int repeats, int warm
   collect(rec.frame_stats().gpu, warmup, &gpu);
   Timing timing = summarize(ms, cpu);
   timing.sustained = sustained;
-  const auto median_phase = [&](double afr::CallTimes::*phase) {
-    std::vector<double> v;
-    for (const afr::CallTimes& c : calls) v.push_back(c.*phase);
-    return median_of(v);
-  };
-  timing.call.wait = median_phase(&afr::CallTimes::wait);
-  timing.call.copy = median_phase(&afr::CallTimes::copy);
-  timing.call.prepare = median_phase(&afr::CallTimes::prepare);
-  timing.call.upload = median_phase(&afr::CallTimes::upload);
-  timing.call.passes = median_phase(&afr::CallTimes::passes);
-  const auto median_cpu = [&](double afr::CpuPhaseTimes::*phase) {
-    std::vector<double> v;
-    for (const afr::CpuPhaseTimes& c : cpu_phases) v.push_back(c.*phase);
-    return median_of(v);
-  };
-  timing.cpu_phases.prepare = median_cpu(&afr::CpuPhaseTimes::prepare);
-  timing.cpu_phases.shape = median_cpu(&afr::CpuPhaseTimes::shape);
-  timing.cpu_phases.reproject = median_cpu(&afr::CpuPhaseTimes::reproject);
-  timing.cpu_phases.sort = median_cpu(&afr::CpuPhaseTimes::sort);
-  timing.cpu_phases.splat = median_cpu(&afr::CpuPhaseTimes::splat);
-  timing.cpu_phases.fill = median_cpu(&afr::CpuPhaseTimes::fill);
+  using afr::CallTimes, afr::CpuPhaseTimes, afr::GpuTimes;
+  median_fields(calls,
+                {&CallTimes::wait, &CallTimes::copy, &CallTimes::prepare, &CallTimes::upload,
+                 &CallTimes::passes},
+                &timing.call);
+  median_fields(cpu_phases,
+                {&CpuPhaseTimes::prepare, &CpuPhaseTimes::shape, &CpuPhaseTimes::reproject,
+                 &CpuPhaseTimes::sort, &CpuPhaseTimes::splat, &CpuPhaseTimes::fill},
+                &timing.cpu_phases);
   if (!gpu.empty() && gpu.back().timed) {
-    const auto median_pass = [&](double afr::GpuTimes::*pass) {
-      std::vector<double> v;
-      for (const afr::GpuTimes& g : gpu) v.push_back(g.*pass);
-      return median_of(v);
-    };
     std::vector<double> totals;
     for (const afr::GpuTimes& g : gpu) totals.push_back(g.total());
     timing.gpu = median_of(totals);
-    timing.passes.upload = median_pass(&afr::GpuTimes::upload);
-    timing.passes.bin = median_pass(&afr::GpuTimes::bin);
-    timing.passes.splat = median_pass(&afr::GpuTimes::splat);
-    timing.passes.fill = median_pass(&afr::GpuTimes::fill);
-    timing.passes.readback = median_pass(&afr::GpuTimes::readback);
+    median_fields(
+        gpu,
+        {&GpuTimes::upload, &GpuTimes::bin, &GpuTimes::splat, &GpuTimes::fill, &GpuTimes::readback},
+        &timing.passes);
   }
   return timing;
 }
@@ -497,16 +501,12 @@ int main(int argc, char** argv) {
         }
       }
     }
-    if (!cpu_phases.empty()) {
-      fmt::print(
-          "\nThe CPU backend's call by phase, median wall ms (prepare: new samples, tile field, "
-          "filters; shape: each pixel's splat shape; reproject: every sample projected and "
-          "binned; sort: into band order; splat: the Gaussian splats; fill: normalisation and "
-          "holes)\n\n");
-      fmt::print("| threads | resolution | prepare | shape | reproject | sort | splat | fill |\n");
-      fmt::print("|---|---|---|---|---|---|---|---|\n");
-      for (const std::string& line : cpu_phases) fmt::print("{}\n", line);
-    }
+    print_table(
+        "The CPU backend's call by phase, median wall ms (prepare: new samples, tile field, "
+        "filters; shape: each pixel's splat shape; reproject: every sample projected and binned; "
+        "sort: into band order; splat: the Gaussian splats; fill: normalisation and holes)",
+        {"threads", "resolution", "prepare", "shape", "reproject", "sort", "splat", "fill"},
+        cpu_phases);
     const bool waited = gl && gl->software() && sync_passes;
     if (gl && gl->software() && !sync_passes) {
       fmt::print(
@@ -515,37 +515,22 @@ int main(int argc, char** argv) {
           "(--gl-sync-passes times each pass).\n",
           gl->renderer());
     }
-    if (!passes.empty()) {
-      if (waited) {
-        fmt::print(
-            "\nTime per pass, median ms, each pass waited for (glFinish) and timed on the CPU "
-            "(--gl-sync-passes: {} has no timer queries); the image is their sum\n\n",
-            gl->renderer());
-      } else {
-        fmt::print(
-            "\nGPU time per pass, median ms (GL_TIME_ELAPSED; a pass's time can include the "
-            "tail of the image before it), and of the whole image (GL_TIMESTAMP, from the "
-            "moment the image before it was done)\n\n");
-      }
-      fmt::print("| backend | resolution | upload | bin | splat | fill | read-back | image |\n");
-      fmt::print("|---|---|---|---|---|---|---|---|\n");
-      for (const std::string& line : passes) fmt::print("{}\n", line);
-    }
-    if (!phases.empty()) {
-      fmt::print(
-          "\nThe GL backend's call by phase, median wall ms on the calling thread (wait: for an "
-          "image slot and any read-back; copy: new samples out of the store; prepare: counts, "
-          "tile field, filters; upload: into the staging ring; passes: the commands)\n\n");
-      fmt::print("| backend | resolution | wait | copy | prepare | upload | passes |\n");
-      fmt::print("|---|---|---|---|---|---|---|\n");
-      for (const std::string& line : phases) fmt::print("{}\n", line);
-    }
-    if (!checks.empty()) {
-      fmt::print("\nThe GL image against the CPU backend's, same samples (8-bit sRGB levels)\n\n");
-      fmt::print("| backend | resolution | RMS | max | hole pixels differing |\n");
-      fmt::print("|---|---|---|---|---|\n");
-      for (const std::string& line : checks) fmt::print("{}\n", line);
-    }
+    print_table(waited ? fmt::format("Time per pass, median ms, each pass waited for (glFinish) "
+                                     "and timed on the CPU (--gl-sync-passes: {} has no timer "
+                                     "queries); the image is their sum",
+                                     gl->renderer())
+                       : "GPU time per pass, median ms (GL_TIME_ELAPSED; a pass's time can "
+                         "include the tail of the image before it), and of the whole image "
+                         "(GL_TIMESTAMP, from the moment the image before it was done)",
+                {"backend", "resolution", "upload", "bin", "splat", "fill", "read-back", "image"},
+                passes);
+    print_table(
+        "The GL backend's call by phase, median wall ms on the calling thread (wait: for an "
+        "image slot and any read-back; copy: new samples out of the store; prepare: counts, tile "
+        "field, filters; upload: into the staging ring; passes: the commands)",
+        {"backend", "resolution", "wait", "copy", "prepare", "upload", "passes"}, phases);
+    print_table("The GL image against the CPU backend's, same samples (8-bit sRGB levels)",
+                {"backend", "resolution", "RMS", "max", "hole pixels differing"}, checks);
   } catch (const afr::Error& e) {
     fmt::print(stderr, "afr-bench-reconstruct: {}\n", e.what());
     return 1;

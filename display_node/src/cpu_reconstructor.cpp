@@ -1,5 +1,12 @@
 #include <afr/display/cpu_reconstructor.h>
 
+// This file's helpers (and exp_series, fast_exp.h) take and return 8-lane vectors by value;
+// they are inlined into the hot passes (GCC notes that such a function's ABI would differ
+// without AVX).
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wpsabi"
+#endif
+
 #include <afr/display/fast_exp.h>
 #include <afr/display/hole_fill.h>
 #include <afr/display/reprojection.h>
@@ -98,19 +105,14 @@ inline void gaussian_row(int i0, int i1, float center, float k_, float offset, f
 #endif
 }
 
-// GCC/Clang vector types for splat_band's sums: 8 floats are one AVX register in the
-// x86-64-v3 clone and two SSE registers in the baseline. The 8-float loads and stores are
-// unaligned and may alias the float sums.
+// GCC/Clang vector types for the arithmetic of eight samples and for splat_band's sums: 8
+// floats are one AVX register in the x86-64-v3 clone and two SSE registers in the baseline
+// (and whatever the target has elsewhere). The 8-float loads and stores are unaligned and may
+// alias the float sums.
 typedef float Float8 __attribute__((vector_size(32), aligned(4), may_alias));
 typedef int32_t Int8 __attribute__((vector_size(32), aligned(4), may_alias));
 typedef float Float4 __attribute__((vector_size(16)));
 typedef int32_t Int4 __attribute__((vector_size(16)));
-
-// The helpers below take and return 8-lane vectors by value; they are inlined into the hot
-// passes (GCC notes that such a function's ABI would differ without AVX).
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic ignored "-Wpsabi"
-#endif
 
 // Lane-wise a where m is set, else b (m: all ones or zeros per lane, as comparisons give).
 inline Float8 select8(Int8 m, Float8 a, Float8 b) { return Float8((Int8(a) & m) | (Int8(b) & ~m)); }
@@ -123,6 +125,11 @@ inline Float8 quantize8(Float8 v) {
   const Float8 t = v * 256.0f;
   const Float8 q = ((t + 12582912.0f) - 12582912.0f) * kPositionStep;
   return select8(abs8(v) < splat8(16384.0f), q, v);
+}
+// Each lane clamped to [0, hi].
+inline Int8 clamp8(Int8 v, int32_t hi) {
+  const Int8 zero = splat8(0), top = splat8(hi);
+  return select8(v < zero, zero, select8(v > top, top, v));
 }
 // floor_int and ceil_int on eight lanes.
 inline Int8 floor_int8(Float8 v) {
@@ -142,13 +149,7 @@ inline Float8 fast_exp8(Float8 x) {
   const Int8 i = __builtin_convertvector(x * 1.44269504088896341f - 0.5f, Int8);
   const Float8 fi = __builtin_convertvector(i, Float8);
   const Float8 u = (x - fi * 0.693145751953125f) - fi * 1.42860682030941723e-6f;
-  Float8 p = splat8(1.0f / 720.0f);
-  p = p * u + 1.0f / 120.0f;
-  p = p * u + 1.0f / 24.0f;
-  p = p * u + 1.0f / 6.0f;
-  p = p * u + 0.5f;
-  p = p * u + 1.0f;
-  p = p * u + 1.0f;
+  const Float8 p = exp_series(u);
   const Int8 bits = (i + 127) << 23;
   return Float8(Int8(p * Float8(bits)) & valid);
 }
@@ -478,11 +479,7 @@ struct CpuReconstructor::Impl {
       const Int8 lost = moved & (projects ^ all);
       // The pixel each lands in (the nearest, beyond the grid) and its splat's reach, read
       // for the eight at once (independent loads, where one at a time would wait for each).
-      const Int8 fx = floor_int8(x8), fy = floor_int8(y8);
-      const Int8 cx =
-          select8(fx < zero, zero, select8(fx > splat8(width - 1), splat8(width - 1), fx));
-      const Int8 cy =
-          select8(fy < zero, zero, select8(fy > splat8(height - 1), splat8(height - 1), fy));
+      const Int8 cx = clamp8(floor_int8(x8), width - 1), cy = clamp8(floor_int8(y8), height - 1);
       const Int8 pixel = cy * width + cx;
       uint8_t reach8[8];
       for (size_t l = 0; l < 8; ++l) reach8[l] = reach[size_t(uint32_t(pixel[l]))];
@@ -593,12 +590,8 @@ struct CpuReconstructor::Impl {
   { a[0]->f, a[1]->f, a[2]->f, a[3]->f, a[4]->f, a[5]->f, a[6]->f, a[7]->f }
       const Float8 x = AFR_LANES(g, x), y = AFR_LANES(g, y), age = AFR_LANES(g, age);
       const Int8 zero = splat8(0);
-      const Int8 fx = floor_int8(x), fy = floor_int8(y);
-      const Int8 px =
-          select8(fx < zero, zero, select8(fx > splat8(width - 1), splat8(width - 1), fx));
-      const Int8 py =
-          select8(fy < zero, zero, select8(fy > splat8(height - 1), splat8(height - 1), fy));
-      const Int8 pixel = py * width + px;
+      const Int8 pixel =
+          clamp8(floor_int8(y), height - 1) * width + clamp8(floor_int8(x), width - 1);
       const PixelShape* shape_of[8];
       for (size_t l = 0; l < 8; ++l) shape_of[l] = &shapes[size_t(uint32_t(pixel[l]))];
       const Float8 r_x = AFR_LANES(shape_of, r_x), r_y = AFR_LANES(shape_of, r_y);
