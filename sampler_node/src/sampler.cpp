@@ -458,8 +458,12 @@ void Sampler::reproject(int tile) {
   advance_scene_time();
   const double now = clock_.now();
   const double dt = now - c.time;
-  // A world point moves with the center's velocity (zero but on deforming geometry).
-  const glm::dvec3 motion = glm::dvec3(c.velocity) * dt;
+  // A world point moves with the center's velocity when the center is a world point too (the
+  // velocity is zero but on deforming geometry). Beside a center on a rigidly moving object a
+  // world point belongs to something else (static, or deforming with its own velocity, which
+  // the crosshair does not keep) and stays.
+  const glm::dvec3 motion =
+      c.space[0] == Crosshair::kWorld ? glm::dvec3(c.velocity) * dt : glm::dvec3(0.0);
   // Where traced point k is now (false: on an object hidden now); a miss stays a direction
   // far away.
   const auto now_at = [&](const glm::vec3& position, bool hit, uint32_t space, glm::dvec3* p) {
