@@ -514,7 +514,7 @@ int main(int argc, char** argv) {
     print_table(
         "The CPU backend's call by phase, median wall ms (prepare: new samples, tile field, "
         "filters; shape: each pixel's splat shape; reproject: every sample projected and binned; "
-        "sort: into band order; splat: the Gaussian splats; fill: normalisation and holes)",
+        "sort: into bin order; splat: the Gaussian splats; fill: normalisation and holes)",
         {"threads", "resolution", "prepare", "shape", "reproject", "sort", "splat", "fill"},
         cpu_phases);
     const bool waited = gl && gl->software() && sync_passes;

@@ -709,9 +709,9 @@ void Tracer::Impl::set_time(double t) {
       const glm::dmat4 dm =
           (state_plus_.world[size_t(inst.node)] - state_minus_.world[size_t(inst.node)]) *
           (1.0 / (after - before));
-      inst.velocity = glm::mat4(dm * glm::inverse(m));
       inst.world = m;
       inst.inverse_world = glm::inverse(m);
+      inst.velocity = glm::mat4(dm * inst.inverse_world);
     }
     if (ok != inst.enabled) {
       if (ok)

@@ -80,6 +80,7 @@ TEST(DeepBufferTest, KeepsEveryFieldOfACrosshair) {
   c.G_y = 2.5f;
   c.G_t = 3.5f;
   c.flags = Crosshair::kCenterHit | Crosshair::kOccluded;
+  for (int k = 0; k < 5; ++k) c.space[k] = k == 2 ? Crosshair::kWorld : uint32_t(40 + k);
   const auto same = [&](const Crosshair& d) {
     EXPECT_EQ(d.time, c.time);
     EXPECT_EQ(d.old_time, c.old_time);
@@ -97,6 +98,7 @@ TEST(DeepBufferTest, KeepsEveryFieldOfACrosshair) {
     EXPECT_EQ(d.G_y, c.G_y);
     EXPECT_EQ(d.G_t, c.G_t);
     EXPECT_EQ(d.flags, c.flags);
+    for (int k = 0; k < 5; ++k) EXPECT_EQ(d.space[k], c.space[k]);
   };
   buffer.push_back(1, 0, tagged(1.0), nullptr);
   buffer.push_front(1, 0, c, nullptr);
@@ -137,6 +139,7 @@ Crosshair full_crosshair(double t) {
   c.luminance = 2 * f;
   c.old_luminance = 3 * f;
   c.G_x = f + 0.125f;
+  for (int k = 0; k < 5; ++k) c.space[k] = uint32_t(t) + uint32_t(k);
   return c;
 }
 
@@ -176,6 +179,7 @@ TEST(DeepBufferTest, PixelsTakeTheRestOfCrosshairsOnlyWhileTheyHoldSome) {
         EXPECT_EQ(c.velocity, (fields & kKeepVelocity) ? want.velocity : glm::vec3(0.0f));
         EXPECT_EQ(c.old_time, (fields & kKeepOldSample) ? want.old_time : 0.0);
         EXPECT_EQ(c.old_luminance, (fields & kKeepOldSample) ? want.old_luminance : 0.0f);
+        EXPECT_EQ(c.space[4], (fields & kKeepSpaces) ? want.space[4] : Crosshair::kWorld);
       }
       for (int k = 0; k < int(q.size()); ++k) {
         ASSERT_EQ(buffer.at(x, y, k).time, q[size_t(k)]);
