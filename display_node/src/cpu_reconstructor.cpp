@@ -17,6 +17,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <thread>
 
@@ -112,6 +113,7 @@ inline void gaussian_row(int i0, int i1, float center, float k_, float offset, f
 typedef float Float8 __attribute__((vector_size(32), aligned(4), may_alias));
 typedef int32_t Int8 __attribute__((vector_size(32), aligned(4), may_alias));
 typedef float Float4 __attribute__((vector_size(16)));
+typedef float Float4u __attribute__((vector_size(16), aligned(4), may_alias));  // unaligned
 typedef int32_t Int4 __attribute__((vector_size(16)));
 
 // Lane-wise a where m is set, else b (m: all ones or zeros per lane, as comparisons give).
@@ -125,6 +127,18 @@ inline Float8 quantize8(Float8 v) {
   const Float8 t = v * 256.0f;
   const Float8 q = ((t + 12582912.0f) - 12582912.0f) * kPositionStep;
   return select8(abs8(v) < splat8(16384.0f), q, v);
+}
+// The square root of each lane (correctly rounded, as std::sqrt).
+inline Float8 sqrt8(Float8 v) {
+#if defined(__SSE2__)
+  const Float4 lo = Float4(_mm_sqrt_ps(__m128(__builtin_shufflevector(v, v, 0, 1, 2, 3))));
+  const Float4 hi = Float4(_mm_sqrt_ps(__m128(__builtin_shufflevector(v, v, 4, 5, 6, 7))));
+  return __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7);
+#else
+  Float8 r;
+  for (int l = 0; l < 8; ++l) r[l] = std::sqrt(v[l]);
+  return r;
+#endif
 }
 // Each lane clamped to [0, hi].
 inline Int8 clamp8(Int8 v, int32_t hi) {
@@ -153,6 +167,60 @@ inline Float8 fast_exp8(Float8 x) {
   const Int8 bits = (i + 127) << 23;
   return Float8(Int8(p * Float8(bits)) & valid);
 }
+
+// gaussian_row of columns x0 .. x0 + 3 into wx[0..3] and of rows y0 .. y0 + 3 into wy[0..3]
+// at once, each lane with gaussian_row's operations (a splat of at most 4 x 4 pixels).
+inline void gaussian_rows_4x4(int x0, int y0, float center_x, float center_y,
+                              const PixelShape& shape, float* wx, float* wy) {
+  const Float8 lane = {0.0f, 1.0f, 2.0f, 3.0f, 0.0f, 1.0f, 2.0f, 3.0f};
+  const float bx = float(x0) + 0.5f, by = float(y0) + 0.5f;
+  const Float8 d =
+      (Float8{bx, bx, bx, bx, by, by, by, by} + lane) -
+      Float8{center_x, center_x, center_x, center_x, center_y, center_y, center_y, center_y};
+  const float kx = -shape.k_x, ky = -shape.k_y, ox = shape.off_x, oy = shape.off_y;
+  const Float8 w = fast_exp8((d * d) * Float8{kx, kx, kx, kx, ky, ky, ky, ky}) -
+                   Float8{ox, ox, ox, ox, oy, oy, oy, oy};
+  std::memcpy(wx, &w, 4 * sizeof(float));
+  std::memcpy(wy, reinterpret_cast<const float*>(&w) + 4, 4 * sizeof(float));
+}
+
+#if defined(__SSE2__)
+// One row of a splat, four pixels from acc on: the weights wx4 (the splat's columns) times wyt
+// (its row's weight and the temporal weight) added with the color to the sums (r, g, b, w) of
+// the pixels whose lanes are inside and whose weight is above kMinSplatWeight; the others add
+// exactly 0. The sums of two pixels are one 8-float vector: one operation in the x86-64-v3
+// clone, two in the baseline. Returns the lanes added (all ones or zeros).
+inline Int4 add_four_columns(glm::vec4* acc, __m128 inside, __m128 wx4, float wyt, Float8 color2) {
+  const __m128 w4 = _mm_mul_ps(wx4, _mm_set1_ps(wyt));
+  const __m128 ok = _mm_and_ps(inside, _mm_cmpgt_ps(w4, _mm_set1_ps(kMinSplatWeight)));
+  const Float4 w = Float4(_mm_and_ps(w4, ok));
+  Float8* sums = reinterpret_cast<Float8*>(&acc->x);  // pixels 0, 1; 2, 3
+  sums[0] += color2 * __builtin_shufflevector(w, w, 0, 0, 0, 0, 1, 1, 1, 1);
+  sums[1] += color2 * __builtin_shufflevector(w, w, 2, 2, 2, 2, 3, 3, 3, 3);
+  return Int4(ok);
+}
+// add_four_columns for a splat at most two pixels wide: its first two lanes only.
+inline Int4 add_two_columns(glm::vec4* acc, __m128 inside, __m128 wx4, float wyt, Float8 color2) {
+  const __m128 w4 = _mm_mul_ps(wx4, _mm_set1_ps(wyt));
+  const __m128 ok = _mm_and_ps(inside, _mm_cmpgt_ps(w4, _mm_set1_ps(kMinSplatWeight)));
+  const Float4 w = Float4(_mm_and_ps(w4, ok));
+  *reinterpret_cast<Float8*>(&acc->x) +=
+      color2 * __builtin_shufflevector(w, w, 0, 0, 0, 0, 1, 1, 1, 1);
+  return Int4(ok);
+}
+// The coverage (count, growth) of the four pixels from cov on, for the lanes added (ok): one
+// 8-float vector. one_g: (1, g) four times.
+inline void add_coverage4(CoverageCell* cov, Int4 ok, Float8 one_g) {
+  *reinterpret_cast<Float8*>(&cov->count) +=
+      Float8(Int8(one_g) & __builtin_shufflevector(ok, ok, 0, 0, 1, 1, 2, 2, 3, 3));
+}
+// add_coverage4 for the first two pixels.
+inline void add_coverage2(CoverageCell* cov, Int4 ok, Float8 one_g) {
+  *reinterpret_cast<Float4u*>(&cov->count) +=
+      Float4u(Int4(__builtin_shufflevector(one_g, one_g, 0, 1, 2, 3)) &
+              __builtin_shufflevector(ok, ok, 0, 0, 1, 1));
+}
+#endif
 
 int default_threads(int requested) {
   if (requested > 0) return std::min(requested, 256);
@@ -208,6 +276,9 @@ Bands bands_for(const PixelGrid& grid, double scaled_width, double scaled_height
   b.count_stride = (size_t(b.oversize()) + 1 + 15) / 16 * 16;
   return b;
 }
+
+// How far ahead of the reprojection the ring is prefetched, in samples (8 KiB).
+constexpr size_t kPrefetchAhead = 128;
 
 // Chunks of the ring for binning: about 8192 samples or more each, at most 4 per thread.
 int chunks_for(size_t samples, int threads) {
@@ -364,10 +435,99 @@ struct CpuReconstructor::Impl {
     return c;
   }
 
-  // shape_splats_and_clear_sums' work on pixels [p0, p1).
+  // shape_splats_and_clear_sums' work on pixels [p0, p1): eight pixels at a time in vector
+  // arithmetic (the last group padded with copies, so that every pixel takes the same
+  // arithmetic whichever group it falls in), then each pixel's record. The thresholds rule
+  // (a baseline for comparison) goes pixel by pixel.
   AFR_HOT_CLONES void shape_pixels(size_t p0, size_t p1, const FrameSetup& setup,
                                    const std::vector<uint32_t>& index_map, float cutoff,
                                    const SplatSizeRule& rule) {
+    if (rule.thresholds) {
+      shape_pixels_one_by_one(p0, p1, setup, index_map, cutoff, rule);
+      return;
+    }
+    const CoverageCell* cells = previous.valid() ? previous.cells().data() : nullptr;
+    const Int8 all = splat8(-1);
+    for (size_t q0 = p0; q0 < p1; q0 += 8) {
+      const size_t n = std::min<size_t>(8, p1 - q0);
+      const TileFilter* f[8];
+      float cap[8], count[8], growth_sum[8];
+      for (size_t l = 0; l < 8; ++l) {
+        const size_t p = q0 + std::min(l, n - 1);
+        const uint32_t tile = index_map[p];
+        f[l] = &setup.filters[tile];
+        cap[l] = setup.radius_caps[tile];
+        count[l] = cells != nullptr ? cells[p].count : 0.0f;
+        growth_sum[l] = cells != nullptr ? cells[p].growth_sum : 0.0f;
+      }
+#define AFR_LANES(a) \
+  { a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7] }
+      const Float8 fsx = {f[0]->sigma_x, f[1]->sigma_x, f[2]->sigma_x, f[3]->sigma_x,
+                          f[4]->sigma_x, f[5]->sigma_x, f[6]->sigma_x, f[7]->sigma_x};
+      const Float8 fsy = {f[0]->sigma_y, f[1]->sigma_y, f[2]->sigma_y, f[3]->sigma_y,
+                          f[4]->sigma_y, f[5]->sigma_y, f[6]->sigma_y, f[7]->sigma_y};
+      const Float8 caps = AFR_LANES(cap);
+#undef AFR_LANES
+      // r_filter = cutoff * max(sigma_x, sigma_y), as std::max.
+      const Float8 r_filter = splat8(cutoff) * select8(fsx < fsy, fsy, fsx);
+      // splat_radius (coverage_map.h), each branch a selection.
+      Float8 g = splat8(1.0f);
+      if (cells != nullptr) {
+        const Float8 c =
+            Float8{count[0], count[1], count[2], count[3], count[4], count[5], count[6], count[7]};
+        const Float8 gs = Float8{growth_sum[0], growth_sum[1], growth_sum[2], growth_sum[3],
+                                 growth_sum[4], growth_sum[5], growth_sum[6], growth_sum[7]};
+        const Int8 hole = (c > splat8(0.0f)) ^ all;
+        const Float8 safe_c = select8(hole, splat8(1.0f), c);
+        const Float8 mean = gs / safe_c;
+        const Float8 base = mean + rule.relax * (1.0f - mean);
+        const Float8 up = sqrt8(rule.grow_below / safe_c);
+        const Float8 down = sqrt8(sqrt8(rule.shrink_above / safe_c));
+        const Float8 grow_g = base * select8(up < splat8(rule.grow), up, splat8(rule.grow));
+        const Float8 shrink_g =
+            base * select8(down > splat8(rule.shrink), down, splat8(rule.shrink));
+        g = select8(hole, splat8(rule.grow),
+                    select8(c < splat8(rule.grow_below), grow_g,
+                            select8(c > splat8(rule.shrink_above), shrink_g, base)));
+      }
+      Float8 r = g * r_filter;
+      r = select8(r >= splat8(rule.min_radius),
+                  select8(r < splat8(rule.max_radius), r, splat8(rule.max_radius)),
+                  splat8(rule.min_radius));
+      // No wider than std::max({cap, r_filter, min_radius}).
+      Float8 widest = select8(caps < r_filter, r_filter, caps);
+      widest = select8(widest < splat8(rule.min_radius), splat8(rule.min_radius), widest);
+      r = select8(widest < r, widest, r);
+      const Float8 q = r / r_filter;
+      const Float8 grown = select8(splat8(1.0f) < q, q, splat8(1.0f));
+      const Float8 sigma_x = fsx * grown, sigma_y = fsy * grown;
+      const Float8 k_x = 0.5f / (sigma_x * sigma_x), k_y = 0.5f / (sigma_y * sigma_y);
+      const Float8 cx = splat8(cutoff) * sigma_x, cy = splat8(cutoff) * sigma_y;
+      const Float8 r_x = quantize8(select8(cx < r, cx, r));
+      const Float8 r_y = quantize8(select8(cy < r, cy, r));
+      const Float8 off_x = fast_exp8(-r_x * r_x * k_x), off_y = fast_exp8(-r_y * r_y * k_y);
+      const Float8 norm = 1.0f / (sigma_x * sigma_y);
+      const Int8 reach8 = ceil_int8(r_y);
+      for (size_t l = 0; l < n; ++l) {
+        PixelShape& shape = shapes[q0 + l];
+        shape.k_x = k_x[l];
+        shape.k_y = k_y[l];
+        shape.off_x = off_x[l];
+        shape.off_y = off_y[l];
+        shape.r_x = r_x[l];
+        shape.r_y = r_y[l];
+        shape.k_t = f[l]->k_t;
+        shape.norm = norm[l];
+        shape.growth = q[l];  // splat_growth(r, r_filter)
+        reach[q0 + l] = uint8_t(std::min(reach8[l], 255));
+      }
+    }
+  }
+
+  // shape_pixels one pixel at a time (the thresholds rule).
+  AFR_HOT_CLONES void shape_pixels_one_by_one(size_t p0, size_t p1, const FrameSetup& setup,
+                                              const std::vector<uint32_t>& index_map, float cutoff,
+                                              const SplatSizeRule& rule) {
     const CoverageCell* cells = previous.valid() ? previous.cells().data() : nullptr;
     for (size_t p = p0; p < p1; ++p) {
       const uint32_t tile = index_map[p];
@@ -434,6 +594,11 @@ struct CpuReconstructor::Impl {
       const size_t n = std::min<size_t>(8, end - i0);
       const StoredSample* r[8];
       double age_d[8];
+      // The samples kPrefetchAhead on are asked for now: the pass streams the ring, and the
+      // hardware's prefetcher alone leaves it waiting on memory (measured: 5-7% of the pass).
+      if (i0 + kPrefetchAhead + 8 <= end) {
+        for (size_t l = 0; l < 8; ++l) __builtin_prefetch(&mirror[i0 + kPrefetchAhead + l]);
+      }
       for (size_t l = 0; l < 8; ++l) {
         r[l] = &mirror[i0 + std::min(l, n - 1)];
         age_d[l] = time - r[l]->time;
@@ -621,6 +786,33 @@ struct CpuReconstructor::Impl {
         const Float8 color2 = {s.color.r, s.color.g, s.color.b, 1.0f,
                                s.color.r, s.color.g, s.color.b, 1.0f};
         const Float8 one_g = {1.0f, g, 1.0f, g, 1.0f, g, 1.0f, g};
+        if (x1 - x0 < 4 && y1 - y0 < 4 && x0 + 3 < width) {
+          // A splat of at most 4 x 4 pixels (most of them): its columns and rows in one 8-lane
+          // exp, one group of columns per row, and for one or two columns (about half of the
+          // splats) half the sums.
+          gaussian_rows_4x4(x0, y0, s.x, s.y, shape, wx.data(), wy.data());
+          const __m128 inside =
+              _mm_cmplt_ps(_mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f), _mm_set1_ps(float(x1 - x0 + 1)));
+          const __m128 wx4 = _mm_loadu_ps(wx.data());
+          if (x1 - x0 <= 1) {
+            for (int j = y0; j <= y1; ++j) {
+              const float wyj = wy[size_t(j - y0)];
+              if (!(wyj > 0.0f)) continue;
+              const Int4 ok = add_two_columns(accum.data() + size_t(j) * size_t(width) + x0, inside,
+                                              wx4, wyj * w_t, color2);
+              add_coverage2(coverage_next.data() + size_t(j) * size_t(width) + x0, ok, one_g);
+            }
+          } else {
+            for (int j = y0; j <= y1; ++j) {
+              const float wyj = wy[size_t(j - y0)];
+              if (!(wyj > 0.0f)) continue;
+              const Int4 ok = add_four_columns(accum.data() + size_t(j) * size_t(width) + x0,
+                                               inside, wx4, wyj * w_t, color2);
+              add_coverage4(coverage_next.data() + size_t(j) * size_t(width) + x0, ok, one_g);
+            }
+          }
+          continue;
+        }
 #endif
         // The Gaussian of every column and row of the splat.
         gaussian_row(x0, x1, s.x, shape.k_x, shape.off_x, wx.data());
@@ -633,24 +825,13 @@ struct CpuReconstructor::Impl {
           CoverageCell* cov = coverage_next.data() + size_t(j) * size_t(width);
           int i = x0;
 #if defined(__SSE2__)
-          // Four pixels at a time without a branch per pixel: lanes past x1 or with a weight
-          // at or below kMinSplatWeight add exactly 0 (and nothing to the coverage). The sums
-          // of two pixels (r, g, b, w, r, g, b, w) and the coverage of four (count, growth x 4)
-          // are 8-float vectors: one operation each in the x86-64-v3 clone, two in the
-          // baseline.
-          const __m128 wyt4 = _mm_set1_ps(wyt);
+          // Four pixels at a time without a branch per pixel.
           for (; i + 3 < width && i <= x1; i += 4) {
-            const __m128 lane = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
-            const __m128 inside = _mm_cmplt_ps(lane, _mm_set1_ps(float(x1 - i + 1)));
-            const __m128 w4 = _mm_mul_ps(_mm_loadu_ps(&wx[size_t(i - x0)]), wyt4);
-            const __m128 ok = _mm_and_ps(inside, _mm_cmpgt_ps(w4, _mm_set1_ps(kMinSplatWeight)));
-            const Float4 w = Float4(_mm_and_ps(w4, ok));
-            Float8* sums = reinterpret_cast<Float8*>(&acc[i].x);  // pixels i, i + 1; i + 2, i + 3
-            sums[0] += color2 * __builtin_shufflevector(w, w, 0, 0, 0, 0, 1, 1, 1, 1);
-            sums[1] += color2 * __builtin_shufflevector(w, w, 2, 2, 2, 2, 3, 3, 3, 3);
-            const Int4 m = Int4(ok);
-            *reinterpret_cast<Float8*>(&cov[i].count) +=
-                Float8(Int8(one_g) & __builtin_shufflevector(m, m, 0, 0, 1, 1, 2, 2, 3, 3));
+            const __m128 inside =
+                _mm_cmplt_ps(_mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f), _mm_set1_ps(float(x1 - i + 1)));
+            const Int4 ok =
+                add_four_columns(acc + i, inside, _mm_loadu_ps(&wx[size_t(i - x0)]), wyt, color2);
+            add_coverage4(cov + i, ok, one_g);
           }
 #endif
           for (; i <= x1; ++i) {  // the image's last columns (and builds without SSE2)
