@@ -310,6 +310,39 @@ Timing run(afr::Reconstructor& rec, afr::ImageExtent size, int repeats, int warm
   return timing;
 }
 
+// The CPU backend against the yardstick, alternating: each round times `per_round` naive
+// splats, then `per_round` refreshes of `rec` (its live feed going on from round to round), so
+// that a machine whose speed drifts over seconds (a shared host) slows both alike. Returns each
+// round's ratio of medians, and the medians of each side over all rounds.
+struct Alternation {
+  std::vector<double> ratios;
+  std::vector<double> yardstick, backend;  // every timing of each, ms
+};
+
+Alternation alternate(afr::Reconstructor& rec, afr::ImageExtent size, int rounds, int per_round,
+                      int warmup, bool readback) {
+  LiveFeed feed(size, rec.capacity(), 1);
+  feed.fill({&rec});
+  afr::Image image;
+  const auto refresh = [&] {
+    double t = 0.0;
+    const afr::Camera camera = feed.next({&rec}, &t);
+    rec.reconstruct(camera, t, size.width, size.height, readback ? &image : nullptr);
+    return rec.frame_stats().milliseconds;
+  };
+  for (int k = 0; k < warmup; ++k) refresh();
+  Alternation out;
+  for (int round = 0; round < rounds; ++round) {
+    std::vector<double> yardstick, ms;
+    for (int k = 0; k < per_round; ++k) yardstick.push_back(naive_splat(size, 1).median);
+    for (int k = 0; k < per_round; ++k) ms.push_back(refresh());
+    out.ratios.push_back(median_of(ms) / median_of(yardstick));
+    out.yardstick.insert(out.yardstick.end(), yardstick.begin(), yardstick.end());
+    out.backend.insert(out.backend.end(), ms.begin(), ms.end());
+  }
+  return out;
+}
+
 // The GL backend's image against the CPU backend's for the same samples, tilings and cameras
 // (three refreshes after one second of samples): RMS and largest difference of the 8-bit sRGB
 // channels, and the share of pixels whose hole-filled state differs.
@@ -371,7 +404,7 @@ int main(int argc, char** argv) {
   std::vector<size_t> chunk_mibs{256};
   std::string backends = "cpu,gl";
   std::string mode_text = "adaptive", log_level = "warn";
-  int repeats = 15, warmup = 3, gl_repeats = 7, gpu = -1, spp = 4;
+  int repeats = 15, warmup = 3, gl_repeats = 7, gpu = -1, spp = 4, rounds = 0, per_round = 5;
   float shrink_above = afr::SplatSizeRule{}.shrink_above;
   bool readback = true, naive = true, gl_debug = false, check = false, sync_passes = false;
   app.add_option("--sizes", size_texts, "outputs, comma separated: S (square) or WxH")
@@ -386,6 +419,13 @@ int main(int argc, char** argv) {
   app.add_option("--warmup", warmup, "untimed refreshes first")->check(CLI::Range(0, 10000));
   app.add_option("--readback", readback, "read the image back to memory (GL) / fill it (CPU)");
   app.add_option("--naive", naive, "also time the naive 3x3 splat yardstick");
+  app.add_option("--alternate", rounds,
+                 "also time each CPU row against the yardstick in this many alternating rounds "
+                 "(--per-round of each per round)")
+      ->check(CLI::Range(0, 10000));
+  app.add_option("--per-round", per_round,
+                 "yardstick splats and refreshes per round of --alternate")
+      ->check(CLI::Range(1, 1000));
   app.add_option("--gpu", gpu, "EGL device for the GL backend (-1: hardware first)")
       ->check(CLI::Range(-1, 63));
   app.add_option("--gl-splat", splat_texts, "GL splat passes to time: gather, raster or both")
@@ -441,7 +481,7 @@ int main(int argc, char** argv) {
     fmt::print("|---|---|---|---|---|---|---|---|---|---|\n");
     std::vector<afr::GlSplat> splats;
     for (const std::string& text : splat_texts) splats.push_back(afr::parse_gl_splat(text));
-    std::vector<std::string> passes, phases, cpu_phases, checks;
+    std::vector<std::string> passes, phases, cpu_phases, checks, alternations;
     for (const afr::ImageExtent size : sizes) {
       afr::ReconstructorConfig cfg;
       cfg.image = size;
@@ -469,6 +509,26 @@ int main(int argc, char** argv) {
           cpu_phases.push_back(fmt::format(
               "| {} | {}x{} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |", threads,
               size.width, size.height, p.prepare, p.shape, p.reproject, p.sort, p.splat, p.fill));
+          if (rounds > 0) {
+            afr::CpuReconstructor fresh(cfg);
+            const Alternation a = alternate(fresh, size, rounds, per_round, warmup, readback);
+            // Each side's fastest tenth: on a shared host the least disturbed timings.
+            const auto p10 = [](std::vector<double> v) {
+              std::sort(v.begin(), v.end());
+              return v[size_t(std::lround(0.1 * double(v.size() - 1)))];
+            };
+            std::vector<double> r = a.ratios;
+            std::sort(r.begin(), r.end());
+            const auto at = [&](double q) {
+              return r[size_t(std::lround(q * double(r.size() - 1)))];
+            };
+            alternations.push_back(fmt::format(
+                "| {} | {}x{} | {} x {} | {:.2f} | {:.2f} | {:.3f} | {:.3f} - {:.3f} | {:.2f} | "
+                "{:.2f} | {:.3f} |",
+                threads, size.width, size.height, rounds, per_round, median_of(a.yardstick),
+                median_of(a.backend), median_of(a.ratios), at(0.1), at(0.9), p10(a.yardstick),
+                p10(a.backend), p10(a.backend) / p10(a.yardstick)));
+          }
         }
       }
       if (gl) {
@@ -511,6 +571,14 @@ int main(int argc, char** argv) {
         }
       }
     }
+    print_table(
+        "The CPU backend against the yardstick in alternating rounds (each round: the naive "
+        "splat, then as many refreshes of the backend): the medians of all their timings, the "
+        "median over the rounds of a round's ratio (backend median / yardstick median) and its "
+        "p10 - p90, and each side's p10 (the least disturbed timings) and their ratio",
+        {"threads", "resolution", "rounds x per round", "yardstick ms", "cpu ms", "ratio of rounds",
+         "its p10 - p90", "yardstick p10 ms", "cpu p10 ms", "ratio of p10s"},
+        alternations);
     print_table(
         "The CPU backend's call by phase, median wall ms (prepare: new samples, tile field, "
         "filters; shape: each pixel's splat shape; reproject: every sample projected and binned; "
