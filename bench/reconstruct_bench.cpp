@@ -296,7 +296,7 @@ Timing run(afr::Reconstructor& rec, afr::ImageExtent size, int repeats, int warm
                 &timing.call);
   median_fields(cpu_phases,
                 {&CpuPhaseTimes::prepare, &CpuPhaseTimes::shape, &CpuPhaseTimes::reproject,
-                 &CpuPhaseTimes::sort, &CpuPhaseTimes::splat, &CpuPhaseTimes::fill},
+                 &CpuPhaseTimes::splat, &CpuPhaseTimes::fill},
                 &timing.cpu_phases);
   if (!gpu.empty() && gpu.back().timed) {
     std::vector<double> totals;
@@ -507,8 +507,8 @@ int main(int argc, char** argv) {
           row("cpu", std::to_string(threads), t);
           const afr::CpuPhaseTimes& p = t.cpu_phases;
           cpu_phases.push_back(fmt::format(
-              "| {} | {}x{} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |", threads,
-              size.width, size.height, p.prepare, p.shape, p.reproject, p.sort, p.splat, p.fill));
+              "| {} | {}x{} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |", threads, size.width,
+              size.height, p.prepare, p.shape, p.reproject, p.splat, p.fill));
           if (rounds > 0) {
             afr::CpuReconstructor fresh(cfg);
             const Alternation a = alternate(fresh, size, rounds, per_round, warmup, readback);
@@ -581,10 +581,9 @@ int main(int argc, char** argv) {
         alternations);
     print_table(
         "The CPU backend's call by phase, median wall ms (prepare: new samples, tile field, "
-        "filters; shape: each pixel's splat shape; reproject: every sample projected and binned; "
-        "sort: into bin order; splat: the Gaussian splats; fill: normalisation and holes)",
-        {"threads", "resolution", "prepare", "shape", "reproject", "sort", "splat", "fill"},
-        cpu_phases);
+        "filters; shape: each pixel's splat shape; reproject: every sample projected into its "
+        "bin; splat: the Gaussian splats; fill: normalisation and holes)",
+        {"threads", "resolution", "prepare", "shape", "reproject", "splat", "fill"}, cpu_phases);
     const bool waited = gl && gl->software() && sync_passes;
     if (gl && gl->software() && !sync_passes) {
       fmt::print(

@@ -50,16 +50,14 @@ struct alignas(64) Counts {
   uint64_t holes = 0, empty = 0, nonfinite = 0;
 };
 
-constexpr uint32_t kNoBin = 0xffffffffu;
-
 // Rows per band of splat_bands, whatever the thread count (so that the image does not depend
 // on it): tall enough that few splats reach beyond the next band, short enough that bands
 // outnumber threads several times over (for balance).
 int band_height_for(int height) { return std::clamp(height / 32, 8, 64); }
 // Pixels per block of a band (Bands): 36 bytes of splat shape and 24 of sums and coverage each.
 constexpr int kBlockArea = 128;
-// Blocks are widened where the whole image would have more bins than this (the binning counts
-// are bins x chunks).
+// Blocks are widened where the whole image would have more bins than this (each chunk of the
+// ring has a chain of pages per bin: BinPages).
 constexpr double kMaxBins = 8192.0;
 
 // The hot passes are compiled twice with GCC, for the baseline x86-64 and for x86-64-v3 (AVX2,
@@ -253,9 +251,7 @@ struct Bands {
   int blocks = 0;        // blocks over the grid
   // Bin of band b, block k: b * blocks + k; bin `oversize()` is the oversize bucket.
   uint32_t oversize() const { return uint32_t(count) * uint32_t(blocks); }
-  // Entries per chunk in the binning counts and cursors: the bins padded to whole cache lines
-  // (chunks run on different threads).
-  size_t count_stride = 0;
+  size_t bins() const { return size_t(oversize()) + 1; }
 };
 
 Bands bands_for(const PixelGrid& grid, double scaled_width, double scaled_height, int grid_width,
@@ -273,28 +269,97 @@ Bands bands_for(const PixelGrid& grid, double scaled_width, double scaled_height
   const int first_column = int(std::floor(grid.origin_x));
   b.block_offset = first_column % b.block_width;
   b.blocks = (b.block_offset + grid_width + b.block_width - 1) / b.block_width;
-  b.count_stride = (size_t(b.oversize()) + 1 + 15) / 16 * 16;
   return b;
 }
 
 // How far ahead of the reprojection the ring is prefetched, in samples (8 KiB).
 constexpr size_t kPrefetchAhead = 128;
 
-// Chunks of the ring for binning: about 8192 samples or more each, at most 4 per thread.
-int chunks_for(size_t samples, int threads) {
-  return int(std::clamp<size_t>(samples / 8192, 1, size_t(threads) * 4));
+// Chunks of the ring for binning: at most 4 per thread, and about 8192 samples or more each,
+// at least 16 per bin (so that a chunk's bins fill most of their pages: BinPages).
+int chunks_for(size_t samples, int threads, uint32_t bins) {
+  const size_t per_chunk = std::max<size_t>(8192, 16 * size_t(bins));
+  return int(std::clamp<size_t>(samples / per_chunk, 1, size_t(threads) * 4));
 }
+
+// The binned samples of one chunk of the ring: each bin a chain of pages of kPageSamples
+// records, in sample order, from the chunk's own pool. The reprojection writes each sample's
+// record straight into its bin, so that binning needs no counting pass and no sort; the splat
+// reads a bin's chains chunk after chunk (so in sample order, whatever the thread count).
+constexpr uint32_t kPageSamples = 16;
+constexpr uint32_t kNoPage = 0xffffffffu;
+
+class BinPages {
+ public:
+  struct Chain {
+    uint32_t head = kNoPage, tail = kNoPage;
+    uint32_t fill = kPageSamples;  // records in the tail page
+  };
+
+  // Empties every chain, for `bins` bins; the pool keeps its memory.
+  void reset(size_t bins) {
+    chains_.assign(bins, Chain{});
+    pages_ = 0;
+  }
+
+  // The place of a new record at the end of bin b's chain.
+  Projected& append(uint32_t b) {
+    Chain& c = chains_[b];
+    if (c.fill == kPageSamples) {
+      const uint32_t page = pages_++;
+      if (next_.size() < size_t(pages_)) grow();
+      next_[page] = kNoPage;
+      (c.tail == kNoPage ? c.head : next_[c.tail]) = page;
+      c.tail = page;
+      c.fill = 0;
+    }
+    return records_[size_t(c.tail) * kPageSamples + c.fill++];
+  }
+
+  // f(records, count) for each page of bin b's chain, in order. Each page's successor is asked
+  // for from memory while f works on it (pages lie anywhere in the pool: the hardware's
+  // prefetcher cannot guess them).
+  template <typename F>
+  void for_each_page(uint32_t b, F&& f) const {
+    const Chain& c = chains_[b];
+    for (uint32_t page = c.head; page != kNoPage; page = next_[page]) {
+      if (next_[page] != kNoPage) prefetch_page(next_[page]);
+      f(records_.data() + size_t(page) * kPageSamples, page == c.tail ? c.fill : kPageSamples);
+    }
+  }
+
+  // Asks for the first page of bin b's chain from memory.
+  void prefetch_head(uint32_t b) const {
+    if (chains_[b].head != kNoPage) prefetch_page(chains_[b].head);
+  }
+
+ private:
+  void grow() {
+    const size_t pages = std::max<size_t>(2 * next_.size(), 256);
+    next_.resize(pages);
+    records_.resize(pages * kPageSamples);
+  }
+
+  void prefetch_page(uint32_t page) const {
+    const char* p = reinterpret_cast<const char*>(records_.data() + size_t(page) * kPageSamples);
+    for (size_t k = 0; k < kPageSamples * sizeof(Projected); k += 64) __builtin_prefetch(p + k);
+  }
+
+  std::vector<Chain> chains_;       // per bin
+  std::vector<Projected> records_;  // page p: [p kPageSamples, (p + 1) kPageSamples)
+  std::vector<uint32_t> next_;      // per page: the next page of its chain, or kNoPage
+  uint32_t pages_ = 0;              // pages in use
+};
 
 }  // namespace
 
-// The adaptive modes run in four phases, each touching memory in order where it can:
+// The adaptive modes run in three phases, each touching memory in order where it can:
 //   shape_splats_and_clear_sums (rows of pixels): the splat shape every pixel would give a
 //     sample, from its tile's filter and the coverage; first, since binning needs its reach;
-//   reproject_and_bin (chunks of the ring): reproject each sample, note its bin (the block
-//     of columns of the band of horizontal rows its center falls in, or the oversize bucket
-//     for a splat taller than a band) and count samples per chunk and bin;
-//   sort_by_home_band (chunks): copy the projected samples into bin order (stable: sample
-//     order within a bin, whatever the thread count);
+//   reproject_and_bin (chunks of the ring): reproject each sample and write its record into
+//     its bin (the block of columns of the band of horizontal rows its center falls in, or the
+//     oversize bucket for a splat taller than a band): a chain of pages per bin and chunk
+//     (BinPages), so in sample order within a bin, whatever the thread count;
 //   splat_bands (home bands): look up each sample's shape and splat it, block after block
 //     (the shapes and sums of a block stay in the first-level cache). A splat in a band
 //     reaches only its home band and the two next to it (taller ones went to the oversize
@@ -317,14 +382,10 @@ struct CpuReconstructor::Impl {
   uint64_t seen = 0;
   size_t stored = 0;
 
-  std::vector<Projected> projected;  // per stored sample (reproject_and_bin)
-  std::vector<uint32_t> home;        // per stored sample: its bin (Bands) or kNoBin
   // A pixel's bin is row_bin[y] + column_bin[x] (reproject_and_bin).
   std::vector<uint32_t> row_bin, column_bin;
-  std::vector<uint32_t> counts;    // [chunk * count_stride + band]
-  std::vector<size_t> cursor;      // [chunk * count_stride + band]: write positions
-  std::vector<size_t> band_start;  // bands + 2
-  std::vector<Projected> sorted;   // in home-band order (sort_by_home_band)
+  std::vector<BinPages> binned;    // per chunk of the ring: its samples by bin (reproject_and_bin)
+  int chunks = 0;                  // chunks of this image
   std::vector<PixelShape> shapes;  // per pixel (shape_splats_and_clear_sums)
   std::vector<uint8_t> reach;      // per pixel: ceil(shape.r_y), at most 255 (likewise)
   std::vector<Counts> task_counts;
@@ -582,10 +643,10 @@ struct CpuReconstructor::Impl {
   // reproject_and_bin's work on the stored samples [begin, end): eight at a time, the
   // projection (Projector::project and the unreprojected position, the same arithmetic) in
   // vector arithmetic, then each sample's checks, record and band.
-  AFR_HOT_CLONES void reproject_chunk(size_t begin, size_t end, Counts* counts_out,
-                                      uint32_t* chunk_counts, const Projector& pr,
-                                      const FrameSetup& setup, const Grid& grid, const Bands& bands,
-                                      double time, double max_future, bool reproject, float guard) {
+  AFR_HOT_CLONES void reproject_chunk(size_t begin, size_t end, Counts* counts_out, BinPages* pages,
+                                      const Projector& pr, const FrameSetup& setup,
+                                      const Grid& grid, const Bands& bands, double time,
+                                      double max_future, bool reproject, float guard) {
     const int width = grid.width, height = grid.height;
     const float origin_x = grid.origin_x, origin_y = grid.origin_y;
     Counts& c = *counts_out;
@@ -649,8 +710,6 @@ struct CpuReconstructor::Impl {
       uint8_t reach8[8];
       for (size_t l = 0; l < 8; ++l) reach8[l] = reach[size_t(uint32_t(pixel[l]))];
       for (size_t l = 0; l < n; ++l) {
-        const size_t i = i0 + l;
-        home[i] = kNoBin;
         if (age_d[l] < -max_future) {
           ++c.future;
           continue;
@@ -664,29 +723,24 @@ struct CpuReconstructor::Impl {
           ++c.off_screen;
           continue;
         }
-        projected[i] = Projected{x, y, std::max(age[l], 0.0f), r[l]->color};
-        const uint32_t band = reach8[l] < bands.height
-                                  ? row_bin[size_t(cy[l])] + column_bin[size_t(cx[l])]
-                                  : bands.oversize();
-        home[i] = band;
-        ++chunk_counts[band];
+        const uint32_t bin = reach8[l] < bands.height
+                                 ? row_bin[size_t(cy[l])] + column_bin[size_t(cx[l])]
+                                 : bands.oversize();
+        pages->append(bin) = Projected{x, y, std::max(age[l], 0.0f), r[l]->color};
       }
     }
   }
 
-  // Reprojects each stored sample into `projected` (with `reproject` and a position; else it
-  // stays where it was traced) and notes its home band in `home` (kNoBand: not splatted),
-  // counting samples per chunk and home band. Counts those stamped too far ahead (future),
+  // Reprojects each stored sample (with `reproject` and a position; else it stays where it
+  // was traced) into its chunk's pages of its bin (the block of columns of the band of rows its
+  // center falls in, or the oversize bucket). Counts those stamped too far ahead (future),
   // behind the camera (behind) and beyond the guard band around the grid (off_screen).
   Counts reproject_and_bin(const Camera& camera, const FrameSetup& setup, const Grid& grid,
-                           const Bands& bands, int chunks, double time, double max_future,
-                           bool reproject, float guard) {
+                           const Bands& bands, double time, double max_future, bool reproject,
+                           float guard) {
     const size_t n = stored;
-    const size_t count_stride = bands.count_stride;
     const Projector projector(camera, setup.scaled_width, setup.scaled_height, setup.grid.origin_x,
                               setup.grid.origin_y);
-    projected.resize(std::max<size_t>(n, 1));
-    home.resize(std::max<size_t>(n, 1));
     row_bin.resize(size_t(grid.height));
     for (int y = 0; y < grid.height; ++y) {
       row_bin[size_t(y)] = uint32_t((y + bands.offset) / bands.height) * uint32_t(bands.blocks);
@@ -695,62 +749,59 @@ struct CpuReconstructor::Impl {
     for (int x = 0; x < grid.width; ++x) {
       column_bin[size_t(x)] = uint32_t((x + bands.block_offset) / bands.block_width);
     }
-    counts.assign(size_t(chunks) * count_stride, 0u);
-    cursor.resize(counts.size());
+    chunks = chunks_for(n, pool.size(), uint32_t(bands.bins()));
+    if (binned.size() < size_t(chunks)) binned.resize(size_t(chunks));
     task_counts.assign(size_t(chunks), Counts{});
     pool.run(chunks, [&](int chunk) {
       const size_t begin = n * size_t(chunk) / size_t(chunks);
       const size_t end = n * size_t(chunk + 1) / size_t(chunks);
-      uint32_t* chunk_counts = counts.data() + size_t(chunk) * count_stride;
-      reproject_chunk(begin, end, &task_counts[size_t(chunk)], chunk_counts, projector, setup, grid,
+      BinPages& pages = binned[size_t(chunk)];
+      pages.reset(bands.bins());
+      reproject_chunk(begin, end, &task_counts[size_t(chunk)], &pages, projector, setup, grid,
                       bands, time, max_future, reproject, guard);
     });
     return sum_counts();
   }
 
-  // Copies the binned samples into `sorted` in home-band order: band-major, chunk by chunk
-  // inside a band (so in sample order), with `band_start` where each band begins.
-  void sort_by_home_band(const Bands& bands, int chunks) {
-    const size_t n = stored;
-    const size_t count_stride = bands.count_stride;
-    band_start.resize(size_t(bands.count) + 2);
-    size_t total = 0;
-    for (uint32_t b = 0; b <= bands.oversize(); ++b) {
-      if (b % uint32_t(bands.blocks) == 0) band_start[b / uint32_t(bands.blocks)] = total;
-      for (int c = 0; c < chunks; ++c) {
-        const size_t k = size_t(c) * count_stride + size_t(b);
-        cursor[k] = total;
-        total += counts[k];
-      }
-    }
-    band_start[size_t(bands.count) + 1] = total;
-    sorted.resize(std::max<size_t>(total, 1));
-    pool.run(chunks, [&](int chunk) {
-      const size_t begin = n * size_t(chunk) / size_t(chunks);
-      const size_t end = n * size_t(chunk + 1) / size_t(chunks);
-      size_t* chunk_cursor = cursor.data() + size_t(chunk) * count_stride;
-      for (size_t i = begin; i < end; ++i) {
-        if (home[i] != kNoBin) sorted[chunk_cursor[home[i]]++] = projected[i];
-      }
-    });
-  }
-
-  // Splats the samples of one home band (or of the oversize bucket) into the sums and this
-  // image's coverage. Counts those splatted and those whose splat covers no pixel (off_screen).
-  // Eight samples at a time (the last group padded with copies, so that every sample goes
-  // through the same arithmetic whichever group it falls in: a viewport's band holds other
-  // groups than the whole image's), their shapes, pixel ranges and temporal weights in vector
-  // arithmetic; then each sample's splat.
-  AFR_HOT_CLONES void splat_band(int band, const Grid& grid, float min_wt) {
-    const int width = grid.width, height = grid.height;
+  // Splats the samples of one home band (or of the oversize bucket: band `bands.count`) into
+  // the sums and this image's coverage, bin after bin (the band's blocks of columns), each bin's
+  // pages chunk after chunk. Counts those splatted and those whose splat covers no pixel
+  // (off_screen).
+  AFR_HOT_CLONES void splat_band(int band, const Grid& grid, const Bands& bands, float min_wt) {
     Counts& c = task_counts[size_t(band)];
     std::array<float, 2 * int(kSplatRadiusLimit) + 4> wx, wy;
-    const size_t q_end = band_start[size_t(band) + 1];
-    for (size_t q0 = band_start[size_t(band)]; q0 < q_end; q0 += 8) {
-      const size_t n = std::min<size_t>(8, q_end - q0);
+    const uint32_t first =
+        band < bands.count ? uint32_t(band) * uint32_t(bands.blocks) : bands.oversize();
+    const uint32_t last = band < bands.count ? first + uint32_t(bands.blocks) : first + 1;
+    for (uint32_t bin = first; bin < last; ++bin) {
+      for (int chunk = 0; chunk < chunks; ++chunk) {
+        // The next chain's first page, while this one is splatted.
+        if (chunk + 1 < chunks) {
+          binned[size_t(chunk) + 1].prefetch_head(bin);
+        } else if (bin + 1 < last) {
+          binned[0].prefetch_head(bin + 1);
+        }
+        binned[size_t(chunk)].for_each_page(bin, [&](const Projected* records, uint32_t count) {
+          splat_records(records, count, grid, min_wt, &c, wx.data(), wy.data());
+        });
+      }
+    }
+  }
+
+  // splat_band's work on `count` records: eight samples at a time (the last group padded with
+  // copies, so that every sample goes through the same arithmetic whichever group it falls in:
+  // a viewport's pages hold other groups than the whole image's), their shapes, pixel ranges
+  // and temporal weights in vector arithmetic; then each sample's splat. wx and wy: room for
+  // a splat's column and row weights.
+  inline void splat_records(const Projected* records, size_t count, const Grid& grid, float min_wt,
+                            Counts* counts, float* wx, float* wy) {
+    const int width = grid.width, height = grid.height;
+    Counts& c = *counts;
+    for (size_t q0 = 0; q0 < count; q0 += 8) {
+      const size_t n = std::min<size_t>(8, count - q0);
       // The group's positions and ages, and the shape of the pixel each lands in.
       const Projected* g[8];
-      for (size_t l = 0; l < 8; ++l) g[l] = &sorted[q0 + std::min(l, n - 1)];
+      for (size_t l = 0; l < 8; ++l) g[l] = &records[q0 + std::min(l, n - 1)];
 #define AFR_LANES(a, f) \
   { a[0]->f, a[1]->f, a[2]->f, a[3]->f, a[4]->f, a[5]->f, a[6]->f, a[7]->f }
       const Float8 x = AFR_LANES(g, x), y = AFR_LANES(g, y), age = AFR_LANES(g, age);
@@ -773,7 +824,7 @@ struct CpuReconstructor::Impl {
       const Float8 e = fast_exp8(-age * age * k_t);
       const Float8 w_t8 = select8(e < splat8(min_wt), splat8(min_wt), e) * norm;
       for (size_t l = 0; l < n; ++l) {
-        const Projected& s = sorted[q0 + l];
+        const Projected& s = records[q0 + l];
         const PixelShape& shape = *shape_of[l];
         const int x0 = x0s[l], x1 = x1s[l], y0 = y0s[l], y1 = y1s[l];
         if (x0 > x1 || y0 > y1) {
@@ -790,10 +841,10 @@ struct CpuReconstructor::Impl {
           // A splat of at most 4 x 4 pixels (most of them): its columns and rows in one 8-lane
           // exp, one group of columns per row, and for one or two columns (about half of the
           // splats) half the sums.
-          gaussian_rows_4x4(x0, y0, s.x, s.y, shape, wx.data(), wy.data());
+          gaussian_rows_4x4(x0, y0, s.x, s.y, shape, wx, wy);
           const __m128 inside =
               _mm_cmplt_ps(_mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f), _mm_set1_ps(float(x1 - x0 + 1)));
-          const __m128 wx4 = _mm_loadu_ps(wx.data());
+          const __m128 wx4 = _mm_loadu_ps(wx);
           if (x1 - x0 <= 1) {
             for (int j = y0; j <= y1; ++j) {
               const float wyj = wy[size_t(j - y0)];
@@ -815,8 +866,8 @@ struct CpuReconstructor::Impl {
         }
 #endif
         // The Gaussian of every column and row of the splat.
-        gaussian_row(x0, x1, s.x, shape.k_x, shape.off_x, wx.data());
-        gaussian_row(y0, y1, s.y, shape.k_y, shape.off_y, wy.data());
+        gaussian_row(x0, x1, s.x, shape.k_x, shape.off_x, wx);
+        gaussian_row(y0, y1, s.y, shape.k_y, shape.off_y, wy);
         for (int j = y0; j <= y1; ++j) {
           const float wyj = wy[size_t(j - y0)];
           if (!(wyj > 0.0f)) continue;
@@ -853,9 +904,9 @@ struct CpuReconstructor::Impl {
     for (int round = 0; round < 3; ++round) {
       const int start = ((round - bands.first) % 3 + 3) % 3;  // whole-image band index mod 3
       pool.run((bands.count - start + 2) / 3,
-               [&](int k) { splat_band(start + 3 * k, grid, min_wt); });
+               [&](int k) { splat_band(start + 3 * k, grid, bands, min_wt); });
     }
-    splat_band(bands.count, grid, min_wt);
+    splat_band(bands.count, grid, bands, min_wt);
     return sum_counts();
   }
 
@@ -993,16 +1044,12 @@ void CpuReconstructor::do_reconstruct(const Camera& camera, double time, int wid
     lap(&frame_.cpu.shape);
     const Bands bands =
         bands_for(setup.grid, setup.scaled_width, setup.scaled_height, grid.width, grid.height);
-    const int chunks = chunks_for(m.stored, m.pool.size());
-    // Where each sample lands now, and its band. Samples within the guard band beyond the grid
+    // Where each sample lands now, and its bin. Samples within the guard band beyond the grid
     // (whole pixels, as the GL backend's viewport) are kept: their splats may reach it.
-    const Counts binned = m.reproject_and_bin(camera, setup, grid, bands, chunks, time, max_future,
+    const Counts binned = m.reproject_and_bin(camera, setup, grid, bands, time, max_future,
                                               current_mode == ReconstructionMode::kAdaptive,
                                               float(splat_guard_band(config_.splat)));
     lap(&frame_.cpu.reproject);
-    // Stable home-band order: each band is then one task, its rows and shapes in cache.
-    m.sort_by_home_band(bands, chunks);
-    lap(&frame_.cpu.sort);
     // Sections 5.1 and 6.2: the Gaussian splats, in rounds of bands that share no row: no
     // locks, and each pixel's sums in an order that does not depend on the thread count.
     const Counts splats = m.splat_bands(grid, bands, limits.min_temporal_weight);

@@ -94,8 +94,7 @@ struct CallTimes {
 struct CpuPhaseTimes {
   double prepare = 0.0;    // new samples into the reconstructor's copy, tile field, filters
   double shape = 0.0;      // each pixel's splat shape from the coverage map; sums cleared
-  double reproject = 0.0;  // every stored sample projected and binned (band, column block)
-  double sort = 0.0;       // the binned samples into bin order
+  double reproject = 0.0;  // every stored sample projected into its bin (band, column block)
   double splat = 0.0;      // the Gaussian splats into the sums and the coverage
   double fill = 0.0;       // each pixel's weighted mean, holes filled
 };
