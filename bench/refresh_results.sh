@@ -69,6 +69,9 @@ add reconstruct-goal reconstruct-goal.md "Reconstruction at 256 x 256: the 60 Hz
 add reconstruct-clones reconstruct-clones.md "CPU reconstructor: the x86-64-v3 clones against the baseline build" \
   "The CPU backend at 256x256, N = 262 144, on 1 and 2 threads, and the naive 3x3 yardstick, in a build with the hot passes' x86-64-v3 clones (the default) and one without (-DAFR_CPU_CLONES=OFF, build-noclones/), 5 runs of each alternating; per build the median over the runs of each row's median and of the 1-thread row over the yardstick (docs/reconstruction.md, \"Benchmark\"). Make build-noclones first: cmake -S . -B build-noclones -G Ninja -DCMAKE_BUILD_TYPE=Release -DAFR_CPU_CLONES=OFF && cmake --build build-noclones --target afr-bench-reconstruct" \
   'clone_table build-noclones "$BUILD" 5'
+add reconstruct-before-after reconstruct-before-after.md "CPU reconstructor: 6598d90 against this commit" \
+  "The CPU backend at 256x256, N = 262 144, on 1 and 2 threads, and the naive 3x3 yardstick, in a build of 6598d90 (before the one-group small splats, the 8-pixel shape pass, the ring prefetch and the paged bins) and in this one, 5 runs of each alternating; per build the median over the runs of each row's median and of the 1-thread row over the yardstick (docs/reconstruction.md, \"Benchmark\"). Make build-before first: git worktree add /tmp/afr-6598d90 6598d90 && cmake -S /tmp/afr-6598d90 -B build-before -G Ninja -DCMAKE_BUILD_TYPE=Release && cmake --build build-before --target afr-bench-reconstruct" \
+  'clone_table build-before "$BUILD" 5'
 add service-cap40k service-cap40k.md "Service on loopback: k samplers capped at 40 000 samples/s" \
   "k = 1..4 capped samplers and a headless display (128x128, CPU backend, 60 Hz): received / sum of caps (goal >= 0.95), latency p50 / p99 (goal p50 <= 18.7 ms), batch bytes per sample (docs/service.md, \"Figures\")." \
   'deploy/lan/bench.sh --build "$BUILD" --cap 40000'
