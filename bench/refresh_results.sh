@@ -70,8 +70,8 @@ add reconstruct-clones reconstruct-clones.md "CPU reconstructor: the x86-64-v3 c
   "The CPU backend at 256x256, N = 262 144, on 1 and 2 threads, and the naive 3x3 yardstick, in a build with the hot passes' x86-64-v3 clones (the default) and one without (-DAFR_CPU_CLONES=OFF, build-noclones/), 5 runs of each alternating; per build the median over the runs of each row's median and of the 1-thread row over the yardstick (docs/reconstruction.md, \"Benchmark\"). Make build-noclones first: cmake -S . -B build-noclones -G Ninja -DCMAKE_BUILD_TYPE=Release -DAFR_CPU_CLONES=OFF && cmake --build build-noclones --target afr-bench-reconstruct" \
   'clone_table build-noclones "$BUILD" 5'
 add reconstruct-before-after reconstruct-before-after.md "CPU reconstructor: 6598d90 against this commit" \
-  "The CPU backend at 256x256, N = 262 144, on 1 and 2 threads, and the naive 3x3 yardstick, in a build of 6598d90 (before the one-group small splats, the 8-pixel shape pass, the ring prefetch and the paged bins) and in this one, 5 runs of each alternating; per build the median over the runs of each row's median and of the 1-thread row over the yardstick (docs/reconstruction.md, \"Benchmark\"). Make build-before first: git worktree add /tmp/afr-6598d90 6598d90 && cmake -S /tmp/afr-6598d90 -B build-before -G Ninja -DCMAKE_BUILD_TYPE=Release && cmake --build build-before --target afr-bench-reconstruct" \
-  'clone_table build-before "$BUILD" 5'
+  "The CPU backend at 256x256, N = 262 144, on one thread against the naive 3x3 yardstick in alternating rounds (afr-bench-reconstruct --alternate 15 --per-round 10: on a shared host the p10s are the stable figures), in a build of 6598d90 (before the one-group small splats, the 8-pixel shape pass, the ring prefetch and the paged bins) with this commit's benchmark and in this one, 5 runs of each alternating (docs/reconstruction.md, \"Benchmark\"). Make build-before first: git worktree add /tmp/afr-6598d90 6598d90 && cp bench/reconstruct_bench.cpp /tmp/afr-6598d90/bench/ && cmake -S /tmp/afr-6598d90 -B build-before -G Ninja -DCMAKE_BUILD_TYPE=Release && cmake --build build-before --target afr-bench-reconstruct" \
+  'alternating_table build-before "$BUILD" 5'
 add service-cap40k service-cap40k.md "Service on loopback: k samplers capped at 40 000 samples/s" \
   "k = 1..4 capped samplers and a headless display (128x128, CPU backend, 60 Hz): received / sum of caps (goal >= 0.95), latency p50 / p99 (goal p50 <= 18.7 ms), batch bytes per sample (docs/service.md, \"Figures\")." \
   'deploy/lan/bench.sh --build "$BUILD" --cap 40000'
@@ -193,6 +193,39 @@ for b in builds:
     ratios = [x["cpu1"] / x["naive"] for x in r]
     print(f"| {b} | {med('naive'):.2f} | {med('cpu1'):.2f} | {med('cpu2'):.2f} | "
           f"{statistics.median(ratios):.2f} | {', '.join(f'{v:.2f}' for v in ratios)} |")
+PY
+  rm -f "$raw"
+}
+# alternating_table BUILD_A BUILD_B RUNS: the CPU backend at 256x256 on one thread against the
+# yardstick in alternating rounds (afr-bench-reconstruct --alternate), runs of the two builds
+# alternating; per build the median over the runs of the yardstick's p10, the backend's p10
+# and their ratio, and each run's ratio.
+alternating_table() {
+  local a=$1 b=$2 runs=$3 raw
+  raw=$(mktemp)
+  for i in $(seq 1 "$runs"); do
+    for d in "$a" "$b"; do
+      "$d"/bench/afr-bench-reconstruct --sizes 256 --backends cpu --threads 1 --repeats 3 \
+        --warmup 10 --naive 0 --alternate 15 --per-round 10 |
+        grep -E '^\| 1 \| 256x256 \| 15 x 10' | sed "s|^|$d |" >>"$raw" || return 1
+    done
+  done
+  python3 - "$raw" "$a" "$b" <<'PY'
+import statistics, sys
+raw, builds = sys.argv[1], sys.argv[2:4]
+rows = {b: [] for b in builds}  # per build, per run: (yardstick p10, cpu p10)
+for line in open(raw):
+    build, rest = line.split(" ", 1)
+    cells = [c.strip() for c in rest.strip().strip("|").split("|")]
+    rows[build].append((float(cells[7]), float(cells[8])))
+print("| build | yardstick p10 ms | cpu 1 thread p10 ms | ratio of p10s | each run's ratio |")
+print("|---|---:|---:|---:|---|")
+for b in builds:
+    r = rows[b]
+    ratios = [c / y for y, c in r]
+    print(f"| {b} | {statistics.median(y for y, _ in r):.2f} | "
+          f"{statistics.median(c for _, c in r):.2f} | {statistics.median(ratios):.3f} | "
+          f"{', '.join(f'{v:.3f}' for v in ratios)} |")
 PY
   rm -f "$raw"
 }
