@@ -307,7 +307,10 @@ class BinPages {
     Chain& c = chains_[b];
     if (c.fill == kPageSamples) {
       const uint32_t page = pages_++;
-      if (next_.size() < size_t(pages_)) grow();
+      if (next_.size() < size_t(pages_) + 1) grow();
+      // The pool's next page (the next chain to fill one takes it) is asked for from memory
+      // now, to be written: pages are written far apart in time, line by line.
+      prefetch_page(page + 1, true);
       next_[page] = kNoPage;
       (c.tail == kNoPage ? c.head : next_[c.tail]) = page;
       c.tail = page;
@@ -340,9 +343,15 @@ class BinPages {
     records_.resize(pages * kPageSamples);
   }
 
-  void prefetch_page(uint32_t page) const {
+  void prefetch_page(uint32_t page, bool to_write = false) const {
     const char* p = reinterpret_cast<const char*>(records_.data() + size_t(page) * kPageSamples);
-    for (size_t k = 0; k < kPageSamples * sizeof(Projected); k += 64) __builtin_prefetch(p + k);
+    for (size_t k = 0; k < kPageSamples * sizeof(Projected); k += 64) {
+      if (to_write) {
+        __builtin_prefetch(p + k, 1);
+      } else {
+        __builtin_prefetch(p + k);
+      }
+    }
   }
 
   std::vector<Chain> chains_;       // per bin
