@@ -25,6 +25,13 @@ namespace afr {
 
 namespace {
 
+// A stored sample after reprojection: where it lands in the output image and what it carries.
+struct Projected {
+  float x = 0.0f, y = 0.0f;  // output pixels
+  float age = 0.0f;          // seconds, >= 0
+  glm::vec3 color{0.0f};
+};
+
 // The splat of a sample landing in a pixel (filter.h): its Gaussian, grown by the coverage map,
 // and its extent, in output pixels.
 struct PixelShape {
@@ -111,7 +118,6 @@ typedef int32_t Int4 __attribute__((vector_size(16)));
 inline Float8 select8(Int8 m, Float8 a, Float8 b) { return Float8((Int8(a) & m) | (Int8(b) & ~m)); }
 inline Int8 select8(Int8 m, Int8 a, Int8 b) { return (a & m) | (b & ~m); }
 inline Float8 splat8(float v) { return Float8{v, v, v, v, v, v, v, v}; }
-inline Float8 load8(const float* p) { return *reinterpret_cast<const Float8*>(p); }
 inline Int8 splat8(int32_t v) { return Int8{v, v, v, v, v, v, v, v}; }
 inline Float8 abs8(Float8 v) { return Float8(Int8(v) & splat8(0x7fffffff)); }
 // quantize_position (reprojection.h) on eight lanes, with its operations.
@@ -283,14 +289,6 @@ int chunks_for(size_t samples, int threads, uint32_t bins) {
 constexpr uint32_t kPageSamples = 16;
 constexpr uint32_t kNoPage = 0xffffffffu;
 
-// A page of stored samples after reprojection, field by field (eight samples' field loads as one
-// vector): where each lands in the output image, its age and its color.
-struct alignas(64) Page {
-  float x[kPageSamples], y[kPageSamples];  // output pixels
-  float age[kPageSamples];                 // seconds, >= 0
-  float r[kPageSamples], g[kPageSamples], b[kPageSamples];
-};
-
 class BinPages {
  public:
   struct Chain {
@@ -301,15 +299,15 @@ class BinPages {
   // Empties every chain, for `bins` bins; the pool keeps its memory.
   void reset(size_t bins) {
     chains_.assign(bins, Chain{});
-    used_ = 0;
+    pages_ = 0;
   }
 
-  // A new record at the end of bin b's chain.
-  void append(uint32_t b, float x, float y, float age, const glm::vec3& color) {
+  // The place of a new record at the end of bin b's chain.
+  Projected& append(uint32_t b) {
     Chain& c = chains_[b];
     if (c.fill == kPageSamples) {
-      const uint32_t page = used_++;
-      if (next_.size() < size_t(used_) + 1) grow();
+      const uint32_t page = pages_++;
+      if (next_.size() < size_t(pages_) + 1) grow();
       // The pool's next page (the next chain to fill one takes it) is asked for from memory
       // now, to be written: pages are written far apart in time, line by line.
       prefetch_page(page + 1, true);
@@ -318,14 +316,7 @@ class BinPages {
       c.tail = page;
       c.fill = 0;
     }
-    Page& page = pages_[c.tail];
-    const uint32_t k = c.fill++;
-    page.x[k] = x;
-    page.y[k] = y;
-    page.age[k] = age;
-    page.r[k] = color.r;
-    page.g[k] = color.g;
-    page.b[k] = color.b;
+    return records_[size_t(c.tail) * kPageSamples + c.fill++];
   }
 
   // f(records, count) for each page of bin b's chain, in order. Each page's successor is asked
@@ -336,7 +327,7 @@ class BinPages {
     const Chain& c = chains_[b];
     for (uint32_t page = c.head; page != kNoPage; page = next_[page]) {
       if (next_[page] != kNoPage) prefetch_page(next_[page]);
-      f(pages_[page], page == c.tail ? c.fill : kPageSamples);
+      f(records_.data() + size_t(page) * kPageSamples, page == c.tail ? c.fill : kPageSamples);
     }
   }
 
@@ -349,12 +340,12 @@ class BinPages {
   void grow() {
     const size_t pages = std::max<size_t>(2 * next_.size(), 256);
     next_.resize(pages);
-    pages_.resize(pages);
+    records_.resize(pages * kPageSamples);
   }
 
   void prefetch_page(uint32_t page, bool to_write = false) const {
-    const char* p = reinterpret_cast<const char*>(&pages_[page]);
-    for (size_t k = 0; k < sizeof(Page); k += 64) {
+    const char* p = reinterpret_cast<const char*>(records_.data() + size_t(page) * kPageSamples);
+    for (size_t k = 0; k < kPageSamples * sizeof(Projected); k += 64) {
       if (to_write) {
         __builtin_prefetch(p + k, 1);
       } else {
@@ -363,10 +354,10 @@ class BinPages {
     }
   }
 
-  std::vector<Chain> chains_;   // per bin
-  std::vector<Page> pages_;     // the pool
-  std::vector<uint32_t> next_;  // per page: the next page of its chain, or kNoPage
-  uint32_t used_ = 0;           // pages in use
+  std::vector<Chain> chains_;       // per bin
+  std::vector<Projected> records_;  // page p: [p kPageSamples, (p + 1) kPageSamples)
+  std::vector<uint32_t> next_;      // per page: the next page of its chain, or kNoPage
+  uint32_t pages_ = 0;              // pages in use
 };
 
 }  // namespace
@@ -744,7 +735,7 @@ struct CpuReconstructor::Impl {
         const uint32_t bin = reach8[l] < bands.height
                                  ? row_bin[size_t(cy[l])] + column_bin[size_t(cx[l])]
                                  : bands.oversize();
-        pages->append(bin, x, y, std::max(age[l], 0.0f), r[l]->color);
+        pages->append(bin) = Projected{x, y, std::max(age[l], 0.0f), r[l]->color};
       }
     }
   }
@@ -799,8 +790,8 @@ struct CpuReconstructor::Impl {
         } else if (bin + 1 < last) {
           binned[0].prefetch_head(bin + 1);
         }
-        binned[size_t(chunk)].for_each_page(bin, [&](const Page& page, uint32_t count) {
-          splat_records(page, count, grid, min_wt, &c, wx.data(), wy.data());
+        binned[size_t(chunk)].for_each_page(bin, [&](const Projected* records, uint32_t count) {
+          splat_records(records, count, grid, min_wt, &c, wx.data(), wy.data());
         });
       }
     }
@@ -811,28 +802,23 @@ struct CpuReconstructor::Impl {
   // a viewport's pages hold other groups than the whole image's), their shapes, pixel ranges
   // and temporal weights in vector arithmetic; then each sample's splat. wx and wy: room for
   // a splat's column and row weights.
-  inline void splat_records(const Page& page, size_t count, const Grid& grid, float min_wt,
+  inline void splat_records(const Projected* records, size_t count, const Grid& grid, float min_wt,
                             Counts* counts, float* wx, float* wy) {
     const int width = grid.width, height = grid.height;
     Counts& c = *counts;
     for (size_t q0 = 0; q0 < count; q0 += 8) {
       const size_t n = std::min<size_t>(8, count - q0);
       // The group's positions and ages, and the shape of the pixel each lands in.
-      Float8 x = load8(page.x + q0), y = load8(page.y + q0), age = load8(page.age + q0);
+      const Projected* g[8];
+      for (size_t l = 0; l < 8; ++l) g[l] = &records[q0 + std::min(l, n - 1)];
+#define AFR_LANES(a, f) \
+  { a[0]->f, a[1]->f, a[2]->f, a[3]->f, a[4]->f, a[5]->f, a[6]->f, a[7]->f }
+      const Float8 x = AFR_LANES(g, x), y = AFR_LANES(g, y), age = AFR_LANES(g, age);
       const Int8 zero = splat8(0);
-      if (n < 8) {  // the lanes past the page's fill: copies of its last sample
-        const Int8 valid = Int8{0, 1, 2, 3, 4, 5, 6, 7} < splat8(int32_t(n));
-        const size_t last = q0 + n - 1;
-        x = select8(valid, x, splat8(page.x[last]));
-        y = select8(valid, y, splat8(page.y[last]));
-        age = select8(valid, age, splat8(page.age[last]));
-      }
       const Int8 pixel =
           clamp8(floor_int8(y), height - 1) * width + clamp8(floor_int8(x), width - 1);
       const PixelShape* shape_of[8];
       for (size_t l = 0; l < 8; ++l) shape_of[l] = &shapes[size_t(uint32_t(pixel[l]))];
-#define AFR_LANES(a, f) \
-  { a[0]->f, a[1]->f, a[2]->f, a[3]->f, a[4]->f, a[5]->f, a[6]->f, a[7]->f }
       const Float8 r_x = AFR_LANES(shape_of, r_x), r_y = AFR_LANES(shape_of, r_y);
       const Float8 k_t = AFR_LANES(shape_of, k_t), norm = AFR_LANES(shape_of, norm);
 #undef AFR_LANES
@@ -847,9 +833,7 @@ struct CpuReconstructor::Impl {
       const Float8 e = fast_exp8(-age * age * k_t);
       const Float8 w_t8 = select8(e < splat8(min_wt), splat8(min_wt), e) * norm;
       for (size_t l = 0; l < n; ++l) {
-        const size_t k = q0 + l;
-        const float s_x = page.x[k], s_y = page.y[k];
-        const glm::vec3 color(page.r[k], page.g[k], page.b[k]);
+        const Projected& s = records[q0 + l];
         const PixelShape& shape = *shape_of[l];
         const int x0 = x0s[l], x1 = x1s[l], y0 = y0s[l], y1 = y1s[l];
         if (x0 > x1 || y0 > y1) {
@@ -859,13 +843,14 @@ struct CpuReconstructor::Impl {
         ++c.splatted;
         const float w_t = w_t8[l], g = shape.growth;
 #if defined(__SSE2__)
-        const Float8 color2 = {color.r, color.g, color.b, 1.0f, color.r, color.g, color.b, 1.0f};
+        const Float8 color2 = {s.color.r, s.color.g, s.color.b, 1.0f,
+                               s.color.r, s.color.g, s.color.b, 1.0f};
         const Float8 one_g = {1.0f, g, 1.0f, g, 1.0f, g, 1.0f, g};
         if (x1 - x0 < 4 && y1 - y0 < 4 && x0 + 3 < width) {
           // A splat of at most 4 x 4 pixels (most of them): its columns and rows in one 8-lane
           // exp, one group of columns per row, and for one or two columns (about half of the
           // splats) half the sums.
-          gaussian_rows_4x4(x0, y0, s_x, s_y, shape, wx, wy);
+          gaussian_rows_4x4(x0, y0, s.x, s.y, shape, wx, wy);
           const __m128 inside =
               _mm_cmplt_ps(_mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f), _mm_set1_ps(float(x1 - x0 + 1)));
           const __m128 wx4 = _mm_loadu_ps(wx);
@@ -890,8 +875,8 @@ struct CpuReconstructor::Impl {
         }
 #endif
         // The Gaussian of every column and row of the splat.
-        gaussian_row(x0, x1, s_x, shape.k_x, shape.off_x, wx);
-        gaussian_row(y0, y1, s_y, shape.k_y, shape.off_y, wy);
+        gaussian_row(x0, x1, s.x, shape.k_x, shape.off_x, wx);
+        gaussian_row(y0, y1, s.y, shape.k_y, shape.off_y, wy);
         for (int j = y0; j <= y1; ++j) {
           const float wyj = wy[size_t(j - y0)];
           if (!(wyj > 0.0f)) continue;
@@ -912,7 +897,7 @@ struct CpuReconstructor::Impl {
           for (; i <= x1; ++i) {  // the image's last columns (and builds without SSE2)
             const float w = wx[size_t(i - x0)] * wyt;
             if (!(w > kMinSplatWeight)) continue;
-            acc[i] += glm::vec4(color * w, w);
+            acc[i] += glm::vec4(s.color * w, w);
             cov[i].count += 1.0f;
             cov[i].growth_sum += g;
           }
