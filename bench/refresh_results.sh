@@ -85,6 +85,10 @@ add goodput goodput.md "Goodput of sample batches across a 1 Gbit link" \
   "Afr batch bytes received per second over a tbf-limited 1 Gbit link between two network namespaces, over the link rate (ceiling 0.954, goal >= 0.90) (docs/service.md, \"Figures\")." \
   'for args in "--seconds 8 --repeats 5 --receiver ingest --mode flush" "--seconds 8 --repeats 5 --receiver display --mode drop" "--seconds 6 --repeats 1 --receiver ingest --mode drop -- --sndhwm 1000"; do echo "### deploy/lan/goodput.sh --build $BUILD $args"; echo; deploy/lan/goodput.sh --build "$BUILD" $args || exit 1; echo; done' \
   root
+add flow flow.md "Flow control of real samplers across a 100 Mbit link" \
+  "Two samplers (one thread each) and a headless display in network namespaces, tbf 100 mbit on every link (the display's link the bottleneck), 3 runs of 20 s: afr bytes received per second against the link, batches dropped from the samplers' send queues against those received, gaps, refresh, latency (docs/service.md, \"Figures\")." \
+  'bench/flow.sh --build "$BUILD" --rate 100mbit --samplers 2 --seconds 20 --repeats 3' \
+  root
 add protocol protocol.md "Protocol: codec cost and loopback throughput" \
   "Encode and decode cost per sample, tiling decode, PUSH/PULL throughput over TCP loopback with and without CurveZMQ, a non-blocking sender with and without the ZMQ_EVENTS check (docs/protocol.md, \"Figures\")." \
   '"$BUILD"/bench/afr-bench-protocol --benchmark_min_time=1 2>&1'
