@@ -82,7 +82,11 @@ ChannelOptions ChannelOptions::samples() {
   // samples in each queue instead of the defaults' seconds.
   o.send_hwm = 16;
   o.receive_hwm = 64;
-  o.send_buffer = 256 << 10;
+  // The kernel holds up to twice this of a sender's data (Linux doubles it) unsent or in
+  // flight: 0.5 ms of a saturated gigabit, 5 ms of 100 Mbit, and enough in flight for the
+  // round trips of a LAN (bench/results/flow.md, goodput.md). 256 kB held 41 ms of samples on
+  // 100 Mbit.
+  o.send_buffer = 32 << 10;
   o.receive_buffer = 256 << 10;
   o.max_message_bytes = int64_t(kMaxSampleChannelMessage) + kFrameHeadroom;
   o.heartbeat_ms = 1000;

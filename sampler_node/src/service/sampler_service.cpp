@@ -233,6 +233,13 @@ std::string leave_text(std::string text) {
   return text.substr(0, n) + "...";
 }
 
+// The sample channel's options: the protocol's, with the send buffer the options name.
+protocol::ChannelOptions sample_channel(const SamplerServiceOptions& options) {
+  protocol::ChannelOptions o = protocol::ChannelOptions::samples();
+  if (options.send_buffer > 0) o.send_buffer = options.send_buffer;
+  return o;
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -365,7 +372,8 @@ SessionEnd SamplerService::Impl::run_session(const std::atomic<bool>& stop) {
   lo.silence_floor = options.display_timeout;
   lo.heartbeat_interval = options.heartbeat_interval;
   DisplayLink control(context, lo);
-  SampleSender sender(context, service_endpoints(options.display).samples, options.security);
+  SampleSender sender(context, service_endpoints(options.display).samples, options.security,
+                      sample_channel(options));
 
   joined = false;
   session_over = false;
@@ -723,8 +731,8 @@ void SamplerService::Impl::on_wall(const WallLayout& w, SampleSender& sender) {
         wall_senders.erase(it);
       } else if (!kept.count(n.samples_endpoint)) {
         try {
-          kept[n.samples_endpoint] =
-              std::make_unique<SampleSender>(context, n.samples_endpoint, options.security);
+          kept[n.samples_endpoint] = std::make_unique<SampleSender>(
+              context, n.samples_endpoint, options.security, sample_channel(options));
         } catch (const Error& e) {
           spdlog::error("wall node {}: {}", n.node_id, e.what());
           continue;

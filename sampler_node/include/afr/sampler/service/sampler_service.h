@@ -46,6 +46,9 @@ struct SamplerServiceOptions {
   std::string name;                     // for the display's logs; default: host name + pid
   std::filesystem::path cache_dir;      // received scenes
   protocol::Security security;          // CurveZMQ client keys, or none
+  // The sample channel's kernel send buffer, bytes (0: ChannelOptions::samples()'s): what a
+  // saturated link holds of this sampler's samples beyond ZeroMQ's queue.
+  int send_buffer = 0;
   // Seconds of silence on the display's control channel (heartbeats, anything; views do not
   // count: they carry no session) before the sampler may drop its connections and join again:
   // the floor of its failure detector (afr/common/failure_detector.h), which waits longer
