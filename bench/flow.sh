@@ -12,10 +12,12 @@
 #
 #   sudo bench/flow.sh --build build --rate 100mbit --samplers 2 --seconds 20 --repeats 3
 # Options: --build DIR, --rate RATE (tc syntax), --samplers N, --seconds S, --repeats R,
-# --threads T (per sampler), --output DIR (the runs' folders; default out/flow).
+# --threads T (per sampler), --send-buffer BYTES (sampler_node's; 0: the protocol's), --output
+# DIR (the runs' folders; default out/flow).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
-build="$root/build" rate=100mbit samplers=2 seconds=20 repeats=3 threads=1 output="$root/out/flow"
+build="$root/build" rate=100mbit samplers=2 seconds=20 repeats=3 threads=1 send_buffer=0
+output="$root/out/flow"
 while [ $# -gt 0 ]; do
   case "$1" in
     --build) build=$2; shift 2 ;;
@@ -24,6 +26,7 @@ while [ $# -gt 0 ]; do
     --seconds) seconds=$2; shift 2 ;;
     --repeats) repeats=$2; shift 2 ;;
     --threads) threads=$2; shift 2 ;;
+    --send-buffer) send_buffer=$2; shift 2 ;;
     --output) output=$2; shift 2 ;;
     *) echo "flow.sh: unknown option '$1'" >&2; exit 2 ;;
   esac
@@ -35,7 +38,7 @@ for k in $(seq 1 "$repeats"); do
   dir="$output/run-$k"
   rm -rf "$dir"
   "$root/deploy/lan/lan.sh" --build "$build" --samplers "$samplers" --rate "$rate" \
-    --seconds "$seconds" --threads "$threads" --output "$dir" >"$output-run-$k.log" 2>&1 || {
+    --seconds "$seconds" --threads "$threads" --send-buffer "$send_buffer" --output "$dir" >"$output-run-$k.log" 2>&1 || {
     status=$?
     [ "$status" = 77 ] && exit 77
     echo "flow.sh: run $k failed (exit $status, $output-run-$k.log)" >&2
@@ -44,9 +47,9 @@ for k in $(seq 1 "$repeats"); do
   runs+=("$dir/stats.json")
 done
 
-python3 - "$rate" "$seconds" "${runs[@]}" <<'PY'
+python3 - "$rate" "$seconds" "$send_buffer" "${runs[@]}" <<'PY'
 import json, re, statistics, sys
-rate_text, seconds, files = sys.argv[1], sys.argv[2], sys.argv[3:]
+rate_text, seconds, send_buffer, files = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4:]
 m = re.fullmatch(r"([0-9.]+)([kmg]?)bit", rate_text.lower())
 if not m:
     sys.exit(f"flow.sh: cannot read the rate '{rate_text}' (e.g. 100mbit, 1gbit)")
@@ -65,8 +68,9 @@ for path in files:
                      samples=samples / 1e3, batches=batches, dropped=dropped,
                      share=dropped / max(1, batches + dropped), gaps=gaps,
                      hz=d.get("refresh_hz", 0.0), p50=1e3 * d.get("window_latency_p50", 0.0)))
-print(f"Links {rate_text} ({link / 1e6:.2f} MB/s), runs of {seconds} s; from the display's "
-      "/stats one second before the end\n")
+buffer = f"--send-buffer {send_buffer}" if send_buffer else "the protocol's send buffer"
+print(f"Links {rate_text} ({link / 1e6:.2f} MB/s), runs of {seconds} s, samplers with {buffer}; "
+      "from the display's /stats one second before the end\n")
 cols = ["run", "samplers", "received MB/s", "of the link", "samples/s (k)", "batches received",
         "batches dropped", "dropped share", "gaps", "display Hz", "latency p50 ms"]
 print("| " + " | ".join(cols) + " |")

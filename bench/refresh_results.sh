@@ -89,6 +89,10 @@ add flow flow.md "Flow control of real samplers across a 100 Mbit link" \
   "Two samplers (one thread each) and a headless display in network namespaces, tbf 100 mbit on every link (the display's link the bottleneck), 3 runs of 20 s: afr bytes received per second against the link, batches dropped from the samplers' send queues against those received, gaps, refresh, latency (docs/service.md, \"Figures\")." \
   'bench/flow.sh --build "$BUILD" --rate 100mbit --samplers 2 --seconds 20 --repeats 3' \
   root
+add flow-32k flow-32k.md "Flow control of real samplers across a 100 Mbit link, 32 KiB send buffers" \
+  "As flow.md with sampler_node --send-buffer 32768 (docs/protocol.md, \"Transport\")." \
+  'bench/flow.sh --build "$BUILD" --rate 100mbit --samplers 2 --seconds 20 --repeats 3 --send-buffer 32768' \
+  root
 add protocol protocol.md "Protocol: codec cost and loopback throughput" \
   "Encode and decode cost per sample, tiling decode, PUSH/PULL throughput over TCP loopback with and without CurveZMQ, a non-blocking sender with and without the ZMQ_EVENTS check (docs/protocol.md, \"Figures\")." \
   '"$BUILD"/bench/afr-bench-protocol --benchmark_min_time=1 2>&1'

@@ -57,9 +57,11 @@ int main(int argc, char** argv) {
                  "heartbeats stay on time")
       ->capture_default_str()
       ->check(CLI::Range(0, 19));
-  app.add_option("--send-buffer", o.send_buffer,
-                 "the sample channel's kernel send buffer in bytes (0: the protocol's 32 KiB, "
-                 "for a LAN; a link of long round trips needs its bandwidth x round trip)")
+  app.add_option(
+         "--send-buffer", o.send_buffer,
+         "the sample channel's kernel send buffer in bytes (0: the protocol's 256 KiB, "
+         "for a gigabit LAN; on a slower link a smaller one keeps samples fresher, a link of "
+         "long round trips needs its bandwidth x round trip)")
       ->capture_default_str()
       ->check(CLI::Range(0, 64 << 20));
   app.add_option("--key", key_file, "this sampler's CurveZMQ key pair file (enables CurveZMQ)");

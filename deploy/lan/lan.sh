@@ -10,13 +10,14 @@
 #   sudo deploy/lan/lan.sh --samplers 2 --wall 2x2 --size 256x256 --check   (a display wall:
 #        the lead on the display host, a follower display host per other cell; docs/wall.md)
 # Options: --samplers N, --seconds S, --rate RATE (tc syntax: 100mbit, 1gbit), --drop PERCENT
-# (per packet sent by each host), --threads T, --cap SAMPLES_PER_S, --size WxH, --scene FILE,
+# (per packet sent by each host), --threads T, --cap SAMPLES_PER_S, --send-buffer BYTES
+# (sampler_node's), --size WxH, --scene FILE,
 # --curve (CurveZMQ with generated keys, else --insecure), --build DIR, --output DIR,
 # --wall CxR (follower display hosts for the other cells), --check (exit 1 unless every sampler
 # and wall node joined and every image was written).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
-samplers=3 seconds=10 rate="" drop="" threads=1 cap=0 size=128x96 scene="" curve=0
+samplers=3 seconds=10 rate="" drop="" threads=1 cap=0 send_buffer=0 size=128x96 scene="" curve=0
 build="$root/build" output="$root/out/lan" check=0 port=7100 wall=1x1
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -26,6 +27,7 @@ while [ $# -gt 0 ]; do
     --drop) drop=$2; shift 2 ;;
     --threads) threads=$2; shift 2 ;;
     --cap) cap=$2; shift 2 ;;
+    --send-buffer) send_buffer=$2; shift 2 ;;
     --size) size=$2; shift 2 ;;
     --scene) scene=$2; shift 2 ;;
     --curve) curve=1; shift ;;
@@ -101,7 +103,7 @@ done
 for i in $(seq 1 "$samplers"); do
   [ "$curve" = 1 ] && sampler_security=(--key "$output/keys/sampler-$i.key" --server-key "$output/keys/display.pub")
   ip netns exec "${p}s$i" "$sampler_bin" --display "tcp://$display_ip:$port" --threads "$threads" \
-    --max-samples-per-second "$cap" --name "host-$i" --cache "$output/cache-$i" \
+    --max-samples-per-second "$cap" --send-buffer "$send_buffer" --name "host-$i" --cache "$output/cache-$i" \
     "${sampler_security[@]}" >"$output/logs/sampler-$i.log" 2>&1 &
   pids+=("$!")
 done

@@ -83,10 +83,10 @@ ChannelOptions ChannelOptions::samples() {
   o.send_hwm = 16;
   o.receive_hwm = 64;
   // The kernel holds up to twice this of a sender's data (Linux doubles it) unsent or in
-  // flight: 0.5 ms of a saturated gigabit, 5 ms of 100 Mbit, and enough in flight for the
-  // round trips of a LAN (bench/results/flow.md, goodput.md). 256 kB held 41 ms of samples on
-  // 100 Mbit.
-  o.send_buffer = 32 << 10;
+  // flight: 4 ms of a saturated gigabit, a LAN's round trips many times over, and room for a
+  // sender descheduled for a moment; 41 ms of 100 Mbit, where sampler_node --send-buffer 32768
+  // keeps samples fresh (bench/results/flow.md, goodput.md).
+  o.send_buffer = 256 << 10;
   o.receive_buffer = 256 << 10;
   o.max_message_bytes = int64_t(kMaxSampleChannelMessage) + kFrameHeadroom;
   o.heartbeat_ms = 1000;
