@@ -183,28 +183,33 @@ inline void gaussian_rows_4x4(int x0, int y0, float center_x, float center_y,
 }
 
 #if defined(__SSE2__)
-// One row of a splat, four pixels from acc on: the weights wx4 (the splat's columns) times wyt
-// (its row's weight and the temporal weight) added with the color to the sums (r, g, b, w) of
-// the pixels whose lanes are inside and whose weight is above kMinSplatWeight; the others add
-// exactly 0. The sums of two pixels are one 8-float vector: one operation in the x86-64-v3
-// clone, two in the baseline. Returns the lanes added (all ones or zeros).
-inline Int4 add_four_columns(glm::vec4* acc, __m128 inside, __m128 wx4, float wyt, Float8 color2) {
+// One row of a splat, four pixels on: the weights wx4 (the splat's columns) times wyt (its
+// row's weight and the temporal weight) in the lanes that are inside and above
+// kMinSplatWeight, exactly 0 in the others; *added: those lanes (all ones or zeros).
+inline Float4 row_weights(__m128 inside, __m128 wx4, float wyt, Int4* added) {
   const __m128 w4 = _mm_mul_ps(wx4, _mm_set1_ps(wyt));
   const __m128 ok = _mm_and_ps(inside, _mm_cmpgt_ps(w4, _mm_set1_ps(kMinSplatWeight)));
-  const Float4 w = Float4(_mm_and_ps(w4, ok));
+  *added = Int4(ok);
+  return Float4(_mm_and_ps(w4, ok));
+}
+// row_weights added with the color to the sums (r, g, b, w) of the four pixels from acc on. The
+// sums of two pixels are one 8-float vector: one operation in the x86-64-v3 clone, two in the
+// baseline. Returns the lanes added.
+inline Int4 add_four_columns(glm::vec4* acc, __m128 inside, __m128 wx4, float wyt, Float8 color2) {
+  Int4 added;
+  const Float4 w = row_weights(inside, wx4, wyt, &added);
   Float8* sums = reinterpret_cast<Float8*>(&acc->x);  // pixels 0, 1; 2, 3
   sums[0] += color2 * __builtin_shufflevector(w, w, 0, 0, 0, 0, 1, 1, 1, 1);
   sums[1] += color2 * __builtin_shufflevector(w, w, 2, 2, 2, 2, 3, 3, 3, 3);
-  return Int4(ok);
+  return added;
 }
 // add_four_columns for a splat at most two pixels wide: its first two lanes only.
 inline Int4 add_two_columns(glm::vec4* acc, __m128 inside, __m128 wx4, float wyt, Float8 color2) {
-  const __m128 w4 = _mm_mul_ps(wx4, _mm_set1_ps(wyt));
-  const __m128 ok = _mm_and_ps(inside, _mm_cmpgt_ps(w4, _mm_set1_ps(kMinSplatWeight)));
-  const Float4 w = Float4(_mm_and_ps(w4, ok));
+  Int4 added;
+  const Float4 w = row_weights(inside, wx4, wyt, &added);
   *reinterpret_cast<Float8*>(&acc->x) +=
       color2 * __builtin_shufflevector(w, w, 0, 0, 0, 0, 1, 1, 1, 1);
-  return Int4(ok);
+  return added;
 }
 // The coverage (count, growth) of the four pixels from cov on, for the lanes added (ok): one
 // 8-float vector. one_g: (1, g) four times.
