@@ -183,14 +183,18 @@ TileSums sums_from_parts(const TileSums* parts, int n, double shift) {
 // node elsewhere); nothing reads the old sample back. The baselines never fill the buffer.
 uint32_t buffer_fields(const SamplerConfig& config, const Scene& scene) {
   if (config.mode != SamplerMode::kAdaptive) return 0;
-  return kKeepReprojection | (scene.has_moving_geometry() ? kKeepVelocity | kKeepSpaces : 0u);
+  if (!scene.has_moving_geometry()) return kKeepReprojection;
+  return kKeepReprojection | kKeepVelocity |
+         (config.crosshair_motion == CrosshairMotion::kTransform ? kKeepSpaces : 0u);
 }
 
-// A traced point as a crosshair keeps it (Crosshair::space): in the space of the node it hit
-// when that node moves rigidly, in the world otherwise.
-glm::vec3 kept_point(const Tracer& tracer, const ShadedSample& s, uint32_t* space) {
+// A traced point as a crosshair keeps it (Crosshair::space): with CrosshairMotion::kTransform
+// in the space of the node it hit when that node moves rigidly, in the world otherwise.
+glm::vec3 kept_point(const Tracer& tracer, CrosshairMotion motion, const ShadedSample& s,
+                     uint32_t* space) {
   glm::dmat4 inverse;
-  if (s.hit && tracer.rigid_transform(s.object_id, nullptr, &inverse)) {
+  if (motion == CrosshairMotion::kTransform && s.hit &&
+      tracer.rigid_transform(s.object_id, nullptr, &inverse)) {
     *space = s.object_id;
     return glm::vec3(inverse * glm::dvec4(glm::dvec3(s.position), 1.0));
   }
@@ -439,9 +443,11 @@ void Sampler::step_framed() {
 // Section 6.1: relocates the newest crosshair of a random pixel of the tile to where the
 // current view and the motion of its points put it, and tests that it is still visible. A
 // crosshair keeps the points and the time it was traced at, and every move starts from them,
-// so moving it again never adds motion already counted: a point on a rigidly moving object is
-// where the object's transform now puts it (exact, however long ago it was traced), a world
-// point of deforming geometry extrapolates its velocity, v (now - time).
+// so moving it again never adds motion already counted. By default (CrosshairMotion::kVelocity)
+// its points extrapolate the center's velocity, v (now - time), as the display moves the
+// sample (docs/sampler.md, "Crosshair motion"); with kTransform a point on a rigidly moving
+// object is where the object's transform now puts it (exact, however long ago it was traced),
+// and a world point of deforming geometry extrapolates its velocity.
 void Sampler::reproject(int tile) {
   const PixelRect rect = tiling_.node(tile).rect;
   const int32_t px = rect.x0 + int32_t(rng_.next_below(uint32_t(rect.width())));
@@ -458,10 +464,11 @@ void Sampler::reproject(int tile) {
   advance_scene_time();
   const double now = clock_.now();
   const double dt = now - c.time;
-  // A world point moves with the center's velocity when the center is a world point too (the
-  // velocity is zero but on deforming geometry). Beside a center on a rigidly moving object a
-  // world point belongs to something else (static, or deforming with its own velocity, which
-  // the crosshair does not keep) and stays.
+  // A world point moves with the center's velocity when the center is a world point too (with
+  // kVelocity every point is one; with kTransform the velocity is zero but on deforming
+  // geometry). With kTransform, beside a center on a rigidly moving object a world point
+  // belongs to something else (static, or deforming with its own velocity, which the crosshair
+  // does not keep) and stays.
   const glm::dvec3 motion =
       c.space[0] == Crosshair::kWorld ? glm::dvec3(c.velocity) * dt : glm::dvec3(0.0);
   // Where traced point k is now (false: on an object hidden now); a miss stays a direction
@@ -631,13 +638,14 @@ Crosshair Sampler::make_crosshair(double x, double y, const std::array<ShadedSam
   c.time = scene_time_;
   c.x = float(x);
   c.y = float(y);
-  c.position = kept_point(tracer_, s[0], &c.space[0]);
+  c.position = kept_point(tracer_, config_.crosshair_motion, s[0], &c.space[0]);
   c.velocity = s[0].velocity;
   c.luminance = sample_luminance(s[0]);
   if (s[0].hit) c.flags |= Crosshair::kCenterHit;
   for (int k = 0; k < 4; ++k) {
     c.neighbor_luminance[k] = sample_luminance(s[k + 1]);
-    c.neighbor_position[k] = kept_point(tracer_, s[k + 1], &c.space[k + 1]);
+    c.neighbor_position[k] =
+        kept_point(tracer_, config_.crosshair_motion, s[k + 1], &c.space[k + 1]);
     if (s[k + 1].hit) c.flags |= uint8_t(Crosshair::kNeighborHit0 << k);
   }
   // Section 4.1: the average absolute differences to the neighbours one pixel away.

@@ -136,8 +136,8 @@ TEST(SamplerMemoryTest, SmallRegionOfAGigapixelImageTakesHeapForTheRegionOnly) {
 
 TEST(SamplerMemoryTest, HeapPerRegionPixelFollowsThePixelsThatHoldCrosshairs) {
   // Three times the pixels, three times the per-pixel part: the slope between two regions is
-  // per region pixel, whatever the fixed part. A moving scene keeps velocities and the spaces
-  // of the points as well (84 + 12 + 20 bytes a slot).
+  // per region pixel, whatever the fixed part. A moving scene keeps velocities as well (84 + 12
+  // bytes a slot; the points' spaces, 20 more, only with CrosshairMotion::kTransform).
   const Scene scene = testing::moving_scene();
   ASSERT_TRUE(scene.has_moving_geometry());
   const PixelRect small{0, 0, 256, 256}, large{0, 0, 768, 256};
@@ -148,15 +148,15 @@ TEST(SamplerMemoryTest, HeapPerRegionPixelFollowsThePixelsThatHoldCrosshairs) {
     const Heap full_small = peak_heap(scene, 1024, 1024, small, b, 1, 0);
     const Heap full_large = peak_heap(scene, 1024, 1024, large, b, 1, 0);
     ASSERT_EQ(full_large.pooled_pixels, large.area());
-    ASSERT_EQ(full_large.rest_bytes, 116);
+    ASSERT_EQ(full_large.rest_bytes, 96);
     const double full = double(full_large.peak - full_small.peak) / added;
-    EXPECT_LE(full, double(per_pixel_budget(b) + b * 116));
-    EXPECT_GE(full, double(b * (32 + 116) + 2 + 4));  // at least the slots themselves
+    EXPECT_LE(full, double(per_pixel_budget(b) + b * 96));
+    EXPECT_GE(full, double(b * (32 + 96) + 2 + 4));  // at least the slots themselves
     // One pixel in 64 holds a crosshair: the others take the statistics part only.
     const Heap sparse_small = peak_heap(scene, 1024, 1024, small, b, 8, 0);
     const Heap sparse_large = peak_heap(scene, 1024, 1024, large, b, 8, 0);
     const double sparse = double(sparse_large.peak - sparse_small.peak) / added;
-    EXPECT_LE(sparse, double(per_pixel_budget(b)) + b * 116 / 8.0);
+    EXPECT_LE(sparse, double(per_pixel_budget(b)) + b * 96 / 8.0);
     EXPECT_GE(sparse, double(b * 32 + 2 + 4));
     // The figures docs/sampler.md quotes.
     std::printf(

@@ -52,15 +52,46 @@ void validate(const RunSettings& s) {
 class NewestSampleSink final : public SampleSink {
  public:
   explicit NewestSampleSink(SampleSink& next) : next_(next) {}
+  // The input time of the image being made: samples newer than it are held back until an
+  // image whose input time reaches them. A sampler's last step before the input time can
+  // trace past it (its reprojections move the scene's time on within the step).
+  void set_input_time(double t) {
+    limit_ = t;
+    if (held_.samples.empty()) return;
+    SampleBatch ready = held_;
+    ready.samples.clear();
+    std::vector<Sample> later;
+    for (const Sample& sample : held_.samples)
+      (sample.time <= t ? ready.samples : later).push_back(sample);
+    held_.samples = std::move(later);
+    if (!ready.samples.empty()) pass_on(std::move(ready));
+  }
   void on_batch(SampleBatch&& batch) override {
-    for (const Sample& sample : batch.samples) newest_ = std::max(newest_, sample.time);
-    next_.on_batch(std::move(batch));
+    const auto newer = [&](const Sample& sample) { return sample.time > limit_; };
+    if (std::any_of(batch.samples.begin(), batch.samples.end(), newer)) {
+      if (held_.samples.empty()) {
+        held_.sampler_id = batch.sampler_id;
+        held_.fields = batch.fields;
+      }
+      for (const Sample& sample : batch.samples)
+        if (newer(sample)) held_.samples.push_back(sample);
+      batch.samples.erase(std::remove_if(batch.samples.begin(), batch.samples.end(), newer),
+                          batch.samples.end());
+    }
+    if (!batch.samples.empty()) pass_on(std::move(batch));
   }
   void on_tiling(TilingSnapshot&& snapshot) override { next_.on_tiling(std::move(snapshot)); }
   double newest() const { return newest_; }
 
  private:
+  void pass_on(SampleBatch&& batch) {
+    for (const Sample& sample : batch.samples) newest_ = std::max(newest_, sample.time);
+    next_.on_batch(std::move(batch));
+  }
+
   SampleSink& next_;
+  double limit_ = std::numeric_limits<double>::infinity();
+  SampleBatch held_;
   double newest_ = -std::numeric_limits<double>::infinity();
 };
 
@@ -118,6 +149,7 @@ RunStats run_frameless(const Scene& scene, Tracer& tracer, const RunSettings& s,
   // takes the samples up to its own t_in).
   const auto make_image = [&](int j) {
     const double t_in = input_time(s, j);
+    sink_to_display.set_input_time(t_in);
     sample_until(sampler, clock, t_in);
     sampler.flush();
     stats.sample_seconds += seconds_since(start);

@@ -15,6 +15,18 @@ enum class SamplerMode {
   kFramedSweep,    // every pixel center of the region in scanline order, over and over
 };
 
+// How reprojection (section 6.1) moves a crosshair's points on a rigidly moving object
+// (docs/sampler.md, "Crosshair motion").
+enum class CrosshairMotion {
+  // Along the center's velocity over the crosshair's age, as the display moves the samples it
+  // shows (display_node reprojection.h): a crosshair lands where the display puts its sample,
+  // so its temporal gradient measures the error the display makes there.
+  kVelocity,
+  // By the object's transform at the new time: exact (a turning object's points stay on it),
+  // but blind to where a display that extrapolates velocities goes wrong.
+  kTransform,
+};
+
 struct SamplerConfig {
   SamplerMode mode = SamplerMode::kAdaptive;
   ImageExtent image{256, 256};  // the whole image
@@ -39,6 +51,7 @@ struct SamplerConfig {
   int max_tiles = 1024;
   int max_tiling_ops = 2;  // splits plus merges per adjustment
   bool occlusion_rays = true;
+  CrosshairMotion crosshair_motion = CrosshairMotion::kVelocity;
   // The scene's animation repeats over its keyframe range while the clock runs on.
   bool loop_animation = true;
 

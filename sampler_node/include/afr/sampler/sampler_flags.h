@@ -8,8 +8,9 @@
 namespace afr {
 
 // Adds --b, --r, --chunk, --kappa, --lambda, --m, --i, --min-tiles, --max-tiles, --refresh,
-// --seed, --fill-step and --mode to `app`, writing into *config (defaults shown from it). Ranges
-// are checked by SamplerConfig::validate() after parsing, which names the flag's field.
+// --seed, --fill-step, --crosshair-motion and --mode to `app`, writing into *config (defaults shown
+// from it). Ranges are checked by SamplerConfig::validate() after parsing, which names the flag's
+// field.
 inline void add_sampler_flags(CLI::App& app, SamplerConfig* config) {
   app.add_option("--b", config->b, "deep buffer depth")->capture_default_str();
   app.add_option("--r", config->r, "reprojections per tile visit (0 = none)")
@@ -29,6 +30,13 @@ inline void add_sampler_flags(CLI::App& app, SamplerConfig* config) {
   app.add_option("--fill-step", config->fill_step,
                  "initial fill: one crosshair every this many pixels (large images: larger)")
       ->capture_default_str();
+  app.add_option("--crosshair-motion", config->crosshair_motion,
+                 "how reprojection moves crosshairs on rigidly moving objects: velocity (as the "
+                 "display moves samples) or transform (exact)")
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, CrosshairMotion>{{"velocity", CrosshairMotion::kVelocity},
+                                                 {"transform", CrosshairMotion::kTransform}},
+          CLI::ignore_case));
   app.add_option("--mode", config->mode, "adaptive, uniform (traditional frameless) or framed")
       ->transform(CLI::CheckedTransformer(
           std::map<std::string, SamplerMode>{{"adaptive", SamplerMode::kAdaptive},
