@@ -79,6 +79,10 @@ TEST_F(ServiceTest, SamplerFlagOutOfRangeIsNamedAndTheDisplayKeepsServing) {
   auto bad = sampler({"--kappa", "2"}, "bad.log");
   EXPECT_NE(bad->wait(10.0), 0);
   EXPECT_NE(bad->log().find("kappa = 2 is outside [0, 1]"), std::string::npos) << bad->log();
+  auto unknown = sampler({"--crosshair-motion", "sideways"}, "unknown.log");
+  EXPECT_NE(unknown->wait(10.0), 0);
+  EXPECT_NE(unknown->log().find("--crosshair-motion: Check sideways"), std::string::npos)
+      << unknown->log();
   EXPECT_EQ(members(get_stats(metrics_port())), 1);
 }
 
