@@ -445,7 +445,7 @@ void Sampler::step_framed() {
 // crosshair keeps the points and the time it was traced at, and every move starts from them,
 // so moving it again never adds motion already counted. By default (CrosshairMotion::kVelocity)
 // its points extrapolate the center's velocity, v (now - time), as the display moves the
-// sample (docs/sampler.md, "Crosshair motion"); with kTransform a point on a rigidly moving
+// sample (docs/sampler.md, "Moving points"); with kTransform a point on a rigidly moving
 // object is where the object's transform now puts it (exact, however long ago it was traced),
 // and a world point of deforming geometry extrapolates its velocity.
 void Sampler::reproject(int tile) {

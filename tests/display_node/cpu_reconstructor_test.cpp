@@ -271,22 +271,38 @@ TEST(CpuReconstructorTest, MatchesABruteForceGatherOverTwoImages) {
   }
 }
 
-TEST(CpuReconstructorTest, TheThreadCountDoesNotChangeABit) {
-  Pcg32 rng(3);
+// A 64 x 64 reconstructor on 1, 2 and 5 threads given `samples` random samples (seed `seed`;
+// a store of `capacity`, 0: the config's) and asked for three images: the last image and how
+// many samples it splatted, per thread count.
+struct ThreadedImage {
+  Image image;
+  uint64_t splatted = 0;
+};
+std::vector<ThreadedImage> images_on_1_2_and_5_threads(uint64_t seed, int samples,
+                                                       size_t capacity) {
+  Pcg32 rng(seed);
   const TilingSnapshot tiling = test::random_tiling(rng, 64, 64, 16, 1.0);
-  const SampleBatch batch = random_batch(rng, 20000, 64, 64, 0.0, 1.0);
-  Image images[3];
-  int k = 0;
+  const SampleBatch batch = random_batch(rng, samples, 64, 64, 0.0, 1.0);
+  std::vector<ThreadedImage> out;
   for (int threads : {1, 2, 5}) {
-    CpuReconstructor rec(config(64, 64, threads));
+    ReconstructorConfig cfg = config(64, 64, threads);
+    if (capacity > 0) cfg.capacity = capacity;
+    CpuReconstructor rec(cfg);
     EXPECT_EQ(rec.threads(), threads);
     rec.set_tiling(tiling);
     rec.add_batch(batch);
-    for (int frame = 0; frame < 3; ++frame) images[k] = rec.reconstruct(kCamera, 1.0, 64, 64);
-    ++k;
+    ThreadedImage r;
+    for (int frame = 0; frame < 3; ++frame) r.image = rec.reconstruct(kCamera, 1.0, 64, 64);
+    r.splatted = rec.frame_stats().splatted;
+    out.push_back(std::move(r));
   }
-  EXPECT_EQ(images[0].pixels, images[1].pixels);
-  EXPECT_EQ(images[0].pixels, images[2].pixels);
+  return out;
+}
+
+TEST(CpuReconstructorTest, TheThreadCountDoesNotChangeABit) {
+  const std::vector<ThreadedImage> images = images_on_1_2_and_5_threads(3, 20000, 0);
+  EXPECT_EQ(images[0].image.pixels, images[1].image.pixels);
+  EXPECT_EQ(images[0].image.pixels, images[2].image.pixels);
 }
 
 TEST(CpuReconstructorTest, TheRingsChunksDoNotChangeABit) {
@@ -294,29 +310,16 @@ TEST(CpuReconstructorTest, TheRingsChunksDoNotChangeABit) {
   // stored samples over the 33 bins of a 64 x 64 image make 4 chunks on one thread and 7 on
   // two or five, each bin's pages chained per chunk. The bins still hold their samples in
   // ring order, so the sums add in the same order.
-  Pcg32 rng(11);
-  const TilingSnapshot tiling = test::random_tiling(rng, 64, 64, 16, 1.0);
-  const SampleBatch batch = random_batch(rng, 60000, 64, 64, 0.0, 1.0);
-  Image images[3];
-  int k = 0;
-  for (int threads : {1, 2, 5}) {
-    ReconstructorConfig cfg = config(64, 64, threads);
-    cfg.capacity = 60000;
-    CpuReconstructor rec(cfg);
-    rec.set_tiling(tiling);
-    rec.add_batch(batch);
-    for (int frame = 0; frame < 3; ++frame) images[k] = rec.reconstruct(kCamera, 1.0, 64, 64);
-    EXPECT_EQ(rec.frame_stats().splatted, 60000u);
-    ++k;
-  }
-  EXPECT_EQ(images[0].pixels, images[1].pixels);
-  EXPECT_EQ(images[0].pixels, images[2].pixels);
+  const std::vector<ThreadedImage> images = images_on_1_2_and_5_threads(11, 60000, 60000);
+  for (const ThreadedImage& r : images) EXPECT_EQ(r.splatted, 60000u);
+  EXPECT_EQ(images[0].image.pixels, images[1].image.pixels);
+  EXPECT_EQ(images[0].image.pixels, images[2].image.pixels);
 }
 
 TEST(CpuReconstructorTest, PhaseTimesAreTheCallsParts) {
   // FrameStats::cpu: no phase is negative, together they take no more than the whole call,
   // the splat pass takes time when samples reach the image, and traditional frameless has no
-  // splat shapes, reprojection or sort.
+  // splat shapes or reprojection.
   Pcg32 rng(3);
   const TilingSnapshot tiling = test::random_tiling(rng, 64, 64, 16, 1.0);
   const SampleBatch batch = random_batch(rng, 20000, 64, 64, 0.0, 1.0);

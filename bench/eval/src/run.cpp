@@ -58,8 +58,9 @@ class NewestSampleSink final : public SampleSink {
   void set_input_time(double t) {
     limit_ = t;
     if (held_.samples.empty()) return;
-    SampleBatch ready = held_;
-    ready.samples.clear();
+    SampleBatch ready;
+    ready.sampler_id = held_.sampler_id;
+    ready.fields = held_.fields;
     std::vector<Sample> later;
     for (const Sample& sample : held_.samples)
       (sample.time <= t ? ready.samples : later).push_back(sample);

@@ -16,7 +16,7 @@ enum class SamplerMode {
 };
 
 // How reprojection (section 6.1) moves a crosshair's points on a rigidly moving object
-// (docs/sampler.md, "Crosshair motion").
+// (docs/sampler.md, "Moving points").
 enum class CrosshairMotion {
   // Along the center's velocity over the crosshair's age, as the display moves the samples it
   // shows (display_node reprojection.h): a crosshair lands where the display puts its sample,
