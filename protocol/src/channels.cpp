@@ -89,8 +89,6 @@ ChannelOptions ChannelOptions::samples() {
   o.send_buffer = 256 << 10;
   o.receive_buffer = 256 << 10;
   o.max_message_bytes = int64_t(kMaxSampleChannelMessage) + kFrameHeadroom;
-  o.heartbeat_ms = 1000;
-  o.heartbeat_timeout_ms = 3000;
   o.sender_queue = 16;
   return o;
 }
@@ -101,8 +99,6 @@ ChannelOptions ChannelOptions::control() {
   o.send_hwm = 64;    // scene chunks are up to 1 MiB: at most 64 MiB queued per peer
   o.receive_hwm = 256;
   o.max_message_bytes = int64_t(kMaxControlChannelMessage) + kFrameHeadroom;
-  o.heartbeat_ms = 500;
-  o.heartbeat_timeout_ms = 2000;
   return o;
 }
 
@@ -128,11 +124,14 @@ void apply_options(zmq::socket_t& s, const ChannelOptions& o) {
   set_int64(s, ZMQ_MAXMSGSIZE, o.max_message_bytes);
   set_int(s, ZMQ_RECONNECT_IVL, o.reconnect_ms);
   set_int(s, ZMQ_RECONNECT_IVL_MAX, o.reconnect_max_ms);
-  if (o.heartbeat_ms > 0) {
-    set_int(s, ZMQ_HEARTBEAT_IVL, o.heartbeat_ms);
-    set_int(s, ZMQ_HEARTBEAT_TIMEOUT, o.heartbeat_timeout_ms);
-    set_int(s, ZMQ_HEARTBEAT_TTL, o.heartbeat_timeout_ms);
+  // Set on every socket, bound or connecting: accepted connections inherit them.
+  if (o.keepalive_idle_s > 0) {
+    set_int(s, ZMQ_TCP_KEEPALIVE, 1);
+    set_int(s, ZMQ_TCP_KEEPALIVE_IDLE, o.keepalive_idle_s);
+    set_int(s, ZMQ_TCP_KEEPALIVE_INTVL, o.keepalive_interval_s);
+    set_int(s, ZMQ_TCP_KEEPALIVE_CNT, o.keepalive_count);
   }
+  if (o.max_retransmit_ms > 0) set_int(s, ZMQ_TCP_MAXRT, o.max_retransmit_ms);
 }
 
 void apply_security(zmq::socket_t& s, const Security& security, const Context& context,

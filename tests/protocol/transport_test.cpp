@@ -461,6 +461,51 @@ TEST(TransportTest, MaxMessageSizeDropsOversizedMessages) {
   EXPECT_EQ(receiver.counters().batches * small.size(), receiver.counters().bytes);
 }
 
+// A peer floods a receiver that does not read, so the receiver's queue fills and libzmq stops
+// reading that connection; then the peer closes. With a ZMTP heartbeat set, libzmq 4.3.4
+// aborts the receiving process ("Assertion failed: !_io_error", stream_engine_base.cpp): a
+// ping into the closed connection draws a reset, which marks the connection failed, and the
+// next ping asserts that it is not. A display stalled for 3 s while its sampler reconnected
+// died of it. The channels set no heartbeats, so the receiver outlives this and reads what
+// was queued. `kind` is a socket type a peer of the channel uses.
+template <typename Receive>
+int flood_close_and_wait(const std::string& endpoint, zmq::socket_type kind, Receive receive) {
+  const std::vector<uint8_t> payload(2400, 0x5a);
+  int received = 0;
+  for (int round = 0; round < 2; ++round) {
+    zmq::context_t peer_ctx;
+    {
+      zmq::socket_t peer(peer_ctx, kind);
+      peer.set(zmq::sockopt::linger, 0);
+      peer.connect(endpoint);
+      const auto start = Clock::now();
+      while (seconds_since(start) < 0.3) {
+        (void)peer.send(zmq::buffer(payload), zmq::send_flags::dontwait);
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
+      }
+    }
+    // Two and a half of the 1 s heartbeats the sample channel had: two pings fall due.
+    std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+    while (receive()) ++received;
+  }
+  return received;
+}
+
+TEST(TransportTest, AReceiverThatStoppedReadingOutlivesAFloodingPeerThatCloses) {
+  Context context;
+  SampleReceiver samples(context, "tcp://127.0.0.1:*", {}, ChannelOptions::samples());
+  const int batches = flood_close_and_wait(samples.endpoint(), zmq::socket_type::push, [&] {
+    return samples.receive(10) != SampleReceiver::Got::kNothing;
+  });
+  // Each round's queue (its high-water mark and more) reaches the reader after the peer left.
+  EXPECT_GE(batches, 2 * ChannelOptions::samples().receive_hwm);
+
+  ControlServer control(context, "tcp://127.0.0.1:*");
+  const int messages = flood_close_and_wait(control.endpoint(), zmq::socket_type::dealer,
+                                            [&] { return control.receive(10).has_value(); });
+  EXPECT_GE(messages, 2 * ChannelOptions::control().receive_hwm);
+}
+
 // Speaks ZMTP 3.0 by hand: greeting (NULL mechanism), READY as a PUSH socket, then the header
 // of a 1 GiB frame. Returns the seconds until the peer closes the connection, or -1 if it is
 // still open after `wait_s`.

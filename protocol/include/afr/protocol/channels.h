@@ -85,14 +85,22 @@ struct ChannelOptions {
   int64_t max_message_bytes = -1;  // larger incoming messages drop the connection
   int reconnect_ms = 100;          // first reconnection attempt after a lost connection
   int reconnect_max_ms = 1000;     // back-off limit: a restarted display is found within 1 s
-  int heartbeat_ms = 0;            // ZMTP pings; 0: off
-  int heartbeat_timeout_ms = 0;
+  // A dead TCP peer (no FIN) is noticed by the kernel, not by ZMTP heartbeats: keepalive
+  // probes an idle connection after `keepalive_idle_s` seconds, every `keepalive_interval_s`,
+  // and TCP_USER_TIMEOUT (ZMQ_TCP_MAXRT) drops a connection whose data has gone unacknowledged
+  // for `max_retransmit_ms`. 0: the OS defaults. ZMTP heartbeats are never set: libzmq 4.3.4
+  // aborts the process when a heartbeat falls due on a connection whose peer closed while
+  // the reader's queue was full (docs/protocol.md, "Socket options").
+  int keepalive_idle_s = 2;
+  int keepalive_interval_s = 1;
+  int keepalive_count = 3;
+  int max_retransmit_ms = 10000;
   int sender_queue = 0;  // SampleSender: encoded messages kept while ZeroMQ's queue is full
 
   // Samples: drop rather than queue; a few ms of batches in flight at most.
   static ChannelOptions samples();
   // Control: reliable, small in count (scene chunks are 1 MiB), a short linger so a leave
-  // gets out, ZMTP heartbeats so a dead peer's connection is noticed.
+  // gets out.
   static ChannelOptions control();
   // Views: only the latest matters.
   static ChannelOptions views();
