@@ -467,43 +467,48 @@ TEST(TransportTest, MaxMessageSizeDropsOversizedMessages) {
 // ping into the closed connection draws a reset, which marks the connection failed, and the
 // next ping asserts that it is not. A display stalled for 3 s while its sampler reconnected
 // died of it. The channels set no heartbeats, so the receiver outlives this and reads what
-// was queued. `kind` is a socket type a peer of the channel uses.
+// was queued, counted in `received`. `kind` is a socket type a peer of the channel uses.
 template <typename Receive>
-int flood_close_and_wait(const std::string& endpoint, zmq::socket_type kind, Receive receive) {
+void flood_close_and_wait(const std::string& endpoint, zmq::socket_type kind, int receive_hwm,
+                          int& received, Receive receive) {
   const std::vector<uint8_t> payload(2400, 0x5a);
-  int received = 0;
   for (int round = 0; round < 2; ++round) {
     zmq::context_t peer_ctx;
     {
       zmq::socket_t peer(peer_ctx, kind);
-      peer.set(zmq::sockopt::linger, 0);
+      // More messages than the receiver's queue holds, all taken by the peer's own queue
+      // (1000), so no send waits; closing waits up to 2 s for them to reach the receiver's
+      // kernel buffers, whatever the machine's load: the queue fills before the peer leaves.
+      peer.set(zmq::sockopt::linger, 2000);
+      peer.set(zmq::sockopt::sndtimeo, 5000);
       peer.connect(endpoint);
-      const auto start = Clock::now();
-      while (seconds_since(start) < 0.3) {
-        (void)peer.send(zmq::buffer(payload), zmq::send_flags::dontwait);
-        std::this_thread::sleep_for(std::chrono::microseconds(200));
+      for (int i = 0; i < receive_hwm + 64; ++i) {
+        ASSERT_TRUE(peer.send(zmq::buffer(payload), zmq::send_flags::none).has_value());
       }
     }
     // Two and a half of the 1 s heartbeats the sample channel had: two pings fall due.
     std::this_thread::sleep_for(std::chrono::milliseconds(2500));
     while (receive()) ++received;
   }
-  return received;
 }
 
 TEST(TransportTest, AReceiverThatStoppedReadingOutlivesAFloodingPeerThatCloses) {
   Context context;
   SampleReceiver samples(context, "tcp://127.0.0.1:*", {}, ChannelOptions::samples());
-  const int batches = flood_close_and_wait(samples.endpoint(), zmq::socket_type::push, [&] {
+  const int hwm = ChannelOptions::samples().receive_hwm;
+  int batches = 0;
+  flood_close_and_wait(samples.endpoint(), zmq::socket_type::push, hwm, batches, [&] {
     return samples.receive(10) != SampleReceiver::Got::kNothing;
   });
   // Each round's queue (its high-water mark and more) reaches the reader after the peer left.
-  EXPECT_GE(batches, 2 * ChannelOptions::samples().receive_hwm);
+  EXPECT_GE(batches, 2 * hwm);
 
   ControlServer control(context, "tcp://127.0.0.1:*");
-  const int messages = flood_close_and_wait(control.endpoint(), zmq::socket_type::dealer,
-                                            [&] { return control.receive(10).has_value(); });
-  EXPECT_GE(messages, 2 * ChannelOptions::control().receive_hwm);
+  const int control_hwm = ChannelOptions::control().receive_hwm;
+  int messages = 0;
+  flood_close_and_wait(control.endpoint(), zmq::socket_type::dealer, control_hwm, messages,
+                       [&] { return control.receive(10).has_value(); });
+  EXPECT_GE(messages, 2 * control_hwm);
 }
 
 // Speaks ZMTP 3.0 by hand: greeting (NULL mechanism), READY as a PUSH socket, then the header

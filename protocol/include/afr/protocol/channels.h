@@ -88,7 +88,8 @@ struct ChannelOptions {
   // A dead TCP peer (no FIN) is noticed by the kernel, not by ZMTP heartbeats: keepalive
   // probes an idle connection after `keepalive_idle_s` seconds, every `keepalive_interval_s`,
   // and TCP_USER_TIMEOUT (ZMQ_TCP_MAXRT) drops a connection whose data has gone unacknowledged
-  // for `max_retransmit_ms`. 0: the OS defaults. ZMTP heartbeats are never set: libzmq 4.3.4
+  // for `max_retransmit_ms`. keepalive_idle_s 0: no keepalive; max_retransmit_ms 0: the
+  // kernel's own retransmission limit. ZMTP heartbeats are never set: libzmq 4.3.4
   // aborts the process when a heartbeat falls due on a connection whose peer closed while
   // the reader's queue was full (docs/protocol.md, "Socket options").
   int keepalive_idle_s = 2;
