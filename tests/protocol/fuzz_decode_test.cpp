@@ -5,9 +5,9 @@
 // With AFR_FUZZ_CORPUS_DIR set, it also writes the seeds of the clang fuzzer there.
 #include "test_messages.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
-#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <string>
@@ -47,8 +47,7 @@ TEST(FuzzDecodeTest, SeedsAreAccepted) {
   for (size_t i = 0; i < seeds.size(); ++i) {
     EXPECT_TRUE(fuzz::check_one(seeds[i].data(), seeds[i].size()));
     if (dir == nullptr) continue;
-    char name[32];
-    std::snprintf(name, sizeof(name), "/seed-%02zu-type-%u", i, unsigned(seeds[i][6]));
+    const std::string name = fmt::format("/seed-{:02}-type-{}", i, unsigned(seeds[i][6]));
     std::ofstream out(std::string(dir) + name, std::ios::binary);
     out.write(reinterpret_cast<const char*>(seeds[i].data()), std::streamsize(seeds[i].size()));
   }

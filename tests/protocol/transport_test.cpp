@@ -338,7 +338,9 @@ TEST(TransportTest, ViewSubscriberKeepsOnlyTheLatestView) {
   auto next_nudge = std::chrono::steady_clock::now() + std::chrono::seconds(1);
   while (std::chrono::steady_clock::now() < deadline && !(got && got->sequence >= 200u)) {
     if (std::optional<View> v = subscriber.receive(100)) {
-      if (got) EXPECT_GT(v->sequence, got->sequence);
+      if (got) {
+        EXPECT_GT(v->sequence, got->sequence);
+      }
       got = v;
       ++received;
     } else if (std::chrono::steady_clock::now() > next_nudge) {
@@ -497,9 +499,8 @@ TEST(TransportTest, AReceiverThatStoppedReadingOutlivesAFloodingPeerThatCloses) 
   SampleReceiver samples(context, "tcp://127.0.0.1:*", {}, ChannelOptions::samples());
   const int hwm = ChannelOptions::samples().receive_hwm;
   int batches = 0;
-  flood_close_and_wait(samples.endpoint(), zmq::socket_type::push, hwm, batches, [&] {
-    return samples.receive(10) != SampleReceiver::Got::kNothing;
-  });
+  flood_close_and_wait(samples.endpoint(), zmq::socket_type::push, hwm, batches,
+                       [&] { return samples.receive(10) != SampleReceiver::Got::kNothing; });
   // Each round's queue (its high-water mark and more) reaches the reader after the peer left.
   EXPECT_GE(batches, 2 * hwm);
 
