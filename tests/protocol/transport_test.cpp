@@ -479,9 +479,11 @@ void flood_close_and_wait(const std::string& endpoint, zmq::socket_type kind, in
     {
       zmq::socket_t peer(peer_ctx, kind);
       // More messages than the receiver's queue holds, all taken by the peer's own queue
-      // (1000), so no send waits; closing waits up to 2 s for them to reach the receiver's
-      // kernel buffers, whatever the machine's load: the queue fills before the peer leaves.
-      peer.set(zmq::sockopt::linger, 2000);
+      // (1000), so no send waits. They fit the receiver's queue and the two kernels' buffers,
+      // so closing returns as soon as they are written, which takes milliseconds; the 10 s
+      // bound only keeps a broken connection from holding the test, and a loaded machine's
+      // slow handshake does not drop them: the queue fills before the peer leaves.
+      peer.set(zmq::sockopt::linger, 10000);
       peer.set(zmq::sockopt::sndtimeo, 5000);
       peer.connect(endpoint);
       for (int i = 0; i < receive_hwm + 64; ++i) {
