@@ -17,6 +17,8 @@
 #include <vector>
 
 #include "support/base64.h"
+#include "support/files.h"
+#include "support/srgb.h"
 
 namespace afr {
 namespace {
@@ -31,19 +33,14 @@ constexpr int kUnsignedShort = 5123;
 constexpr int kUnsignedInt = 5125;
 constexpr int kFloat = 5126;
 
-std::vector<uint8_t> read_bytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+using afr::testing::read_bytes;
 
 void write_bytes(const fs::path& path, const void* data, size_t size) {
   std::ofstream out(path, std::ios::binary);
   out.write(static_cast<const char*>(data), std::streamsize(size));
 }
 
-void write_text(const fs::path& path, const std::string& text) {
-  write_bytes(path, text.data(), text.size());
-}
+using afr::testing::write_text;
 
 // A glTF document and its one binary buffer, written as .gltf (embedded or external buffer)
 // or as .glb.
@@ -146,9 +143,7 @@ int add_quad(GltfBuilder* b) {
   return positions;
 }
 
-double reference_srgb_to_linear(double c) {
-  return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
-}
+using afr::testing::reference_srgb_to_linear;
 
 size_t count_containing(const std::vector<std::string>& lines, const std::string& part) {
   size_t n = 0;

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "support/base64.h"
+#include "support/files.h"
 
 namespace afr {
 namespace {
@@ -23,19 +24,14 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-std::vector<uint8_t> read_bytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+using afr::testing::read_bytes;
 
 void write_bytes(const fs::path& path, std::span<const uint8_t> bytes) {
   std::ofstream out(path, std::ios::binary);
   out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
 }
 
-void write_text(const fs::path& path, const std::string& text) {
-  std::ofstream(path, std::ios::binary) << text;
-}
+using afr::testing::write_text;
 
 template <typename T>
 void append(std::vector<uint8_t>* out, const std::vector<T>& values) {

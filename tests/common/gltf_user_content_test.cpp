@@ -14,6 +14,7 @@
 #include <fstream>
 #include <iterator>
 #include <memory>
+#include <numbers>
 #include <string>
 #include <vector>
 
@@ -27,8 +28,6 @@ using json = nlohmann::json;
 using testing::GltfContent;
 using testing::LogCapture;
 using testing::TempFolder;
-
-constexpr double kPi = 3.14159265358979323846;
 
 // Where a light on the camera shines, in the camera's frame: (right, up, forward) components.
 glm::dvec3 direction_in_camera(const Light& light) {
@@ -80,7 +79,7 @@ TEST(GltfUserContentTest, SceneWithoutLightsGetsAHeadlightAndSkyAndSaysSoOnce) {
   for (const Node& n : scene.nodes) EXPECT_EQ(n.light, -1);
   const glm::dvec3 d = direction_in_camera(scene.lights[0]);
   EXPECT_NEAR(glm::length(d), 1.0, 1e-12);
-  EXPECT_GT(d.z, std::cos(40.0 * kPi / 180.0));
+  EXPECT_GT(d.z, std::cos(40.0 * std::numbers::pi / 180.0));
   EXPECT_LT(d.y, 0.0);  // shines downward: comes from above
 }
 
@@ -359,9 +358,9 @@ TEST(GltfUserContentTest, TextureTransformMovesTheTextureCoordinates) {
       {{{"offset", {0.5, -0.25}}}, [](glm::dvec2 uv) { return uv + glm::dvec2(0.5, -0.25); }},
       {{{"scale", {2.0, 3.0}}}, [](glm::dvec2 uv) { return glm::dvec2(2 * uv.x, 3 * uv.y); }},
       // A quarter turn: u' = v, v' = -u.
-      {{{"rotation", kPi / 2}}, [](glm::dvec2 uv) { return glm::dvec2(uv.y, -uv.x); }},
+      {{{"rotation", std::numbers::pi / 2}}, [](glm::dvec2 uv) { return glm::dvec2(uv.y, -uv.x); }},
       // All three: scale first, then turn, then move.
-      {{{"offset", {1.0, 2.0}}, {"rotation", kPi / 2}, {"scale", {2.0, 3.0}}},
+      {{{"offset", {1.0, 2.0}}, {"rotation", std::numbers::pi / 2}, {"scale", {2.0, 3.0}}},
        [](glm::dvec2 uv) { return glm::dvec2(3 * uv.y + 1.0, -2 * uv.x + 2.0); }},
   };
   TempFolder dir;

@@ -1,3 +1,6 @@
+#include "support/files.h"
+#include "support/srgb.h"
+
 #include <afr/common/image.h>
 
 #include <afr/common/error.h>
@@ -34,22 +37,15 @@ class ImageTest : public ::testing::Test {
   fs::path dir_;
 };
 
-std::vector<uint8_t> read_bytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+using afr::testing::read_bytes;
 
 void write_bytes(const fs::path& path, const std::string& bytes) {
   std::ofstream(path, std::ios::binary) << bytes;
 }
 
 // The sRGB transfer functions written out independently of image.cpp.
-double reference_srgb_to_linear(double c) {
-  return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
-}
-double reference_linear_to_srgb(double c) {
-  return c <= 0.0031308 ? 12.92 * c : 1.055 * std::pow(c, 1.0 / 2.4) - 0.055;
-}
+using afr::testing::reference_linear_to_srgb;
+using afr::testing::reference_srgb_to_linear;
 
 // An image with distinct, non-trivial values in every channel, some above 1 (EXR keeps them).
 Image test_pattern(int w, int h) {

@@ -1,3 +1,5 @@
+#include "support/numbers.h"
+
 #include <afr/display/filter.h>
 
 #include <afr/common/error.h>
@@ -12,8 +14,8 @@
 namespace afr {
 namespace {
 
-constexpr float kInf = std::numeric_limits<float>::infinity();
-constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+using afr::testing::kInf;
+using afr::testing::kNaN;
 
 void expect_in_range(const FilterExtents& e, const FilterLimits& l) {
   EXPECT_TRUE(std::isfinite(e.e_x) && std::isfinite(e.e_y) && std::isfinite(e.e_t));

@@ -1,3 +1,5 @@
+#include "support/numbers.h"
+
 #include <afr/display/sample_store.h>
 
 #include <afr/common/random.h>
@@ -10,8 +12,8 @@
 namespace afr {
 namespace {
 
-constexpr float kInf = std::numeric_limits<float>::infinity();
-constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+using afr::testing::kInf;
+using afr::testing::kNaN;
 
 // Batch of n samples whose x counts up from `first` (an identity to check order with).
 SampleBatch numbered(int first, int n, uint32_t sampler = 0) {

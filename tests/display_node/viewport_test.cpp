@@ -30,7 +30,7 @@ namespace {
 
 using MakeReconstructor = std::function<std::unique_ptr<Reconstructor>(const ReconstructorConfig&)>;
 
-ReconstructorConfig config(int w, int h, PixelRect viewport = {}) {
+ReconstructorConfig viewport_config(int w, int h, PixelRect viewport = {}) {
   ReconstructorConfig c;
   c.image.width = w;
   c.image.height = h;
@@ -125,13 +125,14 @@ void expect_seamless(const MakeReconstructor& make, const SeamCase& c) {
   const size_t first = c.first, next = c.next;
   test::FloorScene scene;
   scene.velocity = glm::dvec3(0.6, 0.0, 0.3);
-  ReconstructorConfig whole_cfg = config(kSide, kSide);
+  ReconstructorConfig whole_cfg = viewport_config(kSide, kSide);
   whole_cfg.mode = mode;
   std::unique_ptr<Reconstructor> whole = make(whole_cfg);
   std::vector<std::unique_ptr<Reconstructor>> parts;
   for (int k = 0; k < 4; ++k) {
     const int x0 = (k % 2) * kHalf, y0 = (k / 2) * kHalf;
-    ReconstructorConfig cfg = config(kSide, kSide, PixelRect{x0, y0, x0 + kHalf, y0 + kHalf});
+    ReconstructorConfig cfg =
+        viewport_config(kSide, kSide, PixelRect{x0, y0, x0 + kHalf, y0 + kHalf});
     cfg.mode = mode;
     if (margin >= 0) cfg.viewport_margin = margin;
     parts.push_back(make(cfg));
@@ -256,11 +257,11 @@ TEST(ViewportTest, AViewportIsTheSameImageScaledAndItsTileRatesCountTheReceivedP
   lower.rect = PixelRect{0, 50, kSide, kSide};
   lower.G_x = 0.3f;
   tiling.tiles.push_back(lower);
-  ReconstructorConfig cfg = config(kSide, kSide, PixelRect{48, 0, 96, 48});
+  ReconstructorConfig cfg = viewport_config(kSide, kSide, PixelRect{48, 0, 96, 48});
   cfg.viewport_margin = 10;
   cfg.capacity = batch.samples.size();  // the ring does not wrap: both stores reach as far back
   CpuReconstructor part(cfg);
-  ReconstructorConfig whole_cfg = config(kSide, kSide);
+  ReconstructorConfig whole_cfg = viewport_config(kSide, kSide);
   whole_cfg.capacity = batch.samples.size();
   CpuReconstructor whole(whole_cfg);
   EXPECT_EQ(part.received_region(), (PixelRect{38, 0, 96, 58}));
@@ -314,9 +315,9 @@ TEST(ViewportTest, AViewportIsTheSameImageScaledAndItsTileRatesCountTheReceivedP
 TEST(ViewportTest, BadViewportsAndMarginsThrow) {
   for (const PixelRect& v : {PixelRect{-1, 0, 10, 10}, PixelRect{0, 0, 65, 10},
                              PixelRect{5, 5, 5, 9}, PixelRect{0, 60, 10, 70}}) {
-    EXPECT_THROW(CpuReconstructor{config(64, 64, v)}, Error);
+    EXPECT_THROW(CpuReconstructor{viewport_config(64, 64, v)}, Error);
   }
-  ReconstructorConfig c = config(64, 64, PixelRect{0, 0, 32, 32});
+  ReconstructorConfig c = viewport_config(64, 64, PixelRect{0, 0, 32, 32});
   c.viewport_margin = -2;
   EXPECT_THROW(CpuReconstructor{c}, Error);
   c.viewport_margin = 0;
@@ -324,7 +325,7 @@ TEST(ViewportTest, BadViewportsAndMarginsThrow) {
   EXPECT_EQ(ok.received_region(), (PixelRect{0, 0, 32, 32}));
   EXPECT_EQ(ok.capacity(), 4u * 32 * 32);
   // The default: the whole image, the margin resolved.
-  CpuReconstructor whole(config(64, 48));
+  CpuReconstructor whole(viewport_config(64, 48));
   EXPECT_EQ(whole.viewport(), (PixelRect{0, 0, 64, 48}));
   EXPECT_EQ(whole.received_region(), (PixelRect{0, 0, 64, 48}));
   EXPECT_EQ(whole.config().viewport_margin, auto_viewport_margin(whole.config().splat));
@@ -336,7 +337,7 @@ TEST(ViewportTest, BadViewportsAndMarginsThrow) {
 // which read_coverage then shows and the next image's splats are sized from.
 void expect_coverage_written(const MakeReconstructor& make) {
   constexpr int kSide = 64;
-  std::unique_ptr<Reconstructor> r = make(config(kSide, kSide));
+  std::unique_ptr<Reconstructor> r = make(viewport_config(kSide, kSide));
   const std::vector<CoverageCell> cells(6 * 4, CoverageCell{7.0f, 3.5f});
   const PixelRect rect{10, 20, 16, 24};
   EXPECT_EQ(r->write_coverage(rect, cells), 0u);  // no image yet: nothing to replace
@@ -388,7 +389,7 @@ void expect_coverage_written(const MakeReconstructor& make) {
 
   // A viewport: a rectangle in its margin changes what it shows next, one beyond its grid
   // replaces nothing.
-  ReconstructorConfig vc = config(kSide, kSide, PixelRect{0, 0, 32, 32});
+  ReconstructorConfig vc = viewport_config(kSide, kSide, PixelRect{0, 0, 32, 32});
   vc.viewport_margin = 16;
   std::unique_ptr<Reconstructor> a = make(vc), b = make(vc);
   rng = Pcg32(9);
@@ -455,7 +456,7 @@ void expect_bounded_by_the_viewport(const MakeReconstructor& make) {
     batch.samples.push_back(s);
   }
   const long before = resident_kib();
-  std::unique_ptr<Reconstructor> rec = make(config(kSide, kSide, viewport));
+  std::unique_ptr<Reconstructor> rec = make(viewport_config(kSide, kSide, viewport));
   EXPECT_EQ(rec->received_region(), received);
   EXPECT_EQ(rec->capacity(), 4 * size_t(received.area()));
   rec->add_batch(batch);

@@ -10,6 +10,7 @@
 
 #include <array>
 #include <cmath>
+#include <numbers>
 #include <string>
 #include <vector>
 
@@ -25,7 +26,6 @@ using testing::MorphedQuad;
 using testing::SkinnedStrip;
 using testing::TempFolder;
 
-constexpr double kPi = 3.14159265358979323846;
 // The step of the tracer's difference quotient (tracer.cpp, kVelocityDt), and of the test's.
 constexpr double kH = 1e-3;
 
@@ -170,7 +170,7 @@ TEST(DeformingTracerTest, ShadingTakesTheMorphedNormals) {
     const ShadedSample s = tracer.trace(camera.ray(pixel.x, pixel.y, 64, 64), &stats);
     ASSERT_TRUE(s.hit);
     const glm::dvec3 n = MorphedQuad::normal(w);
-    const double want = 0.8 * (0.2 + 2.5 / kPi * std::max(glm::dot(n, from), 0.0));
+    const double want = 0.8 * (0.2 + 2.5 / std::numbers::pi * std::max(glm::dot(n, from), 0.0));
     EXPECT_NEAR(s.color.g, want, 1e-4) << "t = " << t;
   }
 }
@@ -179,7 +179,7 @@ TEST(DeformingTracerTest, APosedSkinThatDoesNotMoveIsStaticInItsPose) {
   // No animation: the strip is bent by its file's joint rotation once, and has no velocity.
   TempFolder dir;
   GltfContent g = SkinnedStrip::make(false);
-  const double a = kPi / 4.0;
+  const double a = std::numbers::pi / 4.0;
   g.doc()["nodes"][2]["rotation"] = {std::sin(a / 2.0), 0.0, 0.0, std::cos(a / 2.0)};
   const Scene scene = load(g, dir);
   EXPECT_FALSE(scene.has_moving_geometry());

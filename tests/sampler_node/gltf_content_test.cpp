@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 #include <vector>
 
 #include "support/gltf_content.h"
@@ -20,8 +21,6 @@ using json = nlohmann::json;
 using testing::GltfContent;
 using testing::TempFolder;
 
-constexpr double kPi = 3.14159265358979323846;
-
 // The default lighting as docs/scene-model.md states it: a directional headlight of intensity
 // 2.5 from (0.35, 0.5, 1) in the camera's frame and a sky of 0.2.
 constexpr double kHeadlightIntensity = 2.5;
@@ -32,7 +31,7 @@ const glm::dvec3 kFromInCamera = glm::normalize(glm::dvec3(0.35, 0.5, 1.0));
 // normal, in the camera's frame, is `n`: sky plus headlight, by hand.
 glm::dvec3 lambert_under_default_light(const glm::dvec3& base, const glm::dvec3& n) {
   const double cos_l = std::max(glm::dot(n, kFromInCamera), 0.0);
-  return base * (kSky + kHeadlightIntensity / kPi * cos_l);
+  return base * (kSky + kHeadlightIntensity / std::numbers::pi * cos_l);
 }
 
 // A box of half size 0.5 at the origin with one plain Lambertian material, as mesh 0 on node 0.

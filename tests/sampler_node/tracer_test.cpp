@@ -7,13 +7,12 @@
 
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <thread>
 #include <vector>
 
 namespace afr {
 namespace {
-
-constexpr float kPi = 3.14159265358979323846f;
 
 // ---------------------------------------------------------------------------------------------
 // Scene building
@@ -197,7 +196,8 @@ glm::vec3 lambert_reference(const ShadowScene& sc, glm::vec3 p, bool lit, bool i
   const float d2 = glm::dot(to_light, to_light);
   const float cos_theta = to_light.y / std::sqrt(d2);
   const float irradiance = sc.intensity * cos_theta / (inverse_square ? d2 : 1.0f);
-  return sc.ambient * sc.base + (lit ? sc.base / kPi * irradiance : glm::vec3(0.0f));
+  return sc.ambient * sc.base +
+         (lit ? sc.base / std::numbers::pi_v<float> * irradiance : glm::vec3(0.0f));
 }
 
 TEST(TracerTest, ShadowRayIsBlockedByOccluder) {
@@ -267,7 +267,7 @@ TEST(TracerTest, SpotLightConeAndDirectionalLight) {
   Tracer tb(b.s);
   const glm::vec3 q(2.0f, 0.0f, 1.0f);
   expect_near3(tb.trace(ray_to(eye, q), &stats).color,
-               b.ambient * b.base + b.base / kPi * b.intensity, 1e-5f, "sun");
+               b.ambient * b.base + b.base / std::numbers::pi_v<float> * b.intensity, 1e-5f, "sun");
   expect_near3(tb.trace(ray_to(eye, {0.1f, 0.0f, 0.1f}), &stats).color, b.ambient * b.base, 1e-6f,
                "sun, shadowed");
 }
@@ -420,7 +420,7 @@ struct MovingScene {
   int box = -1;
   int floor = -1;
   const glm::vec3 linear_velocity{1.0f, 0.0f, 0.0f};
-  const glm::vec3 angular_velocity{0.0f, kPi / 4.0f, 0.0f};
+  const glm::vec3 angular_velocity{0.0f, std::numbers::pi_v<float> / 4.0f, 0.0f};
 
   MovingScene() {
     const int mat = add_material(&s, glm::vec3(0.5f), 0.0f, 1.0f);
@@ -452,7 +452,8 @@ TEST(TracerTest, MovingNodeReportsRigidBodyVelocity) {
       EXPECT_EQ(r.object_id, uint32_t(ms.box));
       // The hit point is on the surface of the box turned by 45 degrees per second.
       const glm::vec3 local =
-          glm::angleAxis(-0.25f * kPi * float(t), glm::vec3(0, 1, 0)) * (r.position - ms.center(t));
+          glm::angleAxis(-0.25f * std::numbers::pi_v<float> * float(t), glm::vec3(0, 1, 0)) *
+          (r.position - ms.center(t));
       EXPECT_NEAR(std::max(std::abs(local.x), std::abs(local.z)), 0.5f, 1e-4f);
       // Rigid body: v = v_center + omega x (p - center).
       const glm::vec3 expected =
@@ -836,7 +837,7 @@ TEST(TracerTest, ShadowRaysPassThroughGlassDimmedByEachSurface) {
       // Seen from the side, below the box: the view does not cross the glass.
       const Camera cam = Camera::look_at({4.5, 0.6, 0.0}, {0.0, 0.0, 0.0}, {0, 1, 0}, 1.2, 0.01);
       const int w = 64, h = 48;
-      const glm::vec3 lit = floor_base / kPi * intensity;
+      const glm::vec3 lit = floor_base / std::numbers::pi_v<float> * intensity;
       TraceStats stats;
       int under = 0, beside = 0;
       for (int j = 1; j < h - 1; j += 2) {

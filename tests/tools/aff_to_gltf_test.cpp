@@ -4,6 +4,8 @@
 #include "hand_scene.h"
 #include "test_paths.h"
 
+#include "support/numbers.h"
+
 #include <afr/common/gltf_loader.h>
 #include <afr/common/image.h>
 
@@ -25,7 +27,7 @@ using test::find_node;
 using test::find_sampler;
 using test::node_property;
 
-constexpr double kDeg = std::numbers::pi / 180.0;
+using afr::testing::kDeg;
 
 nlohmann::json read_json(const std::filesystem::path& path) {
   std::ifstream in(path);

@@ -3,6 +3,8 @@
 #include "aff_parser.h"
 #include "test_paths.h"
 
+#include "support/numbers.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -12,7 +14,7 @@
 namespace afr::aff {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
+using afr::testing::kDeg;
 
 TcbKey key(double t, glm::dvec3 v, double bias = 0.0) {
   TcbKey k;
