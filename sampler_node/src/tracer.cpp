@@ -4,6 +4,7 @@
 #include <afr/common/error.h>
 
 #include <embree3/rtcore.h>
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -362,7 +363,14 @@ Tracer::Impl::Impl(const Scene& scene, const TracerOptions& options)
   const glm::dvec3 m = glm::max(glm::abs(lo), glm::abs(hi));
   const double extent = std::max(m.x, std::max(m.y, m.z));
   offset_floor_ = float(std::clamp(extent, 1e-30, 1.0));
-  device_ = rtcNewDevice("verbose=0");
+  if (options_.embree_threads < 0) {
+    throw Error(fmt::format("tracer: {} Embree threads (0 for Embree's default, or more)",
+                            options_.embree_threads));
+  }
+  const std::string config = options_.embree_threads > 0
+                                 ? fmt::format("verbose=0,threads={}", options_.embree_threads)
+                                 : std::string("verbose=0");
+  device_ = rtcNewDevice(config.c_str());
   if (!device_)
     throw Error("embree: cannot create a device (error " +
                 std::to_string(int(rtcGetDeviceError(nullptr))) + ")");

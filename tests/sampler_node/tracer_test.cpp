@@ -1,6 +1,7 @@
 // Tests of the tracer on small scenes built here, each checked against an independent
 // reference: analytic ray-plane distances, the Lambert law written out by hand, rigid-body
 // velocities from the animation's own parameters, texel values, and single rays.
+#include <afr/common/error.h>
 #include <afr/sampler/tracer.h>
 
 #include <gtest/gtest.h>
@@ -8,6 +9,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -916,6 +918,39 @@ TEST(TracerTest, CrosshairEqualsFiveSingleRays) {
       }
     }
     EXPECT_EQ(stats.primary_rays % 10, 0u);
+  }
+}
+
+// TracerOptions::embree_threads bounds the threads of Embree's builds and commits; the BVHs it
+// builds may differ in layout, never in what a ray hits. A negative count is refused by name.
+TEST(TracerTest, EmbreeThreadsChangeNoSample) {
+  const Scene s = busy_scene();
+  TracerOptions one;
+  one.embree_threads = 1;
+  Tracer single(s, one);
+  Tracer every(s);
+  const Camera cam = Camera::look_at({0.0, 1.0, 3.0}, {0.0, -0.5, -5.0}, {0, 1, 0}, 0.9, 0.01);
+  const int w = 40, h = 30;
+  TraceStats st;
+  for (double t : {0.0, 0.7, 1.3}) {
+    single.set_time(t);
+    every.set_time(t);
+    int hits = 0;
+    for (int i = 0; i < w * h; ++i) {
+      const Ray ray = cam.ray(i % w + 0.5, i / w + 0.5, w, h);
+      const ShadedSample a = single.trace(ray, &st);
+      expect_same_sample(a, every.trace(ray, &st), 1e-4f);
+      hits += a.hit ? 1 : 0;
+    }
+    EXPECT_GT(hits, w * h / 2) << "t = " << t;
+  }
+  TracerOptions negative;
+  negative.embree_threads = -1;
+  try {
+    Tracer bad(s, negative);
+    ADD_FAILURE() << "a negative thread count was taken";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("-1 Embree threads"), std::string::npos) << e.what();
   }
 }
 

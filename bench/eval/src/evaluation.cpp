@@ -135,6 +135,12 @@ JobSplit job_split(const EvalConfig& config) {
   return split;
 }
 
+TracerOptions tracer_options(const JobSplit& split) {
+  TracerOptions options;
+  options.embree_threads = split.threads_per_run;
+  return options;
+}
+
 std::vector<RunResult> run_all(const Scene& scene, Tracer& tracer,
                                const std::vector<RunSettings>& runs,
                                const std::vector<Image>& ideal, int jobs,
@@ -180,7 +186,7 @@ std::vector<RunResult> run_all(const Scene& scene, Tracer& tracer,
   // A tracer per worker: a tracer holds the scene at one time (Tracer::set_time).
   std::vector<std::unique_ptr<Tracer>> tracers;
   for (int w = 1; w < std::min<int>(jobs, int(runs.size())); ++w) {
-    tracers.push_back(std::make_unique<Tracer>(scene));
+    tracers.push_back(std::make_unique<Tracer>(scene, tracer.options()));
   }
   std::vector<std::thread> workers;
   for (auto& t : tracers) workers.emplace_back(work, t.get());
@@ -217,7 +223,7 @@ std::vector<AnimationResult> evaluate(const EvalConfig& config) {
     progress.set_task(fmt::format("{}: loading", spec.name));
     const Scene scene = load_animation_scene(spec);
     warn_about_window(spec, scene, config.seconds);
-    Tracer tracer(scene);
+    Tracer tracer(scene, tracer_options(split));
     progress.set_task(fmt::format("{}: ideal frames ({} spp)", spec.name, config.ideal_spp));
     const std::vector<Image> ideal =
         ideal_frames(scene, tracer, config, spec.start, frames, &progress, &ar);

@@ -208,7 +208,7 @@ std::vector<SweepResult> run_sweep(const EvalConfig& config,
   for (const AnimationSpec& spec : config.animations) {
     progress.set_task(fmt::format("{}: loading", spec.name));
     const Scene scene = load_animation_scene(spec);
-    Tracer tracer(scene);
+    Tracer tracer(scene, tracer_options(split));
     progress.set_task(fmt::format("{}: ideal frames", spec.name));
     const std::vector<Image> ideal =
         ideal_frames(scene, tracer, config, spec.start, frames, &progress, nullptr);

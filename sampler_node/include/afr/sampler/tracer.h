@@ -34,6 +34,14 @@ struct TracerOptions {
   // primary rays, one rtcOccluded8 per light for their shadow rays) or as five trace() calls.
   // Both give the same samples; afr-bench-tracer measures which is faster.
   bool packet_crosshair = true;
+  // Threads Embree may use to build and commit BVHs (0: its default, every core). Embree's TBB
+  // scheduler takes this for the whole process, so the tracers of one process should agree.
+  // A sampler moves its tracer's scene time about a thousand times a second of animation, and
+  // each move commits the top-level BVH: with every core allowed, each commit wakes TBB
+  // workers that then spin for a while on cores that other threads trace on. Where every
+  // thread traces with its own tracer (afr-eval's runs), 1 is faster (docs/evaluation.md,
+  // "Cost of a full Table 1 run"); the initial build of a large scene is then slower.
+  int embree_threads = 0;
 };
 
 // Counters of one tracing thread; add them up across threads.

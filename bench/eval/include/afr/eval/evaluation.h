@@ -45,6 +45,10 @@ struct JobSplit {
   int threads_per_run = 1;
 };
 JobSplit job_split(const EvalConfig& config);
+// The options of every tracer of a split: Embree builds and commits with the threads of one
+// run (TracerOptions::embree_threads), so that a run's scene-time moves keep to its share of
+// the cores.
+TracerOptions tracer_options(const JobSplit& split);
 
 struct RunResult {
   std::string animation;
