@@ -17,6 +17,8 @@ import unittest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 SCRIPT = os.path.join(ROOT, "bench", "eval_tables.py")
+PAPER_METHODS = ["framed-60hz", "framed-full-res", "frameless", "adaptive", "full-res-60hz"]
+EVERY_METHOD = PAPER_METHODS + ["adaptive-no-reproj", "framed-taa"]
 FIELDS = ["animation", "method", "rate", "runs", "mean_rms", "min_rms", "max_rms"]
 
 
@@ -104,7 +106,7 @@ class EvalTablesTest(unittest.TestCase):
         cells = {"adaptive": (10.0, 9.8, 10.2), "frameless": (20.0, 19.9, 20.1),
                  "framed-60hz": (12.0, 12.0, 12.0), "framed-full-res": (30.0, 29.0, 31.0),
                  "full-res-60hz": (9.0, 9.0, 9.0), "framed-taa": (11.0, 10.9, 11.1)}
-        timing = {"seconds": 20, "rates": [1e5, 4e5, 8e5], "methods": ["m"] * 7, "seeds": 3,
+        timing = {"seconds": 20, "rates": [1e5, 4e5, 8e5], "methods": EVERY_METHOD, "seeds": 3,
                   "ideal_spp": 9, "ideal_rendered": 0, "ideal_cached": 3600,
                   "ideal_minutes": 0.0, "cpu_minutes": 40.0, "minutes": 20.0}
         names = ("bart", "toycar", "interactive")
@@ -125,6 +127,37 @@ class EvalTablesTest(unittest.TestCase):
         self.assertIn("Still scenes in the window (bart: 510 of the frames after its animation "
                       "ends at 20 s)", full)
         self.assertIn("| no (not a full Table 1", timed)
+
+    def test_each_timed_run_is_a_row_judged_by_its_methods_and_minutes(self):
+        cells = {"adaptive": (10.0, 9.8, 10.2), "frameless": (20.0, 19.9, 20.1),
+                 "framed-60hz": (12.0, 12.0, 12.0), "framed-full-res": (30.0, 29.0, 31.0),
+                 "full-res-60hz": (9.0, 9.0, 9.0), "framed-taa": (11.0, 10.9, 11.1)}
+        common = {"seconds": 20, "rates": [1e5, 4e5, 8e5], "seeds": 3, "ideal_spp": 9,
+                  "ideal_rendered": 0, "ideal_cached": 3600, "ideal_minutes": 0.0,
+                  "cpu_minutes": 50.0, "animations": [
+                      {"name": n, "duration": 20, "still_frames": 0}
+                      for n in ("bart", "toycar", "interactive")]}
+        every = os.path.join(self.tmp.name, "every")
+        write_run(every, "eeeeeee", cells, **common, methods=EVERY_METHOD, minutes=36.0)
+        paper = os.path.join(self.tmp.name, "paper")
+        write_run(paper, "fffffff", cells, **common, methods=PAPER_METHODS, minutes=24.0)
+        partial = os.path.join(self.tmp.name, "partial")
+        write_run(partial, "9999999", cells, **common, methods=["adaptive", "frameless"],
+                  minutes=10.0)
+        r = run("--timing", every, "--timing", paper, "--timing", partial)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        full, timed = r.stdout.split("## timing")
+        self.assertIn("at commit eeeeeee", full)  # the first run gives the 20 s targets
+        self.assertNotIn("at commit fffffff", full)
+        rows = [line for line in timed.splitlines() if line.startswith("| ") and "commit" in line]
+        self.assertEqual(len(rows), 3, timed)
+        self.assertIn("every method of afr-eval (7)", rows[0])
+        self.assertIn("36.0 minutes", rows[0])
+        self.assertTrue(rows[0].endswith("| no |"), rows[0])  # over 30 minutes
+        self.assertIn("the paper's Table 1 (its 5 methods)", rows[1])
+        self.assertTrue(rows[1].endswith("| yes |"), rows[1])
+        self.assertIn("a partial run", rows[2])
+        self.assertIn("| no (not a full Table 1", rows[2])  # fast, but not a Table 1
 
     def test_a_document_without_the_markers_is_refused_by_name(self):
         doc = os.path.join(self.tmp.name, "plain.md")
