@@ -309,7 +309,7 @@ int main(int argc, char** argv) {
   CLI::App app{"afr-bench-tracer: tracer throughput (shaded samples/s, rays/s)"};
   std::string scene_path, size_text = "640x480", times_text = "0,2.5,5,7.5", log_level = "warn";
   uint64_t samples = 200000, seed = 1;
-  int repeats = 5, max_threads = 2, deforming = 0;
+  int repeats = 5, max_threads = 2, deforming = 0, embree_threads = 0;
   double sampler_seconds = 2.0;
   bool skip_builtin = false;
   app.add_option("--scene", scene_path, "a glTF scene (e.g. the converted BART kitchen)")
@@ -336,6 +336,11 @@ int main(int argc, char** argv) {
   app.add_option("-j,--threads", max_threads, "thread counts 1..N are measured")
       ->capture_default_str()
       ->check(CLI::Range(1, 256));
+  app.add_option("--embree-threads", embree_threads,
+                 "threads of the scenes' tracers' BVH builds and commits "
+                 "(TracerOptions::embree_threads; 0 = Embree's default)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 256));
   app.add_option("--seed", seed, "seed of the image positions");
   app.add_option("--log", log_level, "log level")->capture_default_str();
   afr::refuse_non_finite(app);
@@ -362,6 +367,7 @@ int main(int argc, char** argv) {
     std::vector<std::array<std::unique_ptr<afr::Tracer>, 2>> tracers;
     for (const afr::Scene& scene : scenes) {
       afr::TracerOptions single, packet;
+      single.embree_threads = packet.embree_threads = embree_threads;
       single.packet_crosshair = false;
       packet.packet_crosshair = true;
       const auto t0 = Clock::now();
