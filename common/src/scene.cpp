@@ -15,6 +15,9 @@ namespace afr {
 
 namespace {
 
+// Texel index i of a row (or column) of n texels under REPEAT wrapping.
+int wrap(long i, int n) { return int(((i % n) + n) % n); }
+
 glm::vec3 bilinear(const glm::vec3* texels, int width, int height, glm::vec2 uv) {
   // Keep only the fractional part first (REPEAT), so huge UVs keep their precision.
   double u = std::isfinite(uv.x) ? uv.x - std::floor(double(uv.x)) : 0.0;
@@ -25,7 +28,6 @@ glm::vec3 bilinear(const glm::vec3* texels, int width, int height, glm::vec2 uv)
   const double y0f = std::floor(fy);
   const float ax = float(fx - x0f);
   const float ay = float(fy - y0f);
-  auto wrap = [](long i, int n) { return int(((i % n) + n) % n); };
   const int x0 = wrap(long(x0f), width), x1 = wrap(long(x0f) + 1, width);
   const int y0 = wrap(long(y0f), height), y1 = wrap(long(y0f) + 1, height);
   auto at = [&](int x, int y) { return texels[size_t(y) * size_t(width) + size_t(x)]; };
@@ -46,20 +48,38 @@ glm::vec3 Texture::sample_bilinear(glm::vec2 uv) const {
 void Texture::build_mips() {
   mips.clear();
   if (width <= 0 || height <= 0 || texels.size() != size_t(width) * size_t(height)) return;
+  // Each level halves the one before through the binomial low-pass 1 5 10 10 5 1 (/ 32) in x,
+  // then in y, centred on the pair of texels 2i, 2i + 1 that a 2 x 2 box would average, with
+  // REPEAT wrapping. The box lets a pattern just above a level's Nyquist rate through almost
+  // whole, aliased to a beat one repeat wide (a floor of 17 dots per 128 texels came out in
+  // blotches: residual contrast 0.21 at 32 texels, 0.043 at 16); this kernel keeps 0.042 and
+  // 0.014 of it, and being positive it never rings below black (docs/scene-model.md).
+  constexpr float kTap[6] = {1.0f / 32, 5.0f / 32, 10.0f / 32, 10.0f / 32, 5.0f / 32, 1.0f / 32};
   const glm::vec3* src = texels.data();
   int w = width, h = height;
+  std::vector<glm::vec3> rows;  // the level's width, the source's height: after the x pass
   while (w > 1 || h > 1) {
     Level l;
     l.width = (w + 1) / 2;
     l.height = (h + 1) / 2;
+    rows.assign(size_t(l.width) * size_t(h), glm::vec3(0.0f));
+    for (int y = 0; y < h; ++y) {
+      const glm::vec3* in = src + size_t(y) * size_t(w);
+      glm::vec3* out = rows.data() + size_t(y) * size_t(l.width);
+      for (int x = 0; x < l.width; ++x) {
+        glm::vec3 sum(0.0f);
+        for (int k = 0; k < 6; ++k) sum += kTap[k] * in[wrap(2L * x - 2 + k, w)];
+        out[x] = sum;
+      }
+    }
     l.texels.resize(size_t(l.width) * size_t(l.height));
     for (int y = 0; y < l.height; ++y) {
-      const int y0 = (2 * y) % h, y1 = (2 * y + 1) % h;
       for (int x = 0; x < l.width; ++x) {
-        const int x0 = (2 * x) % w, x1 = (2 * x + 1) % w;
-        const auto at = [&](int i, int j) { return src[size_t(j) * size_t(w) + size_t(i)]; };
-        l.texels[size_t(y) * size_t(l.width) + size_t(x)] =
-            0.25f * (at(x0, y0) + at(x1, y0) + at(x0, y1) + at(x1, y1));
+        glm::vec3 sum(0.0f);
+        for (int k = 0; k < 6; ++k) {
+          sum += kTap[k] * rows[size_t(wrap(2L * y - 2 + k, h)) * size_t(l.width) + size_t(x)];
+        }
+        l.texels[size_t(y) * size_t(l.width) + size_t(x)] = sum;
       }
     }
     mips.push_back(std::move(l));
