@@ -56,8 +56,8 @@ Status check_samples(const SampleBatch& m, const ImageExtent& bounds, double* t_
   double lo = INFINITY, hi = -INFINITY;
   for (size_t i = 0; i < m.samples.size(); ++i) {
     const Sample& s = m.samples[i];
-    if (!std::isfinite(s.time) || s.time < 0.0) {
-      return field_error(kBatch, sample_field(i, "time"), "not finite and >= 0");
+    if (!(s.time >= 0.0 && s.time <= kMaxTime)) {  // also NaN
+      return field_error(kBatch, sample_field(i, "time"), "not finite, >= 0 and <= 2^40 s");
     }
     lo = std::min(lo, s.time);
     hi = std::max(hi, s.time);
@@ -266,6 +266,10 @@ Status decode(Bytes message, SampleBatch* out, const ImageExtent& bounds) {
   AFR_CHECK(p != nullptr || need == 0);
   out->samples.resize(count);  // bounded by the limit and by the bytes received
   const double tick = std::ldexp(1.0, tick_exp);
+  // The latest time the batch can carry is within the limit too: every decoded time is.
+  if (base + double(kMaxTicks) * tick > kMaxTime) {
+    return field_error(kBatch, "base_time", "its last tick is over the limit of 2^40 s");
+  }
   // Codes of positions that floor into the image: code / 512 < width.
   const uint32_t max_x = uint32_t(bounds.width) * kPositionScale - 1;
   const uint32_t max_y = uint32_t(bounds.height) * kPositionScale - 1;
