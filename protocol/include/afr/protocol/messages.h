@@ -46,11 +46,6 @@ inline constexpr uint32_t kMaxWallCoverageCells = 1u << 18;
 // about 1 ns ticks (a 30 us span) to 1 s ticks (a 9 h span).
 inline constexpr int kMinTickExp = -30;
 inline constexpr int kMaxTickExp = 0;
-// The latest absolute time any message may carry: 2^40 s, some 35 000 years of session. Up to
-// it a double resolves 2^-12 s, so a batch's base + ticks rounds by far less than the half tick
-// its encoder allows, and what a decoder accepted always encodes again (a base_time of 2^60,
-// whose ulp is 256 s, once decoded to a span the encoder refused).
-inline constexpr double kMaxTime = 1099511627776.0;  // 2^40
 // A view's basis must be orthonormal to this tolerance.
 inline constexpr double kBasisTolerance = 1e-3;
 // refresh_interval of a welcome, seconds.
