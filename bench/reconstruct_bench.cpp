@@ -428,7 +428,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 1000));
   app.add_option("--gpu", gpu, "EGL device for the GL backend (-1: hardware first)")
       ->check(CLI::Range(-1, 63));
-  app.add_option("--gl-splat", splat_texts, "GL splat passes to time: gather, raster or both")
+  app.add_option("--gl-splat", splat_texts,
+                 "GL splat passes to time, comma separated: gather, raster (auto: the "
+                 "device's own)")
       ->delimiter(',');
   app.add_option("--gl-tiles", tiles, "gather tile sides to time, comma separated (4, 8, 16)")
       ->delimiter(',');
