@@ -402,6 +402,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> splat_texts{"gather", "raster"};
   std::vector<int> tiles{16};
   std::vector<size_t> chunk_mibs{256};
+  std::vector<std::string> probe_texts{"none"};
   std::string backends = "cpu,gl";
   std::string mode_text = "adaptive", log_level = "warn";
   int repeats = 15, warmup = 3, gl_repeats = 7, gpu = -1, spp = 4, rounds = 0, per_round = 5;
@@ -436,6 +437,10 @@ int main(int argc, char** argv) {
       ->delimiter(',');
   app.add_option("--gl-chunks", chunk_mibs,
                  "gather chunk sizes to time, MiB of splat records a pass reads (0: one pass)")
+      ->delimiter(',');
+  app.add_option("--gl-probes", probe_texts,
+                 "GL splat passes with part of their work left out, also timed, comma "
+                 "separated: culled, flat, dots (raster), visit (gather); none: the real passes")
       ->delimiter(',');
   app.add_option("--spp", spp, "samples stored per pixel: N = spp x pixels")
       ->check(CLI::Range(1, 64));
@@ -483,6 +488,8 @@ int main(int argc, char** argv) {
     fmt::print("|---|---|---|---|---|---|---|---|---|---|\n");
     std::vector<afr::GlSplat> splats;
     for (const std::string& text : splat_texts) splats.push_back(afr::parse_gl_splat(text));
+    std::vector<afr::GlProbe> probes;
+    for (const std::string& text : probe_texts) probes.push_back(afr::parse_gl_probe(text));
     std::vector<std::string> passes, phases, cpu_phases, checks, alternations;
     for (const afr::ImageExtent size : sizes) {
       afr::ReconstructorConfig cfg;
@@ -537,38 +544,46 @@ int main(int argc, char** argv) {
         for (const afr::GlSplat splat : splats) {
           const bool gather = splat == afr::GlSplat::kGather;
           for (const auto& [tile, chunk] : gather_variants(gather, tiles, chunk_mibs)) {
-            afr::GlReconstructorOptions options{splat, tile, chunk << 20, sync_passes};
-            // "gl gather TILE" (the chunk size named only when several are timed)
-            std::string name = gather ? fmt::format("gl gather {}", tile) : "gl raster";
-            if (gather && chunk_mibs.size() > 1) name += fmt::format(" / {} MiB", chunk);
-            std::unique_ptr<afr::GlReconstructor> made;
-            try {
-              made = std::make_unique<afr::GlReconstructor>(cfg, gl, options);
-            } catch (const afr::Error& e) {
-              // A path this driver cannot run at this size (the store larger than its largest
-              // storage block): the row says why, and the others run.
-              fmt::print("| {} | - | {}x{} | {} | skipped: {} | | | | | |\n", name, size.width,
-                         size.height, n, e.what());
-              continue;
+            for (const afr::GlProbe probe : probes) {
+              // Each probe of this splat pass (a probe of the other pass is not run).
+              if (!afr::gl_probe_fits(probe, splat)) continue;
+              afr::GlReconstructorOptions options{splat, tile, chunk << 20, sync_passes, probe};
+              // "gl gather TILE" (the chunk size named only when several are timed), and the
+              // probe: "gl raster (culled)"
+              std::string name = gather ? fmt::format("gl gather {}", tile) : "gl raster";
+              if (gather && chunk_mibs.size() > 1) name += fmt::format(" / {} MiB", chunk);
+              if (probe != afr::GlProbe::kNone)
+                name += fmt::format(" ({})", afr::gl_probe_name(probe));
+              std::unique_ptr<afr::GlReconstructor> made;
+              try {
+                made = std::make_unique<afr::GlReconstructor>(cfg, gl, options);
+              } catch (const afr::Error& e) {
+                // A path this driver cannot run at this size (the store larger than its largest
+                // storage block): the row says why, and the others run.
+                fmt::print("| {} | - | {}x{} | {} | skipped: {} | | | | | |\n", name, size.width,
+                           size.height, n, e.what());
+                continue;
+              }
+              afr::GlReconstructor& rec = *made;
+              const Timing t = run(rec, size, gl_repeats, warmup, readback, 1);
+              row(name, "-", t);
+              phases.push_back(
+                  fmt::format("| {} | {}x{} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |", name,
+                              size.width, size.height, t.call.wait, t.call.copy, t.call.prepare,
+                              t.call.upload, t.call.passes));
+              // A probe's image is wrong by design: nothing to compare.
+              if (check && probe == afr::GlProbe::kNone) {
+                const Agreement ag =
+                    agreement(cfg, gl, options, int(std::thread::hardware_concurrency()));
+                checks.push_back(fmt::format("| {} | {}x{} | {:.3f} | {} | {:.4f} |", name,
+                                             size.width, size.height, ag.rms, ag.max, ag.holes));
+              }
+              if (t.gpu > 0.0)
+                passes.push_back(fmt::format(
+                    "| {} | {}x{} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |", name,
+                    size.width, size.height, t.passes.upload, t.passes.bin, t.passes.splat,
+                    t.passes.fill, t.passes.readback, t.gpu));
             }
-            afr::GlReconstructor& rec = *made;
-            const Timing t = run(rec, size, gl_repeats, warmup, readback, 1);
-            row(name, "-", t);
-            phases.push_back(
-                fmt::format("| {} | {}x{} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |", name,
-                            size.width, size.height, t.call.wait, t.call.copy, t.call.prepare,
-                            t.call.upload, t.call.passes));
-            if (check) {
-              const Agreement ag =
-                  agreement(cfg, gl, options, int(std::thread::hardware_concurrency()));
-              checks.push_back(fmt::format("| {} | {}x{} | {:.3f} | {} | {:.4f} |", name,
-                                           size.width, size.height, ag.rms, ag.max, ag.holes));
-            }
-            if (t.gpu > 0.0)
-              passes.push_back(fmt::format(
-                  "| {} | {}x{} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.2f} |", name,
-                  size.width, size.height, t.passes.upload, t.passes.bin, t.passes.splat,
-                  t.passes.fill, t.passes.readback, t.gpu));
           }
         }
       }

@@ -114,6 +114,36 @@ const char* gl_splat_name(GlSplat splat) {
   return "?";
 }
 
+GlProbe parse_gl_probe(std::string_view text) {
+  if (text == "none") return GlProbe::kNone;
+  if (text == "culled") return GlProbe::kCulled;
+  if (text == "flat") return GlProbe::kFlat;
+  if (text == "visit") return GlProbe::kVisit;
+  if (text == "dots") return GlProbe::kDots;
+  throw Error("GL probe '" + std::string(text) + "': expected none, culled, flat, visit or dots");
+}
+
+const char* gl_probe_name(GlProbe probe) {
+  switch (probe) {
+    case GlProbe::kNone:
+      return "none";
+    case GlProbe::kCulled:
+      return "culled";
+    case GlProbe::kFlat:
+      return "flat";
+    case GlProbe::kVisit:
+      return "visit";
+    case GlProbe::kDots:
+      return "dots";
+  }
+  return "?";
+}
+
+bool gl_probe_fits(GlProbe probe, GlSplat splat) {
+  if (probe == GlProbe::kNone) return true;
+  return (probe == GlProbe::kVisit) == (splat == GlSplat::kGather);
+}
+
 struct GlReconstructor::Impl {
   // Samples: the store's ring, slot for slot.
   GLuint vao = 0;
@@ -408,6 +438,10 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
     throw Error(fmt::format("OpenGL {} cannot clear textures (4.4 or GL_ARB_clear_texture)",
                             context_->version()));
   }
+  if (!gl_probe_fits(options_.probe, options_.splat)) {
+    throw Error(fmt::format("GL reconstructor: probe '{}' is not a probe of the {} splat pass",
+                            gl_probe_name(options_.probe), gl_splat_name(options_.splat)));
+  }
   if (options_.tile != 4 && options_.tile != 8 && options_.tile != 16) {
     throw Error(fmt::format("GL reconstructor: gather tile {} is not 4, 8 or 16", options_.tile));
   }
@@ -423,8 +457,11 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
         "block ({} MiB); store fewer samples (--capacity) or use --gl-splat raster",
         store_.capacity(), ring_bytes >> 20, m.max_block_bytes >> 20));
   }
-  m.splat = graphics_program(gl_shaders::splat_program_source(gl_shaders::kSplatVertex).c_str(),
-                             gl_shaders::kSplatFragment, "splat");
+  // AFR_PROBE: GlProbe's value, which the splat shaders test (0: the real passes).
+  const std::string probe = fmt::format("#define AFR_PROBE {}\n", int(options_.probe));
+  m.splat = graphics_program(
+      gl_shaders::splat_program_source(gl_shaders::kSplatVertex, probe).c_str(),
+      (std::string("#version 430 core\n") + probe + gl_shaders::kSplatFragment).c_str(), "splat");
   m.newest = graphics_program(gl_shaders::kNewestVertex, gl_shaders::kNewestFragment, "newest");
   m.pyramid = compute_program(gl_shaders::kPyramidCompute, "pyramid");
   m.normalise = compute_program(gl_shaders::kNormaliseCompute, "normalise");
@@ -442,9 +479,9 @@ GlReconstructor::GlReconstructor(const ReconstructorConfig& config,
     // A tile's cells are 8 x 4 pixels (a warp of invocations), or the whole 4 x 4 tile.
     const std::string gather_source = fmt::format(
         "#version 430 core\n#define TILE {}\n#define GROUP {}\n#define CELL_W {}\n#define CELL_H "
-        "{}\n{}{}",
+        "{}\n{}{}{}",
         options_.tile, options_.tile * options_.tile, std::min(options_.tile, 8),
-        std::min(options_.tile, 4), gl_shaders::kPixelBox, gl_shaders::kGatherCompute);
+        std::min(options_.tile, 4), probe, gl_shaders::kPixelBox, gl_shaders::kGatherCompute);
     m.gather = compute_program(gather_source.c_str(), "gather");
     constexpr size_t kSplatBytes = 3 * sizeof(glm::vec4);
     m.splats = gpu_buffer(store_.capacity() * kSplatBytes);

@@ -160,6 +160,16 @@ void main() {
     gl_PointSize = 1.0;
     return;
   }
+#if AFR_PROBE == 1
+  // GlProbe::kCulled: culled after the whole preparation (a test of its results, which the
+  // compiler cannot drop: no splat's values sum below -1e30).
+  if (!(s.center.x + s.center.y + s.kernel.x + s.kernel.y + s.kernel.z + s.kernel.w +
+        s.extent.x + s.extent.y + s.extent.z + s.wt < -1e30)) {
+    gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
+    gl_PointSize = 1.0;
+    return;
+  }
+#endif
   v_center = s.center;
   v_kernel = s.kernel;
   v_color = a_color;
@@ -171,10 +181,13 @@ void main() {
   // Covers every pixel center within r of p, with half a pixel to spare on each side for the
   // rasteriser's snapping of point positions (1/256 pixel on llvmpipe) and size rounding.
   gl_PointSize = 2.0 * max(s.extent.x, s.extent.y) + 1.0;
+#if AFR_PROBE == 4
+  gl_PointSize = 1.0;  // GlProbe::kDots
+#endif
 }
 )";
 
-const char* const kSplatFragment = R"(#version 430 core
+const char* const kSplatFragment = R"(
 flat in vec2 v_center;
 flat in vec4 v_kernel;
 flat in vec3 v_color;
@@ -184,6 +197,12 @@ uniform float u_min_weight;
 layout(location = 0) out vec4 o_accum;
 layout(location = 1) out vec2 o_coverage;
 void main() {
+#if AFR_PROBE == 2 || AFR_PROBE == 4
+  // GlProbe::kFlat, kDots: every fragment of the point, no kernel.
+  o_accum = vec4(v_color * v_wt, v_wt);
+  o_coverage = vec2(1.0, v_extent.z);
+  return;
+#endif
   vec2 d = gl_FragCoord.xy - v_center;
   if (abs(d.x) >= v_extent.x || abs(d.y) >= v_extent.y) discard;
   float wx = exp(-d.x * d.x * v_kernel.x) - v_kernel.z;
@@ -549,6 +568,12 @@ void main() {
     for (uint j = 0u; j < m; ++j) {
       uint k = cell_list[cell * kBatch + j];
       vec4 a = batch[4u * k], c = batch[4u * k + 1u], e = batch[4u * k + 2u];
+#if AFR_PROBE == 3
+      // GlProbe::kVisit: the splat loaded and added, no box test, no kernel.
+      sum += a + c + e + batch[4u * k + 3u];
+      cover += vec2(1.0, e.z);
+      continue;
+#endif
       vec2 d = at - a.xy;
       if (abs(d.x) >= e.x || abs(d.y) >= e.y) continue;
       vec2 off = batch[4u * k + 3u].xy;

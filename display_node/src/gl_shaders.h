@@ -15,7 +15,9 @@ extern const char* const kPixelBox;
 // body.
 extern const char* const kSplatCommon;
 // Adaptive splats as points: the vertex shader prepares (with kSplatCommon), the fragment
-// shader weights; accumulates (sum w c, sum w) and (count, radius sum).
+// shader weights; accumulates (sum w c, sum w) and (count, radius sum). Both, and the gather,
+// test AFR_PROBE (GlProbe's value; the fragment shader has no #version line, so that the
+// program can define it first).
 extern const char* const kSplatVertex;
 extern const char* const kSplatFragment;
 // Traditional frameless: one point per sample at its pixel, the newest wins the depth test.
@@ -40,9 +42,9 @@ extern const char* const kPackCompute;
 extern const char* const kBlitVertex;
 extern const char* const kBlitFragment;
 
-// "#version 430 core", kPixelBox, kSplatCommon, then `body`.
-inline std::string splat_program_source(const char* body) {
-  return std::string("#version 430 core\n") + kPixelBox + kSplatCommon + body;
+// "#version 430 core", `defines`, kPixelBox, kSplatCommon, then `body`.
+inline std::string splat_program_source(const char* body, const std::string& defines = "") {
+  return std::string("#version 430 core\n") + defines + kPixelBox + kSplatCommon + body;
 }
 
 }  // namespace afr::gl_shaders

@@ -320,6 +320,78 @@ TEST(GlReconstructorTest, SplatPassesParseAndAutoFollowsTheRenderer) {
   }
 }
 
+// The benchmarks' probes (GlProbe) leave out what they name and nothing else: a culled pass
+// reaches no pixel, a flat one weights every fragment of its points at the full weight (never
+// less than the kernel's), a visit counts every splat a cell tests (never fewer than reach
+// the pixel); each runs only with its own splat pass.
+TEST(GlReconstructorTest, ProbesLeaveOutTheirWorkAndFitOnlyTheirPass) {
+  for (const GlProbe probe :
+       {GlProbe::kNone, GlProbe::kCulled, GlProbe::kFlat, GlProbe::kVisit, GlProbe::kDots}) {
+    EXPECT_EQ(parse_gl_probe(gl_probe_name(probe)), probe);
+  }
+  EXPECT_THROW(parse_gl_probe("kernel"), Error);
+  EXPECT_TRUE(gl_probe_fits(GlProbe::kNone, GlSplat::kGather));
+  EXPECT_TRUE(gl_probe_fits(GlProbe::kVisit, GlSplat::kGather));
+  EXPECT_FALSE(gl_probe_fits(GlProbe::kVisit, GlSplat::kRaster));
+  EXPECT_FALSE(gl_probe_fits(GlProbe::kFlat, GlSplat::kGather));
+  AFR_REQUIRE_GL(context);
+  const ReconstructorConfig cfg = config(48, 32, ReconstructionMode::kAdaptive);
+  EXPECT_THROW(
+      GlReconstructor(cfg, context,
+                      GlReconstructorOptions{GlSplat::kRaster, 16, 0, false, GlProbe::kVisit}),
+      Error);
+  EXPECT_THROW(
+      GlReconstructor(cfg, context,
+                      GlReconstructorOptions{GlSplat::kGather, 16, 0, false, GlProbe::kCulled}),
+      Error);
+  struct Result {
+    std::vector<float> weights;
+    std::vector<CoverageCell> coverage;
+    uint64_t holes = 0;
+  };
+  const auto reconstruct = [&](GlSplat splat, GlProbe probe) {
+    GlReconstructor gl(cfg, context, GlReconstructorOptions{splat, 8, 0, false, probe});
+    Pcg32 rng(31);
+    gl.set_tiling(test::random_tiling(rng, 48, 32, 8, 1.0));
+    gl.add_batch(test::random_batch(rng, 4 * 48 * 32, 48, 32, 0.0, 1.0));
+    gl.reconstruct(Camera{}, 1.0, 48, 32);
+    Result r;
+    gl.read_weights(&r.weights);
+    gl.read_coverage(&r.coverage);
+    r.holes = gl.frame_stats().hole_pixels;
+    return r;
+  };
+  const auto total = [](const std::vector<float>& v) {
+    double sum = 0.0;
+    for (const float w : v) sum += double(w);
+    return sum;
+  };
+  const Result raster = reconstruct(GlSplat::kRaster, GlProbe::kNone);
+  EXPECT_LT(raster.holes, 48u * 32u / 10u);
+  EXPECT_EQ(reconstruct(GlSplat::kRaster, GlProbe::kCulled).holes, 48u * 32u);
+  EXPECT_EQ(total(reconstruct(GlSplat::kRaster, GlProbe::kCulled).weights), 0.0);
+  for (const GlProbe flat : {GlProbe::kFlat, GlProbe::kDots}) {
+    SCOPED_TRACE(gl_probe_name(flat));
+    EXPECT_GT(total(reconstruct(GlSplat::kRaster, flat).weights), 0.0);
+  }
+  const Result flat = reconstruct(GlSplat::kRaster, GlProbe::kFlat);
+  ASSERT_EQ(flat.weights.size(), raster.weights.size());
+  for (size_t p = 0; p < raster.weights.size(); ++p) {
+    ASSERT_GE(flat.weights[p], raster.weights[p] * (1.0f - 1e-5f)) << "pixel " << p;
+  }
+  EXPECT_GT(total(flat.weights), 1.5 * total(raster.weights));
+  const Result gather = reconstruct(GlSplat::kGather, GlProbe::kNone);
+  const Result visit = reconstruct(GlSplat::kGather, GlProbe::kVisit);
+  ASSERT_EQ(visit.coverage.size(), gather.coverage.size());
+  double visited = 0.0, reached = 0.0;
+  for (size_t p = 0; p < gather.coverage.size(); ++p) {
+    ASSERT_GE(visit.coverage[p].count, gather.coverage[p].count) << "pixel " << p;
+    visited += double(visit.coverage[p].count);
+    reached += double(gather.coverage[p].count);
+  }
+  EXPECT_GT(visited, 2.0 * reached);
+}
+
 // Within 2 ulp of `want`, channel by channel: a GPU may divide through a reciprocal (GLSL
 // allows 2.5 ulp), so sum(w c) / sum(w) can be off by one where the CPU's IEEE division is not.
 void expect_within_2ulp(const Image& image, glm::vec3 want) {

@@ -38,6 +38,22 @@ enum class GlSplat { kAuto, kGather, kRaster };
 GlSplat parse_gl_splat(std::string_view text);
 const char* gl_splat_name(GlSplat splat);
 
+// For benchmarks only (afr-bench-reconstruct --gl-probes): the splat pass with part of its
+// work left out, to measure on a driver what the rest of it costs. Its images are wrong.
+//   kCulled  raster: the vertex stage in full (the sample's fetch and its splat's
+//            preparation), then every point culled: the cost before any rasterising.
+//   kFlat    raster: the same points drawn and blended, each fragment a constant (no kernel,
+//            no discard): the cost of rasterising them.
+//   kDots    raster: kFlat with every point one pixel: the cost of a point, whatever its size.
+//   kVisit   gather: every pixel loads the splats its cell tests and adds them up (no kernel,
+//            no box test): the cost of visiting them.
+enum class GlProbe { kNone, kCulled, kFlat, kVisit, kDots };
+// "none", "culled", "flat", "visit", "dots"; throws afr::Error naming the text otherwise.
+GlProbe parse_gl_probe(std::string_view text);
+const char* gl_probe_name(GlProbe probe);
+// True for kNone and for a probe of that splat pass (kVisit: the gather; the others: raster).
+bool gl_probe_fits(GlProbe probe, GlSplat splat);
+
 struct GlReconstructorOptions {
   GlSplat splat = GlSplat::kAuto;
   // gather: the screen tile side in pixels, one work group a tile (4..16). Smaller tiles test
@@ -54,6 +70,9 @@ struct GlReconstructorOptions {
   // time it on the CPU, so that FrameStats::gpu has per-pass times there too. It serialises
   // the passes with the calling thread: for benchmarks, not for a display.
   bool sync_passes = false;
+  // Benchmarks only: a splat pass with part of its work left out (GlProbe). kCulled, kFlat and
+  // kDots need the raster path, kVisit the gather (the constructor throws otherwise).
+  GlProbe probe = GlProbe::kNone;
 };
 
 class GlReconstructor final : public Reconstructor {
