@@ -4,7 +4,8 @@
 #   1. the CPU and OpenGL backends side by side at 256x256 and 512x512 (N = 4 W H), both GL
 #      splat passes (gather, raster), GPU time per pass from GL_TIME_ELAPSED queries;
 #   2. the OpenGL backend alone at 1920x1080 and 3840x2160 (on a hardware GPU only: llvmpipe
-#      takes seconds an image there);
+#      takes seconds an image there), and the driver's floor under each splat pass at 256x256
+#      and 512x512 (the passes with part of their work left out: --gl-probes);
 #   3. short headless display runs with two samplers (bench/gpu_live.sh) on the GL backend,
 #      where display_node and sampler_node are built or bundled: 256x256, and on a hardware
 #      GPU 1920x1080 at 60 images/s and 3840x2160 at 30 (the display's stats line names its
@@ -27,7 +28,7 @@ while [ $# -gt 0 ]; do
     --out) out=$2; shift 2 ;;
     --repeats) repeats=$2; shift 2 ;;
     --gpu) gpu=$2; shift 2 ;;
-    -h|--help) sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "gpu.sh: unknown option '$1'" >&2; exit 2 ;;
   esac
 done
@@ -56,6 +57,13 @@ else
   "${bench[@]}" "${common[@]}" --backends gl --sizes 1920x1080,3840x2160 --gl-splat gather,raster \
     --gl-tiles 8,16 | tee "$tmp/large.md"
 fi
+
+# The driver's floor under each splat pass, side by side with the passes and the CPU backend in
+# one run: the probes (GlProbe, gl_reconstructor.h) leave out part of a pass (culled: no
+# rasterising; flat: no kernel; dots: one-pixel points; visit: the gather's candidates loaded and
+# added, no kernel), so what is left bounds what any kernel on this driver can take.
+"${bench[@]}" "${common[@]}" --backends cpu,gl --threads "$(nproc)" --sizes 256,512 \
+  --gl-splat gather,raster --gl-tiles 16 --gl-probes none,culled,flat,dots,visit | tee "$tmp/probes.md"
 
 # The display runs (bench/gpu_live.sh) with the nodes of build/ or of the bundle (which must
 # hold display_node and sampler_node: deploy/bundle.sh DIR build/display_node/display_node
@@ -102,6 +110,16 @@ fi
   cat "$tmp/small.md"
   echo
   cat "$tmp/large.md"
+  echo
+  echo "## The driver's floor under each splat pass"
+  echo
+  echo "The passes again with part of their work left out (afr-bench-reconstruct --gl-probes;"
+  echo "GlProbe in display_node/include/afr/display/gl_reconstructor.h): culled, every point culled"
+  echo "after the vertex stage (no rasterising); flat, the points drawn and blended at a constant"
+  echo "weight (no kernel, no discard); dots, flat with one-pixel points; visit, the gather's"
+  echo "candidates loaded and added (no kernel). Their images are wrong by design."
+  echo
+  cat "$tmp/probes.md"
   if [ -n "$display" ]; then
     echo
     echo "Headless display runs (bench/gpu_live.sh: deploy/run-local.sh 2, 12 s, GL backend, the built-in scene):"
