@@ -169,6 +169,7 @@ class Loader {
 
   void load_meshes();
   bool load_primitive(const tinygltf::Primitive& in, const std::string& what, Primitive* out);
+  void load_colors(int accessor, const std::string& what, size_t vertex_count, Primitive* out);
   void load_skinning(const tinygltf::Primitive& in, const std::string& what, Primitive* out);
   void load_targets(const tinygltf::Primitive& in, const std::string& what, Primitive* out);
   void load_skins();
@@ -735,9 +736,9 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
     return false;
   }
   for (const auto& [name, accessor] : in.attributes) {
-    if (name.rfind("COLOR_", 0) == 0) {
-      warn_once("vertex colors",
-                fmt::format("vertex colors ({}) are not supported (ignored)", name));
+    if (name.rfind("COLOR_", 0) == 0 && name != "COLOR_0") {
+      warn_once("more colors",
+                fmt::format("vertex color sets other than COLOR_0 ({}) are ignored", name));
     }
     if (name.rfind("JOINTS_", 0) == 0 && name != "JOINTS_0") {
       warn_once("more joints",
@@ -782,6 +783,9 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
     out->uvs.resize(vertex_count);
     for (size_t i = 0; i < vertex_count; ++i) out->uvs[i] = {t[2 * i], t[2 * i + 1]};
   }
+  if (const auto color = in.attributes.find("COLOR_0"); color != in.attributes.end()) {
+    load_colors(color->second, what + " COLOR_0", vertex_count, out);
+  }
   load_skinning(in, what, out);
   load_targets(in, what, out);
 
@@ -821,6 +825,52 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
   if (out->indices.empty()) return false;
   if (out->normals.empty()) generate_normals(out);
   return true;
+}
+
+// COLOR_0 (glTF 2.0, 3.7.2.1): VEC3 or VEC4 of floats or of normalized unsigned bytes or shorts,
+// a linear RGB(A) multiplier of the base color. Alpha is dropped: an OPAQUE material ignores it
+// (glTF 2.0, 3.9.4), and any other alphaMode already has its own warning; negative floats
+// become 0.
+void Loader::load_colors(int accessor, const std::string& what, size_t vertex_count,
+                         Primitive* out) {
+  if (accessor < 0 || size_t(accessor) >= model_.accessors.size()) {
+    fail(fmt::format("{} refers to accessor {}, but there are {}", what, accessor,
+                     model_.accessors.size()));
+  }
+  const tinygltf::Accessor& a = model_.accessors[size_t(accessor)];
+  if (a.type != TINYGLTF_TYPE_VEC3 && a.type != TINYGLTF_TYPE_VEC4) {
+    fail(fmt::format("accessor {} ({}) is {}: vertex colors must be VEC3 or VEC4", accessor, what,
+                     type_name(a.type)));
+  }
+  const int components = a.type == TINYGLTF_TYPE_VEC4 ? 4 : 3;
+  const bool normalized_integers = (a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ||
+                                    a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT) &&
+                                   a.normalized;
+  if (a.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT && !normalized_integers) {
+    fail(
+        fmt::format("accessor {} ({}) has componentType {}{}: vertex colors must be floats or "
+                    "normalized unsigned bytes or shorts",
+                    accessor, what, a.componentType, a.normalized ? " (normalized)" : ""));
+  }
+  const std::vector<float> c =
+      read_floats(accessor, components == 4 ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3, what);
+  if (c.size() / size_t(components) != vertex_count) {
+    fail(fmt::format("{} has {} vertex colors for {} positions", what, c.size() / components,
+                     vertex_count));
+  }
+  out->colors.resize(vertex_count);
+  bool negative = false;
+  for (size_t i = 0; i < vertex_count; ++i) {
+    const float* v = &c[size_t(components) * i];
+    for (int k = 0; k < 3; ++k) {
+      negative |= v[k] < 0.0f;
+      out->colors[i][k] = std::max(v[k], 0.0f);
+    }
+  }
+  if (negative) {
+    warn_once("negative vertex colors",
+              fmt::format("{}: negative vertex color components are taken as 0", what));
+  }
 }
 
 // JOINTS_0 and WEIGHTS_0. Weights are renormalised to sum to 1 (as viewers do: quantized

@@ -285,6 +285,15 @@ void Scene::finalize() {
         throw err(
             fmt::format("{}: {} uvs for {} vertices", where, p.uvs.size(), p.positions.size()));
       }
+      if (!p.colors.empty() && p.colors.size() != p.positions.size()) {
+        throw err(fmt::format("{}: {} vertex colors for {} vertices", where, p.colors.size(),
+                              p.positions.size()));
+      }
+      for (const glm::vec3& c : p.colors) {
+        if (!finite3(c) || c.x < 0.0f || c.y < 0.0f || c.z < 0.0f) {
+          throw err(fmt::format("{}: a vertex color is negative or not finite", where));
+        }
+      }
       if (p.normals.size() != p.positions.size()) {
         if (!p.normals.empty()) {
           throw err(fmt::format("{}: {} normals for {} vertices", where, p.normals.size(),

@@ -9,9 +9,9 @@
 //   range window of KHR_lights_punctual and, for spots, the cone falloff;
 // - BRDF = diffuse / pi + GGX (Trowbridge-Reitz D, height-correlated Smith visibility, Schlick
 //   Fresnel), diffuse = base (1 - metallic) (1 - transmission), F0 = mix(0.04, base, metallic);
-// - base = base_color_factor x base-color texture; the ambient reflectance (Material::ambient,
-//   else the base color factor) is multiplied by the texture too, so textures show in ambient
-//   light.
+// - base = base_color_factor x base-color texture x COLOR_0 (interpolated); the ambient
+//   reflectance (Material::ambient, else the base color factor) is multiplied by the texture
+//   and the vertex colors too, so they show in ambient light.
 #pragma once
 
 #include <afr/common/math.h>

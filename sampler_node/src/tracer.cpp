@@ -56,6 +56,7 @@ struct GeomRecord {
   const glm::vec3* positions = nullptr;
   const glm::vec3* normals = nullptr;     // null when the primitive has none per vertex
   const glm::vec2* uvs = nullptr;         // null when the primitive has none per vertex
+  const glm::vec3* colors = nullptr;      // COLOR_0; null when the primitive has none
   const glm::vec3* velocities = nullptr;  // world velocity per vertex: deforming geometry only
   const uint32_t* indices = nullptr;
   uint32_t material = 0;  // index into Impl::materials_
@@ -330,6 +331,8 @@ struct Tracer::Impl {
   // `spread` per unit of distance.
   void make_surface(const HitRef& hit, const glm::vec3& o, const glm::vec3& d, float cone,
                     float spread, Surface* s) const;
+  // The base color's multiplier at s: its material's texture (1 without one) times the
+  // primitive's interpolated vertex colors (1 without them).
   glm::vec3 texture_color(const Surface& s) const;
   bool prepare_local(const Surface& s, const glm::vec3& wo, const glm::vec3& tex, glm::vec3* c,
                      LocalTerms* terms) const;
@@ -507,6 +510,7 @@ void Tracer::Impl::build() {
       r.positions = static_positions_.back().data();
       r.normals = static_normals_.back().empty() ? nullptr : static_normals_.back().data();
       r.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
+      r.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
       r.indices = p.indices.data();
       r.material = material_of(p);
       r.node = n;
@@ -543,6 +547,7 @@ void Tracer::Impl::build() {
         r.positions = p.positions.data();
         r.normals = p.normals.size() == p.positions.size() ? p.normals.data() : nullptr;
         r.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
+        r.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
         r.indices = p.indices.data();
         r.material = material_of(p);
         b.geoms.push_back(r);
@@ -643,6 +648,7 @@ void Tracer::Impl::build_deforming(const std::vector<int>& nodes, uint32_t defau
     r.positions = d.positions.data();
     r.normals = d.normals.data();
     r.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
+    r.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
     r.velocities = d.velocities.data();
     r.indices = p.indices.data();
     r.material = material;
@@ -900,7 +906,7 @@ bool Tracer::Impl::light_contribution(const LightRecord& light, const Surface& s
 }
 
 // Emission, ambient and direct light at a surface seen from direction wo (unit, toward the
-// viewer). `tex` is the texture color (1 without a texture).
+// viewer). `tex` is texture_color(s).
 glm::vec3 Tracer::Impl::shade_local(const Surface& s, const glm::vec3& wo, const glm::vec3& tex,
                                     TraceStats* stats) const {
   glm::vec3 c;
@@ -971,7 +977,13 @@ void Tracer::Impl::shade_local8(const Surface* s, const glm::vec3* wo, const glm
 }
 
 glm::vec3 Tracer::Impl::texture_color(const Surface& s) const {
-  return s.material->texture ? s.material->texture->sample(s.uv, s.lod) : glm::vec3(1.0f);
+  glm::vec3 c = s.material->texture ? s.material->texture->sample(s.uv, s.lod) : glm::vec3(1.0f);
+  if (const glm::vec3* colors = s.geom->colors) {
+    const uint32_t* tri = s.triangle;
+    c *= s.barycentric.x * colors[tri[0]] + s.barycentric.y * colors[tri[1]] +
+         s.barycentric.z * colors[tri[2]];
+  }
+  return c;
 }
 
 // The light reaching the viewer from surface s (seen along d, with texture color tex) by way

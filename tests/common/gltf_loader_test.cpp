@@ -11,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <limits>
 #include <string>
@@ -240,6 +241,80 @@ TEST_F(GltfLoaderTest, QuadLoadsWithPositionsIndicesGeneratedNormalsAndUvs) {
   // Clockwise seen from +z: the generated normals point down.
   EXPECT_EQ(scene.meshes[0].primitives[2].normals[0], glm::vec3(0, 0, -1));
   EXPECT_EQ(scene.meshes[0].primitives[3].indices, (std::vector<uint32_t>{3, 2, 0}));
+}
+
+// COLOR_0 in each form glTF allows (float VEC3, normalized unsigned byte VEC4, normalized
+// unsigned short VEC3) is read as linear RGB, alpha dropped without a word (an OPAQUE material
+// ignores it); negative floats warn once; a type or count glTF forbids fails naming the
+// accessor.
+TEST_F(GltfLoaderTest, VertexColorsAreReadInEveryAllowedFormAndBadOnesAreNamed) {
+  GltfBuilder b;
+  const int positions = add_quad(&b);
+  json& primitives = b.doc()["meshes"][0]["primitives"];
+  primitives[0]["attributes"]["COLOR_0"] =
+      b.add_floats({1, 0, 0, 0, 1, 0, 0, 0, 1, 0.5f, -0.25f, 2}, 3);
+  const std::vector<uint8_t> rgba = {255, 0, 0,   255, 0,   51,  0,   255,
+                                     0,   0, 255, 128, 255, 255, 255, 255};
+  primitives.push_back(
+      {{"attributes",
+        {{"POSITION", positions},
+         {"COLOR_0", b.add_accessor(b.add_view(rgba), kUnsignedByte, "VEC4", 4, 0, true)}}},
+       {"indices", 1}});
+  const std::vector<uint16_t> rgb16 = {65535, 0, 0, 0, 65535, 0, 0, 0, 65535, 13107, 13107, 13107};
+  primitives.push_back(
+      {{"attributes",
+        {{"POSITION", positions},
+         {"COLOR_0", b.add_accessor(b.add_view(rgb16), kUnsignedShort, "VEC3", 4, 0, true)},
+         {"COLOR_1", b.add_floats({0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0}, 3)}}},
+       {"indices", 1}});
+  const fs::path path = dir_ / "colors.gltf";
+  b.write_embedded(path);
+
+  GltfLoadReport report;
+  const Scene scene = load_gltf(path, &report);
+  ASSERT_EQ(scene.meshes[0].primitives.size(), 3u);
+  const std::vector<glm::vec3>& f = scene.meshes[0].primitives[0].colors;
+  ASSERT_EQ(f.size(), 4u);
+  EXPECT_EQ(f[0], glm::vec3(1, 0, 0));
+  EXPECT_EQ(f[2], glm::vec3(0, 0, 1));
+  EXPECT_EQ(f[3], glm::vec3(0.5f, 0.0f, 2.0f));  // the negative green taken as 0
+  const std::vector<glm::vec3>& u8 = scene.meshes[0].primitives[1].colors;
+  ASSERT_EQ(u8.size(), 4u);
+  EXPECT_EQ(u8[0], glm::vec3(1, 0, 0));
+  EXPECT_FLOAT_EQ(u8[1].y, 0.2f);  // 51 / 255, alpha dropped
+  EXPECT_EQ(u8[3], glm::vec3(1, 1, 1));
+  const std::vector<glm::vec3>& u16 = scene.meshes[0].primitives[2].colors;
+  ASSERT_EQ(u16.size(), 4u);
+  EXPECT_EQ(u16[1], glm::vec3(0, 1, 0));
+  EXPECT_FLOAT_EQ(u16[3].x, 0.2f);  // 13107 / 65535
+  EXPECT_EQ(count_containing(report.warnings, "negative vertex color"), 1u);
+  EXPECT_EQ(count_containing(report.warnings, "COLOR_1"), 1u);
+  EXPECT_EQ(report.warnings.size(), 2u);
+
+  // Unsigned bytes that are not normalized, a SCALAR, too few colors: each an error.
+  auto broken = [&](const std::function<int(GltfBuilder*)>& add_color, const std::string& name,
+                    const std::string& problem) {
+    GltfBuilder c = b;
+    const int color = add_color(&c);
+    c.doc()["meshes"][0]["primitives"] = json::array(
+        {{{"attributes", {{"POSITION", positions}, {"COLOR_0", color}}}, {"indices", 1}}});
+    const fs::path bad = dir_ / name;
+    c.write_embedded(bad);
+    expect_error(bad, problem);
+  };
+  broken(
+      [&](GltfBuilder* c) { return c->add_accessor(c->add_view(rgba), kUnsignedByte, "VEC4", 4); },
+      "raw.gltf", "vertex colors must be floats or normalized unsigned bytes or shorts");
+  broken(
+      [](GltfBuilder* c) {
+        return c->add_floats({1, 1, 1, 1}, 1);
+      },
+      "scalar.gltf", "is SCALAR: vertex colors must be VEC3 or VEC4");
+  broken(
+      [](GltfBuilder* c) {
+        return c->add_floats({1, 1, 1, 1, 1, 1}, 3);
+      },
+      "short.gltf", "2 vertex colors for 4 positions");
 }
 
 TEST_F(GltfLoaderTest, InterleavedStridedAndSparseAccessorsAreRead) {

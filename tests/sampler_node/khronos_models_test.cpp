@@ -1,7 +1,7 @@
 // Khronos glTF sample models (tests/data/khronos, their glTF-Embedded variants as published):
 // each loads, renders non-black under afr's default lighting at two times, and the animated
 // ones (a rotation, translation and rotation, a skin, morph weights) render differently at
-// those two times while the static one does not (issue 18, item 6).
+// those two times while the static ones do not (issue 18, item 6).
 #include <afr/common/gltf_loader.h>
 #include <afr/sampler/tracer.h>
 
@@ -28,7 +28,7 @@ struct Model {
 const Model kModels[] = {
     {"AnimatedTriangle.gltf", 0.0, 0.25, true}, {"BoxAnimated.gltf", 0.0, 2.0, true},
     {"Cameras.gltf", 0.0, 1.0, false},          {"SimpleMorph.gltf", 0.0, 2.0, true},
-    {"SimpleSkin.gltf", 0.0, 1.5, true},
+    {"SimpleSkin.gltf", 0.0, 1.5, true},        {"BoxVertexColors.gltf", 0.0, 1.0, false},
 };
 
 std::filesystem::path model_path(const char* file) {
@@ -104,6 +104,28 @@ TEST(KhronosModelTest, SimpleSkinBendsAsItsJointTurns) {
     const glm::vec3& got = positions[9];  // (0.5, 2, 0) in the file
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(got[c], want[c], 1e-5) << "t = " << t;
   }
+}
+
+// BoxVertexColors: a gray material (0.8) whose COLOR_0 paints the box's faces in strong hues.
+// Under the white headlight a gray surface stays gray (its channels within a few percent of
+// each other); with the vertex colors, much of the visible face is far from gray.
+TEST(KhronosModelTest, BoxVertexColorsShowTheirHues) {
+  const Scene scene = load_gltf(model_path("BoxVertexColors.gltf"));
+  Tracer tracer(scene);
+  TraceStats stats;
+  int lit = 0, colored = 0;
+  for (int y = 0; y < kSize; ++y) {
+    for (int x = 0; x < kSize; ++x) {
+      const glm::vec3 c =
+          tracer.trace(tracer.camera().ray(x + 0.5, y + 0.5, kSize, kSize), &stats).color;
+      if (luminance(c) <= 0.05f) continue;
+      ++lit;
+      const float hi = std::max(c.r, std::max(c.g, c.b)), lo = std::min(c.r, std::min(c.g, c.b));
+      colored += hi > 2.0f * lo + 0.05f;
+    }
+  }
+  ASSERT_GT(lit, kSize * kSize / 20);
+  EXPECT_GT(colored, lit / 4) << lit << " lit pixels";
 }
 
 }  // namespace

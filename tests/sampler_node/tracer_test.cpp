@@ -523,6 +523,28 @@ TEST(TracerTest, TextureColorMultipliesBaseColor) {
   expect_near3(blue.color, {0.0f, 0.0f, 0.6f}, 1e-5f, "blue texel");
 }
 
+// COLOR_0 multiplies the base color, interpolated by the hit's barycentrics: (0.5, -0.5) on the
+// square below is 0.25 v0 + 0.5 v1 + 0.25 v2 of its first triangle.
+TEST(TracerTest, VertexColorsMultiplyBaseColorInterpolatedAcrossTheTriangle) {
+  Scene s;
+  s.ambient = glm::vec3(1.0f);  // ambient light only: color = ambient x base x vertex color
+  const int mat = add_material(&s, glm::vec3(0.5f, 0.8f, 0.6f), 0.0f, 1.0f);
+  Mesh square = quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat);
+  square.primitives[0].colors = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 1}};
+  add_mesh_node(&s, square);
+  // A second square beside it without colors: the base color alone.
+  add_mesh_node(&s, quad_mesh({3, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat));
+  s.finalize();
+  Tracer tracer(s);
+  TraceStats stats;
+  const ShadedSample mixed = tracer.trace(Ray{{0.5f, -0.5f, 0.0f}, {0, 0, -1}}, &stats);
+  expect_near3(mixed.color, {0.125f, 0.4f, 0.15f}, 1e-5f, "interpolated colors");
+  const ShadedSample corner = tracer.trace(Ray{{-0.999f, 0.999f, 0.0f}, {0, 0, -1}}, &stats);
+  expect_near3(corner.color, {0.5f, 0.8f, 0.6f}, 1e-2f, "the white corner");
+  const ShadedSample plain = tracer.trace(Ray{{4.0f, 0.0f, 0.0f}, {0, 0, -1}}, &stats);
+  expect_near3(plain.color, {0.5f, 0.8f, 0.6f}, 1e-5f, "no vertex colors");
+}
+
 // Texture minification by ray cones: a floor with a one-texel checker (1024 x 1024 texels over
 // 1 x 1, repeated 20 times over the 20 x 20 floor), lit by ambient light only, seen from 1 above
 // at 64 x 48 pixels. Every pixel covers many texels: with the camera's ray cones the samples are

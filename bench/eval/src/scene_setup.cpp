@@ -90,8 +90,9 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.array(p.uvs);
       h.array(p.indices);
       h.value(p.material);
-      // Skins and morph targets add bytes only where a mesh has them, so the fingerprints (and
-      // cached ideal frames) of other scenes stay what they were.
+      // Vertex colors, skins and morph targets add bytes only where a mesh has them, so the
+      // fingerprints (and cached ideal frames) of other scenes stay what they were.
+      if (!p.colors.empty()) h.array(p.colors);
       if (!p.joints.empty() || !p.targets.empty()) {
         h.array(p.joints);
         h.array(p.joint_weights);
@@ -114,6 +115,11 @@ uint64_t render_fingerprint(const Scene& scene) {
     h.value(m.ambient.has_value());
     h.value(m.ambient.value_or(glm::vec3(0.0f)));
     h.value(m.double_sided);
+    // Glass adds bytes only where a material has it (other scenes' fingerprints stay).
+    if (m.transmission != 0.0f || m.ior != 1.5f) {
+      h.value(m.transmission);
+      h.value(m.ior);
+    }
   }
   h.value(uint64_t(scene.textures.size()));
   for (const Texture& t : scene.textures) {

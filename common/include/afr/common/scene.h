@@ -27,12 +27,15 @@ struct MorphTarget {
 };
 
 // An indexed triangle list with one material. Normals are per vertex (generated when the
-// source has none); uvs are empty when the source has none. Skinning data and morph targets
-// are present only where the mesh has them.
+// source has none); uvs and colors are empty when the source has none. Skinning data and morph
+// targets are present only where the mesh has them.
 struct Primitive {
   std::vector<glm::vec3> positions;
   std::vector<glm::vec3> normals;
   std::vector<glm::vec2> uvs;
+  // glTF's COLOR_0 in linear RGB, one per vertex: it multiplies the material's base color (and
+  // its texture) like the base color factor does. Alpha is not modelled (surfaces are opaque).
+  std::vector<glm::vec3> colors;
   std::vector<uint32_t> indices;  // 3 per triangle
   int material = -1;              // index into Scene::materials; -1 = default material
   // JOINTS_0 and WEIGHTS_0 of a skinned mesh, one entry per vertex (else empty): four slots of
