@@ -177,10 +177,16 @@ class Loader {
   void load_materials();
   void read_transmission_and_ior(const tinygltf::Material& in, const std::string& what,
                                  Material* out);
-  std::optional<glm::dmat3> read_texture_transform(const tinygltf::TextureInfo& info,
+  std::optional<glm::dmat3> read_texture_transform(const tinygltf::ExtensionMap& extensions,
                                                    const std::string& what, int* tex_coord);
+  // One texture slot of material m (its index, texCoord and extensions as glTF gives them):
+  // the index of its decoded texture in Scene::textures (sRGB color or linear data), or -1
+  // where the slot is empty or its texture has no image. Its KHR_texture_transform becomes the
+  // material's (uv_transforms_) when it is the first slot to have one.
+  int read_texture_slot(size_t m, const char* slot, int index, int tex_coord,
+                        const tinygltf::ExtensionMap& extensions, bool srgb);
   void apply_texture_transforms();
-  int texture_for_image(int image_index);
+  int texture_for_image(int image_index, bool srgb);
   void load_cameras();
   void load_lights();
   void load_nodes();
@@ -196,11 +202,15 @@ class Loader {
   FileAccess access_;
   tinygltf::Model model_;
   Scene scene_;
-  std::vector<int> camera_map_;        // glTF camera -> Scene::cameras, -1 when skipped
-  std::vector<int> light_map_;         // glTF light -> Scene::lights, -1 when skipped
-  std::vector<int> image_to_texture_;  // glTF image -> Scene::textures, -1 until decoded
-  // Per glTF material: the KHR_texture_transform of its base-color texture, if any.
+  std::vector<int> camera_map_;  // glTF camera -> Scene::cameras, -1 when skipped
+  std::vector<int> light_map_;   // glTF light -> Scene::lights, -1 when skipped
+  // glTF image -> Scene::textures, -1 until decoded: [0] decoded as sRGB color, [1] as linear
+  // data (an image may be both, e.g. a base color reused as a mask).
+  std::array<std::vector<int>, 2> image_to_texture_;
+  // Per glTF material: the KHR_texture_transform of its first texture slot (base color,
+  // metallic-roughness, emissive, occlusion) that has a texture, if any, and that slot's name.
   std::vector<std::optional<glm::dmat3>> uv_transforms_;
+  std::vector<const char*> uv_transform_slot_;
   size_t morph_displacements_ = 0;  // read so far, at most kMaxMorphDisplacements
 };
 
@@ -1002,8 +1012,9 @@ void Loader::read_transmission_and_ior(const tinygltf::Material& in, const std::
 }
 
 void Loader::load_materials() {
-  image_to_texture_.assign(model_.images.size(), -1);
+  for (std::vector<int>& map : image_to_texture_) map.assign(model_.images.size(), -1);
   uv_transforms_.assign(model_.materials.size(), std::nullopt);
+  uv_transform_slot_.assign(model_.materials.size(), nullptr);
   for (size_t m = 0; m < model_.materials.size(); ++m) {
     const tinygltf::Material& in = model_.materials[m];
     const tinygltf::PbrMetallicRoughness& pbr = in.pbrMetallicRoughness;
@@ -1041,61 +1052,82 @@ void Loader::load_materials() {
       warn_once("alphaMode",
                 fmt::format("alphaMode {} is not supported (surfaces are opaque)", in.alphaMode));
     }
-    if (pbr.metallicRoughnessTexture.index >= 0) {
-      warn_once("metallicRoughnessTexture",
-                "metallicRoughnessTexture is not supported (factors are used)");
-    }
     if (in.normalTexture.index >= 0) {
       warn_once("normalTexture", "normalTexture is not supported (ignored)");
     }
-    if (in.occlusionTexture.index >= 0) {
-      warn_once("occlusionTexture", "occlusionTexture is not supported (ignored)");
-    }
-    if (in.emissiveTexture.index >= 0) {
-      warn_once("emissiveTexture", "emissiveTexture is not supported (emissiveFactor is used)");
-    }
-
-    const int t = pbr.baseColorTexture.index;
-    if (t >= 0) {
-      if (size_t(t) >= model_.textures.size()) {
-        fail(fmt::format("{} refers to texture {}, but there are {}", what, t,
-                         model_.textures.size()));
+    const tinygltf::TextureInfo& base = pbr.baseColorTexture;
+    out.base_color_texture =
+        read_texture_slot(m, "baseColorTexture", base.index, base.texCoord, base.extensions, true);
+    const tinygltf::TextureInfo& mr = pbr.metallicRoughnessTexture;
+    out.metallic_roughness_texture = read_texture_slot(m, "metallicRoughnessTexture", mr.index,
+                                                       mr.texCoord, mr.extensions, false);
+    const tinygltf::TextureInfo& emissive = in.emissiveTexture;
+    out.emissive_texture = read_texture_slot(m, "emissiveTexture", emissive.index,
+                                             emissive.texCoord, emissive.extensions, true);
+    const tinygltf::OcclusionTextureInfo& occlusion = in.occlusionTexture;
+    out.occlusion_texture = read_texture_slot(m, "occlusionTexture", occlusion.index,
+                                              occlusion.texCoord, occlusion.extensions, false);
+    if (out.occlusion_texture >= 0) {
+      if (!(occlusion.strength >= 0.0 && occlusion.strength <= 1.0)) {
+        fail(fmt::format("{} has an invalid occlusionTexture strength ({}; 0 to 1)", what,
+                         occlusion.strength));
       }
-      int tex_coord = pbr.baseColorTexture.texCoord;
-      uv_transforms_[m] = read_texture_transform(pbr.baseColorTexture, what, &tex_coord);
-      if (tex_coord != 0) {
-        warn_once("texCoord", fmt::format("textures on TEXCOORD_{} are not supported "
-                                          "(TEXCOORD_0 is used)",
-                                          tex_coord));
-      }
-      const tinygltf::Texture& texture = model_.textures[size_t(t)];
-      if (texture.sampler >= int(model_.samplers.size())) {
-        fail(fmt::format("texture {} refers to sampler {}, but there are {}", t, texture.sampler,
-                         model_.samplers.size()));
-      }
-      if (texture.sampler >= 0) {
-        const tinygltf::Sampler& sampler = model_.samplers[size_t(texture.sampler)];
-        if (sampler.wrapS != TINYGLTF_TEXTURE_WRAP_REPEAT ||
-            sampler.wrapT != TINYGLTF_TEXTURE_WRAP_REPEAT) {
-          warn_once("wrap",
-                    "texture wrap modes other than REPEAT are not supported (REPEAT is "
-                    "used)");
-        }
-      }
-      if (texture.source < 0) {
-        warn_once("texture without source",
-                  "textures without a PNG or JPEG source are not supported (ignored)");
-      } else {
-        if (size_t(texture.source) >= model_.images.size()) {
-          fail(fmt::format("texture {} refers to image {}, but there are {}", t, texture.source,
-                           model_.images.size()));
-        }
-        out.base_color_texture = texture_for_image(texture.source);
-      }
+      out.occlusion_strength = float(occlusion.strength);
     }
     if (in.extras.Has("afr_ambient")) out.ambient = read_rgb_extra(in.extras, "afr_ambient", what);
     scene_.materials.push_back(std::move(out));
   }
+}
+
+int Loader::read_texture_slot(size_t m, const char* slot, int index, int tex_coord,
+                              const tinygltf::ExtensionMap& extensions, bool srgb) {
+  if (index < 0) return -1;
+  const std::string what = fmt::format("material {} {}", m, slot);
+  if (size_t(index) >= model_.textures.size()) {
+    fail(fmt::format("{} refers to texture {}, but there are {}", what, index,
+                     model_.textures.size()));
+  }
+  const std::optional<glm::dmat3> transform = read_texture_transform(extensions, what, &tex_coord);
+  if (tex_coord != 0) {
+    warn_once("texCoord", fmt::format("textures on TEXCOORD_{} are not supported "
+                                      "(TEXCOORD_0 is used)",
+                                      tex_coord));
+  }
+  // One set of texture coordinates serves every slot of a material (the transform is applied
+  // to the primitive's coordinates at load): the first slot's transform is the material's.
+  if (uv_transform_slot_[m] == nullptr) {
+    uv_transform_slot_[m] = slot;
+    uv_transforms_[m] = transform;
+  } else if (transform.value_or(glm::dmat3(1.0)) != uv_transforms_[m].value_or(glm::dmat3(1.0))) {
+    warn_once("texture transforms differ",
+              fmt::format("{}: its KHR_texture_transform differs from the {}'s, which afr uses "
+                          "for every texture of the material",
+                          what, uv_transform_slot_[m]));
+  }
+  const tinygltf::Texture& texture = model_.textures[size_t(index)];
+  if (texture.sampler >= int(model_.samplers.size())) {
+    fail(fmt::format("texture {} refers to sampler {}, but there are {}", index, texture.sampler,
+                     model_.samplers.size()));
+  }
+  if (texture.sampler >= 0) {
+    const tinygltf::Sampler& sampler = model_.samplers[size_t(texture.sampler)];
+    if (sampler.wrapS != TINYGLTF_TEXTURE_WRAP_REPEAT ||
+        sampler.wrapT != TINYGLTF_TEXTURE_WRAP_REPEAT) {
+      warn_once("wrap",
+                "texture wrap modes other than REPEAT are not supported (REPEAT is "
+                "used)");
+    }
+  }
+  if (texture.source < 0) {
+    warn_once("texture without source",
+              "textures without a PNG or JPEG source are not supported (ignored)");
+    return -1;
+  }
+  if (size_t(texture.source) >= model_.images.size()) {
+    fail(fmt::format("texture {} refers to image {}, but there are {}", index, texture.source,
+                     model_.images.size()));
+  }
+  return texture_for_image(texture.source, srgb);
 }
 
 // KHR_texture_transform on a texture reference: the matrix that maps the primitive's texture
@@ -1104,10 +1136,10 @@ void Loader::load_materials() {
 // turning (u, v) to (c u + s v, -s u + c v): TextureTransformTest's green marker. The GLSL of
 // the extension's text writes the rotation transposed; viewers and the test model agree on
 // this one.
-std::optional<glm::dmat3> Loader::read_texture_transform(const tinygltf::TextureInfo& info,
+std::optional<glm::dmat3> Loader::read_texture_transform(const tinygltf::ExtensionMap& extensions,
                                                          const std::string& what, int* tex_coord) {
-  const auto ext = info.extensions.find("KHR_texture_transform");
-  if (ext == info.extensions.end()) return std::nullopt;
+  const auto ext = extensions.find("KHR_texture_transform");
+  if (ext == extensions.end()) return std::nullopt;
   const tinygltf::Value& t = ext->second;
   const std::string where = what + " KHR_texture_transform";
   if (!t.IsObject()) fail(where + " is not an object");
@@ -1149,9 +1181,9 @@ std::optional<glm::dmat3> Loader::read_texture_transform(const tinygltf::Texture
   return m;
 }
 
-// Texture transforms become the primitives' texture coordinates: afr reads one texture per
-// material, and a primitive has one material, so moving the coordinates is exact and costs
-// the tracer nothing.
+// Texture transforms become the primitives' texture coordinates: a primitive has one material,
+// whose textures all read TEXCOORD_0 through one transform (read_texture_slot), so moving the
+// coordinates is exact and costs the tracer nothing.
 void Loader::apply_texture_transforms() {
   for (Mesh& mesh : scene_.meshes) {
     for (Primitive& p : mesh.primitives) {
@@ -1164,8 +1196,8 @@ void Loader::apply_texture_transforms() {
 }
 
 // Decodes image `image_index` into Scene::textures (once) and returns its index there.
-int Loader::texture_for_image(int image_index) {
-  int& texture_index = image_to_texture_[size_t(image_index)];
+int Loader::texture_for_image(int image_index, bool srgb) {
+  int& texture_index = image_to_texture_[srgb ? 0 : 1][size_t(image_index)];
   if (texture_index >= 0) return texture_index;
   const tinygltf::Image& image = model_.images[size_t(image_index)];
   const std::string name =
@@ -1185,9 +1217,12 @@ int Loader::texture_for_image(int image_index) {
   }
   const DecodedImage decoded = decode_image(bytes, name);
 
-  // sRGB-encoded 8-bit values to linear, through a table.
+  // 8-bit values to linear, through a table: sRGB-encoded color, or data (metallic-roughness,
+  // occlusion) as it is.
   std::array<float, 256> linear;
-  for (int v = 0; v < 256; ++v) linear[size_t(v)] = srgb_to_linear(float(v) / 255.0f);
+  for (int v = 0; v < 256; ++v) {
+    linear[size_t(v)] = srgb ? srgb_to_linear(float(v) / 255.0f) : float(v) / 255.0f;
+  }
   Texture texture;
   texture.name = image.name.empty() ? image.uri : image.name;
   texture.width = decoded.width;

@@ -256,9 +256,16 @@ void Scene::finalize() {
   }
   for (size_t m = 0; m < materials.size(); ++m) {
     const Material& mat = materials[m];
-    if (mat.base_color_texture != -1 && !in_range(mat.base_color_texture, textures.size())) {
-      throw err(fmt::format("material {} ('{}') names texture {} of {}", m, mat.name,
-                            mat.base_color_texture, textures.size()));
+    for (const int t : {mat.base_color_texture, mat.metallic_roughness_texture,
+                        mat.emissive_texture, mat.occlusion_texture}) {
+      if (t != -1 && !in_range(t, textures.size())) {
+        throw err(fmt::format("material {} ('{}') names texture {} of {}", m, mat.name, t,
+                              textures.size()));
+      }
+    }
+    if (!(mat.occlusion_strength >= 0.0f && mat.occlusion_strength <= 1.0f)) {
+      throw err(fmt::format("material {} ('{}') has occlusion strength {} (0 to 1)", m, mat.name,
+                            mat.occlusion_strength));
     }
   }
   mesh_lo_.assign(meshes.size(), glm::vec3(std::numeric_limits<float>::max()));

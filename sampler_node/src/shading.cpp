@@ -12,46 +12,81 @@ bool is_black(const glm::vec3& c) { return c.r == 0.0f && c.g == 0.0f && c.b == 
 
 }  // namespace
 
+namespace {
+
+// The fields that follow from metallic and roughness (the factors, or the factors times a
+// metallic-roughness texel), given the material's other fields.
+void derive(ShadeMaterial* m, float metallic, float roughness) {
+  m->metallic = glm::clamp(metallic, 0.0f, 1.0f);
+  roughness = glm::clamp(roughness, 0.0f, 1.0f);
+  const float r = std::max(roughness, kMinDirectRoughness);
+  m->alpha = r * r;
+  m->diffuse_weight = (1.0f - m->metallic) * (1.0f - m->transmission);
+  m->is_mirror = !m->is_glass && m->metallic > 0.0f && roughness <= m->mirror_roughness;
+  // The metallic part of a mirror sees its surroundings through the reflection ray, so only
+  // the rest of it takes ambient light; of glass, only its diffuse part.
+  m->ambient = m->ambient_reflectance;
+  if (m->is_mirror) m->ambient *= 1.0f - m->metallic;
+  if (m->is_glass) m->ambient *= m->diffuse_weight;
+  m->has_emission = !is_black(m->emissive);
+  m->has_ambient = !is_black(m->scene_ambient * m->ambient);
+  m->has_diffuse = m->diffuse_weight > 0.0f && !is_black(m->base);
+  m->has_specular = !(roughness >= 1.0f && m->metallic <= 0.0f);
+}
+
+// The scene's texture `index`, or null when there is none (or it is empty).
+const Texture* texture_at(int index, const Scene& scene) {
+  if (index < 0 || size_t(index) >= scene.textures.size()) return nullptr;
+  const Texture& t = scene.textures[size_t(index)];
+  const bool whole =
+      t.width > 0 && t.height > 0 && t.texels.size() == size_t(t.width) * size_t(t.height);
+  return whole ? &t : nullptr;
+}
+
+}  // namespace
+
 ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
                                   float mirror_roughness) {
   const Material defaults;  // glTF's default material: white, metallic 1, roughness 1
   const Material& mat = material ? *material : defaults;
   ShadeMaterial m;
   m.base = glm::vec3(mat.base_color_factor);
-  m.ambient = mat.ambient ? *mat.ambient : m.base;
+  m.ambient_reflectance = mat.ambient ? *mat.ambient : m.base;
+  m.scene_ambient = scene.ambient;
+  m.mirror_roughness = mirror_roughness;
+  m.emissive_factor = mat.emissive;
   m.emissive = mat.emissive;
-  if (mat.base_color_texture >= 0 && size_t(mat.base_color_texture) < scene.textures.size()) {
-    const Texture& t = scene.textures[size_t(mat.base_color_texture)];
-    if (t.width > 0 && t.height > 0 && t.texels.size() == size_t(t.width) * size_t(t.height))
-      m.texture = &t;
-  }
-  m.metallic = glm::clamp(mat.metallic, 0.0f, 1.0f);
-  const float roughness = glm::clamp(mat.roughness, 0.0f, 1.0f);
-  const float r = std::max(roughness, kMinDirectRoughness);
-  m.alpha = r * r;
+  m.texture = texture_at(mat.base_color_texture, scene);
+  m.metallic_roughness = texture_at(mat.metallic_roughness_texture, scene);
+  // An emissive texture only matters where the factor it multiplies is not black.
+  if (!is_black(mat.emissive)) m.emissive_texture = texture_at(mat.emissive_texture, scene);
+  m.occlusion = mat.occlusion_strength > 0.0f ? texture_at(mat.occlusion_texture, scene) : nullptr;
+  m.occlusion_strength = glm::clamp(mat.occlusion_strength, 0.0f, 1.0f);
+  m.varies = m.metallic_roughness || m.emissive_texture || m.occlusion;
+  m.metallic_factor = glm::clamp(mat.metallic, 0.0f, 1.0f);
+  m.roughness_factor = glm::clamp(mat.roughness, 0.0f, 1.0f);
   m.double_sided = mat.double_sided;
   m.transmission = glm::clamp(mat.transmission, 0.0f, 1.0f);
   m.is_glass = m.transmission > 0.0f;
-  m.diffuse_weight = (1.0f - m.metallic) * (1.0f - m.transmission);
   if (m.is_glass) {
-    m.shadow_transmittance =
-        glm::clamp(m.transmission * (1.0f - m.metallic) * m.base, glm::vec3(0.0f), glm::vec3(1.0f));
-  }
-  m.is_mirror = !m.is_glass && m.metallic > 0.0f && roughness <= mirror_roughness;
-  // The metallic part of a mirror sees its surroundings through the reflection ray, so only
-  // the rest of it takes ambient light; of glass, only its diffuse part.
-  if (m.is_mirror) m.ambient *= 1.0f - m.metallic;
-  if (m.is_glass) {
-    m.ambient *= m.diffuse_weight;
+    m.shadow_transmittance = glm::clamp(m.transmission * (1.0f - m.metallic_factor) * m.base,
+                                        glm::vec3(0.0f), glm::vec3(1.0f));
     m.ior = mat.ior;
     const float r = (mat.ior - 1.0f) / (mat.ior + 1.0f);
     m.f0_dielectric = mat.ior > 0.0f ? r * r : 1.0f;  // KHR_materials_ior: ior 0 means F = 1
   }
-  m.has_emission = !is_black(m.emissive);
-  m.has_ambient = !is_black(scene.ambient * m.ambient);
-  m.has_diffuse = m.diffuse_weight > 0.0f && !is_black(m.base);
-  m.has_specular = !(roughness >= 1.0f && m.metallic <= 0.0f);
+  derive(&m, m.metallic_factor, m.roughness_factor);
   return m;
+}
+
+void vary(ShadeMaterial* m, const glm::vec3& mr, const glm::vec3& emissive, float occlusion) {
+  m->emissive = m->emissive_factor * emissive;
+  derive(m, m->metallic_factor * mr.b, m->roughness_factor * mr.g);
+  const float o = 1.0f + m->occlusion_strength * (occlusion - 1.0f);
+  if (o != 1.0f) {
+    m->ambient *= o;
+    m->has_ambient = !is_black(m->scene_ambient * m->ambient);
+  }
 }
 
 LightRecord make_light_record(const Light& light, const glm::dmat4& world) {

@@ -27,12 +27,28 @@ inline constexpr float kPi = 3.14159265358979323846f;
 // mirror reflection carries the sharp part instead.
 inline constexpr float kMinDirectRoughness = 0.1f;
 
-// What the shader needs of one Material, with the work it implies decided once.
+// What the shader needs of one Material, with the work it implies decided once. A material
+// whose metallic-roughness, emissive or occlusion texture varies it over a surface (`varies`)
+// is decided again at each shading point (vary()), from the factors kept here.
 struct ShadeMaterial {
   glm::vec3 base{1.0f};     // base color factor (rgb)
-  glm::vec3 ambient{1.0f};  // Material::ambient, else the base color factor
+  glm::vec3 ambient{1.0f};  // reflectance of ambient light: ambient_reflectance, less below
   glm::vec3 emissive{0.0f};
   const Texture* texture = nullptr;  // base-color texture, or null
+  // Textures that vary the material over its surface (null: none): metallic-roughness (green
+  // roughness, blue metallic), emissive (a color), occlusion (red).
+  const Texture* metallic_roughness = nullptr;
+  const Texture* emissive_texture = nullptr;
+  const Texture* occlusion = nullptr;
+  float occlusion_strength = 1.0f;
+  bool varies = false;  // one of the three above is set
+  // The factors the textures multiply, and what the derived fields need of the scene.
+  float metallic_factor = 1.0f;
+  float roughness_factor = 1.0f;
+  glm::vec3 emissive_factor{0.0f};
+  glm::vec3 ambient_reflectance{1.0f};  // Material::ambient, else the base color factor
+  glm::vec3 scene_ambient{0.0f};
+  float mirror_roughness = 0.0f;  // TracerOptions::mirror_roughness
   float metallic = 1.0f;
   // Weight of the base color in the diffuse lobe: (1 - metallic) (1 - transmission).
   float diffuse_weight = 0.0f;
@@ -57,6 +73,14 @@ struct ShadeMaterial {
 // `material` may be null (the glTF default material). `textures` is the scene's list.
 ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
                                   float mirror_roughness);
+
+// The material at one point of a surface whose material varies: `m` (as make_shade_material
+// made it) with the metallic-roughness texel `mr` (green, blue multiply the roughness and
+// metallic factors), the emissive texel `emissive` (multiplies the emissive factor) and the
+// occlusion texel's red channel `occlusion` (moved toward 1 by 1 - strength, it scales the
+// ambient reflectance). Texels of absent textures are 1. Glass's shadow transmittance stays
+// the factors' (shadow rays do not look up textures).
+void vary(ShadeMaterial* m, const glm::vec3& mr, const glm::vec3& emissive, float occlusion);
 
 // One punctual light placed in the world at the current time.
 struct LightRecord {

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -97,8 +98,8 @@ struct HitRef {
   unsigned inst = RTC_INVALID_GEOMETRY_ID;
 };
 
-// A shading point in world space.
-struct Surface {
+// A shading point in world space (without its material's own copy: Surface below).
+struct SurfacePoint {
   glm::vec3 p{0.0f};
   glm::vec3 ng{0.0f, 0.0f, 1.0f};  // geometric normal, unit, toward the viewer when flipped
   glm::vec3 ns{0.0f, 0.0f, 1.0f};  // shading normal, unit
@@ -115,6 +116,28 @@ struct Surface {
   float cone = 0.0f;
   float spread = 0.0f;
   float lod = 0.0f;
+};
+
+// A shading point. Where its material varies over the surface (ShadeMaterial::varies),
+// `material` points at `at_point`, the material decided at this point; a copy points at its
+// own. (An optional: the surfaces of other materials, most of them, never construct one.)
+struct Surface : SurfacePoint {
+  std::optional<ShadeMaterial> at_point;
+
+  Surface() = default;
+  Surface(const Surface& o) : SurfacePoint(o) { repoint(o); }
+  Surface& operator=(const Surface& o) {
+    SurfacePoint::operator=(o);
+    repoint(o);
+    return *this;
+  }
+
+ private:
+  void repoint(const Surface& o) {
+    if (!o.at_point || o.material != &*o.at_point) return;
+    at_point = o.at_point;
+    material = &*at_point;
+  }
 };
 
 // One primitive of a deforming mesh node (Scene::node_geometry_moves): an Embree geometry whose
@@ -822,7 +845,8 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   s->triangle = tri;
   s->barycentric = glm::vec3(w, hit.u, hit.v);
   s->node = inst.moves ? inst.node : g.node;
-  s->material = &materials_[g.material];
+  const ShadeMaterial& m = materials_[g.material];
+  s->material = &m;
 
   const glm::vec3& p0 = g.positions[tri[0]];
   glm::vec3 ng = glm::cross(g.positions[tri[1]] - p0, g.positions[tri[2]] - p0);
@@ -857,15 +881,31 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   }
   s->ng = ng;
   s->ns = ns;
-  s->uv = g.uvs && s->material->texture
-              ? w * g.uvs[tri[0]] + hit.u * g.uvs[tri[1]] + hit.v * g.uvs[tri[2]]
-              : glm::vec2(0.0f);
+  const bool textured = g.uvs && (m.texture || m.varies);
+  s->uv = textured ? w * g.uvs[tri[0]] + hit.u * g.uvs[tri[1]] + hit.v * g.uvs[tri[2]]
+                   : glm::vec2(0.0f);
   s->spread = spread;
   s->cone = cone + spread * hit.t;
-  s->lod = 0.0f;
-  if (g.uvs && s->material->texture && s->cone > 0.0f) {
-    s->lod = texture_lod(*s->material->texture, g.uvs[tri[0]], g.uvs[tri[1]], g.uvs[tri[2]],
-                         world_area2, s->cone, std::abs(glm::dot(d, ng)));
+  // Each texture's level of detail for this ray cone (textures differ in size).
+  auto lod = [&](const Texture& t) {
+    return s->cone > 0.0f ? texture_lod(t, g.uvs[tri[0]], g.uvs[tri[1]], g.uvs[tri[2]], world_area2,
+                                        s->cone, std::abs(glm::dot(d, ng)))
+                          : 0.0f;
+  };
+  s->lod = textured && m.texture ? lod(*m.texture) : 0.0f;
+  // A material that varies over the surface, decided here from its textures (without texture
+  // coordinates, its factors alone are the material, as glTF viewers read it).
+  if (textured && m.varies) {
+    const glm::vec3 one(1.0f);
+    const glm::vec3 mr = m.metallic_roughness
+                             ? m.metallic_roughness->sample(s->uv, lod(*m.metallic_roughness))
+                             : one;
+    const glm::vec3 emissive =
+        m.emissive_texture ? m.emissive_texture->sample(s->uv, lod(*m.emissive_texture)) : one;
+    const float occlusion = m.occlusion ? m.occlusion->sample(s->uv, lod(*m.occlusion)).r : 1.0f;
+    ShadeMaterial& here = s->at_point.emplace(m);
+    shading::vary(&here, mr, emissive, occlusion);
+    s->material = &here;
   }
 }
 

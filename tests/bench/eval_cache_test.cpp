@@ -94,6 +94,13 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
   EXPECT_NE(glass_h, h);
   glass.materials[0].ior = 1.33f;
   EXPECT_NE(render_fingerprint(glass), glass_h);
+  Scene occluded = make_builtin_scene();
+  ASSERT_FALSE(occluded.textures.empty());
+  occluded.materials[0].occlusion_texture = 0;
+  const uint64_t occluded_h = render_fingerprint(occluded);
+  EXPECT_NE(occluded_h, h);
+  occluded.materials[0].occlusion_strength = 0.5f;
+  EXPECT_NE(render_fingerprint(occluded), occluded_h);
   Scene with_path = make_builtin_scene();
   CameraKey k;
   k.eye = glm::dvec3(0, 1, 5);

@@ -465,6 +465,67 @@ TEST_F(GltfLoaderTest, MaterialsAndEmbeddedPngTexturesDecodeToLinearTexels) {
   }
 }
 
+// The metallic-roughness, emissive and occlusion slots are read: data textures (metallic-
+// roughness, occlusion) decoded as they are, color ones (base color, emissive) from sRGB; one
+// image decoded once per way it is read; a transform that differs from the material's first
+// slot's warns; an occlusion strength outside [0, 1] fails naming the material.
+TEST_F(GltfLoaderTest, MaterialTextureSlotsDecodeColorFromSrgbAndDataAsItIs) {
+  const DecodedImage color{1, 1, 3, {128, 64, 255}}, orm{1, 1, 3, {200, 128, 51}};
+  const fs::path color_path = dir_ / "color.png", orm_path = dir_ / "orm.png";
+  write_image8(color, color_path);
+  write_image8(orm, orm_path);
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  b.doc()["images"] = json::array({{{"uri", "color.png"}}, {{"uri", "orm.png"}}});
+  b.doc()["textures"] = json::array({{{"source", 0}}, {{"source", 1}}, {{"source", 0}}});
+  const json shifted = {{"KHR_texture_transform", {{"offset", {0.5, 0.0}}}}};
+  b.doc()["extensionsUsed"] = {"KHR_texture_transform"};
+  b.doc()["materials"] = json::array(
+      {{{"pbrMetallicRoughness",
+         {{"baseColorTexture", {{"index", 0}}}, {"metallicRoughnessTexture", {{"index", 1}}}}},
+        {"emissiveFactor", {1.0, 1.0, 1.0}},
+        {"emissiveTexture", {{"index", 2}}},  // the base color's image through another texture
+        {"occlusionTexture", {{"index", 1}, {"strength", 0.75}}}},
+       // The color image read as occlusion data, its transform unlike its base color's.
+       {{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 1}}}}},
+        {"occlusionTexture", {{"index", 0}, {"extensions", shifted}}}}});
+  b.write_embedded(dir_ / "slots.gltf");
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir_ / "slots.gltf", &report);
+  ASSERT_EQ(scene.materials.size(), 2u);
+  const Material& m = scene.materials[0];
+  // color (sRGB), orm (data), orm (sRGB, material 1's base color), color (data).
+  ASSERT_EQ(scene.textures.size(), 4u);
+  EXPECT_EQ(m.base_color_texture, 0);
+  EXPECT_EQ(m.metallic_roughness_texture, 1);
+  EXPECT_EQ(m.occlusion_texture, 1);
+  EXPECT_EQ(m.emissive_texture, 0);
+  EXPECT_FLOAT_EQ(m.occlusion_strength, 0.75f);
+  EXPECT_EQ(scene.materials[1].base_color_texture, 2);
+  EXPECT_EQ(scene.materials[1].occlusion_texture, 3);
+  EXPECT_EQ(scene.materials[1].metallic_roughness_texture, -1);
+  EXPECT_EQ(scene.materials[1].emissive_texture, -1);
+  EXPECT_NEAR(scene.textures[0].texels[0].r, reference_srgb_to_linear(128 / 255.0), 1e-6);
+  EXPECT_NEAR(scene.textures[1].texels[0].g, 128 / 255.0, 1e-6);  // roughness
+  EXPECT_NEAR(scene.textures[1].texels[0].b, 51 / 255.0, 1e-6);   // metallic
+  EXPECT_NEAR(scene.textures[3].texels[0].r, 128 / 255.0, 1e-6);
+  ASSERT_EQ(report.warnings.size(), 1u);
+  EXPECT_NE(report.warnings[0].find("material 1 occlusionTexture: its KHR_texture_transform "
+                                    "differs from the baseColorTexture's"),
+            std::string::npos)
+      << report.warnings[0];
+
+  b.doc()["materials"][0]["occlusionTexture"]["strength"] = 1.5;
+  b.write_embedded(dir_ / "strength.gltf");
+  expect_error(dir_ / "strength.gltf", "material 0 has an invalid occlusionTexture strength");
+  b.doc()["materials"][0]["occlusionTexture"]["strength"] = 1.0;
+  b.doc()["materials"][0]["emissiveTexture"]["index"] = 7;
+  b.write_embedded(dir_ / "index.gltf");
+  expect_error(dir_ / "index.gltf",
+               "material 0 emissiveTexture refers to texture 7, but there are 3");
+}
+
 TEST_F(GltfLoaderTest, UndecodableTextureFailsNamingTheImage) {
   GltfBuilder b;
   add_quad(&b);

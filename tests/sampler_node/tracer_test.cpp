@@ -545,6 +545,82 @@ TEST(TracerTest, VertexColorsMultiplyBaseColorInterpolatedAcrossTheTriangle) {
   expect_near3(plain.color, {0.5f, 0.8f, 0.6f}, 1e-5f, "no vertex colors");
 }
 
+// A material's metallic-roughness, emissive and occlusion textures decide it at each point: a
+// square whose textures hold, in three texels across, (1) a rough dielectric, (2) a polished
+// metal (a mirror) and (3) a rough metal, each with its own emission and occlusion, shades at
+// each texel's center exactly as a square of a plain material with those values does.
+TEST(TracerTest, MaterialTexturesDecideTheMaterialAtEachPoint) {
+  struct Point {
+    float metallic, roughness;  // texel x factor
+    glm::vec3 emissive;         // texel x factor
+    float ambient;              // occlusion texel moved toward 1 by 1 - strength
+  };
+  // Factors: metallic 1, roughness 0.8, emissive (2, 2, 2), occlusion strength 0.5.
+  const Point points[3] = {{0.0f, 0.8f * 0.5f, {2.0f, 0.0f, 0.0f}, 1.0f + 0.5f * (0.25f - 1.0f)},
+                           {1.0f, 0.0f, {0.0f, 2.0f, 0.0f}, 1.0f},
+                           {1.0f, 0.8f, {0.0f, 0.0f, 1.0f}, 1.0f + 0.5f * (0.0f - 1.0f)}};
+  // The square [-1, 1]^2 at z = -2 under a point light and ambient light, a wall beside it for
+  // the mirror to show; `textured` builds the textured material, else the plain one of point k.
+  auto scene_of = [&](bool textured, int k) {
+    Scene s;
+    s.ambient = glm::vec3(0.3f);
+    s.background = glm::vec3(0.1f, 0.2f, 0.4f);
+    const glm::vec3 base(0.8f, 0.5f, 0.3f);
+    int mat;
+    if (textured) {
+      mat = add_material(&s, base, 1.0f, 0.8f);
+      Material& m = s.materials[size_t(mat)];
+      m.emissive = glm::vec3(2.0f);
+      m.occlusion_strength = 0.5f;
+      Texture mr, em, occ;
+      mr.width = em.width = occ.width = 3;
+      mr.height = em.height = occ.height = 1;
+      mr.texels = {{0.7f, 0.5f, 0.0f}, {0.7f, 0.0f, 1.0f}, {0.7f, 1.0f, 1.0f}};  // red unused
+      em.texels = {{1, 0, 0}, {0, 1, 0}, {0, 0, 0.5f}};
+      occ.texels = {{0.25f, 1, 1}, {1, 0, 0}, {0, 1, 1}};  // red is the occlusion
+      for (Texture* t : {&mr, &em, &occ}) s.textures.push_back(*t);
+      m.metallic_roughness_texture = 0;
+      m.emissive_texture = 1;
+      m.occlusion_texture = 2;
+    } else {
+      const Point& p = points[k];
+      mat = add_material(&s, base, p.metallic, p.roughness);
+      s.materials[size_t(mat)].emissive = p.emissive;
+      s.materials[size_t(mat)].ambient = base * p.ambient;
+    }
+    add_mesh_node(&s, quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat));
+    const int wall = add_material(&s, glm::vec3(0.2f, 0.9f, 0.2f), 0.0f, 1.0f);
+    add_mesh_node(&s, quad_mesh({-3, -3, 6}, {0, 0, -12}, {0, 6, 0}, wall));  // x = -3, facing +x
+    Light light;
+    light.intensity = 20.0f;
+    add_light_node(&s, light, glm::dvec3(0.5, 1.0, 1.0));
+    s.finalize();
+    return s;
+  };
+  const Scene textured = scene_of(true, 0);
+  Tracer tracer(textured);
+  TraceStats stats, reference_stats;
+  glm::vec3 colors[3];
+  for (int k = 0; k < 3; ++k) {
+    SCOPED_TRACE(k);
+    // Texel k's center: u = (k + 0.5) / 3 on the square, x = 2 u - 1; seen from the side, so
+    // that the mirror reflects the wall.
+    const float x = 2.0f * (float(k) + 0.5f) / 3.0f - 1.0f;
+    const Ray ray = ray_to({x + 1.5f, 0.0f, 0.0f}, {x, 0.0f, -2.0f});
+    const glm::vec3 got = colors[k] = tracer.trace(ray, &stats).color;
+    const Scene plain = scene_of(false, k);
+    Tracer reference(plain);
+    const glm::vec3 want = reference.trace(ray, &reference_stats).color;
+    expect_near3(got, want, 1e-5f * std::max(1.0f, std::max(want.r, std::max(want.g, want.b))),
+                 "textured against plain");
+  }
+  // Only the polished metal's point is a mirror (one reflection ray, to the wall), and the
+  // three points differ: the textures are read, not the factors alone.
+  EXPECT_EQ(stats.reflection_rays, 1u);
+  EXPECT_GT(glm::length(colors[0] - colors[2]), 0.1f);
+  EXPECT_GT(glm::length(colors[1] - colors[2]), 0.1f);
+}
+
 // Texture minification by ray cones: a floor with a one-texel checker (1024 x 1024 texels over
 // 1 x 1, repeated 20 times over the 20 x 20 floor), lit by ambient light only, seen from 1 above
 // at 64 x 48 pixels. Every pixel covers many texels: with the camera's ray cones the samples are

@@ -115,7 +115,15 @@ uint64_t render_fingerprint(const Scene& scene) {
     h.value(m.ambient.has_value());
     h.value(m.ambient.value_or(glm::vec3(0.0f)));
     h.value(m.double_sided);
-    // Glass adds bytes only where a material has it (other scenes' fingerprints stay).
+    // Textures beyond the base color, and glass, add bytes only where a material has them
+    // (other scenes' fingerprints stay).
+    if (m.metallic_roughness_texture >= 0 || m.emissive_texture >= 0 ||
+        m.occlusion_texture >= 0) {
+      h.value(m.metallic_roughness_texture);
+      h.value(m.emissive_texture);
+      h.value(m.occlusion_texture);
+      h.value(m.occlusion_strength);
+    }
     if (m.transmission != 0.0f || m.ior != 1.5f) {
       h.value(m.transmission);
       h.value(m.ior);

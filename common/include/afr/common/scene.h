@@ -102,10 +102,18 @@ struct Texture {
 struct Material {
   std::string name;
   glm::vec4 base_color_factor{1.0f};
-  int base_color_texture = -1;  // index into Scene::textures
+  int base_color_texture = -1;  // index into Scene::textures (sRGB-decoded color)
   float metallic = 1.0f;
   float roughness = 1.0f;
+  // glTF's metallicRoughnessTexture (linear data): its green channel multiplies `roughness`,
+  // its blue `metallic`, at each point. -1: none.
+  int metallic_roughness_texture = -1;
   glm::vec3 emissive{0.0f};
+  int emissive_texture = -1;  // sRGB-decoded color multiplying `emissive`; -1: none
+  // glTF's occlusionTexture (linear data): its red channel, moved toward 1 by
+  // 1 - occlusion_strength, scales the ambient light a point receives. -1: none.
+  int occlusion_texture = -1;
+  float occlusion_strength = 1.0f;
   std::optional<glm::vec3> ambient;  // reflectance of the scene's ambient light
   // KHR_materials_transmission: the fraction of the non-metallic part that light passes
   // through (refracted, tinted by the base color) instead of reflecting diffusely; 0 = opaque.
