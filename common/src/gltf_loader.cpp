@@ -187,6 +187,7 @@ class Loader {
                         const tinygltf::ExtensionMap& extensions, bool srgb);
   void apply_texture_transforms();
   int texture_for_image(int image_index, bool srgb);
+  void keep_mask_alphas();
   void load_cameras();
   void load_lights();
   void load_nodes();
@@ -1048,9 +1049,21 @@ void Loader::load_materials() {
     }
     read_transmission_and_ior(in, what, &out);
     out.double_sided = in.doubleSided;
-    if (in.alphaMode != "OPAQUE") {
-      warn_once("alphaMode",
-                fmt::format("alphaMode {} is not supported (surfaces are opaque)", in.alphaMode));
+    if (in.alphaMode == "MASK") {
+      out.alpha_mode = Material::AlphaMode::kMask;
+      if (!(in.alphaCutoff >= 0.0 && std::isfinite(in.alphaCutoff))) {
+        fail(
+            fmt::format("{} has an invalid alphaCutoff ({}; a number >= 0)", what, in.alphaCutoff));
+      }
+      out.alpha_cutoff = float(in.alphaCutoff);
+    } else if (in.alphaMode == "BLEND") {
+      out.alpha_mode = Material::AlphaMode::kBlend;
+      warn_once("alphaMode BLEND", "alphaMode BLEND is not supported (drawn opaque)");
+    } else if (in.alphaMode != "OPAQUE") {
+      warn_once("alphaMode " + in.alphaMode,
+                fmt::format("{} has alphaMode \"{}\", which glTF does not define (drawn "
+                            "opaque)",
+                            what, in.alphaMode));
     }
     if (in.normalTexture.index >= 0) {
       warn_once("normalTexture", "normalTexture is not supported (ignored)");
@@ -1076,6 +1089,23 @@ void Loader::load_materials() {
     }
     if (in.extras.Has("afr_ambient")) out.ambient = read_rgb_extra(in.extras, "afr_ambient", what);
     scene_.materials.push_back(std::move(out));
+  }
+  keep_mask_alphas();
+}
+
+// Texture alpha is kept only where a masking material's base color reads it, and where it is
+// not 1 everywhere: other materials are opaque whatever their images hold.
+void Loader::keep_mask_alphas() {
+  std::vector<bool> masks(scene_.textures.size(), false);
+  for (const Material& m : scene_.materials) {
+    if (m.alpha_mode == Material::AlphaMode::kMask && m.base_color_texture >= 0) {
+      masks[size_t(m.base_color_texture)] = true;
+    }
+  }
+  for (size_t t = 0; t < scene_.textures.size(); ++t) {
+    std::vector<float>& alpha = scene_.textures[t].alpha;
+    const bool opaque = std::all_of(alpha.begin(), alpha.end(), [](float a) { return a >= 1.0f; });
+    if (!masks[t] || opaque) std::vector<float>().swap(alpha);
   }
 }
 
@@ -1231,9 +1261,17 @@ int Loader::texture_for_image(int image_index, bool srgb) {
   const size_t c = size_t(decoded.channels);
   for (size_t i = 0; i < texture.texels.size(); ++i) {
     const uint8_t* p = &decoded.data[i * c];
-    // One channel is gray, two are gray and alpha; alpha is not modelled.
+    // One channel is gray, two are gray and alpha.
     texture.texels[i] =
         c >= 3 ? glm::vec3(linear[p[0]], linear[p[1]], linear[p[2]]) : glm::vec3(linear[p[0]]);
+  }
+  // Alpha (linear in glTF) of a color image that has it, until load_materials() knows whether
+  // a masking material reads it (keep_mask_alphas()).
+  if (srgb && (c == 2 || c == 4)) {
+    texture.alpha.resize(texture.texels.size());
+    for (size_t i = 0; i < texture.alpha.size(); ++i) {
+      texture.alpha[i] = float(decoded.data[i * c + c - 1]) / 255.0f;
+    }
   }
   texture_index = int(scene_.textures.size());
   scene_.textures.push_back(std::move(texture));

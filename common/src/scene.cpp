@@ -18,7 +18,8 @@ namespace {
 // Texel index i of a row (or column) of n texels under REPEAT wrapping.
 int wrap(long i, int n) { return int(((i % n) + n) % n); }
 
-glm::vec3 bilinear(const glm::vec3* texels, int width, int height, glm::vec2 uv) {
+template <typename T>
+T bilinear(const T* texels, int width, int height, glm::vec2 uv) {
   // Keep only the fractional part first (REPEAT), so huge UVs keep their precision.
   double u = std::isfinite(uv.x) ? uv.x - std::floor(double(uv.x)) : 0.0;
   double v = std::isfinite(uv.y) ? uv.y - std::floor(double(uv.y)) : 0.0;
@@ -31,8 +32,8 @@ glm::vec3 bilinear(const glm::vec3* texels, int width, int height, glm::vec2 uv)
   const int x0 = wrap(long(x0f), width), x1 = wrap(long(x0f) + 1, width);
   const int y0 = wrap(long(y0f), height), y1 = wrap(long(y0f) + 1, height);
   auto at = [&](int x, int y) { return texels[size_t(y) * size_t(width) + size_t(x)]; };
-  const glm::vec3 top = glm::mix(at(x0, y0), at(x1, y0), ax);
-  const glm::vec3 bottom = glm::mix(at(x0, y1), at(x1, y1), ax);
+  const T top = glm::mix(at(x0, y0), at(x1, y0), ax);
+  const T bottom = glm::mix(at(x0, y1), at(x1, y1), ax);
   return glm::mix(top, bottom, ay);
 }
 
@@ -43,6 +44,11 @@ glm::vec3 Texture::sample_bilinear(glm::vec2 uv) const {
     return glm::vec3(1.0f);
   }
   return bilinear(texels.data(), width, height, uv);
+}
+
+float Texture::sample_alpha(glm::vec2 uv) const {
+  if (width <= 0 || height <= 0 || alpha.size() != size_t(width) * size_t(height)) return 1.0f;
+  return bilinear(alpha.data(), width, height, uv);
 }
 
 void Texture::build_mips() {
@@ -253,6 +259,15 @@ void Scene::finalize() {
       throw err(fmt::format("texture {} ('{}') has {} texels for {}x{}", t, tex.name,
                             tex.texels.size(), tex.width, tex.height));
     }
+    if (!tex.alpha.empty() && tex.alpha.size() != tex.texels.size()) {
+      throw err(fmt::format("texture {} ('{}') has {} alpha values for {} texels", t, tex.name,
+                            tex.alpha.size(), tex.texels.size()));
+    }
+    for (float a : tex.alpha) {
+      if (!(a >= 0.0f && a <= 1.0f)) {
+        throw err(fmt::format("texture {} ('{}') has an alpha outside [0, 1]", t, tex.name));
+      }
+    }
   }
   for (size_t m = 0; m < materials.size(); ++m) {
     const Material& mat = materials[m];
@@ -262,6 +277,10 @@ void Scene::finalize() {
         throw err(fmt::format("material {} ('{}') names texture {} of {}", m, mat.name, t,
                               textures.size()));
       }
+    }
+    if (!(mat.alpha_cutoff >= 0.0f && std::isfinite(mat.alpha_cutoff))) {
+      throw err(fmt::format("material {} ('{}') has alpha cutoff {} (a number >= 0)", m, mat.name,
+                            mat.alpha_cutoff));
     }
     if (!(mat.occlusion_strength >= 0.0f && mat.occlusion_strength <= 1.0f)) {
       throw err(fmt::format("material {} ('{}') has occlusion strength {} (0 to 1)", m, mat.name,

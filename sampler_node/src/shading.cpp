@@ -66,6 +66,13 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
   m.metallic_factor = glm::clamp(mat.metallic, 0.0f, 1.0f);
   m.roughness_factor = glm::clamp(mat.roughness, 0.0f, 1.0f);
   m.double_sided = mat.double_sided;
+  if (mat.alpha_mode == Material::AlphaMode::kMask) {
+    m.opacity_factor = mat.base_color_factor.a;
+    m.opacity_cutoff = mat.alpha_cutoff;
+    if (m.texture && !m.texture->alpha.empty()) m.opacity_texture = m.texture;
+    // Without a texture's alpha the factor alone decides, the same everywhere.
+    m.masked = m.opacity_texture || !(m.opacity_factor >= m.opacity_cutoff);
+  }
   m.transmission = glm::clamp(mat.transmission, 0.0f, 1.0f);
   m.is_glass = m.transmission > 0.0f;
   if (m.is_glass) {

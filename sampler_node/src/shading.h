@@ -58,6 +58,12 @@ struct ShadeMaterial {
   float ior = 1.5f;
   float f0_dielectric = 0.04f;  // ((ior - 1) / (ior + 1))^2, 1 for ior 0
   bool double_sided = false;
+  // alphaMode MASK (Material::alpha_mode): the surface is cut away where opacity_factor x the
+  // opacity texture's alpha is below opacity_cutoff. Set only where that can happen somewhere.
+  bool masked = false;
+  const Texture* opacity_texture = nullptr;  // the base-color texture, where it has alpha
+  float opacity_factor = 1.0f;               // the base color factor's alpha
+  float opacity_cutoff = 0.5f;
   bool has_emission = false;
   bool has_ambient = false;   // scene ambient x ambient reflectance is not black
   bool has_diffuse = false;   // metallic < 1

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <deque>
 #include <optional>
 #include <string>
 #include <vector>
@@ -221,11 +222,19 @@ float texture_lod(const Texture& texture, glm::vec2 t0, glm::vec2 t1, glm::vec2 
 // (ShadeMaterial::shadow_transmittance): a Whitted-style filter shadow, as BART's scenes
 // expect of their light behind a glass ceiling. The shadow ray is not refracted, and neither
 // Fresnel nor the texture dims it. Embree reports each glass surface on the ray's way to
-// glass_shadow_filter, which multiplies it into the ray's transmittance and lets the ray go
-// on, in whatever order (products commute); any other surface ends the ray. The high-quality
+// occlusion_filter (crosses_glass), which multiplies it into the ray's transmittance and lets the
+// ray go on, in whatever order (products commute); any other surface ends the ray. The high-quality
 // BVH's spatial splits can report one triangle twice, so each ray remembers the ones it has
 // counted. Only shadow rays (id kShadowRayId + lane, with a ShadowContext) are filtered:
 // other occlusion queries (Tracer::occluded) stop at glass as at any surface.
+//
+// ---- alphaMode MASK ----
+//
+// A masked surface (ShadeMaterial::masked) is cut away where its opacity is below the cutoff:
+// its geometry's intersection filter (mask_filter) and occlusion filter (occlusion_filter)
+// reject hits there, so every ray, the camera's, reflections, shadows and the sampler's
+// occlusion rays alike, passes through as if nothing were there. Only masked geometries have
+// an intersection filter; the others cost Embree nothing.
 constexpr unsigned kShadowRayId = 0x5ad0u;
 constexpr float kShadowCutoff = 1e-3f;  // a ray dimmer than this is blocked
 
@@ -250,29 +259,73 @@ struct ShadowContext {
 };
 static_assert(offsetof(ShadowContext, embree) == 0);
 
-void glass_shadow_filter(const RTCFilterFunctionNArguments* args) {
-  const auto* m = static_cast<const shading::ShadeMaterial*>(args->geometryUserPtr);
+// What the filters of one Embree geometry read (its user data): its material, and, for a
+// masked material, the texture coordinates and triangles that place a hit in its texture.
+struct GeometryFilter {
+  const shading::ShadeMaterial* material = nullptr;
+  const glm::vec2* uvs = nullptr;  // null: the primitive has none (the factor alone decides)
+  const uint32_t* indices = nullptr;
+
+  // alphaMode MASK: whether the hit at barycentrics (u, v) of triangle prim is kept.
+  bool opaque_at(unsigned prim, float u, float v) const {
+    const shading::ShadeMaterial& m = *material;
+    float opacity = m.opacity_factor;
+    if (m.opacity_texture && uvs) {
+      const uint32_t* tri = indices + 3 * size_t(prim);
+      const glm::vec2 uv = (1.0f - u - v) * uvs[tri[0]] + u * uvs[tri[1]] + v * uvs[tri[2]];
+      opacity *= m.opacity_texture->sample_alpha(uv);
+    }
+    return opacity >= m.opacity_cutoff;
+  }
+  bool opaque_at(const RTCFilterFunctionNArguments* args, unsigned i) const {
+    return opaque_at(RTCHitN_primID(args->hit, args->N, i), RTCHitN_u(args->hit, args->N, i),
+                     RTCHitN_v(args->hit, args->N, i));
+  }
+};
+
+// A shadow ray's crossing of glass in lane i (see above): false when the ray is to stop there.
+bool crosses_glass(const RTCFilterFunctionNArguments* args, unsigned i,
+                   const shading::ShadeMaterial& m) {
+  const unsigned lane = RTCRayN_id(args->ray, args->N, i) - kShadowRayId;
+  if (lane >= unsigned(ShadowContext::kLanes)) return false;  // not a shadow ray: a blocker
+  auto* ctx = reinterpret_cast<ShadowContext*>(args->context);
+  const ShadowContext::Crossed c{RTCHitN_instID(args->hit, args->N, i, 0),
+                                 RTCHitN_geomID(args->hit, args->N, i),
+                                 RTCHitN_primID(args->hit, args->N, i)};
+  bool seen = false;
+  for (int k = 0; k < ctx->n_crossed[lane]; ++k) {
+    const ShadowContext::Crossed& o = ctx->crossed[lane][k];
+    seen |= o.inst == c.inst && o.geom == c.geom && o.prim == c.prim;
+  }
+  if (!seen) {
+    if (ctx->n_crossed[lane] == ShadowContext::kMaxCrossed) return false;
+    ctx->crossed[lane][ctx->n_crossed[lane]++] = c;
+    ctx->transmittance[lane] *= m.shadow_transmittance;
+  }
+  const glm::vec3& tr = ctx->transmittance[lane];
+  return std::max(tr.r, std::max(tr.g, tr.b)) >= kShadowCutoff;
+}
+
+// The occlusion filter of a masked or glass geometry: a ray goes on through a cut-away point
+// and (shadow rays) through glass.
+void occlusion_filter(const RTCFilterFunctionNArguments* args) {
+  const auto* f = static_cast<const GeometryFilter*>(args->geometryUserPtr);
+  const shading::ShadeMaterial& m = *f->material;
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] != -1) continue;
-    const unsigned lane = RTCRayN_id(args->ray, args->N, i) - kShadowRayId;
-    if (lane >= unsigned(ShadowContext::kLanes)) continue;  // not a shadow ray: a blocker
-    auto* ctx = reinterpret_cast<ShadowContext*>(args->context);
-    const ShadowContext::Crossed c{RTCHitN_instID(args->hit, args->N, i, 0),
-                                   RTCHitN_geomID(args->hit, args->N, i),
-                                   RTCHitN_primID(args->hit, args->N, i)};
-    bool seen = false;
-    for (int k = 0; k < ctx->n_crossed[lane]; ++k) {
-      const ShadowContext::Crossed& o = ctx->crossed[lane][k];
-      seen |= o.inst == c.inst && o.geom == c.geom && o.prim == c.prim;
+    if (m.masked && !f->opaque_at(args, i)) {
+      args->valid[i] = 0;
+    } else if (m.is_glass && crosses_glass(args, i, m)) {
+      args->valid[i] = 0;
     }
-    if (!seen) {
-      if (ctx->n_crossed[lane] == ShadowContext::kMaxCrossed) continue;
-      ctx->crossed[lane][ctx->n_crossed[lane]++] = c;
-      ctx->transmittance[lane] *= m->shadow_transmittance;
-    }
-    const glm::vec3& tr = ctx->transmittance[lane];
-    if (std::max(tr.r, std::max(tr.g, tr.b)) < kShadowCutoff) continue;
-    args->valid[i] = 0;  // the ray goes on through the glass
+  }
+}
+
+// The intersection filter of a masked geometry: a ray goes on through a cut-away point.
+void mask_filter(const RTCFilterFunctionNArguments* args) {
+  const auto* f = static_cast<const GeometryFilter*>(args->geometryUserPtr);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] == -1 && !f->opaque_at(args, i)) args->valid[i] = 0;
   }
 }
 
@@ -300,11 +353,12 @@ struct Tracer::Impl {
   std::vector<Instance> instances_;
   std::vector<int> moving_instance_of_node_;  // per scene node: its moving instance or -1
   std::vector<ShadeMaterial> materials_;      // scene materials, then the default material
-  bool has_glass_ = false;           // some geometry lets shadow rays through (glass_shadow_filter)
-  std::vector<int> light_nodes_;     // scene nodes that carry a light
-  std::vector<int> camera_lights_;   // lights on the camera (Light::on_camera)
-  std::vector<LightRecord> lights_;  // placed at the current time: nodes', then camera's
-  size_t node_light_count_ = 0;      // how many of lights_ come from nodes
+  bool has_glass_ = false;              // some geometry lets shadow rays through (crosses_glass)
+  std::deque<GeometryFilter> filters_;  // the user data of masked and glass geometries
+  std::vector<int> light_nodes_;        // scene nodes that carry a light
+  std::vector<int> camera_lights_;      // lights on the camera (Light::on_camera)
+  std::vector<LightRecord> lights_;     // placed at the current time: nodes', then camera's
+  size_t node_light_count_ = 0;         // how many of lights_ come from nodes
   // Static geometry transformed to world space (GeomRecord points into these).
   std::vector<std::vector<glm::vec3>> static_positions_;
   std::vector<std::vector<glm::vec3>> static_normals_;
@@ -326,11 +380,12 @@ struct Tracer::Impl {
   void release();
 
   void check_device(const char* what) const;
-  // Glass lets shadow rays through (glass_shadow_filter).
-  void let_shadows_through_glass(RTCGeometry g, uint32_t material);
-  RTCGeometry new_triangle_geometry(uint32_t material, const glm::vec3* positions,
-                                    size_t vertex_count, const uint32_t* indices,
-                                    size_t triangle_count);
+  // Sets the filters of geometry g of primitive p (glTF's alphaMode MASK, glass) where its
+  // material needs them.
+  void set_filters(RTCGeometry g, uint32_t material, const Primitive& p);
+  RTCGeometry new_triangle_geometry(uint32_t material, const Primitive& p,
+                                    const glm::vec3* positions, size_t vertex_count,
+                                    const uint32_t* indices, size_t triangle_count);
   void build();
   void build_deforming(const std::vector<int>& nodes, uint32_t default_material);
   void deform(double before, double after);
@@ -430,18 +485,23 @@ void Tracer::Impl::check_device(const char* what) const {
                 ") for scene " + scene_.source);
 }
 
-void Tracer::Impl::let_shadows_through_glass(RTCGeometry g, uint32_t material) {
+void Tracer::Impl::set_filters(RTCGeometry g, uint32_t material, const Primitive& p) {
   AFR_DCHECK(material < materials_.size());
   const shading::ShadeMaterial& m = materials_[material];
-  if (!m.is_glass) return;
-  has_glass_ = true;
-  rtcSetGeometryUserData(g, const_cast<shading::ShadeMaterial*>(&m));
-  rtcSetGeometryOccludedFilterFunction(g, &glass_shadow_filter);
+  if (!m.is_glass && !m.masked) return;
+  has_glass_ |= m.is_glass;
+  GeometryFilter& f = filters_.emplace_back();
+  f.material = &m;
+  f.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
+  f.indices = p.indices.data();
+  rtcSetGeometryUserData(g, &f);
+  rtcSetGeometryOccludedFilterFunction(g, &occlusion_filter);
+  if (m.masked) rtcSetGeometryIntersectFilterFunction(g, &mask_filter);
 }
 
-RTCGeometry Tracer::Impl::new_triangle_geometry(uint32_t material, const glm::vec3* positions,
-                                                size_t vertex_count, const uint32_t* indices,
-                                                size_t triangle_count) {
+RTCGeometry Tracer::Impl::new_triangle_geometry(uint32_t material, const Primitive& p,
+                                                const glm::vec3* positions, size_t vertex_count,
+                                                const uint32_t* indices, size_t triangle_count) {
   RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
   // Embree's own buffers carry the padding its SIMD loads need.
   auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
@@ -455,7 +515,7 @@ RTCGeometry Tracer::Impl::new_triangle_geometry(uint32_t material, const glm::ve
   }
   std::copy_n(&positions[0].x, 3 * vertex_count, v);
   std::copy_n(indices, 3 * triangle_count, i);
-  let_shadows_through_glass(g, material);
+  set_filters(g, material, p);
   rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_HIGH);
   rtcCommitGeometry(g);
   return g;
@@ -523,7 +583,7 @@ void Tracer::Impl::build() {
             normals[i] = glm::vec3(normal_matrix * glm::dvec3(p.normals[i]));
         }
       }
-      RTCGeometry g = new_triangle_geometry(material_of(p), positions.data(), positions.size(),
+      RTCGeometry g = new_triangle_geometry(material_of(p), p, positions.data(), positions.size(),
                                             p.indices.data(), p.triangle_count());
       rtcAttachGeometryByID(statics.scene, g, unsigned(statics.geoms.size()));
       rtcReleaseGeometry(g);
@@ -562,7 +622,7 @@ void Tracer::Impl::build() {
       for (const Primitive& p : scene_.meshes[size_t(mesh)].primitives) {
         if (!usable(p)) continue;
         RTCGeometry g =
-            new_triangle_geometry(material_of(p), p.positions.data(), p.positions.size(),
+            new_triangle_geometry(material_of(p), p, p.positions.data(), p.positions.size(),
                                   p.indices.data(), p.triangle_count());
         rtcAttachGeometryByID(b.scene, g, unsigned(b.geoms.size()));
         rtcReleaseGeometry(g);
@@ -661,7 +721,7 @@ void Tracer::Impl::build_deforming(const std::vector<int>& nodes, uint32_t defau
     const uint32_t material = p.material >= 0 && size_t(p.material) < scene_.materials.size()
                                   ? uint32_t(p.material)
                                   : default_material;
-    let_shadows_through_glass(g, material);
+    set_filters(g, material, p);
     rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
     rtcCommitGeometry(g);
     rtcAttachGeometryByID(b.scene, g, unsigned(b.geoms.size()));

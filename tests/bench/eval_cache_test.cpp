@@ -104,6 +104,13 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
       "glass", [](Scene* s) { s->materials[0].transmission = 0.5f; },
       [](Scene* s) { s->materials[0].ior = 1.33f; });
   expect_seen(
+      "alpha mask", [](Scene* s) { s->materials[0].alpha_mode = Material::AlphaMode::kMask; },
+      [](Scene* s) { s->materials[0].alpha_cutoff = 0.25f; });
+  expect_seen(
+      "texture alpha",
+      [](Scene* s) { s->textures[0].alpha.assign(s->textures[0].texels.size(), 1.0f); },
+      [](Scene* s) { s->textures[0].alpha[0] = 0.5f; });
+  expect_seen(
       "occlusion", [](Scene* s) { s->materials[0].occlusion_texture = 0; },
       [](Scene* s) { s->materials[0].occlusion_strength = 0.5f; });
   Scene with_path = make_builtin_scene();

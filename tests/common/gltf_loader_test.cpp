@@ -526,6 +526,52 @@ TEST_F(GltfLoaderTest, MaterialTextureSlotsDecodeColorFromSrgbAndDataAsItIs) {
                "material 0 emissiveTexture refers to texture 7, but there are 3");
 }
 
+// alphaMode MASK keeps its cutoff and its base-color texture's alpha; an image with alpha that
+// no masking material reads, or whose alpha is 1 everywhere, keeps none; BLEND warns (drawn
+// opaque); an alphaCutoff below 0 fails naming the material.
+TEST_F(GltfLoaderTest, MaskedMaterialsKeepTheirCutoffAndTheirTexturesAlpha) {
+  const DecodedImage leaf{2, 1, 4, {10, 200, 30, 0, 10, 200, 30, 255}};
+  const DecodedImage solid{1, 1, 4, {50, 50, 50, 255}};
+  write_image8(leaf, dir_ / "leaf.png");
+  write_image8(solid, dir_ / "solid.png");
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  b.doc()["images"] = json::array({{{"uri", "leaf.png"}}, {{"uri", "solid.png"}}});
+  b.doc()["textures"] = json::array({{{"source", 0}}, {{"source", 1}}});
+  b.doc()["materials"] =
+      json::array({{{"alphaMode", "MASK"},
+                    {"alphaCutoff", 0.25},
+                    {"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}},
+                   {{"alphaMode", "MASK"},  // a solid image: nothing to cut
+                    {"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 1}}}}}},
+                   {{"alphaMode", "BLEND"}}});
+  b.write_embedded(dir_ / "mask.gltf");
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir_ / "mask.gltf", &report);
+  ASSERT_EQ(scene.materials.size(), 3u);
+  EXPECT_EQ(scene.materials[0].alpha_mode, Material::AlphaMode::kMask);
+  EXPECT_FLOAT_EQ(scene.materials[0].alpha_cutoff, 0.25f);
+  EXPECT_EQ(scene.materials[1].alpha_mode, Material::AlphaMode::kMask);
+  EXPECT_FLOAT_EQ(scene.materials[1].alpha_cutoff, 0.5f);  // glTF's default
+  EXPECT_EQ(scene.materials[2].alpha_mode, Material::AlphaMode::kBlend);
+  ASSERT_EQ(scene.textures.size(), 2u);
+  EXPECT_EQ(scene.textures[0].alpha, (std::vector<float>{0.0f, 1.0f}));
+  EXPECT_TRUE(scene.textures[1].alpha.empty());
+  ASSERT_EQ(report.warnings.size(), 1u);
+  EXPECT_NE(report.warnings[0].find("alphaMode BLEND is not supported"), std::string::npos);
+
+  // The same leaf on an opaque material: its alpha is not kept.
+  b.doc()["materials"][0]["alphaMode"] = "OPAQUE";
+  b.write_embedded(dir_ / "opaque.gltf");
+  EXPECT_TRUE(load_gltf(dir_ / "opaque.gltf").textures[0].alpha.empty());
+
+  b.doc()["materials"][0]["alphaMode"] = "MASK";
+  b.doc()["materials"][0]["alphaCutoff"] = -1.0;
+  b.write_embedded(dir_ / "cutoff.gltf");
+  expect_error(dir_ / "cutoff.gltf", "material 0 has an invalid alphaCutoff");
+}
+
 TEST_F(GltfLoaderTest, UndecodableTextureFailsNamingTheImage) {
   GltfBuilder b;
   add_quad(&b);

@@ -621,6 +621,66 @@ TEST(TracerTest, MaterialTexturesDecideTheMaterialAtEachPoint) {
   EXPECT_GT(glm::length(colors[1] - colors[2]), 0.1f);
 }
 
+// alphaMode MASK: a red square whose texture's alpha is 0.2 on its left half and 0.9 on its
+// right (cutoff 0.5) before a green wall, and beside it a square whose factor's alpha alone
+// (0.3) is below the cutoff. Camera rays, single and in the crosshair's packets, and occlusion
+// rays pass through where the surface is cut away and stop where it is not.
+TEST(TracerTest, MaskedSurfacesAreCutAwayForEveryRay) {
+  Scene s;
+  s.ambient = glm::vec3(1.0f);  // ambient light only: a surface shows its base color
+  Texture tex;
+  tex.width = 2;
+  tex.height = 1;
+  tex.texels = {{1, 1, 1}, {1, 1, 1}};
+  tex.alpha = {0.2f, 0.9f};
+  s.textures.push_back(tex);
+  const int red = add_material(&s, {1, 0, 0}, 0.0f, 1.0f);
+  s.materials[size_t(red)].base_color_texture = 0;
+  s.materials[size_t(red)].alpha_mode = Material::AlphaMode::kMask;
+  const int faint = add_material(&s, {0, 0, 1}, 0.0f, 1.0f);
+  s.materials[size_t(faint)].base_color_factor.a = 0.3f;
+  s.materials[size_t(faint)].alpha_mode = Material::AlphaMode::kMask;
+  const int green = add_material(&s, {0, 1, 0}, 0.0f, 1.0f);
+  add_mesh_node(&s, quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, red));
+  add_mesh_node(&s, quad_mesh({1.5f, -1, -2}, {1, 0, 0}, {0, 2, 0}, faint));
+  add_mesh_node(&s, quad_mesh({-4, -4, -4}, {8, 0, 0}, {0, 8, 0}, green));
+  s.finalize();
+  Tracer tracer(s);
+  TraceStats stats;
+  // u = 0.25 and 0.75 are the two texels' centers: x = -0.5 and 0.5.
+  const ShadedSample cut = tracer.trace(Ray{{-0.5f, 0.0f, 0.0f}, {0, 0, -1}}, &stats);
+  const ShadedSample kept = tracer.trace(Ray{{0.5f, 0.0f, 0.0f}, {0, 0, -1}}, &stats);
+  const ShadedSample faint_hit = tracer.trace(Ray{{2.0f, 0.0f, 0.0f}, {0, 0, -1}}, &stats);
+  expect_near3(cut.color, {0, 1, 0}, 1e-5f, "through the cut-away half");
+  expect_near3(kept.color, {1, 0, 0}, 1e-5f, "the opaque half");
+  expect_near3(faint_hit.color, {0, 1, 0}, 1e-5f, "through the faint square");
+  EXPECT_NEAR(cut.position.z, -4.0f, 1e-4f);  // on the wall
+  EXPECT_FALSE(tracer.occluded({-0.5f, 0.0f, 0.0f}, {-0.5f, 0.0f, -3.0f}, &stats));
+  EXPECT_TRUE(tracer.occluded({0.5f, 0.0f, 0.0f}, {0.5f, 0.0f, -3.0f}, &stats));
+  EXPECT_FALSE(tracer.occluded({2.0f, 0.0f, 0.0f}, {2.0f, 0.0f, -3.0f}, &stats));
+
+  // The crosshair's packets see what single rays see, both halves among them.
+  const Camera cam = Camera::look_at({0.0, 0.0, 0.0}, {0.0, 0.0, -1.0}, {0, 1, 0}, 1.2, 0.01);
+  constexpr int kSide = 16;
+  int saw_red = 0, saw_green = 0;
+  for (int j = 1; j < kSide - 1; j += 3) {
+    for (int i = 1; i < kSide - 1; i += 2) {
+      std::array<ShadedSample, 5> cross;
+      tracer.trace_crosshair(cam, i + 0.5, j + 0.5, kSide, kSide, &cross, &stats);
+      const glm::dvec2 at[5] = {{0, 0}, {-1, 0}, {1, 0}, {0, -1}, {0, 1}};
+      for (int k = 0; k < 5; ++k) {
+        const Ray ray = cam.ray(i + 0.5 + at[k].x, j + 0.5 + at[k].y, kSide, kSide);
+        expect_near3(cross[size_t(k)].color, tracer.trace(ray, &stats).color, 1e-5f,
+                     "crosshair against a single ray");
+      }
+      saw_red += cross[0].color.r > 0.5f;
+      saw_green += cross[0].color.g > 0.5f;
+    }
+  }
+  EXPECT_GT(saw_red, 0);
+  EXPECT_GT(saw_green, 0);
+}
+
 // Texture minification by ray cones: a floor with a one-texel checker (1024 x 1024 texels over
 // 1 x 1, repeated 20 times over the 20 x 20 floor), lit by ambient light only, seen from 1 above
 // at 64 x 48 pixels. Every pixel covers many texels: with the camera's ray cones the samples are

@@ -123,6 +123,10 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.value(m.occlusion_texture);
       h.value(m.occlusion_strength);
     }
+    if (m.alpha_mode != Material::AlphaMode::kOpaque) {
+      h.value(m.alpha_mode);
+      h.value(m.alpha_cutoff);
+    }
     if (m.transmission != 0.0f || m.ior != 1.5f) {
       h.value(m.transmission);
       h.value(m.ior);
@@ -133,6 +137,7 @@ uint64_t render_fingerprint(const Scene& scene) {
     h.value(t.width);
     h.value(t.height);
     h.array(t.texels);
+    if (!t.alpha.empty()) h.array(t.alpha);
   }
   h.value(uint64_t(scene.lights.size()));
   for (const Light& l : scene.lights) {

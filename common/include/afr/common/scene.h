@@ -78,8 +78,14 @@ struct Texture {
   int height = 0;
   std::vector<glm::vec3> texels;
 
+  // Level 0's alpha channel (linear, 0 to 1), kept only where a material masks with it
+  // (Material::AlphaMode::kMask); empty: opaque.
+  std::vector<float> alpha;
+
   // Bilinear lookup with REPEAT wrapping in both directions (the only wrap mode afr models).
   glm::vec3 sample_bilinear(glm::vec2 uv) const;
+  // The alpha channel's bilinear lookup at level 0 (1 without one).
+  float sample_alpha(glm::vec2 uv) const;
 
   // Minification (docs/scene-model.md, "Texture filtering"): mip levels 1, 2, ... down to
   // 1 x 1 (level 0 is `texels`), each (w + 1) / 2 x (h + 1) / 2 of the one before, every texel
@@ -114,6 +120,12 @@ struct Material {
   // 1 - occlusion_strength, scales the ambient light a point receives. -1: none.
   int occlusion_texture = -1;
   float occlusion_strength = 1.0f;
+  // glTF's alphaMode. kMask cuts the surface away where its alpha (base_color_factor's alpha x
+  // the base-color texture's) is below alpha_cutoff, for every ray (camera, reflection,
+  // shadow, occlusion). kBlend is drawn opaque (the loader warns).
+  enum class AlphaMode { kOpaque, kMask, kBlend };
+  AlphaMode alpha_mode = AlphaMode::kOpaque;
+  float alpha_cutoff = 0.5f;
   std::optional<glm::vec3> ambient;  // reflectance of the scene's ambient light
   // KHR_materials_transmission: the fraction of the non-metallic part that light passes
   // through (refracted, tinted by the base color) instead of reflecting diffusely; 0 = opaque.
