@@ -935,8 +935,8 @@ void Loader::load_skinning(const tinygltf::Primitive& in, const std::string& wha
   }
 }
 
-// Morph targets: POSITION and NORMAL displacements (TANGENT is not read: afr has no normal
-// maps; other attributes warn).
+// Morph targets: POSITION and NORMAL displacements (TANGENT is not read: normal maps use each
+// triangle's own tangent frame; other attributes warn).
 void Loader::load_targets(const tinygltf::Primitive& in, const std::string& what, Primitive* out) {
   const size_t vertex_count = out->positions.size();
   out->targets.resize(in.targets.size());
@@ -1065,9 +1065,6 @@ void Loader::load_materials() {
                             "opaque)",
                             what, in.alphaMode));
     }
-    if (in.normalTexture.index >= 0) {
-      warn_once("normalTexture", "normalTexture is not supported (ignored)");
-    }
     const tinygltf::TextureInfo& base = pbr.baseColorTexture;
     out.base_color_texture =
         read_texture_slot(m, "baseColorTexture", base.index, base.texCoord, base.extensions, true);
@@ -1080,6 +1077,15 @@ void Loader::load_materials() {
     const tinygltf::OcclusionTextureInfo& occlusion = in.occlusionTexture;
     out.occlusion_texture = read_texture_slot(m, "occlusionTexture", occlusion.index,
                                               occlusion.texCoord, occlusion.extensions, false);
+    const tinygltf::NormalTextureInfo& normal = in.normalTexture;
+    out.normal_texture = read_texture_slot(m, "normalTexture", normal.index, normal.texCoord,
+                                           normal.extensions, false);
+    if (out.normal_texture >= 0) {
+      if (!std::isfinite(normal.scale)) {
+        fail(fmt::format("{} has an invalid normalTexture scale ({})", what, normal.scale));
+      }
+      out.normal_scale = float(normal.scale);
+    }
     if (out.occlusion_texture >= 0) {
       if (!(occlusion.strength >= 0.0 && occlusion.strength <= 1.0)) {
         fail(fmt::format("{} has an invalid occlusionTexture strength ({}; 0 to 1)", what,

@@ -272,11 +272,15 @@ void Scene::finalize() {
   for (size_t m = 0; m < materials.size(); ++m) {
     const Material& mat = materials[m];
     for (const int t : {mat.base_color_texture, mat.metallic_roughness_texture,
-                        mat.emissive_texture, mat.occlusion_texture}) {
+                        mat.emissive_texture, mat.occlusion_texture, mat.normal_texture}) {
       if (t != -1 && !in_range(t, textures.size())) {
         throw err(fmt::format("material {} ('{}') names texture {} of {}", m, mat.name, t,
                               textures.size()));
       }
+    }
+    if (!std::isfinite(mat.normal_scale)) {
+      throw err(
+          fmt::format("material {} ('{}') has a normal scale that is not finite", m, mat.name));
     }
     if (!(mat.alpha_cutoff >= 0.0f && std::isfinite(mat.alpha_cutoff))) {
       throw err(fmt::format("material {} ('{}') has alpha cutoff {} (a number >= 0)", m, mat.name,

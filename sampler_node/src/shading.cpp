@@ -63,6 +63,8 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
   m.occlusion = mat.occlusion_strength > 0.0f ? texture_at(mat.occlusion_texture, scene) : nullptr;
   m.occlusion_strength = glm::clamp(mat.occlusion_strength, 0.0f, 1.0f);
   m.varies = m.metallic_roughness || m.emissive_texture || m.occlusion;
+  m.normal_map = texture_at(mat.normal_texture, scene);
+  m.normal_scale = mat.normal_scale;
   m.metallic_factor = glm::clamp(mat.metallic, 0.0f, 1.0f);
   m.roughness_factor = glm::clamp(mat.roughness, 0.0f, 1.0f);
   m.double_sided = mat.double_sided;

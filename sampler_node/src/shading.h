@@ -42,6 +42,10 @@ struct ShadeMaterial {
   const Texture* occlusion = nullptr;
   float occlusion_strength = 1.0f;
   bool varies = false;  // one of the three above is set
+  // The normal texture (tangent space, linear data; null: none) and its scale: it bends the
+  // shading normal (Tracer::Impl::make_surface), not the material.
+  const Texture* normal_map = nullptr;
+  float normal_scale = 1.0f;
   // The factors the textures multiply, and what the derived fields need of the scene.
   float metallic_factor = 1.0f;
   float roughness_factor = 1.0f;

@@ -891,6 +891,38 @@ bool Tracer::Impl::blocked(const glm::vec3& o, const glm::vec3& d, float tnear, 
   return r.tfar < 0.0f;  // Embree sets tfar to -inf on a hit
 }
 
+// The shading normal that a normal texture's texel asks for at a point of triangle `tri` whose
+// shading normal is n (unit). The tangent frame is the triangle's own (glTF's TANGENT is not
+// read): t = dp/du made orthogonal to n, and b = n x t, turned to point against dp/dv as
+// glTF's flipped v expects (so a mirrored mapping gets a mirrored b, as MikkTSpace's sign
+// gives). Without a usable frame (no uv area, degenerate) n stays.
+static glm::vec3 mapped_normal(const GeomRecord& g, const Instance& inst, const uint32_t* tri,
+                               const glm::vec3& n, const glm::vec3& texel, float scale) {
+  const glm::vec2 d1 = g.uvs[tri[1]] - g.uvs[tri[0]], d2 = g.uvs[tri[2]] - g.uvs[tri[0]];
+  const glm::vec3 e1 = g.positions[tri[1]] - g.positions[tri[0]];
+  const glm::vec3 e2 = g.positions[tri[2]] - g.positions[tri[0]];
+  const float det = d1.x * d2.y - d2.x * d1.y;
+  if (!(std::abs(det) > 1e-20f)) return n;
+  glm::vec3 t = (e1 * d2.y - e2 * d1.y) / det;  // dp/du
+  glm::vec3 b = (e2 * d1.x - e1 * d2.x) / det;  // dp/dv
+  if (inst.moves) {
+    const glm::mat3 linear(inst.world);
+    t = linear * t;
+    b = linear * b;
+  }
+  t -= n * glm::dot(n, t);
+  const float t_len2 = glm::dot(t, t);
+  if (!(t_len2 > 1e-30f) || !std::isfinite(t_len2)) return n;
+  t *= 1.0f / std::sqrt(t_len2);
+  glm::vec3 bt = glm::cross(n, t);
+  if (glm::dot(bt, b) > 0.0f) bt = -bt;
+  const glm::vec3 local = texel * 2.0f - 1.0f;
+  const glm::vec3 mapped = t * (local.x * scale) + bt * (local.y * scale) + n * local.z;
+  const float len2 = glm::dot(mapped, mapped);
+  if (!(len2 > 1e-20f) || !std::isfinite(len2)) return n;
+  return mapped * (1.0f / std::sqrt(len2));
+}
+
 void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm::vec3& d,
                                 float cone, float spread, Surface* s) const {
   AFR_DCHECK(hit.inst < instances_.size());
@@ -941,7 +973,7 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   }
   s->ng = ng;
   s->ns = ns;
-  const bool textured = g.uvs && (m.texture || m.varies);
+  const bool textured = g.uvs && (m.texture || m.varies || m.normal_map);
   s->uv = textured ? w * g.uvs[tri[0]] + hit.u * g.uvs[tri[1]] + hit.v * g.uvs[tri[2]]
                    : glm::vec2(0.0f);
   s->spread = spread;
@@ -953,6 +985,10 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
                           : 0.0f;
   };
   s->lod = textured && m.texture ? lod(*m.texture) : 0.0f;
+  if (textured && m.normal_map) {
+    s->ns = mapped_normal(g, inst, tri, s->ns, m.normal_map->sample(s->uv, lod(*m.normal_map)),
+                          m.normal_scale);
+  }
   // A material that varies over the surface, decided here from its textures (without texture
   // coordinates, its factors alone are the material, as glTF viewers read it).
   if (textured && m.varies) {

@@ -465,10 +465,10 @@ TEST_F(GltfLoaderTest, MaterialsAndEmbeddedPngTexturesDecodeToLinearTexels) {
   }
 }
 
-// The metallic-roughness, emissive and occlusion slots are read: data textures (metallic-
-// roughness, occlusion) decoded as they are, color ones (base color, emissive) from sRGB; one
-// image decoded once per way it is read; a transform that differs from the material's first
-// slot's warns; an occlusion strength outside [0, 1] fails naming the material.
+// The metallic-roughness, emissive, occlusion and normal slots are read: data textures
+// (metallic-roughness, occlusion, normal) decoded as they are, color ones (base color, emissive)
+// from sRGB; one image decoded once per way it is read; a transform that differs from the
+// material's first slot's warns; an occlusion strength outside [0, 1] fails naming the material.
 TEST_F(GltfLoaderTest, MaterialTextureSlotsDecodeColorFromSrgbAndDataAsItIs) {
   const DecodedImage color{1, 1, 3, {128, 64, 255}}, orm{1, 1, 3, {200, 128, 51}};
   const fs::path color_path = dir_ / "color.png", orm_path = dir_ / "orm.png";
@@ -487,9 +487,11 @@ TEST_F(GltfLoaderTest, MaterialTextureSlotsDecodeColorFromSrgbAndDataAsItIs) {
         {"emissiveFactor", {1.0, 1.0, 1.0}},
         {"emissiveTexture", {{"index", 2}}},  // the base color's image through another texture
         {"occlusionTexture", {{"index", 1}, {"strength", 0.75}}}},
-       // The color image read as occlusion data, its transform unlike its base color's.
+       // The color image read as occlusion data, its transform unlike its base color's; the
+       // orm image as a normal texture (data) with a scale.
        {{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 1}}}}},
-        {"occlusionTexture", {{"index", 0}, {"extensions", shifted}}}}});
+        {"occlusionTexture", {{"index", 0}, {"extensions", shifted}}},
+        {"normalTexture", {{"index", 1}, {"scale", 0.5}}}}});
   b.write_embedded(dir_ / "slots.gltf");
   GltfLoadReport report;
   const Scene scene = load_gltf(dir_ / "slots.gltf", &report);
@@ -506,6 +508,9 @@ TEST_F(GltfLoaderTest, MaterialTextureSlotsDecodeColorFromSrgbAndDataAsItIs) {
   EXPECT_EQ(scene.materials[1].occlusion_texture, 3);
   EXPECT_EQ(scene.materials[1].metallic_roughness_texture, -1);
   EXPECT_EQ(scene.materials[1].emissive_texture, -1);
+  EXPECT_EQ(scene.materials[1].normal_texture, 1);
+  EXPECT_FLOAT_EQ(scene.materials[1].normal_scale, 0.5f);
+  EXPECT_EQ(m.normal_texture, -1);
   EXPECT_NEAR(scene.textures[0].texels[0].r, reference_srgb_to_linear(128 / 255.0), 1e-6);
   EXPECT_NEAR(scene.textures[1].texels[0].g, 128 / 255.0, 1e-6);  // roughness
   EXPECT_NEAR(scene.textures[1].texels[0].b, 51 / 255.0, 1e-6);   // metallic

@@ -621,6 +621,57 @@ TEST(TracerTest, MaterialTexturesDecideTheMaterialAtEachPoint) {
   EXPECT_GT(glm::length(colors[1] - colors[2]), 0.1f);
 }
 
+// A normal texture bends the shading normal in the triangle's tangent frame: a texel tilting
+// the normal 30 degrees toward +u (tangent-space x) lights a white Lambertian square under a
+// directional light from (1, 0, 1) as a square turned that way would: n.l = cos 15 degrees
+// where +u is world +x, sin 60 / sqrt 2 where +u is world +y; tilted toward tangent-space +y
+// (up in the texture: glTF's v runs down), it turns toward where v decreases. Scale 0 leaves
+// the square flat.
+TEST(TracerTest, NormalTextureBendsTheShadingNormalInTheTangentFrame) {
+  const float sin30 = 0.5f, cos30 = std::sqrt(3.0f) / 2.0f;
+  // uvs of the square's corners c, c + eu, c + eu + ev, c + ev (eu = +x, ev = +y), and the
+  // texel; returns n.l (color x pi / intensity: base white, diffuse only).
+  auto lit = [&](std::vector<glm::vec2> uvs, glm::vec3 texel, float scale) {
+    Scene s;
+    Texture normal;
+    normal.width = normal.height = 1;
+    normal.texels = {texel};
+    s.textures.push_back(normal);
+    const int mat = add_material(&s, glm::vec3(1.0f), 0.0f, 1.0f);
+    s.materials[size_t(mat)].normal_texture = 0;
+    s.materials[size_t(mat)].normal_scale = scale;
+    Mesh square = quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat);
+    square.primitives[0].uvs = std::move(uvs);
+    add_mesh_node(&s, square);
+    Light sun;
+    sun.type = Light::Type::kDirectional;
+    sun.intensity = 2.0f;
+    // -Z turned 45 degrees about +y shines along -(1, 0, 1): from the right, in front.
+    add_light_node(&s, sun, glm::dvec3(0.0), glm::angleAxis(0.25 * M_PI, glm::dvec3(0, 1, 0)));
+    s.finalize();
+    Tracer tracer(s);
+    TraceStats stats;
+    const ShadedSample hit = tracer.trace(Ray{{0.2f, 0.1f, 0.0f}, {0, 0, -1}}, &stats);
+    EXPECT_NEAR(hit.color.r, hit.color.b, 1e-6f);
+    return hit.color.r * float(M_PI) / 2.0f;
+  };
+  // glTF's orientation: u to the right, v down the image (here: down in world y).
+  const std::vector<glm::vec2> upright = {{0, 1}, {1, 1}, {1, 0}, {0, 0}};
+  // Turned: u up the square (world +y), v to the right (world +x).
+  const std::vector<glm::vec2> turned = {{0, 0}, {0, 1}, {1, 1}, {1, 0}};
+  const glm::vec3 toward_u(0.5f + 0.5f * sin30, 0.5f, 0.5f + 0.5f * cos30);
+  const glm::vec3 toward_up(0.5f, 0.5f + 0.5f * sin30, 0.5f + 0.5f * cos30);
+  const float flat = 1.0f / std::sqrt(2.0f);
+  EXPECT_NEAR(lit(upright, {0.5f, 0.5f, 1.0f}, 1.0f), flat, 1e-4f);
+  EXPECT_NEAR(lit(upright, toward_u, 1.0f), std::cos(float(M_PI) / 12.0f), 1e-4f);
+  EXPECT_NEAR(lit(turned, toward_u, 1.0f), cos30 * flat, 1e-4f);
+  // Up in the texture is world +y upright (no x: as flat tilted out of the light's plane), and
+  // world -x turned (v decreases leftward): away from the light.
+  EXPECT_NEAR(lit(upright, toward_up, 1.0f), cos30 * flat, 1e-4f);
+  EXPECT_NEAR(lit(turned, toward_up, 1.0f), (cos30 - sin30) * flat, 1e-4f);
+  EXPECT_NEAR(lit(upright, toward_u, 0.0f), flat, 1e-4f);
+}
+
 // alphaMode MASK: a red square whose texture's alpha is 0.2 on its left half and 0.9 on its
 // right (cutoff 0.5) before a green wall, and beside it a square whose factor's alpha alone
 // (0.3) is below the cutoff. Camera rays, single and in the crosshair's packets, and occlusion

@@ -120,6 +120,10 @@ struct Material {
   // 1 - occlusion_strength, scales the ambient light a point receives. -1: none.
   int occlusion_texture = -1;
   float occlusion_strength = 1.0f;
+  // glTF's normalTexture (linear data): a tangent-space normal, its x and y scaled by
+  // normal_scale, replaces the shading normal. -1: none.
+  int normal_texture = -1;
+  float normal_scale = 1.0f;
   // glTF's alphaMode. kMask cuts the surface away where its alpha (base_color_factor's alpha x
   // the base-color texture's) is below alpha_cutoff, for every ray (camera, reflection,
   // shadow, occlusion). kBlend is drawn opaque (the loader warns).
