@@ -117,11 +117,14 @@ uint64_t render_fingerprint(const Scene& scene) {
     h.value(m.double_sided);
     // Textures beyond the base color, and glass, add bytes only where a material has them
     // (other scenes' fingerprints stay).
-    if (m.metallic_roughness_texture >= 0 || m.emissive_texture >= 0 || m.occlusion_texture >= 0) {
+    if (m.metallic_roughness_texture >= 0 || m.emissive_texture >= 0 || m.occlusion_texture >= 0 ||
+        m.normal_texture >= 0) {
       h.value(m.metallic_roughness_texture);
       h.value(m.emissive_texture);
       h.value(m.occlusion_texture);
       h.value(m.occlusion_strength);
+      h.value(m.normal_texture);
+      h.value(m.normal_scale);
     }
     if (m.alpha_mode != Material::AlphaMode::kOpaque) {
       h.value(m.alpha_mode);
