@@ -1125,9 +1125,14 @@ int Loader::read_texture_slot(size_t m, const char* slot, int index, int tex_coo
   }
   const std::optional<glm::dmat3> transform = read_texture_transform(extensions, what, &tex_coord);
   if (tex_coord != 0) {
-    warn_once("texCoord", fmt::format("textures on TEXCOORD_{} are not supported "
-                                      "(TEXCOORD_0 is used)",
-                                      tex_coord));
+    // afr reads TEXCOORD_0 only. A base color read through it still shows its colors; a map
+    // authored on another set (typically occlusion on a second, unwrapped set) would darken,
+    // bend or light the wrong places, so such a slot is left out and its factors decide.
+    const bool base = std::string_view(slot) == "baseColorTexture";
+    warn_once(fmt::format("texCoord {}", base ? "base" : "map"),
+              fmt::format("{} reads TEXCOORD_{}, which afr does not read: {}", what, tex_coord,
+                          base ? "TEXCOORD_0 is used" : "the texture is left out"));
+    if (!base) return -1;
   }
   // One set of texture coordinates serves every slot of a material (the transform is applied
   // to the primitive's coordinates at load): the first slot's transform is the material's.

@@ -531,6 +531,38 @@ TEST_F(GltfLoaderTest, MaterialTextureSlotsDecodeColorFromSrgbAndDataAsItIs) {
                "material 0 emissiveTexture refers to texture 7, but there are 3");
 }
 
+// afr reads TEXCOORD_0 only: a base color on another set still shows through TEXCOORD_0 (one
+// warning); any other map on another set is left out (one warning), its factors deciding.
+TEST_F(GltfLoaderTest, MapsOnASecondTextureCoordinateSetAreLeftOut) {
+  const DecodedImage gray{1, 1, 3, {128, 128, 128}};
+  write_image8(gray, dir_ / "gray.png");
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  b.doc()["images"] = json::array({{{"uri", "gray.png"}}});
+  b.doc()["textures"] = json::array({{{"source", 0}}});
+  b.doc()["materials"] =
+      json::array({{{"pbrMetallicRoughness",
+                     {{"baseColorTexture", {{"index", 0}, {"texCoord", 1}}},
+                      {"metallicRoughnessTexture", {{"index", 0}, {"texCoord", 1}}}}},
+                    {"occlusionTexture", {{"index", 0}, {"texCoord", 1}}},
+                    {"normalTexture", {{"index", 0}}}}});
+  b.write_embedded(dir_ / "second_set.gltf");
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir_ / "second_set.gltf", &report);
+  const Material& m = scene.materials[0];
+  EXPECT_EQ(m.base_color_texture, 0);
+  EXPECT_EQ(m.metallic_roughness_texture, -1);
+  EXPECT_EQ(m.occlusion_texture, -1);
+  EXPECT_EQ(m.normal_texture, 1);  // on TEXCOORD_0: read (as data)
+  EXPECT_EQ(count_containing(report.warnings,
+                             "baseColorTexture reads TEXCOORD_1, which afr does "
+                             "not read: TEXCOORD_0 is used"),
+            1u);
+  EXPECT_EQ(count_containing(report.warnings, "the texture is left out"), 1u);  // once
+  EXPECT_EQ(report.warnings.size(), 2u);
+}
+
 // alphaMode MASK keeps its cutoff and its base-color texture's alpha; an image with alpha that
 // no masking material reads, or whose alpha is 1 everywhere, keeps none; BLEND warns (drawn
 // opaque); an alphaCutoff below 0 fails naming the material.
