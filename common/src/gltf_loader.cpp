@@ -41,9 +41,11 @@ constexpr size_t kMaxMorphDisplacements = size_t(1) << 24;
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 6> kSupportedExtensions = {
-    "KHR_lights_punctual",        "KHR_materials_emissive_strength", "KHR_materials_ior",
-    "KHR_materials_transmission", "KHR_mesh_quantization",           "KHR_texture_transform"};
+constexpr std::array<std::string_view, 7> kSupportedExtensions = {
+    "KHR_lights_punctual",  "KHR_materials_emissive_strength",
+    "KHR_materials_ior",    "KHR_materials_transmission",
+    "KHR_materials_unlit",  "KHR_mesh_quantization",
+    "KHR_texture_transform"};
 
 // The default lighting of a scene without lights (what glTF viewers do): a directional
 // headlight that moves with the scene's camera and a uniform sky term. The headlight comes from
@@ -1048,6 +1050,7 @@ void Loader::load_materials() {
       out.emissive *= float(s.GetNumberAsDouble());
     }
     read_transmission_and_ior(in, what, &out);
+    out.unlit = in.extensions.count("KHR_materials_unlit") > 0;
     out.double_sided = in.doubleSided;
     if (in.alphaMode == "MASK") {
       out.alpha_mode = Material::AlphaMode::kMask;

@@ -85,6 +85,20 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
     m.f0_dielectric = mat.ior > 0.0f ? r * r : 1.0f;  // KHR_materials_ior: ior 0 means F = 1
   }
   derive(&m, m.metallic_factor, m.roughness_factor);
+  if (mat.unlit) {
+    // Only the base color (and alpha) is left: no light, no emission, no bounce, no maps.
+    ShadeMaterial u;
+    u.base = m.base;
+    u.texture = m.texture;
+    u.double_sided = m.double_sided;
+    u.masked = m.masked;
+    u.opacity_texture = m.opacity_texture;
+    u.opacity_factor = m.opacity_factor;
+    u.opacity_cutoff = m.opacity_cutoff;
+    u.unlit = true;
+    u.has_specular = false;
+    return u;
+  }
   return m;
 }
 

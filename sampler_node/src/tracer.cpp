@@ -1010,6 +1010,10 @@ bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const gl
                                  glm::vec3* c, LocalTerms* terms) const {
   const ShadeMaterial& m = *s.material;
   *c = glm::vec3(0.0f);
+  if (m.unlit) {
+    *c = m.base * tex;
+    return false;
+  }
   if (m.has_emission) *c += m.emissive;
   if (m.has_ambient) *c += scene_.ambient * m.ambient * tex;
   if (lights_.empty() || s.back_face || !(m.has_diffuse || m.has_specular)) return false;

@@ -111,6 +111,9 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
       [](Scene* s) { s->textures[0].alpha.assign(s->textures[0].texels.size(), 1.0f); },
       [](Scene* s) { s->textures[0].alpha[0] = 0.5f; });
   expect_seen(
+      "unlit", [](Scene* s) { s->materials[0].unlit = true; },
+      [](Scene* s) { s->materials[0].base_color_factor.r *= 0.5f; });
+  expect_seen(
       "normal texture", [](Scene* s) { s->materials[0].normal_texture = 0; },
       [](Scene* s) { s->materials[0].normal_scale = 0.5f; });
   expect_seen(

@@ -563,6 +563,24 @@ TEST_F(GltfLoaderTest, MapsOnASecondTextureCoordinateSetAreLeftOut) {
   EXPECT_EQ(report.warnings.size(), 2u);
 }
 
+// KHR_materials_unlit is read, also where a file requires it.
+TEST_F(GltfLoaderTest, UnlitMaterialsAreRead) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  b.doc()["extensionsUsed"] = {"KHR_materials_unlit"};
+  b.doc()["extensionsRequired"] = {"KHR_materials_unlit"};
+  b.doc()["materials"] =
+      json::array({{{"extensions", {{"KHR_materials_unlit", json::object()}}}}, json::object()});
+  b.write_embedded(dir_ / "unlit.gltf");
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir_ / "unlit.gltf", &report);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+  ASSERT_EQ(scene.materials.size(), 2u);
+  EXPECT_TRUE(scene.materials[0].unlit);
+  EXPECT_FALSE(scene.materials[1].unlit);
+}
+
 // alphaMode MASK keeps its cutoff and its base-color texture's alpha; an image with alpha that
 // no masking material reads, or whose alpha is 1 everywhere, keeps none; BLEND warns (drawn
 // opaque); an alphaCutoff below 0 fails naming the material.

@@ -672,6 +672,36 @@ TEST(TracerTest, NormalTextureBendsTheShadingNormalInTheTangentFrame) {
   EXPECT_NEAR(lit(upright, toward_u, 0.0f), flat, 1e-4f);
 }
 
+// KHR_materials_unlit: the base color (factor x texture x vertex color) as it is, whatever
+// the lights, the ambient light, the emission and a polished metal's reflection would add.
+TEST(TracerTest, UnlitMaterialShowsItsBaseColorAsItIs) {
+  Scene s;
+  s.ambient = glm::vec3(0.5f);
+  s.background = glm::vec3(0.0f, 0.0f, 1.0f);
+  Texture tex;
+  tex.width = tex.height = 1;
+  tex.texels = {{0.5f, 1.0f, 1.0f}};
+  s.textures.push_back(tex);
+  const int mat = add_material(&s, glm::vec3(0.2f, 0.4f, 0.6f), 1.0f, 0.0f);
+  Material& m = s.materials[size_t(mat)];
+  m.unlit = true;
+  m.emissive = glm::vec3(3.0f);
+  m.base_color_texture = 0;
+  Mesh square = quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat);
+  square.primitives[0].colors.assign(4, glm::vec3(1.0f, 1.0f, 0.5f));
+  add_mesh_node(&s, square);
+  Light light;
+  light.intensity = 50.0f;
+  add_light_node(&s, light, glm::dvec3(0.0, 0.0, 1.0));
+  s.finalize();
+  Tracer tracer(s);
+  TraceStats stats;
+  const ShadedSample hit = tracer.trace(Ray{{0.3f, 0.2f, 0.0f}, {0, 0, -1}}, &stats);
+  expect_near3(hit.color, {0.1f, 0.4f, 0.3f}, 1e-6f, "unlit");
+  EXPECT_EQ(stats.reflection_rays, 0u);
+  EXPECT_EQ(stats.shadow_rays, 0u);
+}
+
 // alphaMode MASK: a red square whose texture's alpha is 0.2 on its left half and 0.9 on its
 // right (cutoff 0.5) before a green wall, and beside it a square whose factor's alpha alone
 // (0.3) is below the cutoff. Camera rays, single and in the crosshair's packets, and occlusion

@@ -126,6 +126,7 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.value(m.normal_texture);
       h.value(m.normal_scale);
     }
+    if (m.unlit) h.value(m.unlit);
     if (m.alpha_mode != Material::AlphaMode::kOpaque) {
       h.value(m.alpha_mode);
       h.value(m.alpha_cutoff);

@@ -138,6 +138,9 @@ struct Material {
   // or 0, which the extension defines as a Fresnel term of 1 (all reflection).
   float ior = 1.5f;
   bool double_sided = false;
+  // KHR_materials_unlit: the surface shows its base color (factor x texture x COLOR_0) as it
+  // is, whatever the light; every other property but alpha is ignored.
+  bool unlit = false;
 };
 
 // KHR_lights_punctual. Position and direction (local -Z) come from the light's node, or, for
