@@ -214,6 +214,7 @@ class Loader {
   // metallic-roughness, emissive, occlusion) that has a texture, if any, and that slot's name.
   std::vector<std::optional<glm::dmat3>> uv_transforms_;
   std::vector<const char*> uv_transform_slot_;
+  std::vector<int> uv_sets_;        // per glTF material: the TEXCOORD_n its textures read
   size_t morph_displacements_ = 0;  // read so far, at most kMaxMorphDisplacements
 };
 
@@ -787,14 +788,23 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
       out->normals[i] = length > 0.0f ? v / length : glm::vec3(0.0f, 0.0f, 1.0f);
     }
   }
-  if (const auto uv = in.attributes.find("TEXCOORD_0"); uv != in.attributes.end()) {
-    const std::vector<float> t = read_floats(uv->second, TINYGLTF_TYPE_VEC2, what + " TEXCOORD_0");
+  // The set its material's textures read (TEXCOORD_0 without a material or textures).
+  const int set =
+      in.material >= 0 && size_t(in.material) < uv_sets_.size() ? uv_sets_[size_t(in.material)] : 0;
+  const std::string uv_name = fmt::format("TEXCOORD_{}", set);
+  if (const auto uv = in.attributes.find(uv_name); uv != in.attributes.end()) {
+    const std::vector<float> t = read_floats(uv->second, TINYGLTF_TYPE_VEC2, what + " " + uv_name);
     if (t.size() / 2 != vertex_count) {
       fail(fmt::format("{} has {} texture coordinates for {} positions", what, t.size() / 2,
                        vertex_count));
     }
     out->uvs.resize(vertex_count);
     for (size_t i = 0; i < vertex_count; ++i) out->uvs[i] = {t[2 * i], t[2 * i + 1]};
+  } else if (set != 0) {
+    warn_once("missing " + uv_name,
+              fmt::format("{} has no {}, which its material's textures read: they are left out "
+                          "(the material's factors decide)",
+                          what, uv_name));
   }
   if (const auto color = in.attributes.find("COLOR_0"); color != in.attributes.end()) {
     load_colors(color->second, what + " COLOR_0", vertex_count, out);
@@ -1018,6 +1028,7 @@ void Loader::load_materials() {
   for (std::vector<int>& map : image_to_texture_) map.assign(model_.images.size(), -1);
   uv_transforms_.assign(model_.materials.size(), std::nullopt);
   uv_transform_slot_.assign(model_.materials.size(), nullptr);
+  uv_sets_.assign(model_.materials.size(), 0);
   for (size_t m = 0; m < model_.materials.size(); ++m) {
     const tinygltf::Material& in = model_.materials[m];
     const tinygltf::PbrMetallicRoughness& pbr = in.pbrMetallicRoughness;
@@ -1127,21 +1138,20 @@ int Loader::read_texture_slot(size_t m, const char* slot, int index, int tex_coo
                      model_.textures.size()));
   }
   const std::optional<glm::dmat3> transform = read_texture_transform(extensions, what, &tex_coord);
-  if (tex_coord != 0) {
-    // afr reads TEXCOORD_0 only. A base color read through it still shows its colors; a map
-    // authored on another set (typically occlusion on a second, unwrapped set) would darken,
-    // bend or light the wrong places, so such a slot is left out and its factors decide.
-    const bool base = std::string_view(slot) == "baseColorTexture";
-    warn_once(fmt::format("texCoord {}", base ? "base" : "map"),
-              fmt::format("{} reads TEXCOORD_{}, which afr does not read: {}", what, tex_coord,
-                          base ? "TEXCOORD_0 is used" : "the texture is left out"));
-    if (!base) return -1;
-  }
-  // One set of texture coordinates serves every slot of a material (the transform is applied
-  // to the primitive's coordinates at load): the first slot's transform is the material's.
+  // One set of texture coordinates serves every slot of a material, the first textured slot's
+  // (base color first), through that slot's transform (applied to the primitive's coordinates
+  // at load). A map on another set would darken, bend or light the wrong places through the
+  // material's set, so such a slot is left out and its factors decide.
   if (uv_transform_slot_[m] == nullptr) {
     uv_transform_slot_[m] = slot;
+    uv_sets_[m] = tex_coord;
     uv_transforms_[m] = transform;
+  } else if (tex_coord != uv_sets_[m]) {
+    warn_once("texCoord " + std::string(slot),
+              fmt::format("{} reads TEXCOORD_{}, but the {} reads TEXCOORD_{}: one set serves a "
+                          "material, so the {} is left out",
+                          what, tex_coord, uv_transform_slot_[m], uv_sets_[m], slot));
+    return -1;
   } else if (transform.value_or(glm::dmat3(1.0)) != uv_transforms_[m].value_or(glm::dmat3(1.0))) {
     warn_once("texture transforms differ",
               fmt::format("{}: its KHR_texture_transform differs from the {}'s, which afr uses "
@@ -1226,7 +1236,7 @@ std::optional<glm::dmat3> Loader::read_texture_transform(const tinygltf::Extensi
 }
 
 // Texture transforms become the primitives' texture coordinates: a primitive has one material,
-// whose textures all read TEXCOORD_0 through one transform (read_texture_slot), so moving the
+// whose textures all read one set through one transform (read_texture_slot), so moving the
 // coordinates is exact and costs the tracer nothing.
 void Loader::apply_texture_transforms() {
   for (Mesh& mesh : scene_.meshes) {
@@ -1689,8 +1699,8 @@ Scene Loader::load(std::span<const uint8_t> bytes) {
   parse(bytes);
   check_extensions();
   scene_.source = path_.string();
+  load_materials();  // first: a primitive reads the texture coordinates its material's do
   load_meshes();
-  load_materials();
   apply_texture_transforms();
   load_cameras();
   load_lights();

@@ -531,35 +531,48 @@ TEST_F(GltfLoaderTest, MaterialTextureSlotsDecodeColorFromSrgbAndDataAsItIs) {
                "material 0 emissiveTexture refers to texture 7, but there are 3");
 }
 
-// afr reads TEXCOORD_0 only: a base color on another set still shows through TEXCOORD_0 (one
-// warning); any other map on another set is left out (one warning), its factors deciding.
-TEST_F(GltfLoaderTest, MapsOnASecondTextureCoordinateSetAreLeftOut) {
+// A material's textures read the set of its first textured slot (base color first), here
+// TEXCOORD_1: its primitives' texture coordinates are that set's; a slot on another set is left
+// out (one warning); a primitive without the set has none (one warning).
+TEST_F(GltfLoaderTest, AMaterialReadsTheTextureCoordinateSetOfItsFirstSlot) {
   const DecodedImage gray{1, 1, 3, {128, 128, 128}};
   write_image8(gray, dir_ / "gray.png");
   GltfBuilder b;
-  add_quad(&b);
-  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  const int positions = add_quad(&b);
+  json& primitives = b.doc()["meshes"][0]["primitives"];
+  primitives[0]["material"] = 0;
+  primitives[0]["attributes"]["TEXCOORD_0"] = b.add_floats({0, 0, 1, 0, 1, 1, 0, 1}, 2);
+  primitives[0]["attributes"]["TEXCOORD_1"] =
+      b.add_floats({0.25f, 0.5f, 0.75f, 0.5f, 0.75f, 1.0f, 0.25f, 1.0f}, 2);
+  primitives.push_back(  // the same material, without TEXCOORD_1
+      {{"attributes", {{"POSITION", positions}}},
+       {"indices", primitives[0]["indices"]},
+       {"material", 0}});
   b.doc()["images"] = json::array({{{"uri", "gray.png"}}});
   b.doc()["textures"] = json::array({{{"source", 0}}});
   b.doc()["materials"] =
       json::array({{{"pbrMetallicRoughness",
                      {{"baseColorTexture", {{"index", 0}, {"texCoord", 1}}},
                       {"metallicRoughnessTexture", {{"index", 0}, {"texCoord", 1}}}}},
-                    {"occlusionTexture", {{"index", 0}, {"texCoord", 1}}},
-                    {"normalTexture", {{"index", 0}}}}});
+                    {"occlusionTexture", {{"index", 0}}},  // on TEXCOORD_0
+                    {"normalTexture", {{"index", 0}, {"texCoord", 1}}}}});
   b.write_embedded(dir_ / "second_set.gltf");
   GltfLoadReport report;
   const Scene scene = load_gltf(dir_ / "second_set.gltf", &report);
   const Material& m = scene.materials[0];
   EXPECT_EQ(m.base_color_texture, 0);
-  EXPECT_EQ(m.metallic_roughness_texture, -1);
+  EXPECT_EQ(m.metallic_roughness_texture, 1);  // data: decoded linear
+  EXPECT_EQ(m.normal_texture, 1);
   EXPECT_EQ(m.occlusion_texture, -1);
-  EXPECT_EQ(m.normal_texture, 1);  // on TEXCOORD_0: read (as data)
+  ASSERT_EQ(scene.meshes[0].primitives.size(), 2u);
+  EXPECT_EQ(scene.meshes[0].primitives[0].uvs,
+            (std::vector<glm::vec2>{{0.25f, 0.5f}, {0.75f, 0.5f}, {0.75f, 1.0f}, {0.25f, 1.0f}}));
+  EXPECT_TRUE(scene.meshes[0].primitives[1].uvs.empty());
   EXPECT_EQ(count_containing(report.warnings,
-                             "baseColorTexture reads TEXCOORD_1, which afr does "
-                             "not read: TEXCOORD_0 is used"),
+                             "material 0 occlusionTexture reads TEXCOORD_0, but "
+                             "the baseColorTexture reads TEXCOORD_1"),
             1u);
-  EXPECT_EQ(count_containing(report.warnings, "the texture is left out"), 1u);  // once
+  EXPECT_EQ(count_containing(report.warnings, "mesh 0 primitive 1 has no TEXCOORD_1"), 1u);
   EXPECT_EQ(report.warnings.size(), 2u);
 }
 
