@@ -160,6 +160,7 @@ class Loader {
   void add_default_lighting();
 
   // Accessors.
+  const tinygltf::Accessor& accessor_at(int index, const std::string& what) const;
   std::vector<uint8_t> gather(int index, int type, const std::string& what,
                               const tinygltf::Accessor** out);
   std::span<const uint8_t> buffer_view_bytes(int view, const std::string& what) const;
@@ -183,8 +184,9 @@ class Loader {
                                                    const std::string& what, int* tex_coord);
   // One texture slot of material m (its index, texCoord and extensions as glTF gives them):
   // the index of its decoded texture in Scene::textures (sRGB color or linear data), or -1
-  // where the slot is empty or its texture has no image. Its KHR_texture_transform becomes the
-  // material's (uv_transforms_) when it is the first slot to have one.
+  // where the slot is empty, its texture has no image, or it reads another set of texture
+  // coordinates than the material's first textured slot, whose set and KHR_texture_transform
+  // become the material's (uv_sets_, uv_transforms_).
   int read_texture_slot(size_t m, const char* slot, int index, int tex_coord,
                         const tinygltf::ExtensionMap& extensions, bool srgb);
   void apply_texture_transforms();
@@ -210,8 +212,9 @@ class Loader {
   // glTF image -> Scene::textures, -1 until decoded: [0] decoded as sRGB color, [1] as linear
   // data (an image may be both, e.g. a base color reused as a mask).
   std::array<std::vector<int>, 2> image_to_texture_;
-  // Per glTF material: the KHR_texture_transform of its first texture slot (base color,
-  // metallic-roughness, emissive, occlusion) that has a texture, if any, and that slot's name.
+  // Per glTF material: the KHR_texture_transform of its first texture slot that has a
+  // texture (base color, metallic-roughness, emissive, occlusion, normal), if any, and that
+  // slot's name.
   std::vector<std::optional<glm::dmat3>> uv_transforms_;
   std::vector<const char*> uv_transform_slot_;
   std::vector<int> uv_sets_;        // per glTF material: the TEXCOORD_n its textures read
@@ -469,6 +472,14 @@ std::span<const uint8_t> Loader::buffer_view_bytes(int view, const std::string& 
   return {data.data() + bv.byteOffset, bv.byteLength};
 }
 
+// What glTF allows for colors and weights: floats, or unsigned bytes or shorts normalized to
+// [0, 1].
+bool float_or_normalized(const tinygltf::Accessor& a) {
+  return a.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT ||
+         (a.normalized && (a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ||
+                           a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT));
+}
+
 std::string_view type_name(int type) {
   switch (type) {
     case TINYGLTF_TYPE_SCALAR:
@@ -492,13 +503,17 @@ std::string_view type_name(int type) {
 
 // The bytes of every element of accessor `index`, tightly packed, with sparse values applied:
 // the one place where accessor offsets, strides and counts meet buffer sizes.
-std::vector<uint8_t> Loader::gather(int index, int type, const std::string& what,
-                                    const tinygltf::Accessor** out) {
+const tinygltf::Accessor& Loader::accessor_at(int index, const std::string& what) const {
   if (index < 0 || size_t(index) >= model_.accessors.size()) {
     fail(fmt::format("{} refers to accessor {}, but there are {}", what, index,
                      model_.accessors.size()));
   }
-  const tinygltf::Accessor& a = model_.accessors[size_t(index)];
+  return model_.accessors[size_t(index)];
+}
+
+std::vector<uint8_t> Loader::gather(int index, int type, const std::string& what,
+                                    const tinygltf::Accessor** out) {
+  const tinygltf::Accessor& a = accessor_at(index, what);
   *out = &a;
   const std::string name = fmt::format("accessor {} ({})", index, what);
   const int component_size = tinygltf::GetComponentSizeInBytes(uint32_t(a.componentType));
@@ -856,20 +871,13 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
 // become 0.
 void Loader::load_colors(int accessor, const std::string& what, size_t vertex_count,
                          Primitive* out) {
-  if (accessor < 0 || size_t(accessor) >= model_.accessors.size()) {
-    fail(fmt::format("{} refers to accessor {}, but there are {}", what, accessor,
-                     model_.accessors.size()));
-  }
-  const tinygltf::Accessor& a = model_.accessors[size_t(accessor)];
+  const tinygltf::Accessor& a = accessor_at(accessor, what);
   if (a.type != TINYGLTF_TYPE_VEC3 && a.type != TINYGLTF_TYPE_VEC4) {
     fail(fmt::format("accessor {} ({}) is {}: vertex colors must be VEC3 or VEC4", accessor, what,
                      type_name(a.type)));
   }
   const int components = a.type == TINYGLTF_TYPE_VEC4 ? 4 : 3;
-  const bool normalized_integers = (a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ||
-                                    a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT) &&
-                                   a.normalized;
-  if (a.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT && !normalized_integers) {
+  if (!float_or_normalized(a)) {
     fail(
         fmt::format("accessor {} ({}) has componentType {}{}: vertex colors must be floats or "
                     "normalized unsigned bytes or shorts",
@@ -917,9 +925,7 @@ void Loader::load_skinning(const tinygltf::Primitive& in, const std::string& wha
   const std::vector<float> w =
       read_floats(weights->second, TINYGLTF_TYPE_VEC4, what + " WEIGHTS_0");
   const tinygltf::Accessor& wa = model_.accessors[size_t(weights->second)];
-  if (wa.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT &&
-      !(wa.normalized && (wa.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ||
-                          wa.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT))) {
+  if (!float_or_normalized(wa)) {
     fail(
         fmt::format("accessor {} ({} WEIGHTS_0) has componentType {}{}: weights are floats or "
                     "normalized unsigned bytes or shorts",

@@ -10,10 +10,6 @@ namespace {
 // there, not vanish here.
 bool is_black(const glm::vec3& c) { return c.r == 0.0f && c.g == 0.0f && c.b == 0.0f; }
 
-}  // namespace
-
-namespace {
-
 // The fields that follow from metallic and roughness (the factors, or the factors times a
 // metallic-roughness texel), given the material's other fields.
 void derive(ShadeMaterial* m, float metallic, float roughness) {
@@ -86,18 +82,12 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
   }
   derive(&m, m.metallic_factor, m.roughness_factor);
   if (mat.unlit) {
-    // Only the base color (and alpha) is left: no light, no emission, no bounce, no maps.
-    ShadeMaterial u;
-    u.base = m.base;
-    u.texture = m.texture;
-    u.double_sided = m.double_sided;
-    u.masked = m.masked;
-    u.opacity_texture = m.opacity_texture;
-    u.opacity_factor = m.opacity_factor;
-    u.opacity_cutoff = m.opacity_cutoff;
-    u.unlit = true;
-    u.has_specular = false;
-    return u;
+    // Only the base color (and alpha) is left: prepare_local shows it and stops there, and
+    // nothing bounces off, passes through or varies the surface.
+    m.unlit = true;
+    m.is_mirror = m.is_glass = m.varies = false;
+    m.normal_map = nullptr;
+    m.shadow_transmittance = glm::vec3(0.0f);
   }
   return m;
 }

@@ -62,7 +62,7 @@ struct ShadeMaterial {
   float ior = 1.5f;
   float f0_dielectric = 0.04f;  // ((ior - 1) / (ior + 1))^2, 1 for ior 0
   bool double_sided = false;
-  bool unlit = false;  // KHR_materials_unlit: the base color as it is (every flag below off)
+  bool unlit = false;  // KHR_materials_unlit: the base color as it is, no bounce or maps
   // alphaMode MASK (Material::alpha_mode): the surface is cut away where opacity_factor x the
   // opacity texture's alpha is below opacity_cutoff. Set only where that can happen somewhere.
   bool masked = false;

@@ -222,11 +222,11 @@ float texture_lod(const Texture& texture, glm::vec2 t0, glm::vec2 t1, glm::vec2 
 // (ShadeMaterial::shadow_transmittance): a Whitted-style filter shadow, as BART's scenes
 // expect of their light behind a glass ceiling. The shadow ray is not refracted, and neither
 // Fresnel nor the texture dims it. Embree reports each glass surface on the ray's way to
-// occlusion_filter (crosses_glass), which multiplies it into the ray's transmittance and lets the
-// ray go on, in whatever order (products commute); any other surface ends the ray. The high-quality
-// BVH's spatial splits can report one triangle twice, so each ray remembers the ones it has
-// counted. Only shadow rays (id kShadowRayId + lane, with a ShadowContext) are filtered:
-// other occlusion queries (Tracer::occluded) stop at glass as at any surface.
+// occlusion_filter (crosses_glass), which multiplies it into the ray's transmittance and lets
+// the ray go on, in whatever order (products commute); any other surface ends the ray. The
+// high-quality BVH's spatial splits can report one triangle twice, so each ray remembers the
+// ones it has counted. Only shadow rays (id kShadowRayId + lane, with a ShadowContext) are
+// filtered: other occlusion queries (Tracer::occluded) stop at glass as at any surface.
 //
 // ---- alphaMode MASK ----
 //

@@ -34,7 +34,7 @@ struct Primitive {
   std::vector<glm::vec3> normals;
   std::vector<glm::vec2> uvs;
   // glTF's COLOR_0 in linear RGB, one per vertex: it multiplies the material's base color (and
-  // its texture) like the base color factor does. Alpha is not modelled (surfaces are opaque).
+  // its texture) like the base color factor does. Its alpha is not read.
   std::vector<glm::vec3> colors;
   std::vector<uint32_t> indices;  // 3 per triangle
   int material = -1;              // index into Scene::materials; -1 = default material
