@@ -8,6 +8,7 @@
 #include <unistd.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -148,9 +149,12 @@ class TempFolder {
  public:
   TempFolder() {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ =
-        std::filesystem::temp_directory_path() / ("afr_content_" + std::to_string(getpid()) + "_" +
-                                                  info->test_suite_name() + "_" + info->name());
+    // A parameterised test's names hold '/' ("Each/Suite", "Name/0"): kept out of the folder's
+    // name, so that it is one folder (which the destructor removes) rather than a nest.
+    std::string name = std::string(info->test_suite_name()) + "_" + info->name();
+    std::replace(name.begin(), name.end(), '/', '_');
+    path_ = std::filesystem::temp_directory_path() /
+            ("afr_content_" + std::to_string(getpid()) + "_" + name);
     std::filesystem::remove_all(path_);
     std::filesystem::create_directories(path_);
   }
