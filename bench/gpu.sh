@@ -6,7 +6,9 @@
 #   2. the OpenGL backend alone at 1920x1080 and 3840x2160 (on a hardware GPU only: llvmpipe
 #      takes seconds an image there), and the driver's floor under each splat pass at 256x256
 #      and 512x512 (the passes with part of their work left out: --gl-probes);
-#   3. short headless display runs with two samplers (bench/gpu_live.sh) on the GL backend,
+#   3. a floor under a splat pass binned on the CPU and gathered on the device
+#      (afr-bench-binned-gather), the structure a software rasteriser would favour;
+#   4. short headless display runs with two samplers (bench/gpu_live.sh) on the GL backend,
 #      where display_node and sampler_node are built or bundled: 256x256, and on a hardware
 #      GPU 1920x1080 at 60 images/s and 3840x2160 at 30 (the display's stats line names its
 #      GPU time per image and its call's phases).
@@ -28,7 +30,7 @@ while [ $# -gt 0 ]; do
     --out) out=$2; shift 2 ;;
     --repeats) repeats=$2; shift 2 ;;
     --gpu) gpu=$2; shift 2 ;;
-    -h|--help) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "gpu.sh: unknown option '$1'" >&2; exit 2 ;;
   esac
 done
@@ -64,6 +66,24 @@ fi
 # added, no kernel), so what is left bounds what any kernel on this driver can take.
 "${bench[@]}" "${common[@]}" --backends cpu,gl --threads "$(nproc)" --sizes 256,512 \
   --gl-splat gather,raster --gl-tiles 16 --gl-probes none,culled,flat,dots,visit | tee "$tmp/probes.md"
+
+# A floor under the structure that needs neither the device's atomics nor a point per sample:
+# the samples binned by pixel on the CPU, gathered on the device (afr-bench-binned-gather; not a
+# backend: docs/benchmarks.md, "Why no GL design on llvmpipe comes within 2x"). Skipped where a
+# bundle lacks it.
+if [ -n "$bin" ]; then
+  binned=("$bin/run" afr-bench-binned-gather)
+  [ -x "$bin/bin/afr-bench-binned-gather" ] || binned=()
+else
+  binned=(build/bench/afr-bench-binned-gather)
+  [ -x "${binned[0]}" ] || binned=()
+fi
+if [ ${#binned[@]} -gt 0 ]; then
+  "${binned[@]}" --gpu "$gpu" --repeats "$repeats" --sizes 256,512 --reach 2,3 --block 1,2,4 |
+    tee "$tmp/binned.md"
+else
+  echo "(afr-bench-binned-gather not built or bundled)" | tee "$tmp/binned.md"
+fi
 
 # The display runs (bench/gpu_live.sh) with the nodes of build/ or of the bundle (which must
 # hold display_node and sampler_node: deploy/bundle.sh DIR build/display_node/display_node
@@ -120,6 +140,16 @@ fi
   echo "candidates loaded and added (no kernel). Their images are wrong by design."
   echo
   cat "$tmp/probes.md"
+  echo
+  echo "## A floor under a gather binned on the CPU"
+  echo
+  echo "The samples counted into per-pixel cells on the CPU (one thread), uploaded, and gathered"
+  echo "by a compute pass with the splat kernel's arithmetic, one invocation per block of pixels"
+  echo "visiting the cells within reach (bench/binned_gather_bench.cpp). Every splat is as wide as"
+  echo "the reach allows (reach + 0.5 px); the reprojection, the splat shapes, wider splats and the"
+  echo "hole fill are not timed, so a pass of this design takes at least the sum."
+  echo
+  cat "$tmp/binned.md"
   if [ -n "$display" ]; then
     echo
     echo "Headless display runs (bench/gpu_live.sh: deploy/run-local.sh 2, 12 s, GL backend, the built-in scene):"
