@@ -69,7 +69,7 @@ fi
 
 # A floor under the structure that needs neither the device's atomics nor a point per sample:
 # the samples binned by pixel on the CPU, gathered on the device (afr-bench-binned-gather; not a
-# backend: docs/benchmarks.md, "Why no GL design on llvmpipe comes within 2x"). Skipped where a
+# backend: docs/benchmarks.md, "The one structure that comes near"). Skipped where a
 # bundle lacks it.
 if [ -n "$bin" ]; then
   binned=("$bin/run" afr-bench-binned-gather)
