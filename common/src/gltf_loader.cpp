@@ -1078,7 +1078,6 @@ void Loader::load_materials() {
       out.alpha_cutoff = float(in.alphaCutoff);
     } else if (in.alphaMode == "BLEND") {
       out.alpha_mode = Material::AlphaMode::kBlend;
-      warn_once("alphaMode BLEND", "alphaMode BLEND is not supported (drawn opaque)");
     } else if (in.alphaMode != "OPAQUE") {
       warn_once("alphaMode " + in.alphaMode,
                 fmt::format("{} has alphaMode \"{}\", which glTF does not define (drawn "
@@ -1119,12 +1118,12 @@ void Loader::load_materials() {
   keep_mask_alphas();
 }
 
-// Texture alpha is kept only where a masking material's base color reads it, and where it is
-// not 1 everywhere: other materials are opaque whatever their images hold.
+// Texture alpha is kept only where a masking or blending material's base color reads it, and
+// where it is not 1 everywhere: other materials are opaque whatever their images hold.
 void Loader::keep_mask_alphas() {
   std::vector<bool> masks(scene_.textures.size(), false);
   for (const Material& m : scene_.materials) {
-    if (m.alpha_mode == Material::AlphaMode::kMask && m.base_color_texture >= 0) {
+    if (m.alpha_mode != Material::AlphaMode::kOpaque && m.base_color_texture >= 0) {
       masks[size_t(m.base_color_texture)] = true;
     }
   }

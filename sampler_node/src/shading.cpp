@@ -64,12 +64,16 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
   m.metallic_factor = glm::clamp(mat.metallic, 0.0f, 1.0f);
   m.roughness_factor = glm::clamp(mat.roughness, 0.0f, 1.0f);
   m.double_sided = mat.double_sided;
-  if (mat.alpha_mode == Material::AlphaMode::kMask) {
+  if (mat.alpha_mode != Material::AlphaMode::kOpaque) {
     m.opacity_factor = mat.base_color_factor.a;
-    m.opacity_cutoff = mat.alpha_cutoff;
     if (m.texture && !m.texture->alpha.empty()) m.opacity_texture = m.texture;
-    // Without a texture's alpha the factor alone decides, the same everywhere.
+    m.blended = mat.alpha_mode == Material::AlphaMode::kBlend;
+    // BLEND: every point's threshold is in (0, 1], so an alpha of 1 keeps the whole surface.
+    m.opacity_cutoff = m.blended ? 1.0f : mat.alpha_cutoff;
+    // Without a texture's alpha the factor alone decides: MASK the same everywhere, BLEND
+    // everywhere only at 1.
     m.masked = m.opacity_texture || !(m.opacity_factor >= m.opacity_cutoff);
+    if (!m.masked) m.blended = false;
   }
   m.transmission = glm::clamp(mat.transmission, 0.0f, 1.0f);
   m.is_glass = m.transmission > 0.0f;

@@ -63,9 +63,11 @@ struct ShadeMaterial {
   float f0_dielectric = 0.04f;  // ((ior - 1) / (ior + 1))^2, 1 for ior 0
   bool double_sided = false;
   bool unlit = false;  // KHR_materials_unlit: the base color as it is, no bounce or maps
-  // alphaMode MASK (Material::alpha_mode): the surface is cut away where opacity_factor x the
-  // opacity texture's alpha is below opacity_cutoff. Set only where that can happen somewhere.
+  // alphaMode MASK and BLEND (Material::alpha_mode): the surface is cut away where opacity_factor
+  // x the opacity texture's alpha is below opacity_cutoff (MASK) or below a hash of the point
+  // (BLEND, `blended`: tracer.cpp's blend_threshold). Set only where that can happen somewhere.
   bool masked = false;
+  bool blended = false;
   const Texture* opacity_texture = nullptr;  // the base-color texture, where it has alpha
   float opacity_factor = 1.0f;               // the base color factor's alpha
   float opacity_cutoff = 0.5f;

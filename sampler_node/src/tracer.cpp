@@ -2,6 +2,7 @@
 
 #include <afr/common/check.h>
 #include <afr/common/error.h>
+#include <afr/common/random.h>
 
 #include <embree3/rtcore.h>
 #include <fmt/format.h>
@@ -235,6 +236,17 @@ float texture_lod(const Texture& texture, glm::vec2 t0, glm::vec2 t1, glm::vec2 
 // reject hits there, so every ray, the camera's, reflections, shadows and the sampler's
 // occlusion rays alike, passes through as if nothing were there. Only masked geometries have
 // an intersection filter; the others cost Embree nothing.
+//
+// ---- alphaMode BLEND ----
+//
+// A blended surface is a masked one whose cutoff differs from point to point: a hash of the
+// point, uniform in (0, 1] (blend_threshold; hashed alpha testing, Wyman and McGuire 2017). A
+// point of opacity a is then kept with probability a, and every ray that meets it, camera or
+// shadow, finds the same there. A pixel's samples meet different points, so the reconstruction
+// shows the surface over what lies behind it in proportion a, and a shadow lets 1 - a of the
+// light through, as blending would; two blended layers let (1 - a1)(1 - a2) through, because
+// their points hash apart. The decision is per sample, not a blend within one: a single sample
+// sees one or the other, and the reconstruction's filter does the averaging.
 constexpr unsigned kShadowRayId = 0x5ad0u;
 constexpr float kShadowCutoff = 1e-3f;  // a ray dimmer than this is blocked
 
@@ -259,6 +271,17 @@ struct ShadowContext {
 };
 static_assert(offsetof(ShadowContext, embree) == 0);
 
+// alphaMode BLEND: the opacity that a point of a surface needs to be kept, uniform in (0, 1] and
+// fixed for the point: its instance, geometry, triangle and barycentrics to 2^-16, far finer
+// than a pixel on any triangle that a pixel shows.
+float blend_threshold(unsigned inst, unsigned geom, unsigned prim, float u, float v) {
+  const auto cell = [](float b) { return uint64_t(std::clamp(b, 0.0f, 1.0f) * 65536.0f); };
+  uint64_t h = mix_seed((uint64_t(inst) << 32) | geom);
+  h = mix_seed(h ^ prim);
+  h = mix_seed(h ^ ((cell(u) << 32) | cell(v)));
+  return float((h >> 40) + 1) * (1.0f / 16777216.0f);
+}
+
 // What the filters of one Embree geometry read (its user data): its material, and, for a
 // masked material, the texture coordinates and triangles that place a hit in its texture.
 struct GeometryFilter {
@@ -266,20 +289,20 @@ struct GeometryFilter {
   const glm::vec2* uvs = nullptr;  // null: the primitive has none (the factor alone decides)
   const uint32_t* indices = nullptr;
 
-  // alphaMode MASK: whether the hit at barycentrics (u, v) of triangle prim is kept.
-  bool opaque_at(unsigned prim, float u, float v) const {
+  // alphaMode MASK and BLEND: whether hit i of the filter's arguments is kept.
+  bool opaque_at(const RTCFilterFunctionNArguments* args, unsigned i) const {
     const shading::ShadeMaterial& m = *material;
+    const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+    const float u = RTCHitN_u(args->hit, args->N, i), v = RTCHitN_v(args->hit, args->N, i);
     float opacity = m.opacity_factor;
     if (m.opacity_texture && uvs) {
       const uint32_t* tri = indices + 3 * size_t(prim);
       const glm::vec2 uv = (1.0f - u - v) * uvs[tri[0]] + u * uvs[tri[1]] + v * uvs[tri[2]];
       opacity *= m.opacity_texture->sample_alpha(uv);
     }
-    return opacity >= m.opacity_cutoff;
-  }
-  bool opaque_at(const RTCFilterFunctionNArguments* args, unsigned i) const {
-    return opaque_at(RTCHitN_primID(args->hit, args->N, i), RTCHitN_u(args->hit, args->N, i),
-                     RTCHitN_v(args->hit, args->N, i));
+    if (!m.blended) return opacity >= m.opacity_cutoff;
+    return opacity >= blend_threshold(RTCHitN_instID(args->hit, args->N, i, 0),
+                                      RTCHitN_geomID(args->hit, args->N, i), prim, u, v);
   }
 };
 

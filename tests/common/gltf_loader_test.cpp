@@ -594,9 +594,9 @@ TEST_F(GltfLoaderTest, UnlitMaterialsAreRead) {
   EXPECT_FALSE(scene.materials[1].unlit);
 }
 
-// alphaMode MASK keeps its cutoff and its base-color texture's alpha; an image with alpha that
-// no masking material reads, or whose alpha is 1 everywhere, keeps none; BLEND warns (drawn
-// opaque); an alphaCutoff below 0 fails naming the material.
+// alphaMode MASK keeps its cutoff and its base-color texture's alpha, and so does BLEND; an
+// image with alpha that no masking or blending material reads, or whose alpha is 1 everywhere,
+// keeps none; neither warns; an alphaCutoff below 0 fails naming the material.
 TEST_F(GltfLoaderTest, MaskedMaterialsKeepTheirCutoffAndTheirTexturesAlpha) {
   const DecodedImage leaf{2, 1, 4, {10, 200, 30, 0, 10, 200, 30, 255}};
   const DecodedImage solid{1, 1, 4, {50, 50, 50, 255}};
@@ -626,13 +626,15 @@ TEST_F(GltfLoaderTest, MaskedMaterialsKeepTheirCutoffAndTheirTexturesAlpha) {
   ASSERT_EQ(scene.textures.size(), 2u);
   EXPECT_EQ(scene.textures[0].alpha, (std::vector<float>{0.0f, 1.0f}));
   EXPECT_TRUE(scene.textures[1].alpha.empty());
-  ASSERT_EQ(report.warnings.size(), 1u);
-  EXPECT_NE(report.warnings[0].find("alphaMode BLEND is not supported"), std::string::npos);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
 
-  // The same leaf on an opaque material: its alpha is not kept.
+  // The same leaf on an opaque material: its alpha is not kept; on a blending one it is.
   b.doc()["materials"][0]["alphaMode"] = "OPAQUE";
   b.write_embedded(dir_ / "opaque.gltf");
   EXPECT_TRUE(load_gltf(dir_ / "opaque.gltf").textures[0].alpha.empty());
+  b.doc()["materials"][0]["alphaMode"] = "BLEND";
+  b.write_embedded(dir_ / "blend.gltf");
+  EXPECT_EQ(load_gltf(dir_ / "blend.gltf").textures[0].alpha, (std::vector<float>{0.0f, 1.0f}));
 
   b.doc()["materials"][0]["alphaMode"] = "MASK";
   b.doc()["materials"][0]["alphaCutoff"] = -1.0;

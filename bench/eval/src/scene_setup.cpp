@@ -130,6 +130,8 @@ uint64_t render_fingerprint(const Scene& scene) {
     if (m.alpha_mode != Material::AlphaMode::kOpaque) {
       h.value(m.alpha_mode);
       h.value(m.alpha_cutoff);
+      // BLEND was drawn opaque before it was drawn by hashed alpha: frames cached then are stale.
+      if (m.alpha_mode == Material::AlphaMode::kBlend) h.value(uint32_t(1));
     }
     if (m.transmission != 0.0f || m.ior != 1.5f) {
       h.value(m.transmission);

@@ -78,8 +78,8 @@ struct Texture {
   int height = 0;
   std::vector<glm::vec3> texels;
 
-  // Level 0's alpha channel (linear, 0 to 1), kept only where a material masks with it
-  // (Material::AlphaMode::kMask); empty: opaque.
+  // Level 0's alpha channel (linear, 0 to 1), kept only where a material masks or blends with
+  // it (Material::AlphaMode::kMask, kBlend); empty: opaque.
   std::vector<float> alpha;
 
   // Bilinear lookup with REPEAT wrapping in both directions (the only wrap mode afr models).
@@ -126,7 +126,9 @@ struct Material {
   float normal_scale = 1.0f;
   // glTF's alphaMode. kMask cuts the surface away where its alpha (base_color_factor's alpha x
   // the base-color texture's) is below alpha_cutoff, for every ray (camera, reflection,
-  // shadow, occlusion). kBlend is drawn opaque (the loader warns).
+  // shadow, occlusion). kBlend keeps each point of the surface with probability alpha, by a
+  // hash of the point (hashed alpha testing): a pixel's samples then see the surface over what
+  // lies behind in proportion alpha, as blending would show it.
   enum class AlphaMode { kOpaque, kMask, kBlend };
   AlphaMode alpha_mode = AlphaMode::kOpaque;
   float alpha_cutoff = 0.5f;
