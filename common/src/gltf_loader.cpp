@@ -172,7 +172,8 @@ class Loader {
 
   void load_meshes();
   bool load_primitive(const tinygltf::Primitive& in, const std::string& what, Primitive* out);
-  void load_colors(int accessor, const std::string& what, size_t vertex_count, Primitive* out);
+  void load_colors(int accessor, const std::string& what, size_t vertex_count, bool keep_alpha,
+                   Primitive* out);
   void load_skinning(const tinygltf::Primitive& in, const std::string& what, Primitive* out);
   void load_targets(const tinygltf::Primitive& in, const std::string& what, Primitive* out);
   void load_skins();
@@ -822,7 +823,11 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
                           what, uv_name));
   }
   if (const auto color = in.attributes.find("COLOR_0"); color != in.attributes.end()) {
-    load_colors(color->second, what + " COLOR_0", vertex_count, out);
+    // Its alpha matters only to a material that masks or blends.
+    const bool keep_alpha =
+        in.material >= 0 && size_t(in.material) < scene_.materials.size() &&
+        scene_.materials[size_t(in.material)].alpha_mode != Material::AlphaMode::kOpaque;
+    load_colors(color->second, what + " COLOR_0", vertex_count, keep_alpha, out);
   }
   load_skinning(in, what, out);
   load_targets(in, what, out);
@@ -866,11 +871,11 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
 }
 
 // COLOR_0 (glTF 2.0, 3.7.2.1): VEC3 or VEC4 of floats or of normalized unsigned bytes or shorts,
-// a linear RGB(A) multiplier of the base color. Alpha is dropped: an OPAQUE material ignores it
-// (glTF 2.0, 3.9.4), and any other alphaMode already has its own warning; negative floats
-// become 0.
+// a linear RGB(A) multiplier of the base color. Alpha is kept (clamped to 0 to 1) where
+// keep_alpha (a MASK or BLEND material) and it is below 1 somewhere, and dropped otherwise: an
+// OPAQUE material ignores it (glTF 2.0, 3.9.4). Negative color floats become 0.
 void Loader::load_colors(int accessor, const std::string& what, size_t vertex_count,
-                         Primitive* out) {
+                         bool keep_alpha, Primitive* out) {
   const tinygltf::Accessor& a = accessor_at(accessor, what);
   if (a.type != TINYGLTF_TYPE_VEC3 && a.type != TINYGLTF_TYPE_VEC4) {
     fail(fmt::format("accessor {} ({}) is {}: vertex colors must be VEC3 or VEC4", accessor, what,
@@ -896,6 +901,17 @@ void Loader::load_colors(int accessor, const std::string& what, size_t vertex_co
     for (int k = 0; k < 3; ++k) {
       negative |= v[k] < 0.0f;
       out->colors[i][k] = std::max(v[k], 0.0f);
+    }
+  }
+  if (keep_alpha && components == 4) {
+    bool below_one = false;
+    for (size_t i = 0; i < vertex_count; ++i) below_one |= !(c[4 * i + 3] >= 1.0f);
+    if (below_one) {
+      out->color_alpha.resize(vertex_count);
+      for (size_t i = 0; i < vertex_count; ++i) {
+        const float a = c[4 * i + 3];
+        out->color_alpha[i] = a >= 0.0f ? std::min(a, 1.0f) : 0.0f;  // NaN too
+      }
     }
   }
   if (negative) {

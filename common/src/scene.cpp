@@ -324,6 +324,15 @@ void Scene::finalize() {
           throw err(fmt::format("{}: a vertex color is negative or not finite", where));
         }
       }
+      if (!p.color_alpha.empty() && p.color_alpha.size() != p.positions.size()) {
+        throw err(fmt::format("{}: {} vertex alphas for {} vertices", where, p.color_alpha.size(),
+                              p.positions.size()));
+      }
+      for (const float a : p.color_alpha) {
+        if (!(a >= 0.0f && a <= 1.0f)) {
+          throw err(fmt::format("{}: a vertex alpha is outside 0 to 1", where));
+        }
+      }
       if (p.normals.size() != p.positions.size()) {
         if (!p.normals.empty()) {
           throw err(fmt::format("{}: {} normals for {} vertices", where, p.normals.size(),

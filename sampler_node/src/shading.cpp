@@ -73,7 +73,7 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
     // Without a texture's alpha the factor alone decides: MASK the same everywhere, BLEND
     // everywhere only at 1.
     m.masked = m.opacity_texture || !(m.opacity_factor >= m.opacity_cutoff);
-    if (!m.masked) m.blended = false;
+    m.alpha_tested = true;
   }
   m.transmission = glm::clamp(mat.transmission, 0.0f, 1.0f);
   m.is_glass = m.transmission > 0.0f;

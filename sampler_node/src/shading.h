@@ -68,6 +68,9 @@ struct ShadeMaterial {
   // (BLEND, `blended`: tracer.cpp's blend_threshold). Set only where that can happen somewhere.
   bool masked = false;
   bool blended = false;
+  // alphaMode MASK or BLEND: a primitive's COLOR_0 alpha (Primitive::color_alpha) can cut the
+  // surface even where `masked` is false (the tracer decides per geometry).
+  bool alpha_tested = false;
   const Texture* opacity_texture = nullptr;  // the base-color texture, where it has alpha
   float opacity_factor = 1.0f;               // the base color factor's alpha
   float opacity_cutoff = 0.5f;

@@ -286,7 +286,9 @@ float blend_threshold(unsigned inst, unsigned geom, unsigned prim, float u, floa
 // masked material, the texture coordinates and triangles that place a hit in its texture.
 struct GeometryFilter {
   const shading::ShadeMaterial* material = nullptr;
-  const glm::vec2* uvs = nullptr;  // null: the primitive has none (the factor alone decides)
+  bool masked = false;  // the material's `masked`, or a vertex alpha (color_alpha) it tests
+  const glm::vec2* uvs = nullptr;      // null: the primitive has none (the factor alone decides)
+  const float* color_alpha = nullptr;  // COLOR_0's alpha per vertex, or null
   const uint32_t* indices = nullptr;
 
   // alphaMode MASK and BLEND: whether hit i of the filter's arguments is kept.
@@ -295,10 +297,14 @@ struct GeometryFilter {
     const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
     const float u = RTCHitN_u(args->hit, args->N, i), v = RTCHitN_v(args->hit, args->N, i);
     float opacity = m.opacity_factor;
+    const uint32_t* tri = indices + 3 * size_t(prim);
     if (m.opacity_texture && uvs) {
-      const uint32_t* tri = indices + 3 * size_t(prim);
       const glm::vec2 uv = (1.0f - u - v) * uvs[tri[0]] + u * uvs[tri[1]] + v * uvs[tri[2]];
       opacity *= m.opacity_texture->sample_alpha(uv);
+    }
+    if (color_alpha) {
+      opacity *=
+          (1.0f - u - v) * color_alpha[tri[0]] + u * color_alpha[tri[1]] + v * color_alpha[tri[2]];
     }
     if (!m.blended) return opacity >= m.opacity_cutoff;
     return opacity >= blend_threshold(RTCHitN_instID(args->hit, args->N, i, 0),
@@ -336,7 +342,7 @@ void occlusion_filter(const RTCFilterFunctionNArguments* args) {
   const shading::ShadeMaterial& m = *f->material;
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] != -1) continue;
-    if (m.masked && !f->opaque_at(args, i)) {
+    if (f->masked && !f->opaque_at(args, i)) {
       args->valid[i] = 0;
     } else if (m.is_glass && crosses_glass(args, i, m)) {
       args->valid[i] = 0;
@@ -511,15 +517,19 @@ void Tracer::Impl::check_device(const char* what) const {
 void Tracer::Impl::set_filters(RTCGeometry g, uint32_t material, const Primitive& p) {
   AFR_DCHECK(material < materials_.size());
   const shading::ShadeMaterial& m = materials_[material];
-  if (!m.is_glass && !m.masked) return;
+  const bool vertex_alpha = m.alpha_tested && p.color_alpha.size() == p.positions.size();
+  const bool masked = m.masked || vertex_alpha;
+  if (!m.is_glass && !masked) return;
   has_glass_ |= m.is_glass;
   GeometryFilter& f = filters_.emplace_back();
   f.material = &m;
+  f.masked = masked;
   f.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
+  f.color_alpha = vertex_alpha ? p.color_alpha.data() : nullptr;
   f.indices = p.indices.data();
   rtcSetGeometryUserData(g, &f);
   rtcSetGeometryOccludedFilterFunction(g, &occlusion_filter);
-  if (m.masked) rtcSetGeometryIntersectFilterFunction(g, &mask_filter);
+  if (masked) rtcSetGeometryIntersectFilterFunction(g, &mask_filter);
 }
 
 RTCGeometry Tracer::Impl::new_triangle_geometry(uint32_t material, const Primitive& p,

@@ -244,9 +244,9 @@ TEST_F(GltfLoaderTest, QuadLoadsWithPositionsIndicesGeneratedNormalsAndUvs) {
 }
 
 // COLOR_0 in each form glTF allows (float VEC3, normalized unsigned byte VEC4, normalized
-// unsigned short VEC3) is read as linear RGB, alpha dropped without a word (an OPAQUE material
-// ignores it); negative floats warn once; a type or count glTF forbids fails naming the
-// accessor.
+// unsigned short VEC3) is read as linear RGB, alpha dropped without a word where the material
+// is OPAQUE (which ignores it) and kept where it masks; negative floats warn once; a type or
+// count glTF forbids fails naming the accessor.
 TEST_F(GltfLoaderTest, VertexColorsAreReadInEveryAllowedFormAndBadOnesAreNamed) {
   GltfBuilder b;
   const int positions = add_quad(&b);
@@ -290,6 +290,21 @@ TEST_F(GltfLoaderTest, VertexColorsAreReadInEveryAllowedFormAndBadOnesAreNamed) 
   EXPECT_EQ(count_containing(report.warnings, "negative vertex color"), 1u);
   EXPECT_EQ(count_containing(report.warnings, "COLOR_1"), 1u);
   EXPECT_EQ(report.warnings.size(), 2u);
+  for (const Primitive& p : scene.meshes[0].primitives) EXPECT_TRUE(p.color_alpha.empty());
+
+  // On a masking material the byte colors' alpha is kept; the float VEC3 has none to keep.
+  {
+    GltfBuilder m = b;
+    m.doc()["materials"] = json::array({{{"alphaMode", "MASK"}}});
+    for (json& p : m.doc()["meshes"][0]["primitives"]) p["material"] = 0;
+    m.write_embedded(dir_ / "masked_colors.gltf");
+    const Scene masked = load_gltf(dir_ / "masked_colors.gltf");
+    EXPECT_TRUE(masked.meshes[0].primitives[0].color_alpha.empty());
+    const std::vector<float>& a = masked.meshes[0].primitives[1].color_alpha;
+    ASSERT_EQ(a.size(), 4u);
+    EXPECT_EQ(a[0], 1.0f);
+    EXPECT_FLOAT_EQ(a[2], 128.0f / 255.0f);
+  }
 
   // Unsigned bytes that are not normalized, a SCALAR, too few colors: each an error.
   auto broken = [&](const std::function<int(GltfBuilder*)>& add_color, const std::string& name,

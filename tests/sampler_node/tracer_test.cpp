@@ -546,6 +546,37 @@ TEST(TracerTest, VertexColorsMultiplyBaseColorInterpolatedAcrossTheTriangle) {
   expect_near3(plain.color, {0.5f, 0.8f, 0.6f}, 1e-5f, "no vertex colors");
 }
 
+// COLOR_0's alpha multiplies a masking material's opacity: a red square of factor alpha 1 whose
+// vertex alpha runs from 0 on its left edge to 1 on its right is cut away left of its middle
+// (alpha < 0.5) for camera and occlusion rays alike; the same material on a square without
+// vertex alpha is whole.
+TEST(TracerTest, VertexAlphaCutsAMaskedSurface) {
+  Scene s;
+  s.ambient = glm::vec3(1.0f);
+  const int red = add_material(&s, {1, 0, 0}, 0.0f, 1.0f);
+  s.materials[size_t(red)].alpha_mode = Material::AlphaMode::kMask;
+  const int green = add_material(&s, {0, 1, 0}, 0.0f, 1.0f);
+  Mesh faded = quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, red);
+  faded.primitives[0].colors = {{1, 1, 1}, {1, 1, 1}, {1, 1, 1}, {1, 1, 1}};
+  faded.primitives[0].color_alpha = {0.0f, 1.0f, 1.0f, 0.0f};  // v0 and v3 on the left
+  add_mesh_node(&s, faded);
+  add_mesh_node(&s, quad_mesh({2, -1, -2}, {2, 0, 0}, {0, 2, 0}, red));
+  add_mesh_node(&s, quad_mesh({-8, -8, -4}, {16, 0, 0}, {0, 16, 0}, green));
+  s.finalize();
+  Tracer tracer(s);
+  TraceStats stats;
+  for (const float y : {-0.7f, 0.0f, 0.7f}) {
+    expect_near3(tracer.trace(Ray{{-0.4f, y, 0.0f}, {0, 0, -1}}, &stats).color, {0, 1, 0}, 1e-5f,
+                 "left of the middle: cut away");
+    expect_near3(tracer.trace(Ray{{0.4f, y, 0.0f}, {0, 0, -1}}, &stats).color, {1, 0, 0}, 1e-5f,
+                 "right of the middle: kept");
+    EXPECT_FALSE(tracer.occluded({-0.4f, y, 0.0f}, {-0.4f, y, -3.0f}, &stats));
+    EXPECT_TRUE(tracer.occluded({0.4f, y, 0.0f}, {0.4f, y, -3.0f}, &stats));
+    expect_near3(tracer.trace(Ray{{2.6f, y, 0.0f}, {0, 0, -1}}, &stats).color, {1, 0, 0}, 1e-5f,
+                 "no vertex alpha: whole");
+  }
+}
+
 // A material's metallic-roughness, emissive and occlusion textures decide it at each point: a
 // square whose textures hold, in three texels across, (1) a rough dielectric, (2) a polished
 // metal (a mirror) and (3) a rough metal, each with its own emission and occlusion, shades at

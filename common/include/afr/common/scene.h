@@ -34,8 +34,11 @@ struct Primitive {
   std::vector<glm::vec3> normals;
   std::vector<glm::vec2> uvs;
   // glTF's COLOR_0 in linear RGB, one per vertex: it multiplies the material's base color (and
-  // its texture) like the base color factor does. Its alpha is not read.
+  // its texture) like the base color factor does.
   std::vector<glm::vec3> colors;
+  // COLOR_0's alpha (0 to 1), one per vertex, kept only where the primitive's material masks or
+  // blends (Material::alpha_mode) and it is below 1 somewhere: it multiplies the opacity.
+  std::vector<float> color_alpha;
   std::vector<uint32_t> indices;  // 3 per triangle
   int material = -1;              // index into Scene::materials; -1 = default material
   // JOINTS_0 and WEIGHTS_0 of a skinned mesh, one entry per vertex (else empty): four slots of
