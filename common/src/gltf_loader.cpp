@@ -822,6 +822,22 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
                           "(the material's factors decide)",
                           what, uv_name));
   }
+  // TANGENT (VEC4 of floats, or of normalized bytes or shorts with KHR_mesh_quantization), read
+  // only where the material's normal texture uses it; w taken by its sign.
+  const bool normal_mapped = in.material >= 0 && size_t(in.material) < scene_.materials.size() &&
+                             scene_.materials[size_t(in.material)].normal_texture >= 0;
+  if (const auto tangent = in.attributes.find("TANGENT");
+      normal_mapped && tangent != in.attributes.end()) {
+    const std::vector<float> t =
+        read_floats(tangent->second, TINYGLTF_TYPE_VEC4, what + " TANGENT");
+    if (t.size() / 4 != vertex_count) {
+      fail(fmt::format("{} has {} tangents for {} positions", what, t.size() / 4, vertex_count));
+    }
+    out->tangents.resize(vertex_count);
+    for (size_t i = 0; i < vertex_count; ++i) {
+      out->tangents[i] = {t[4 * i], t[4 * i + 1], t[4 * i + 2], t[4 * i + 3] < 0.0f ? -1.0f : 1.0f};
+    }
+  }
   if (const auto color = in.attributes.find("COLOR_0"); color != in.attributes.end()) {
     // Its alpha matters only to a material that masks or blends.
     const bool keep_alpha =

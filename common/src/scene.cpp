@@ -324,6 +324,15 @@ void Scene::finalize() {
           throw err(fmt::format("{}: a vertex color is negative or not finite", where));
         }
       }
+      if (!p.tangents.empty() && p.tangents.size() != p.positions.size()) {
+        throw err(fmt::format("{}: {} tangents for {} vertices", where, p.tangents.size(),
+                              p.positions.size()));
+      }
+      for (const glm::vec4& t : p.tangents) {
+        if (!finite3(glm::vec3(t)) || (t.w != 1.0f && t.w != -1.0f)) {
+          throw err(fmt::format("{}: a tangent is not finite or its w is not +1 or -1", where));
+        }
+      }
       if (!p.color_alpha.empty() && p.color_alpha.size() != p.positions.size()) {
         throw err(fmt::format("{}: {} vertex alphas for {} vertices", where, p.color_alpha.size(),
                               p.positions.size()));

@@ -57,9 +57,12 @@ float max_abs(const glm::vec3& v) {
 // space and takes its node from the instance.
 struct GeomRecord {
   const glm::vec3* positions = nullptr;
-  const glm::vec3* normals = nullptr;     // null when the primitive has none per vertex
-  const glm::vec2* uvs = nullptr;         // null when the primitive has none per vertex
-  const glm::vec3* colors = nullptr;      // COLOR_0; null when the primitive has none
+  const glm::vec3* normals = nullptr;  // null when the primitive has none per vertex
+  const glm::vec2* uvs = nullptr;      // null when the primitive has none per vertex
+  const glm::vec3* colors = nullptr;   // COLOR_0; null when the primitive has none
+  // TANGENT in the positions' space (w: the bitangent's sign); null: the triangle's own frame
+  // (no TANGENT, or deforming geometry, whose tangents are not deformed).
+  const glm::vec4* tangents = nullptr;
   const glm::vec3* velocities = nullptr;  // world velocity per vertex: deforming geometry only
   const uint32_t* indices = nullptr;
   uint32_t material = 0;  // index into Impl::materials_
@@ -391,6 +394,7 @@ struct Tracer::Impl {
   // Static geometry transformed to world space (GeomRecord points into these).
   std::vector<std::vector<glm::vec3>> static_positions_;
   std::vector<std::vector<glm::vec3>> static_normals_;
+  std::vector<std::vector<glm::vec4>> static_tangents_;  // world space, where a primitive has them
   // Deforming geometry, in one BLAS (deforming_blas_, -1 when there is none) refitted at every
   // set_time; positions at the two times of the velocity's difference quotient.
   std::vector<DeformingPrimitive> deforming_;
@@ -603,6 +607,7 @@ void Tracer::Impl::build() {
       if (!usable(p)) continue;
       std::vector<glm::vec3> positions(p.positions.size());
       std::vector<glm::vec3> normals;
+      std::vector<glm::vec4> tangents;
       if (deformed) {
         normals.resize(p.positions.size());
         scene_.deform(n, pi, at0, positions.data(), normals.data());
@@ -615,6 +620,16 @@ void Tracer::Impl::build() {
           for (size_t i = 0; i < normals.size(); ++i)
             normals[i] = glm::vec3(normal_matrix * glm::dvec3(p.normals[i]));
         }
+        if (p.tangents.size() == p.positions.size()) {
+          // Tangents turn with the surface; a mirroring transform turns the bitangent's sign.
+          const glm::dmat3 linear(world);
+          const float mirror = glm::determinant(linear) < 0.0 ? -1.0f : 1.0f;
+          tangents.resize(p.tangents.size());
+          for (size_t i = 0; i < tangents.size(); ++i) {
+            tangents[i] = glm::vec4(glm::vec3(linear * glm::dvec3(glm::vec3(p.tangents[i]))),
+                                    p.tangents[i].w * mirror);
+          }
+        }
       }
       RTCGeometry g = new_triangle_geometry(material_of(p), p, positions.data(), positions.size(),
                                             p.indices.data(), p.triangle_count());
@@ -622,9 +637,11 @@ void Tracer::Impl::build() {
       rtcReleaseGeometry(g);
       static_positions_.push_back(std::move(positions));
       static_normals_.push_back(std::move(normals));
+      static_tangents_.push_back(std::move(tangents));
       GeomRecord r;
       r.positions = static_positions_.back().data();
       r.normals = static_normals_.back().empty() ? nullptr : static_normals_.back().data();
+      r.tangents = static_tangents_.back().empty() ? nullptr : static_tangents_.back().data();
       r.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
       r.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
       r.indices = p.indices.data();
@@ -662,6 +679,7 @@ void Tracer::Impl::build() {
         GeomRecord r;
         r.positions = p.positions.data();
         r.normals = p.normals.size() == p.positions.size() ? p.normals.data() : nullptr;
+        r.tangents = p.tangents.size() == p.positions.size() ? p.tangents.data() : nullptr;
         r.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
         r.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
         r.indices = p.indices.data();
@@ -924,31 +942,53 @@ bool Tracer::Impl::blocked(const glm::vec3& o, const glm::vec3& d, float tnear, 
   return r.tfar < 0.0f;  // Embree sets tfar to -inf on a hit
 }
 
-// The shading normal that a normal texture's texel asks for at a point of triangle `tri` whose
-// shading normal is n (unit). The tangent frame is the triangle's own (glTF's TANGENT is not
-// read): t = dp/du made orthogonal to n, and b = n x t, turned to point against dp/dv as
-// glTF's flipped v expects (so a mirrored mapping gets a mirrored b, as MikkTSpace's sign
-// gives). Without a usable frame (no uv area, degenerate) n stays.
+// The shading normal that a normal texture's texel asks for at barycentrics (w, u, v) of
+// triangle `tri`, whose shading normal is n (unit). The tangent frame is the file's where the
+// primitive has TANGENT (GeomRecord::tangents): t interpolated and made orthogonal to n, and
+// b = n x t times the tangent's w. Otherwise it is the triangle's own: t = dp/du made
+// orthogonal to n, and b = n x t, turned to point against dp/dv as glTF's flipped v expects
+// (so a mirrored mapping gets a mirrored b, as MikkTSpace's sign gives). `turned`: n is the
+// back of a double-sided surface, whose b stays the front's as in the triangle's own frame.
+// Without a usable frame (no uv area, degenerate) n stays.
 static glm::vec3 mapped_normal(const GeomRecord& g, const Instance& inst, const uint32_t* tri,
-                               const glm::vec3& n, const glm::vec3& texel, float scale) {
-  const glm::vec2 d1 = g.uvs[tri[1]] - g.uvs[tri[0]], d2 = g.uvs[tri[2]] - g.uvs[tri[0]];
-  const glm::vec3 e1 = g.positions[tri[1]] - g.positions[tri[0]];
-  const glm::vec3 e2 = g.positions[tri[2]] - g.positions[tri[0]];
-  const float det = d1.x * d2.y - d2.x * d1.y;
-  if (!(std::abs(det) > 1e-20f)) return n;
-  glm::vec3 t = (e1 * d2.y - e2 * d1.y) / det;  // dp/du
-  glm::vec3 b = (e2 * d1.x - e1 * d2.x) / det;  // dp/dv
-  if (inst.moves) {
-    const glm::mat3 linear(inst.world);
-    t = linear * t;
-    b = linear * b;
+                               const glm::vec3& bary, const glm::vec3& n, bool turned,
+                               const glm::vec3& texel, float scale) {
+  glm::vec3 t, bt;
+  if (g.tangents) {
+    const glm::vec4& t0 = g.tangents[tri[0]];
+    t = bary.x * glm::vec3(t0) + bary.y * glm::vec3(g.tangents[tri[1]]) +
+        bary.z * glm::vec3(g.tangents[tri[2]]);
+    float sign = t0.w * (turned ? -1.0f : 1.0f);
+    if (inst.moves) {
+      const glm::mat3 linear(inst.world);
+      t = linear * t;
+      if (glm::determinant(linear) < 0.0f) sign = -sign;
+    }
+    t -= n * glm::dot(n, t);
+    const float t_len2 = glm::dot(t, t);
+    if (!(t_len2 > 1e-30f) || !std::isfinite(t_len2)) return n;
+    t *= 1.0f / std::sqrt(t_len2);
+    bt = glm::cross(n, t) * sign;
+  } else {
+    const glm::vec2 d1 = g.uvs[tri[1]] - g.uvs[tri[0]], d2 = g.uvs[tri[2]] - g.uvs[tri[0]];
+    const glm::vec3 e1 = g.positions[tri[1]] - g.positions[tri[0]];
+    const glm::vec3 e2 = g.positions[tri[2]] - g.positions[tri[0]];
+    const float det = d1.x * d2.y - d2.x * d1.y;
+    if (!(std::abs(det) > 1e-20f)) return n;
+    t = (e1 * d2.y - e2 * d1.y) / det;            // dp/du
+    glm::vec3 b = (e2 * d1.x - e1 * d2.x) / det;  // dp/dv
+    if (inst.moves) {
+      const glm::mat3 linear(inst.world);
+      t = linear * t;
+      b = linear * b;
+    }
+    t -= n * glm::dot(n, t);
+    const float t_len2 = glm::dot(t, t);
+    if (!(t_len2 > 1e-30f) || !std::isfinite(t_len2)) return n;
+    t *= 1.0f / std::sqrt(t_len2);
+    bt = glm::cross(n, t);
+    if (glm::dot(bt, b) > 0.0f) bt = -bt;
   }
-  t -= n * glm::dot(n, t);
-  const float t_len2 = glm::dot(t, t);
-  if (!(t_len2 > 1e-30f) || !std::isfinite(t_len2)) return n;
-  t *= 1.0f / std::sqrt(t_len2);
-  glm::vec3 bt = glm::cross(n, t);
-  if (glm::dot(bt, b) > 0.0f) bt = -bt;
   const glm::vec3 local = texel * 2.0f - 1.0f;
   const glm::vec3 mapped = t * (local.x * scale) + bt * (local.y * scale) + n * local.z;
   const float len2 = glm::dot(mapped, mapped);
@@ -996,10 +1036,12 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   if (!ns_ok) ns = ng;
 
   s->back_face = false;
+  bool turned = false;  // the back of a double-sided surface: its normals turned to face d
   if (glm::dot(ng, d) > 0.0f) {
     if (s->material->double_sided) {
       ng = -ng;
       ns = -ns;
+      turned = true;
     } else {
       s->back_face = true;
     }
@@ -1019,8 +1061,8 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   };
   s->lod = textured && m.texture ? lod(*m.texture) : 0.0f;
   if (textured && m.normal_map) {
-    s->ns = mapped_normal(g, inst, tri, s->ns, m.normal_map->sample(s->uv, lod(*m.normal_map)),
-                          m.normal_scale);
+    s->ns = mapped_normal(g, inst, tri, s->barycentric, s->ns, turned,
+                          m.normal_map->sample(s->uv, lod(*m.normal_map)), m.normal_scale);
   }
   // A material that varies over the surface, decided here from its textures (without texture
   // coordinates, its factors alone are the material, as glTF viewers read it).

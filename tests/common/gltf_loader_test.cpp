@@ -480,6 +480,39 @@ TEST_F(GltfLoaderTest, MaterialsAndEmbeddedPngTexturesDecodeToLinearTexels) {
   }
 }
 
+// TANGENT is read where the material has a normal texture (w taken by its sign) and not
+// otherwise; a count other than the positions' fails naming the primitive.
+TEST_F(GltfLoaderTest, TangentsAreReadForNormalMappedMaterialsOnly) {
+  write_image8(DecodedImage{1, 1, 3, {128, 128, 255}}, dir_ / "normal.png");
+  GltfBuilder b;
+  add_quad(&b);
+  json& primitive = b.doc()["meshes"][0]["primitives"][0];
+  primitive["material"] = 0;
+  primitive["attributes"]["TEXCOORD_0"] = b.add_floats({0, 1, 1, 1, 1, 0, 0, 0}, 2);
+  primitive["attributes"]["TANGENT"] =
+      b.add_floats({1, 0, 0, 1, 1, 0, 0, 1, 0, 1, 0, -1, 0, 1, 0, -0.5f}, 4);
+  b.doc()["images"] = json::array({{{"uri", "normal.png"}}});
+  b.doc()["textures"] = json::array({{{"source", 0}}});
+  b.doc()["materials"] = json::array({{{"normalTexture", {{"index", 0}}}}});
+  b.write_embedded(dir_ / "tangents.gltf");
+  const Scene scene = load_gltf(dir_ / "tangents.gltf");
+  const std::vector<glm::vec4>& t = scene.meshes[0].primitives[0].tangents;
+  ASSERT_EQ(t.size(), 4u);
+  EXPECT_EQ(t[0], glm::vec4(1, 0, 0, 1));
+  EXPECT_EQ(t[2], glm::vec4(0, 1, 0, -1));
+  EXPECT_EQ(t[3], glm::vec4(0, 1, 0, -1));  // w -0.5: its sign
+
+  GltfBuilder plain = b;
+  plain.doc()["materials"] = json::array({json::object()});
+  plain.write_embedded(dir_ / "plain.gltf");
+  EXPECT_TRUE(load_gltf(dir_ / "plain.gltf").meshes[0].primitives[0].tangents.empty());
+
+  b.doc()["meshes"][0]["primitives"][0]["attributes"]["TANGENT"] =
+      b.add_floats({1, 0, 0, 1, 1, 0, 0, 1}, 4);
+  b.write_embedded(dir_ / "short.gltf");
+  expect_error(dir_ / "short.gltf", "mesh 0 primitive 0 has 2 tangents for 4 positions");
+}
+
 // The metallic-roughness, emissive, occlusion and normal slots are read: data textures
 // (metallic-roughness, occlusion, normal) decoded as they are, color ones (base color, emissive)
 // from sRGB; one image decoded once per way it is read; a transform that differs from the

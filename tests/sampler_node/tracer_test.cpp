@@ -704,6 +704,54 @@ TEST(TracerTest, NormalTextureBendsTheShadingNormalInTheTangentFrame) {
   EXPECT_NEAR(lit(upright, toward_u, 0.0f), flat, 1e-4f);
 }
 
+// A primitive's TANGENT sets the normal texture's frame instead of the triangle's own: t the
+// tangent, b = n x t times its w. The square of the test above, upright (+u is world +x), with
+// tangents along world +y: a texel tilting toward +u turns the normal toward +y (n.l = cos 30 /
+// sqrt 2, not the cos 15 of the triangle's frame), one tilting up toward b = -x (w = +1) or +x
+// (w = -1). Tangents turn with their node (turned half round z: +x becomes -x), and a mirroring
+// node turns the sign of b with them.
+TEST(TracerTest, TangentsSetTheNormalTexturesFrame) {
+  const float sin30 = 0.5f, cos30 = std::sqrt(3.0f) / 2.0f;
+  auto lit = [&](glm::vec4 tangent, glm::vec3 texel, glm::dquat rotation, glm::dvec3 scale) {
+    Scene s;
+    Texture normal;
+    normal.width = normal.height = 1;
+    normal.texels = {texel};
+    s.textures.push_back(normal);
+    const int mat = add_material(&s, glm::vec3(1.0f), 0.0f, 1.0f);
+    s.materials[size_t(mat)].normal_texture = 0;
+    Mesh square = quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat);
+    square.primitives[0].uvs = {{0, 1}, {1, 1}, {1, 0}, {0, 0}};
+    square.primitives[0].tangents.assign(4, tangent);
+    const int node = add_mesh_node(&s, square);
+    s.nodes[size_t(node)].rotation = rotation;
+    s.nodes[size_t(node)].scale = scale;
+    Light sun;
+    sun.type = Light::Type::kDirectional;
+    sun.intensity = 2.0f;
+    add_light_node(&s, sun, glm::dvec3(0.0), glm::angleAxis(0.25 * M_PI, glm::dvec3(0, 1, 0)));
+    s.finalize();
+    Tracer tracer(s);
+    TraceStats stats;
+    const ShadedSample hit = tracer.trace(Ray{{0.2f, 0.1f, 0.0f}, {0, 0, -1}}, &stats);
+    EXPECT_TRUE(hit.hit);
+    return hit.color.r * float(M_PI) / 2.0f;
+  };
+  const glm::vec3 toward_u(0.5f + 0.5f * sin30, 0.5f, 0.5f + 0.5f * cos30);
+  const glm::vec3 toward_up(0.5f, 0.5f + 0.5f * sin30, 0.5f + 0.5f * cos30);
+  const float flat = 1.0f / std::sqrt(2.0f);
+  const glm::dquat none(1.0, 0.0, 0.0, 0.0);
+  const glm::dquat half_turn = glm::angleAxis(M_PI, glm::dvec3(0, 0, 1));
+  const glm::dvec3 one(1.0), mirror_x(-1.0, 1.0, 1.0);
+  EXPECT_NEAR(lit({0, 1, 0, 1}, toward_u, none, one), cos30 * flat, 1e-4f);
+  EXPECT_NEAR(lit({0, 1, 0, 1}, toward_up, none, one), (cos30 - sin30) * flat, 1e-4f);
+  EXPECT_NEAR(lit({0, 1, 0, -1}, toward_up, none, one), std::cos(float(M_PI) / 12.0f), 1e-4f);
+  // Half round z: the tangent +x points along world -x, away from the light.
+  EXPECT_NEAR(lit({1, 0, 0, 1}, toward_u, half_turn, one), (cos30 - sin30) * flat, 1e-4f);
+  // Mirrored in x: b = n x t x w is -x in the mesh, so +x in the world, toward the light.
+  EXPECT_NEAR(lit({0, 1, 0, 1}, toward_up, none, mirror_x), std::cos(float(M_PI) / 12.0f), 1e-4f);
+}
+
 // KHR_materials_unlit: the base color (factor x texture x vertex color) as it is, whatever
 // the lights, the ambient light, the emission and a polished metal's reflection would add.
 TEST(TracerTest, UnlitMaterialShowsItsBaseColorAsItIs) {

@@ -94,6 +94,7 @@ uint64_t render_fingerprint(const Scene& scene) {
       // fingerprints (and cached ideal frames) of other scenes stay what they were.
       if (!p.colors.empty()) h.array(p.colors);
       if (!p.color_alpha.empty()) h.array(p.color_alpha);
+      if (!p.tangents.empty()) h.array(p.tangents);
       if (!p.joints.empty() || !p.targets.empty()) {
         h.array(p.joints);
         h.array(p.joint_weights);

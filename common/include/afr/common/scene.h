@@ -39,6 +39,10 @@ struct Primitive {
   // COLOR_0's alpha (0 to 1), one per vertex, kept only where the primitive's material masks or
   // blends (Material::alpha_mode) and it is below 1 somewhere: it multiplies the opacity.
   std::vector<float> color_alpha;
+  // glTF's TANGENT, one per vertex: a tangent (x, y, z, toward +u) and w = +1 or -1, the
+  // bitangent being cross(normal, tangent) x w. Kept only where the primitive's material has a
+  // normal texture; empty otherwise (each triangle's own frame is used then).
+  std::vector<glm::vec4> tangents;
   std::vector<uint32_t> indices;  // 3 per triangle
   int material = -1;              // index into Scene::materials; -1 = default material
   // JOINTS_0 and WEIGHTS_0 of a skinned mesh, one entry per vertex (else empty): four slots of
