@@ -68,7 +68,7 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
     m.opacity_factor = mat.base_color_factor.a;
     if (m.texture && !m.texture->alpha.empty()) m.opacity_texture = m.texture;
     m.blended = mat.alpha_mode == Material::AlphaMode::kBlend;
-    // BLEND: every point's threshold is in (0, 1], so an alpha of 1 keeps the whole surface.
+    // BLEND: the filters matter wherever the opacity can be below 1.
     m.opacity_cutoff = m.blended ? 1.0f : mat.alpha_cutoff;
     // Without a texture's alpha the factor alone decides: MASK the same everywhere, BLEND
     // everywhere only at 1.

@@ -63,9 +63,11 @@ struct ShadeMaterial {
   float f0_dielectric = 0.04f;  // ((ior - 1) / (ior + 1))^2, 1 for ior 0
   bool double_sided = false;
   bool unlit = false;  // KHR_materials_unlit: the base color as it is, no bounce or maps
-  // alphaMode MASK and BLEND (Material::alpha_mode): the surface is cut away where opacity_factor
-  // x the opacity texture's alpha is below opacity_cutoff (MASK) or below a hash of the point
-  // (BLEND, `blended`: tracer.cpp's blend_threshold). Set only where that can happen somewhere.
+  // alphaMode MASK and BLEND (Material::alpha_mode): `masked`: the surface's opacity
+  // (opacity_factor x the opacity texture's alpha x COLOR_0's alpha) can be below
+  // opacity_cutoff somewhere, so its geometry needs the tracer's filters. MASK cuts the surface
+  // away there; BLEND (`blended`, cutoff 1) shows the opacity's share of the surface's light over
+  // the rest of what lies behind it (tracer.cpp, "alphaMode BLEND").
   bool masked = false;
   bool blended = false;
   // alphaMode MASK or BLEND: a primitive's COLOR_0 alpha (Primitive::color_alpha) can cut the

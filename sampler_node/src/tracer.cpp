@@ -2,7 +2,6 @@
 
 #include <afr/common/check.h>
 #include <afr/common/error.h>
-#include <afr/common/random.h>
 
 #include <embree3/rtcore.h>
 #include <fmt/format.h>
@@ -43,6 +42,9 @@ constexpr float kRayOffset = 5e-5f;
 constexpr float kMaxRadiance = 65504.0f;
 // Mirror chains stop when what they could still add is below this.
 constexpr float kMinThroughput = 1e-3f;
+// Blended surfaces (alphaMode BLEND) a path passes through at most, with its other secondary
+// rays: a pass-through is no bounce, so it has a budget of its own beyond the mirror depth.
+constexpr int kMaxBlendDepth = 16;
 
 bool finite(const glm::vec3& v) {
   return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
@@ -60,6 +62,7 @@ struct GeomRecord {
   const glm::vec3* normals = nullptr;  // null when the primitive has none per vertex
   const glm::vec2* uvs = nullptr;      // null when the primitive has none per vertex
   const glm::vec3* colors = nullptr;   // COLOR_0; null when the primitive has none
+  const float* color_alpha = nullptr;  // COLOR_0's alpha where its material tests alpha, or null
   // TANGENT in the positions' space (w: the bitangent's sign); null: the triangle's own frame
   // (no TANGENT, or deforming geometry, whose tangents are not deformed).
   const glm::vec4* tangents = nullptr;
@@ -116,6 +119,7 @@ struct SurfacePoint {
   glm::vec3 barycentric{0.0f};         // of the hit, weights of triangle[0], [1], [2]
   int node = -1;
   bool back_face = false;  // a single-sided surface seen from behind
+  float opacity = 1.0f;    // alphaMode BLEND: the share of its own light it shows (opacity_at)
   // The ray cone (docs/scene-model.md, "Texture filtering"): its width at p, how fast it grows,
   // and the texture's level of detail that width asks for.
   float cone = 0.0f;
@@ -220,14 +224,16 @@ float texture_lod(const Texture& texture, glm::vec2 t0, glm::vec2 t1, glm::vec2 
   return std::isfinite(lod) ? std::max(lod, 0.0f) : 0.0f;
 }
 
-// ---- Shadows through glass ----
+// ---- Shadows through glass and blended surfaces ----
 //
 // A shadow ray passes through glass, dimmed by each glass surface it crosses
 // (ShadeMaterial::shadow_transmittance): a Whitted-style filter shadow, as BART's scenes
 // expect of their light behind a glass ceiling. The shadow ray is not refracted, and neither
-// Fresnel nor the texture dims it. Embree reports each glass surface on the ray's way to
-// occlusion_filter (crosses_glass), which multiplies it into the ray's transmittance and lets
-// the ray go on, in whatever order (products commute); any other surface ends the ray. The
+// Fresnel nor the texture dims it. It passes a blended surface (alphaMode BLEND) dimmed by its
+// opacity a at the point: 1 - a goes through, and the rest as through that surface's glass, if
+// it is glass. Embree reports each such surface on the ray's way to occlusion_filter
+// (crosses), which multiplies it into the ray's transmittance and lets the ray go on, in
+// whatever order (products commute); any other surface ends the ray. The
 // high-quality BVH's spatial splits can report one triangle twice, so each ray remembers the
 // ones it has counted. Only shadow rays (id kShadowRayId + lane, with a ShadowContext) are
 // filtered: other occlusion queries (Tracer::occluded) stop at glass as at any surface.
@@ -242,14 +248,12 @@ float texture_lod(const Texture& texture, glm::vec2 t0, glm::vec2 t1, glm::vec2 
 //
 // ---- alphaMode BLEND ----
 //
-// A blended surface is a masked one whose cutoff differs from point to point: a hash of the
-// point, uniform in (0, 1] (blend_threshold; hashed alpha testing, Wyman and McGuire 2017). A
-// point of opacity a is then kept with probability a, and every ray that meets it, camera or
-// shadow, finds the same there. A pixel's samples meet different points, so the reconstruction
-// shows the surface over what lies behind it in proportion a, and a shadow lets 1 - a of the
-// light through, as blending would; two blended layers let (1 - a1)(1 - a2) through, because
-// their points hash apart. The decision is per sample, not a blend within one: a single sample
-// sees one or the other, and the reconstruction's filter does the averaging.
+// A blended surface shows a (its opacity at the point, opacity_at) of its own light and lets
+// 1 - a of what lies behind through, as blending does: the surface's local shading and its
+// reflections are weighted by a (Surface::opacity), and mirror_chain sends the ray on through
+// it (a pass-through, weighted 1 - a) from the far side. Only a point of opacity 0 is cut away
+// by the filters; shadow rays are dimmed by 1 - a (above). Every sample is the blend, so a
+// blended surface adds no noise; what it costs is one more ray for each one that meets it.
 constexpr unsigned kShadowRayId = 0x5ad0u;
 constexpr float kShadowCutoff = 1e-3f;  // a ray dimmer than this is blocked
 
@@ -274,15 +278,21 @@ struct ShadowContext {
 };
 static_assert(offsetof(ShadowContext, embree) == 0);
 
-// alphaMode BLEND: the opacity that a point of a surface needs to be kept, uniform in (0, 1] and
-// fixed for the point: its instance, geometry, triangle and barycentrics to 2^-16, far finer
-// than a pixel on any triangle that a pixel shows.
-float blend_threshold(unsigned inst, unsigned geom, unsigned prim, float u, float v) {
-  const auto cell = [](float b) { return uint64_t(std::clamp(b, 0.0f, 1.0f) * 65536.0f); };
-  uint64_t h = mix_seed((uint64_t(inst) << 32) | geom);
-  h = mix_seed(h ^ prim);
-  h = mix_seed(h ^ ((cell(u) << 32) | cell(v)));
-  return float((h >> 40) + 1) * (1.0f / 16777216.0f);
+// The opacity of a masked or blended material at barycentrics (u, v) of triangle `tri`: the base
+// color factor's alpha x the texture's alpha (level 0, bilinear: a mip level would average a
+// cutout's edge away) x COLOR_0's alpha. uvs and color_alpha may be null (none).
+float opacity_at(const shading::ShadeMaterial& m, const glm::vec2* uvs, const float* color_alpha,
+                 const uint32_t* tri, float u, float v) {
+  float opacity = m.opacity_factor;
+  if (m.opacity_texture && uvs) {
+    const glm::vec2 uv = (1.0f - u - v) * uvs[tri[0]] + u * uvs[tri[1]] + v * uvs[tri[2]];
+    opacity *= m.opacity_texture->sample_alpha(uv);
+  }
+  if (color_alpha) {
+    opacity *=
+        (1.0f - u - v) * color_alpha[tri[0]] + u * color_alpha[tri[1]] + v * color_alpha[tri[2]];
+  }
+  return opacity;
 }
 
 // What the filters of one Embree geometry read (its user data): its material, and, for a
@@ -294,30 +304,21 @@ struct GeometryFilter {
   const float* color_alpha = nullptr;  // COLOR_0's alpha per vertex, or null
   const uint32_t* indices = nullptr;
 
-  // alphaMode MASK and BLEND: whether hit i of the filter's arguments is kept.
-  bool opaque_at(const RTCFilterFunctionNArguments* args, unsigned i) const {
-    const shading::ShadeMaterial& m = *material;
+  float opacity(const RTCFilterFunctionNArguments* args, unsigned i) const {
     const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
-    const float u = RTCHitN_u(args->hit, args->N, i), v = RTCHitN_v(args->hit, args->N, i);
-    float opacity = m.opacity_factor;
-    const uint32_t* tri = indices + 3 * size_t(prim);
-    if (m.opacity_texture && uvs) {
-      const glm::vec2 uv = (1.0f - u - v) * uvs[tri[0]] + u * uvs[tri[1]] + v * uvs[tri[2]];
-      opacity *= m.opacity_texture->sample_alpha(uv);
-    }
-    if (color_alpha) {
-      opacity *=
-          (1.0f - u - v) * color_alpha[tri[0]] + u * color_alpha[tri[1]] + v * color_alpha[tri[2]];
-    }
-    if (!m.blended) return opacity >= m.opacity_cutoff;
-    return opacity >= blend_threshold(RTCHitN_instID(args->hit, args->N, i, 0),
-                                      RTCHitN_geomID(args->hit, args->N, i), prim, u, v);
+    return opacity_at(*material, uvs, color_alpha, indices + 3 * size_t(prim),
+                      RTCHitN_u(args->hit, args->N, i), RTCHitN_v(args->hit, args->N, i));
+  }
+  // alphaMode MASK: whether the hit is kept; BLEND: whether anything of it shows.
+  bool opaque_at(const RTCFilterFunctionNArguments* args, unsigned i) const {
+    const float a = opacity(args, i);
+    return material->blended ? a > 0.0f : a >= material->opacity_cutoff;
   }
 };
 
-// A shadow ray's crossing of glass in lane i (see above): false when the ray is to stop there.
-bool crosses_glass(const RTCFilterFunctionNArguments* args, unsigned i,
-                   const shading::ShadeMaterial& m) {
+// A shadow ray's crossing of a surface that lets `through` of the light pass, in lane i (see
+// above): false when the ray is to stop there.
+bool crosses(const RTCFilterFunctionNArguments* args, unsigned i, const glm::vec3& through) {
   const unsigned lane = RTCRayN_id(args->ray, args->N, i) - kShadowRayId;
   if (lane >= unsigned(ShadowContext::kLanes)) return false;  // not a shadow ray: a blocker
   auto* ctx = reinterpret_cast<ShadowContext*>(args->context);
@@ -332,22 +333,26 @@ bool crosses_glass(const RTCFilterFunctionNArguments* args, unsigned i,
   if (!seen) {
     if (ctx->n_crossed[lane] == ShadowContext::kMaxCrossed) return false;
     ctx->crossed[lane][ctx->n_crossed[lane]++] = c;
-    ctx->transmittance[lane] *= m.shadow_transmittance;
+    ctx->transmittance[lane] *= through;
   }
   const glm::vec3& tr = ctx->transmittance[lane];
   return std::max(tr.r, std::max(tr.g, tr.b)) >= kShadowCutoff;
 }
 
-// The occlusion filter of a masked or glass geometry: a ray goes on through a cut-away point
-// and (shadow rays) through glass.
+// The occlusion filter of a masked, blended or glass geometry: a ray goes on through a cut-away
+// point, and shadow rays through glass and blended surfaces.
 void occlusion_filter(const RTCFilterFunctionNArguments* args) {
   const auto* f = static_cast<const GeometryFilter*>(args->geometryUserPtr);
   const shading::ShadeMaterial& m = *f->material;
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] != -1) continue;
-    if (f->masked && !f->opaque_at(args, i)) {
+    if (m.blended && f->masked) {
+      const float a = f->opacity(args, i);
+      const glm::vec3 glass = m.is_glass ? m.shadow_transmittance : glm::vec3(0.0f);
+      if (!(a > 0.0f) || crosses(args, i, (1.0f - a) + a * glass)) args->valid[i] = 0;
+    } else if (f->masked && !f->opaque_at(args, i)) {
       args->valid[i] = 0;
-    } else if (m.is_glass && crosses_glass(args, i, m)) {
+    } else if (m.is_glass && crosses(args, i, m.shadow_transmittance)) {
       args->valid[i] = 0;
     }
   }
@@ -385,7 +390,7 @@ struct Tracer::Impl {
   std::vector<Instance> instances_;
   std::vector<int> moving_instance_of_node_;  // per scene node: its moving instance or -1
   std::vector<ShadeMaterial> materials_;      // scene materials, then the default material
-  bool has_glass_ = false;              // some geometry lets shadow rays through (crosses_glass)
+  bool has_translucent_ = false;  // glass or blended geometry lets shadow rays through (crosses)
   std::deque<GeometryFilter> filters_;  // the user data of masked and glass geometries
   std::vector<int> light_nodes_;        // scene nodes that carry a light
   std::vector<int> camera_lights_;      // lights on the camera (Light::on_camera)
@@ -416,6 +421,12 @@ struct Tracer::Impl {
   // Sets the filters of geometry g of primitive p (glTF's alphaMode MASK, glass) where its
   // material needs them.
   void set_filters(RTCGeometry g, uint32_t material, const Primitive& p);
+  // p's COLOR_0 alpha where its material (an index into materials_) tests alpha, else null.
+  const float* tested_alpha(const Primitive& p, uint32_t material) const {
+    return materials_[material].alpha_tested && p.color_alpha.size() == p.positions.size()
+               ? p.color_alpha.data()
+               : nullptr;
+  }
   RTCGeometry new_triangle_geometry(uint32_t material, const Primitive& p,
                                     const glm::vec3* positions, size_t vertex_count,
                                     const uint32_t* indices, size_t triangle_count);
@@ -457,6 +468,8 @@ struct Tracer::Impl {
   glm::vec3 mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, TraceStats* stats, int depth = 0,
                          glm::vec3 throughput = glm::vec3(1.0f)) const;
   // Out of line, so that the mirror chain of scenes without glass compiles as it did.
+  [[gnu::noinline]] glm::vec3 pass_through(const glm::vec3& d, const Surface& s, int depth,
+                                           const glm::vec3& throughput, TraceStats* stats) const;
   [[gnu::noinline]] glm::vec3 glass(const glm::vec3& d, const Surface& s, const glm::vec3& tex,
                                     int depth, const glm::vec3& throughput,
                                     TraceStats* stats) const;
@@ -521,15 +534,15 @@ void Tracer::Impl::check_device(const char* what) const {
 void Tracer::Impl::set_filters(RTCGeometry g, uint32_t material, const Primitive& p) {
   AFR_DCHECK(material < materials_.size());
   const shading::ShadeMaterial& m = materials_[material];
-  const bool vertex_alpha = m.alpha_tested && p.color_alpha.size() == p.positions.size();
+  const float* vertex_alpha = tested_alpha(p, material);
   const bool masked = m.masked || vertex_alpha;
   if (!m.is_glass && !masked) return;
-  has_glass_ |= m.is_glass;
+  has_translucent_ |= m.is_glass || (m.blended && masked);
   GeometryFilter& f = filters_.emplace_back();
   f.material = &m;
   f.masked = masked;
   f.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
-  f.color_alpha = vertex_alpha ? p.color_alpha.data() : nullptr;
+  f.color_alpha = vertex_alpha;
   f.indices = p.indices.data();
   rtcSetGeometryUserData(g, &f);
   rtcSetGeometryOccludedFilterFunction(g, &occlusion_filter);
@@ -644,6 +657,7 @@ void Tracer::Impl::build() {
       r.tangents = static_tangents_.back().empty() ? nullptr : static_tangents_.back().data();
       r.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
       r.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
+      r.color_alpha = tested_alpha(p, material_of(p));
       r.indices = p.indices.data();
       r.material = material_of(p);
       r.node = n;
@@ -682,6 +696,7 @@ void Tracer::Impl::build() {
         r.tangents = p.tangents.size() == p.positions.size() ? p.tangents.data() : nullptr;
         r.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
         r.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
+        r.color_alpha = tested_alpha(p, material_of(p));
         r.indices = p.indices.data();
         r.material = material_of(p);
         b.geoms.push_back(r);
@@ -783,6 +798,7 @@ void Tracer::Impl::build_deforming(const std::vector<int>& nodes, uint32_t defau
     r.normals = d.normals.data();
     r.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
     r.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
+    r.color_alpha = tested_alpha(p, material);
     r.velocities = d.velocities.data();
     r.indices = p.indices.data();
     r.material = material;
@@ -924,7 +940,7 @@ HitRef Tracer::Impl::intersect(const glm::vec3& o, const glm::vec3& d, float tne
 
 glm::vec3 Tracer::Impl::shadow_transmittance(const glm::vec3& o, const glm::vec3& d,
                                              float tfar) const {
-  if (!has_glass_) return blocked(o, d, 0.0f, tfar) ? glm::vec3(0.0f) : glm::vec3(1.0f);
+  if (!has_translucent_) return blocked(o, d, 0.0f, tfar) ? glm::vec3(0.0f) : glm::vec3(1.0f);
   ShadowContext ctx;
   RTCRay r;
   init_ray(&r, o, d, 0.0f, tfar);
@@ -1012,6 +1028,7 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   s->node = inst.moves ? inst.node : g.node;
   const ShadeMaterial& m = materials_[g.material];
   s->material = &m;
+  s->opacity = m.blended ? opacity_at(m, g.uvs, g.color_alpha, tri, hit.u, hit.v) : 1.0f;
 
   const glm::vec3& p0 = g.positions[tri[0]];
   glm::vec3 ng = glm::cross(g.positions[tri[1]] - p0, g.positions[tri[2]] - p0);
@@ -1174,7 +1191,7 @@ void Tracer::Impl::shade_local8(const Surface* s, const glm::vec3* wo, const glm
       ++stats->shadow_rays;
     }
     if (!any_ray) continue;
-    if (!has_glass_) {  // the shadow rays of scenes without glass skip the filter's context
+    if (!has_translucent_) {  // scenes without glass or blending skip the filter's context
       RTCIntersectContext ctx;
       rtcInitIntersectContext(&ctx);
       rtcOccluded8(valid, top_, &ctx, &rays);
@@ -1201,6 +1218,12 @@ glm::vec3 Tracer::Impl::texture_color(const Surface& s) const {
   return c;
 }
 
+// A surface's own light (its local shading) as the viewer gets it: all of it, or a blended
+// surface's opacity's share (the rest comes through it: pass_through).
+inline glm::vec3 own_share(const Surface& s, const glm::vec3& local) {
+  return s.opacity < 1.0f ? local * s.opacity : local;
+}
+
 // The light reaching the viewer from surface s (seen along d, with texture color tex) by way
 // of mirror reflections and glass, up to the depth limit, times `throughput` (what the path
 // before s passes on). s's own local shading is not included. `depth` counts the secondary
@@ -1210,6 +1233,10 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
   glm::vec3 result(0.0f);
   for (;; ++depth) {
     const ShadeMaterial& m = *s.material;
+    if (s.opacity < 1.0f) {  // blended: 1 - a of what lies behind, a of s's own reflections
+      if (depth < kMaxBlendDepth) result += pass_through(d, s, depth, throughput, stats);
+      throughput *= s.opacity;
+    }
     if (!m.is_mirror || s.back_face || depth >= options_.max_mirror_depth) {
       // Glass (never is_mirror) branches; the test is here so that other surfaces pay nothing.
       if (m.is_glass && depth < options_.max_mirror_depth)
@@ -1237,7 +1264,7 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
     make_surface(hit, origin, r, s.cone, s.spread, &s);
     d = r;
     tex = texture_color(s);
-    result += throughput * shade_local(s, -d, tex, stats);
+    result += throughput * own_share(s, shade_local(s, -d, tex, stats));
   }
   return result;
 }
@@ -1252,8 +1279,18 @@ glm::vec3 Tracer::Impl::secondary(const glm::vec3& origin, const glm::vec3& d, c
   Surface s;
   make_surface(hit, origin, d, from.cone, from.spread, &s);
   const glm::vec3 tex = texture_color(s);
-  return throughput * shade_local(s, -d, tex, stats) +
+  return throughput * own_share(s, shade_local(s, -d, tex, stats)) +
          mirror_chain(d, s, tex, stats, depth, throughput);
+}
+
+// What a blended surface s, hit along d, lets through from behind it: the ray goes on from its
+// far side, weighted 1 - s.opacity; `depth` counts the rays already on the path.
+glm::vec3 Tracer::Impl::pass_through(const glm::vec3& d, const Surface& s, int depth,
+                                     const glm::vec3& throughput, TraceStats* stats) const {
+  const glm::vec3 behind = throughput * (1.0f - s.opacity);
+  if (std::max(behind.r, std::max(behind.g, behind.b)) < kMinThroughput) return glm::vec3(0.0f);
+  const glm::vec3 ng = s.back_face ? -s.ng : s.ng;  // toward the side the ray arrives from
+  return secondary(s.p - offset_at(s.p) * ng, d, s, depth + 1, behind, stats);
 }
 
 // Whitted glass at s, hit along d (docs/scene-model.md, "Transmission and refraction"): a
@@ -1385,8 +1422,8 @@ void Tracer::Impl::finish(const Ray& ray, const HitRef& hit, ShadedSample* out,
   Surface s;
   if (begin_sample(ray, hit, out, &s, stats)) {
     const glm::vec3 tex = texture_color(s);
-    out->color =
-        shade_local(s, -ray.direction, tex, stats) + mirror_chain(ray.direction, s, tex, stats);
+    out->color = own_share(s, shade_local(s, -ray.direction, tex, stats)) +
+                 mirror_chain(ray.direction, s, tex, stats);
   }
   sanitize(out, stats);
 }
@@ -1477,7 +1514,8 @@ void Tracer::trace_crosshair(const Camera& camera, double x, double y, int width
   for (int k = 0; k < 5; ++k) {
     ShadedSample& o = (*out)[size_t(k)];
     if (hit[k])
-      o.color = local[k] + impl_->mirror_chain(rays[k].direction, surfaces[k], tex[k], stats);
+      o.color = own_share(surfaces[k], local[k]) +
+                impl_->mirror_chain(rays[k].direction, surfaces[k], tex[k], stats);
     impl_->sanitize(&o, stats);
   }
 }

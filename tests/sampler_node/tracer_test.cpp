@@ -842,72 +842,75 @@ TEST(TracerTest, MaskedSurfacesAreCutAwayForEveryRay) {
   EXPECT_GT(saw_green, 0);
 }
 
-// alphaMode BLEND: a red square of opacity 0.3 before a green wall, and beside it two stacked
-// blue squares of opacity 0.5 each, laid out alike (a ray meets both at the same barycentrics).
-// Each point of a blended surface is kept with probability equal to its opacity, the same for
-// every ray that meets it: about 30% of camera rays through the red square see red, and an
-// occlusion ray along each of them is blocked exactly where the camera ray saw red; through the
-// two blue layers 1 - 0.5 x 0.5 = 75% of rays see blue (50% if the layers' points hashed alike);
-// the crosshair's packets see what single rays see.
+// alphaMode BLEND: a red square of opacity 0.3 before a green wall, beside it two stacked blue
+// squares of opacity 0.5 each, and a square of opacity 0. Lit by ambient light only, a camera
+// ray through the red square sees 0.3 red over 0.7 green, through the blue ones 0.75 blue
+// (0.5 + 0.5 x 0.5) over 0.25 green; the square of opacity 0 is not there for any ray. Under a
+// light shining along -z (no ambient), the wall behind the red square gets 0.7 of the light
+// that reaches it elsewhere. The crosshair's packets see what single rays see.
 TEST(TracerTest, BlendedSurfacesShowInProportionToTheirOpacity) {
-  Scene s;
-  s.ambient = glm::vec3(1.0f);
-  const int red = add_material(&s, {1, 0, 0}, 0.0f, 1.0f);
-  s.materials[size_t(red)].base_color_factor.a = 0.3f;
-  s.materials[size_t(red)].alpha_mode = Material::AlphaMode::kBlend;
-  const int blue = add_material(&s, {0, 0, 1}, 0.0f, 1.0f);
-  s.materials[size_t(blue)].base_color_factor.a = 0.5f;
-  s.materials[size_t(blue)].alpha_mode = Material::AlphaMode::kBlend;
-  const int green = add_material(&s, {0, 1, 0}, 0.0f, 1.0f);
-  add_mesh_node(&s, quad_mesh({-2, -1, -2}, {2, 0, 0}, {0, 2, 0}, red));
-  add_mesh_node(&s, quad_mesh({1, -1, -2}, {2, 0, 0}, {0, 2, 0}, blue));
-  add_mesh_node(&s, quad_mesh({1, -1, -2.5f}, {2, 0, 0}, {0, 2, 0}, blue));
-  add_mesh_node(&s, quad_mesh({-8, -8, -4}, {16, 0, 0}, {0, 16, 0}, green));
-  s.finalize();
-  Tracer tracer(s);
+  auto scene = [](bool lit) {
+    Scene s;
+    if (!lit) s.ambient = glm::vec3(1.0f);
+    const int red = add_material(&s, {1, 0, 0}, 0.0f, 1.0f);
+    s.materials[size_t(red)].base_color_factor.a = 0.3f;
+    s.materials[size_t(red)].alpha_mode = Material::AlphaMode::kBlend;
+    const int blue = add_material(&s, {0, 0, 1}, 0.0f, 1.0f);
+    s.materials[size_t(blue)].base_color_factor.a = 0.5f;
+    s.materials[size_t(blue)].alpha_mode = Material::AlphaMode::kBlend;
+    const int clear = add_material(&s, {1, 1, 1}, 0.0f, 1.0f);
+    s.materials[size_t(clear)].base_color_factor.a = 0.0f;
+    s.materials[size_t(clear)].alpha_mode = Material::AlphaMode::kBlend;
+    const int green = add_material(&s, {0, 1, 0}, 0.0f, 1.0f);
+    add_mesh_node(&s, quad_mesh({-2, -1, -2}, {2, 0, 0}, {0, 2, 0}, red));
+    add_mesh_node(&s, quad_mesh({1, -1, -2}, {2, 0, 0}, {0, 2, 0}, blue));
+    add_mesh_node(&s, quad_mesh({1, -1, -2.5f}, {2, 0, 0}, {0, 2, 0}, blue));
+    add_mesh_node(&s, quad_mesh({4, -1, -2}, {2, 0, 0}, {0, 2, 0}, clear));
+    add_mesh_node(&s, quad_mesh({-8, -8, -4}, {16, 0, 0}, {0, 16, 0}, green));
+    if (lit) {
+      Light sun;
+      sun.type = Light::Type::kDirectional;
+      add_light_node(&s, sun, glm::dvec3(0.0));  // its -Z: shining along -z
+    }
+    s.finalize();
+    return s;
+  };
+  const Scene ambient = scene(false);
+  Tracer tracer(ambient);
   TraceStats stats;
-  Pcg32 rng(11);
-  constexpr int kRays = 4000;
-  int red_seen = 0, occluded_agrees = 0, blue_seen = 0, green_seen = 0;
-  for (int k = 0; k < kRays; ++k) {
-    const float y = -0.9f + 1.8f * rng.next_float();
-    const float x_red = -1.9f + 1.8f * rng.next_float();
-    const ShadedSample a = tracer.trace(Ray{{x_red, y, 0.0f}, {0, 0, -1}}, &stats);
-    const bool saw_red = a.color.r > 0.5f;
-    red_seen += saw_red;
-    green_seen += a.color.g > 0.5f;
-    occluded_agrees += tracer.occluded({x_red, y, 0.0f}, {x_red, y, -3.0f}, &stats) == saw_red;
-    const float x_blue = 1.1f + 1.8f * rng.next_float();
-    blue_seen += tracer.trace(Ray{{x_blue, y, 0.0f}, {0, 0, -1}}, &stats).color.b > 0.5f;
-  }
-  // Binomial spread at 4000 rays: 0.007 (p = 0.3), 0.007 (p = 0.75).
-  EXPECT_NEAR(double(red_seen) / kRays, 0.3, 0.04);
-  EXPECT_EQ(red_seen + green_seen, kRays);  // one or the other, never a mix
-  EXPECT_EQ(occluded_agrees, kRays);
-  EXPECT_NEAR(double(blue_seen) / kRays, 0.75, 0.04);
+  const auto seen = [&](float x) { return tracer.trace(Ray{{x, 0.2f, 0.0f}, {0, 0, -1}}, &stats); };
+  expect_near3(seen(-1.0f).color, {0.3f, 0.7f, 0.0f}, 1e-5f, "through the red square");
+  expect_near3(seen(2.0f).color, {0.0f, 0.25f, 0.75f}, 1e-5f, "through both blue squares");
+  expect_near3(seen(5.0f).color, {0.0f, 1.0f, 0.0f}, 1e-5f, "through the clear square");
+  EXPECT_NEAR(seen(-1.0f).position.z, -2.0f, 1e-4f);  // the sample is the front surface's
+  EXPECT_NEAR(seen(5.0f).position.z, -4.0f, 1e-4f);
+  EXPECT_TRUE(tracer.occluded({-1.0f, 0.2f, 0.0f}, {-1.0f, 0.2f, -3.0f}, &stats));
+  EXPECT_FALSE(tracer.occluded({5.0f, 0.2f, 0.0f}, {5.0f, 0.2f, -3.0f}, &stats));
 
-  const Camera cam = Camera::look_at({-1.0, 0.0, 0.0}, {-1.0, 0.0, -1.0}, {0, 1, 0}, 0.8, 0.01);
-  constexpr int kSide = 32;
-  int agree = 0, compared = 0, packet_red = 0;
-  for (int j = 1; j < kSide - 1; j += 2) {
+  const Scene lit = scene(true);
+  Tracer lit_tracer(lit);
+  // From between the squares and the wall: the wall in the red square's shadow, and in none.
+  const glm::vec3 shaded = lit_tracer.trace(Ray{{-1.0f, 0.2f, -3.0f}, {0, 0, -1}}, &stats).color;
+  const glm::vec3 open = lit_tracer.trace(Ray{{-5.0f, 0.2f, -3.0f}, {0, 0, -1}}, &stats).color;
+  ASSERT_GT(open.g, 0.0f);
+  EXPECT_NEAR(shaded.g / open.g, 0.7f, 1e-4f);
+  const glm::vec3 twice = lit_tracer.trace(Ray{{2.0f, 0.2f, -3.0f}, {0, 0, -1}}, &stats).color;
+  EXPECT_NEAR(twice.g / open.g, 0.25f, 1e-4f);  // behind both blue squares
+
+  const Camera cam = Camera::look_at({0.0, 0.0, 0.0}, {0.0, 0.0, -1.0}, {0, 1, 0}, 1.6, 0.01);
+  constexpr int kSide = 16;
+  for (int j = 1; j < kSide - 1; j += 3) {
     for (int i = 1; i < kSide - 1; i += 2) {
       std::array<ShadedSample, 5> cross;
       tracer.trace_crosshair(cam, i + 0.5, j + 0.5, kSide, kSide, &cross, &stats);
       const glm::dvec2 at[5] = {{0, 0}, {-1, 0}, {1, 0}, {0, -1}, {0, 1}};
       for (int k = 0; k < 5; ++k) {
         const Ray ray = cam.ray(i + 0.5 + at[k].x, j + 0.5 + at[k].y, kSide, kSide);
-        const ShadedSample single = tracer.trace(ray, &stats);
-        agree += glm::all(
-            glm::lessThan(glm::abs(cross[size_t(k)].color - single.color), glm::vec3(1e-5f)));
-        ++compared;
-        packet_red += cross[size_t(k)].color.r > 0.5f;
+        expect_near3(cross[size_t(k)].color, tracer.trace(ray, &stats).color, 1e-5f,
+                     "crosshair against a single ray");
       }
     }
   }
-  // A hit's barycentrics may differ in the last bit between a packet and a single ray, which
-  // moves a point across a cell of the hash now and then (about 1 in 250 at these sizes).
-  EXPECT_GE(agree, compared * 97 / 100);
-  EXPECT_NEAR(double(packet_red) / compared, 0.3, 0.06);
 }
 
 // Texture minification by ray cones: a floor with a one-texel checker (1024 x 1024 texels over

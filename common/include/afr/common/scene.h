@@ -133,9 +133,8 @@ struct Material {
   float normal_scale = 1.0f;
   // glTF's alphaMode. kMask cuts the surface away where its alpha (base_color_factor's alpha x
   // the base-color texture's) is below alpha_cutoff, for every ray (camera, reflection,
-  // shadow, occlusion). kBlend keeps each point of the surface with probability alpha, by a
-  // hash of the point (hashed alpha testing): a pixel's samples then see the surface over what
-  // lies behind in proportion alpha, as blending would show it.
+  // shadow, occlusion). kBlend shows alpha of the surface's own light over 1 - alpha of what
+  // lies behind it, and lets 1 - alpha of a light through to what it shadows.
   enum class AlphaMode { kOpaque, kMask, kBlend };
   AlphaMode alpha_mode = AlphaMode::kOpaque;
   float alpha_cutoff = 0.5f;
