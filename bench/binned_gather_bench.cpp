@@ -109,17 +109,6 @@ double median(std::vector<double> v) {
   return v.empty() ? 0.0 : v[v.size() / 2];
 }
 
-GLuint texture_2d(GLenum format, int width, int height) {
-  GLuint t = 0;
-  glGenTextures(1, &t);
-  glBindTexture(GL_TEXTURE_2D, t);
-  glTexStorage2D(GL_TEXTURE_2D, 1, format, width, height);
-  // Integer textures are incomplete (read as 0) with the default linear filters.
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-  return t;
-}
-
 struct Row {
   int width = 0, height = 0, reach = 0, block = 0;
   size_t samples = 0;
@@ -160,11 +149,11 @@ Row run(int width, int height, int reach, int block, int spp, int repeats) {
   const std::string source = fmt::format("#version 430 core\n#define B {}\n#define REACH {}\n{}",
                                          block, reach, kGatherCompute);
   const GLuint program = afr::compute_program(source.c_str(), "binned gather");
-  GLuint cell_tex = texture_2d(GL_RG32UI, width, height);
-  GLuint kernel_tex = texture_2d(GL_RGBA32F, width, height);
-  GLuint extent_tex = texture_2d(GL_RGBA32F, width, height);
-  GLuint sums_tex = texture_2d(GL_RGBA32F, width, height);
-  GLuint coverage_tex = texture_2d(GL_RG32F, width, height);
+  GLuint cell_tex = afr::make_texture(GL_RG32UI, width, height);
+  GLuint kernel_tex = afr::make_texture(GL_RGBA32F, width, height);
+  GLuint extent_tex = afr::make_texture(GL_RGBA32F, width, height);
+  GLuint sums_tex = afr::make_texture(GL_RGBA32F, width, height);
+  GLuint coverage_tex = afr::make_texture(GL_RG32F, width, height);
   glBindTexture(GL_TEXTURE_2D, kernel_tex);
   glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, width, height, GL_RGBA, GL_FLOAT, kernel.data());
   glBindTexture(GL_TEXTURE_2D, extent_tex);

@@ -782,6 +782,28 @@ TEST(TracerTest, UnlitMaterialShowsItsBaseColorAsItIs) {
   EXPECT_EQ(stats.shadow_rays, 0u);
 }
 
+// Traces crosshairs over a 16 x 16 image (every other column, every third row) as packets,
+// expects each of their five samples to be what a single ray gives, and returns their centers.
+std::vector<ShadedSample> crosshairs_match_single_rays(const Tracer& tracer, const Camera& cam,
+                                                       TraceStats* stats) {
+  constexpr int kSide = 16;
+  std::vector<ShadedSample> centers;
+  for (int j = 1; j < kSide - 1; j += 3) {
+    for (int i = 1; i < kSide - 1; i += 2) {
+      std::array<ShadedSample, 5> cross;
+      tracer.trace_crosshair(cam, i + 0.5, j + 0.5, kSide, kSide, &cross, stats);
+      const glm::dvec2 at[5] = {{0, 0}, {-1, 0}, {1, 0}, {0, -1}, {0, 1}};
+      for (int k = 0; k < 5; ++k) {
+        const Ray ray = cam.ray(i + 0.5 + at[k].x, j + 0.5 + at[k].y, kSide, kSide);
+        expect_near3(cross[size_t(k)].color, tracer.trace(ray, stats).color, 1e-5f,
+                     "crosshair against a single ray");
+      }
+      centers.push_back(cross[0]);
+    }
+  }
+  return centers;
+}
+
 // alphaMode MASK: a red square whose texture's alpha is 0.2 on its left half and 0.9 on its
 // right (cutoff 0.5) before a green wall, and beside it a square whose factor's alpha alone
 // (0.3) is below the cutoff. Camera rays, single and in the crosshair's packets, and occlusion
@@ -822,21 +844,10 @@ TEST(TracerTest, MaskedSurfacesAreCutAwayForEveryRay) {
 
   // The crosshair's packets see what single rays see, both halves among them.
   const Camera cam = Camera::look_at({0.0, 0.0, 0.0}, {0.0, 0.0, -1.0}, {0, 1, 0}, 1.2, 0.01);
-  constexpr int kSide = 16;
   int saw_red = 0, saw_green = 0;
-  for (int j = 1; j < kSide - 1; j += 3) {
-    for (int i = 1; i < kSide - 1; i += 2) {
-      std::array<ShadedSample, 5> cross;
-      tracer.trace_crosshair(cam, i + 0.5, j + 0.5, kSide, kSide, &cross, &stats);
-      const glm::dvec2 at[5] = {{0, 0}, {-1, 0}, {1, 0}, {0, -1}, {0, 1}};
-      for (int k = 0; k < 5; ++k) {
-        const Ray ray = cam.ray(i + 0.5 + at[k].x, j + 0.5 + at[k].y, kSide, kSide);
-        expect_near3(cross[size_t(k)].color, tracer.trace(ray, &stats).color, 1e-5f,
-                     "crosshair against a single ray");
-      }
-      saw_red += cross[0].color.r > 0.5f;
-      saw_green += cross[0].color.g > 0.5f;
-    }
+  for (const ShadedSample& center : crosshairs_match_single_rays(tracer, cam, &stats)) {
+    saw_red += center.color.r > 0.5f;
+    saw_green += center.color.g > 0.5f;
   }
   EXPECT_GT(saw_red, 0);
   EXPECT_GT(saw_green, 0);
@@ -898,19 +909,11 @@ TEST(TracerTest, BlendedSurfacesShowInProportionToTheirOpacity) {
   EXPECT_NEAR(twice.g / open.g, 0.25f, 1e-4f);  // behind both blue squares
 
   const Camera cam = Camera::look_at({0.0, 0.0, 0.0}, {0.0, 0.0, -1.0}, {0, 1, 0}, 1.6, 0.01);
-  constexpr int kSide = 16;
-  for (int j = 1; j < kSide - 1; j += 3) {
-    for (int i = 1; i < kSide - 1; i += 2) {
-      std::array<ShadedSample, 5> cross;
-      tracer.trace_crosshair(cam, i + 0.5, j + 0.5, kSide, kSide, &cross, &stats);
-      const glm::dvec2 at[5] = {{0, 0}, {-1, 0}, {1, 0}, {0, -1}, {0, 1}};
-      for (int k = 0; k < 5; ++k) {
-        const Ray ray = cam.ray(i + 0.5 + at[k].x, j + 0.5 + at[k].y, kSide, kSide);
-        expect_near3(cross[size_t(k)].color, tracer.trace(ray, &stats).color, 1e-5f,
-                     "crosshair against a single ray");
-      }
-    }
+  int saw_blend = 0;
+  for (const ShadedSample& center : crosshairs_match_single_rays(tracer, cam, &stats)) {
+    saw_blend += center.color.r > 0.2f && center.color.g > 0.5f;  // 0.3 red over 0.7 green
   }
+  EXPECT_GT(saw_blend, 0);
 }
 
 // Texture minification by ray cones: a floor with a one-texel checker (1024 x 1024 texels over
