@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <numbers>
 #include <string>
@@ -653,6 +654,37 @@ TEST(TracerTest, MaterialTexturesDecideTheMaterialAtEachPoint) {
   EXPECT_GT(glm::length(colors[1] - colors[2]), 0.1f);
 }
 
+// The normal-texture tests' scene: a white Lambertian square at z = -2 whose normal texture is
+// one texel (its scale `scale`), under a directional light along -(1, 0, 1) (from the right, in
+// front). `dress(scene, square, node)` sets the square's coordinates, tangents and node before
+// the scene is finished (the square is added first: its mesh is set when `dress` runs). Returns
+// n.l at (0.2, 0.1): the color x pi / intensity.
+float normal_mapped_n_dot_l(glm::vec3 texel, float scale,
+                            const std::function<void(Scene*, Mesh*, int)>& dress) {
+  Scene s;
+  Texture normal;
+  normal.width = normal.height = 1;
+  normal.texels = {texel};
+  s.textures.push_back(normal);
+  const int mat = add_material(&s, glm::vec3(1.0f), 0.0f, 1.0f);
+  s.materials[size_t(mat)].normal_texture = 0;
+  s.materials[size_t(mat)].normal_scale = scale;
+  const int node = add_mesh_node(&s, quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat));
+  dress(&s, &s.meshes[size_t(s.nodes[size_t(node)].mesh)], node);
+  Light sun;
+  sun.type = Light::Type::kDirectional;
+  sun.intensity = 2.0f;
+  // -Z turned 45 degrees about +y shines along -(1, 0, 1).
+  add_light_node(&s, sun, glm::dvec3(0.0), glm::angleAxis(0.25 * M_PI, glm::dvec3(0, 1, 0)));
+  s.finalize();
+  Tracer tracer(s);
+  TraceStats stats;
+  const ShadedSample hit = tracer.trace(Ray{{0.2f, 0.1f, 0.0f}, {0, 0, -1}}, &stats);
+  EXPECT_TRUE(hit.hit);
+  EXPECT_NEAR(hit.color.r, hit.color.b, 1e-6f);
+  return hit.color.r * float(M_PI) / 2.0f;
+}
+
 // A normal texture bends the shading normal in the triangle's tangent frame: a texel tilting
 // the normal 30 degrees toward +u (tangent-space x) lights a white Lambertian square under a
 // directional light from (1, 0, 1) as a square turned that way would: n.l = cos 15 degrees
@@ -664,28 +696,8 @@ TEST(TracerTest, NormalTextureBendsTheShadingNormalInTheTangentFrame) {
   // uvs of the square's corners c, c + eu, c + eu + ev, c + ev (eu = +x, ev = +y), and the
   // texel; returns n.l (color x pi / intensity: base white, diffuse only).
   auto lit = [&](std::vector<glm::vec2> uvs, glm::vec3 texel, float scale) {
-    Scene s;
-    Texture normal;
-    normal.width = normal.height = 1;
-    normal.texels = {texel};
-    s.textures.push_back(normal);
-    const int mat = add_material(&s, glm::vec3(1.0f), 0.0f, 1.0f);
-    s.materials[size_t(mat)].normal_texture = 0;
-    s.materials[size_t(mat)].normal_scale = scale;
-    Mesh square = quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat);
-    square.primitives[0].uvs = std::move(uvs);
-    add_mesh_node(&s, square);
-    Light sun;
-    sun.type = Light::Type::kDirectional;
-    sun.intensity = 2.0f;
-    // -Z turned 45 degrees about +y shines along -(1, 0, 1): from the right, in front.
-    add_light_node(&s, sun, glm::dvec3(0.0), glm::angleAxis(0.25 * M_PI, glm::dvec3(0, 1, 0)));
-    s.finalize();
-    Tracer tracer(s);
-    TraceStats stats;
-    const ShadedSample hit = tracer.trace(Ray{{0.2f, 0.1f, 0.0f}, {0, 0, -1}}, &stats);
-    EXPECT_NEAR(hit.color.r, hit.color.b, 1e-6f);
-    return hit.color.r * float(M_PI) / 2.0f;
+    return normal_mapped_n_dot_l(
+        texel, scale, [&](Scene*, Mesh* square, int) { square->primitives[0].uvs = uvs; });
   };
   // glTF's orientation: u to the right, v down the image (here: down in world y).
   const std::vector<glm::vec2> upright = {{0, 1}, {1, 1}, {1, 0}, {0, 0}};
@@ -713,29 +725,12 @@ TEST(TracerTest, NormalTextureBendsTheShadingNormalInTheTangentFrame) {
 TEST(TracerTest, TangentsSetTheNormalTexturesFrame) {
   const float sin30 = 0.5f, cos30 = std::sqrt(3.0f) / 2.0f;
   auto lit = [&](glm::vec4 tangent, glm::vec3 texel, glm::dquat rotation, glm::dvec3 scale) {
-    Scene s;
-    Texture normal;
-    normal.width = normal.height = 1;
-    normal.texels = {texel};
-    s.textures.push_back(normal);
-    const int mat = add_material(&s, glm::vec3(1.0f), 0.0f, 1.0f);
-    s.materials[size_t(mat)].normal_texture = 0;
-    Mesh square = quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat);
-    square.primitives[0].uvs = {{0, 1}, {1, 1}, {1, 0}, {0, 0}};
-    square.primitives[0].tangents.assign(4, tangent);
-    const int node = add_mesh_node(&s, square);
-    s.nodes[size_t(node)].rotation = rotation;
-    s.nodes[size_t(node)].scale = scale;
-    Light sun;
-    sun.type = Light::Type::kDirectional;
-    sun.intensity = 2.0f;
-    add_light_node(&s, sun, glm::dvec3(0.0), glm::angleAxis(0.25 * M_PI, glm::dvec3(0, 1, 0)));
-    s.finalize();
-    Tracer tracer(s);
-    TraceStats stats;
-    const ShadedSample hit = tracer.trace(Ray{{0.2f, 0.1f, 0.0f}, {0, 0, -1}}, &stats);
-    EXPECT_TRUE(hit.hit);
-    return hit.color.r * float(M_PI) / 2.0f;
+    return normal_mapped_n_dot_l(texel, 1.0f, [&](Scene* s, Mesh* square, int node) {
+      square->primitives[0].uvs = {{0, 1}, {1, 1}, {1, 0}, {0, 0}};
+      square->primitives[0].tangents.assign(4, tangent);
+      s->nodes[size_t(node)].rotation = rotation;
+      s->nodes[size_t(node)].scale = scale;
+    });
   };
   const glm::vec3 toward_u(0.5f + 0.5f * sin30, 0.5f, 0.5f + 0.5f * cos30);
   const glm::vec3 toward_up(0.5f, 0.5f + 0.5f * sin30, 0.5f + 0.5f * cos30);
