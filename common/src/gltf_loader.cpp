@@ -804,9 +804,12 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
       out->normals[i] = length > 0.0f ? v / length : glm::vec3(0.0f, 0.0f, 1.0f);
     }
   }
-  // The set its material's textures read (TEXCOORD_0 without a material or textures).
-  const int set =
-      in.material >= 0 && size_t(in.material) < uv_sets_.size() ? uv_sets_[size_t(in.material)] : 0;
+  // Its material (loaded before the meshes; null: the default material) decides which
+  // attributes it reads. The set its textures read: TEXCOORD_0 without a material or textures.
+  const Material* material = in.material >= 0 && size_t(in.material) < scene_.materials.size()
+                                 ? &scene_.materials[size_t(in.material)]
+                                 : nullptr;
+  const int set = material ? uv_sets_[size_t(in.material)] : 0;
   const std::string uv_name = fmt::format("TEXCOORD_{}", set);
   if (const auto uv = in.attributes.find(uv_name); uv != in.attributes.end()) {
     const std::vector<float> t = read_floats(uv->second, TINYGLTF_TYPE_VEC2, what + " " + uv_name);
@@ -824,10 +827,8 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
   }
   // TANGENT (VEC4 of floats, or of normalized bytes or shorts with KHR_mesh_quantization), read
   // only where the material's normal texture uses it; w taken by its sign.
-  const bool normal_mapped = in.material >= 0 && size_t(in.material) < scene_.materials.size() &&
-                             scene_.materials[size_t(in.material)].normal_texture >= 0;
   if (const auto tangent = in.attributes.find("TANGENT");
-      normal_mapped && tangent != in.attributes.end()) {
+      material && material->normal_texture >= 0 && tangent != in.attributes.end()) {
     const std::vector<float> t =
         read_floats(tangent->second, TINYGLTF_TYPE_VEC4, what + " TANGENT");
     if (t.size() / 4 != vertex_count) {
@@ -840,9 +841,7 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
   }
   if (const auto color = in.attributes.find("COLOR_0"); color != in.attributes.end()) {
     // Its alpha matters only to a material that masks or blends.
-    const bool keep_alpha =
-        in.material >= 0 && size_t(in.material) < scene_.materials.size() &&
-        scene_.materials[size_t(in.material)].alpha_mode != Material::AlphaMode::kOpaque;
+    const bool keep_alpha = material && material->alpha_mode != Material::AlphaMode::kOpaque;
     load_colors(color->second, what + " COLOR_0", vertex_count, keep_alpha, out);
   }
   load_skinning(in, what, out);
@@ -985,8 +984,9 @@ void Loader::load_skinning(const tinygltf::Primitive& in, const std::string& wha
   }
 }
 
-// Morph targets: POSITION and NORMAL displacements (TANGENT is not read: normal maps use each
-// triangle's own tangent frame; other attributes warn).
+// Morph targets: POSITION and NORMAL displacements (TANGENT displacements are not read: a
+// morphed primitive's normal texture uses each triangle's own tangent frame; other attributes
+// warn).
 void Loader::load_targets(const tinygltf::Primitive& in, const std::string& what, Primitive* out) {
   const size_t vertex_count = out->positions.size();
   out->targets.resize(in.targets.size());

@@ -421,6 +421,18 @@ struct Tracer::Impl {
   // Sets the filters of geometry g of primitive p (glTF's alphaMode MASK, glass) where its
   // material needs them.
   void set_filters(RTCGeometry g, uint32_t material, const Primitive& p);
+  // A GeomRecord with what comes straight from primitive p and its material (an index into
+  // materials_): texture coordinates, colors, tested vertex alpha, indices. The caller sets the
+  // positions and what follows from them.
+  GeomRecord record_of(const Primitive& p, uint32_t material) const {
+    GeomRecord r;
+    r.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
+    r.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
+    r.color_alpha = tested_alpha(p, material);
+    r.indices = p.indices.data();
+    r.material = material;
+    return r;
+  }
   // p's COLOR_0 alpha where its material (an index into materials_) tests alpha, else null.
   const float* tested_alpha(const Primitive& p, uint32_t material) const {
     return materials_[material].alpha_tested && p.color_alpha.size() == p.positions.size()
@@ -651,15 +663,10 @@ void Tracer::Impl::build() {
       static_positions_.push_back(std::move(positions));
       static_normals_.push_back(std::move(normals));
       static_tangents_.push_back(std::move(tangents));
-      GeomRecord r;
+      GeomRecord r = record_of(p, material_of(p));
       r.positions = static_positions_.back().data();
       r.normals = static_normals_.back().empty() ? nullptr : static_normals_.back().data();
       r.tangents = static_tangents_.back().empty() ? nullptr : static_tangents_.back().data();
-      r.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
-      r.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
-      r.color_alpha = tested_alpha(p, material_of(p));
-      r.indices = p.indices.data();
-      r.material = material_of(p);
       r.node = n;
       r.flip_winding = flips_winding(n, at0);
       statics.geoms.push_back(r);
@@ -690,15 +697,10 @@ void Tracer::Impl::build() {
                                   p.indices.data(), p.triangle_count());
         rtcAttachGeometryByID(b.scene, g, unsigned(b.geoms.size()));
         rtcReleaseGeometry(g);
-        GeomRecord r;
+        GeomRecord r = record_of(p, material_of(p));
         r.positions = p.positions.data();
         r.normals = p.normals.size() == p.positions.size() ? p.normals.data() : nullptr;
         r.tangents = p.tangents.size() == p.positions.size() ? p.tangents.data() : nullptr;
-        r.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
-        r.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
-        r.color_alpha = tested_alpha(p, material_of(p));
-        r.indices = p.indices.data();
-        r.material = material_of(p);
         b.geoms.push_back(r);
       }
       if (b.geoms.empty()) {
@@ -793,15 +795,10 @@ void Tracer::Impl::build_deforming(const std::vector<int>& nodes, uint32_t defau
     rtcAttachGeometryByID(b.scene, g, unsigned(b.geoms.size()));
     rtcReleaseGeometry(g);  // the BLAS holds it as long as d.geom is used
     d.geom = g;
-    GeomRecord r;
+    GeomRecord r = record_of(p, material);
     r.positions = d.positions.data();
     r.normals = d.normals.data();
-    r.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
-    r.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
-    r.color_alpha = tested_alpha(p, material);
     r.velocities = d.velocities.data();
-    r.indices = p.indices.data();
-    r.material = material;
     r.node = d.node;
     r.flip_winding = flips_winding(d.node, state_);
     b.geoms.push_back(r);

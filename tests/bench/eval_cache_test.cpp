@@ -117,6 +117,20 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
       "normal texture", [](Scene* s) { s->materials[0].normal_texture = 0; },
       [](Scene* s) { s->materials[0].normal_scale = 0.5f; });
   expect_seen(
+      "vertex alpha",
+      [](Scene* s) {
+        Primitive& p = s->meshes[0].primitives[0];
+        p.color_alpha.assign(p.positions.size(), 1.0f);
+      },
+      [](Scene* s) { s->meshes[0].primitives[0].color_alpha[0] = 0.5f; });
+  expect_seen(
+      "tangents",
+      [](Scene* s) {
+        Primitive& p = s->meshes[0].primitives[0];
+        p.tangents.assign(p.positions.size(), glm::vec4(1, 0, 0, 1));
+      },
+      [](Scene* s) { s->meshes[0].primitives[0].tangents[0].w = -1.0f; });
+  expect_seen(
       "occlusion", [](Scene* s) { s->materials[0].occlusion_texture = 0; },
       [](Scene* s) { s->materials[0].occlusion_strength = 0.5f; });
   Scene with_path = make_builtin_scene();

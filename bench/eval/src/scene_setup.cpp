@@ -132,8 +132,9 @@ uint64_t render_fingerprint(const Scene& scene) {
     if (m.alpha_mode != Material::AlphaMode::kOpaque) {
       h.value(m.alpha_mode);
       h.value(m.alpha_cutoff);
-      // BLEND was drawn opaque before it was drawn by hashed alpha: frames cached then are stale.
-      if (m.alpha_mode == Material::AlphaMode::kBlend) h.value(uint32_t(1));
+      // How BLEND is drawn (blended in each sample; builds before drew it opaque or hashed it):
+      // a new value whenever that changes, so that frames cached before are not reused.
+      if (m.alpha_mode == Material::AlphaMode::kBlend) h.value(uint32_t(2));
     }
     if (m.transmission != 0.0f || m.ior != 1.5f) {
       h.value(m.transmission);

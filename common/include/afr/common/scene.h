@@ -132,7 +132,7 @@ struct Material {
   int normal_texture = -1;
   float normal_scale = 1.0f;
   // glTF's alphaMode. kMask cuts the surface away where its alpha (base_color_factor's alpha x
-  // the base-color texture's) is below alpha_cutoff, for every ray (camera, reflection,
+  // the base-color texture's x COLOR_0's) is below alpha_cutoff, for every ray (camera, reflection,
   // shadow, occlusion). kBlend shows alpha of the surface's own light over 1 - alpha of what
   // lies behind it, and lets 1 - alpha of a light through to what it shadows.
   enum class AlphaMode { kOpaque, kMask, kBlend };
