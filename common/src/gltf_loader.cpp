@@ -185,12 +185,14 @@ class Loader {
                                                    const std::string& what, int* tex_coord);
   // One texture slot of material m (its index, texCoord and extensions as glTF gives them):
   // the index of its decoded texture in Scene::textures (sRGB color or linear data), or -1
-  // where the slot is empty, its texture has no image, or it reads another set of texture
-  // coordinates than the material's first textured slot, whose set and KHR_texture_transform
-  // become the material's (uv_sets_, uv_transforms_).
+  // where the slot is empty or its texture has no image. *set: the material's texture
+  // coordinate set the slot reads (uv_sources_), added where no slot before it reads the same
+  // TEXCOORD_n through the same KHR_texture_transform.
   int read_texture_slot(size_t m, const char* slot, int index, int tex_coord,
-                        const tinygltf::ExtensionMap& extensions, bool srgb);
-  void apply_texture_transforms();
+                        const tinygltf::ExtensionMap& extensions, bool srgb, uint8_t* set);
+  struct UvSource;
+  void read_texture_coordinates(const tinygltf::Primitive& in, const std::vector<UvSource>& sources,
+                                const std::string& what, size_t vertex_count, Primitive* out);
   int texture_for_image(int image_index, bool srgb);
   void keep_mask_alphas();
   void load_cameras();
@@ -213,12 +215,17 @@ class Loader {
   // glTF image -> Scene::textures, -1 until decoded: [0] decoded as sRGB color, [1] as linear
   // data (an image may be both, e.g. a base color reused as a mask).
   std::array<std::vector<int>, 2> image_to_texture_;
-  // Per glTF material: the KHR_texture_transform of its first texture slot that has a
-  // texture (base color, metallic-roughness, emissive, occlusion, normal), if any, and that
-  // slot's name.
-  std::vector<std::optional<glm::dmat3>> uv_transforms_;
-  std::vector<const char*> uv_transform_slot_;
-  std::vector<int> uv_sets_;        // per glTF material: the TEXCOORD_n its textures read
+  // A texture coordinate set of a material (Material::TextureSets): a TEXCOORD_n through a
+  // KHR_texture_transform (none: the identity), and the first slot that reads it.
+  struct UvSource {
+    int tex_coord = 0;
+    glm::dmat3 transform{1.0};
+    const char* slot = nullptr;
+  };
+  // Per glTF material, its sets in slot order (base color, metallic-roughness, emissive,
+  // occlusion, normal); empty for a material without textures, whose primitives read
+  // TEXCOORD_0 as they are.
+  std::vector<std::vector<UvSource>> uv_sources_;
   size_t morph_displacements_ = 0;  // read so far, at most kMaxMorphDisplacements
 };
 
@@ -809,22 +816,9 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
   const Material* material = in.material >= 0 && size_t(in.material) < scene_.materials.size()
                                  ? &scene_.materials[size_t(in.material)]
                                  : nullptr;
-  const int set = material ? uv_sets_[size_t(in.material)] : 0;
-  const std::string uv_name = fmt::format("TEXCOORD_{}", set);
-  if (const auto uv = in.attributes.find(uv_name); uv != in.attributes.end()) {
-    const std::vector<float> t = read_floats(uv->second, TINYGLTF_TYPE_VEC2, what + " " + uv_name);
-    if (t.size() / 2 != vertex_count) {
-      fail(fmt::format("{} has {} texture coordinates for {} positions", what, t.size() / 2,
-                       vertex_count));
-    }
-    out->uvs.resize(vertex_count);
-    for (size_t i = 0; i < vertex_count; ++i) out->uvs[i] = {t[2 * i], t[2 * i + 1]};
-  } else if (set != 0) {
-    warn_once("missing " + uv_name,
-              fmt::format("{} has no {}, which its material's textures read: they are left out "
-                          "(the material's factors decide)",
-                          what, uv_name));
-  }
+  read_texture_coordinates(in,
+                           material ? uv_sources_[size_t(in.material)] : std::vector<UvSource>{},
+                           what, vertex_count, out);
   // TANGENT (VEC4 of floats, or of normalized bytes or shorts with KHR_mesh_quantization), read
   // only where the material's normal texture uses it; w taken by its sign.
   if (const auto tangent = in.attributes.find("TANGENT");
@@ -1064,9 +1058,7 @@ void Loader::read_transmission_and_ior(const tinygltf::Material& in, const std::
 
 void Loader::load_materials() {
   for (std::vector<int>& map : image_to_texture_) map.assign(model_.images.size(), -1);
-  uv_transforms_.assign(model_.materials.size(), std::nullopt);
-  uv_transform_slot_.assign(model_.materials.size(), nullptr);
-  uv_sets_.assign(model_.materials.size(), 0);
+  uv_sources_.assign(model_.materials.size(), {});
   for (size_t m = 0; m < model_.materials.size(); ++m) {
     const tinygltf::Material& in = model_.materials[m];
     const tinygltf::PbrMetallicRoughness& pbr = in.pbrMetallicRoughness;
@@ -1117,20 +1109,24 @@ void Loader::load_materials() {
                             what, in.alphaMode));
     }
     const tinygltf::TextureInfo& base = pbr.baseColorTexture;
-    out.base_color_texture =
-        read_texture_slot(m, "baseColorTexture", base.index, base.texCoord, base.extensions, true);
+    Material::TextureSets& sets = out.uv_set;
+    out.base_color_texture = read_texture_slot(m, "baseColorTexture", base.index, base.texCoord,
+                                               base.extensions, true, &sets.base_color);
     const tinygltf::TextureInfo& mr = pbr.metallicRoughnessTexture;
-    out.metallic_roughness_texture = read_texture_slot(m, "metallicRoughnessTexture", mr.index,
-                                                       mr.texCoord, mr.extensions, false);
+    out.metallic_roughness_texture =
+        read_texture_slot(m, "metallicRoughnessTexture", mr.index, mr.texCoord, mr.extensions,
+                          false, &sets.metallic_roughness);
     const tinygltf::TextureInfo& emissive = in.emissiveTexture;
-    out.emissive_texture = read_texture_slot(m, "emissiveTexture", emissive.index,
-                                             emissive.texCoord, emissive.extensions, true);
+    out.emissive_texture =
+        read_texture_slot(m, "emissiveTexture", emissive.index, emissive.texCoord,
+                          emissive.extensions, true, &sets.emissive);
     const tinygltf::OcclusionTextureInfo& occlusion = in.occlusionTexture;
-    out.occlusion_texture = read_texture_slot(m, "occlusionTexture", occlusion.index,
-                                              occlusion.texCoord, occlusion.extensions, false);
+    out.occlusion_texture =
+        read_texture_slot(m, "occlusionTexture", occlusion.index, occlusion.texCoord,
+                          occlusion.extensions, false, &sets.occlusion);
     const tinygltf::NormalTextureInfo& normal = in.normalTexture;
     out.normal_texture = read_texture_slot(m, "normalTexture", normal.index, normal.texCoord,
-                                           normal.extensions, false);
+                                           normal.extensions, false, &sets.normal);
     if (out.normal_texture >= 0) {
       if (!std::isfinite(normal.scale)) {
         fail(fmt::format("{} has an invalid normalTexture scale ({})", what, normal.scale));
@@ -1167,7 +1163,7 @@ void Loader::keep_mask_alphas() {
 }
 
 int Loader::read_texture_slot(size_t m, const char* slot, int index, int tex_coord,
-                              const tinygltf::ExtensionMap& extensions, bool srgb) {
+                              const tinygltf::ExtensionMap& extensions, bool srgb, uint8_t* set) {
   if (index < 0) return -1;
   const std::string what = fmt::format("material {} {}", m, slot);
   if (size_t(index) >= model_.textures.size()) {
@@ -1175,26 +1171,17 @@ int Loader::read_texture_slot(size_t m, const char* slot, int index, int tex_coo
                      model_.textures.size()));
   }
   const std::optional<glm::dmat3> transform = read_texture_transform(extensions, what, &tex_coord);
-  // One set of texture coordinates serves every slot of a material, the first textured slot's
-  // (base color first), through that slot's transform (applied to the primitive's coordinates
-  // at load). A map on another set would darken, bend or light the wrong places through the
-  // material's set, so such a slot is left out and its factors decide.
-  if (uv_transform_slot_[m] == nullptr) {
-    uv_transform_slot_[m] = slot;
-    uv_sets_[m] = tex_coord;
-    uv_transforms_[m] = transform;
-  } else if (tex_coord != uv_sets_[m]) {
-    warn_once("texCoord " + std::string(slot),
-              fmt::format("{} reads TEXCOORD_{}, but the {} reads TEXCOORD_{}: one set serves a "
-                          "material, so the {} is left out",
-                          what, tex_coord, uv_transform_slot_[m], uv_sets_[m], slot));
-    return -1;
-  } else if (transform.value_or(glm::dmat3(1.0)) != uv_transforms_[m].value_or(glm::dmat3(1.0))) {
-    warn_once("texture transforms differ",
-              fmt::format("{}: its KHR_texture_transform differs from the {}'s, which afr uses "
-                          "for every texture of the material",
-                          what, uv_transform_slot_[m]));
+  // Slots that read one TEXCOORD_n through one transform share a set: a primitive stores each
+  // set once (applied at load, so a lookup costs the tracer no transform).
+  std::vector<UvSource>& sources = uv_sources_[m];
+  const glm::dmat3 matrix = transform.value_or(glm::dmat3(1.0));
+  size_t k = 0;
+  while (k < sources.size() &&
+         !(sources[k].tex_coord == tex_coord && sources[k].transform == matrix)) {
+    ++k;
   }
+  if (k == sources.size()) sources.push_back({tex_coord, matrix, slot});
+  *set = uint8_t(k);
   const tinygltf::Texture& texture = model_.textures[size_t(index)];
   if (texture.sampler >= int(model_.samplers.size())) {
     fail(fmt::format("texture {} refers to sampler {}, but there are {}", index, texture.sampler,
@@ -1272,16 +1259,40 @@ std::optional<glm::dmat3> Loader::read_texture_transform(const tinygltf::Extensi
   return m;
 }
 
-// Texture transforms become the primitives' texture coordinates: a primitive has one material,
-// whose textures all read one set through one transform (read_texture_slot), so moving the
-// coordinates is exact and costs the tracer nothing.
-void Loader::apply_texture_transforms() {
-  for (Mesh& mesh : scene_.meshes) {
-    for (Primitive& p : mesh.primitives) {
-      if (p.material < 0 || size_t(p.material) >= uv_transforms_.size()) continue;
-      const std::optional<glm::dmat3>& m = uv_transforms_[size_t(p.material)];
-      if (!m) continue;
-      for (glm::vec2& uv : p.uvs) uv = glm::vec2(*m * glm::dvec3(uv, 1.0));
+// A primitive's texture coordinate sets, those of its material (`sources`; none: TEXCOORD_0
+// as it is), each through its transform. A set the primitive lacks stays empty (one warning
+// unless it is TEXCOORD_0, which untextured content often leaves out): the slots reading it
+// take their factors alone.
+void Loader::read_texture_coordinates(const tinygltf::Primitive& in,
+                                      const std::vector<UvSource>& sources, const std::string& what,
+                                      size_t vertex_count, Primitive* out) {
+  const size_t sets = std::max<size_t>(sources.size(), 1);
+  out->more_uvs.resize(sets - 1);
+  for (size_t k = 0; k < sets; ++k) {
+    const int tex_coord = k < sources.size() ? sources[k].tex_coord : 0;
+    const std::string name = fmt::format("TEXCOORD_{}", tex_coord);
+    const auto uv = in.attributes.find(name);
+    if (uv == in.attributes.end()) {
+      if (tex_coord != 0) {
+        warn_once("missing " + name,
+                  fmt::format("{} has no {}, which its material's {} reads: the textures on that "
+                              "set are left out (the material's factors decide)",
+                              what, name, sources[k].slot));
+      }
+      continue;
+    }
+    const std::vector<float> t = read_floats(uv->second, TINYGLTF_TYPE_VEC2, what + " " + name);
+    if (t.size() / 2 != vertex_count) {
+      fail(fmt::format("{} has {} texture coordinates for {} positions", what, t.size() / 2,
+                       vertex_count));
+    }
+    std::vector<glm::vec2>& set = k == 0 ? out->uvs : out->more_uvs[k - 1];
+    set.resize(vertex_count);
+    const glm::dmat3 m = k < sources.size() ? sources[k].transform : glm::dmat3(1.0);
+    const bool moved = m != glm::dmat3(1.0);
+    for (size_t i = 0; i < vertex_count; ++i) {
+      const glm::vec2 v(t[2 * i], t[2 * i + 1]);
+      set[i] = moved ? glm::vec2(m * glm::dvec3(v, 1.0)) : v;
     }
   }
 }
@@ -1738,7 +1749,6 @@ Scene Loader::load(std::span<const uint8_t> bytes) {
   scene_.source = path_.string();
   load_materials();  // first: a primitive reads the texture coordinates its material's do
   load_meshes();
-  apply_texture_transforms();
   load_cameras();
   load_lights();
   load_nodes();

@@ -311,9 +311,12 @@ void Scene::finalize() {
         mesh_lo_[m] = glm::min(mesh_lo_[m], v);
         mesh_hi_[m] = glm::max(mesh_hi_[m], v);
       }
-      if (!p.uvs.empty() && p.uvs.size() != p.positions.size()) {
-        throw err(
-            fmt::format("{}: {} uvs for {} vertices", where, p.uvs.size(), p.positions.size()));
+      for (size_t k = 0; k <= p.more_uvs.size(); ++k) {
+        const std::vector<glm::vec2>& uvs = p.uv_set(int(k));
+        if (!uvs.empty() && uvs.size() != p.positions.size()) {
+          throw err(fmt::format("{}: {} uvs in set {} for {} vertices", where, uvs.size(), k,
+                                p.positions.size()));
+        }
       }
       if (!p.colors.empty() && p.colors.size() != p.positions.size()) {
         throw err(fmt::format("{}: {} vertex colors for {} vertices", where, p.colors.size(),

@@ -57,10 +57,33 @@ float max_abs(const glm::vec3& v) {
 // One Embree triangle geometry: one primitive of a mesh. Static and deforming geometry is
 // stored in world space and knows its node; geometry of an instanced mesh is in the mesh's
 // space and takes its node from the instance.
+// A primitive's texture coordinates as each texture slot of its material reads them
+// (Material::TextureSets; null: none for that slot, whose factors then decide). Slots on one set
+// share its pointer.
+struct SlotUvs {
+  const glm::vec2* base_color = nullptr;  // also the opacity's (alphaMode MASK and BLEND)
+  const glm::vec2* metallic_roughness = nullptr;
+  const glm::vec2* emissive = nullptr;
+  const glm::vec2* occlusion = nullptr;
+  const glm::vec2* normal = nullptr;  // also the normal texture's frame without TANGENT
+};
+
+// Set k of p's texture coordinates, or null where p has none.
+const glm::vec2* uv_data(const Primitive& p, int k) {
+  const std::vector<glm::vec2>& uvs = p.uv_set(k);
+  return !uvs.empty() && uvs.size() == p.positions.size() ? uvs.data() : nullptr;
+}
+
+// The value of a per-vertex attribute at barycentrics `bary` of triangle `tri`.
+template <typename T>
+T interpolate(const T* values, const uint32_t* tri, const glm::vec3& bary) {
+  return bary.x * values[tri[0]] + bary.y * values[tri[1]] + bary.z * values[tri[2]];
+}
+
 struct GeomRecord {
   const glm::vec3* positions = nullptr;
   const glm::vec3* normals = nullptr;  // null when the primitive has none per vertex
-  const glm::vec2* uvs = nullptr;      // null when the primitive has none per vertex
+  SlotUvs uvs;
   const glm::vec3* colors = nullptr;   // COLOR_0; null when the primitive has none
   const float* color_alpha = nullptr;  // COLOR_0's alpha where its material tests alpha, or null
   // TANGENT in the positions' space (w: the bitangent's sign); null: the triangle's own frame
@@ -111,7 +134,7 @@ struct SurfacePoint {
   glm::vec3 p{0.0f};
   glm::vec3 ng{0.0f, 0.0f, 1.0f};  // geometric normal, unit, toward the viewer when flipped
   glm::vec3 ns{0.0f, 0.0f, 1.0f};  // shading normal, unit
-  glm::vec2 uv{0.0f};
+  glm::vec2 uv{0.0f};              // in the base-color texture's set of coordinates (SlotUvs)
   const ShadeMaterial* material = nullptr;
   const Instance* instance = nullptr;
   const GeomRecord* geom = nullptr;
@@ -121,7 +144,7 @@ struct SurfacePoint {
   bool back_face = false;  // a single-sided surface seen from behind
   float opacity = 1.0f;    // alphaMode BLEND: the share of its own light it shows (opacity_at)
   // The ray cone (docs/scene-model.md, "Texture filtering"): its width at p, how fast it grows,
-  // and the texture's level of detail that width asks for.
+  // and the base-color texture's level of detail that width asks for.
   float cone = 0.0f;
   float spread = 0.0f;
   float lod = 0.0f;
@@ -426,12 +449,20 @@ struct Tracer::Impl {
   // positions and what follows from them.
   GeomRecord record_of(const Primitive& p, uint32_t material) const {
     GeomRecord r;
-    r.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
+    r.uvs = slot_uvs(p);
     r.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
     r.color_alpha = tested_alpha(p, material);
     r.indices = p.indices.data();
     r.material = material;
     return r;
+  }
+  // p's texture coordinates for each slot of its material (the default material has none).
+  SlotUvs slot_uvs(const Primitive& p) const {
+    const bool own = p.material >= 0 && size_t(p.material) < scene_.materials.size();
+    const Material::TextureSets sets =
+        own ? scene_.materials[size_t(p.material)].uv_set : Material::TextureSets{};
+    return SlotUvs{uv_data(p, sets.base_color), uv_data(p, sets.metallic_roughness),
+                   uv_data(p, sets.emissive), uv_data(p, sets.occlusion), uv_data(p, sets.normal)};
   }
   // p's COLOR_0 alpha where its material (an index into materials_) tests alpha, else null.
   const float* tested_alpha(const Primitive& p, uint32_t material) const {
@@ -553,7 +584,7 @@ void Tracer::Impl::set_filters(RTCGeometry g, uint32_t material, const Primitive
   GeometryFilter& f = filters_.emplace_back();
   f.material = &m;
   f.masked = masked;
-  f.uvs = p.uvs.size() == p.positions.size() ? p.uvs.data() : nullptr;
+  f.uvs = slot_uvs(p).base_color;
   f.color_alpha = vertex_alpha;
   f.indices = p.indices.data();
   rtcSetGeometryUserData(g, &f);
@@ -983,7 +1014,8 @@ static glm::vec3 mapped_normal(const GeomRecord& g, const Instance& inst, const 
     t *= 1.0f / std::sqrt(t_len2);
     bt = glm::cross(n, t) * sign;
   } else {
-    const glm::vec2 d1 = g.uvs[tri[1]] - g.uvs[tri[0]], d2 = g.uvs[tri[2]] - g.uvs[tri[0]];
+    const glm::vec2* uvs = g.uvs.normal;
+    const glm::vec2 d1 = uvs[tri[1]] - uvs[tri[0]], d2 = uvs[tri[2]] - uvs[tri[0]];
     const glm::vec3 e1 = g.positions[tri[1]] - g.positions[tri[0]];
     const glm::vec3 e2 = g.positions[tri[2]] - g.positions[tri[0]];
     const float det = d1.x * d2.y - d2.x * d1.y;
@@ -1025,7 +1057,7 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   s->node = inst.moves ? inst.node : g.node;
   const ShadeMaterial& m = materials_[g.material];
   s->material = &m;
-  s->opacity = m.blended ? opacity_at(m, g.uvs, g.color_alpha, tri, hit.u, hit.v) : 1.0f;
+  s->opacity = m.blended ? opacity_at(m, g.uvs.base_color, g.color_alpha, tri, hit.u, hit.v) : 1.0f;
 
   const glm::vec3& p0 = g.positions[tri[0]];
   glm::vec3 ng = glm::cross(g.positions[tri[1]] - p0, g.positions[tri[2]] - p0);
@@ -1062,32 +1094,39 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   }
   s->ng = ng;
   s->ns = ns;
-  const bool textured = g.uvs && (m.texture || m.varies || m.normal_map);
-  s->uv = textured ? w * g.uvs[tri[0]] + hit.u * g.uvs[tri[1]] + hit.v * g.uvs[tri[2]]
-                   : glm::vec2(0.0f);
   s->spread = spread;
   s->cone = cone + spread * hit.t;
-  // Each texture's level of detail for this ray cone (textures differ in size).
-  auto lod = [&](const Texture& t) {
-    return s->cone > 0.0f ? texture_lod(t, g.uvs[tri[0]], g.uvs[tri[1]], g.uvs[tri[2]], world_area2,
-                                        s->cone, std::abs(glm::dot(d, ng)))
-                          : 0.0f;
+  // A texture's lookup through the coordinates its slot reads (`uvs`): the point's coordinates
+  // and the level of detail of this ray cone there (textures and sets differ in size).
+  const float cosine = std::abs(glm::dot(d, ng));
+  auto place = [&](const Texture& t, const glm::vec2* uvs, glm::vec2* uv, float* lod) {
+    *uv = interpolate(uvs, tri, s->barycentric);
+    *lod = s->cone > 0.0f
+               ? texture_lod(t, uvs[tri[0]], uvs[tri[1]], uvs[tri[2]], world_area2, s->cone, cosine)
+               : 0.0f;
   };
-  s->lod = textured && m.texture ? lod(*m.texture) : 0.0f;
-  if (textured && m.normal_map) {
+  // Texture t at this point; white where there is none or its slot has no coordinates (the
+  // factors alone decide then, as glTF viewers read it).
+  auto texel = [&](const Texture* t, const glm::vec2* uvs) {
+    if (!t || !uvs) return glm::vec3(1.0f);
+    glm::vec2 uv;
+    float lod;
+    place(*t, uvs, &uv, &lod);
+    return t->sample(uv, lod);
+  };
+  s->uv = glm::vec2(0.0f);
+  s->lod = 0.0f;
+  if (m.texture && g.uvs.base_color) place(*m.texture, g.uvs.base_color, &s->uv, &s->lod);
+  if (m.normal_map && g.uvs.normal) {
     s->ns = mapped_normal(g, inst, tri, s->barycentric, s->ns, turned,
-                          m.normal_map->sample(s->uv, lod(*m.normal_map)), m.normal_scale);
+                          texel(m.normal_map, g.uvs.normal), m.normal_scale);
   }
-  // A material that varies over the surface, decided here from its textures (without texture
-  // coordinates, its factors alone are the material, as glTF viewers read it).
-  if (textured && m.varies) {
-    const glm::vec3 one(1.0f);
-    const glm::vec3 mr = m.metallic_roughness
-                             ? m.metallic_roughness->sample(s->uv, lod(*m.metallic_roughness))
-                             : one;
-    const glm::vec3 emissive =
-        m.emissive_texture ? m.emissive_texture->sample(s->uv, lod(*m.emissive_texture)) : one;
-    const float occlusion = m.occlusion ? m.occlusion->sample(s->uv, lod(*m.occlusion)).r : 1.0f;
+  // A material that varies over the surface, decided here from its textures.
+  if (m.varies && ((m.metallic_roughness && g.uvs.metallic_roughness) ||
+                   (m.emissive_texture && g.uvs.emissive) || (m.occlusion && g.uvs.occlusion))) {
+    const glm::vec3 mr = texel(m.metallic_roughness, g.uvs.metallic_roughness);
+    const glm::vec3 emissive = texel(m.emissive_texture, g.uvs.emissive);
+    const float occlusion = texel(m.occlusion, g.uvs.occlusion).r;
     ShadeMaterial& here = s->at_point.emplace(m);
     shading::vary(&here, mr, emissive, occlusion);
     s->material = &here;
@@ -1206,7 +1245,9 @@ void Tracer::Impl::shade_local8(const Surface* s, const glm::vec3* wo, const glm
 }
 
 glm::vec3 Tracer::Impl::texture_color(const Surface& s) const {
-  glm::vec3 c = s.material->texture ? s.material->texture->sample(s.uv, s.lod) : glm::vec3(1.0f);
+  glm::vec3 c = s.material->texture && s.geom->uvs.base_color
+                    ? s.material->texture->sample(s.uv, s.lod)
+                    : glm::vec3(1.0f);
   if (const glm::vec3* colors = s.geom->colors) {
     const uint32_t* tri = s.triangle;
     c *= s.barycentric.x * colors[tri[0]] + s.barycentric.y * colors[tri[1]] +

@@ -515,8 +515,9 @@ TEST_F(GltfLoaderTest, TangentsAreReadForNormalMappedMaterialsOnly) {
 
 // The metallic-roughness, emissive, occlusion and normal slots are read: data textures
 // (metallic-roughness, occlusion, normal) decoded as they are, color ones (base color, emissive)
-// from sRGB; one image decoded once per way it is read; a transform that differs from the
-// material's first slot's warns; an occlusion strength outside [0, 1] fails naming the material.
+// from sRGB; one image decoded once per way it is read; a slot whose transform differs from the
+// material's first slot's reads a set of coordinates of its own; an occlusion strength outside
+// [0, 1] fails naming the material.
 TEST_F(GltfLoaderTest, MaterialTextureSlotsDecodeColorFromSrgbAndDataAsItIs) {
   const DecodedImage color{1, 1, 3, {128, 64, 255}}, orm{1, 1, 3, {200, 128, 51}};
   const fs::path color_path = dir_ / "color.png", orm_path = dir_ / "orm.png";
@@ -563,11 +564,9 @@ TEST_F(GltfLoaderTest, MaterialTextureSlotsDecodeColorFromSrgbAndDataAsItIs) {
   EXPECT_NEAR(scene.textures[1].texels[0].g, 128 / 255.0, 1e-6);  // roughness
   EXPECT_NEAR(scene.textures[1].texels[0].b, 51 / 255.0, 1e-6);   // metallic
   EXPECT_NEAR(scene.textures[3].texels[0].r, 128 / 255.0, 1e-6);
-  ASSERT_EQ(report.warnings.size(), 1u);
-  EXPECT_NE(report.warnings[0].find("material 1 occlusionTexture: its KHR_texture_transform "
-                                    "differs from the baseColorTexture's"),
-            std::string::npos)
-      << report.warnings[0];
+  EXPECT_EQ(m.uv_set, Material::TextureSets{});
+  EXPECT_EQ(scene.materials[1].uv_set, (Material::TextureSets{.occlusion = 1}));
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
 
   b.doc()["materials"][0]["occlusionTexture"]["strength"] = 1.5;
   b.write_embedded(dir_ / "strength.gltf");
@@ -579,49 +578,75 @@ TEST_F(GltfLoaderTest, MaterialTextureSlotsDecodeColorFromSrgbAndDataAsItIs) {
                "material 0 emissiveTexture refers to texture 7, but there are 3");
 }
 
-// A material's textures read the set of its first textured slot (base color first), here
-// TEXCOORD_1: its primitives' texture coordinates are that set's; a slot on another set is left
-// out (one warning); a primitive without the set has none (one warning).
-TEST_F(GltfLoaderTest, AMaterialReadsTheTextureCoordinateSetOfItsFirstSlot) {
+// Each texture slot reads its own TEXCOORD_n through its own KHR_texture_transform: slots that
+// agree share a set, the first textured slot's (base color first) is set 0, each other pair adds
+// one (Primitive::more_uvs), transformed at load. A primitive without a set has none there (one
+// warning naming the slot), and keeps the others.
+TEST_F(GltfLoaderTest, EachTextureSlotReadsItsOwnTextureCoordinateSet) {
   const DecodedImage gray{1, 1, 3, {128, 128, 128}};
   write_image8(gray, dir_ / "gray.png");
   GltfBuilder b;
   const int positions = add_quad(&b);
   json& primitives = b.doc()["meshes"][0]["primitives"];
   primitives[0]["material"] = 0;
-  primitives[0]["attributes"]["TEXCOORD_0"] = b.add_floats({0, 0, 1, 0, 1, 1, 0, 1}, 2);
+  const int uv0 = b.add_floats({0, 0, 1, 0, 1, 1, 0, 1}, 2);
+  primitives[0]["attributes"]["TEXCOORD_0"] = uv0;
   primitives[0]["attributes"]["TEXCOORD_1"] =
       b.add_floats({0.25f, 0.5f, 0.75f, 0.5f, 0.75f, 1.0f, 0.25f, 1.0f}, 2);
   primitives.push_back(  // the same material, without TEXCOORD_1
-      {{"attributes", {{"POSITION", positions}}},
+      {{"attributes", {{"POSITION", positions}, {"TEXCOORD_0", uv0}}},
        {"indices", primitives[0]["indices"]},
        {"material", 0}});
   b.doc()["images"] = json::array({{{"uri", "gray.png"}}});
   b.doc()["textures"] = json::array({{{"source", 0}}});
+  b.doc()["extensionsUsed"] = {"KHR_texture_transform"};
+  const json shifted = {{"KHR_texture_transform", {{"offset", {0.5, 0.0}}}}};
   b.doc()["materials"] =
       json::array({{{"pbrMetallicRoughness",
                      {{"baseColorTexture", {{"index", 0}, {"texCoord", 1}}},
                       {"metallicRoughnessTexture", {{"index", 0}, {"texCoord", 1}}}}},
+                    {"emissiveFactor", {1.0, 1.0, 1.0}},
+                    {"emissiveTexture", {{"index", 0}, {"texCoord", 1}, {"extensions", shifted}}},
                     {"occlusionTexture", {{"index", 0}}},  // on TEXCOORD_0
                     {"normalTexture", {{"index", 0}, {"texCoord", 1}}}}});
-  b.write_embedded(dir_ / "second_set.gltf");
+  b.write_embedded(dir_ / "sets.gltf");
   GltfLoadReport report;
-  const Scene scene = load_gltf(dir_ / "second_set.gltf", &report);
+  const Scene scene = load_gltf(dir_ / "sets.gltf", &report);
   const Material& m = scene.materials[0];
   EXPECT_EQ(m.base_color_texture, 0);
   EXPECT_EQ(m.metallic_roughness_texture, 1);  // data: decoded linear
+  EXPECT_EQ(m.occlusion_texture, 1);
   EXPECT_EQ(m.normal_texture, 1);
-  EXPECT_EQ(m.occlusion_texture, -1);
+  EXPECT_EQ(m.emissive_texture, 0);
+  EXPECT_EQ(
+      m.uv_set,
+      (Material::TextureSets{
+          .base_color = 0, .metallic_roughness = 0, .emissive = 1, .occlusion = 2, .normal = 0}));
   ASSERT_EQ(scene.meshes[0].primitives.size(), 2u);
-  EXPECT_EQ(scene.meshes[0].primitives[0].uvs,
-            (std::vector<glm::vec2>{{0.25f, 0.5f}, {0.75f, 0.5f}, {0.75f, 1.0f}, {0.25f, 1.0f}}));
-  EXPECT_TRUE(scene.meshes[0].primitives[1].uvs.empty());
+  const Primitive& both = scene.meshes[0].primitives[0];
+  const std::vector<glm::vec2> uv1 = {{0.25f, 0.5f}, {0.75f, 0.5f}, {0.75f, 1.0f}, {0.25f, 1.0f}};
+  EXPECT_EQ(both.uvs, uv1);
+  ASSERT_EQ(both.more_uvs.size(), 2u);
+  EXPECT_EQ(both.uv_set(2), (std::vector<glm::vec2>{{0, 0}, {1, 0}, {1, 1}, {0, 1}}));
+  EXPECT_EQ(both.uv_set(1),
+            (std::vector<glm::vec2>{{0.75f, 0.5f}, {1.25f, 0.5f}, {1.25f, 1.0f}, {0.75f, 1.0f}}));
+  EXPECT_TRUE(both.uv_set(3).empty());
+  const Primitive& first_only = scene.meshes[0].primitives[1];
+  EXPECT_TRUE(first_only.uvs.empty());
+  EXPECT_TRUE(first_only.uv_set(1).empty());
+  EXPECT_EQ(first_only.uv_set(2), both.uv_set(2));
   EXPECT_EQ(count_containing(report.warnings,
-                             "material 0 occlusionTexture reads TEXCOORD_0, but "
-                             "the baseColorTexture reads TEXCOORD_1"),
+                             "mesh 0 primitive 1 has no TEXCOORD_1, which its material's "
+                             "baseColorTexture reads"),
             1u);
-  EXPECT_EQ(count_containing(report.warnings, "mesh 0 primitive 1 has no TEXCOORD_1"), 1u);
-  EXPECT_EQ(report.warnings.size(), 2u);
+  EXPECT_EQ(report.warnings.size(), 1u);
+
+  // A material without textures: its primitives keep TEXCOORD_0 as it is, and no more.
+  b.doc()["materials"] = json::array({json::object()});
+  b.write_embedded(dir_ / "plain.gltf");
+  const Scene plain = load_gltf(dir_ / "plain.gltf");
+  EXPECT_EQ(plain.meshes[0].primitives[0].uvs, both.uv_set(2));
+  EXPECT_TRUE(plain.meshes[0].primitives[0].more_uvs.empty());
 }
 
 // KHR_materials_unlit is read, also where a file requires it.

@@ -747,6 +747,60 @@ TEST(TracerTest, TangentsSetTheNormalTexturesFrame) {
   EXPECT_NEAR(lit({0, 1, 0, 1}, toward_up, none, mirror_x), std::cos(float(M_PI) / 12.0f), 1e-4f);
 }
 
+// Each texture reads the coordinate set its slot names (Material::TextureSets): a square under
+// ambient light whose base color (red | green) reads set 0, u running right, and whose occlusion
+// (0.25 | 1) reads set 1, u running left, shows red at full light on its left and green at a
+// quarter on its right. Where the primitive lacks set 1, the occlusion's factor alone decides
+// (no occlusion) and the base color is still read. The normal texture's frame comes from its own
+// set: with set 0 degenerate and set 1 upright, a texel tilting toward +u bends the normal as in
+// the test above.
+TEST(TracerTest, EachTextureReadsItsOwnCoordinateSet) {
+  auto colors_at = [](bool with_set_1) {
+    Scene s;
+    s.ambient = glm::vec3(1.0f);
+    Texture base, occlusion;
+    base.width = occlusion.width = 2;
+    base.height = occlusion.height = 1;
+    base.texels = {{1, 0, 0}, {0, 1, 0}};
+    occlusion.texels = {{0.25f, 0, 0}, {1, 0, 0}};  // red is the occlusion
+    s.textures = {base, occlusion};
+    const int mat = add_material(&s, glm::vec3(0.5f, 0.8f, 0.6f), 0.0f, 1.0f);
+    Material& m = s.materials[size_t(mat)];
+    m.base_color_texture = 0;
+    m.occlusion_texture = 1;
+    m.uv_set.occlusion = 1;
+    Mesh square = quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat);
+    if (with_set_1) square.primitives[0].more_uvs = {{{1, 0}, {0, 0}, {0, 1}, {1, 1}}};
+    add_mesh_node(&s, square);
+    s.finalize();
+    Tracer tracer(s);
+    TraceStats stats;
+    // Texel centers: x = -0.5 is u = 0.25 in set 0 and 0.75 in set 1.
+    return std::array<glm::vec3, 2>{
+        tracer.trace(Ray{{-0.5f, 0.0f, 0.0f}, {0, 0, -1}}, &stats).color,
+        tracer.trace(Ray{{0.5f, 0.0f, 0.0f}, {0, 0, -1}}, &stats).color};
+  };
+  const std::array<glm::vec3, 2> both = colors_at(true);
+  expect_near3(both[0], {0.5f, 0.0f, 0.0f}, 1e-5f, "left: red, unoccluded");
+  expect_near3(both[1], {0.0f, 0.8f * 0.25f, 0.0f}, 1e-5f, "right: green, occluded to 0.25");
+  const std::array<glm::vec3, 2> set_0_only = colors_at(false);
+  expect_near3(set_0_only[0], {0.5f, 0.0f, 0.0f}, 1e-5f, "left, without set 1");
+  expect_near3(set_0_only[1], {0.0f, 0.8f, 0.0f}, 1e-5f, "right, without set 1");
+
+  const float sin30 = 0.5f, cos30 = std::sqrt(3.0f) / 2.0f;
+  const glm::vec3 toward_u(0.5f + 0.5f * sin30, 0.5f, 0.5f + 0.5f * cos30);
+  auto lit = [&](int normal_set) {
+    return normal_mapped_n_dot_l(toward_u, 1.0f, [&](Scene* s, Mesh* square, int) {
+      Primitive& p = square->primitives[0];
+      p.uvs.assign(4, glm::vec2(0.5f));  // no frame: the normal stays
+      p.more_uvs = {{{0, 1}, {1, 1}, {1, 0}, {0, 0}}};
+      s->materials[size_t(p.material)].uv_set.normal = uint8_t(normal_set);
+    });
+  };
+  EXPECT_NEAR(lit(1), std::cos(float(M_PI) / 12.0f), 1e-4f);
+  EXPECT_NEAR(lit(0), 1.0f / std::sqrt(2.0f), 1e-4f);
+}
+
 // KHR_materials_unlit: the base color (factor x texture x vertex color) as it is, whatever
 // the lights, the ambient light, the emission and a polished metal's reflection would add.
 TEST(TracerTest, UnlitMaterialShowsItsBaseColorAsItIs) {

@@ -95,6 +95,7 @@ uint64_t render_fingerprint(const Scene& scene) {
       if (!p.colors.empty()) h.array(p.colors);
       if (!p.color_alpha.empty()) h.array(p.color_alpha);
       if (!p.tangents.empty()) h.array(p.tangents);
+      for (const std::vector<glm::vec2>& uvs : p.more_uvs) h.array(uvs);
       if (!p.joints.empty() || !p.targets.empty()) {
         h.array(p.joints);
         h.array(p.joint_weights);
@@ -127,6 +128,12 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.value(m.occlusion_strength);
       h.value(m.normal_texture);
       h.value(m.normal_scale);
+    }
+    if (m.uv_set != Material::TextureSets{}) {
+      const Material::TextureSets& s = m.uv_set;
+      for (uint8_t k : {s.base_color, s.metallic_roughness, s.emissive, s.occlusion, s.normal}) {
+        h.value(k);
+      }
     }
     if (m.unlit) h.value(m.unlit);
     if (m.alpha_mode != Material::AlphaMode::kOpaque) {

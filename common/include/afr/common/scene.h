@@ -32,7 +32,12 @@ struct MorphTarget {
 struct Primitive {
   std::vector<glm::vec3> positions;
   std::vector<glm::vec3> normals;
+  // Texture coordinates, one per vertex (or empty: none), in the sets its material's texture
+  // slots read (Material::TextureSets): `uvs` is set 0, more_uvs[k - 1] set k. A set is one
+  // glTF TEXCOORD_n through one KHR_texture_transform, applied at load; more_uvs is empty
+  // unless the material's slots read more than one.
   std::vector<glm::vec2> uvs;
+  std::vector<std::vector<glm::vec2>> more_uvs;
   // glTF's COLOR_0 in linear RGB, one per vertex: it multiplies the material's base color (and
   // its texture) like the base color factor does.
   std::vector<glm::vec3> colors;
@@ -56,6 +61,12 @@ struct Primitive {
   bool generated_normals = false;
 
   size_t triangle_count() const { return indices.size() / 3; }
+  // Texture coordinate set k (0: uvs); empty where the primitive has none.
+  const std::vector<glm::vec2>& uv_set(int k) const {
+    static const std::vector<glm::vec2> kNone;
+    if (k == 0) return uvs;
+    return k > 0 && size_t(k) <= more_uvs.size() ? more_uvs[size_t(k) - 1] : kNone;
+  }
 };
 
 struct Mesh {
@@ -131,6 +142,18 @@ struct Material {
   // normal_scale, replaces the shading normal. -1: none.
   int normal_texture = -1;
   float normal_scale = 1.0f;
+  // Which texture coordinate set of its primitives (Primitive::uv_set) each texture slot reads.
+  // Slots whose glTF texCoord and KHR_texture_transform agree share a set; the first textured
+  // slot's (base color first) is set 0.
+  struct TextureSets {
+    uint8_t base_color = 0;
+    uint8_t metallic_roughness = 0;
+    uint8_t emissive = 0;
+    uint8_t occlusion = 0;
+    uint8_t normal = 0;
+    bool operator==(const TextureSets&) const = default;
+  };
+  TextureSets uv_set;
   // glTF's alphaMode. kMask cuts the surface away where its alpha (base_color_factor's alpha x
   // the base-color texture's x COLOR_0's) is below alpha_cutoff, for every ray (camera, reflection,
   // shadow, occlusion). kBlend shows alpha of the surface's own light over 1 - alpha of what
