@@ -34,7 +34,7 @@ constexpr uint64_t kMaxFileBytes = uint64_t(1) << 31;
 // bytes behind its count, so the count alone must not decide how much memory is allocated.
 constexpr size_t kMaxAccessorCount = size_t(1) << 26;
 constexpr size_t kMaxAccessorCountWithoutView = size_t(1) << 22;
-// Morph target displacements (positions and normals) in one file: targets may share one
+// Morph target displacements (positions, normals, tangents) in one file: targets may share one
 // accessor, so the accessor limits alone do not bound their memory.
 constexpr size_t kMaxMorphDisplacements = size_t(1) << 24;
 
@@ -978,9 +978,8 @@ void Loader::load_skinning(const tinygltf::Primitive& in, const std::string& wha
   }
 }
 
-// Morph targets: POSITION and NORMAL displacements (TANGENT displacements are not read: a
-// morphed primitive's normal texture uses each triangle's own tangent frame; other attributes
-// warn).
+// Morph targets: POSITION and NORMAL displacements, and TANGENT ones where the primitive keeps
+// its tangents (its material has a normal texture); other attributes warn.
 void Loader::load_targets(const tinygltf::Primitive& in, const std::string& what, Primitive* out) {
   const size_t vertex_count = out->positions.size();
   out->targets.resize(in.targets.size());
@@ -988,8 +987,9 @@ void Loader::load_targets(const tinygltf::Primitive& in, const std::string& what
     const std::string where = fmt::format("{} morph target {}", what, k);
     MorphTarget& target = out->targets[k];
     for (const auto& [name, accessor] : in.targets[k]) {
-      if (name != "POSITION" && name != "NORMAL") {
-        if (name != "TANGENT") {
+      const bool tangent = name == "TANGENT";
+      if (name != "POSITION" && name != "NORMAL" && !(tangent && !out->tangents.empty())) {
+        if (!tangent) {
           warn_once("target " + name,
                     fmt::format("morph targets of {} are not supported (ignored)", name));
         }
@@ -1003,7 +1003,9 @@ void Loader::load_targets(const tinygltf::Primitive& in, const std::string& what
                         where, kMaxMorphDisplacements));
       }
       std::vector<glm::vec3> d = read_vec3s(accessor, vertex_count, name, where);
-      (name == "POSITION" ? target.positions : target.normals) = std::move(d);
+      (name == "POSITION" ? target.positions
+       : tangent          ? target.tangents
+                          : target.normals) = std::move(d);
     }
   }
 }

@@ -177,8 +177,10 @@ void Scene::finalize() {
     }
     for (size_t k = 0; k < p.targets.size(); ++k) {
       const MorphTarget& target = p.targets[k];
-      for (const auto* deltas : {&target.positions, &target.normals}) {
-        const char* what = deltas == &target.positions ? "position" : "normal";
+      for (const auto* deltas : {&target.positions, &target.normals, &target.tangents}) {
+        const char* what = deltas == &target.positions ? "position"
+                           : deltas == &target.normals ? "normal"
+                                                       : "tangent";
         if (!deltas->empty() && deltas->size() != vertices) {
           throw err(fmt::format("{}: morph target {} has {} {} displacements for {} vertices",
                                 where, k, deltas->size(), what, vertices));
@@ -713,7 +715,7 @@ struct NormalTransform {
 }  // namespace
 
 void Scene::deform(int node, size_t primitive, const SceneState& state, glm::vec3* positions,
-                   glm::vec3* normals) const {
+                   glm::vec3* normals, glm::vec4* tangents) const {
   const Node& n = nodes[node];
   const Primitive& p = meshes[n.mesh].primitives[primitive];
   const size_t count = p.positions.size();
@@ -739,6 +741,21 @@ void Scene::deform(int node, size_t primitive, const SceneState& state, glm::vec
       }
     }
   }
+  if (p.tangents.size() != count) tangents = nullptr;
+  if (tangents != nullptr) {
+    std::copy_n(p.tangents.data(), count, tangents);
+    for (size_t k = 0; k < p.targets.size(); ++k) {
+      const std::vector<glm::vec3>& d = p.targets[k].tangents;
+      if (w[k] == 0.0f || d.empty()) continue;
+      for (size_t v = 0; v < count; ++v) tangents[v] += glm::vec4(w[k] * d[v], 0.0f);
+    }
+  }
+  // A tangent moves as the surface does (the linear part); a mirroring part turns its w, the
+  // bitangent's sign, as it turns the faces (glTF 2.0, 3.7.2.1).
+  const auto move_tangent = [](const glm::mat3& linear, glm::vec4* t) {
+    const float mirror = glm::determinant(linear) < 0.0f ? -1.0f : 1.0f;
+    *t = glm::vec4(linear * glm::vec3(*t), t->w * mirror);
+  };
 
   if (n.skin != -1) {
     // Linear blend skinning (glTF 2.0, 3.7.3): the node's own transform is ignored.
@@ -753,6 +770,7 @@ void Scene::deform(int node, size_t primitive, const SceneState& state, glm::vec
       if (jw.w != 0.0f) m += jw.w * joint[j[3]];
       positions[v] = m * glm::vec4(positions[v], 1.0f);
       if (normals != nullptr) normals[v] = NormalTransform(m[0], m[1], m[2])(normals[v]);
+      if (tangents != nullptr) move_tangent(glm::mat3(m), &tangents[v]);
     }
     return;
   }
@@ -761,6 +779,7 @@ void Scene::deform(int node, size_t primitive, const SceneState& state, glm::vec
   for (size_t v = 0; v < count; ++v) {
     positions[v] = world * glm::vec4(positions[v], 1.0f);
     if (normals != nullptr) normals[v] = normal_transform(normals[v]);
+    if (tangents != nullptr) move_tangent(glm::mat3(world), &tangents[v]);
   }
 }
 

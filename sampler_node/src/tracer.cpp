@@ -87,7 +87,7 @@ struct GeomRecord {
   const glm::vec3* colors = nullptr;   // COLOR_0; null when the primitive has none
   const float* color_alpha = nullptr;  // COLOR_0's alpha where its material tests alpha, or null
   // TANGENT in the positions' space (w: the bitangent's sign); null: the triangle's own frame
-  // (no TANGENT, or deforming geometry, whose tangents are not deformed).
+  // (no TANGENT).
   const glm::vec4* tangents = nullptr;
   const glm::vec3* velocities = nullptr;  // world velocity per vertex: deforming geometry only
   const uint32_t* indices = nullptr;
@@ -180,7 +180,9 @@ struct DeformingPrimitive {
   RTCGeometry geom = nullptr;        // owned by the deforming BLAS
   std::vector<glm::vec3> positions;  // one more than the vertices: Embree reads 16 bytes
   std::vector<glm::vec3> normals;
+  std::vector<glm::vec4> tangents;  // where the primitive has them (Primitive::tangents)
   std::vector<glm::vec3> velocities;
+  glm::vec4* tangents_or_null() { return tangents.empty() ? nullptr : tangents.data(); }
 };
 
 // What the direct-light loop needs of one shading point, computed once for all lights.
@@ -666,7 +668,9 @@ void Tracer::Impl::build() {
       std::vector<glm::vec4> tangents;
       if (deformed) {
         normals.resize(p.positions.size());
-        scene_.deform(n, pi, at0, positions.data(), normals.data());
+        tangents.resize(p.tangents.size() == p.positions.size() ? p.tangents.size() : 0);
+        scene_.deform(n, pi, at0, positions.data(), normals.data(),
+                      tangents.empty() ? nullptr : tangents.data());
       } else {
         for (size_t i = 0; i < positions.size(); ++i)
           positions[i] = glm::vec3(world * glm::dvec4(glm::dvec3(p.positions[i]), 1.0));
@@ -788,6 +792,7 @@ void Tracer::Impl::build_deforming(const std::vector<int>& nodes, uint32_t defau
       d.primitive = pi;
       d.positions.assign(count + 1, glm::vec3(0.0f));
       d.normals.assign(count, glm::vec3(0.0f));
+      if (primitives[pi].tangents.size() == count) d.tangents.assign(count, glm::vec4(0.0f));
       d.velocities.assign(count, glm::vec3(0.0f));
       deforming_.push_back(std::move(d));
       max_vertices = std::max(max_vertices, count);
@@ -805,7 +810,8 @@ void Tracer::Impl::build_deforming(const std::vector<int>& nodes, uint32_t defau
   for (DeformingPrimitive& d : deforming_) {
     const Primitive& p =
         scene_.meshes[size_t(scene_.nodes[size_t(d.node)].mesh)].primitives[d.primitive];
-    scene_.deform(d.node, d.primitive, state_, d.positions.data(), d.normals.data());
+    scene_.deform(d.node, d.primitive, state_, d.positions.data(), d.normals.data(),
+                  d.tangents_or_null());
     RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
     rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, d.positions.data(),
                                0, sizeof(glm::vec3), d.normals.size());
@@ -829,6 +835,7 @@ void Tracer::Impl::build_deforming(const std::vector<int>& nodes, uint32_t defau
     GeomRecord r = record_of(p, material);
     r.positions = d.positions.data();
     r.normals = d.normals.data();
+    r.tangents = d.tangents_or_null();
     r.velocities = d.velocities.data();
     r.node = d.node;
     r.flip_winding = flips_winding(d.node, state_);
@@ -854,7 +861,8 @@ void Tracer::Impl::deform(double before, double after) {
     const size_t count = d.normals.size();
     scene_.deform(d.node, d.primitive, state_minus_, positions_before_.data(), nullptr);
     scene_.deform(d.node, d.primitive, state_plus_, positions_after_.data(), nullptr);
-    scene_.deform(d.node, d.primitive, state_, d.positions.data(), d.normals.data());
+    scene_.deform(d.node, d.primitive, state_, d.positions.data(), d.normals.data(),
+                  d.tangents_or_null());
     for (size_t v = 0; v < count; ++v) {
       d.velocities[v] = (positions_after_[v] - positions_before_[v]) * inverse_dt;
     }

@@ -131,6 +131,14 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
       },
       [](Scene* s) { s->meshes[0].primitives[0].tangents[0].w = -1.0f; });
   expect_seen(
+      "texture coordinate sets",
+      [](Scene* s) {
+        Primitive& p = s->meshes[0].primitives[0];
+        p.more_uvs = {p.uvs};
+        s->materials[0].uv_set.occlusion = 1;
+      },
+      [](Scene* s) { s->meshes[0].primitives[0].more_uvs[0][0].x += 0.5f; });
+  expect_seen(
       "occlusion", [](Scene* s) { s->materials[0].occlusion_texture = 0; },
       [](Scene* s) { s->materials[0].occlusion_strength = 0.5f; });
   Scene with_path = make_builtin_scene();
@@ -143,11 +151,16 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
 TEST(IdealCacheTest, SceneHashSeesSkinsAndMorphTargets) {
   // The built-in scene's first mesh with a morph target lifting it by dz at weight w, skinned
   // (or not) to its own node with inverse bind matrix `ibm`, its weight driven (or not) by a
-  // channel from 0 to `key`.
-  auto deformed = [](float dz, float w, bool skinned, double ibm, double key) {
+  // channel from 0 to `key`; with `tangents` != 0, tangents that the target turns by that much.
+  auto deformed = [](float dz, float w, bool skinned, double ibm, double key,
+                     float tangents = 0.0f) {
     Scene s = make_builtin_scene();
     Primitive& p = s.meshes[0].primitives[0];
-    p.targets.push_back({std::vector<glm::vec3>(p.positions.size(), {0.0f, 0.0f, dz}), {}});
+    p.targets.push_back({std::vector<glm::vec3>(p.positions.size(), {0.0f, 0.0f, dz}), {}, {}});
+    if (tangents != 0.0f) {
+      p.tangents.assign(p.positions.size(), glm::vec4(1, 0, 0, 1));
+      p.targets.back().tangents.assign(p.positions.size(), glm::vec3(0.0f, tangents, 0.0f));
+    }
     s.meshes[0].weights = {w};
     int node = 0;
     while (s.nodes[size_t(node)].mesh != 0) ++node;
@@ -180,6 +193,9 @@ TEST(IdealCacheTest, SceneHashSeesSkinsAndMorphTargets) {
   const uint64_t animated = deformed(1.0f, 0.5f, false, 1.0, 1.0);
   EXPECT_NE(animated, h);
   EXPECT_NE(deformed(1.0f, 0.5f, false, 1.0, 0.5), animated);
+  const uint64_t turned = deformed(1.0f, 0.5f, false, 1.0, 0.0, 1.0f);
+  EXPECT_NE(turned, h);
+  EXPECT_NE(deformed(1.0f, 0.5f, false, 1.0, 0.0, 0.5f), turned);
 }
 
 TEST(IdealCacheTest, CachedFrameIsTheRenderedFrameAndIsRenderedOnce) {

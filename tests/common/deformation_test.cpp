@@ -5,6 +5,7 @@
 // error for each way a file can get skins or morph targets wrong.
 #include <afr/common/error.h>
 #include <afr/common/gltf_loader.h>
+#include <afr/common/image.h>
 
 #include <gtest/gtest.h>
 
@@ -399,6 +400,56 @@ TEST(DeformationTest, AFileCannotAskForAnEndlessDeformation) {
   expect_load_error(file(9), "more than afr accepts (16777216)");
   TempFolder dir;
   EXPECT_TRUE(load(file(7), dir).node_deforms(1));
+}
+
+// Tangents deform with their primitive (a normal texture's frame, docs/scene-model.md "Normal
+// textures"): the targets' TANGENT displacements are added times their weights, then the node's
+// linear part moves x, y, z, and a mirroring one turns w. Without a normal texture neither the
+// tangents nor their displacements are kept, and nothing warns.
+TEST(DeformationTest, TangentsDeformWithTheirPrimitive) {
+  TempFolder dir;
+  write_image8(DecodedImage{1, 1, 3, {128, 128, 255}}, dir / "flat.png");
+  GltfContent g;
+  g.doc()["images"] = json::array({{{"uri", "flat.png"}}});
+  g.doc()["textures"] = json::array({{{"source", 0}}});
+  g.doc()["materials"] = json::array({{{"normalTexture", {{"index", 0}}}}});
+  const int mesh = g.add_mesh({0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0}, {0, 1, 2, 0, 2, 3}, 0,
+                              {0, 1, 1, 1, 1, 0, 0, 0});
+  json& primitive = g.doc()["meshes"][mesh]["primitives"][0];
+  primitive["attributes"]["TANGENT"] =
+      g.add_floats({1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1}, 4);
+  primitive["targets"] =
+      json::array({{{"POSITION", g.add_floats(std::vector<float>(12, 0.0f), 3)},
+                    {"TANGENT", g.add_floats({-1, 1, 0, -1, 1, 0, -1, 1, 0, -1, 1, 0}, 3)}}});
+  g.doc()["meshes"][mesh]["weights"] = {0.5};
+  // Mirrored in x, then turned a quarter round z: +x goes to -x, then to -y; +y to -x.
+  g.set_roots({g.add_node({{"mesh", mesh},
+                           {"scale", {-1.0, 1.0, 1.0}},
+                           {"rotation", {0.0, 0.0, std::sqrt(0.5), std::sqrt(0.5)}}})});
+  GltfLoadReport report;
+  const Scene scene = load(g, dir, &report);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+  const Primitive& p = scene.meshes[0].primitives[0];
+  ASSERT_EQ(p.targets.size(), 1u);
+  ASSERT_EQ(p.targets[0].tangents.size(), 4u);
+  std::vector<glm::vec3> positions(4), normals(4);
+  std::vector<glm::vec4> tangents(4);
+  scene.deform(0, 0, scene.evaluate(0.0), positions.data(), normals.data(), tangents.data());
+  // (1, 0, 0) + 0.5 (-1, 1, 0) = (0.5, 0.5, 0); mirrored (-0.5, 0.5, 0); turned (-0.5, -0.5, 0).
+  for (const glm::vec4& t : tangents) {
+    expect_near(glm::vec3(t), glm::dvec3(-0.5, -0.5, 0.0), 1e-6, "tangent");
+    EXPECT_EQ(t.w, -1.0f);
+  }
+  // A null output, or a primitive without tangents, leaves the rest as it was.
+  scene.deform(0, 0, scene.evaluate(0.0), positions.data(), normals.data(), nullptr);
+
+  g.doc()["materials"] = json::array({json::object()});
+  const Scene plain = load(g, dir, &report);
+  EXPECT_TRUE(plain.meshes[0].primitives[0].tangents.empty());
+  EXPECT_TRUE(plain.meshes[0].primitives[0].targets[0].tangents.empty());
+  tangents.assign(4, glm::vec4(7.0f));
+  plain.deform(0, 0, plain.evaluate(0.0), positions.data(), normals.data(), tangents.data());
+  EXPECT_EQ(tangents[0], glm::vec4(7.0f));
 }
 
 TEST(DeformationTest, BadMorphTargetsAreErrorsNamingTheProblem) {

@@ -747,6 +747,41 @@ TEST(TracerTest, TangentsSetTheNormalTexturesFrame) {
   EXPECT_NEAR(lit({0, 1, 0, 1}, toward_up, none, mirror_x), std::cos(float(M_PI) / 12.0f), 1e-4f);
 }
 
+// A morphed square's tangents are its morph's (Scene::deform): the square of the test above,
+// upright, with tangents along +x that a target at weight 1 turns to +y, lights as the +y
+// tangents above do (cos 30 / sqrt 2), not as the file's +x or the triangle's frame (cos 15);
+// as a fixed pose and with its weight animated (the tracer's deforming geometry).
+TEST(TracerTest, DeformedTangentsSetTheNormalTexturesFrame) {
+  const float sin30 = 0.5f, cos30 = std::sqrt(3.0f) / 2.0f;
+  const glm::vec3 toward_u(0.5f + 0.5f * sin30, 0.5f, 0.5f + 0.5f * cos30);
+  auto lit = [&](float weight, bool animated) {
+    return normal_mapped_n_dot_l(toward_u, 1.0f, [&](Scene* s, Mesh* square, int node) {
+      Primitive& p = square->primitives[0];
+      p.uvs = {{0, 1}, {1, 1}, {1, 0}, {0, 0}};
+      p.tangents.assign(4, glm::vec4(1, 0, 0, 1));
+      MorphTarget turn;
+      turn.positions.assign(4, glm::vec3(0.0f));
+      turn.tangents.assign(4, glm::vec3(-1, 1, 0));
+      p.targets = {turn};
+      square->weights = {weight};
+      if (animated) {
+        AnimationChannel c;
+        c.node = node;
+        c.path = AnimatedPath::kWeights;
+        c.times = {0.0, 10.0};
+        c.weights = {weight, weight};
+        c.weight_count = 1;
+        s->channels.push_back(c);
+      }
+    });
+  };
+  for (bool animated : {false, true}) {
+    SCOPED_TRACE(animated ? "animated" : "a fixed pose");
+    EXPECT_NEAR(lit(1.0f, animated), cos30 / std::sqrt(2.0f), 1e-4f);
+    EXPECT_NEAR(lit(0.0f, animated), std::cos(float(M_PI) / 12.0f), 1e-4f);
+  }
+}
+
 // Each texture reads the coordinate set its slot names (Material::TextureSets): a square under
 // ambient light whose base color (red | green) reads set 0, u running right, and whose occlusion
 // (0.25 | 1) reads set 1, u running left, shows red at full light on its left and green at a

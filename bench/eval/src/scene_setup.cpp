@@ -103,6 +103,7 @@ uint64_t render_fingerprint(const Scene& scene) {
         for (const MorphTarget& t : p.targets) {
           h.array(t.positions);
           h.array(t.normals);
+          if (!t.tangents.empty()) h.array(t.tangents);
         }
       }
     }

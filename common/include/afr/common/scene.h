@@ -24,6 +24,9 @@ namespace afr {
 struct MorphTarget {
   std::vector<glm::vec3> positions;
   std::vector<glm::vec3> normals;
+  // TANGENT displacements (of x, y, z; w stays), kept only where the primitive keeps its
+  // tangents (Primitive::tangents).
+  std::vector<glm::vec3> tangents;
 };
 
 // An indexed triangle list with one material. Normals are per vertex (generated when the
@@ -276,9 +279,11 @@ class Scene {
   // (node_deforms) at the state's time: morph targets applied in the mesh's space, then the
   // skin (or, without one, the node's world transform). Writes the primitive's vertex count
   // of positions, and of unit normals when `normals` is not null (zero where the normal is
-  // degenerate). Allocates nothing.
+  // degenerate), and of tangents when `tangents` is not null and the primitive has them
+  // (Primitive::tangents: x, y, z moved with the surface, not unit; w turned where the skin or
+  // the transform mirrors). Allocates nothing.
   void deform(int node, size_t primitive, const SceneState& state, glm::vec3* positions,
-              glm::vec3* normals) const;
+              glm::vec3* normals, glm::vec4* tangents = nullptr) const;
 
   // The active camera at the state's time. Without a camera node, the default camera: one
   // fixed camera that looks from the +Z side at the bounds of the whole animation (their
