@@ -16,12 +16,14 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <numbers>
 #include <numeric>
 #include <set>
 #include <span>
 #include <string_view>
 #include <system_error>
+#include <tuple>
 
 namespace afr {
 namespace {
@@ -193,7 +195,20 @@ class Loader {
   struct UvSource;
   void read_texture_coordinates(const tinygltf::Primitive& in, const std::vector<UvSource>& sources,
                                 const std::string& what, size_t vertex_count, Primitive* out);
-  int texture_for_image(int image_index, bool srgb);
+  // A texture's sampler as a Texture holds it.
+  struct TextureSampling {
+    Texture::Wrap wrap_s = Texture::Wrap::kRepeat;
+    Texture::Wrap wrap_t = Texture::Wrap::kRepeat;
+    bool nearest = false;
+    void apply(Texture* t) const {
+      t->wrap_s = wrap_s;
+      t->wrap_t = wrap_t;
+      t->nearest = nearest;
+    }
+  };
+  TextureSampling read_sampler(int sampler);
+  int texture_for_image(int image_index, bool srgb, const TextureSampling& sampling);
+  int add_texture(Texture texture);
   void keep_mask_alphas();
   void load_cameras();
   void load_lights();
@@ -212,9 +227,10 @@ class Loader {
   Scene scene_;
   std::vector<int> camera_map_;  // glTF camera -> Scene::cameras, -1 when skipped
   std::vector<int> light_map_;   // glTF light -> Scene::lights, -1 when skipped
-  // glTF image -> Scene::textures, -1 until decoded: [0] decoded as sRGB color, [1] as linear
-  // data (an image may be both, e.g. a base color reused as a mask).
-  std::array<std::vector<int>, 2> image_to_texture_;
+  // (glTF image, decoded as sRGB color or as data, wrap s, wrap t, nearest) -> Scene::textures:
+  // an image may be read both ways (a base color reused as a mask) and through several samplers.
+  using TextureKey = std::tuple<int, bool, Texture::Wrap, Texture::Wrap, bool>;
+  std::map<TextureKey, int> textures_;
   // A texture coordinate set of a material (Material::TextureSets): a TEXCOORD_n through a
   // KHR_texture_transform (none: the identity), and the first slot that reads it.
   struct UvSource {
@@ -1059,7 +1075,6 @@ void Loader::read_transmission_and_ior(const tinygltf::Material& in, const std::
 }
 
 void Loader::load_materials() {
-  for (std::vector<int>& map : image_to_texture_) map.assign(model_.images.size(), -1);
   uv_sources_.assign(model_.materials.size(), {});
   for (size_t m = 0; m < model_.materials.size(); ++m) {
     const tinygltf::Material& in = model_.materials[m];
@@ -1189,15 +1204,7 @@ int Loader::read_texture_slot(size_t m, const char* slot, int index, int tex_coo
     fail(fmt::format("texture {} refers to sampler {}, but there are {}", index, texture.sampler,
                      model_.samplers.size()));
   }
-  if (texture.sampler >= 0) {
-    const tinygltf::Sampler& sampler = model_.samplers[size_t(texture.sampler)];
-    if (sampler.wrapS != TINYGLTF_TEXTURE_WRAP_REPEAT ||
-        sampler.wrapT != TINYGLTF_TEXTURE_WRAP_REPEAT) {
-      warn_once("wrap",
-                "texture wrap modes other than REPEAT are not supported (REPEAT is "
-                "used)");
-    }
-  }
+  const TextureSampling sampling = read_sampler(texture.sampler);
   if (texture.source < 0) {
     warn_once("texture without source",
               "textures without a PNG or JPEG source are not supported (ignored)");
@@ -1207,7 +1214,35 @@ int Loader::read_texture_slot(size_t m, const char* slot, int index, int tex_coo
     fail(fmt::format("texture {} refers to image {}, but there are {}", index, texture.source,
                      model_.images.size()));
   }
-  return texture_for_image(texture.source, srgb);
+  return texture_for_image(texture.source, srgb, sampling);
+}
+
+// glTF sampler s (-1: none, the defaults: REPEAT, linear): its wrap modes and magnification.
+// minFilter is not needed: minified lookups always filter through the mip levels (ray cones).
+Loader::TextureSampling Loader::read_sampler(int s) {
+  TextureSampling out;
+  if (s < 0) return out;
+  const tinygltf::Sampler& sampler = model_.samplers[size_t(s)];
+  const auto wrap = [&](int mode, const char* name) {
+    switch (mode) {
+      case TINYGLTF_TEXTURE_WRAP_REPEAT:
+        return Texture::Wrap::kRepeat;
+      case TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE:
+        return Texture::Wrap::kClampToEdge;
+      case TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT:
+        return Texture::Wrap::kMirroredRepeat;
+    }
+    fail(fmt::format("sampler {} has an invalid {} ({}; 10497, 33071 or 33648)", s, name, mode));
+  };
+  out.wrap_s = wrap(sampler.wrapS, "wrapS");
+  out.wrap_t = wrap(sampler.wrapT, "wrapT");
+  if (sampler.magFilter != -1 && sampler.magFilter != TINYGLTF_TEXTURE_FILTER_NEAREST &&
+      sampler.magFilter != TINYGLTF_TEXTURE_FILTER_LINEAR) {
+    fail(fmt::format("sampler {} has an invalid magFilter ({}; 9728 or 9729)", s,
+                     sampler.magFilter));
+  }
+  out.nearest = sampler.magFilter == TINYGLTF_TEXTURE_FILTER_NEAREST;
+  return out;
 }
 
 // KHR_texture_transform on a texture reference: the matrix that maps the primitive's texture
@@ -1299,10 +1334,19 @@ void Loader::read_texture_coordinates(const tinygltf::Primitive& in,
   }
 }
 
-// Decodes image `image_index` into Scene::textures (once) and returns its index there.
-int Loader::texture_for_image(int image_index, bool srgb) {
-  int& texture_index = image_to_texture_[srgb ? 0 : 1][size_t(image_index)];
-  if (texture_index >= 0) return texture_index;
+// Image `image_index` in Scene::textures, decoded as sRGB color or as data, with `sampling`:
+// its index there. Each image is decoded once per way it is read; a second sampling of it
+// copies the texels.
+int Loader::texture_for_image(int image_index, bool srgb, const TextureSampling& sampling) {
+  const TextureKey key{image_index, srgb, sampling.wrap_s, sampling.wrap_t, sampling.nearest};
+  if (const auto found = textures_.find(key); found != textures_.end()) return found->second;
+  const auto decoded_before = textures_.lower_bound(TextureKey{image_index, srgb, {}, {}, false});
+  if (decoded_before != textures_.end() && std::get<0>(decoded_before->first) == image_index &&
+      std::get<1>(decoded_before->first) == srgb) {
+    Texture texture = scene_.textures[size_t(decoded_before->second)];
+    sampling.apply(&texture);
+    return textures_[key] = add_texture(std::move(texture));
+  }
   const tinygltf::Image& image = model_.images[size_t(image_index)];
   const std::string name =
       image.uri.empty() || image.uri.rfind("data:", 0) == 0
@@ -1347,9 +1391,13 @@ int Loader::texture_for_image(int image_index, bool srgb) {
       texture.alpha[i] = float(decoded.data[i * c + c - 1]) / 255.0f;
     }
   }
-  texture_index = int(scene_.textures.size());
+  sampling.apply(&texture);
+  return textures_[key] = add_texture(std::move(texture));
+}
+
+int Loader::add_texture(Texture texture) {
   scene_.textures.push_back(std::move(texture));
-  return texture_index;
+  return int(scene_.textures.size()) - 1;
 }
 
 // ---- Cameras and lights ----

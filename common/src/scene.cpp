@@ -15,23 +15,59 @@ namespace afr {
 
 namespace {
 
-// Texel index i of a row (or column) of n texels under REPEAT wrapping.
-int wrap(long i, int n) { return int(((i % n) + n) % n); }
+using Wrap = Texture::Wrap;
 
+// Texel i of a row (or column) of n texels under wrap mode w.
+int address(long i, int n, Wrap w) {
+  switch (w) {
+    case Wrap::kClampToEdge:
+      return int(std::clamp<long>(i, 0, n - 1));
+    case Wrap::kMirroredRepeat: {
+      const long period = 2L * n, p = ((i % period) + period) % period;
+      return int(p < n ? p : period - 1 - p);
+    }
+    case Wrap::kRepeat:
+      break;
+  }
+  return int(((i % n) + n) % n);
+}
+
+// A texture coordinate brought into one period of its wrap mode first, so that huge ones keep
+// their precision (and their texel index fits a long): [0, 1) for REPEAT, [0, 2) for
+// MIRRORED_REPEAT; CLAMP_TO_EDGE needs nothing beyond [-1, 2]. Not finite: 0.
+double reduce(float c, Wrap w) {
+  if (!std::isfinite(c)) return 0.0;
+  switch (w) {
+    case Wrap::kClampToEdge:
+      return std::clamp(double(c), -1.0, 2.0);
+    case Wrap::kMirroredRepeat:
+      return double(c) - 2.0 * std::floor(double(c) / 2.0);
+    case Wrap::kRepeat:
+      break;
+  }
+  return double(c) - std::floor(double(c));
+}
+
+// The lookup of a level: the four texels around uv blended (or the one uv falls in, when
+// `nearest`), through the texture's wrap modes.
 template <typename T>
-T bilinear(const T* texels, int width, int height, glm::vec2 uv) {
-  // Keep only the fractional part first (REPEAT), so huge UVs keep their precision.
-  double u = std::isfinite(uv.x) ? uv.x - std::floor(double(uv.x)) : 0.0;
-  double v = std::isfinite(uv.y) ? uv.y - std::floor(double(uv.y)) : 0.0;
-  const double fx = u * width - 0.5;
-  const double fy = v * height - 0.5;
+T lookup(const T* texels, int width, int height, const Texture& t, glm::vec2 uv, bool nearest) {
+  const double u = reduce(uv.x, t.wrap_s) * width;
+  const double v = reduce(uv.y, t.wrap_t) * height;
+  auto at = [&](int x, int y) { return texels[size_t(y) * size_t(width) + size_t(x)]; };
+  if (nearest) {
+    return at(address(long(std::floor(u)), width, t.wrap_s),
+              address(long(std::floor(v)), height, t.wrap_t));
+  }
+  const double fx = u - 0.5;
+  const double fy = v - 0.5;
   const double x0f = std::floor(fx);
   const double y0f = std::floor(fy);
   const float ax = float(fx - x0f);
   const float ay = float(fy - y0f);
-  const int x0 = wrap(long(x0f), width), x1 = wrap(long(x0f) + 1, width);
-  const int y0 = wrap(long(y0f), height), y1 = wrap(long(y0f) + 1, height);
-  auto at = [&](int x, int y) { return texels[size_t(y) * size_t(width) + size_t(x)]; };
+  const int x0 = address(long(x0f), width, t.wrap_s), x1 = address(long(x0f) + 1, width, t.wrap_s);
+  const int y0 = address(long(y0f), height, t.wrap_t);
+  const int y1 = address(long(y0f) + 1, height, t.wrap_t);
   const T top = glm::mix(at(x0, y0), at(x1, y0), ax);
   const T bottom = glm::mix(at(x0, y1), at(x1, y1), ax);
   return glm::mix(top, bottom, ay);
@@ -43,12 +79,12 @@ glm::vec3 Texture::sample_bilinear(glm::vec2 uv) const {
   if (width <= 0 || height <= 0 || texels.size() != size_t(width) * size_t(height)) {
     return glm::vec3(1.0f);
   }
-  return bilinear(texels.data(), width, height, uv);
+  return lookup(texels.data(), width, height, *this, uv, nearest);
 }
 
 float Texture::sample_alpha(glm::vec2 uv) const {
   if (width <= 0 || height <= 0 || alpha.size() != size_t(width) * size_t(height)) return 1.0f;
-  return bilinear(alpha.data(), width, height, uv);
+  return lookup(alpha.data(), width, height, *this, uv, nearest);
 }
 
 void Texture::build_mips() {
@@ -56,9 +92,9 @@ void Texture::build_mips() {
   if (width <= 0 || height <= 0 || texels.size() != size_t(width) * size_t(height)) return;
   // Each level halves the one before through the binomial low-pass 1 5 10 10 5 1 (/ 32) in x,
   // then in y, centred on the pair of texels 2i, 2i + 1 that a 2 x 2 box would average, with
-  // REPEAT wrapping. The box lets a pattern just above a level's Nyquist rate through almost
-  // whole, aliased to a beat one repeat wide (a floor of 17 dots per 128 texels came out in
-  // blotches: residual contrast 0.21 at 32 texels, 0.043 at 16); this kernel keeps 0.042 and
+  // the texture's wrap modes at the edges. The box lets a pattern just above a level's Nyquist rate
+  // through almost whole, aliased to a beat one repeat wide (a floor of 17 dots per 128 texels came
+  // out in blotches: residual contrast 0.21 at 32 texels, 0.043 at 16); this kernel keeps 0.042 and
   // 0.014 of it, and being positive it never rings below black (docs/scene-model.md).
   constexpr float kTap[6] = {1.0f / 32, 5.0f / 32, 10.0f / 32, 10.0f / 32, 5.0f / 32, 1.0f / 32};
   const glm::vec3* src = texels.data();
@@ -74,7 +110,7 @@ void Texture::build_mips() {
       glm::vec3* out = rows.data() + size_t(y) * size_t(l.width);
       for (int x = 0; x < l.width; ++x) {
         glm::vec3 sum(0.0f);
-        for (int k = 0; k < 6; ++k) sum += kTap[k] * in[wrap(2L * x - 2 + k, w)];
+        for (int k = 0; k < 6; ++k) sum += kTap[k] * in[address(2L * x - 2 + k, w, wrap_s)];
         out[x] = sum;
       }
     }
@@ -83,7 +119,8 @@ void Texture::build_mips() {
       for (int x = 0; x < l.width; ++x) {
         glm::vec3 sum(0.0f);
         for (int k = 0; k < 6; ++k) {
-          sum += kTap[k] * rows[size_t(wrap(2L * y - 2 + k, h)) * size_t(l.width) + size_t(x)];
+          sum += kTap[k] *
+                 rows[size_t(address(2L * y - 2 + k, h, wrap_t)) * size_t(l.width) + size_t(x)];
         }
         l.texels[size_t(y) * size_t(l.width) + size_t(x)] = sum;
       }
@@ -104,7 +141,7 @@ glm::vec3 Texture::sample(glm::vec2 uv, float lod) const {
   const auto level = [&](int i) {
     if (i == 0) return sample_bilinear(uv);
     const Level& l = mips[size_t(std::min(i, int(mips.size()))) - 1];
-    return bilinear(l.texels.data(), l.width, l.height, uv);
+    return lookup(l.texels.data(), l.width, l.height, *this, uv, false);
   };
   const glm::vec3 a = level(lower);
   return f > 0.0f ? glm::mix(a, level(lower + 1), f) : a;

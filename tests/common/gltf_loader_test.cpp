@@ -649,6 +649,51 @@ TEST_F(GltfLoaderTest, EachTextureSlotReadsItsOwnTextureCoordinateSet) {
   EXPECT_TRUE(plain.meshes[0].primitives[0].more_uvs.empty());
 }
 
+// A texture's sampler is read: its wrap modes and magFilter NEAREST go with the texture; one
+// image through two samplers is two textures of the same texels; an invalid mode fails naming
+// the sampler.
+TEST_F(GltfLoaderTest, SamplersSetWrapModesAndNearestMagnification) {
+  write_image8(DecodedImage{2, 1, 3, {0, 0, 0, 255, 255, 255}}, dir_ / "bw.png");
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  b.doc()["images"] = json::array({{{"uri", "bw.png"}}});
+  b.doc()["samplers"] =
+      json::array({{{"wrapS", 33071}, {"wrapT", 33648}, {"magFilter", 9728}}, json::object()});
+  b.doc()["textures"] =
+      json::array({{{"source", 0}, {"sampler", 0}}, {{"source", 0}, {"sampler", 1}}});
+  b.doc()["materials"] = json::array(
+      {{{"pbrMetallicRoughness",
+         {{"baseColorTexture", {{"index", 0}}}, {"metallicRoughnessTexture", {{"index", 0}}}}},
+        {"emissiveTexture", {{"index", 1}}}}});
+  b.write_embedded(dir_ / "samplers.gltf");
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir_ / "samplers.gltf", &report);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+  // Color through sampler 0, data through sampler 0, color through the default sampler.
+  ASSERT_EQ(scene.textures.size(), 3u);
+  const Material& m = scene.materials[0];
+  const Texture& clamped = scene.textures[size_t(m.base_color_texture)];
+  EXPECT_EQ(clamped.wrap_s, Texture::Wrap::kClampToEdge);
+  EXPECT_EQ(clamped.wrap_t, Texture::Wrap::kMirroredRepeat);
+  EXPECT_TRUE(clamped.nearest);
+  EXPECT_TRUE(scene.textures[size_t(m.metallic_roughness_texture)].nearest);
+  const Texture& plain = scene.textures[size_t(m.emissive_texture)];
+  EXPECT_EQ(plain.wrap_s, Texture::Wrap::kRepeat);
+  EXPECT_EQ(plain.wrap_t, Texture::Wrap::kRepeat);
+  EXPECT_FALSE(plain.nearest);
+  EXPECT_EQ(plain.texels, clamped.texels);
+  EXPECT_NE(m.base_color_texture, m.emissive_texture);
+
+  b.doc()["samplers"][0]["wrapS"] = 1234;
+  b.write_embedded(dir_ / "wrap.gltf");
+  expect_error(dir_ / "wrap.gltf", "sampler 0 has an invalid wrapS (1234");
+  b.doc()["samplers"][0]["wrapS"] = 10497;
+  b.doc()["samplers"][0]["magFilter"] = 9987;
+  b.write_embedded(dir_ / "mag.gltf");
+  expect_error(dir_ / "mag.gltf", "sampler 0 has an invalid magFilter (9987");
+}
+
 // KHR_materials_unlit is read, also where a file requires it.
 TEST_F(GltfLoaderTest, UnlitMaterialsAreRead) {
   GltfBuilder b;

@@ -177,6 +177,58 @@ TEST(SceneTest, TextureSamplingIsBilinearAndRepeats) {
   EXPECT_TRUE(std::isfinite(t.sample_bilinear({NAN, INFINITY}).x));
 }
 
+// glTF's samplers: each axis wraps by its own mode, a magnified lookup may take the nearest
+// texel, and the mip levels wrap as the lookups do. A row of 4 texels 0, 1, 2, 3 (u at texel
+// centers 0.125 + k / 4), a column of 2 (v at 0.25, 0.75).
+TEST(SceneTest, TextureWrapModesAndNearestFollowTheSampler) {
+  using Wrap = Texture::Wrap;
+  Texture t;
+  t.width = 4;
+  t.height = 2;
+  for (int y = 0; y < 2; ++y) {
+    for (int x = 0; x < 4; ++x) t.texels.push_back(glm::vec3(float(x), float(y), 0.0f));
+  }
+  auto at = [&](Wrap s, Wrap w, float u, float v) {
+    t.wrap_s = s;
+    t.wrap_t = w;
+    return t.sample_bilinear({u, v});
+  };
+  // Texel -1 and texel 4: REPEAT 3 and 0, CLAMP_TO_EDGE 0 and 3, MIRRORED_REPEAT 0 and 3.
+  EXPECT_NEAR(at(Wrap::kRepeat, Wrap::kRepeat, -0.125f, 0.25f).x, 3.0f, 1e-5f);
+  EXPECT_NEAR(at(Wrap::kRepeat, Wrap::kRepeat, 1.125f, 0.25f).x, 0.0f, 1e-5f);
+  EXPECT_NEAR(at(Wrap::kClampToEdge, Wrap::kRepeat, -0.125f, 0.25f).x, 0.0f, 1e-5f);
+  EXPECT_NEAR(at(Wrap::kClampToEdge, Wrap::kRepeat, 1.125f, 0.25f).x, 3.0f, 1e-5f);
+  EXPECT_NEAR(at(Wrap::kClampToEdge, Wrap::kRepeat, -1e9f, 0.25f).x, 0.0f, 1e-5f);
+  EXPECT_NEAR(at(Wrap::kMirroredRepeat, Wrap::kRepeat, -0.125f, 0.25f).x, 0.0f, 1e-5f);
+  EXPECT_NEAR(at(Wrap::kMirroredRepeat, Wrap::kRepeat, 1.125f, 0.25f).x, 3.0f, 1e-5f);
+  EXPECT_NEAR(at(Wrap::kMirroredRepeat, Wrap::kRepeat, 1.375f, 0.25f).x, 2.0f, 1e-5f);
+  // Two periods on, the mirror is where it began; far out it keeps its precision.
+  EXPECT_NEAR(at(Wrap::kMirroredRepeat, Wrap::kRepeat, 2.375f, 0.25f).x, 1.0f, 1e-5f);
+  EXPECT_NEAR(at(Wrap::kMirroredRepeat, Wrap::kRepeat, 4000.625f, 0.25f).x, 2.0f, 1e-3f);
+  // Each axis its own: v = 1.25 is row 0 under REPEAT, row 1 under CLAMP_TO_EDGE.
+  EXPECT_NEAR(at(Wrap::kRepeat, Wrap::kRepeat, 0.125f, 1.25f).y, 0.0f, 1e-5f);
+  EXPECT_NEAR(at(Wrap::kRepeat, Wrap::kClampToEdge, 0.125f, 1.25f).y, 1.0f, 1e-5f);
+  // Between centers bilinear blends; NEAREST takes the texel the point falls in.
+  EXPECT_NEAR(at(Wrap::kRepeat, Wrap::kRepeat, 0.3f, 0.25f).x, 0.7f, 1e-5f);
+  t.nearest = true;
+  EXPECT_EQ(at(Wrap::kRepeat, Wrap::kRepeat, 0.3f, 0.25f).x, 1.0f);
+  EXPECT_EQ(at(Wrap::kClampToEdge, Wrap::kRepeat, -0.3f, 0.25f).x, 0.0f);
+  t.alpha = {0.0f, 0.25f, 0.5f, 0.75f, 1.0f, 1.0f, 1.0f, 1.0f};
+  EXPECT_EQ(t.sample_alpha({0.3f, 0.25f}), 0.25f);
+
+  // Mip levels wrap as the lookups do: a row 1 0 0 0, halved, its first texel's taps -2, -1
+  // reach texels 2, 3 (REPEAT: 0) or texel 0 (CLAMP_TO_EDGE: 1 each).
+  Texture row;
+  row.width = 4;
+  row.height = 1;
+  row.texels = {glm::vec3(1.0f), glm::vec3(0.0f), glm::vec3(0.0f), glm::vec3(0.0f)};
+  row.build_mips();
+  EXPECT_NEAR(row.mips[0].texels[0].x, 10.0f / 32, 1e-6f);
+  row.wrap_s = Wrap::kClampToEdge;
+  row.build_mips();
+  EXPECT_NEAR(row.mips[0].texels[0].x, (1.0f + 5.0f + 10.0f) / 32, 1e-6f);
+}
+
 // Mip levels: each the binomial 1 5 10 10 5 1 low-pass of the one before, halved (REPEAT at the
 // edges), down to 1 x 1; a lookup at lod 0 is the bilinear one, at lod 1 the first level's, in
 // between a blend.

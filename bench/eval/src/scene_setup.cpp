@@ -155,6 +155,11 @@ uint64_t render_fingerprint(const Scene& scene) {
     h.value(t.height);
     h.array(t.texels);
     if (!t.alpha.empty()) h.array(t.alpha);
+    if (t.wrap_s != Texture::Wrap::kRepeat || t.wrap_t != Texture::Wrap::kRepeat || t.nearest) {
+      h.value(t.wrap_s);
+      h.value(t.wrap_t);
+      h.value(t.nearest);
+    }
   }
   h.value(uint64_t(scene.lights.size()));
   for (const Light& l : scene.lights) {

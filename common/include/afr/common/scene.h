@@ -103,15 +103,23 @@ struct Texture {
   // it (Material::AlphaMode::kMask, kBlend); empty: opaque.
   std::vector<float> alpha;
 
-  // Bilinear lookup with REPEAT wrapping in both directions (the only wrap mode afr models).
+  // glTF's sampler: how coordinates outside [0, 1] wrap in u (wrapS) and v (wrapT), and
+  // whether a lookup at level 0 takes the nearest texel instead of blending four (magFilter
+  // NEAREST: pixel art stays crisp when magnified).
+  enum class Wrap : uint8_t { kRepeat, kClampToEdge, kMirroredRepeat };
+  Wrap wrap_s = Wrap::kRepeat;
+  Wrap wrap_t = Wrap::kRepeat;
+  bool nearest = false;
+
+  // Level 0's lookup: bilinear (or the nearest texel), through the wrap modes.
   glm::vec3 sample_bilinear(glm::vec2 uv) const;
-  // The alpha channel's bilinear lookup at level 0 (1 without one).
+  // The alpha channel's lookup at level 0, as sample_bilinear's (1 without one).
   float sample_alpha(glm::vec2 uv) const;
 
   // Minification (docs/scene-model.md, "Texture filtering"): mip levels 1, 2, ... down to
   // 1 x 1 (level 0 is `texels`), each (w + 1) / 2 x (h + 1) / 2 of the one before, every texel
-  // the mean of the 2 x 2 it covers (REPEAT at odd edges). Made by build_mips(), which
-  // Scene::finalize() calls for every texture.
+  // the mean of the 2 x 2 it covers (through the wrap modes at the edges). Made by build_mips(),
+  // which Scene::finalize() calls for every texture.
   struct Level {
     int width = 0;
     int height = 0;
