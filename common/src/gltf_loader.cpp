@@ -43,11 +43,10 @@ constexpr size_t kMaxMorphDisplacements = size_t(1) << 24;
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 7> kSupportedExtensions = {
-    "KHR_lights_punctual",  "KHR_materials_emissive_strength",
-    "KHR_materials_ior",    "KHR_materials_transmission",
-    "KHR_materials_unlit",  "KHR_mesh_quantization",
-    "KHR_texture_transform"};
+constexpr std::array<std::string_view, 8> kSupportedExtensions = {
+    "EXT_texture_webp",      "KHR_lights_punctual",        "KHR_materials_emissive_strength",
+    "KHR_materials_ior",     "KHR_materials_transmission", "KHR_materials_unlit",
+    "KHR_mesh_quantization", "KHR_texture_transform"};
 
 // The default lighting of a scene without lights (what glTF viewers do): a directional
 // headlight that moves with the scene's camera and a uniform sky term. The headlight comes from
@@ -1205,16 +1204,28 @@ int Loader::read_texture_slot(size_t m, const char* slot, int index, int tex_coo
                      model_.samplers.size()));
   }
   const TextureSampling sampling = read_sampler(texture.sampler);
-  if (texture.source < 0) {
+  // EXT_texture_webp names the WebP image; `source`, if any, is the fallback for viewers
+  // without it.
+  int source = texture.source;
+  if (const auto webp = texture.extensions.find("EXT_texture_webp");
+      webp != texture.extensions.end()) {
+    const tinygltf::Value& s = webp->second.Get("source");
+    if (!webp->second.IsObject() || !s.IsInt() || s.GetNumberAsInt() < 0) {
+      fail(fmt::format("texture {} EXT_texture_webp has no valid \"source\" (an image index)",
+                       index));
+    }
+    source = s.GetNumberAsInt();
+  }
+  if (source < 0) {
     warn_once("texture without source",
-              "textures without a PNG or JPEG source are not supported (ignored)");
+              "textures without a PNG, JPEG or WebP source are not supported (ignored)");
     return -1;
   }
-  if (size_t(texture.source) >= model_.images.size()) {
-    fail(fmt::format("texture {} refers to image {}, but there are {}", index, texture.source,
+  if (size_t(source) >= model_.images.size()) {
+    fail(fmt::format("texture {} refers to image {}, but there are {}", index, source,
                      model_.images.size()));
   }
-  return texture_for_image(texture.source, srgb, sampling);
+  return texture_for_image(source, srgb, sampling);
 }
 
 // glTF sampler s (-1: none, the defaults: REPEAT, linear): its wrap modes and magnification.

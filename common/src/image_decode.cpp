@@ -1,8 +1,9 @@
-// decode_image: encoded texture bytes (a glTF's PNG or JPEG, from a file or from inside a .glb)
-// to 8-bit pixels, through stb_image. Kept apart from image_io.cpp so that a program that loads
-// scenes but never writes an image file (sampler_node, most tests) does not load OpenImageIO
-// and the 260 shared libraries it brings, which cost each process about 0.2 s and 130 MB at
-// start (0.5 s under AddressSanitizer). tinygltf already links stb_image.
+// decode_image: encoded texture bytes (a glTF's PNG or JPEG, or WebP with EXT_texture_webp, from
+// a file or from inside a .glb) to 8-bit pixels, through stb_image (libwebp for WebP). Kept apart
+// from image_io.cpp so that a program that loads scenes but never writes an image file
+// (sampler_node, most tests) does not load OpenImageIO and the 260 shared libraries it brings,
+// which cost each process about 0.2 s and 130 MB at start (0.5 s under AddressSanitizer). tinygltf
+// already links stb_image.
 #include "image_formats.h"
 
 #include <afr/common/error.h>
@@ -10,6 +11,7 @@
 
 #include <fmt/format.h>
 #include <stb/stb_image.h>
+#include <webp/decode.h>
 
 #include <algorithm>
 #include <climits>
@@ -43,26 +45,69 @@ std::string sniff(std::span<const uint8_t> b) {
 
 bool decoded_in_memory(const std::string& format) {
   return format == "png" || format == "jpeg" || format == "bmp" || format == "gif" ||
-         format == "pnm";
+         format == "pnm" || format == "webp";
 }
 
 }  // namespace image_formats
+
+namespace {
+
+void check_size(int width, int height, int channels, const std::string& name) {
+  if (width <= 0 || height <= 0 || channels < 1 || channels > 4) {
+    throw Error(fmt::format("{}: image has no pixels ({} x {}, {} channels)", name, width, height,
+                            channels));
+  }
+  if (width > image_formats::kMaxImageSide || height > image_formats::kMaxImageSide ||
+      uint64_t(width) * uint64_t(height) > image_formats::kMaxImagePixels) {
+    throw Error(
+        fmt::format("{}: image of {} x {} pixels is larger than afr accepts", name, width, height));
+  }
+}
+
+// WebP (EXT_texture_webp) through libwebp: RGB, or RGBA where the image has alpha; the header
+// first, as for the other formats, since decoding allocates what it claims.
+DecodedImage decode_webp(std::span<const uint8_t> bytes, const std::string& name) {
+  WebPBitstreamFeatures features;
+  if (WebPGetFeatures(bytes.data(), bytes.size(), &features) != VP8_STATUS_OK) {
+    throw Error(fmt::format("{}: cannot decode webp image: its header is not valid", name));
+  }
+  const int channels = features.has_alpha ? 4 : 3;
+  check_size(features.width, features.height, channels, name);
+  DecodedImage image;
+  image.width = features.width;
+  image.height = features.height;
+  image.channels = channels;
+  image.data.resize(size_t(image.width) * size_t(image.height) * size_t(channels));
+  const int stride = image.width * channels;
+  const uint8_t* done = channels == 4
+                            ? WebPDecodeRGBAInto(bytes.data(), bytes.size(), image.data.data(),
+                                                 image.data.size(), stride)
+                            : WebPDecodeRGBInto(bytes.data(), bytes.size(), image.data.data(),
+                                                image.data.size(), stride);
+  if (done == nullptr) throw Error(fmt::format("{}: cannot decode webp image", name));
+  return image;
+}
+
+}  // namespace
 
 DecodedImage decode_image(std::span<const uint8_t> bytes, const std::string& name) {
   using namespace image_formats;
   if (bytes.empty()) throw Error(fmt::format("{}: image data is empty", name));
   const std::string format = sniff(bytes);
   if (format.empty()) {
-    throw Error(fmt::format("{}: not an image format afr can decode (expected PNG or JPEG)", name));
+    throw Error(
+        fmt::format("{}: not an image format afr can decode (expected PNG, JPEG or WebP)", name));
   }
   if (!decoded_in_memory(format)) {
-    throw Error(fmt::format("{}: {} images are not decoded as textures (expected PNG or JPEG)",
-                            name, format == "pnm-ascii" ? "ASCII PNM" : format));
+    throw Error(
+        fmt::format("{}: {} images are not decoded as textures (expected PNG, JPEG or WebP)", name,
+                    format == "pnm-ascii" ? "ASCII PNM" : format));
   }
   if (bytes.size() > size_t(INT_MAX)) {
     throw Error(
         fmt::format("{}: {} bytes of image data are more than afr accepts", name, bytes.size()));
   }
+  if (format == "webp") return decode_webp(bytes, name);
   const auto* data = reinterpret_cast<const stbi_uc*>(bytes.data());
   const int size = static_cast<int>(bytes.size());
   // The header first: its size is untrusted, and decoding allocates what it claims.
@@ -70,15 +115,7 @@ DecodedImage decode_image(std::span<const uint8_t> bytes, const std::string& nam
   if (stbi_info_from_memory(data, size, &width, &height, &channels) == 0) {
     throw Error(fmt::format("{}: cannot decode {} image: {}", name, format, stbi_failure_reason()));
   }
-  if (width <= 0 || height <= 0 || channels < 1 || channels > 4) {
-    throw Error(fmt::format("{}: image has no pixels ({} x {}, {} channels)", name, width, height,
-                            channels));
-  }
-  if (width > kMaxImageSide || height > kMaxImageSide ||
-      uint64_t(width) * uint64_t(height) > kMaxImagePixels) {
-    throw Error(
-        fmt::format("{}: image of {} x {} pixels is larger than afr accepts", name, width, height));
-  }
+  check_size(width, height, channels, name);
   // Values as stored: stb_image neither premultiplies alpha nor converts color, and takes
   // 16-bit channels to their high byte.
   int w = 0, h = 0, n = 0;

@@ -18,9 +18,9 @@ inline constexpr int kMaxImageSide = 1 << 16;
 // matches. A name such as "image 3 of scene.glb" carries no extension, so the bytes decide.
 std::string sniff(std::span<const uint8_t> bytes);
 
-// Whether decode_image (stb_image, in memory) decodes this format: PNG and JPEG (the image
-// formats of glTF), BMP, GIF and binary PNM. The others (EXR, TIFF, ASCII PNM, ...) are read
-// from files only, through OpenImageIO.
+// Whether decode_image (stb_image or libwebp, in memory) decodes this format: PNG and JPEG (the
+// image formats of glTF), WebP (EXT_texture_webp), BMP, GIF and binary PNM. The others (EXR, TIFF,
+// ASCII PNM, ...) are read from files only, through OpenImageIO.
 bool decoded_in_memory(const std::string& format);
 
 }  // namespace afr::image_formats

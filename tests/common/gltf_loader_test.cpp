@@ -20,6 +20,7 @@
 #include "support/base64.h"
 #include "support/files.h"
 #include "support/srgb.h"
+#include "support/webp.h"
 
 namespace afr {
 namespace {
@@ -692,6 +693,46 @@ TEST_F(GltfLoaderTest, SamplersSetWrapModesAndNearestMagnification) {
   b.doc()["samplers"][0]["magFilter"] = 9987;
   b.write_embedded(dir_ / "mag.gltf");
   expect_error(dir_ / "mag.gltf", "sampler 0 has an invalid magFilter (9987");
+}
+
+// EXT_texture_webp: the WebP image it names replaces the texture's `source` (a fallback for
+// viewers without it), also where the file requires the extension; a texture with only the
+// extension needs no fallback; a bad index fails naming the texture.
+TEST_F(GltfLoaderTest, WebpTexturesAreReadThroughExtTextureWebp) {
+  write_image8(DecodedImage{1, 1, 3, {128, 128, 128}}, dir_ / "gray.png");
+  const DecodedImage colors{2, 1, 3, {255, 0, 0, 0, 0, 255}};
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  const int view = b.add_view(testing::lossless_webp(colors));
+  b.doc()["images"] =
+      json::array({{{"uri", "gray.png"}}, {{"bufferView", view}, {"mimeType", "image/webp"}}});
+  const json webp = {{"EXT_texture_webp", {{"source", 1}}}};
+  b.doc()["textures"] =
+      json::array({{{"source", 0}, {"extensions", webp}}, {{"extensions", webp}}});
+  b.doc()["extensionsUsed"] = {"EXT_texture_webp"};
+  b.doc()["extensionsRequired"] = {"EXT_texture_webp"};
+  b.doc()["materials"] = json::array(
+      {{{"pbrMetallicRoughness",
+         {{"baseColorTexture", {{"index", 0}}}, {"metallicRoughnessTexture", {{"index", 1}}}}}}});
+  b.write_embedded(dir_ / "webp.gltf");
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir_ / "webp.gltf", &report);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+  const Material& m = scene.materials[0];
+  const Texture& color = scene.textures[size_t(m.base_color_texture)];
+  ASSERT_EQ(color.width, 2);
+  EXPECT_EQ(color.texels[0], glm::vec3(1.0f, 0.0f, 0.0f));
+  EXPECT_EQ(color.texels[1], glm::vec3(0.0f, 0.0f, 1.0f));
+  const Texture& data = scene.textures[size_t(m.metallic_roughness_texture)];
+  EXPECT_EQ(data.texels, color.texels);  // 0 and 1 are the same decoded as sRGB or as data
+
+  b.doc()["textures"][1]["extensions"]["EXT_texture_webp"]["source"] = 5;
+  b.write_embedded(dir_ / "index.gltf");
+  expect_error(dir_ / "index.gltf", "texture 1 refers to image 5, but there are 2");
+  b.doc()["textures"][1]["extensions"]["EXT_texture_webp"] = json::object();
+  b.write_embedded(dir_ / "none.gltf");
+  expect_error(dir_ / "none.gltf", "texture 1 EXT_texture_webp has no valid \"source\"");
 }
 
 // KHR_materials_unlit is read, also where a file requires it.

@@ -1,5 +1,6 @@
 #include "support/files.h"
 #include "support/srgb.h"
+#include "support/webp.h"
 
 #include <afr/common/image.h>
 
@@ -285,6 +286,38 @@ TEST_F(ImageTest, CorruptFileFailsNamingIt) {
       ADD_FAILURE() << "no error for a corrupt file";
     } catch (const Error& e) {
       EXPECT_NE(std::string(e.what()).find("broken.png"), std::string::npos) << e.what();
+    }
+  }
+}
+
+// WebP (EXT_texture_webp) decodes in memory: lossless bytes give back the pixels, RGB as 3
+// channels and RGBA as 4; from a file the same; cut short, the error names the image.
+TEST_F(ImageTest, WebpDecodesInMemoryAndFromAFile) {
+  for (int channels : {3, 4}) {
+    SCOPED_TRACE(channels);
+    DecodedImage raw{5, 3, channels, {}};
+    for (int i = 0; i < 5 * 3 * channels; ++i) raw.data.push_back(uint8_t(i * 13 + 7));
+    // A nearly transparent pixel keeps its color (the encoder may change a fully transparent
+    // one's: its color does not show).
+    if (channels == 4) raw.data[3] = 1;
+    const std::vector<uint8_t> bytes = testing::lossless_webp(raw);
+    const DecodedImage decoded = decode_image(bytes, "webp in memory");
+    EXPECT_EQ(decoded.width, 5);
+    EXPECT_EQ(decoded.height, 3);
+    EXPECT_EQ(decoded.channels, channels);
+    EXPECT_EQ(decoded.data, raw.data);
+    const fs::path file = dir_ / "image.webp";
+    std::ofstream(file, std::ios::binary)
+        .write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+    EXPECT_EQ(decode_image_file(file).data, raw.data);
+
+    std::vector<uint8_t> truncated = bytes;
+    truncated.resize(truncated.size() / 2);
+    try {
+      decode_image(truncated, "half a webp");
+      ADD_FAILURE() << "no error for a truncated WebP";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("half a webp"), std::string::npos) << e.what();
     }
   }
 }
