@@ -1172,9 +1172,10 @@ void Loader::keep_mask_alphas() {
     }
   }
   for (size_t t = 0; t < scene_.textures.size(); ++t) {
-    std::vector<float>& alpha = scene_.textures[t].alpha;
-    const bool opaque = std::all_of(alpha.begin(), alpha.end(), [](float a) { return a >= 1.0f; });
-    if (!masks[t] || opaque) std::vector<float>().swap(alpha);
+    Texture& texture = scene_.textures[t];
+    const bool opaque = std::all_of(texture.codes.begin(), texture.codes.end(),
+                                    [](uint32_t code) { return code >> 24 == 255; });
+    if (!masks[t] || opaque) texture.coded_alpha = false;
   }
 }
 
@@ -1376,32 +1377,26 @@ int Loader::texture_for_image(int image_index, bool srgb, const TextureSampling&
   }
   const DecodedImage decoded = decode_image(bytes, name);
 
-  // 8-bit values to linear, through a table: sRGB-encoded color, or data (metallic-roughness,
-  // occlusion) as it is.
-  std::array<float, 256> linear;
-  for (int v = 0; v < 256; ++v) {
-    linear[size_t(v)] = srgb ? srgb_to_linear(float(v) / 255.0f) : float(v) / 255.0f;
-  }
+  // The image's 8-bit values are kept as they are (Texture::codes), decoded at each lookup:
+  // sRGB-encoded color, or data (metallic-roughness, occlusion, normal) as it is.
   Texture texture;
   texture.name = image.name.empty() ? image.uri : image.name;
   texture.width = decoded.width;
   texture.height = decoded.height;
-  texture.texels.resize(size_t(decoded.width) * size_t(decoded.height));
+  texture.encoding = srgb ? Texture::Encoding::kSrgb : Texture::Encoding::kLinear;
+  texture.codes.resize(size_t(decoded.width) * size_t(decoded.height));
   const size_t c = size_t(decoded.channels);
-  for (size_t i = 0; i < texture.texels.size(); ++i) {
+  const bool has_alpha = c == 2 || c == 4;
+  for (size_t i = 0; i < texture.codes.size(); ++i) {
     const uint8_t* p = &decoded.data[i * c];
     // One channel is gray, two are gray and alpha.
-    texture.texels[i] =
-        c >= 3 ? glm::vec3(linear[p[0]], linear[p[1]], linear[p[2]]) : glm::vec3(linear[p[0]]);
+    const uint32_t r = p[0], g = c >= 3 ? p[1] : p[0], b = c >= 3 ? p[2] : p[0];
+    const uint32_t a = has_alpha ? p[c - 1] : 255;
+    texture.codes[i] = r | (g << 8) | (b << 16) | (a << 24);
   }
   // Alpha (linear in glTF) of a color image that has it, until load_materials() knows whether
   // a masking material reads it (keep_mask_alphas()).
-  if (srgb && (c == 2 || c == 4)) {
-    texture.alpha.resize(texture.texels.size());
-    for (size_t i = 0; i < texture.alpha.size(); ++i) {
-      texture.alpha[i] = float(decoded.data[i * c + c - 1]) / 255.0f;
-    }
-  }
+  texture.coded_alpha = srgb && has_alpha;
   sampling.apply(&texture);
   return textures_[key] = add_texture(std::move(texture));
 }

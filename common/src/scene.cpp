@@ -1,10 +1,12 @@
 #include <afr/common/scene.h>
 
 #include <afr/common/error.h>
+#include <afr/common/image.h>
 
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -48,13 +50,49 @@ double reduce(float c, Wrap w) {
   return double(c) - std::floor(double(c));
 }
 
-// The lookup of a level: the four texels around uv blended (or the one uv falls in, when
-// `nearest`), through the texture's wrap modes.
-template <typename T>
-T lookup(const T* texels, int width, int height, const Texture& t, glm::vec2 uv, bool nearest) {
+// 8-bit codes to linear values: sRGB-encoded (the formula, as the loader decoded before codes
+// were kept) and linear (v / 255).
+struct CodeTables {
+  std::array<float, 256> srgb, linear;
+};
+const CodeTables& code_tables() {
+  static const CodeTables tables = [] {
+    CodeTables t;
+    for (int v = 0; v < 256; ++v) {
+      t.srgb[size_t(v)] = srgb_to_linear(float(v) / 255.0f);
+      t.linear[size_t(v)] = float(v) / 255.0f;
+    }
+    return t;
+  }();
+  return tables;
+}
+
+const std::array<float, 256>& table_of(Texture::Encoding e) {
+  return e == Texture::Encoding::kSrgb ? code_tables().srgb : code_tables().linear;
+}
+
+glm::vec3 decode(uint32_t code, const std::array<float, 256>& table) {
+  return glm::vec3(table[code & 0xff], table[(code >> 8) & 0xff], table[(code >> 16) & 0xff]);
+}
+
+float decode_alpha(uint32_t code) { return code_tables().linear[code >> 24]; }
+
+// A linear value's code: the sRGB formula's (rounded) or v x 255 rounded, clamped to [0, 255].
+uint32_t encode(float v, Texture::Encoding e) {
+  if (e == Texture::Encoding::kSrgb) return linear_to_srgb8(v);
+  return uint32_t(std::lround(std::clamp(std::isfinite(v) ? v : 0.0f, 0.0f, 1.0f) * 255.0f));
+}
+
+uint32_t encode(const glm::vec3& c, Texture::Encoding e) {
+  return encode(c.r, e) | (encode(c.g, e) << 8) | (encode(c.b, e) << 16) | (0xffu << 24);
+}
+
+// The lookup of a level whose texel (x, y) is at(x, y): the four texels around uv blended (or
+// the one uv falls in, when `nearest`), through the texture's wrap modes.
+template <typename At>
+auto lookup(int width, int height, const Texture& t, glm::vec2 uv, bool nearest, const At& at) {
   const double u = reduce(uv.x, t.wrap_s) * width;
   const double v = reduce(uv.y, t.wrap_t) * height;
-  auto at = [&](int x, int y) { return texels[size_t(y) * size_t(width) + size_t(x)]; };
   if (nearest) {
     return at(address(long(std::floor(u)), width, t.wrap_s),
               address(long(std::floor(v)), height, t.wrap_t));
@@ -68,28 +106,57 @@ T lookup(const T* texels, int width, int height, const Texture& t, glm::vec2 uv,
   const int x0 = address(long(x0f), width, t.wrap_s), x1 = address(long(x0f) + 1, width, t.wrap_s);
   const int y0 = address(long(y0f), height, t.wrap_t);
   const int y1 = address(long(y0f) + 1, height, t.wrap_t);
-  const T top = glm::mix(at(x0, y0), at(x1, y0), ax);
-  const T bottom = glm::mix(at(x0, y1), at(x1, y1), ax);
+  const auto top = glm::mix(at(x0, y0), at(x1, y0), ax);
+  const auto bottom = glm::mix(at(x0, y1), at(x1, y1), ax);
   return glm::mix(top, bottom, ay);
+}
+
+// A level's lookup, of its floats or of its codes.
+glm::vec3 lookup_level(const glm::vec3* texels, const uint32_t* codes, Texture::Encoding e,
+                       int width, int height, const Texture& t, glm::vec2 uv, bool nearest) {
+  const size_t w = size_t(width);
+  if (codes != nullptr) {
+    const std::array<float, 256>& table = table_of(e);
+    return lookup(width, height, t, uv, nearest,
+                  [&](int x, int y) { return decode(codes[size_t(y) * w + size_t(x)], table); });
+  }
+  return lookup(width, height, t, uv, nearest,
+                [&](int x, int y) { return texels[size_t(y) * w + size_t(x)]; });
 }
 
 }  // namespace
 
+glm::vec3 Texture::texel(size_t i) const {
+  return codes.empty() ? texels[i] : decode(codes[i], table_of(encoding));
+}
+
+float Texture::texel_alpha(size_t i) const {
+  if (!codes.empty()) return coded_alpha ? decode_alpha(codes[i]) : 1.0f;
+  return alpha.empty() ? 1.0f : alpha[i];
+}
+
 glm::vec3 Texture::sample_bilinear(glm::vec2 uv) const {
-  if (width <= 0 || height <= 0 || texels.size() != size_t(width) * size_t(height)) {
-    return glm::vec3(1.0f);
-  }
-  return lookup(texels.data(), width, height, *this, uv, nearest);
+  if (!whole()) return glm::vec3(1.0f);
+  return lookup_level(texels.data(), codes.empty() ? nullptr : codes.data(), encoding, width,
+                      height, *this, uv, nearest);
 }
 
 float Texture::sample_alpha(glm::vec2 uv) const {
-  if (width <= 0 || height <= 0 || alpha.size() != size_t(width) * size_t(height)) return 1.0f;
-  return lookup(alpha.data(), width, height, *this, uv, nearest);
+  if (!whole()) return 1.0f;
+  const size_t w = size_t(width);
+  if (!codes.empty()) {
+    if (!coded_alpha) return 1.0f;
+    return lookup(width, height, *this, uv, nearest,
+                  [&](int x, int y) { return decode_alpha(codes[size_t(y) * w + size_t(x)]); });
+  }
+  if (alpha.size() != texels.size()) return 1.0f;
+  return lookup(width, height, *this, uv, nearest,
+                [&](int x, int y) { return alpha[size_t(y) * w + size_t(x)]; });
 }
 
 void Texture::build_mips() {
   mips.clear();
-  if (width <= 0 || height <= 0 || texels.size() != size_t(width) * size_t(height)) return;
+  if (!whole()) return;
   // Each level halves the one before through the binomial low-pass 1 5 10 10 5 1 (/ 32) in x,
   // then in y, centred on the pair of texels 2i, 2i + 1 that a 2 x 2 box would average, with
   // the texture's wrap modes at the edges. The box lets a pattern just above a level's Nyquist rate
@@ -97,7 +164,15 @@ void Texture::build_mips() {
   // out in blotches: residual contrast 0.21 at 32 texels, 0.043 at 16); this kernel keeps 0.042 and
   // 0.014 of it, and being positive it never rings below black (docs/scene-model.md).
   constexpr float kTap[6] = {1.0f / 32, 5.0f / 32, 10.0f / 32, 10.0f / 32, 5.0f / 32, 1.0f / 32};
-  const glm::vec3* src = texels.data();
+  // A coded texture's levels are filtered in linear values and coded afterwards; the level
+  // being halved is kept as floats meanwhile.
+  const bool coded = !codes.empty();
+  std::vector<glm::vec3> level0, previous;
+  if (coded) {
+    level0.resize(codes.size());
+    for (size_t i = 0; i < codes.size(); ++i) level0[i] = texel(i);
+  }
+  const glm::vec3* src = coded ? level0.data() : texels.data();
   int w = width, h = height;
   std::vector<glm::vec3> rows;  // the level's width, the source's height: after the x pass
   while (w > 1 || h > 1) {
@@ -125,10 +200,19 @@ void Texture::build_mips() {
         l.texels[size_t(y) * size_t(l.width) + size_t(x)] = sum;
       }
     }
-    mips.push_back(std::move(l));
-    src = mips.back().texels.data();
-    w = mips.back().width;
-    h = mips.back().height;
+    w = l.width;
+    h = l.height;
+    if (coded) {
+      l.codes.resize(l.texels.size());
+      for (size_t i = 0; i < l.codes.size(); ++i) l.codes[i] = encode(l.texels[i], encoding);
+      previous = std::move(l.texels);
+      l.texels = {};
+      src = previous.data();
+      mips.push_back(std::move(l));
+    } else {
+      mips.push_back(std::move(l));
+      src = mips.back().texels.data();
+    }
   }
 }
 
@@ -141,7 +225,8 @@ glm::vec3 Texture::sample(glm::vec2 uv, float lod) const {
   const auto level = [&](int i) {
     if (i == 0) return sample_bilinear(uv);
     const Level& l = mips[size_t(std::min(i, int(mips.size()))) - 1];
-    return lookup(l.texels.data(), l.width, l.height, *this, uv, false);
+    return lookup_level(l.texels.data(), l.codes.empty() ? nullptr : l.codes.data(), encoding,
+                        l.width, l.height, *this, uv, false);
   };
   const glm::vec3 a = level(lower);
   return f > 0.0f ? glm::mix(a, level(lower + 1), f) : a;
@@ -293,10 +378,12 @@ void Scene::finalize() {
 
   for (size_t t = 0; t < textures.size(); ++t) {
     const Texture& tex = textures[t];
-    if (tex.width <= 0 || tex.height <= 0 ||
-        tex.texels.size() != size_t(tex.width) * size_t(tex.height)) {
+    if (!tex.texels.empty() && !tex.codes.empty()) {
+      throw err(fmt::format("texture {} ('{}') has both texels and codes", t, tex.name));
+    }
+    if (!tex.whole()) {
       throw err(fmt::format("texture {} ('{}') has {} texels for {}x{}", t, tex.name,
-                            tex.texels.size(), tex.width, tex.height));
+                            tex.texel_count(), tex.width, tex.height));
     }
     if (!tex.alpha.empty() && tex.alpha.size() != tex.texels.size()) {
       throw err(fmt::format("texture {} ('{}') has {} alpha values for {} texels", t, tex.name,

@@ -34,9 +34,7 @@ void derive(ShadeMaterial* m, float metallic, float roughness) {
 const Texture* texture_at(int index, const Scene& scene) {
   if (index < 0 || size_t(index) >= scene.textures.size()) return nullptr;
   const Texture& t = scene.textures[size_t(index)];
-  const bool whole =
-      t.width > 0 && t.height > 0 && t.texels.size() == size_t(t.width) * size_t(t.height);
-  return whole ? &t : nullptr;
+  return t.whole() ? &t : nullptr;
 }
 
 }  // namespace
@@ -66,7 +64,9 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
   m.double_sided = mat.double_sided;
   if (mat.alpha_mode != Material::AlphaMode::kOpaque) {
     m.opacity_factor = mat.base_color_factor.a;
-    if (m.texture && !m.texture->alpha.empty()) m.opacity_texture = m.texture;
+    if (m.texture && (!m.texture->alpha.empty() || m.texture->coded_alpha)) {
+      m.opacity_texture = m.texture;
+    }
     m.blended = mat.alpha_mode == Material::AlphaMode::kBlend;
     // BLEND: the filters matter wherever the opacity can be below 1.
     m.opacity_cutoff = m.blended ? 1.0f : mat.alpha_cutoff;

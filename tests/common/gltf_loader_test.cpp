@@ -470,10 +470,12 @@ TEST_F(GltfLoaderTest, MaterialsAndEmbeddedPngTexturesDecodeToLinearTexels) {
     const Texture& t = scene.textures[0];
     ASSERT_EQ(t.width, 2);
     ASSERT_EQ(t.height, 2);
-    ASSERT_EQ(t.texels.size(), 4u);
+    // Kept as the image's codes, a quarter of the floats' memory, decoded at each lookup.
+    ASSERT_EQ(t.codes.size(), 4u);
+    EXPECT_TRUE(t.texels.empty());
     for (size_t i = 0; i < 4; ++i) {
       for (int c = 0; c < 3; ++c) {
-        EXPECT_NEAR(t.texels[i][c], reference_srgb_to_linear(png.data[3 * i + size_t(c)] / 255.0),
+        EXPECT_NEAR(t.texel(i)[c], reference_srgb_to_linear(png.data[3 * i + size_t(c)] / 255.0),
                     1e-6)
             << "texel " << i << " channel " << c;
       }
@@ -561,10 +563,10 @@ TEST_F(GltfLoaderTest, MaterialTextureSlotsDecodeColorFromSrgbAndDataAsItIs) {
   EXPECT_EQ(scene.materials[1].normal_texture, 1);
   EXPECT_FLOAT_EQ(scene.materials[1].normal_scale, 0.5f);
   EXPECT_EQ(m.normal_texture, -1);
-  EXPECT_NEAR(scene.textures[0].texels[0].r, reference_srgb_to_linear(128 / 255.0), 1e-6);
-  EXPECT_NEAR(scene.textures[1].texels[0].g, 128 / 255.0, 1e-6);  // roughness
-  EXPECT_NEAR(scene.textures[1].texels[0].b, 51 / 255.0, 1e-6);   // metallic
-  EXPECT_NEAR(scene.textures[3].texels[0].r, 128 / 255.0, 1e-6);
+  EXPECT_NEAR(scene.textures[0].texel(0).r, reference_srgb_to_linear(128 / 255.0), 1e-6);
+  EXPECT_NEAR(scene.textures[1].texel(0).g, 128 / 255.0, 1e-6);  // roughness
+  EXPECT_NEAR(scene.textures[1].texel(0).b, 51 / 255.0, 1e-6);   // metallic
+  EXPECT_NEAR(scene.textures[3].texel(0).r, 128 / 255.0, 1e-6);
   EXPECT_EQ(m.uv_set, Material::TextureSets{});
   EXPECT_EQ(scene.materials[1].uv_set, (Material::TextureSets{.occlusion = 1}));
   EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
@@ -683,7 +685,7 @@ TEST_F(GltfLoaderTest, SamplersSetWrapModesAndNearestMagnification) {
   EXPECT_EQ(plain.wrap_s, Texture::Wrap::kRepeat);
   EXPECT_EQ(plain.wrap_t, Texture::Wrap::kRepeat);
   EXPECT_FALSE(plain.nearest);
-  EXPECT_EQ(plain.texels, clamped.texels);
+  EXPECT_EQ(plain.codes, clamped.codes);
   EXPECT_NE(m.base_color_texture, m.emissive_texture);
 
   b.doc()["samplers"][0]["wrapS"] = 1234;
@@ -722,10 +724,10 @@ TEST_F(GltfLoaderTest, WebpTexturesAreReadThroughExtTextureWebp) {
   const Material& m = scene.materials[0];
   const Texture& color = scene.textures[size_t(m.base_color_texture)];
   ASSERT_EQ(color.width, 2);
-  EXPECT_EQ(color.texels[0], glm::vec3(1.0f, 0.0f, 0.0f));
-  EXPECT_EQ(color.texels[1], glm::vec3(0.0f, 0.0f, 1.0f));
+  EXPECT_EQ(color.texel(0), glm::vec3(1.0f, 0.0f, 0.0f));
+  EXPECT_EQ(color.texel(1), glm::vec3(0.0f, 0.0f, 1.0f));
   const Texture& data = scene.textures[size_t(m.metallic_roughness_texture)];
-  EXPECT_EQ(data.texels, color.texels);  // 0 and 1 are the same decoded as sRGB or as data
+  EXPECT_EQ(data.codes, color.codes);  // the image's bytes, whichever way they decode
 
   b.doc()["textures"][1]["extensions"]["EXT_texture_webp"]["source"] = 5;
   b.write_embedded(dir_ / "index.gltf");
@@ -783,17 +785,21 @@ TEST_F(GltfLoaderTest, MaskedMaterialsKeepTheirCutoffAndTheirTexturesAlpha) {
   EXPECT_FLOAT_EQ(scene.materials[1].alpha_cutoff, 0.5f);  // glTF's default
   EXPECT_EQ(scene.materials[2].alpha_mode, Material::AlphaMode::kBlend);
   ASSERT_EQ(scene.textures.size(), 2u);
-  EXPECT_EQ(scene.textures[0].alpha, (std::vector<float>{0.0f, 1.0f}));
-  EXPECT_TRUE(scene.textures[1].alpha.empty());
+  EXPECT_TRUE(scene.textures[0].coded_alpha);
+  EXPECT_EQ(scene.textures[0].texel_alpha(0), 0.0f);
+  EXPECT_EQ(scene.textures[0].texel_alpha(1), 1.0f);
+  EXPECT_FALSE(scene.textures[1].coded_alpha);
   EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
 
   // The same leaf on an opaque material: its alpha is not kept; on a blending one it is.
   b.doc()["materials"][0]["alphaMode"] = "OPAQUE";
   b.write_embedded(dir_ / "opaque.gltf");
-  EXPECT_TRUE(load_gltf(dir_ / "opaque.gltf").textures[0].alpha.empty());
+  EXPECT_FALSE(load_gltf(dir_ / "opaque.gltf").textures[0].coded_alpha);
   b.doc()["materials"][0]["alphaMode"] = "BLEND";
   b.write_embedded(dir_ / "blend.gltf");
-  EXPECT_EQ(load_gltf(dir_ / "blend.gltf").textures[0].alpha, (std::vector<float>{0.0f, 1.0f}));
+  const Texture blended = load_gltf(dir_ / "blend.gltf").textures[0];
+  EXPECT_TRUE(blended.coded_alpha);
+  EXPECT_EQ(blended.texel_alpha(0), 0.0f);
 
   b.doc()["materials"][0]["alphaMode"] = "MASK";
   b.doc()["materials"][0]["alphaCutoff"] = -1.0;

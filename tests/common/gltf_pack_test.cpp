@@ -172,7 +172,7 @@ TEST_F(GltfPackTest, PackedSceneLoadsAloneAsTheGltfDoesBesideItsFiles) {
   ASSERT_EQ(a.textures.size(), 1u);
   ASSERT_EQ(b.textures.size(), 1u);
   EXPECT_EQ(b.textures[0].width, 2);
-  EXPECT_EQ(a.textures[0].texels, b.textures[0].texels);
+  EXPECT_EQ(a.textures[0].codes, b.textures[0].codes);
   // The same bytes as a .glb name, and from memory: one payload, nothing else read.
   const Scene c = load_gltf_bytes(packed.glb, dir_ / "alone" / "elsewhere.glb");
   EXPECT_EQ(c.meshes[0].primitives[0].positions, pa.positions);

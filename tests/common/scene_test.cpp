@@ -1,3 +1,4 @@
+#include <afr/common/image.h>
 #include <afr/common/scene.h>
 
 #include <afr/common/error.h>
@@ -227,6 +228,61 @@ TEST(SceneTest, TextureWrapModesAndNearestFollowTheSampler) {
   row.wrap_s = Wrap::kClampToEdge;
   row.build_mips();
   EXPECT_NEAR(row.mips[0].texels[0].x, (1.0f + 5.0f + 10.0f) / 32, 1e-6f);
+}
+
+// A texture kept as 8-bit codes (a glTF image's) looks up exactly as the same texture in
+// floats at level 0, in either encoding; its mip levels are the floats' levels coded (filtered
+// in linear values, each coded once); its alpha is the codes' fourth byte where kept.
+TEST(SceneTest, CodedTexturesLookUpAsTheirFloatsAndCodeTheirMipLevels) {
+  for (Texture::Encoding encoding : {Texture::Encoding::kSrgb, Texture::Encoding::kLinear}) {
+    const bool srgb = encoding == Texture::Encoding::kSrgb;
+    SCOPED_TRACE(srgb ? "sRGB" : "linear");
+    Texture coded, floats;
+    coded.width = floats.width = 7;
+    coded.height = floats.height = 5;
+    coded.encoding = encoding;
+    for (uint32_t i = 0; i < 35; ++i) {
+      const uint32_t r = (i * 37) % 256, g = (i * 91 + 5) % 256, b = (i * 13 + 200) % 256;
+      coded.codes.push_back(r | (g << 8) | (b << 16) | ((i * 7 % 256) << 24));
+      auto value = [&](uint32_t v) {
+        return srgb ? srgb_to_linear(float(v) / 255.0f) : float(v) / 255.0f;
+      };
+      floats.texels.emplace_back(value(r), value(g), value(b));
+    }
+    for (size_t i = 0; i < 35; ++i) EXPECT_EQ(coded.texel(i), floats.texels[i]);
+    coded.wrap_s = floats.wrap_s = Texture::Wrap::kMirroredRepeat;
+    for (glm::vec2 uv : {glm::vec2(0.31f, 0.77f), glm::vec2(-2.4f, 9.1f), glm::vec2(0.0f)}) {
+      EXPECT_EQ(coded.sample_bilinear(uv), floats.sample_bilinear(uv));
+    }
+    coded.build_mips();
+    floats.build_mips();
+    ASSERT_EQ(coded.mips.size(), floats.mips.size());
+    for (size_t k = 0; k < coded.mips.size(); ++k) {
+      const Texture::Level& c = coded.mips[k];
+      const Texture::Level& f = floats.mips[k];
+      EXPECT_TRUE(c.texels.empty());
+      ASSERT_EQ(c.codes.size(), f.texels.size());
+      for (size_t i = 0; i < c.codes.size(); ++i) {
+        for (int channel = 0; channel < 3; ++channel) {
+          const float v = f.texels[i][channel];
+          const uint32_t want =
+              srgb ? linear_to_srgb8(v) : uint32_t(std::lround(std::clamp(v, 0.0f, 1.0f) * 255));
+          EXPECT_EQ((c.codes[i] >> (8 * channel)) & 0xff, want) << "level " << k + 1;
+        }
+      }
+    }
+    // Between levels the lookups stay within an 8-bit step of the floats'.
+    const glm::vec3 a = coded.sample({0.4f, 0.6f}, 1.5f), b = floats.sample({0.4f, 0.6f}, 1.5f);
+    EXPECT_NEAR(a.r, b.r, 1.0f / 255) << "trilinear";
+    EXPECT_NEAR(a.b, b.b, 1.0f / 255) << "trilinear";
+
+    // Alpha: the fourth byte, only where kept.
+    EXPECT_EQ(coded.sample_alpha({0.5f / 7, 0.5f / 5}), 1.0f);
+    coded.coded_alpha = true;
+    EXPECT_EQ(coded.texel_alpha(3), float(21) / 255.0f);
+    coded.nearest = true;
+    EXPECT_EQ(coded.sample_alpha({3.5f / 7, 0.5f / 5}), float(21) / 255.0f);
+  }
 }
 
 // Mip levels: each the binomial 1 5 10 10 5 1 low-pass of the one before, halved (REPEAT at the

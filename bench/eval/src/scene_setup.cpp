@@ -155,6 +155,12 @@ uint64_t render_fingerprint(const Scene& scene) {
     h.value(t.height);
     h.array(t.texels);
     if (!t.alpha.empty()) h.array(t.alpha);
+    // A texture kept as codes (their mip levels coded too) adds them.
+    if (!t.codes.empty()) {
+      h.array(t.codes);
+      h.value(t.encoding);
+      h.value(t.coded_alpha);
+    }
     if (t.wrap_s != Texture::Wrap::kRepeat || t.wrap_t != Texture::Wrap::kRepeat || t.nearest) {
       h.value(t.wrap_s);
       h.value(t.wrap_t);

@@ -97,11 +97,29 @@ struct Texture {
   std::string name;
   int width = 0;
   int height = 0;
+  // Level 0, row by row, either as linear values (`texels`: textures made in code, such as the
+  // built-in scene's) or as the 8-bit codes of the image it was decoded from (`codes`: glTF's;
+  // one uint32 a texel, red in the low byte, then green, blue, alpha), which `encoding` turns
+  // into linear values at each lookup: a quarter of the floats' memory. One of the two is empty.
   std::vector<glm::vec3> texels;
+  enum class Encoding : uint8_t { kSrgb, kLinear };  // of the codes' red, green, blue
+  std::vector<uint32_t> codes;
+  Encoding encoding = Encoding::kLinear;
 
-  // Level 0's alpha channel (linear, 0 to 1), kept only where a material masks or blends with
-  // it (Material::AlphaMode::kMask, kBlend); empty: opaque.
+  // Level 0's alpha (linear, 0 to 1), kept only where a material masks or blends with it
+  // (Material::AlphaMode::kMask, kBlend): `alpha` beside `texels` (empty: opaque), or the codes'
+  // fourth byte where `coded_alpha`.
   std::vector<float> alpha;
+  bool coded_alpha = false;
+
+  size_t texel_count() const { return codes.empty() ? texels.size() : codes.size(); }
+  // Whether level 0 holds width x height texels (a lookup of anything else is white).
+  bool whole() const {
+    return width > 0 && height > 0 && texel_count() == size_t(width) * size_t(height);
+  }
+  // Level 0's texel i (linear), and its alpha (1 without one).
+  glm::vec3 texel(size_t i) const;
+  float texel_alpha(size_t i) const;
 
   // glTF's sampler: how coordinates outside [0, 1] wrap in u (wrapS) and v (wrapT), and
   // whether a lookup at level 0 takes the nearest texel instead of blending four (magFilter
@@ -117,13 +135,15 @@ struct Texture {
   float sample_alpha(glm::vec2 uv) const;
 
   // Minification (docs/scene-model.md, "Texture filtering"): mip levels 1, 2, ... down to
-  // 1 x 1 (level 0 is `texels`), each (w + 1) / 2 x (h + 1) / 2 of the one before, every texel
-  // the mean of the 2 x 2 it covers (through the wrap modes at the edges). Made by build_mips(),
-  // which Scene::finalize() calls for every texture.
+  // 1 x 1 (level 0 is `texels` or `codes`), each (w + 1) / 2 x (h + 1) / 2 of the one before,
+  // every texel the mean of the 2 x 2 it covers (through the wrap modes at the edges), stored as
+  // level 0 is (a coded texture's levels are coded too, alpha 255). Made by build_mips(), which
+  // Scene::finalize() calls for every texture.
   struct Level {
     int width = 0;
     int height = 0;
     std::vector<glm::vec3> texels;
+    std::vector<uint32_t> codes;
   };
   std::vector<Level> mips;
   void build_mips();
