@@ -5,8 +5,10 @@
 #include <afr/common/image.h>
 #include <afr/common/log.h>
 
+#include <draco/compression/decode.h>
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include <sodium.h>
 #include <tiny_gltf.h>
 #include <nlohmann/json.hpp>
 
@@ -17,6 +19,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <memory>
 #include <numbers>
 #include <numeric>
 #include <set>
@@ -43,10 +46,12 @@ constexpr size_t kMaxMorphDisplacements = size_t(1) << 24;
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 8> kSupportedExtensions = {
-    "EXT_texture_webp",      "KHR_lights_punctual",        "KHR_materials_emissive_strength",
-    "KHR_materials_ior",     "KHR_materials_transmission", "KHR_materials_unlit",
-    "KHR_mesh_quantization", "KHR_texture_transform"};
+constexpr std::array<std::string_view, 9> kSupportedExtensions = {
+    "EXT_texture_webp",     "KHR_draco_mesh_compression",
+    "KHR_lights_punctual",  "KHR_materials_emissive_strength",
+    "KHR_materials_ior",    "KHR_materials_transmission",
+    "KHR_materials_unlit",  "KHR_mesh_quantization",
+    "KHR_texture_transform"};
 
 // The default lighting of a scene without lights (what glTF viewers do): a directional
 // headlight that moves with the scene's camera and a uniform sky term. The headlight comes from
@@ -78,7 +83,30 @@ bool inside_root(const FileAccess& access, const std::string& file, fs::path* re
   return p.has_value();
 }
 
+// A base64 data URI that tinygltf does not know as one (it knows those of PNG, JPEG and a few
+// more; not WebP's): tinygltf takes it for a file name, which it has URI-decoded (a '+' turned
+// into a space) and put in the glTF file's folder ("<folder>/data:..."). The URI's bytes, or
+// nothing where `file` is not such a URI or does not decode.
+std::optional<std::vector<unsigned char>> data_uri_bytes(const std::string& file) {
+  const size_t start = file.find("data:");
+  if (start == std::string::npos || (start > 0 && file[start - 1] != '/')) return std::nullopt;
+  const size_t comma = file.find(";base64,", start);
+  if (comma == std::string::npos) return std::nullopt;
+  std::string text = file.substr(comma + 8);
+  std::replace(text.begin(), text.end(), ' ', '+');
+  if (text.size() > kMaxFileBytes) return std::nullopt;
+  std::vector<unsigned char> bytes(text.size() / 4 * 3 + 3);
+  size_t length = 0;
+  if (sodium_base642bin(bytes.data(), bytes.size(), text.data(), text.size(), nullptr, &length,
+                        nullptr, sodium_base64_VARIANT_ORIGINAL) != 0) {
+    return std::nullopt;
+  }
+  bytes.resize(length);
+  return bytes;
+}
+
 bool file_exists(const std::string& file, void* user_data) {
+  if (data_uri_bytes(file)) return true;
   auto* access = static_cast<FileAccess*>(user_data);
   fs::path p;
   std::error_code ec;
@@ -93,6 +121,10 @@ std::string expand_file_path(const std::string& file, void*) { return file; }
 
 bool read_whole_file(std::vector<unsigned char>* out, std::string* err, const std::string& file,
                      void* user_data) {
+  if (std::optional<std::vector<unsigned char>> bytes = data_uri_bytes(file)) {
+    *out = std::move(*bytes);
+    return true;
+  }
   auto* access = static_cast<FileAccess*>(user_data);
   fs::path p;
   std::error_code ec;
@@ -167,6 +199,7 @@ class Loader {
   std::span<const uint8_t> buffer_view_bytes(int view, const std::string& what) const;
   std::vector<float> read_floats(int index, int type, const std::string& what);
   std::vector<uint32_t> read_indices(int index, const std::string& what);
+  void decode_draco(const tinygltf::Primitive& in, const std::string& what);
   std::vector<std::array<uint16_t, 4>> read_joints(int index, const std::string& what);
   std::vector<glm::vec3> read_vec3s(int index, size_t count, const std::string& attribute,
                                     const std::string& what);
@@ -242,6 +275,9 @@ class Loader {
   // TEXCOORD_0 as they are.
   std::vector<std::vector<UvSource>> uv_sources_;
   size_t morph_displacements_ = 0;  // read so far, at most kMaxMorphDisplacements
+  // The primitive being loaded, where it is Draco-compressed: its accessors' elements, decoded
+  // (decode_draco), by accessor index; gather() reads them instead of a buffer.
+  std::map<int, std::vector<uint8_t>> draco_bytes_;
 };
 
 void Loader::warn_once(const std::string& feature, const std::string& message) {
@@ -353,6 +389,51 @@ void Loader::check_glb_layout(std::span<const uint8_t> bytes,
   if (at == 12) fail("truncated .glb: no JSON chunk after its 12-byte header");
 }
 
+// tinygltf refuses a primitive's indices accessor without a buffer view, which is how files with
+// KHR_draco_mesh_compression write theirs (their indices are in the Draco data). Such an
+// accessor is given its primitive's Draco buffer view, for tinygltf's sake only: decode_draco
+// fills it before anything reads it. The JSON changed, or empty where nothing is to change (or
+// the JSON does not parse: tinygltf then says what is wrong).
+namespace {
+
+std::string point_draco_indices(std::string_view text) {
+  if (text.find("KHR_draco_mesh_compression") == std::string_view::npos) return {};
+  nlohmann::json doc = nlohmann::json::parse(text, nullptr, false);
+  if (doc.is_discarded() || !doc.is_object()) return {};
+  const auto accessors = doc.find("accessors");
+  const auto meshes = doc.find("meshes");
+  if (accessors == doc.end() || !accessors->is_array() || meshes == doc.end() ||
+      !meshes->is_array()) {
+    return {};
+  }
+  bool changed = false;
+  for (const nlohmann::json& mesh : *meshes) {
+    if (!mesh.is_object() || !mesh.contains("primitives") || !mesh["primitives"].is_array()) {
+      continue;
+    }
+    for (const nlohmann::json& p : mesh["primitives"]) {
+      if (!p.is_object() || !p.contains("indices") || !p["indices"].is_number_unsigned() ||
+          !p.contains("extensions") || !p["extensions"].is_object() ||
+          !p["extensions"].contains("KHR_draco_mesh_compression")) {
+        continue;
+      }
+      const nlohmann::json& draco = p["extensions"]["KHR_draco_mesh_compression"];
+      const size_t index = p["indices"].get<size_t>();
+      if (!draco.is_object() || !draco.contains("bufferView") ||
+          !draco["bufferView"].is_number_unsigned() || index >= accessors->size()) {
+        continue;
+      }
+      nlohmann::json& accessor = (*accessors)[index];
+      if (!accessor.is_object() || accessor.contains("bufferView")) continue;
+      accessor["bufferView"] = draco["bufferView"];
+      changed = true;
+    }
+  }
+  return changed ? doc.dump() : std::string();
+}
+
+}  // namespace
+
 void Loader::parse(std::span<const uint8_t> bytes) {
   if (bytes.size() > kMaxFileBytes) {
     fail(fmt::format("file of {} bytes is larger than afr accepts", bytes.size()));
@@ -370,18 +451,41 @@ void Loader::parse(std::span<const uint8_t> bytes) {
   std::string warn;
   const std::string base_dir = access_.root.string();
   const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
-  std::vector<uint8_t> compacted;  // a .glb without the chunks check_glb_layout skips
+  // A .glb without the chunks check_glb_layout skips, or a file whose JSON
+  // point_draco_indices changed.
+  std::vector<uint8_t> rewritten;
+  const auto as_text = [](std::span<const uint8_t> b) {
+    return std::string_view(reinterpret_cast<const char*>(b.data()), b.size());
+  };
   if (binary) {
     std::vector<std::span<const uint8_t>> chunks;
     check_glb_layout(bytes, &chunks);
+    std::string json = point_draco_indices(as_text(chunks[0].subspan(8)));
     size_t kept_bytes = 12;
     for (const auto& c : chunks) kept_bytes += c.size();
-    if (kept_bytes != size_t(read_u32_le(bytes, 8))) {
-      compacted.assign(bytes.begin(), bytes.begin() + 12);
-      for (int i = 0; i < 4; ++i) compacted[size_t(8 + i)] = uint8_t(kept_bytes >> (8 * i));
-      for (const auto& c : chunks) compacted.insert(compacted.end(), c.begin(), c.end());
-      bytes = compacted;
+    if (!json.empty() || kept_bytes != size_t(read_u32_le(bytes, 8))) {
+      const auto put_u32 = [&](size_t v) {
+        for (int i = 0; i < 4; ++i) rewritten.push_back(uint8_t(v >> (8 * i)));
+      };
+      rewritten.assign(bytes.begin(), bytes.begin() + 8);
+      put_u32(0);  // the length, once known
+      if (json.empty()) {
+        rewritten.insert(rewritten.end(), chunks[0].begin(), chunks[0].end());
+      } else {
+        json.resize((json.size() + 3) / 4 * 4, ' ');  // chunks are 4-byte aligned
+        put_u32(json.size());
+        rewritten.insert(rewritten.end(), chunks[0].begin() + 4, chunks[0].begin() + 8);
+        rewritten.insert(rewritten.end(), json.begin(), json.end());
+      }
+      for (size_t c = 1; c < chunks.size(); ++c) {
+        rewritten.insert(rewritten.end(), chunks[c].begin(), chunks[c].end());
+      }
+      for (int i = 0; i < 4; ++i) rewritten[size_t(8 + i)] = uint8_t(rewritten.size() >> (8 * i));
+      bytes = rewritten;
     }
+  } else if (std::string json = point_draco_indices(as_text(bytes)); !json.empty()) {
+    rewritten.assign(json.begin(), json.end());
+    bytes = rewritten;
   }
   bool ok = false;
   // tinygltf mostly reports through `err`, but some inputs (such as an empty data URI) make it
@@ -548,10 +652,16 @@ std::vector<uint8_t> Loader::gather(int index, int type, const std::string& what
   if (a.type != type) {
     fail(fmt::format("{} is {} where {} is required", name, type_name(a.type), type_name(type)));
   }
-  if (a.count > (a.bufferView >= 0 ? kMaxAccessorCount : kMaxAccessorCountWithoutView)) {
+  const auto draco = draco_bytes_.find(index);
+  const bool has_bytes = a.bufferView >= 0 || draco != draco_bytes_.end();
+  if (a.count > (has_bytes ? kMaxAccessorCount : kMaxAccessorCountWithoutView)) {
     fail(fmt::format("{} has {} elements, more than afr accepts", name, a.count));
   }
   const size_t element_size = size_t(component_size) * size_t(components);
+  if (draco != draco_bytes_.end()) {
+    AFR_CHECK(draco->second.size() == a.count * element_size);
+    return draco->second;
+  }
   std::vector<uint8_t> bytes(a.count * element_size, 0);
 
   if (a.bufferView >= 0) {
@@ -665,6 +775,114 @@ double component_value(const uint8_t* p, int component_type, bool normalized) {
 }
 
 // Components of accessor `index`, which must be of `type`, as floats; all finite.
+// KHR_draco_mesh_compression: the primitive's indices and the attributes the extension names are
+// decoded from the Draco data in its buffer view (libdraco) into draco_bytes_, as the elements of
+// the accessors they stand for, in those accessors' component types; everything after reads
+// them through gather() as if they were in a buffer. Attributes the extension does not name are
+// read from their own accessors.
+void Loader::decode_draco(const tinygltf::Primitive& in, const std::string& what) {
+  const auto ext = in.extensions.find("KHR_draco_mesh_compression");
+  if (ext == in.extensions.end()) return;
+  const std::string where = what + " KHR_draco_mesh_compression";
+  const tinygltf::Value& e = ext->second;
+  if (!e.IsObject() || !e.Get("bufferView").IsInt() || !e.Get("attributes").IsObject()) {
+    fail(where + " has no valid \"bufferView\" and \"attributes\"");
+  }
+  const std::span<const uint8_t> data =
+      buffer_view_bytes(e.Get("bufferView").GetNumberAsInt(), where);
+  draco::DecoderBuffer buffer;
+  buffer.Init(reinterpret_cast<const char*>(data.data()), data.size());
+  draco::Decoder decoder;
+  auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
+  if (!decoded.ok()) {
+    fail(fmt::format("{}: cannot decode its Draco data ({})", where,
+                     decoded.status().error_msg_string()));
+  }
+  const std::unique_ptr<draco::Mesh> mesh = std::move(decoded).value();
+  const size_t points = mesh->num_points();
+  if (points > kMaxAccessorCount || size_t(mesh->num_faces()) > kMaxAccessorCount) {
+    fail(
+        fmt::format("{}: its Draco data holds more vertices or triangles than afr accepts", where));
+  }
+  // The elements of accessor `index` (what the decoded data stands for), `count` of them, each
+  // of its components set by value(element, component, out) in its component type.
+  const auto store = [&](int index, size_t count, const std::string& part, const auto& value) {
+    const tinygltf::Accessor& a = accessor_at(index, where + " " + part);
+    if (a.count != count) {
+      fail(fmt::format("{} {}: accessor {} has {} elements, but the Draco data {}", where, part,
+                       index, a.count, count));
+    }
+    const int components = tinygltf::GetNumComponentsInType(uint32_t(a.type));
+    const int size = tinygltf::GetComponentSizeInBytes(uint32_t(a.componentType));
+    if (components <= 0 || size <= 0 || a.componentType == TINYGLTF_COMPONENT_TYPE_DOUBLE) {
+      fail(fmt::format("{} {}: accessor {} has an invalid type", where, part, index));
+    }
+    std::vector<uint8_t> bytes(count * size_t(components) * size_t(size));
+    for (size_t i = 0; i < count; ++i) {
+      for (int c = 0; c < components; ++c) {
+        uint8_t* out = &bytes[(i * size_t(components) + size_t(c)) * size_t(size)];
+        value(i, c, a.componentType, out);
+      }
+    }
+    draco_bytes_[index] = std::move(bytes);
+  };
+  // An integer value in the component type (it fits: checked by the caller or by the data).
+  const auto put_integer = [](uint32_t v, int type, uint8_t* out) {
+    if (type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE || type == TINYGLTF_COMPONENT_TYPE_BYTE) {
+      *out = uint8_t(v);
+    } else if (type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT ||
+               type == TINYGLTF_COMPONENT_TYPE_SHORT) {
+      const uint16_t s = uint16_t(v);
+      std::memcpy(out, &s, 2);
+    } else {
+      std::memcpy(out, &v, 4);
+    }
+  };
+  if (in.indices < 0) fail(where + ": the primitive has no indices, which the extension requires");
+  {
+    const tinygltf::Accessor& a = accessor_at(in.indices, where + " indices");
+    const uint64_t limit = a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE    ? 0xff
+                           : a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT ? 0xffff
+                                                                                       : 0xffffffff;
+    if (points > limit + 1) {
+      fail(fmt::format("{}: {} vertices do not fit the indices' component type", where, points));
+    }
+    store(in.indices, 3 * size_t(mesh->num_faces()), "indices",
+          [&](size_t i, int, int type, uint8_t* out) {
+            const draco::Mesh::Face& f = mesh->face(draco::FaceIndex(uint32_t(i / 3)));
+            put_integer(f[i % 3].value(), type, out);
+          });
+  }
+  for (const auto& [name, id] : e.Get("attributes").Get<tinygltf::Value::Object>()) {
+    const auto accessor = in.attributes.find(name);
+    if (accessor == in.attributes.end()) continue;  // the primitive does not use it
+    const draco::PointAttribute* attribute =
+        id.IsInt() && id.GetNumberAsInt() >= 0
+            ? mesh->GetAttributeByUniqueId(uint32_t(id.GetNumberAsInt()))
+            : nullptr;
+    if (attribute == nullptr) {
+      fail(fmt::format("{}: its attribute {} names no attribute of the Draco data", where, name));
+    }
+    const int components = attribute->num_components();
+    store(accessor->second, points, name, [&](size_t i, int c, int type, uint8_t* out) {
+      const draco::AttributeValueIndex v = attribute->mapped_index(draco::PointIndex(uint32_t(i)));
+      if (c >= components) {
+        std::memset(out, 0, size_t(tinygltf::GetComponentSizeInBytes(uint32_t(type))));
+        return;
+      }
+      if (type == TINYGLTF_COMPONENT_TYPE_FLOAT) {
+        float values[4] = {};
+        attribute->ConvertValue<float>(v, int8_t(std::min(components, 4)), values);
+        std::memcpy(out, &values[c], 4);
+      } else {
+        int32_t values[4] = {};
+        attribute->ConvertValue<int32_t>(v, int8_t(std::min(components, 4)), values);
+        put_integer(uint32_t(values[c]), type, out);
+      }
+    });
+  }
+}
+
 std::vector<float> Loader::read_floats(int index, int type, const std::string& what) {
   const tinygltf::Accessor* a = nullptr;
   const std::vector<uint8_t> bytes = gather(index, type, what, &a);
@@ -799,6 +1017,8 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
                             name));
     }
   }
+  draco_bytes_.clear();
+  decode_draco(in, what);
   if (in.material < -1 || in.material >= int(model_.materials.size())) {
     fail(fmt::format("{} refers to material {}, but there are {}", what, in.material,
                      model_.materials.size()));
@@ -1805,6 +2025,7 @@ Scene Loader::load(std::span<const uint8_t> bytes) {
   scene_.source = path_.string();
   load_materials();  // first: a primitive reads the texture coordinates its material's do
   load_meshes();
+  draco_bytes_.clear();
   load_cameras();
   load_lights();
   load_nodes();

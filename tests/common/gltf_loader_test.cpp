@@ -3,10 +3,16 @@
 #include <afr/common/error.h>
 #include <afr/common/image.h>
 
+#include <draco/compression/decode.h>
+#include <draco/compression/encode.h>
+#include <draco/mesh/triangle_soup_mesh_builder.h>
+
 #include <gtest/gtest.h>
 #include <unistd.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -14,6 +20,7 @@
 #include <functional>
 #include <iterator>
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -706,17 +713,23 @@ TEST_F(GltfLoaderTest, WebpTexturesAreReadThroughExtTextureWebp) {
   GltfBuilder b;
   add_quad(&b);
   b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
-  const int view = b.add_view(testing::lossless_webp(colors));
+  const std::vector<uint8_t> webp_bytes = testing::lossless_webp(colors);
+  const int view = b.add_view(webp_bytes);
+  // The same WebP as a data URI too, which tinygltf does not decode itself.
   b.doc()["images"] =
-      json::array({{{"uri", "gray.png"}}, {{"bufferView", view}, {"mimeType", "image/webp"}}});
+      json::array({{{"uri", "gray.png"}},
+                   {{"bufferView", view}, {"mimeType", "image/webp"}},
+                   {{"uri", "data:image/webp;base64," + testing::base64(webp_bytes)}}});
   const json webp = {{"EXT_texture_webp", {{"source", 1}}}};
-  b.doc()["textures"] =
-      json::array({{{"source", 0}, {"extensions", webp}}, {{"extensions", webp}}});
+  b.doc()["textures"] = json::array({{{"source", 0}, {"extensions", webp}},
+                                     {{"extensions", webp}},
+                                     {{"extensions", {{"EXT_texture_webp", {{"source", 2}}}}}}});
   b.doc()["extensionsUsed"] = {"EXT_texture_webp"};
   b.doc()["extensionsRequired"] = {"EXT_texture_webp"};
   b.doc()["materials"] = json::array(
       {{{"pbrMetallicRoughness",
-         {{"baseColorTexture", {{"index", 0}}}, {"metallicRoughnessTexture", {{"index", 1}}}}}}});
+         {{"baseColorTexture", {{"index", 0}}}, {"metallicRoughnessTexture", {{"index", 1}}}}},
+        {"emissiveTexture", {{"index", 2}}}}});
   b.write_embedded(dir_ / "webp.gltf");
   GltfLoadReport report;
   const Scene scene = load_gltf(dir_ / "webp.gltf", &report);
@@ -728,13 +741,123 @@ TEST_F(GltfLoaderTest, WebpTexturesAreReadThroughExtTextureWebp) {
   EXPECT_EQ(color.texel(1), glm::vec3(0.0f, 0.0f, 1.0f));
   const Texture& data = scene.textures[size_t(m.metallic_roughness_texture)];
   EXPECT_EQ(data.codes, color.codes);  // the image's bytes, whichever way they decode
+  EXPECT_EQ(scene.textures[size_t(m.emissive_texture)].codes, color.codes);
 
   b.doc()["textures"][1]["extensions"]["EXT_texture_webp"]["source"] = 5;
   b.write_embedded(dir_ / "index.gltf");
-  expect_error(dir_ / "index.gltf", "texture 1 refers to image 5, but there are 2");
+  expect_error(dir_ / "index.gltf", "texture 1 refers to image 5, but there are 3");
   b.doc()["textures"][1]["extensions"]["EXT_texture_webp"] = json::object();
   b.write_embedded(dir_ / "none.gltf");
   expect_error(dir_ / "none.gltf", "texture 1 EXT_texture_webp has no valid \"source\"");
+}
+
+// KHR_draco_mesh_compression: a primitive's indices and the attributes the extension names are
+// decoded from its Draco data (here a quad of two triangles with texture coordinates, encoded
+// by libdraco without quantization, so exactly), also where the file requires the extension;
+// the triangles and each corner's coordinates come out as they went in, whatever order the
+// encoder gave the points. Broken Draco data fails naming the primitive.
+TEST_F(GltfLoaderTest, DracoCompressedPrimitivesAreDecoded) {
+  const std::vector<glm::vec3> corners = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  const std::vector<glm::vec2> corner_uvs = {{0, 1}, {1, 1}, {1, 0}, {0, 0}};
+  const int triangles[2][3] = {{0, 1, 2}, {0, 2, 3}};
+  draco::TriangleSoupMeshBuilder builder;
+  builder.Start(2);
+  const int position =
+      builder.AddAttribute(draco::GeometryAttribute::POSITION, 3, draco::DT_FLOAT32);
+  const int uv = builder.AddAttribute(draco::GeometryAttribute::TEX_COORD, 2, draco::DT_FLOAT32);
+  for (uint32_t f = 0; f < 2; ++f) {
+    const int* t = triangles[f];
+    builder.SetAttributeValuesForFace(position, draco::FaceIndex(f), &corners[size_t(t[0])],
+                                      &corners[size_t(t[1])], &corners[size_t(t[2])]);
+    builder.SetAttributeValuesForFace(uv, draco::FaceIndex(f), &corner_uvs[size_t(t[0])],
+                                      &corner_uvs[size_t(t[1])], &corner_uvs[size_t(t[2])]);
+  }
+  const std::unique_ptr<draco::Mesh> mesh = builder.Finalize();
+  ASSERT_TRUE(mesh);
+  draco::EncoderBuffer encoded;
+  ASSERT_TRUE(draco::Encoder().EncodeMeshToBuffer(*mesh, &encoded).ok());
+  const std::vector<uint8_t> bytes(encoded.data(), encoded.data() + encoded.size());
+  // The accessors' counts are the points and triangles the data holds.
+  draco::DecoderBuffer peek;
+  peek.Init(encoded.data(), encoded.size());
+  const size_t points = draco::Decoder().DecodeMeshFromBuffer(&peek).value()->num_points();
+
+  GltfBuilder b;
+  const int view = b.add_view(bytes);
+  auto accessor = [&](int component, const char* type, size_t count) {
+    b.doc()["accessors"].push_back(
+        {{"componentType", component}, {"type", type}, {"count", count}});
+    return int(b.doc()["accessors"].size()) - 1;
+  };
+  const int positions = accessor(5126, "VEC3", points);
+  const int uvs = accessor(5126, "VEC2", points);
+  const int indices = accessor(5123, "SCALAR", 6);
+  b.doc()["meshes"] = json::array(
+      {{{"primitives",
+         json::array({{{"attributes", {{"POSITION", positions}, {"TEXCOORD_0", uvs}}},
+                       {"indices", indices},
+                       {"extensions",
+                        {{"KHR_draco_mesh_compression",
+                          {{"bufferView", view},
+                           {"attributes",
+                            {{"POSITION", mesh->attribute(position)->unique_id()},
+                             {"TEXCOORD_0", mesh->attribute(uv)->unique_id()}}}}}}}}})}}});
+  b.doc()["nodes"] = json::array({{{"mesh", 0}}});
+  b.doc()["scenes"] = json::array({{{"nodes", {0}}}});
+  b.doc()["extensionsUsed"] = {"KHR_draco_mesh_compression"};
+  b.doc()["extensionsRequired"] = {"KHR_draco_mesh_compression"};
+  b.write_embedded(dir_ / "draco.gltf");
+  b.write_glb(dir_ / "draco.glb");
+  for (const char* file : {"draco.gltf", "draco.glb"}) {
+    SCOPED_TRACE(file);
+    GltfLoadReport report;
+    const Scene scene = load_gltf(dir_ / file, &report);
+    EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+    const Primitive& p = scene.meshes.at(0).primitives.at(0);
+    ASSERT_EQ(p.positions.size(), points);
+    ASSERT_EQ(p.uvs.size(), points);
+    ASSERT_EQ(p.indices.size(), 6u);
+    // The triangles (each turned to start at its least corner, so that only the winding counts)
+    // and each point's coordinates.
+    using Triangle = std::array<glm::vec3, 3>;
+    const auto less = [](const glm::vec3& a, const glm::vec3& c) {
+      return std::lexicographical_compare(&a.x, &a.x + 3, &c.x, &c.x + 3);
+    };
+    const auto canonical = [&](Triangle t) {
+      std::rotate(t.begin(), std::min_element(t.begin(), t.end(), less), t.end());
+      return t;
+    };
+    const auto order = [&](const Triangle& a, const Triangle& c) {
+      return std::lexicographical_compare(a.begin(), a.end(), c.begin(), c.end(), less);
+    };
+    std::vector<Triangle> got, want;
+    for (size_t t = 0; t < 2; ++t) {
+      Triangle g, w;
+      for (size_t k = 0; k < 3; ++k) {
+        g[k] = p.positions[p.indices[3 * t + k]];
+        w[k] = corners[size_t(triangles[t][k])];
+      }
+      got.push_back(canonical(g));
+      want.push_back(canonical(w));
+    }
+    std::sort(got.begin(), got.end(), order);
+    std::sort(want.begin(), want.end(), order);
+    EXPECT_EQ(got, want);
+    for (size_t i = 0; i < points; ++i) {
+      const size_t corner =
+          size_t(std::find(corners.begin(), corners.end(), p.positions[i]) - corners.begin());
+      ASSERT_LT(corner, corners.size()) << "point " << i;
+      EXPECT_EQ(p.uvs[i], corner_uvs[corner]) << "point " << i;
+    }
+  }
+
+  // The same file with its Draco data cut short.
+  GltfBuilder cut = b;
+  std::vector<uint8_t> half(bytes.begin(), bytes.begin() + bytes.size() / 2);
+  cut.doc()["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]
+           ["bufferView"] = cut.add_view(half);
+  cut.write_embedded(dir_ / "cut.gltf");
+  expect_error(dir_ / "cut.gltf", "mesh 0 primitive 0 KHR_draco_mesh_compression: cannot decode");
 }
 
 // KHR_materials_unlit is read, also where a file requires it.

@@ -196,17 +196,17 @@ TEST(GltfUserContentTest, OrthographicCameraIsAWarningNamingItAndTheDefaultCamer
 TEST(GltfUserContentTest, AnUnsupportedRequiredExtensionIsAnErrorNamingIt) {
   TempFolder dir;
   GltfContent g = unlit_box();
-  g.doc()["extensionsUsed"] = {"KHR_draco_mesh_compression", "KHR_texture_transform"};
-  g.doc()["extensionsRequired"] = {"KHR_draco_mesh_compression", "KHR_texture_transform"};
-  g.write(dir / "draco.gltf");
+  g.doc()["extensionsUsed"] = {"KHR_texture_basisu", "KHR_texture_transform"};
+  g.doc()["extensionsRequired"] = {"KHR_texture_basisu", "KHR_texture_transform"};
+  g.write(dir / "basisu.gltf");
   try {
-    load_gltf(dir / "draco.gltf");
-    ADD_FAILURE() << "a file requiring KHR_draco_mesh_compression loaded";
+    load_gltf(dir / "basisu.gltf");
+    ADD_FAILURE() << "a file requiring KHR_texture_basisu loaded";
   } catch (const Error& e) {
     const std::string what = e.what();
-    EXPECT_NE(what.find("draco.gltf"), std::string::npos) << what;
+    EXPECT_NE(what.find("basisu.gltf"), std::string::npos) << what;
     EXPECT_NE(what.find("requires"), std::string::npos) << what;
-    EXPECT_NE(what.find("KHR_draco_mesh_compression"), std::string::npos) << what;
+    EXPECT_NE(what.find("KHR_texture_basisu"), std::string::npos) << what;
     // A required extension afr reads is not the problem.
     EXPECT_EQ(what.find("KHR_texture_transform"), std::string::npos) << what;
   }
