@@ -46,12 +46,12 @@ constexpr size_t kMaxMorphDisplacements = size_t(1) << 24;
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 9> kSupportedExtensions = {
-    "EXT_texture_webp",     "KHR_draco_mesh_compression",
-    "KHR_lights_punctual",  "KHR_materials_emissive_strength",
-    "KHR_materials_ior",    "KHR_materials_transmission",
-    "KHR_materials_unlit",  "KHR_mesh_quantization",
-    "KHR_texture_transform"};
+constexpr std::array<std::string_view, 10> kSupportedExtensions = {
+    "KHR_materials_specular",          "EXT_texture_webp",
+    "KHR_draco_mesh_compression",      "KHR_lights_punctual",
+    "KHR_materials_emissive_strength", "KHR_materials_ior",
+    "KHR_materials_transmission",      "KHR_materials_unlit",
+    "KHR_mesh_quantization",           "KHR_texture_transform"};
 
 // The default lighting of a scene without lights (what glTF viewers do): a directional
 // headlight that moves with the scene's camera and a uniform sky term. The headlight comes from
@@ -215,6 +215,7 @@ class Loader {
   void load_materials();
   void read_transmission_and_ior(const tinygltf::Material& in, const std::string& what,
                                  Material* out);
+  void read_specular(const tinygltf::Material& in, const std::string& what, Material* out);
   std::optional<glm::dmat3> read_texture_transform(const tinygltf::ExtensionMap& extensions,
                                                    const std::string& what, int* tex_coord);
   // One texture slot of material m (its index, texCoord and extensions as glTF gives them):
@@ -1293,6 +1294,39 @@ void Loader::read_transmission_and_ior(const tinygltf::Material& in, const std::
   }
 }
 
+// KHR_materials_specular: specularFactor (0 to 1, default 1) and specularColorFactor (three
+// numbers >= 0, default 1). Its textures are not read (one warning): the factors decide.
+void Loader::read_specular(const tinygltf::Material& in, const std::string& what, Material* out) {
+  const auto ext = in.extensions.find("KHR_materials_specular");
+  if (ext == in.extensions.end()) return;
+  const tinygltf::Value& e = ext->second;
+  const std::string where = what + " KHR_materials_specular";
+  if (!e.IsObject()) fail(where + " is not an object");
+  out->has_specular_extension = true;
+  if (e.Has("specularFactor")) {
+    const tinygltf::Value& f = e.Get("specularFactor");
+    const double v = f.IsNumber() ? f.GetNumberAsDouble() : -1.0;
+    if (!(v >= 0.0 && v <= 1.0)) fail(where + " has an invalid specularFactor (a number 0 to 1)");
+    out->specular = float(v);
+  }
+  if (e.Has("specularColorFactor")) {
+    const tinygltf::Value& c = e.Get("specularColorFactor");
+    bool ok = c.IsArray() && c.ArrayLen() == 3;
+    for (int i = 0; ok && i < 3; ++i) {
+      const double v = c.Get(i).IsNumber() ? c.Get(i).GetNumberAsDouble() : -1.0;
+      ok = v >= 0.0 && std::isfinite(v);
+      if (ok) out->specular_color[i] = float(v);
+    }
+    if (!ok) fail(where + " has an invalid specularColorFactor (three numbers >= 0)");
+  }
+  if (e.Has("specularTexture") || e.Has("specularColorTexture")) {
+    warn_once("specular textures",
+              fmt::format("{}: its specularTexture and specularColorTexture are not read (the "
+                          "factors decide)",
+                          where));
+  }
+}
+
 void Loader::load_materials() {
   uv_sources_.assign(model_.materials.size(), {});
   for (size_t m = 0; m < model_.materials.size(); ++m) {
@@ -1327,6 +1361,7 @@ void Loader::load_materials() {
       out.emissive *= float(s.GetNumberAsDouble());
     }
     read_transmission_and_ior(in, what, &out);
+    read_specular(in, what, &out);
     out.unlit = in.extensions.count("KHR_materials_unlit") > 0;
     out.double_sided = in.doubleSided;
     if (in.alphaMode == "MASK") {

@@ -27,7 +27,8 @@ void derive(ShadeMaterial* m, float metallic, float roughness) {
   m->has_emission = !is_black(m->emissive);
   m->has_ambient = !is_black(m->scene_ambient * m->ambient);
   m->has_diffuse = m->diffuse_weight > 0.0f && !is_black(m->base);
-  m->has_specular = !(roughness >= 1.0f && m->metallic <= 0.0f);
+  m->has_specular = !(roughness >= 1.0f && m->metallic <= 0.0f) &&
+                    !(m->metallic <= 0.0f && m->specular_f90 <= 0.0f && is_black(m->specular_f0));
 }
 
 // The scene's texture `index`, or null when there is none (or it is empty).
@@ -83,6 +84,14 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
     m.ior = mat.ior;
     const float r = (mat.ior - 1.0f) / (mat.ior + 1.0f);
     m.f0_dielectric = mat.ior > 0.0f ? r * r : 1.0f;  // KHR_materials_ior: ior 0 means F = 1
+  }
+  if (mat.has_specular_extension) {
+    const float r = (mat.ior - 1.0f) / (mat.ior + 1.0f);
+    const float f0_ior = mat.ior > 0.0f ? r * r : 1.0f;
+    m.specular_f0 =
+        glm::min(f0_ior * glm::max(mat.specular_color, glm::vec3(0.0f)), glm::vec3(1.0f)) *
+        glm::clamp(mat.specular, 0.0f, 1.0f);
+    m.specular_f90 = glm::clamp(mat.specular, 0.0f, 1.0f);
   }
   derive(&m, m.metallic_factor, m.roughness_factor);
   if (mat.unlit) {

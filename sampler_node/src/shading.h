@@ -61,6 +61,11 @@ struct ShadeMaterial {
   float transmission = 0.0f;
   float ior = 1.5f;
   float f0_dielectric = 0.04f;  // ((ior - 1) / (ior + 1))^2, 1 for ior 0
+  // The non-metallic part's specular reflection at normal and at grazing incidence: 0.04 and 1
+  // (glTF's core), or with KHR_materials_specular (Material::specular) F0(ior) x its color x its
+  // factor and the factor. Metals reflect their base color and 1 (fresnel_f0, fresnel_f90).
+  glm::vec3 specular_f0{0.04f};
+  float specular_f90 = 1.0f;
   bool double_sided = false;
   bool unlit = false;  // KHR_materials_unlit: the base color as it is, no bounce or maps
   // alphaMode MASK and BLEND (Material::alpha_mode): `masked`: the surface's opacity
@@ -149,10 +154,18 @@ inline bool light_incidence(const LightRecord& light, const glm::vec3& p, glm::v
   return true;
 }
 
-inline glm::vec3 fresnel_schlick(const glm::vec3& f0, float cos_theta) {
+inline glm::vec3 fresnel_schlick(const glm::vec3& f0, float cos_theta, float f90 = 1.0f) {
   const float m = 1.0f - glm::clamp(cos_theta, 0.0f, 1.0f);
   const float m2 = m * m;
-  return f0 + (glm::vec3(1.0f) - f0) * (m2 * m2 * m);
+  return f0 + (glm::vec3(f90) - f0) * (m2 * m2 * m);
+}
+
+// The specular reflection's F0 and F90 at a point of base color `base` (factor x texture).
+inline glm::vec3 fresnel_f0(const ShadeMaterial& m, const glm::vec3& base) {
+  return glm::mix(m.specular_f0, base, m.metallic);
+}
+inline float fresnel_f90(const ShadeMaterial& m) {
+  return m.specular_f90 + (1.0f - m.specular_f90) * m.metallic;
 }
 
 // BRDF x cos(theta_l) for unit n, v (toward the viewer), l (toward the light); n.v and n.l > 0.
@@ -172,7 +185,7 @@ inline glm::vec3 brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, cons
       const float D = a2 / (kPi * dd * dd);
       const float vis = 0.5f / (n_dot_l * std::sqrt(n_dot_v * n_dot_v * (1.0f - a2) + a2) +
                                 n_dot_v * std::sqrt(n_dot_l * n_dot_l * (1.0f - a2) + a2));
-      f += fresnel_schlick(f0, v_dot_h) * (D * vis);
+      f += fresnel_schlick(f0, v_dot_h, fresnel_f90(m)) * (D * vis);
     }
   }
   return f * n_dot_l;

@@ -1155,7 +1155,7 @@ bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const gl
   if (lights_.empty() || s.back_face || !(m.has_diffuse || m.has_specular)) return false;
   const glm::vec3 base = m.base * tex;
   terms->diffuse = base * m.diffuse_weight;
-  terms->f0 = glm::mix(glm::vec3(0.04f), base, m.metallic);
+  terms->f0 = shading::fresnel_f0(m, base);
   terms->offset = offset_at(s.p);
   terms->origin = s.p + terms->offset * s.ng;
   terms->n_dot_v = std::max(glm::dot(s.ns, wo), 1e-4f);
@@ -1293,8 +1293,8 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
     glm::vec3 r = d - 2.0f * glm::dot(d, s.ns) * s.ns;
     // An interpolated normal can send the reflection under the surface: use the true one.
     if (glm::dot(r, s.ng) <= 0.0f) r = d - 2.0f * glm::dot(d, s.ng) * s.ng;
-    const glm::vec3 f0 = glm::mix(glm::vec3(0.04f), m.base * tex, m.metallic);
-    throughput *= shading::fresnel_schlick(f0, n_dot_v);
+    throughput *= shading::fresnel_schlick(shading::fresnel_f0(m, m.base * tex), n_dot_v,
+                                           shading::fresnel_f90(m));
     if (std::max(throughput.r, std::max(throughput.g, throughput.b)) < kMinThroughput) break;
 
     const float r_len2 = glm::dot(r, r);

@@ -139,6 +139,9 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
       },
       [](Scene* s) { s->meshes[0].primitives[0].more_uvs[0][0].x += 0.5f; });
   expect_seen(
+      "specular", [](Scene* s) { s->materials[0].has_specular_extension = true; },
+      [](Scene* s) { s->materials[0].specular = 0.5f; });
+  expect_seen(
       "samplers", [](Scene* s) { s->textures[0].wrap_s = Texture::Wrap::kClampToEdge; },
       [](Scene* s) { s->textures[0].nearest = true; });
   expect_seen(

@@ -860,6 +860,45 @@ TEST_F(GltfLoaderTest, DracoCompressedPrimitivesAreDecoded) {
   expect_error(dir_ / "cut.gltf", "mesh 0 primitive 0 KHR_draco_mesh_compression: cannot decode");
 }
 
+// KHR_materials_specular: its factors are read (defaults 1), also where a file requires it; its
+// textures are not (one warning); a factor out of range fails naming the material.
+TEST_F(GltfLoaderTest, SpecularExtensionFactorsAreRead) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  b.doc()["extensionsUsed"] = {"KHR_materials_specular"};
+  b.doc()["extensionsRequired"] = {"KHR_materials_specular"};
+  b.doc()["materials"] =
+      json::array({{{"extensions",
+                     {{"KHR_materials_specular",
+                       {{"specularFactor", 0.5},
+                        {"specularColorFactor", {1.0, 0.5, 2.0}},
+                        {"specularTexture", {{"index", 0}}}}}}}},
+                   {{"extensions", {{"KHR_materials_specular", json::object()}}}},
+                   json::object()});
+  b.write_embedded(dir_ / "specular.gltf");
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir_ / "specular.gltf", &report);
+  ASSERT_EQ(scene.materials.size(), 3u);
+  EXPECT_TRUE(scene.materials[0].has_specular_extension);
+  EXPECT_EQ(scene.materials[0].specular, 0.5f);
+  EXPECT_EQ(scene.materials[0].specular_color, glm::vec3(1.0f, 0.5f, 2.0f));
+  EXPECT_TRUE(scene.materials[1].has_specular_extension);
+  EXPECT_EQ(scene.materials[1].specular, 1.0f);
+  EXPECT_EQ(scene.materials[1].specular_color, glm::vec3(1.0f));
+  EXPECT_FALSE(scene.materials[2].has_specular_extension);
+  EXPECT_EQ(count_containing(report.warnings,
+                             "specularTexture and specularColorTexture are not "
+                             "read"),
+            1u);
+  EXPECT_EQ(report.warnings.size(), 1u);
+
+  b.doc()["materials"][0]["extensions"]["KHR_materials_specular"]["specularFactor"] = 2.0;
+  b.write_embedded(dir_ / "bad.gltf");
+  expect_error(dir_ / "bad.gltf",
+               "material 0 KHR_materials_specular has an invalid specularFactor");
+}
+
 // KHR_materials_unlit is read, also where a file requires it.
 TEST_F(GltfLoaderTest, UnlitMaterialsAreRead) {
   GltfBuilder b;

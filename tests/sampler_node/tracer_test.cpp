@@ -300,6 +300,37 @@ TEST(TracerTest, SpecularHighlightOnlyWhereTheMaterialHasOne) {
   }
 }
 
+// KHR_materials_specular: a black dielectric square lit and seen straight on (v = l = n, so
+// Fresnel is F0 exactly) shows only its highlight, F0 x D x vis x the light. Against glTF's core
+// (F0 0.04), the extension's color (1, 0.5, 0.25) at ior 1.5 tints it by that color, a factor of
+// 0.5 halves it, a factor of 0 removes it.
+TEST(TracerTest, SpecularFactorsSetTheDielectricHighlight) {
+  auto highlight = [](bool extension, float factor, glm::vec3 color) {
+    Scene s;
+    const int mat = add_material(&s, glm::vec3(0.0f), 0.0f, 0.5f);
+    Material& m = s.materials[size_t(mat)];
+    m.has_specular_extension = extension;
+    m.specular = factor;
+    m.specular_color = color;
+    add_mesh_node(&s, quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat));
+    Light sun;
+    sun.type = Light::Type::kDirectional;  // along -Z: from behind the camera
+    sun.intensity = 3.0f;
+    add_light_node(&s, sun, glm::dvec3(0.0));
+    s.finalize();
+    Tracer tracer(s);
+    TraceStats stats;
+    return tracer.trace(Ray{{0.2f, 0.1f, 0.0f}, {0, 0, -1}}, &stats).color;
+  };
+  const glm::vec3 core = highlight(false, 1.0f, glm::vec3(1.0f));
+  ASSERT_GT(core.r, 0.0f);
+  EXPECT_NEAR(core.g, core.r, 1e-6f);
+  const glm::vec3 tinted = highlight(true, 1.0f, {1.0f, 0.5f, 0.25f});
+  expect_near3(tinted / core.r, {1.0f, 0.5f, 0.25f}, 1e-5f, "tinted");
+  expect_near3(highlight(true, 0.5f, glm::vec3(1.0f)) / core.r, glm::vec3(0.5f), 1e-5f, "half");
+  expect_near3(highlight(true, 0.0f, glm::vec3(1.0f)), glm::vec3(0.0f), 0.0f, "none");
+}
+
 TEST(TracerTest, MirroredNodeKeepsItsFrontFace) {
   // glTF: under a transform with negative determinant, clockwise triangles face front. A
   // single-sided square facing +Z, mirrored in x, still faces +Z and is lit from there.

@@ -137,6 +137,10 @@ uint64_t render_fingerprint(const Scene& scene) {
       }
     }
     if (m.unlit) h.value(m.unlit);
+    if (m.has_specular_extension) {
+      h.value(m.specular);
+      h.value(m.specular_color);
+    }
     if (m.alpha_mode != Material::AlphaMode::kOpaque) {
       h.value(m.alpha_mode);
       h.value(m.alpha_cutoff);

@@ -199,6 +199,12 @@ struct Material {
   // KHR_materials_ior: the index of refraction inside the surface (outside is 1). Either >= 1,
   // or 0, which the extension defines as a Fresnel term of 1 (all reflection).
   float ior = 1.5f;
+  // KHR_materials_specular (factors): the strength of the non-metallic part's specular
+  // reflection, and its color at normal incidence. The dielectric's F0 is
+  // min(((ior - 1) / (ior + 1))^2 x specular_color, 1) x specular, its F90 `specular`.
+  float specular = 1.0f;
+  glm::vec3 specular_color{1.0f};
+  bool has_specular_extension = false;  // F0 from ior then (else 0.04, glTF's core default)
   bool double_sided = false;
   // KHR_materials_unlit: the surface shows its base color (factor x texture x COLOR_0) as it
   // is, whatever the light; every other property but alpha is ignored.
