@@ -806,7 +806,7 @@ void Loader::decode_draco(const tinygltf::Primitive& in, const std::string& what
         fmt::format("{}: its Draco data holds more vertices or triangles than afr accepts", where));
   }
   // The elements of accessor `index` (what the decoded data stands for), `count` of them, each
-  // of its components set by value(element, component, out) in its component type.
+  // written by value(element, component type, components, out) in the accessor's type.
   const auto store = [&](int index, size_t count, const std::string& part, const auto& value) {
     const tinygltf::Accessor& a = accessor_at(index, where + " " + part);
     if (a.count != count) {
@@ -818,12 +818,10 @@ void Loader::decode_draco(const tinygltf::Primitive& in, const std::string& what
     if (components <= 0 || size <= 0 || a.componentType == TINYGLTF_COMPONENT_TYPE_DOUBLE) {
       fail(fmt::format("{} {}: accessor {} has an invalid type", where, part, index));
     }
-    std::vector<uint8_t> bytes(count * size_t(components) * size_t(size));
+    const size_t element_size = size_t(components) * size_t(size);
+    std::vector<uint8_t> bytes(count * element_size);
     for (size_t i = 0; i < count; ++i) {
-      for (int c = 0; c < components; ++c) {
-        uint8_t* out = &bytes[(i * size_t(components) + size_t(c)) * size_t(size)];
-        value(i, c, a.componentType, out);
-      }
+      value(i, a.componentType, components, &bytes[i * element_size]);
     }
     draco_bytes_[index] = std::move(bytes);
   };
@@ -849,7 +847,7 @@ void Loader::decode_draco(const tinygltf::Primitive& in, const std::string& what
       fail(fmt::format("{}: {} vertices do not fit the indices' component type", where, points));
     }
     store(in.indices, 3 * size_t(mesh->num_faces()), "indices",
-          [&](size_t i, int, int type, uint8_t* out) {
+          [&](size_t i, int type, int, uint8_t* out) {
             const draco::Mesh::Face& f = mesh->face(draco::FaceIndex(uint32_t(i / 3)));
             put_integer(f[i % 3].value(), type, out);
           });
@@ -864,21 +862,21 @@ void Loader::decode_draco(const tinygltf::Primitive& in, const std::string& what
     if (attribute == nullptr) {
       fail(fmt::format("{}: its attribute {} names no attribute of the Draco data", where, name));
     }
-    const int components = attribute->num_components();
-    store(accessor->second, points, name, [&](size_t i, int c, int type, uint8_t* out) {
+    // Up to four components of each point's value (the accessor's beyond the data's are 0).
+    const int8_t available = int8_t(std::min(int(attribute->num_components()), 4));
+    store(accessor->second, points, name, [&](size_t i, int type, int components, uint8_t* out) {
       const draco::AttributeValueIndex v = attribute->mapped_index(draco::PointIndex(uint32_t(i)));
-      if (c >= components) {
-        std::memset(out, 0, size_t(tinygltf::GetComponentSizeInBytes(uint32_t(type))));
-        return;
-      }
+      const size_t size = size_t(tinygltf::GetComponentSizeInBytes(uint32_t(type)));
       if (type == TINYGLTF_COMPONENT_TYPE_FLOAT) {
         float values[4] = {};
-        attribute->ConvertValue<float>(v, int8_t(std::min(components, 4)), values);
-        std::memcpy(out, &values[c], 4);
+        attribute->ConvertValue<float>(v, available, values);
+        std::memcpy(out, values, size_t(std::min(components, 4)) * size);
       } else {
         int32_t values[4] = {};
-        attribute->ConvertValue<int32_t>(v, int8_t(std::min(components, 4)), values);
-        put_integer(uint32_t(values[c]), type, out);
+        attribute->ConvertValue<int32_t>(v, available, values);
+        for (int c = 0; c < std::min(components, 4); ++c) {
+          put_integer(uint32_t(values[c]), type, out + size_t(c) * size);
+        }
       }
     });
   }

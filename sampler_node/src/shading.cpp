@@ -76,18 +76,19 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
     m.masked = m.opacity_texture || !(m.opacity_factor >= m.opacity_cutoff);
     m.alpha_tested = true;
   }
+  // Normal-incidence Fresnel of a dielectric of this ior (KHR_materials_ior: ior 0 means F = 1),
+  // for glass and KHR_materials_specular.
+  const float r = (mat.ior - 1.0f) / (mat.ior + 1.0f);
+  const float f0_ior = mat.ior > 0.0f ? r * r : 1.0f;
   m.transmission = glm::clamp(mat.transmission, 0.0f, 1.0f);
   m.is_glass = m.transmission > 0.0f;
   if (m.is_glass) {
     m.shadow_transmittance = glm::clamp(m.transmission * (1.0f - m.metallic_factor) * m.base,
                                         glm::vec3(0.0f), glm::vec3(1.0f));
     m.ior = mat.ior;
-    const float r = (mat.ior - 1.0f) / (mat.ior + 1.0f);
-    m.f0_dielectric = mat.ior > 0.0f ? r * r : 1.0f;  // KHR_materials_ior: ior 0 means F = 1
+    m.f0_dielectric = f0_ior;
   }
   if (mat.has_specular_extension) {
-    const float r = (mat.ior - 1.0f) / (mat.ior + 1.0f);
-    const float f0_ior = mat.ior > 0.0f ? r * r : 1.0f;
     m.specular_f0 =
         glm::min(f0_ior * glm::max(mat.specular_color, glm::vec3(0.0f)), glm::vec3(1.0f)) *
         glm::clamp(mat.specular, 0.0f, 1.0f);

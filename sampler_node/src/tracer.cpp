@@ -54,9 +54,6 @@ float max_abs(const glm::vec3& v) {
   return std::max(std::abs(v.x), std::max(std::abs(v.y), std::abs(v.z)));
 }
 
-// One Embree triangle geometry: one primitive of a mesh. Static and deforming geometry is
-// stored in world space and knows its node; geometry of an instanced mesh is in the mesh's
-// space and takes its node from the instance.
 // A primitive's texture coordinates as each texture slot of its material reads them
 // (Material::TextureSets; null: none for that slot, whose factors then decide). Slots on one set
 // share its pointer.
@@ -80,6 +77,9 @@ T interpolate(const T* values, const uint32_t* tri, const glm::vec3& bary) {
   return bary.x * values[tri[0]] + bary.y * values[tri[1]] + bary.z * values[tri[2]];
 }
 
+// One Embree triangle geometry: one primitive of a mesh. Static and deforming geometry is
+// stored in world space and knows its node; geometry of an instanced mesh is in the mesh's
+// space and takes its node from the instance.
 struct GeomRecord {
   const glm::vec3* positions = nullptr;
   const glm::vec3* normals = nullptr;  // null when the primitive has none per vertex
