@@ -12,7 +12,7 @@ packages=(
   python3 curl
   # rendering
   libembree-dev libglm-dev libtinygltf-dev nlohmann-json3-dev libopenimageio-dev openimageio-tools
-  libwebp-dev libdraco-dev
+  libwebp-dev libdraco-dev libmeshoptimizer-dev
   # display
   libglfw3-dev libegl-dev libepoxy-dev libgl1-mesa-dri xvfb xauth libstb-dev
   # the dashboard's browser test; promtool for deploy/monitoring's check

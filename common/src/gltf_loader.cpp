@@ -8,6 +8,7 @@
 #include <draco/compression/decode.h>
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include <meshoptimizer.h>
 #include <sodium.h>
 #include <tiny_gltf.h>
 #include <nlohmann/json.hpp>
@@ -22,6 +23,7 @@
 #include <memory>
 #include <numbers>
 #include <numeric>
+#include <optional>
 #include <set>
 #include <span>
 #include <string_view>
@@ -46,8 +48,9 @@ constexpr size_t kMaxMorphDisplacements = size_t(1) << 24;
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 10> kSupportedExtensions = {
+constexpr std::array<std::string_view, 12> kSupportedExtensions = {
     "KHR_materials_specular",          "EXT_texture_webp",
+    "EXT_meshopt_compression",         "KHR_meshopt_compression",
     "KHR_draco_mesh_compression",      "KHR_lights_punctual",
     "KHR_materials_emissive_strength", "KHR_materials_ior",
     "KHR_materials_transmission",      "KHR_materials_unlit",
@@ -200,6 +203,7 @@ class Loader {
   std::vector<float> read_floats(int index, int type, const std::string& what);
   std::vector<uint32_t> read_indices(int index, const std::string& what);
   void decode_draco(const tinygltf::Primitive& in, const std::string& what);
+  void decode_meshopt();
   std::vector<std::array<uint16_t, 4>> read_joints(int index, const std::string& what);
   std::vector<glm::vec3> read_vec3s(int index, size_t count, const std::string& attribute,
                                     const std::string& what);
@@ -279,6 +283,11 @@ class Loader {
   // The primitive being loaded, where it is Draco-compressed: its accessors' elements, decoded
   // (decode_draco), by accessor index; gather() reads them instead of a buffer.
   std::map<int, std::vector<uint8_t>> draco_bytes_;
+  // EXT_ and KHR_meshopt_compression: the buffers that stand in for data that exists only
+  // compressed (prepare_json), and each compressed buffer view's decoded bytes (decode_meshopt),
+  // which buffer_view_bytes gives in place of its buffer's.
+  std::set<int> placeholder_buffers_;
+  std::map<int, std::vector<uint8_t>> meshopt_bytes_;
 };
 
 void Loader::warn_once(const std::string& feature, const std::string& message) {
@@ -390,22 +399,29 @@ void Loader::check_glb_layout(std::span<const uint8_t> bytes,
   if (at == 12) fail("truncated .glb: no JSON chunk after its 12-byte header");
 }
 
-// tinygltf refuses a primitive's indices accessor without a buffer view, which is how files with
-// KHR_draco_mesh_compression write theirs (their indices are in the Draco data). Such an
-// accessor is given its primitive's Draco buffer view, for tinygltf's sake only: decode_draco
-// fills it before anything reads it. The JSON changed, or empty where nothing is to change (or
-// the JSON does not parse: tinygltf then says what is wrong).
+// Two things in a file's JSON that tinygltf refuses although the extensions it uses allow them,
+// put right before tinygltf reads it (for tinygltf's sake only):
+// - KHR_draco_mesh_compression: a primitive's indices accessor without a buffer view (its
+//   indices are in the Draco data) is given its primitive's Draco buffer view; decode_draco
+//   fills it before anything reads it.
+// - EXT_ and KHR_meshopt_compression: a placeholder buffer without a "uri" (the data of the
+//   buffer views that use it exists only compressed), and a buffer the extension marks as a
+//   fallback (which a reader that decodes need not load), become a buffer of 3 zero bytes in a
+//   data URI. Their indices go to *placeholders; decode_meshopt fills every compressed view,
+//   and buffer_view_bytes names a placeholder if anything else reads one.
+// Returns the JSON changed, or empty where nothing is to change (or the JSON does not parse:
+// tinygltf then says what is wrong).
 namespace {
 
-std::string point_draco_indices(std::string_view text) {
-  if (text.find("KHR_draco_mesh_compression") == std::string_view::npos) return {};
-  nlohmann::json doc = nlohmann::json::parse(text, nullptr, false);
-  if (doc.is_discarded() || !doc.is_object()) return {};
-  const auto accessors = doc.find("accessors");
-  const auto meshes = doc.find("meshes");
-  if (accessors == doc.end() || !accessors->is_array() || meshes == doc.end() ||
+constexpr std::array<std::string_view, 2> kMeshoptExtensions = {"KHR_meshopt_compression",
+                                                                "EXT_meshopt_compression"};
+
+bool point_draco_indices(nlohmann::json* doc) {
+  const auto accessors = doc->find("accessors");
+  const auto meshes = doc->find("meshes");
+  if (accessors == doc->end() || !accessors->is_array() || meshes == doc->end() ||
       !meshes->is_array()) {
-    return {};
+    return false;
   }
   bool changed = false;
   for (const nlohmann::json& mesh : *meshes) {
@@ -430,6 +446,55 @@ std::string point_draco_indices(std::string_view text) {
       changed = true;
     }
   }
+  return changed;
+}
+
+bool stand_in_meshopt_placeholders(nlohmann::json* doc, bool binary, std::set<int>* placeholders) {
+  const auto listed = [&](const char* key) {
+    const auto list = doc->find(key);
+    if (list == doc->end() || !list->is_array()) return false;
+    for (const nlohmann::json& name : *list) {
+      for (std::string_view ext : kMeshoptExtensions) {
+        if (name.is_string() && name.get<std::string>() == ext) return true;
+      }
+    }
+    return false;
+  };
+  const auto buffers = doc->find("buffers");
+  if (!(listed("extensionsUsed") || listed("extensionsRequired")) || buffers == doc->end() ||
+      !buffers->is_array()) {
+    return false;
+  }
+  bool changed = false;
+  for (size_t i = 0; i < buffers->size(); ++i) {
+    nlohmann::json& buffer = (*buffers)[i];
+    if (!buffer.is_object()) continue;
+    const bool bin_chunk = binary && i == 0 && !buffer.contains("uri");
+    bool fallback = false;
+    if (const auto e = buffer.find("extensions"); e != buffer.end() && e->is_object()) {
+      for (std::string_view ext : kMeshoptExtensions) {
+        const auto m = e->find(std::string(ext));
+        fallback = fallback || (m != e->end() && m->is_object() && m->contains("fallback") &&
+                                (*m)["fallback"] == true);
+      }
+    }
+    if (bin_chunk || (buffer.contains("uri") && !fallback)) continue;
+    buffer["uri"] = "data:application/octet-stream;base64,AAAA";
+    buffer["byteLength"] = 3;
+    placeholders->insert(int(i));
+    changed = true;
+  }
+  return changed;
+}
+
+std::string prepare_json(std::string_view text, bool binary, std::set<int>* placeholders) {
+  const bool draco = text.find("KHR_draco_mesh_compression") != std::string_view::npos;
+  const bool meshopt = text.find("_meshopt_compression") != std::string_view::npos;
+  if (!draco && !meshopt) return {};
+  nlohmann::json doc = nlohmann::json::parse(text, nullptr, false);
+  if (doc.is_discarded() || !doc.is_object()) return {};
+  bool changed = draco && point_draco_indices(&doc);
+  changed = (meshopt && stand_in_meshopt_placeholders(&doc, binary, placeholders)) || changed;
   return changed ? doc.dump() : std::string();
 }
 
@@ -452,8 +517,8 @@ void Loader::parse(std::span<const uint8_t> bytes) {
   std::string warn;
   const std::string base_dir = access_.root.string();
   const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
-  // A .glb without the chunks check_glb_layout skips, or a file whose JSON
-  // point_draco_indices changed.
+  // A .glb without the chunks check_glb_layout skips, or a file whose JSON prepare_json
+  // changed.
   std::vector<uint8_t> rewritten;
   const auto as_text = [](std::span<const uint8_t> b) {
     return std::string_view(reinterpret_cast<const char*>(b.data()), b.size());
@@ -461,7 +526,7 @@ void Loader::parse(std::span<const uint8_t> bytes) {
   if (binary) {
     std::vector<std::span<const uint8_t>> chunks;
     check_glb_layout(bytes, &chunks);
-    std::string json = point_draco_indices(as_text(chunks[0].subspan(8)));
+    std::string json = prepare_json(as_text(chunks[0].subspan(8)), true, &placeholder_buffers_);
     size_t kept_bytes = 12;
     for (const auto& c : chunks) kept_bytes += c.size();
     if (!json.empty() || kept_bytes != size_t(read_u32_le(bytes, 8))) {
@@ -484,7 +549,8 @@ void Loader::parse(std::span<const uint8_t> bytes) {
       for (int i = 0; i < 4; ++i) rewritten[size_t(8 + i)] = uint8_t(rewritten.size() >> (8 * i));
       bytes = rewritten;
     }
-  } else if (std::string json = point_draco_indices(as_text(bytes)); !json.empty()) {
+  } else if (std::string json = prepare_json(as_text(bytes), false, &placeholder_buffers_);
+             !json.empty()) {
     rewritten.assign(json.begin(), json.end());
     bytes = rewritten;
   }
@@ -586,10 +652,19 @@ std::span<const uint8_t> Loader::buffer_view_bytes(int view, const std::string& 
     fail(fmt::format("{} refers to buffer view {}, but there are {}", what, view,
                      model_.bufferViews.size()));
   }
+  if (const auto decoded = meshopt_bytes_.find(view); decoded != meshopt_bytes_.end()) {
+    return decoded->second;
+  }
   const tinygltf::BufferView& bv = model_.bufferViews[size_t(view)];
   if (bv.buffer < 0 || size_t(bv.buffer) >= model_.buffers.size()) {
     fail(fmt::format("buffer view {} refers to buffer {}, but there are {}", view, bv.buffer,
                      model_.buffers.size()));
+  }
+  if (placeholder_buffers_.count(bv.buffer) != 0) {
+    fail(
+        fmt::format("buffer view {} ({}) is not compressed but reads buffer {}, which holds no "
+                    "data (a meshopt fallback or placeholder buffer)",
+                    view, what, bv.buffer));
   }
   const std::vector<unsigned char>& data = model_.buffers[size_t(bv.buffer)].data;
   if (bv.byteLength > data.size() || bv.byteOffset > data.size() - bv.byteLength) {
@@ -776,6 +851,157 @@ double component_value(const uint8_t* p, int component_type, bool normalized) {
 }
 
 // Components of accessor `index`, which must be of `type`, as floats; all finite.
+// EXT_ and KHR_meshopt_compression (one bitstream; KHR adds version 1 of the attribute codec and
+// a COLOR filter): every buffer view with the extension is decoded at load through meshoptimizer
+// into meshopt_bytes_, `count` elements of `byteStride` bytes (the view's byteLength), then
+// filtered; everything after reads it through buffer_view_bytes as if it were in the view's
+// buffer. What the extension forbids, data that does not decode, and a codec version or filter
+// this meshoptimizer lacks are errors naming the buffer view.
+void Loader::decode_meshopt() {
+  uint64_t total = 0;
+  for (size_t v = 0; v < model_.bufferViews.size(); ++v) {
+    const tinygltf::BufferView& bv = model_.bufferViews[v];
+    const tinygltf::Value* e = nullptr;
+    std::string_view name;
+    for (std::string_view ext : kMeshoptExtensions) {
+      if (const auto it = bv.extensions.find(std::string(ext)); it != bv.extensions.end()) {
+        e = &it->second;
+        name = ext;
+        break;
+      }
+    }
+    if (e == nullptr) continue;
+    const std::string where = fmt::format("buffer view {} {}", v, name);
+    if (!e->IsObject()) fail(where + " is not an object");
+    // A non-negative integer property (a JSON number that is one).
+    const auto integer = [&](const char* key, std::optional<uint64_t> otherwise) -> uint64_t {
+      if (!e->Has(key)) {
+        if (otherwise) return *otherwise;
+        fail(fmt::format("{} has no \"{}\"", where, key));
+      }
+      const tinygltf::Value& x = e->Get(key);
+      const double d = x.IsNumber() ? x.GetNumberAsDouble() : -1.0;
+      if (!(d >= 0.0 && d <= double(uint64_t(1) << 53) && d == std::floor(d))) {
+        fail(fmt::format("{} has an invalid \"{}\"", where, key));
+      }
+      return uint64_t(d);
+    };
+    const auto text = [&](const char* key, const char* otherwise) -> std::string {
+      if (!e->Has(key) && otherwise != nullptr) return otherwise;
+      const tinygltf::Value& x = e->Get(key);
+      if (!x.IsString()) fail(fmt::format("{} has no valid \"{}\"", where, key));
+      return x.Get<std::string>();
+    };
+    const uint64_t buffer = integer("buffer", std::nullopt);
+    const uint64_t offset = integer("byteOffset", 0);
+    const uint64_t length = integer("byteLength", std::nullopt);
+    const uint64_t stride = integer("byteStride", std::nullopt);
+    const uint64_t count = integer("count", std::nullopt);
+    const std::string mode = text("mode", nullptr);
+    const std::string filter = text("filter", "NONE");
+
+    if (buffer >= model_.buffers.size()) {
+      fail(fmt::format("{} refers to buffer {}, but there are {}", where, buffer,
+                       model_.buffers.size()));
+    }
+    if (placeholder_buffers_.count(int(buffer)) != 0) {
+      fail(
+          fmt::format("{} reads its compressed data from buffer {}, which holds no data (a "
+                      "fallback or placeholder buffer)",
+                      where, buffer));
+    }
+    const std::vector<unsigned char>& data = model_.buffers[buffer].data;
+    if (length > data.size() || offset > data.size() - length) {
+      fail(
+          fmt::format("{}: its compressed bytes {} to {} are out of bounds of buffer {} ({} "
+                      "bytes)",
+                      where, offset, offset + length, buffer, data.size()));
+    }
+    const bool attributes = mode == "ATTRIBUTES";
+    if (!attributes && mode != "TRIANGLES" && mode != "INDICES") {
+      fail(fmt::format("{} has mode \"{}\" (ATTRIBUTES, TRIANGLES or INDICES)", where, mode));
+    }
+    if (attributes && (stride == 0 || stride % 4 != 0 || stride > 256)) {
+      fail(fmt::format("{}: ATTRIBUTES need a byteStride of a multiple of 4 up to 256, not {}",
+                       where, stride));
+    }
+    if (!attributes && stride != 2 && stride != 4) {
+      fail(fmt::format("{}: {} need a byteStride of 2 or 4, not {}", where, mode, stride));
+    }
+    if (mode == "TRIANGLES" && count % 3 != 0) {
+      fail(fmt::format("{}: TRIANGLES need a count that is a multiple of 3, not {}", where, count));
+    }
+    if (!attributes && filter != "NONE") {
+      fail(fmt::format("{}: {} take no filter, not {}", where, mode, filter));
+    }
+    if (filter == "COLOR" && name == "KHR_meshopt_compression") {
+      fail(
+          fmt::format("{} uses the COLOR filter, which afr's meshoptimizer ({}.{}) does not "
+                      "decode",
+                      where, MESHOPTIMIZER_VERSION / 1000, MESHOPTIMIZER_VERSION % 1000 / 10));
+    }
+    const bool filter_fits =
+        filter == "NONE" || (filter == "OCTAHEDRAL" && (stride == 4 || stride == 8)) ||
+        (filter == "QUATERNION" && stride == 8) || (filter == "EXPONENTIAL" && stride % 4 == 0);
+    if (filter != "NONE" && filter != "OCTAHEDRAL" && filter != "QUATERNION" &&
+        filter != "EXPONENTIAL") {
+      fail(fmt::format("{} has filter \"{}\" (NONE, OCTAHEDRAL, QUATERNION or EXPONENTIAL)", where,
+                       filter));
+    }
+    if (!filter_fits) {
+      fail(
+          fmt::format("{}: the {} filter does not take a byteStride of {}", where, filter, stride));
+    }
+    if (count > kMaxAccessorCount) {
+      fail(fmt::format("{} has {} elements, more than afr accepts", where, count));
+    }
+    if (count * stride != bv.byteLength) {
+      fail(
+          fmt::format("{}: count x byteStride is {} x {} = {} bytes, but the buffer view's "
+                      "byteLength is {}",
+                      where, count, stride, count * stride, bv.byteLength));
+    }
+    total += count * stride;
+    if (total > kMaxFileBytes) {
+      fail(
+          fmt::format("{}: the file's compressed buffer views decode to more than {} bytes, "
+                      "more than afr accepts",
+                      where, kMaxFileBytes));
+    }
+
+    std::vector<uint8_t> bytes(count * stride);
+    const unsigned char* in = data.data() + offset;
+    if (attributes && length > 0 && in[0] == 0xa1) {
+      fail(
+          fmt::format("{} uses version 1 of the attribute codec, which afr's meshoptimizer "
+                      "({}.{}) does not decode",
+                      where, MESHOPTIMIZER_VERSION / 1000, MESHOPTIMIZER_VERSION % 1000 / 10));
+    }
+    int result = 0;
+    if (count > 0) {
+      if (attributes) {
+        result = meshopt_decodeVertexBuffer(bytes.data(), count, stride, in, length);
+      } else if (mode == "TRIANGLES") {
+        result = meshopt_decodeIndexBuffer(bytes.data(), count, stride, in, length);
+      } else {
+        result = meshopt_decodeIndexSequence(bytes.data(), count, stride, in, length);
+      }
+    }
+    if (result != 0) {
+      fail(fmt::format("{}: cannot decode its {} data (meshoptimizer error {})", where, mode,
+                       result));
+    }
+    if (filter == "OCTAHEDRAL") {
+      meshopt_decodeFilterOct(bytes.data(), count, stride);
+    } else if (filter == "QUATERNION") {
+      meshopt_decodeFilterQuat(bytes.data(), count, stride);
+    } else if (filter == "EXPONENTIAL") {
+      meshopt_decodeFilterExp(bytes.data(), count, stride);
+    }
+    meshopt_bytes_[int(v)] = std::move(bytes);
+  }
+}
+
 // KHR_draco_mesh_compression: the primitive's indices and the attributes the extension names are
 // decoded from the Draco data in its buffer view (libdraco) into draco_bytes_, as the elements of
 // the accessors they stand for, in those accessors' component types; everything after reads
@@ -2055,6 +2281,7 @@ Scene Loader::load() { return load(read_file()); }
 Scene Loader::load(std::span<const uint8_t> bytes) {
   parse(bytes);
   check_extensions();
+  decode_meshopt();
   scene_.source = path_.string();
   load_materials();  // first: a primitive reads the texture coordinates its material's do
   load_meshes();

@@ -6,6 +6,7 @@
 #include <draco/compression/decode.h>
 #include <draco/compression/encode.h>
 #include <draco/mesh/triangle_soup_mesh_builder.h>
+#include <meshoptimizer.h>
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -59,6 +60,8 @@ class GltfBuilder {
 
   json& doc() { return doc_; }
   std::vector<uint8_t>& bin() { return bin_; }
+  // Buffers written after the one binary buffer (buffer 0), as they are.
+  json& more_buffers() { return more_buffers_; }
 
   // Appends `size` bytes as a new buffer view (4-byte aligned); returns its index.
   int add_view(const void* data, size_t size, size_t stride = 0) {
@@ -99,12 +102,14 @@ class GltfBuilder {
     doc["buffers"] =
         json::array({{{"byteLength", bin_.size()},
                       {"uri", "data:application/octet-stream;base64," + testing::base64(bin_)}}});
+    for (const json& more : more_buffers_) doc["buffers"].push_back(more);
     write_text(path, doc.dump(2));
   }
 
   void write_external(const fs::path& path, const std::string& bin_name) {
     json doc = doc_;
     doc["buffers"] = json::array({{{"byteLength", bin_.size()}, {"uri", bin_name}}});
+    for (const json& more : more_buffers_) doc["buffers"].push_back(more);
     write_text(path, doc.dump(2));
     write_bytes(path.parent_path() / bin_name, bin_.data(), bin_.size());
   }
@@ -112,6 +117,7 @@ class GltfBuilder {
   void write_glb(const fs::path& path) {
     json doc = doc_;
     doc["buffers"] = json::array({{{"byteLength", bin_.size()}}});
+    for (const json& more : more_buffers_) doc["buffers"].push_back(more);
     std::string text = doc.dump();
     while (text.size() % 4 != 0) text += ' ';
     std::vector<uint8_t> bin = bin_;
@@ -135,6 +141,7 @@ class GltfBuilder {
  private:
   json doc_;
   std::vector<uint8_t> bin_;
+  json more_buffers_ = json::array();
 };
 
 // The unit quad in the z = 0 plane, counter-clockwise seen from +z, as mesh 0 on node 0 of
@@ -858,6 +865,197 @@ TEST_F(GltfLoaderTest, DracoCompressedPrimitivesAreDecoded) {
            ["bufferView"] = cut.add_view(half);
   cut.write_embedded(dir_ / "cut.gltf");
   expect_error(dir_ / "cut.gltf", "mesh 0 primitive 0 KHR_draco_mesh_compression: cannot decode");
+}
+
+// EXT_ and KHR_meshopt_compression: buffer views compressed with meshoptimizer's encoders (the
+// three modes, and the three filters afr's meshoptimizer decodes, under vertex data, indices and
+// an animation) read as the data they stand for, whether the placeholder buffer has no uri
+// (.gltf, .glb) or is a fallback whose file is missing (never read). Broken data, what the
+// extension forbids and what afr cannot decode fail naming the buffer view.
+TEST_F(GltfLoaderTest, MeshoptCompressedBufferViewsAreDecoded) {
+  GltfBuilder b;
+  size_t placeholder = 0;  // the bytes of buffer 1, which holds nothing
+  // A buffer view over buffer 1 standing for `count` elements of `stride` bytes, `encoded` in
+  // buffer 0; returns its index.
+  const auto add = [&](const std::vector<uint8_t>& encoded, size_t count, size_t stride,
+                       const char* mode, const char* filter, bool view_stride) {
+    while (b.bin().size() % 4 != 0) b.bin().push_back(0);
+    json ext = {{"buffer", 0},
+                {"byteOffset", b.bin().size()},
+                {"byteLength", encoded.size()},
+                {"byteStride", stride},
+                {"count", count},
+                {"mode", mode}};
+    if (filter != nullptr) ext["filter"] = filter;
+    b.bin().insert(b.bin().end(), encoded.begin(), encoded.end());
+    json view = {{"buffer", 1},
+                 {"byteOffset", placeholder},
+                 {"byteLength", count * stride},
+                 {"extensions", {{"EXT_meshopt_compression", ext}}}};
+    if (view_stride) view["byteStride"] = stride;
+    placeholder += (count * stride + 3) / 4 * 4;
+    b.doc()["bufferViews"].push_back(view);
+    return int(b.doc()["bufferViews"].size()) - 1;
+  };
+  const auto attributes = [](const void* data, size_t count, size_t stride) {
+    std::vector<uint8_t> out(meshopt_encodeVertexBufferBound(count, stride));
+    out.resize(meshopt_encodeVertexBuffer(out.data(), out.size(), data, count, stride));
+    return out;
+  };
+  const std::vector<float> positions = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+  const int p =
+      b.add_accessor(add(attributes(positions.data(), 4, 12), 4, 12, "ATTRIBUTES", nullptr, true),
+                     kFloat, "VEC3", 4);
+  // Normals as normalized bytes (KHR_mesh_quantization), octahedral.
+  const std::vector<glm::vec3> normals = {{0, 0, 1}, {0.6f, 0, 0.8f}, {0, -0.6f, 0.8f}, {0, 0, 1}};
+  std::vector<float> normal_in;
+  for (const glm::vec3& v : normals) normal_in.insert(normal_in.end(), {v.x, v.y, v.z, 0.0f});
+  std::vector<int8_t> octahedral(16);
+  meshopt_encodeFilterOct(octahedral.data(), 4, 4, 8, normal_in.data());
+  const int n = b.add_accessor(
+      add(attributes(octahedral.data(), 4, 4), 4, 4, "ATTRIBUTES", "OCTAHEDRAL", true), kByte,
+      "VEC3", 4, 0, /*normalized=*/true);
+  // Mesh 0's indices as triangles, mesh 1's as a sequence.
+  const std::vector<uint32_t> triangles = {0, 1, 2, 0, 2, 3};
+  std::vector<uint8_t> encoded(meshopt_encodeIndexBufferBound(6, 4));
+  encoded.resize(meshopt_encodeIndexBuffer(encoded.data(), encoded.size(), triangles.data(), 6));
+  const int i0 =
+      b.add_accessor(add(encoded, 6, 2, "TRIANGLES", nullptr, false), kUnsignedShort, "SCALAR", 6);
+  encoded.assign(meshopt_encodeIndexSequenceBound(6, 4), 0);
+  encoded.resize(meshopt_encodeIndexSequence(encoded.data(), encoded.size(), triangles.data(), 6));
+  const int i1 =
+      b.add_accessor(add(encoded, 6, 4, "INDICES", nullptr, false), kUnsignedInt, "SCALAR", 6);
+  // An animation: key times through the exponential filter (24 bits of mantissa: exact), the
+  // rotations as normalized shorts through the quaternion filter.
+  const std::vector<float> times = {0.0f, 0.5f, 1.25f};
+  std::vector<uint32_t> exponential(3);
+  meshopt_encodeFilterExp(exponential.data(), 3, 4, 24, times.data());
+  const int t = b.add_accessor(
+      add(attributes(exponential.data(), 3, 4), 3, 4, "ATTRIBUTES", "EXPONENTIAL", false), kFloat,
+      "SCALAR", 3);
+  const float h = std::sqrt(0.5f);
+  const std::vector<glm::vec4> rotations = {{0, 0, 0, 1}, {0, 0, h, h}, {0, 1, 0, 0}};
+  std::vector<int16_t> quaternion(12);
+  meshopt_encodeFilterQuat(quaternion.data(), 3, 8, 16, &rotations[0].x);
+  const int r = b.add_accessor(
+      add(attributes(quaternion.data(), 3, 8), 3, 8, "ATTRIBUTES", "QUATERNION", false), kShort,
+      "VEC4", 3, 0, /*normalized=*/true);
+
+  b.doc()["meshes"] = json::array(
+      {{{"primitives",
+         json::array({{{"attributes", {{"POSITION", p}, {"NORMAL", n}}}, {"indices", i0}}})}},
+       {{"primitives", json::array({{{"attributes", {{"POSITION", p}}}, {"indices", i1}}})}}});
+  b.doc()["nodes"] = json::array({{{"mesh", 0}}, {{"mesh", 1}}});
+  b.doc()["scenes"] = json::array({{{"nodes", {0, 1}}}});
+  b.doc()["animations"] = json::array(
+      {{{"channels", {{{"sampler", 0}, {"target", {{"node", 1}, {"path", "rotation"}}}}}},
+        {"samplers", {{{"input", t}, {"output", r}}}}}});
+  b.doc()["extensionsUsed"] = {"EXT_meshopt_compression", "KHR_mesh_quantization"};
+  b.doc()["extensionsRequired"] = {"EXT_meshopt_compression", "KHR_mesh_quantization"};
+  b.more_buffers() = json::array({{{"byteLength", placeholder}}});
+  b.write_embedded(dir_ / "meshopt.gltf");
+  b.write_glb(dir_ / "meshopt.glb");
+  GltfBuilder with_fallback = b;
+  with_fallback.more_buffers()[0]["uri"] = "missing.bin";
+  with_fallback.more_buffers()[0]["extensions"]["EXT_meshopt_compression"]["fallback"] = true;
+  with_fallback.write_embedded(dir_ / "fallback.gltf");
+  // The same under the KHR extension's name.
+  const auto as_khr = [&](const fs::path& from, const fs::path& to) {
+    std::ifstream in(from);
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    for (size_t at; (at = text.find("EXT_meshopt_compression")) != std::string::npos;) {
+      text.replace(at, 3, "KHR");
+    }
+    write_text(to, text);
+  };
+  as_khr(dir_ / "meshopt.gltf", dir_ / "khr.gltf");
+
+  // A triangle turned to start at its least index (the codec may turn triangles).
+  const auto canonical = [](const std::vector<uint32_t>& indices) {
+    std::vector<uint32_t> out = indices;
+    for (size_t k = 0; k + 3 <= out.size(); k += 3) {
+      std::rotate(out.begin() + ptrdiff_t(k),
+                  std::min_element(out.begin() + ptrdiff_t(k), out.begin() + ptrdiff_t(k + 3)),
+                  out.begin() + ptrdiff_t(k + 3));
+    }
+    return out;
+  };
+  for (const char* file : {"meshopt.gltf", "meshopt.glb", "fallback.gltf", "khr.gltf"}) {
+    SCOPED_TRACE(file);
+    GltfLoadReport report;
+    const Scene scene = load_gltf(dir_ / file, &report);
+    EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+    ASSERT_EQ(scene.meshes.size(), 2u);
+    const Primitive& a = scene.meshes[0].primitives.at(0);
+    ASSERT_EQ(a.positions.size(), 4u);
+    for (size_t v = 0; v < 4; ++v) {
+      EXPECT_EQ(a.positions[v],
+                glm::vec3(positions[3 * v], positions[3 * v + 1], positions[3 * v + 2]))
+          << "vertex " << v;
+      ASSERT_EQ(a.normals.size(), 4u);
+      for (int c = 0; c < 3; ++c) EXPECT_NEAR(a.normals[v][c], normals[v][c], 0.02) << v;
+    }
+    EXPECT_EQ(canonical(a.indices), triangles);
+    EXPECT_EQ(scene.meshes[1].primitives.at(0).indices, triangles);  // a sequence keeps its order
+    ASSERT_EQ(scene.channels.size(), 1u);
+    EXPECT_EQ(scene.channels[0].times, (std::vector<double>{0.0, 0.5, 1.25}));
+    ASSERT_EQ(scene.channels[0].values.size(), 3u);
+    for (size_t k = 0; k < 3; ++k) {
+      for (int c = 0; c < 4; ++c) {
+        EXPECT_NEAR(scene.channels[0].values[k][c], rotations[k][c], 1e-4) << "key " << k;
+      }
+    }
+  }
+
+  // What fails, each naming the buffer view.
+  const auto broken = [&](const char* name, const std::function<void(GltfBuilder*)>& change,
+                          const std::string& problem, bool khr = false) {
+    SCOPED_TRACE(name);
+    GltfBuilder c = b;
+    change(&c);
+    const fs::path path = dir_ / (std::string(name) + ".gltf");
+    c.write_embedded(path);
+    if (khr) as_khr(path, path);
+    expect_error(path, problem);
+  };
+  const auto ext = [](GltfBuilder* c, int view) -> json& {
+    return c->doc()["bufferViews"][size_t(view)]["extensions"]["EXT_meshopt_compression"];
+  };
+  broken(
+      "cut", [&](GltfBuilder* c) { ext(c, 0)["byteLength"] = 10; },
+      "buffer view 0 EXT_meshopt_compression: cannot decode its ATTRIBUTES data");
+  broken(
+      "length", [&](GltfBuilder* c) { c->doc()["bufferViews"][0]["byteLength"] = 40; },
+      "buffer view 0 EXT_meshopt_compression: count x byteStride is 4 x 12 = 48 bytes, but the "
+      "buffer view's byteLength is 40");
+  broken(
+      "filter", [&](GltfBuilder* c) { ext(c, 0)["filter"] = "QUATERNION"; },
+      "buffer view 0 EXT_meshopt_compression: the QUATERNION filter does not take a byteStride "
+      "of 12");
+  broken(
+      "mode", [&](GltfBuilder* c) { ext(c, 2)["mode"] = "STRIPS"; },
+      "buffer view 2 EXT_meshopt_compression has mode \"STRIPS\"");
+  broken(
+      "source", [&](GltfBuilder* c) { ext(c, 0)["buffer"] = 1; },
+      "buffer view 0 EXT_meshopt_compression reads its compressed data from buffer 1, which "
+      "holds no data");
+  broken(
+      "plain",
+      [&](GltfBuilder* c) {
+        c->doc()["bufferViews"][0].erase("extensions");
+        c->doc()["bufferViews"][0].erase("byteStride");
+      },
+      "buffer view 0 (accessor 0 (mesh 0 primitive 0 POSITION)) is not compressed but reads "
+      "buffer 1, which holds no data");
+  broken(
+      "version1", [&](GltfBuilder* c) { c->bin()[ext(c, 0)["byteOffset"].get<size_t>()] = 0xa1; },
+      "buffer view 0 KHR_meshopt_compression uses version 1 of the attribute codec, which afr's "
+      "meshoptimizer",
+      /*khr=*/true);
+  broken(
+      "color", [&](GltfBuilder* c) { ext(c, 1)["filter"] = "COLOR"; },
+      "buffer view 1 KHR_meshopt_compression uses the COLOR filter, which afr's meshoptimizer",
+      /*khr=*/true);
 }
 
 // KHR_materials_specular: its factors are read (defaults 1), also where a file requires it; its
