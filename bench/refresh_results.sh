@@ -48,6 +48,9 @@ add tracer tracer.md "Tracer throughput" \
 add tracer-deforming tracer-deforming.md "Tracer and sampler on deforming meshes" \
   "A skinned and morphed sheet of 64 x 64 and 256 x 256 vertices: what Tracer::set_time costs (deformation, velocities, refit), the tracer's samples/s, and a one-thread sampler's samples/s animated and frozen in its pose (docs/benchmarks.md, \"Deforming meshes\")." \
   'for n in 64 256; do "$BUILD"/bench/afr-bench-tracer --no-builtin --deforming $n --times 0,1,2,3 || exit 1; echo; done'
+add tracer-forest tracer-forest.md "Shared static meshes: copies or instances" \
+  "A forest of 16 to 4096 copies of one 2,145-vertex mesh, held by the tracer as world-space copies and as instances of the mesh's one BVH: build time, vertices copied, set_time and random-ray samples/s on one thread (TracerOptions::max_copied_vertices; docs/benchmarks.md, \"Tracer\")." \
+  '"$BUILD"/bench/afr-bench-tracer --no-builtin --forest 16 --forest 64 --forest 256 --forest 4096 --samples 100000 --repeats 5'
 add ideal-render ideal-render.md "Ideal renderer" \
   "Wall time and rays per second of the ideal renderer for one 256x256 frame of the kitchen at 16 spp (docs/benchmarks.md, \"Ideal renderer\")." \
   'need_kitchen && "$BUILD"/bench/afr-render out/kitchen/kitchen.gltf --time 6 --size 256x256 --spp 16 -o out/kitchen_t6.png'

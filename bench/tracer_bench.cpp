@@ -3,9 +3,11 @@
 // single rays at random image positions and for crosshairs cast as five single rays or as one
 // 8-wide packet, on 1 and 2 threads, at several animation times. Prints a Markdown table of
 // medians over repeats, and for the deforming sheet what set_time costs and the samples/s of a
-// sampler on it, with its scene time moving at every animation step and almost never.
+// sampler on it, with its scene time moving at every animation step and almost never; with
+// --forest, a forest of copies of one mesh held as world-space copies and as instances.
 //   afr-bench-tracer --scene ../shared/scenes/bart-kitchen/kitchen.gltf --times 0,5,10
 //   afr-bench-tracer --no-builtin --deforming 256
+//   afr-bench-tracer --no-builtin --forest 16 --forest 256 --forest 4096
 #include <afr/common/builtin_scene.h>
 #include <afr/common/cli.h>
 #include <afr/common/error.h>
@@ -25,7 +27,9 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <string>
 #include <thread>
@@ -303,6 +307,85 @@ SamplerRun run_sampler(const afr::Scene& scene, int width, int height, double an
   return {double(s1 - s0) / dt, double(n1 - n0) / dt};
 }
 
+// A forest: `copies` copies of one tree (a sphere of 33 x 65 = 2,145 vertices) on a square grid
+// over a floor, each turned and stretched its own way, as EXT_mesh_gpu_instancing places them;
+// a camera looking over them and the sun. Static: what differs is only how the tracer holds
+// the copies (TracerOptions::max_copied_vertices).
+afr::Scene make_forest(int copies) {
+  afr::Scene s;
+  s.source = fmt::format("forest of {}", copies);
+  afr::Material leaves, ground;
+  leaves.base_color_factor = glm::vec4(0.2f, 0.6f, 0.25f, 1.0f);
+  leaves.roughness = 0.8f;
+  ground.base_color_factor = glm::vec4(0.5f, 0.45f, 0.4f, 1.0f);
+  s.materials = {leaves, ground};
+  afr::Primitive tree;
+  constexpr int kRings = 32, kSegments = 64;
+  for (int i = 0; i <= kRings; ++i) {
+    const double theta = M_PI * i / kRings;
+    for (int j = 0; j <= kSegments; ++j) {
+      const double phi = 2.0 * M_PI * j / kSegments;
+      const glm::vec3 n(float(std::sin(theta) * std::cos(phi)), float(std::cos(theta)),
+                        float(std::sin(theta) * std::sin(phi)));
+      tree.positions.push_back(0.5f * n + glm::vec3(0.0f, 0.5f, 0.0f));
+      tree.normals.push_back(n);
+    }
+  }
+  for (int i = 0; i < kRings; ++i) {
+    for (int j = 0; j < kSegments; ++j) {
+      const uint32_t a = uint32_t(i * (kSegments + 1) + j), b = a + 1;
+      const uint32_t c = a + uint32_t(kSegments + 1), d = c + 1;
+      tree.indices.insert(tree.indices.end(), {a, b, c, b, d, c});
+    }
+  }
+  tree.material = 0;
+  const int side = std::max(1, int(std::ceil(std::sqrt(double(copies)))));
+  const float extent = 1.2f * float(side);
+  afr::Primitive floor;
+  floor.positions = {
+      {-extent, 0, -extent}, {extent, 0, -extent}, {extent, 0, extent}, {-extent, 0, extent}};
+  floor.normals.assign(4, glm::vec3(0, 1, 0));
+  floor.indices = {0, 2, 1, 0, 3, 2};
+  floor.material = 1;
+  s.meshes.resize(2);
+  s.meshes[0].primitives.push_back(std::move(tree));
+  s.meshes[1].primitives.push_back(std::move(floor));
+  afr::Node ground_node;
+  ground_node.mesh = 1;
+  s.nodes.push_back(ground_node);
+  s.roots.push_back(0);
+  afr::Pcg32 random(7);
+  for (int k = 0; k < copies; ++k) {
+    afr::Node copy;
+    copy.mesh = 0;
+    copy.translation = {2.4 * (k % side) - extent + 1.2, 0.0, 2.4 * (k / side) - extent + 1.2};
+    copy.rotation = glm::angleAxis(2.0 * M_PI * random.next_double(), glm::dvec3(0, 1, 0));
+    copy.scale = glm::dvec3(1.0 + random.next_double(), 1.0 + 2.0 * random.next_double(), 1.0);
+    s.roots.push_back(int(s.nodes.size()));
+    s.nodes.push_back(copy);
+  }
+  afr::Node eye;
+  eye.camera = 0;
+  eye.translation = {0.0, 0.3 * extent + 2.0, extent + 2.0};
+  eye.rotation = glm::quatLookAt(glm::normalize(-eye.translation), glm::dvec3(0.0, 1.0, 0.0));
+  s.cameras.push_back(afr::CameraModel{"eye", 0.8, 0.01});
+  s.roots.push_back(int(s.nodes.size()));
+  s.nodes.push_back(eye);
+  afr::Light sun;
+  sun.type = afr::Light::Type::kDirectional;
+  sun.intensity = 3.0f;
+  s.lights.push_back(sun);
+  afr::Node sun_node;
+  sun_node.light = 0;
+  sun_node.rotation =
+      glm::quatLookAt(glm::normalize(glm::dvec3(0.3, -1.0, -0.4)), glm::dvec3(0.0, 1.0, 0.0));
+  s.roots.push_back(int(s.nodes.size()));
+  s.nodes.push_back(sun_node);
+  s.ambient = glm::vec3(0.1f);
+  s.finalize();
+  return s;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -310,6 +393,7 @@ int main(int argc, char** argv) {
   std::string scene_path, size_text = "640x480", times_text = "0,2.5,5,7.5", log_level = "warn";
   uint64_t samples = 200000, seed = 1;
   int repeats = 5, max_threads = 2, deforming = 0, embree_threads = 0;
+  std::vector<int> forests;
   double sampler_seconds = 2.0;
   bool skip_builtin = false;
   app.add_option("--scene", scene_path, "a glTF scene (e.g. the converted BART kitchen)")
@@ -320,6 +404,10 @@ int main(int argc, char** argv) {
                  "sampler on it; 0 = not")
       ->capture_default_str()
       ->check(CLI::Range(0, 4096));
+  app.add_option("--forest", forests,
+                 "also compare a forest of N copies of one 2,145-vertex mesh copied into world "
+                 "space and instanced (TracerOptions::max_copied_vertices), for each N given")
+      ->check(CLI::Range(1, 1 << 20));
   app.add_option("--sampler-seconds", sampler_seconds,
                  "wall seconds of each sampler run on the deforming sheet")
       ->capture_default_str()
@@ -363,7 +451,9 @@ int main(int argc, char** argv) {
         "## afr-bench-tracer\n\n{}x{} image, {} samples per run, median of {} runs, "
         "{} hardware threads\n\n",
         size.width, size.height, samples, repeats, std::thread::hardware_concurrency());
-    fmt::print("| scene | triangles | build (ms) | set_time (ms) |\n|---|---:|---:|---:|\n");
+    if (!scenes.empty()) {
+      fmt::print("| scene | triangles | build (ms) | set_time (ms) |\n|---|---:|---:|---:|\n");
+    }
     std::vector<std::array<std::unique_ptr<afr::Tracer>, 2>> tracers;
     for (const afr::Scene& scene : scenes) {
       afr::TracerOptions single, packet;
@@ -446,6 +536,45 @@ int main(int argc, char** argv) {
         fmt::print("| {} | {} | {} | {} | {:.3f} |\n", threads, cell(0), cell(1), cell(2),
                    cpu_sum[packet_c] / std::max(cpu_sum[single_c], 1e-9));
       }
+    }
+    for (const int copies : forests) {
+      const afr::Scene forest = make_forest(copies);
+      fmt::print(
+          "\n## Forest of {} copies of one mesh (2,145 vertices each)\n\nrandom rays, 1 "
+          "thread, median of {} runs, interleaved\n\n| held as | build (ms) | vertices copied "
+          "| set_time (ms) | samples/s |\n|---|---:|---:|---:|---:|\n",
+          copies, repeats);
+      std::array<std::unique_ptr<afr::Tracer>, 2> tracer;
+      std::array<double, 2> build_ms{};
+      for (int k : {0, 1}) {
+        afr::TracerOptions options;
+        options.embree_threads = embree_threads;
+        options.max_copied_vertices = k == 0 ? std::numeric_limits<size_t>::max() : 0;
+        const auto t0 = Clock::now();
+        tracer[size_t(k)] = std::make_unique<afr::Tracer>(forest, options);
+        build_ms[size_t(k)] = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+      }
+      std::array<double, 2> set_ms{};
+      for (size_t k = 0; k < 2; ++k) {
+        const int kSetTimes = 20;
+        const auto t0 = Clock::now();
+        for (int i = 0; i < kSetTimes; ++i) tracer[k]->set_time(0.01 * i);
+        set_ms[k] =
+            std::chrono::duration<double, std::milli>(Clock::now() - t0).count() / kSetTimes;
+      }
+      std::array<std::vector<double>, 2> rates;
+      for (int r = 0; r < repeats; ++r) {
+        for (size_t k = 0; k < 2; ++k) {
+          rates[k].push_back(run_once(*tracer[k], Mode::kRandomRays, 1, size.width, size.height,
+                                      samples, seed + uint64_t(r))
+                                 .samples_per_s);
+        }
+      }
+      for (size_t k = 0; k < 2; ++k) {
+        fmt::print("| {} | {:.0f} | {} | {:.3f} | {} |\n", k == 0 ? "copies" : "instances",
+                   build_ms[k], tracer[k]->copied_vertices(), set_ms[k], si(median(rates[k])));
+      }
+      std::fflush(stdout);
     }
     if (deforming > 0) {
       // The sampler on the animated sheet, moving to a new scene time at every animation step

@@ -44,17 +44,21 @@ constexpr size_t kMaxAccessorCountWithoutView = size_t(1) << 22;
 // Morph target displacements (positions, normals, tangents) in one file: targets may share one
 // accessor, so the accessor limits alone do not bound their memory.
 constexpr size_t kMaxMorphDisplacements = size_t(1) << 24;
+// Nodes, counting one for each instance EXT_mesh_gpu_instancing adds (each costs a few hundred
+// bytes in the scene and a world transform in every scene state).
+constexpr size_t kMaxNodes = size_t(1) << 20;
 
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 12> kSupportedExtensions = {
-    "KHR_materials_specular",          "EXT_texture_webp",
-    "EXT_meshopt_compression",         "KHR_meshopt_compression",
-    "KHR_draco_mesh_compression",      "KHR_lights_punctual",
-    "KHR_materials_emissive_strength", "KHR_materials_ior",
-    "KHR_materials_transmission",      "KHR_materials_unlit",
-    "KHR_mesh_quantization",           "KHR_texture_transform"};
+constexpr std::array<std::string_view, 13> kSupportedExtensions = {
+    "KHR_materials_specular",  "EXT_texture_webp",
+    "EXT_meshopt_compression", "KHR_meshopt_compression",
+    "EXT_mesh_gpu_instancing", "KHR_draco_mesh_compression",
+    "KHR_lights_punctual",     "KHR_materials_emissive_strength",
+    "KHR_materials_ior",       "KHR_materials_transmission",
+    "KHR_materials_unlit",     "KHR_mesh_quantization",
+    "KHR_texture_transform"};
 
 // The default lighting of a scene without lights (what glTF viewers do): a directional
 // headlight that moves with the scene's camera and a uniform sky term. The headlight comes from
@@ -250,6 +254,7 @@ class Loader {
   void load_cameras();
   void load_lights();
   void load_nodes();
+  void instance_node(int index);
   void load_animations();
   void load_scene_roots();
 
@@ -287,6 +292,8 @@ class Loader {
   // compressed (prepare_json), and each compressed buffer view's decoded bytes (decode_meshopt),
   // which buffer_view_bytes gives in place of its buffer's.
   std::set<int> placeholder_buffers_;
+  // Nodes whose mesh EXT_mesh_gpu_instancing moved to one child node per instance.
+  std::set<int> instanced_nodes_;
   std::map<int, std::vector<uint8_t>> meshopt_bytes_;
 };
 
@@ -2073,6 +2080,85 @@ void Loader::load_nodes() {
   for (size_t i = 0; i < count; ++i) {
     if (!reached[i]) fail(fmt::format("node {} is part of a cycle in the node graph", i));
   }
+  for (size_t i = 0; i < count; ++i) instance_node(int(i));
+}
+
+// EXT_mesh_gpu_instancing: a node's mesh drawn once for each element of its instance attributes
+// (TRANSLATION, ROTATION, SCALE, any of them; all of one count), each instance's transform
+// applied before the node's own. Each instance becomes a child node carrying the mesh (added
+// after the file's nodes, so that no index changes) and the node keeps none; the tracer then
+// instances the copies of a mesh that would take much memory (TracerOptions::
+// max_copied_vertices) rather than copying them.
+void Loader::instance_node(int index) {
+  const tinygltf::Node& in = model_.nodes[size_t(index)];
+  const auto ext = in.extensions.find("EXT_mesh_gpu_instancing");
+  if (ext == in.extensions.end()) return;
+  const std::string what = fmt::format("node {} EXT_mesh_gpu_instancing", index);
+  const tinygltf::Value& e = ext->second;
+  if (!e.IsObject() || !e.Get("attributes").IsObject()) fail(what + " has no \"attributes\"");
+  if (scene_.nodes[size_t(index)].mesh < 0) fail(what + ": the node has no mesh");
+  if (scene_.nodes[size_t(index)].skin >= 0) {
+    warn_once("instanced skin",
+              "EXT_mesh_gpu_instancing on a node with a skin is not supported (the mesh is drawn "
+              "once)");
+    return;
+  }
+  const tinygltf::Value& attributes = e.Get("attributes");
+  // Attribute `name` of `type`, as floats, or empty where the extension does not give it.
+  std::optional<size_t> count;
+  const auto read = [&](const char* name, int type) -> std::vector<float> {
+    if (!attributes.Has(name)) return {};
+    const tinygltf::Value& v = attributes.Get(name);
+    if (!v.IsInt()) fail(fmt::format("{} attribute {} is not an accessor index", what, name));
+    const std::string part = fmt::format("{} {}", what, name);
+    std::vector<float> values = read_floats(v.GetNumberAsInt(), type, part);
+    const size_t n = values.size() / (type == TINYGLTF_TYPE_VEC4 ? 4 : 3);
+    if (count && *count != n) {
+      fail(fmt::format("{} has {} instances in {} but {} in another attribute", what, n, name,
+                       *count));
+    }
+    count = n;
+    return values;
+  };
+  for (const std::string& name : attributes.Keys()) {
+    if (name != "TRANSLATION" && name != "ROTATION" && name != "SCALE") {
+      warn_once("instance attribute " + name,
+                fmt::format("EXT_mesh_gpu_instancing attribute {} is not read", name));
+    }
+  }
+  const std::vector<float> t = read("TRANSLATION", TINYGLTF_TYPE_VEC3);
+  const std::vector<float> r = read("ROTATION", TINYGLTF_TYPE_VEC4);
+  const std::vector<float> s = read("SCALE", TINYGLTF_TYPE_VEC3);
+  if (!count) fail(what + " has none of TRANSLATION, ROTATION and SCALE");
+  instanced_nodes_.insert(index);
+  if (scene_.nodes.size() + *count > kMaxNodes) {
+    fail(fmt::format("{} makes {} nodes, more than afr accepts ({})", what,
+                     scene_.nodes.size() + *count, kMaxNodes));
+  }
+  Node copy;
+  copy.parent = index;
+  {
+    Node& node = scene_.nodes[size_t(index)];
+    copy.mesh = node.mesh;
+    copy.weights = node.weights;
+    node.mesh = -1;
+    node.weights.clear();
+  }
+  const std::string name = scene_.nodes[size_t(index)].name;
+  scene_.nodes.reserve(scene_.nodes.size() + *count);
+  for (size_t k = 0; k < *count; ++k) {
+    copy.name = fmt::format("{} instance {}", name, k);
+    if (!t.empty()) copy.translation = {t[3 * k], t[3 * k + 1], t[3 * k + 2]};
+    if (!r.empty()) {
+      const glm::dquat q(r[4 * k + 3], r[4 * k], r[4 * k + 1], r[4 * k + 2]);
+      const double length = glm::length(q);
+      if (!(length > 1e-12)) fail(fmt::format("{} instance {} has a zero rotation", what, k));
+      copy.rotation = q / length;
+    }
+    if (!s.empty()) copy.scale = {s[3 * k], s[3 * k + 1], s[3 * k + 2]};
+    scene_.nodes[size_t(index)].children.push_back(int(scene_.nodes.size()));
+    scene_.nodes.push_back(copy);
+  }
 }
 
 // ---- Skins ----
@@ -2167,6 +2253,12 @@ void Loader::load_animations() {
       } else {
         warn_once("path " + in.target_path,
                   fmt::format("animations of \"{}\" are not supported (skipped)", in.target_path));
+        continue;
+      }
+      if (channel.path == AnimatedPath::kWeights && instanced_nodes_.count(in.target_node) != 0) {
+        warn_once("instanced weights",
+                  "animated morph weights of a node with EXT_mesh_gpu_instancing are not "
+                  "supported (its instances keep the node's weights)");
         continue;
       }
       if (channel.path != AnimatedPath::kWeights && scene_.nodes[size_t(in.target_node)].matrix) {

@@ -112,6 +112,10 @@ struct Instance {
   int blas = 0;
   int node = -1;  // -1 for the static and the deforming instance
   bool moves = false;
+  // Carries a world transform (world, normal_matrix, area_scale below): a moving instance, or a
+  // static copy of a shared mesh (TracerOptions::max_copied_vertices), whose transform is set
+  // once.
+  bool transformed = false;
   bool enabled = true;
   glm::mat3 normal_matrix{1.0f};  // inverse transpose of the world transform's linear part
   float area_scale = 1.0f;   // |det| of that linear part: world area = it x |normal_matrix x n|
@@ -618,7 +622,8 @@ RTCGeometry Tracer::Impl::new_triangle_geometry(uint32_t material, const Primiti
 
 // ---------------------------------------------------------------------------------------------
 // Building: one BLAS of all static geometry in world space, one BLAS per mesh that a moving
-// node carries, and a top level of instances.
+// node carries or that static nodes share beyond TracerOptions::max_copied_vertices, and a top
+// level of instances.
 
 void Tracer::Impl::build() {
   const uint32_t default_material = uint32_t(scene_.materials.size());
@@ -643,6 +648,26 @@ void Tracer::Impl::build() {
   std::vector<int> mesh_blas(scene_.meshes.size(), -1);
   std::vector<int> moving_nodes;
   std::vector<int> deforming_nodes;
+  std::vector<int> shared_static_nodes;  // static copies of a mesh instanced, not copied
+  // The static, undeformed nodes that carry each mesh: a mesh whose copies beyond the first
+  // would hold more than max_copied_vertices is instanced.
+  std::vector<size_t> static_copies(scene_.meshes.size(), 0);
+  for (int n : scene_.scene_nodes()) {
+    const Node& node = scene_.nodes[size_t(n)];
+    if (node.mesh >= 0 && !scene_.node_deforms(n) && !scene_.node_moves(n)) {
+      ++static_copies[size_t(node.mesh)];
+    }
+  }
+  const auto shared = [&](int mesh) {
+    size_t vertices = 0;
+    for (const Primitive& p : scene_.meshes[size_t(mesh)].primitives) {
+      vertices += p.positions.size();
+    }
+    const size_t copies = static_copies[size_t(mesh)];
+    return copies > 1 && (copies - 1) * vertices > options_.max_copied_vertices;
+  };
+  std::vector<char> mesh_shared(scene_.meshes.size(), 0);
+  for (size_t m = 0; m < scene_.meshes.size(); ++m) mesh_shared[m] = shared(int(m)) ? 1 : 0;
   for (int n : scene_.scene_nodes()) {
     const Node& node = scene_.nodes[size_t(n)];
     if (node.light >= 0 && size_t(node.light) < scene_.lights.size()) light_nodes_.push_back(n);
@@ -654,6 +679,10 @@ void Tracer::Impl::build() {
     }
     if (!deformed && scene_.node_moves(n)) {
       moving_nodes.push_back(n);
+      continue;
+    }
+    if (!deformed && mesh_shared[size_t(node.mesh)]) {
+      shared_static_nodes.push_back(n);
       continue;
     }
     // Static: a deformed mesh that does not move is deformed once, here.
@@ -719,39 +748,62 @@ void Tracer::Impl::build() {
     rtcReleaseScene(statics.scene);
   }
 
-  // One BLAS per mesh of a moving node, in the mesh's own space.
+  // One BLAS per mesh of a moving node or of shared static copies, in the mesh's own space;
+  // false where the mesh has no triangles.
+  const auto mesh_bvh = [&](int mesh) {
+    if (mesh_blas[size_t(mesh)] >= 0) return true;
+    Blas b;
+    b.scene = rtcNewScene(device_);
+    for (const Primitive& p : scene_.meshes[size_t(mesh)].primitives) {
+      if (!usable(p)) continue;
+      RTCGeometry g =
+          new_triangle_geometry(material_of(p), p, p.positions.data(), p.positions.size(),
+                                p.indices.data(), p.triangle_count());
+      rtcAttachGeometryByID(b.scene, g, unsigned(b.geoms.size()));
+      rtcReleaseGeometry(g);
+      GeomRecord r = record_of(p, material_of(p));
+      r.positions = p.positions.data();
+      r.normals = p.normals.size() == p.positions.size() ? p.normals.data() : nullptr;
+      r.tangents = p.tangents.size() == p.positions.size() ? p.tangents.data() : nullptr;
+      b.geoms.push_back(r);
+    }
+    if (b.geoms.empty()) {
+      rtcReleaseScene(b.scene);
+      return false;
+    }
+    rtcSetSceneBuildQuality(b.scene, RTC_BUILD_QUALITY_HIGH);
+    rtcCommitScene(b.scene);
+    check_device("building a mesh BVH");
+    mesh_blas[size_t(mesh)] = int(blas_.size());
+    blas_.push_back(std::move(b));
+    return true;
+  };
   for (int n : moving_nodes) {
     const int mesh = scene_.nodes[size_t(n)].mesh;
-    if (mesh_blas[size_t(mesh)] < 0) {
-      Blas b;
-      b.scene = rtcNewScene(device_);
-      for (const Primitive& p : scene_.meshes[size_t(mesh)].primitives) {
-        if (!usable(p)) continue;
-        RTCGeometry g =
-            new_triangle_geometry(material_of(p), p, p.positions.data(), p.positions.size(),
-                                  p.indices.data(), p.triangle_count());
-        rtcAttachGeometryByID(b.scene, g, unsigned(b.geoms.size()));
-        rtcReleaseGeometry(g);
-        GeomRecord r = record_of(p, material_of(p));
-        r.positions = p.positions.data();
-        r.normals = p.normals.size() == p.positions.size() ? p.normals.data() : nullptr;
-        r.tangents = p.tangents.size() == p.positions.size() ? p.tangents.data() : nullptr;
-        b.geoms.push_back(r);
-      }
-      if (b.geoms.empty()) {
-        rtcReleaseScene(b.scene);
-        continue;
-      }
-      rtcSetSceneBuildQuality(b.scene, RTC_BUILD_QUALITY_HIGH);
-      rtcCommitScene(b.scene);
-      check_device("building a mesh BVH");
-      mesh_blas[size_t(mesh)] = int(blas_.size());
-      blas_.push_back(std::move(b));
-    }
+    if (!mesh_bvh(mesh)) continue;
     Instance inst;
     inst.blas = mesh_blas[size_t(mesh)];
     inst.node = n;
     inst.moves = true;
+    inst.transformed = true;
+    instances_.push_back(inst);
+  }
+  for (int n : shared_static_nodes) {
+    const int mesh = scene_.nodes[size_t(n)].mesh;
+    const glm::dmat4& world = at0.world[size_t(n)];
+    const glm::dmat3 linear(world);
+    const double det = glm::determinant(linear);
+    // A singular transform (a scale of 0 hides an object) has no inverse for the ray: as a
+    // moving instance's, the copy is left out.
+    if (!(std::isfinite(det) && std::abs(det) > 1e-30) || !mesh_bvh(mesh)) continue;
+    Instance inst;
+    inst.blas = mesh_blas[size_t(mesh)];
+    inst.node = n;
+    inst.transformed = true;
+    inst.world = world;
+    inst.inverse_world = glm::inverse(world);
+    inst.normal_matrix = glm::mat3(glm::transpose(glm::inverse(linear)));
+    inst.area_scale = float(std::abs(det));
     instances_.push_back(inst);
   }
   build_deforming(deforming_nodes, default_material);
@@ -767,8 +819,11 @@ void Tracer::Impl::build() {
     if (inst.moves && inst.node >= 0) moving_instance_of_node_[size_t(inst.node)] = int(i);
     inst.geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
     rtcSetGeometryInstancedScene(inst.geom, blas_[size_t(inst.blas)].scene);
-    float identity[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
-    rtcSetGeometryTransform(inst.geom, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, identity);
+    // A moving instance's transform is set at each time (set_time); a shared static copy's
+    // here; the static and the deforming instance are in world space already.
+    float xfm[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
+    if (inst.transformed && !inst.moves) to_float3x4(inst.world, xfm);
+    rtcSetGeometryTransform(inst.geom, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm);
     rtcCommitGeometry(inst.geom);
     rtcAttachGeometryByID(top_, inst.geom, unsigned(i));
   }
@@ -1011,7 +1066,7 @@ static glm::vec3 mapped_normal(const GeomRecord& g, const Instance& inst, const 
     t = bary.x * glm::vec3(t0) + bary.y * glm::vec3(g.tangents[tri[1]]) +
         bary.z * glm::vec3(g.tangents[tri[2]]);
     float sign = t0.w * (turned ? -1.0f : 1.0f);
-    if (inst.moves) {
+    if (inst.transformed) {
       const glm::mat3 linear(inst.world);
       t = linear * t;
       if (glm::determinant(linear) < 0.0f) sign = -sign;
@@ -1030,7 +1085,7 @@ static glm::vec3 mapped_normal(const GeomRecord& g, const Instance& inst, const 
     if (!(std::abs(det) > 1e-20f)) return n;
     t = (e1 * d2.y - e2 * d1.y) / det;            // dp/du
     glm::vec3 b = (e2 * d1.x - e1 * d2.x) / det;  // dp/dv
-    if (inst.moves) {
+    if (inst.transformed) {
       const glm::mat3 linear(inst.world);
       t = linear * t;
       b = linear * b;
@@ -1062,7 +1117,7 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   s->geom = &g;
   s->triangle = tri;
   s->barycentric = glm::vec3(w, hit.u, hit.v);
-  s->node = inst.moves ? inst.node : g.node;
+  s->node = inst.transformed ? inst.node : g.node;
   const ShadeMaterial& m = materials_[g.material];
   s->material = &m;
   s->opacity = m.blended ? opacity_at(m, g.uvs.base_color, g.color_alpha, tri, hit.u, hit.v) : 1.0f;
@@ -1072,14 +1127,14 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   if (g.flip_winding) ng = -ng;
   glm::vec3 ns(0.0f);
   if (g.normals) ns = w * g.normals[tri[0]] + hit.u * g.normals[tri[1]] + hit.v * g.normals[tri[2]];
-  if (inst.moves) {
+  if (inst.transformed) {
     ng = inst.normal_matrix * ng;
     ns = inst.normal_matrix * ns;
   }
   // Degenerate triangles and zero or broken vertex normals fall back to whatever is valid.
   const float ng_len2 = glm::dot(ng, ng);
   const float ns_len2 = glm::dot(ns, ns);
-  const float world_area2 = std::sqrt(ng_len2) * (inst.moves ? inst.area_scale : 1.0f);
+  const float world_area2 = std::sqrt(ng_len2) * (inst.transformed ? inst.area_scale : 1.0f);
   const bool ng_ok = ng_len2 > 1e-30f && std::isfinite(ng_len2);
   const bool ns_ok = ns_len2 > 1e-20f && std::isfinite(ns_len2);
   if (ns_ok) ns *= 1.0f / std::sqrt(ns_len2);
@@ -1351,7 +1406,7 @@ glm::vec3 Tracer::Impl::glass(const glm::vec3& d, const Surface& s, const glm::v
   const glm::vec3& p0 = s.geom->positions[tri[0]];
   glm::vec3 face = glm::cross(s.geom->positions[tri[1]] - p0, s.geom->positions[tri[2]] - p0);
   if (s.geom->flip_winding) face = -face;
-  if (s.instance->moves) face = s.instance->normal_matrix * face;
+  if (s.instance->transformed) face = s.instance->normal_matrix * face;
   const bool entering = !(glm::dot(face, d) > 0.0f);
 
   // Normals on the side the ray arrives from (a single-sided back face keeps its own).
@@ -1487,6 +1542,12 @@ void Tracer::set_view(const Camera& view) { impl_->place_camera_lights(view); }
 double Tracer::time() const { return impl_->state_.time; }
 const Camera& Tracer::camera() const { return impl_->camera_; }
 const TracerOptions& Tracer::options() const { return impl_->options_; }
+
+size_t Tracer::copied_vertices() const {
+  size_t n = 0;
+  for (const std::vector<glm::vec3>& p : impl_->static_positions_) n += p.size();
+  return n;
+}
 
 bool Tracer::rigid_transform(uint32_t node, glm::dmat4* world, glm::dmat4* inverse) const {
   const Impl& m = *impl_;

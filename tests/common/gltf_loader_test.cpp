@@ -1058,6 +1058,59 @@ TEST_F(GltfLoaderTest, MeshoptCompressedBufferViewsAreDecoded) {
       /*khr=*/true);
 }
 
+// EXT_mesh_gpu_instancing: a node's mesh is drawn once per instance, each instance's TRS (its
+// rotation here as normalized shorts) applied before the node's own: instance k becomes node
+// (the file's node count + k), a child of the node carrying its mesh, and the node keeps none.
+// Attributes of different counts, or a node without a mesh, fail naming the node.
+TEST_F(GltfLoaderTest, GpuInstancingDrawsTheMeshOncePerInstance) {
+  GltfBuilder b;
+  add_quad(&b);
+  const int t = b.add_floats({0, 0, 0, 5, 0, 0, 0, 5, 0}, 3);
+  const std::vector<int16_t> r = {0, 0, 0, 32767, 0, 0, 32767, 0, 0, 0, 0, 32767};
+  const int rot = b.add_accessor(b.add_view(r), kShort, "VEC4", 3, 0, /*normalized=*/true);
+  const int scale = b.add_floats({1, 1, 1, 2, 2, 2, 1, 1, 1}, 3);
+  b.doc()["nodes"][0]["translation"] = {0, 0, -10};
+  b.doc()["nodes"][0]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"] = {
+      {"TRANSLATION", t}, {"ROTATION", rot}, {"SCALE", scale}};
+  b.doc()["extensionsUsed"] = {"EXT_mesh_gpu_instancing"};
+  b.doc()["extensionsRequired"] = {"EXT_mesh_gpu_instancing"};
+  b.write_glb(dir_ / "instanced.glb");
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir_ / "instanced.glb", &report);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+  ASSERT_EQ(scene.nodes.size(), 4u);
+  EXPECT_EQ(scene.nodes[0].mesh, -1);
+  EXPECT_EQ(scene.nodes[0].children, (std::vector<int>{1, 2, 3}));
+  const SceneState state = scene.evaluate(0.0);
+  // The quad's corner (1, 0, 0): as it is, turned half round z and doubled, raised.
+  const glm::dvec3 want[3] = {{1, 0, -10}, {3, 0, -10}, {1, 5, -10}};
+  for (size_t k = 0; k < 3; ++k) {
+    EXPECT_EQ(scene.nodes[1 + k].mesh, 0);
+    EXPECT_EQ(scene.nodes[1 + k].parent, 0);
+    const glm::dvec3 corner = glm::dvec3(state.world[1 + k] * glm::dvec4(1, 0, 0, 1));
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(corner[c], want[k][c], 1e-4) << "instance " << k;
+  }
+
+  GltfBuilder short_scale = b;
+  short_scale.doc()["nodes"][0]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]["SCALE"] =
+      short_scale.add_floats({1, 1, 1, 2, 2, 2}, 3);
+  short_scale.write_embedded(dir_ / "counts.gltf");
+  expect_error(dir_ / "counts.gltf",
+               "node 0 EXT_mesh_gpu_instancing has 2 instances in SCALE but 3 in another "
+               "attribute");
+  GltfBuilder no_mesh = b;
+  no_mesh.doc()["nodes"].push_back(
+      {{"extensions", {{"EXT_mesh_gpu_instancing", {{"attributes", {{"TRANSLATION", t}}}}}}}});
+  no_mesh.doc()["nodes"][0]["children"] = {1};
+  no_mesh.write_embedded(dir_ / "no_mesh.gltf");
+  expect_error(dir_ / "no_mesh.gltf", "node 1 EXT_mesh_gpu_instancing: the node has no mesh");
+  GltfBuilder none = b;
+  none.doc()["nodes"][0]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"] = {{"_ID", t}};
+  none.write_embedded(dir_ / "none.gltf");
+  expect_error(dir_ / "none.gltf",
+               "node 0 EXT_mesh_gpu_instancing has none of TRANSLATION, ROTATION and SCALE");
+}
+
 // KHR_materials_specular: its factors are read (defaults 1), also where a file requires it; its
 // textures are not (one warning); a factor out of range fails naming the material.
 TEST_F(GltfLoaderTest, SpecularExtensionFactorsAreRead) {

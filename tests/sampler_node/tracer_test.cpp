@@ -1462,6 +1462,79 @@ TEST(TracerTest, EmbreeThreadsChangeNoSample) {
   }
 }
 
+// Static nodes that share a mesh trace alike whether the tracer copies the mesh into world space
+// for each (a few copies: the default) or instances it (TracerOptions::max_copied_vertices = 0,
+// as for a forest of EXT_mesh_gpu_instancing copies): a box on five nodes (moved, turned,
+// stretched, mirrored, and hidden by a scale of 0) over a floor, lit with shadows, a glass box
+// on two more. Rays that cross a silhouette may land on either side of it in the two (float
+// transforms of the ray or of the vertices): at most 1% of rays.
+TEST(TracerTest, SharedStaticMeshesTraceAlikeCopiedOrInstanced) {
+  Scene s;
+  const int red = add_material(&s, glm::vec3(0.8f, 0.2f, 0.1f), 0.0f, 0.6f);
+  const int grey = add_material(&s, glm::vec3(0.6f), 0.0f, 1.0f);
+  const int glass = add_glass(&s, 1.5f);
+  add_mesh_node(&s, quad_mesh({-6, -1, 2}, {12, 0, 0}, {0, 0, -14}, grey));
+  const int box = add_mesh_node(&s, box_mesh({0.4f, 0.4f, 0.4f}, red), {-2.0, -0.5, -4.0});
+  const int mesh = s.nodes[size_t(box)].mesh;
+  const auto copy = [&](int m, glm::dvec3 t, glm::dquat r, glm::dvec3 scale) {
+    Node n;
+    n.mesh = m;
+    n.translation = t;
+    n.rotation = r;
+    n.scale = scale;
+    s.nodes.push_back(n);
+    s.roots.push_back(int(s.nodes.size()) - 1);
+  };
+  const glm::dquat none(1.0, 0.0, 0.0, 0.0);
+  copy(mesh, {0.0, -0.3, -5.0}, glm::angleAxis(0.6, glm::normalize(glm::dvec3(1, 1, 0))),
+       {1, 1, 1});
+  copy(mesh, {2.0, -0.2, -4.5}, none, {0.5, 2.0, 1.0});
+  copy(mesh, {-0.8, 0.8, -6.0}, glm::angleAxis(0.3, glm::dvec3(0, 1, 0)), {-1.0, 1.0, 1.0});
+  copy(mesh, {0.0, 0.0, -3.0}, none, {0.0, 0.0, 0.0});
+  add_mesh_node(&s, box_mesh({0.3f, 0.3f, 0.3f}, glass), {1.0, 0.5, -3.5});
+  const int glass_mesh = int(s.meshes.size()) - 1;
+  copy(glass_mesh, {-1.0, 0.4, -3.0}, glm::angleAxis(0.5, glm::dvec3(0, 0, 1)), {1, 1, 1});
+  Light sun;
+  sun.type = Light::Type::kDirectional;
+  sun.intensity = 2.0f;
+  add_light_node(&s, sun, glm::dvec3(0.0), glm::angleAxis(-1.0, glm::dvec3(1, 0.3, 0)));
+  Light bulb;
+  bulb.intensity = 20.0f;
+  add_light_node(&s, bulb, glm::dvec3(1.0, 2.0, -2.0));
+  s.finalize();
+
+  Tracer copied(s);
+  TracerOptions instancing;
+  instancing.max_copied_vertices = 0;
+  Tracer instanced(s, instancing);
+  // The box has 24 vertices: five copies (the hidden one too) and two glass boxes are copied by
+  // default, and none with instancing (the floor's 4 vertices, on one node, are copied by both).
+  EXPECT_EQ(copied.copied_vertices(), 4u + 5u * 24u + 2u * 24u);
+  EXPECT_EQ(instanced.copied_vertices(), 4u);
+
+  const Camera cam = Camera::look_at({0.0, 1.0, 1.0}, {0.0, -0.3, -5.0}, {0, 1, 0}, 0.9, 0.01);
+  const int w = 64, h = 48;
+  TraceStats st;
+  int hits = 0, boxes = 0, differ = 0;
+  for (int i = 0; i < w * h; ++i) {
+    const Ray ray = cam.ray(i % w + 0.5, i / w + 0.5, w, h);
+    const ShadedSample a = copied.trace(ray, &st);
+    const ShadedSample b = instanced.trace(ray, &st);
+    if (a.hit != b.hit || a.object_id != b.object_id ||
+        glm::length(a.color - b.color) > 1e-3f * (1.0f + glm::length(a.color)) ||
+        glm::length(a.position - b.position) > 1e-3f) {
+      ++differ;
+      continue;
+    }
+    hits += a.hit ? 1 : 0;
+    boxes += a.hit && a.object_id != 0 ? 1 : 0;
+  }
+  EXPECT_GT(boxes, w * h / 20);  // the copies are in view
+  EXPECT_GT(hits, w * h / 2);
+  EXPECT_LE(differ, w * h / 100);
+  EXPECT_EQ(st.sanitized, 0u);
+}
+
 TEST(TracerTest, TracingFromTwoThreadsGivesTheSameSamples) {
   const Scene s = busy_scene();
   Tracer tracer(s);

@@ -42,6 +42,13 @@ struct TracerOptions {
   // thread traces with its own tracer (afr-eval's runs), 1 is faster (docs/evaluation.md,
   // "Cost of a full Table 1 run"); the initial build of a large scene is then slower.
   int embree_threads = 0;
+  // Static nodes that share a mesh: their copies are transformed into the one static BVH in
+  // world space while the copies beyond the first hold at most this many vertices in all;
+  // beyond, every static copy of the mesh is an instance of the mesh's own BVH, so that a forest
+  // of instanced trees (EXT_mesh_gpu_instancing) costs one tree's memory. Instances traced as
+  // fast as copies at 16 copies of a 2,145-vertex mesh and faster at 256 (afr-bench-tracer
+  // --forest, docs/benchmarks.md), so copying stops early.
+  size_t max_copied_vertices = size_t(1) << 16;
 };
 
 // Counters of one tracing thread; add them up across threads.
@@ -94,6 +101,10 @@ class Tracer {
   // world x p at this time. False for any other node (static or deforming geometry, a light,
   // a camera, kNoObject) and for one that a singular transform hides at this time.
   bool rigid_transform(uint32_t node, glm::dmat4* world, glm::dmat4* inverse) const;
+
+  // The vertices of static geometry the tracer holds transformed into world space (copies of
+  // meshes; TracerOptions::max_copied_vertices), beside the scene's own.
+  size_t copied_vertices() const;
 
   ShadedSample trace(const Ray& ray, TraceStats* stats) const;
   // The crosshair of section 4.1: the center sample at image position (x, y) and its four
