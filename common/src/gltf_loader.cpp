@@ -13,6 +13,8 @@
 #include <tiny_gltf.h>
 #include <nlohmann/json.hpp>
 
+#include "gltf_meshopt_json.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -420,9 +422,6 @@ void Loader::check_glb_layout(std::span<const uint8_t> bytes,
 // tinygltf then says what is wrong).
 namespace {
 
-constexpr std::array<std::string_view, 2> kMeshoptExtensions = {"KHR_meshopt_compression",
-                                                                "EXT_meshopt_compression"};
-
 bool point_draco_indices(nlohmann::json* doc) {
   const auto accessors = doc->find("accessors");
   const auto meshes = doc->find("meshes");
@@ -457,35 +456,12 @@ bool point_draco_indices(nlohmann::json* doc) {
 }
 
 bool stand_in_meshopt_placeholders(nlohmann::json* doc, bool binary, std::set<int>* placeholders) {
-  const auto listed = [&](const char* key) {
-    const auto list = doc->find(key);
-    if (list == doc->end() || !list->is_array()) return false;
-    for (const nlohmann::json& name : *list) {
-      for (std::string_view ext : kMeshoptExtensions) {
-        if (name.is_string() && name.get<std::string>() == ext) return true;
-      }
-    }
-    return false;
-  };
   const auto buffers = doc->find("buffers");
-  if (!(listed("extensionsUsed") || listed("extensionsRequired")) || buffers == doc->end() ||
-      !buffers->is_array()) {
-    return false;
-  }
+  if (!gltf_meshopt::used(*doc) || buffers == doc->end() || !buffers->is_array()) return false;
   bool changed = false;
   for (size_t i = 0; i < buffers->size(); ++i) {
     nlohmann::json& buffer = (*buffers)[i];
-    if (!buffer.is_object()) continue;
-    const bool bin_chunk = binary && i == 0 && !buffer.contains("uri");
-    bool fallback = false;
-    if (const auto e = buffer.find("extensions"); e != buffer.end() && e->is_object()) {
-      for (std::string_view ext : kMeshoptExtensions) {
-        const auto m = e->find(std::string(ext));
-        fallback = fallback || (m != e->end() && m->is_object() && m->contains("fallback") &&
-                                (*m)["fallback"] == true);
-      }
-    }
-    if (bin_chunk || (buffer.contains("uri") && !fallback)) continue;
+    if (!gltf_meshopt::holds_no_data(buffer, i, binary)) continue;
     buffer["uri"] = "data:application/octet-stream;base64,AAAA";
     buffer["byteLength"] = 3;
     placeholders->insert(int(i));
@@ -870,7 +846,7 @@ void Loader::decode_meshopt() {
     const tinygltf::BufferView& bv = model_.bufferViews[v];
     const tinygltf::Value* e = nullptr;
     std::string_view name;
-    for (std::string_view ext : kMeshoptExtensions) {
+    for (std::string_view ext : gltf_meshopt::kExtensions) {
       if (const auto it = bv.extensions.find(std::string(ext)); it != bv.extensions.end()) {
         e = &it->second;
         name = ext;
@@ -2468,6 +2444,11 @@ std::vector<std::string> gltf_external_uris(std::string_view json_text,
     if (it == doc.end() || !it->is_array()) continue;
     for (const nlohmann::json& item : *it) {
       if (!item.is_object() || !item.contains("uri") || !item["uri"].is_string()) continue;
+      // A meshopt fallback buffer is never read (the compressed views are).
+      if (std::string_view(array) == "buffers" && gltf_meshopt::used(doc) &&
+          gltf_meshopt::is_fallback(item)) {
+        continue;
+      }
       const std::string& uri = item["uri"].get_ref<const std::string&>();
       if (uri.rfind("data:", 0) != 0) uris.push_back(uri);
     }

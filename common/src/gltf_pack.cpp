@@ -4,6 +4,8 @@
 #include <afr/common/error.h>
 #include <afr/common/gltf_loader.h>
 
+#include "gltf_meshopt_json.h"
+
 #include <fmt/format.h>
 #include <tiny_gltf.h>
 #include <nlohmann/json.hpp>
@@ -115,10 +117,23 @@ class Packer {
     Json doc = Json::parse(json_text.begin(), json_text.end(), nullptr, /*allow_exceptions=*/false);
     if (doc.is_discarded() || !doc.is_object()) fail("invalid glTF: not a JSON object");
 
-    std::vector<uint64_t> base;  // where each buffer starts in the binary chunk
+    // Where each buffer starts in the binary chunk; a meshopt placeholder or fallback buffer
+    // (which holds no data a reader that decodes needs: gltf_loader.cpp) is not packed but kept
+    // as a buffer without a uri after the binary chunk's, its index in the packed file.
+    std::vector<Place> base;
+    Json placeholders = Json::array();
     if (Json* buffers = array(doc, "buffers")) {
+      const bool meshopt = gltf_meshopt::used(doc);
       for (size_t i = 0; i < buffers->size(); ++i) {
-        base.push_back(add_buffer((*buffers)[i], i, glb_bin));
+        Json& buffer = (*buffers)[i];
+        if (meshopt && gltf_meshopt::holds_no_data(buffer, i, !glb_bin.empty())) {
+          Json kept = buffer;
+          kept.erase("uri");
+          placeholders.push_back(std::move(kept));
+          base.push_back({true, placeholders.size()});
+        } else {
+          base.push_back({false, add_buffer(buffer, i, glb_bin)});
+        }
       }
     }
     if (Json* views = array(doc, "bufferViews")) {
@@ -126,11 +141,14 @@ class Packer {
         Json& view = (*views)[i];
         const std::string what = fmt::format("bufferViews[{}]", i);
         rebase(&view, base, what);
-        // EXT_meshopt_compression's view names a buffer of its own.
-        if (view.contains("extensions") && view["extensions"].is_object() &&
-            view["extensions"].contains("EXT_meshopt_compression")) {
-          rebase(&view["extensions"]["EXT_meshopt_compression"], base,
-                 what + ".extensions.EXT_meshopt_compression");
+        // EXT_ and KHR_meshopt_compression's view names a buffer of its own.
+        if (view.contains("extensions") && view["extensions"].is_object()) {
+          for (std::string_view name : gltf_meshopt::kExtensions) {
+            const std::string key(name);
+            if (view["extensions"].contains(key)) {
+              rebase(&view["extensions"][key], base, fmt::format("{}.extensions.{}", what, key));
+            }
+          }
         }
       }
     }
@@ -139,6 +157,7 @@ class Packer {
     }
     if (!bin_.empty() || array(doc, "buffers")) {
       doc["buffers"] = Json::array({Json{{"byteLength", bin_.size()}}});
+      for (Json& kept : placeholders) doc["buffers"].push_back(std::move(kept));
     }
     PackedGltf out;
     out.glb = make_glb(doc.dump(), bin_);
@@ -228,8 +247,16 @@ class Packer {
     return start;
   }
 
-  // A buffer view (or an extension's view) into buffer 0, at its buffer's place in it.
-  void rebase(Json* view, const std::vector<uint64_t>& base, const std::string& what) const {
+  // A buffer's place in the packed file: an offset into buffer 0, or the index of a buffer
+  // kept without data.
+  struct Place {
+    bool placeholder = false;
+    uint64_t at = 0;
+  };
+
+  // A buffer view (or an extension's view) into buffer 0, at its buffer's place in it, or onto
+  // its placeholder buffer as it was.
+  void rebase(Json* view, const std::vector<Place>& base, const std::string& what) const {
     const std::optional<uint64_t> buffer =
         view->is_object() && view->contains("buffer") ? count_of((*view)["buffer"]) : std::nullopt;
     if (!buffer) fail(fmt::format("invalid glTF: {} has no buffer", what));
@@ -244,8 +271,12 @@ class Packer {
       if (!given) fail(fmt::format("invalid glTF: {}.byteOffset is not a count", what));
       offset = *given;
     }
+    if (base[b].placeholder) {
+      (*view)["buffer"] = base[b].at;
+      return;
+    }
     (*view)["buffer"] = 0;
-    (*view)["byteOffset"] = base[b] + offset;
+    (*view)["byteOffset"] = base[b].at + offset;
   }
 
   // An external image into the binary chunk, behind a new buffer view.

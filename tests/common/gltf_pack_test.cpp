@@ -5,6 +5,7 @@
 #include <afr/common/image.h>
 
 #include <gtest/gtest.h>
+#include <meshoptimizer.h>
 #include <unistd.h>
 #include <nlohmann/json.hpp>
 
@@ -274,6 +275,95 @@ TEST_F(GltfPackTest, MissingShortOrOutsideFilesAreNamed) {
   EXPECT_NE(error_of(bad_view).find("bufferViews[2] refers to buffer 7, but there are 2"),
             std::string::npos);
   EXPECT_NE(error_of(json::array()).find("invalid glTF: not a JSON object"), std::string::npos);
+}
+
+// EXT_meshopt_compression: the compressed data (an external .bin) is packed; the placeholder
+// buffer without a uri and the fallback buffer (whose file is missing: a reader that decodes
+// never needs it) are kept without data after the binary chunk's, the views that name them
+// still naming them, and the packed scene loads alone as the file does. The fallback's file is
+// not one of the scene's files.
+TEST_F(GltfPackTest, MeshoptPlaceholderAndFallbackBuffersTravelWithoutData) {
+  const std::vector<float> positions = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+  const std::vector<uint32_t> indices = {0, 1, 2, 0, 2, 3};
+  std::vector<uint8_t> vertices(meshopt_encodeVertexBufferBound(4, 12));
+  vertices.resize(
+      meshopt_encodeVertexBuffer(vertices.data(), vertices.size(), positions.data(), 4, 12));
+  std::vector<uint8_t> triangles(meshopt_encodeIndexBufferBound(6, 4));
+  triangles.resize(
+      meshopt_encodeIndexBuffer(triangles.data(), triangles.size(), indices.data(), 6));
+  std::vector<uint8_t> compressed(4, 0xEE);  // a header the views skip
+  compressed.insert(compressed.end(), vertices.begin(), vertices.end());
+  const size_t triangles_at = (compressed.size() + 3) / 4 * 4;
+  compressed.resize(triangles_at, 0);
+  compressed.insert(compressed.end(), triangles.begin(), triangles.end());
+  write_bytes(dir_ / "scene" / "compressed.bin", compressed);
+
+  json doc = doc_;
+  doc["meshes"][0]["primitives"][0]["attributes"].erase("TEXCOORD_0");
+  doc["meshes"][0]["primitives"][0].erase("material");
+  doc.erase("materials");
+  doc.erase("textures");
+  doc.erase("images");
+  doc["accessors"][2]["componentType"] = 5123;
+  doc["bufferViews"] = {{{"buffer", 1},
+                         {"byteLength", 48},
+                         {"extensions",
+                          {{"EXT_meshopt_compression",
+                            {{"buffer", 0},
+                             {"byteOffset", 4},
+                             {"byteLength", vertices.size()},
+                             {"byteStride", 12},
+                             {"count", 4},
+                             {"mode", "ATTRIBUTES"}}}}}},
+                        {{"buffer", 2}, {"byteLength", 8}},  // not read: accessor 1 is not used
+                        {{"buffer", 2},
+                         {"byteOffset", 8},
+                         {"byteLength", 12},
+                         {"extensions",
+                          {{"EXT_meshopt_compression",
+                            {{"buffer", 0},
+                             {"byteOffset", triangles_at},
+                             {"byteLength", triangles.size()},
+                             {"byteStride", 2},
+                             {"count", 6},
+                             {"mode", "TRIANGLES"}}}}}}};
+  doc["buffers"] = {{{"uri", "compressed.bin"}, {"byteLength", compressed.size()}},
+                    {{"byteLength", 48}},
+                    {{"uri", "fallback.bin"},
+                     {"byteLength", 20},
+                     {"extensions", {{"EXT_meshopt_compression", {{"fallback", true}}}}}}};
+  doc["extensionsUsed"] = {"EXT_meshopt_compression"};
+  doc["extensionsRequired"] = {"EXT_meshopt_compression"};
+  write_text(gltf_, doc.dump(2));
+
+  EXPECT_EQ(gltf_external_files(read_bytes(gltf_), gltf_),
+            std::vector<std::string>{"compressed.bin"});
+  const PackedGltf packed = pack_gltf(read_bytes(gltf_), gltf_);
+  EXPECT_EQ(packed.packed_files, std::vector<std::string>{"compressed.bin"});
+  const GlbParts parts = split(packed.glb);
+  ASSERT_EQ(parts.doc["buffers"].size(), 3u);
+  EXPECT_FALSE(parts.doc["buffers"][1].contains("uri"));
+  EXPECT_FALSE(parts.doc["buffers"][2].contains("uri"));
+  EXPECT_EQ(parts.doc["buffers"][2]["extensions"], doc["buffers"][2]["extensions"]);
+  EXPECT_EQ(parts.doc["bufferViews"][0]["buffer"], 1);
+  EXPECT_EQ(parts.doc["bufferViews"][2]["buffer"], 2);
+  EXPECT_EQ(parts.doc["bufferViews"][2]["byteOffset"], 8);
+  const json& ext = parts.doc["bufferViews"][0]["extensions"]["EXT_meshopt_compression"];
+  EXPECT_EQ(ext["buffer"], 0);
+  const size_t at = ext["byteOffset"].get<size_t>();
+  ASSERT_LE(at + vertices.size(), parts.bin.size());
+  EXPECT_EQ(std::vector<uint8_t>(parts.bin.begin() + ptrdiff_t(at),
+                                 parts.bin.begin() + ptrdiff_t(at + vertices.size())),
+            vertices);
+
+  const Scene a = load_gltf(gltf_);
+  const Scene b = load_gltf_bytes(packed.glb, dir_ / "alone" / "quad.glb");
+  const Primitive& pa = a.meshes.at(0).primitives.at(0);
+  const Primitive& pb = b.meshes.at(0).primitives.at(0);
+  EXPECT_EQ(pa.positions, pb.positions);
+  EXPECT_EQ(pa.indices, pb.indices);
+  EXPECT_EQ(pb.positions[2], glm::vec3(1, 1, 0));
+  EXPECT_EQ(pb.indices.size(), 6u);
 }
 
 TEST(GlbTest, ChunksArePaddedAndTheHeaderGivesTheLength) {

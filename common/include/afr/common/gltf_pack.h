@@ -2,7 +2,8 @@
 // held in memory, so that the scene is one payload: the display serves it to the samplers as
 // one transfer, and aff2gltf writes it for `-o x.glb`. The JSON keeps everything as written
 // except the references: all buffers become the one binary chunk, each external image a buffer
-// view in it.
+// view in it; a buffer that holds no data under EXT_ or KHR_meshopt_compression (a placeholder
+// without a uri, or a fallback, never read) stays a buffer without a uri after it.
 #pragma once
 
 #include <cstdint>
