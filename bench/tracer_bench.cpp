@@ -149,6 +149,21 @@ std::string si(double v) {
   return fmt::format("{:.0f}", v);
 }
 
+// The sun of the scenes made here: a directional light shining along (0.3, -1, -0.4) and the
+// node that carries it. Returns the node.
+int add_sun(afr::Scene* s) {
+  afr::Light sun;
+  sun.type = afr::Light::Type::kDirectional;
+  sun.intensity = 3.0f;
+  s->lights.push_back(sun);
+  afr::Node node;
+  node.light = int(s->lights.size()) - 1;
+  node.rotation =
+      glm::quatLookAt(glm::normalize(glm::dvec3(0.3, -1.0, -0.4)), glm::dvec3(0.0, 1.0, 0.0));
+  s->nodes.push_back(node);
+  return int(s->nodes.size()) - 1;
+}
+
 // ---- The deforming sheet ----
 //
 // An n x n grid of vertices over [-2, 2] x [-2, 2] in the XZ plane, skinned to a chain of
@@ -226,15 +241,7 @@ afr::Scene make_deforming_sheet(int n) {
       glm::quatLookAt(glm::normalize(glm::dvec3(0.0, -3.0, -4.5)), glm::dvec3(0.0, 1.0, 0.0));
   s.nodes.push_back(eye);
   s.cameras.push_back(afr::CameraModel{"eye", 0.8, 0.01});
-  afr::Light sun;
-  sun.type = afr::Light::Type::kDirectional;
-  sun.intensity = 3.0f;
-  s.lights.push_back(sun);
-  afr::Node sun_node;
-  sun_node.light = 0;
-  sun_node.rotation =
-      glm::quatLookAt(glm::normalize(glm::dvec3(0.3, -1.0, -0.4)), glm::dvec3(0.0, 1.0, 0.0));
-  s.nodes.push_back(sun_node);
+  add_sun(&s);
   s.roots = {0, 1, camera, camera + 1};
   s.ambient = glm::vec3(0.1f);
 
@@ -371,16 +378,7 @@ afr::Scene make_forest(int copies) {
   s.cameras.push_back(afr::CameraModel{"eye", 0.8, 0.01});
   s.roots.push_back(int(s.nodes.size()));
   s.nodes.push_back(eye);
-  afr::Light sun;
-  sun.type = afr::Light::Type::kDirectional;
-  sun.intensity = 3.0f;
-  s.lights.push_back(sun);
-  afr::Node sun_node;
-  sun_node.light = 0;
-  sun_node.rotation =
-      glm::quatLookAt(glm::normalize(glm::dvec3(0.3, -1.0, -0.4)), glm::dvec3(0.0, 1.0, 0.0));
-  s.roots.push_back(int(s.nodes.size()));
-  s.nodes.push_back(sun_node);
+  s.roots.push_back(add_sun(&s));
   s.ambient = glm::vec3(0.1f);
   s.finalize();
   return s;

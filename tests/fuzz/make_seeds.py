@@ -303,6 +303,79 @@ def gltf_seeds():
     write("gltf", "unsupported.gltf", g.embedded())
 
 
+    # Compressed geometry and instances: EXT_meshopt_compression (a placeholder buffer without a
+    # uri; positions, octahedral normals and triangles as meshoptimizer 0.18's encoders wrote the
+    # unit quad), KHR_draco_mesh_compression (the quad as libdraco's encoder wrote it) and
+    # EXT_mesh_gpu_instancing (three instances of the quad).
+    g = Gltf()
+    compressed = [("POSITIONS", 12, "ATTRIBUTES", None, FLOAT, "VEC3", False, 4),
+                  ("NORMALS", 4, "ATTRIBUTES", "OCTAHEDRAL", I8, "VEC3", True, 4),
+                  ("TRIANGLES", 2, "TRIANGLES", None, U16, "SCALAR", False, 6)]
+    placeholder = 0
+    accessors = []
+    for name, stride, mode, filt, ctype, kind, normalized, count in compressed:
+        data = bytes.fromhex(MESHOPT_STREAMS[name])
+        while len(g.bin) % 4:
+            g.bin.append(0)
+        ext = {"buffer": 0, "byteOffset": len(g.bin), "byteLength": len(data), "byteStride": stride,
+               "count": count, "mode": mode}
+        if filt:
+            ext["filter"] = filt
+        g.bin += data
+        view = {"buffer": 1, "byteOffset": placeholder, "byteLength": stride * count,
+                "extensions": {"EXT_meshopt_compression": ext}}
+        if mode == "ATTRIBUTES":
+            view["byteStride"] = stride
+        placeholder += (stride * count + 3) // 4 * 4
+        g.doc.setdefault("bufferViews", []).append(view)
+        extra = {"normalized": True} if normalized else {}
+        accessors.append(g.accessor(len(g.doc["bufferViews"]) - 1, ctype, kind, count, **extra))
+    g.doc["meshes"] = [{"primitives": [{"attributes": {"POSITION": accessors[0], "NORMAL": accessors[1]},
+                                        "indices": accessors[2]}]}]
+    g.doc["nodes"] = [{"mesh": 0}]
+    g.doc["scenes"] = [{"nodes": [0]}]
+    g.doc["extensionsUsed"] = ["EXT_meshopt_compression", "KHR_mesh_quantization"]
+    g.doc["extensionsRequired"] = ["EXT_meshopt_compression", "KHR_mesh_quantization"]
+    doc = json.loads(g.embedded())
+    doc["buffers"].append({"byteLength": placeholder,
+                           "extensions": {"EXT_meshopt_compression": {"fallback": True}}})
+    write("gltf", "meshopt.gltf", json.dumps(doc, separators=(",", ":")))
+
+    g = Gltf()
+    draco = g.view(bytes.fromhex(DRACO_QUAD))
+    positions = g.accessor(None, FLOAT, "VEC3", 4, min=[0, 0, 0], max=[1, 1, 0])
+    indices = g.accessor(None, U16, "SCALAR", 6)
+    g.doc["meshes"] = [{"primitives": [{
+        "attributes": {"POSITION": positions}, "indices": indices,
+        "extensions": {"KHR_draco_mesh_compression": {"bufferView": draco,
+                                                      "attributes": {"POSITION": 0}}}}]}]
+    g.doc["nodes"] = [{"mesh": 0, "extensions": {"EXT_mesh_gpu_instancing": {"attributes": {
+        "TRANSLATION": g.floats([0, 0, 0, 2, 0, 0, 0, 2, 0], "VEC3"),
+        "ROTATION": g.accessor(g.view(struct.pack("<12h", 0, 0, 0, 32767, 0, 0, 32767, 0, 0, 0, 0, 32767)),
+                               I16, "VEC4", 3, normalized=True),
+        "SCALE": g.floats([1, 1, 1, 2, 2, 2, 1, 1, 1], "VEC3")}}}}]
+    g.doc["scenes"] = [{"nodes": [0]}]
+    g.doc["extensionsUsed"] = ["KHR_draco_mesh_compression", "EXT_mesh_gpu_instancing"]
+    g.doc["extensionsRequired"] = ["KHR_draco_mesh_compression", "EXT_mesh_gpu_instancing"]
+    write("gltf", "draco_instanced.glb", g.glb())
+
+
+# meshoptimizer 0.18's meshopt_encodeVertexBuffer (positions: the unit quad as floats; normals:
+# meshopt_encodeFilterOct at 8 bits of (0, 0, 1), (0.6, 0, 0.8), (0, -0.6, 0.8), (0, 0, 1)) and
+# meshopt_encodeIndexBuffer (0 1 2 0 2 3): constants, so that the seeds need no encoder here.
+MESHOPT_STREAMS = {
+    "POSITIONS": "a000000133000000ffff01330000007e7d0000010c000000ff010c0000007e0000000000000000000000"
+                 "00000000000000000000000000000000000000000000000000",
+    "NORMALS": "a0013c0000006c6b010f0000006b6c000000000000000000000000000000000000000000000000000000"
+               "00000000007f00",
+    "TRIANGLES": "e0f000007687566778a9866589689801690000",
+}
+# libdraco 1.5's Encoder().EncodeMeshToBuffer of the unit quad's two triangles (positions only,
+# attribute id 0, no quantization).
+DRACO_QUAD = ("445241434f02020101000000040200020000011fff011101ff0000010009030000000000000000000000"
+              "000000000000803f0000803f00000000000000000000803f000000000000803f0000000000000000")
+
+
 # ---- Camera paths ----------------------------------------------------------------------------
 
 
