@@ -53,14 +53,12 @@ constexpr size_t kMaxNodes = size_t(1) << 20;
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 13> kSupportedExtensions = {
-    "KHR_materials_specular",  "EXT_texture_webp",
-    "EXT_meshopt_compression", "KHR_meshopt_compression",
-    "EXT_mesh_gpu_instancing", "KHR_draco_mesh_compression",
-    "KHR_lights_punctual",     "KHR_materials_emissive_strength",
-    "KHR_materials_ior",       "KHR_materials_transmission",
-    "KHR_materials_unlit",     "KHR_mesh_quantization",
-    "KHR_texture_transform"};
+constexpr std::array<std::string_view, 14> kSupportedExtensions = {
+    "KHR_materials_specular",     "EXT_texture_webp",           "EXT_meshopt_compression",
+    "KHR_meshopt_compression",    "EXT_mesh_gpu_instancing",    "KHR_materials_clearcoat",
+    "KHR_draco_mesh_compression", "KHR_lights_punctual",        "KHR_materials_emissive_strength",
+    "KHR_materials_ior",          "KHR_materials_transmission", "KHR_materials_unlit",
+    "KHR_mesh_quantization",      "KHR_texture_transform"};
 
 // The default lighting of a scene without lights (what glTF viewers do): a directional
 // headlight that moves with the scene's camera and a uniform sky term. The headlight comes from
@@ -226,6 +224,7 @@ class Loader {
   void read_transmission_and_ior(const tinygltf::Material& in, const std::string& what,
                                  Material* out);
   void read_specular(const tinygltf::Material& in, const std::string& what, Material* out);
+  void read_clearcoat(const tinygltf::Material& in, const std::string& what, Material* out);
   std::optional<glm::dmat3> read_texture_transform(const tinygltf::ExtensionMap& extensions,
                                                    const std::string& what, int* tex_coord);
   // One texture slot of material m (its index, texCoord and extensions as glTF gives them):
@@ -1534,6 +1533,32 @@ void Loader::read_specular(const tinygltf::Material& in, const std::string& what
   }
 }
 
+void Loader::read_clearcoat(const tinygltf::Material& in, const std::string& what, Material* out) {
+  const auto ext = in.extensions.find("KHR_materials_clearcoat");
+  if (ext == in.extensions.end()) return;
+  const tinygltf::Value& e = ext->second;
+  const std::string where = what + " KHR_materials_clearcoat";
+  if (!e.IsObject()) fail(where + " is not an object");
+  const auto factor = [&](const char* key, float* value) {
+    if (!e.Has(key)) return;
+    const tinygltf::Value& f = e.Get(key);
+    const double v = f.IsNumber() ? f.GetNumberAsDouble() : -1.0;
+    if (!(v >= 0.0 && v <= 1.0))
+      fail(fmt::format("{} has an invalid {} (a number 0 to 1)", where, key));
+    *value = float(v);
+  };
+  factor("clearcoatFactor", &out->clearcoat);
+  factor("clearcoatRoughnessFactor", &out->clearcoat_roughness);
+  if (e.Has("clearcoatTexture") || e.Has("clearcoatRoughnessTexture") ||
+      e.Has("clearcoatNormalTexture")) {
+    warn_once("clearcoat textures",
+              fmt::format("{}: its clearcoatTexture, clearcoatRoughnessTexture and "
+                          "clearcoatNormalTexture are not read (the factors decide, on the "
+                          "material's own normal)",
+                          where));
+  }
+}
+
 void Loader::load_materials() {
   uv_sources_.assign(model_.materials.size(), {});
   for (size_t m = 0; m < model_.materials.size(); ++m) {
@@ -1569,6 +1594,7 @@ void Loader::load_materials() {
     }
     read_transmission_and_ior(in, what, &out);
     read_specular(in, what, &out);
+    read_clearcoat(in, what, &out);
     out.unlit = in.extensions.count("KHR_materials_unlit") > 0;
     out.double_sided = in.doubleSided;
     if (in.alphaMode == "MASK") {

@@ -94,12 +94,20 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
         glm::clamp(mat.specular, 0.0f, 1.0f);
     m.specular_f90 = glm::clamp(mat.specular, 0.0f, 1.0f);
   }
+  if (mat.clearcoat > 0.0f) {
+    const float roughness = glm::clamp(mat.clearcoat_roughness, 0.0f, 1.0f);
+    const float r = std::max(roughness, kMinDirectRoughness);
+    m.clearcoat = glm::clamp(mat.clearcoat, 0.0f, 1.0f);
+    m.clearcoat_alpha = r * r;
+    m.clearcoat_mirror = roughness <= mirror_roughness;
+  }
   derive(&m, m.metallic_factor, m.roughness_factor);
   if (mat.unlit) {
     // Only the base color (and alpha) is left: prepare_local shows it and stops there, and
     // nothing bounces off, passes through or varies the surface.
     m.unlit = true;
-    m.is_mirror = m.is_glass = m.varies = false;
+    m.is_mirror = m.is_glass = m.varies = m.clearcoat_mirror = false;
+    m.clearcoat = 0.0f;
     m.normal_map = nullptr;
     m.shadow_transmittance = glm::vec3(0.0f);
   }

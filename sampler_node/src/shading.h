@@ -66,6 +66,13 @@ struct ShadeMaterial {
   // factor and the factor. Metals reflect their base color and 1 (fresnel_f0, fresnel_f90).
   glm::vec3 specular_f0{0.04f};
   float specular_f90 = 1.0f;
+  // KHR_materials_clearcoat: the clear layer's weight (0: none) and its GGX alpha for direct
+  // light (roughness clamped as the base's); a layer at or below mirror_roughness also
+  // reflects its surroundings (tracer.cpp's mirror_chain). The layer takes clearcoat x
+  // coat_fresnel(n.v) of the light, the material beneath the rest.
+  float clearcoat = 0.0f;
+  float clearcoat_alpha = 1.0f;
+  bool clearcoat_mirror = false;
   bool double_sided = false;
   bool unlit = false;  // KHR_materials_unlit: the base color as it is, no bounce or maps
   // alphaMode MASK and BLEND (Material::alpha_mode): `masked`: the surface's opacity
@@ -168,24 +175,39 @@ inline float fresnel_f90(const ShadeMaterial& m) {
   return m.specular_f90 + (1.0f - m.specular_f90) * m.metallic;
 }
 
+// The share of the light a clear coat (F0 0.04, glTF's fresnel_coat) reflects at n.v.
+inline float coat_fresnel(float n_dot_v) { return fresnel_schlick(glm::vec3(0.04f), n_dot_v).x; }
+
+// GGX's D x visibility for alpha `a` (Smith height-correlated), unit n and half vector h.
+inline float ggx_d_vis(float a, float n_dot_h, float n_dot_v, float n_dot_l) {
+  const float a2 = a * a;
+  const float dd = n_dot_h * n_dot_h * (a2 - 1.0f) + 1.0f;
+  const float D = a2 / (kPi * dd * dd);
+  const float vis = 0.5f / (n_dot_l * std::sqrt(n_dot_v * n_dot_v * (1.0f - a2) + a2) +
+                            n_dot_v * std::sqrt(n_dot_l * n_dot_l * (1.0f - a2) + a2));
+  return D * vis;
+}
+
 // BRDF x cos(theta_l) for unit n, v (toward the viewer), l (toward the light); n.v and n.l > 0.
 inline glm::vec3 brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, const glm::vec3& f0,
                           const glm::vec3& n, const glm::vec3& v, const glm::vec3& l, float n_dot_v,
                           float n_dot_l) {
   glm::vec3 f = diffuse * (1.0f / kPi);
-  if (m.has_specular) {
+  if (m.has_specular || m.clearcoat > 0.0f) {
     glm::vec3 h = v + l;
     const float h_len2 = glm::dot(h, h);
     if (h_len2 > 1e-12f) {
       h *= 1.0f / std::sqrt(h_len2);
       const float n_dot_h = glm::max(glm::dot(n, h), 0.0f);
-      const float v_dot_h = glm::max(glm::dot(v, h), 0.0f);
-      const float a2 = m.alpha * m.alpha;
-      const float dd = n_dot_h * n_dot_h * (a2 - 1.0f) + 1.0f;
-      const float D = a2 / (kPi * dd * dd);
-      const float vis = 0.5f / (n_dot_l * std::sqrt(n_dot_v * n_dot_v * (1.0f - a2) + a2) +
-                                n_dot_v * std::sqrt(n_dot_l * n_dot_l * (1.0f - a2) + a2));
-      f += fresnel_schlick(f0, v_dot_h, fresnel_f90(m)) * (D * vis);
+      if (m.has_specular) {
+        const float v_dot_h = glm::max(glm::dot(v, h), 0.0f);
+        f += fresnel_schlick(f0, v_dot_h, fresnel_f90(m)) *
+             ggx_d_vis(m.alpha, n_dot_h, n_dot_v, n_dot_l);
+      }
+      if (m.clearcoat > 0.0f) {
+        const float w = m.clearcoat * coat_fresnel(n_dot_v);
+        f = f * (1.0f - w) + w * ggx_d_vis(m.clearcoat_alpha, n_dot_h, n_dot_v, n_dot_l);
+      }
     }
   }
   return f * n_dot_l;

@@ -1207,7 +1207,9 @@ bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const gl
   }
   if (m.has_emission) *c += m.emissive;
   if (m.has_ambient) *c += scene_.ambient * m.ambient * tex;
-  if (lights_.empty() || s.back_face || !(m.has_diffuse || m.has_specular)) return false;
+  if (lights_.empty() || s.back_face || !(m.has_diffuse || m.has_specular || m.clearcoat > 0.0f)) {
+    return false;
+  }
   const glm::vec3 base = m.base * tex;
   terms->diffuse = base * m.diffuse_weight;
   terms->f0 = shading::fresnel_f0(m, base);
@@ -1325,6 +1327,17 @@ inline glm::vec3 own_share(const Surface& s, const glm::vec3& local) {
   return s.opacity < 1.0f ? local * s.opacity : local;
 }
 
+// The mirror reflection of direction d at surface s (unit); false where there is none. An
+// interpolated normal can send the reflection under the surface: the true one is used then.
+static bool mirror_direction(const glm::vec3& d, const Surface& s, glm::vec3* r) {
+  *r = d - 2.0f * glm::dot(d, s.ns) * s.ns;
+  if (glm::dot(*r, s.ng) <= 0.0f) *r = d - 2.0f * glm::dot(d, s.ng) * s.ng;
+  const float r_len2 = glm::dot(*r, *r);
+  if (!(r_len2 > 0.0f)) return false;
+  *r *= 1.0f / std::sqrt(r_len2);
+  return true;
+}
+
 // The light reaching the viewer from surface s (seen along d, with texture color tex) by way
 // of mirror reflections and glass, up to the depth limit, times `throughput` (what the path
 // before s passes on). s's own local shading is not included. `depth` counts the secondary
@@ -1338,6 +1351,17 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
       if (depth < kMaxBlendDepth) result += pass_through(d, s, depth, throughput, stats);
       throughput *= s.opacity;
     }
+    if (m.clearcoat_mirror && !s.back_face && depth < options_.max_mirror_depth) {
+      // A smooth clear coat reflects clearcoat x its Fresnel of the surroundings; what lies
+      // beneath (a metal's mirror reflection below) keeps the rest.
+      const float w = m.clearcoat * shading::coat_fresnel(-glm::dot(s.ns, d));
+      glm::vec3 r;
+      if (mirror_direction(d, s, &r) &&
+          w * std::max(throughput.r, std::max(throughput.g, throughput.b)) >= kMinThroughput) {
+        result += secondary(s.p + offset_at(s.p) * s.ng, r, s, depth + 1, throughput * w, stats);
+      }
+      throughput *= 1.0f - w;
+    }
     if (!m.is_mirror || s.back_face || depth >= options_.max_mirror_depth) {
       // Glass (never is_mirror) branches; the test is here so that other surfaces pay nothing.
       if (m.is_glass && depth < options_.max_mirror_depth)
@@ -1345,16 +1369,11 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
       break;
     }
     const float n_dot_v = -glm::dot(s.ns, d);
-    glm::vec3 r = d - 2.0f * glm::dot(d, s.ns) * s.ns;
-    // An interpolated normal can send the reflection under the surface: use the true one.
-    if (glm::dot(r, s.ng) <= 0.0f) r = d - 2.0f * glm::dot(d, s.ng) * s.ng;
     throughput *= shading::fresnel_schlick(shading::fresnel_f0(m, m.base * tex), n_dot_v,
                                            shading::fresnel_f90(m));
     if (std::max(throughput.r, std::max(throughput.g, throughput.b)) < kMinThroughput) break;
-
-    const float r_len2 = glm::dot(r, r);
-    if (!(r_len2 > 0.0f)) break;
-    r *= 1.0f / std::sqrt(r_len2);
+    glm::vec3 r;
+    if (!mirror_direction(d, s, &r)) break;
     const glm::vec3 origin = s.p + offset_at(s.p) * s.ng;
     ++stats->reflection_rays;
     const HitRef hit = intersect(origin, r, 0.0f);

@@ -1111,6 +1111,39 @@ TEST_F(GltfLoaderTest, GpuInstancingDrawsTheMeshOncePerInstance) {
                "node 0 EXT_mesh_gpu_instancing has none of TRANSLATION, ROTATION and SCALE");
 }
 
+// KHR_materials_clearcoat: its factors are read (default 0), also where a file requires it; its
+// textures are not (one warning); a factor out of range fails naming the material.
+TEST_F(GltfLoaderTest, ClearcoatFactorsAreRead) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  b.doc()["extensionsUsed"] = {"KHR_materials_clearcoat"};
+  b.doc()["extensionsRequired"] = {"KHR_materials_clearcoat"};
+  b.doc()["materials"] =
+      json::array({{{"extensions",
+                     {{"KHR_materials_clearcoat",
+                       {{"clearcoatFactor", 0.75},
+                        {"clearcoatRoughnessFactor", 0.25},
+                        {"clearcoatNormalTexture", {{"index", 0}}}}}}}},
+                   {{"extensions", {{"KHR_materials_clearcoat", json::object()}}}}});
+  b.write_embedded(dir_ / "clearcoat.gltf");
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir_ / "clearcoat.gltf", &report);
+  ASSERT_EQ(scene.materials.size(), 2u);
+  EXPECT_EQ(scene.materials[0].clearcoat, 0.75f);
+  EXPECT_EQ(scene.materials[0].clearcoat_roughness, 0.25f);
+  EXPECT_EQ(scene.materials[1].clearcoat, 0.0f);
+  EXPECT_EQ(scene.materials[1].clearcoat_roughness, 0.0f);
+  EXPECT_EQ(count_containing(report.warnings, "clearcoatNormalTexture are not read"), 1u);
+  EXPECT_EQ(report.warnings.size(), 1u);
+
+  b.doc()["materials"][0]["extensions"]["KHR_materials_clearcoat"]["clearcoatRoughnessFactor"] =
+      -0.5;
+  b.write_embedded(dir_ / "bad.gltf");
+  expect_error(dir_ / "bad.gltf",
+               "material 0 KHR_materials_clearcoat has an invalid clearcoatRoughnessFactor");
+}
+
 // KHR_materials_specular: its factors are read (defaults 1), also where a file requires it; its
 // textures are not (one warning); a factor out of range fails naming the material.
 TEST_F(GltfLoaderTest, SpecularExtensionFactorsAreRead) {

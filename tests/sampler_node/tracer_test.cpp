@@ -1141,6 +1141,53 @@ TEST(TracerTest, MirrorReflectsWhatItFaces) {
   }
 }
 
+// KHR_materials_clearcoat: a clear layer over the material takes clearcoat x F_coat(n.v) of the
+// light (F0 0.04), the material beneath the rest. Seen and lit straight on (n = v = l: F_coat =
+// 0.04), a white Lambertian square under a full coat of roughness 0.5 shows the light x (0.96 /
+// pi + 0.04 x D x vis), D = 1 / (pi alpha^2) and vis = 1/4 at alpha = 0.25; under half a coat,
+// half the change. A smooth coat reflects the wall facing it: 0.04 of it over a black
+// dielectric (nothing without reflection depth), and over a metal mirror of F0 0.5 the coat's
+// 0.04 plus 0.96 of the metal's 0.5.
+TEST(TracerTest, ClearcoatLayersAClearDielectricOverTheMaterial) {
+  const auto lit = [](float clearcoat) {
+    Scene s;
+    const int mat = add_material(&s, glm::vec3(1.0f), 0.0f, 1.0f);
+    s.materials[size_t(mat)].clearcoat = clearcoat;
+    s.materials[size_t(mat)].clearcoat_roughness = 0.5f;
+    add_mesh_node(&s, quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat));
+    Light sun;
+    sun.type = Light::Type::kDirectional;  // along -Z: from behind the camera
+    sun.intensity = 3.0f;
+    add_light_node(&s, sun, glm::dvec3(0.0));
+    s.finalize();
+    Tracer tracer(s);
+    TraceStats stats;
+    return tracer.trace(Ray{{0.2f, 0.1f, 0.0f}, {0, 0, -1}}, &stats).color;
+  };
+  const float pi = float(M_PI), alpha = 0.25f;
+  const float coat = 0.04f / (pi * alpha * alpha) * 0.25f;
+  expect_near3(lit(0.0f), glm::vec3(3.0f / pi), 1e-4f, "no coat");
+  expect_near3(lit(1.0f), glm::vec3(3.0f * (0.96f / pi + coat)), 1e-4f, "full coat");
+  expect_near3(lit(0.5f), glm::vec3(3.0f * (0.98f / pi + 0.5f * coat)), 1e-4f, "half a coat");
+
+  const Ray straight{{0.0f, 0.0f, -1.0f}, {0.0f, 0.0f, -1.0f}};
+  const auto reflected = [&](float metallic, glm::vec3 base, int depth) {
+    Scene s = mirror_scene(base);
+    s.materials[0].metallic = metallic;
+    s.materials[0].roughness = metallic > 0.0f ? 0.0f : 1.0f;
+    s.materials[0].clearcoat = 1.0f;
+    TracerOptions o;
+    o.max_mirror_depth = depth;
+    Tracer tracer(s, o);
+    TraceStats stats;
+    return tracer.trace(straight, &stats).color;
+  };
+  expect_near3(reflected(0.0f, glm::vec3(0.0f), 3), {0.04f, 0, 0}, 1e-5f, "coat alone");
+  expect_near3(reflected(0.0f, glm::vec3(0.0f), 0), {0, 0, 0}, 1e-6f, "depth 0");
+  expect_near3(reflected(1.0f, glm::vec3(0.5f), 3), {0.04f + 0.96f * 0.5f, 0, 0}, 1e-5f,
+               "over a metal");
+}
+
 TEST(TracerTest, MirrorDepthIsBounded) {
   // Two facing mirrors: a ray between them bounces exactly max_mirror_depth times.
   Scene s;

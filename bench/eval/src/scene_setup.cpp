@@ -141,6 +141,10 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.value(m.specular);
       h.value(m.specular_color);
     }
+    if (m.clearcoat > 0.0f) {
+      h.value(m.clearcoat);
+      h.value(m.clearcoat_roughness);
+    }
     if (m.alpha_mode != Material::AlphaMode::kOpaque) {
       h.value(m.alpha_mode);
       h.value(m.alpha_cutoff);

@@ -205,6 +205,10 @@ struct Material {
   float specular = 1.0f;
   glm::vec3 specular_color{1.0f};
   bool has_specular_extension = false;  // F0 from ior then (else 0.04, glTF's core default)
+  // KHR_materials_clearcoat (factors): a clear dielectric layer (F0 0.04) over the material,
+  // of weight `clearcoat` and roughness `clearcoat_roughness`, on the material's own normal.
+  float clearcoat = 0.0f;
+  float clearcoat_roughness = 0.0f;
   bool double_sided = false;
   // KHR_materials_unlit: the surface shows its base color (factor x texture x COLOR_0) as it
   // is, whatever the light; every other property but alpha is ignored.
