@@ -53,12 +53,15 @@ constexpr size_t kMaxNodes = size_t(1) << 20;
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 14> kSupportedExtensions = {
-    "KHR_materials_specular",     "EXT_texture_webp",           "EXT_meshopt_compression",
-    "KHR_meshopt_compression",    "EXT_mesh_gpu_instancing",    "KHR_materials_clearcoat",
-    "KHR_draco_mesh_compression", "KHR_lights_punctual",        "KHR_materials_emissive_strength",
-    "KHR_materials_ior",          "KHR_materials_transmission", "KHR_materials_unlit",
-    "KHR_mesh_quantization",      "KHR_texture_transform"};
+constexpr std::array<std::string_view, 15> kSupportedExtensions = {
+    "KHR_materials_specular",  "EXT_texture_webp",
+    "EXT_meshopt_compression", "KHR_meshopt_compression",
+    "EXT_mesh_gpu_instancing", "KHR_materials_clearcoat",
+    "KHR_materials_volume",    "KHR_draco_mesh_compression",
+    "KHR_lights_punctual",     "KHR_materials_emissive_strength",
+    "KHR_materials_ior",       "KHR_materials_transmission",
+    "KHR_materials_unlit",     "KHR_mesh_quantization",
+    "KHR_texture_transform"};
 
 // The default lighting of a scene without lights (what glTF viewers do): a directional
 // headlight that moves with the scene's camera and a uniform sky term. The headlight comes from
@@ -225,6 +228,7 @@ class Loader {
                                  Material* out);
   void read_specular(const tinygltf::Material& in, const std::string& what, Material* out);
   void read_clearcoat(const tinygltf::Material& in, const std::string& what, Material* out);
+  void read_volume(const tinygltf::Material& in, const std::string& what, Material* out);
   std::optional<glm::dmat3> read_texture_transform(const tinygltf::ExtensionMap& extensions,
                                                    const std::string& what, int* tex_coord);
   // One texture slot of material m (its index, texCoord and extensions as glTF gives them):
@@ -1559,6 +1563,44 @@ void Loader::read_clearcoat(const tinygltf::Material& in, const std::string& wha
   }
 }
 
+void Loader::read_volume(const tinygltf::Material& in, const std::string& what, Material* out) {
+  const auto ext = in.extensions.find("KHR_materials_volume");
+  if (ext == in.extensions.end()) return;
+  const tinygltf::Value& e = ext->second;
+  const std::string where = what + " KHR_materials_volume";
+  if (!e.IsObject()) fail(where + " is not an object");
+  const auto number = [&](const char* key) {
+    const tinygltf::Value& f = e.Get(key);
+    return f.IsNumber() ? f.GetNumberAsDouble() : std::nan("");
+  };
+  if (e.Has("thicknessFactor")) {
+    const double v = number("thicknessFactor");
+    if (!(v >= 0.0 && std::isfinite(v))) fail(where + " has an invalid thicknessFactor (>= 0)");
+    out->thickness = float(v);
+  }
+  if (e.Has("attenuationDistance")) {
+    const double v = number("attenuationDistance");
+    if (!(v > 0.0)) fail(where + " has an invalid attenuationDistance (> 0)");
+    out->attenuation_distance = float(v);
+  }
+  if (e.Has("attenuationColor")) {
+    const tinygltf::Value& c = e.Get("attenuationColor");
+    bool ok = c.IsArray() && c.ArrayLen() == 3;
+    for (int i = 0; ok && i < 3; ++i) {
+      const double v = c.Get(i).IsNumber() ? c.Get(i).GetNumberAsDouble() : -1.0;
+      ok = v >= 0.0 && v <= 1.0;
+      if (ok) out->attenuation_color[i] = float(v);
+    }
+    if (!ok) fail(where + " has an invalid attenuationColor (three numbers 0 to 1)");
+  }
+  if (e.Has("thicknessTexture")) {
+    warn_once("thickness texture",
+              fmt::format("{}: its thicknessTexture is not read (the tracer measures the "
+                          "distance light travels inside)",
+                          where));
+  }
+}
+
 void Loader::load_materials() {
   uv_sources_.assign(model_.materials.size(), {});
   for (size_t m = 0; m < model_.materials.size(); ++m) {
@@ -1595,6 +1637,7 @@ void Loader::load_materials() {
     read_transmission_and_ior(in, what, &out);
     read_specular(in, what, &out);
     read_clearcoat(in, what, &out);
+    read_volume(in, what, &out);
     out.unlit = in.extensions.count("KHR_materials_unlit") > 0;
     out.double_sided = in.doubleSided;
     if (in.alphaMode == "MASK") {

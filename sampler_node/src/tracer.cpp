@@ -523,7 +523,8 @@ struct Tracer::Impl {
                                     int depth, const glm::vec3& throughput,
                                     TraceStats* stats) const;
   glm::vec3 secondary(const glm::vec3& origin, const glm::vec3& d, const Surface& from, int depth,
-                      const glm::vec3& throughput, TraceStats* stats) const;
+                      const glm::vec3& throughput, TraceStats* stats,
+                      const glm::vec3& absorption = glm::vec3(0.0f)) const;
   bool begin_sample(const Ray& ray, const HitRef& hit, ShadedSample* o, Surface* s,
                     TraceStats* stats) const;
   void sanitize(ShadedSample* o, TraceStats* stats) const;
@@ -1390,17 +1391,21 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
 }
 
 // One secondary ray of glass, and what it brings back (local shading and further bounces) times
-// `throughput`; `depth` counts this ray.
+// `throughput`; `depth` counts this ray. A ray inside a glass volume (KHR_materials_volume)
+// keeps exp(-absorption x the distance to what it hits).
 glm::vec3 Tracer::Impl::secondary(const glm::vec3& origin, const glm::vec3& d, const Surface& from,
-                                  int depth, const glm::vec3& throughput, TraceStats* stats) const {
+                                  int depth, const glm::vec3& throughput, TraceStats* stats,
+                                  const glm::vec3& absorption) const {
   ++stats->reflection_rays;
   const HitRef hit = intersect(origin, d, 0.0f);
   if (hit.geom == RTC_INVALID_GEOMETRY_ID) return throughput * scene_.background;
   Surface s;
   make_surface(hit, origin, d, from.cone, from.spread, &s);
   const glm::vec3 tex = texture_color(s);
-  return throughput * own_share(s, shade_local(s, -d, tex, stats)) +
-         mirror_chain(d, s, tex, stats, depth, throughput);
+  glm::vec3 kept = throughput;
+  if (absorption != glm::vec3(0.0f)) kept *= glm::exp(-absorption * hit.t);
+  return kept * own_share(s, shade_local(s, -d, tex, stats)) +
+         mirror_chain(d, s, tex, stats, depth, kept);
 }
 
 // What a blended surface s, hit along d, lets through from behind it: the ray goes on from its
@@ -1470,7 +1475,7 @@ glm::vec3 Tracer::Impl::glass(const glm::vec3& d, const Surface& s, const glm::v
     const float len2 = glm::dot(r, r);
     if (len2 > 0.0f && std::isfinite(len2))
       result += secondary(s.p + offset * ng, r * (1.0f / std::sqrt(len2)), s, depth + 1,
-                          r_throughput, stats);
+                          r_throughput, stats, entering ? glm::vec3(0.0f) : m.absorption);
   }
   const glm::vec3 t_throughput = throughput * transmit_w;
   if (std::max(t_throughput.r, std::max(t_throughput.g, t_throughput.b)) >= kMinThroughput) {
@@ -1484,7 +1489,7 @@ glm::vec3 Tracer::Impl::glass(const glm::vec3& d, const Surface& s, const glm::v
     const float len2 = glm::dot(t, t);
     if (len2 > 0.0f && std::isfinite(len2))
       result += secondary(s.p - offset * ng, t * (1.0f / std::sqrt(len2)), s, depth + 1,
-                          t_throughput, stats);
+                          t_throughput, stats, entering ? m.absorption : glm::vec3(0.0f));
   }
   return result;
 }

@@ -1144,6 +1144,48 @@ TEST_F(GltfLoaderTest, ClearcoatFactorsAreRead) {
                "material 0 KHR_materials_clearcoat has an invalid clearcoatRoughnessFactor");
 }
 
+// KHR_materials_volume: thickness, attenuation color and distance are read (defaults 0, white,
+// infinity), also where a file requires it; the thickness texture is not (one warning); a
+// distance of 0 or a color out of range fails naming the material.
+TEST_F(GltfLoaderTest, VolumeFactorsAreRead) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  b.doc()["extensionsUsed"] = {"KHR_materials_volume", "KHR_materials_transmission"};
+  b.doc()["extensionsRequired"] = {"KHR_materials_volume"};
+  b.doc()["materials"] =
+      json::array({{{"extensions",
+                     {{"KHR_materials_transmission", {{"transmissionFactor", 1.0}}},
+                      {"KHR_materials_volume",
+                       {{"thicknessFactor", 0.5},
+                        {"attenuationDistance", 2.0},
+                        {"attenuationColor", {1.0, 0.5, 0.25}},
+                        {"thicknessTexture", {{"index", 0}}}}}}}},
+                   {{"extensions", {{"KHR_materials_volume", json::object()}}}}});
+  b.write_embedded(dir_ / "volume.gltf");
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir_ / "volume.gltf", &report);
+  ASSERT_EQ(scene.materials.size(), 2u);
+  EXPECT_EQ(scene.materials[0].thickness, 0.5f);
+  EXPECT_EQ(scene.materials[0].attenuation_distance, 2.0f);
+  EXPECT_EQ(scene.materials[0].attenuation_color, glm::vec3(1.0f, 0.5f, 0.25f));
+  EXPECT_EQ(scene.materials[1].thickness, 0.0f);
+  EXPECT_TRUE(std::isinf(scene.materials[1].attenuation_distance));
+  EXPECT_EQ(scene.materials[1].attenuation_color, glm::vec3(1.0f));
+  EXPECT_EQ(count_containing(report.warnings, "thicknessTexture is not read"), 1u);
+  EXPECT_EQ(report.warnings.size(), 1u);
+
+  GltfBuilder zero = b;
+  zero.doc()["materials"][0]["extensions"]["KHR_materials_volume"]["attenuationDistance"] = 0;
+  zero.write_embedded(dir_ / "zero.gltf");
+  expect_error(dir_ / "zero.gltf",
+               "material 0 KHR_materials_volume has an invalid attenuationDistance");
+  b.doc()["materials"][0]["extensions"]["KHR_materials_volume"]["attenuationColor"] = {1, 2, 0};
+  b.write_embedded(dir_ / "color.gltf");
+  expect_error(dir_ / "color.gltf",
+               "material 0 KHR_materials_volume has an invalid attenuationColor");
+}
+
 // KHR_materials_specular: its factors are read (defaults 1), also where a file requires it; its
 // textures are not (one warning); a factor out of range fails naming the material.
 TEST_F(GltfLoaderTest, SpecularExtensionFactorsAreRead) {

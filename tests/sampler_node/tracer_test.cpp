@@ -1295,6 +1295,44 @@ TEST(TracerTest, RayThroughAGlassSlabLeavesParallelAndDisplaced) {
   }
 }
 
+// KHR_materials_volume: the slab of the test above, filled (thickness > 0), keeps its
+// attenuation color per attenuation distance over the path inside it, L = h / cos(theta_t):
+// the color (1, 0.25, 1) per 2 units keeps 0.25^(L / 2) of a white emitter's green and all of
+// its red and blue; as a thin wall (thickness 0) the slab keeps all.
+TEST(TracerTest, GlassVolumeAttenuatesByTheDistanceInside) {
+  const double ior = 1.5, h = 1.0;
+  const double theta = 40.0 * M_PI / 180.0;
+  const double theta_t = std::asin(std::sin(theta) / ior);
+  const glm::vec3 d(float(std::sin(theta)), 0.0f, -float(std::cos(theta)));
+  const glm::vec3 origin = glm::vec3(0.0f, 0.0f, 0.5f) - 2.0f * d;
+  const double z_target = -3.0;
+  const double x_refracted = h * std::tan(theta_t) + (-0.5 - z_target) * std::tan(theta);
+  const auto seen = [&](float thickness) {
+    Scene s;
+    const int glass = add_glass(&s, float(ior));
+    s.materials[size_t(glass)].thickness = thickness;
+    s.materials[size_t(glass)].attenuation_color = {1.0f, 0.25f, 1.0f};
+    s.materials[size_t(glass)].attenuation_distance = 2.0f;
+    add_mesh_node(&s, box_mesh({50.0f, 50.0f, 0.5f}, glass));
+    const float w = 0.01f;
+    add_mesh_node(&s, quad_mesh({float(x_refracted) - w / 2, -w / 2, float(z_target)}, {w, 0, 0},
+                                {0, w, 0}, add_emitter(&s, {1, 1, 1})));
+    s.finalize();
+    Tracer tracer(s);
+    TraceStats stats;
+    return tracer.trace(Ray{origin, d}, &stats).color;
+  };
+  const double t = 1.0 - schlick(ior, std::cos(theta));
+  const double inside = h / std::cos(theta_t);
+  const glm::vec3 thin = seen(0.0f);
+  EXPECT_NEAR(thin.r, t * t, 1e-4);
+  EXPECT_NEAR(thin.g, t * t, 1e-4);
+  const glm::vec3 filled = seen(1.0f);
+  EXPECT_NEAR(filled.r, t * t, 1e-4);
+  EXPECT_NEAR(filled.b, t * t, 1e-4);
+  EXPECT_NEAR(filled.g, t * t * std::pow(0.25, inside / 2.0), 1e-4);
+}
+
 // A ray inside a slab of ior 1.5 meets its faces at the angle it starts with: below the
 // critical angle asin(1 / 1.5) = 41.81 degrees it leaves (and lights up the emitter below);
 // beyond it every bounce reflects totally, nothing leaves, and the depth limit ends the chain.

@@ -145,6 +145,11 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.value(m.clearcoat);
       h.value(m.clearcoat_roughness);
     }
+    if (m.thickness > 0.0f) {
+      h.value(m.thickness);
+      h.value(m.attenuation_color);
+      h.value(m.attenuation_distance);
+    }
     if (m.alpha_mode != Material::AlphaMode::kOpaque) {
       h.value(m.alpha_mode);
       h.value(m.alpha_cutoff);

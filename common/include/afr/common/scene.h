@@ -11,6 +11,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <span>
 #include <string>
@@ -209,6 +210,12 @@ struct Material {
   // of weight `clearcoat` and roughness `clearcoat_roughness`, on the material's own normal.
   float clearcoat = 0.0f;
   float clearcoat_roughness = 0.0f;
+  // KHR_materials_volume: a transmissive material whose thickness is above 0 fills the volume
+  // its closed mesh bounds, and light crossing it keeps attenuation_color per
+  // attenuation_distance travelled (Beer-Lambert; infinity: none). Thickness 0 is a thin wall.
+  float thickness = 0.0f;
+  glm::vec3 attenuation_color{1.0f};
+  float attenuation_distance = std::numeric_limits<float>::infinity();
   bool double_sided = false;
   // KHR_materials_unlit: the surface shows its base color (factor x texture x COLOR_0) as it
   // is, whatever the light; every other property but alpha is ignored.
