@@ -1208,6 +1208,11 @@ bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const gl
   }
   if (m.has_emission) *c += m.emissive;
   if (m.has_ambient) *c += scene_.ambient * m.ambient * tex;
+  // A clear coat lies over the emission and what the material beneath reflects of the ambient
+  // light: they keep 1 - clearcoat x F_coat(n.v) (the direct light's share is in brdf_cos).
+  if (m.clearcoat > 0.0f && !s.back_face) {
+    *c *= 1.0f - m.clearcoat * shading::coat_fresnel(std::max(glm::dot(s.ns, wo), 0.0f));
+  }
   if (lights_.empty() || s.back_face || !(m.has_diffuse || m.has_specular || m.clearcoat > 0.0f)) {
     return false;
   }

@@ -1145,15 +1145,17 @@ TEST(TracerTest, MirrorReflectsWhatItFaces) {
 // light (F0 0.04), the material beneath the rest. Seen and lit straight on (n = v = l: F_coat =
 // 0.04), a white Lambertian square under a full coat of roughness 0.5 shows the light x (0.96 /
 // pi + 0.04 x D x vis), D = 1 / (pi alpha^2) and vis = 1/4 at alpha = 0.25; under half a coat,
-// half the change. A smooth coat reflects the wall facing it: 0.04 of it over a black
-// dielectric (nothing without reflection depth), and over a metal mirror of F0 0.5 the coat's
-// 0.04 plus 0.96 of the metal's 0.5.
+// half the change. The coat lies over the emission too: straight on, 0.96 of it comes through.
+// A smooth coat reflects the wall facing it: 0.04 of it over a black dielectric (nothing without
+// reflection depth), and over a metal mirror of F0 0.5 the coat's 0.04 plus 0.96 of the metal's
+// 0.5.
 TEST(TracerTest, ClearcoatLayersAClearDielectricOverTheMaterial) {
-  const auto lit = [](float clearcoat) {
+  const auto lit = [](float clearcoat, glm::vec3 emissive = glm::vec3(0.0f)) {
     Scene s;
     const int mat = add_material(&s, glm::vec3(1.0f), 0.0f, 1.0f);
     s.materials[size_t(mat)].clearcoat = clearcoat;
     s.materials[size_t(mat)].clearcoat_roughness = 0.5f;
+    s.materials[size_t(mat)].emissive = emissive;
     add_mesh_node(&s, quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat));
     Light sun;
     sun.type = Light::Type::kDirectional;  // along -Z: from behind the camera
@@ -1169,6 +1171,8 @@ TEST(TracerTest, ClearcoatLayersAClearDielectricOverTheMaterial) {
   expect_near3(lit(0.0f), glm::vec3(3.0f / pi), 1e-4f, "no coat");
   expect_near3(lit(1.0f), glm::vec3(3.0f * (0.96f / pi + coat)), 1e-4f, "full coat");
   expect_near3(lit(0.5f), glm::vec3(3.0f * (0.98f / pi + 0.5f * coat)), 1e-4f, "half a coat");
+  expect_near3(lit(1.0f, {0.5f, 0.0f, 0.0f}) - lit(1.0f), {0.96f * 0.5f, 0.0f, 0.0f}, 1e-4f,
+               "emission under the coat");
 
   const Ray straight{{0.0f, 0.0f, -1.0f}, {0.0f, 0.0f, -1.0f}};
   const auto reflected = [&](float metallic, glm::vec3 base, int depth) {
