@@ -13,6 +13,8 @@ packages=(
   # rendering
   libembree-dev libglm-dev libtinygltf-dev nlohmann-json3-dev libopenimageio-dev openimageio-tools
   libwebp-dev libdraco-dev libmeshoptimizer-dev
+  # tests: meshoptimizer's own glTF packer, to check afr reads what it writes
+  gltfpack
   # display
   libglfw3-dev libegl-dev libepoxy-dev libgl1-mesa-dri xvfb xauth libstb-dev
   # the dashboard's browser test; promtool for deploy/monitoring's check
