@@ -1111,6 +1111,61 @@ TEST_F(GltfLoaderTest, GpuInstancingDrawsTheMeshOncePerInstance) {
                "node 0 EXT_mesh_gpu_instancing has none of TRANSLATION, ROTATION and SCALE");
 }
 
+// EXT_mesh_gpu_instancing where afr does not follow it: an animation of an instanced node's
+// morph weights warns and is skipped (the instances keep the weights they load with); on a
+// skinned node the extension warns and the mesh is drawn once, where its joints put it.
+TEST_F(GltfLoaderTest, GpuInstancingOfWeightAnimatedOrSkinnedNodesWarns) {
+  GltfBuilder b;
+  add_quad(&b);
+  const int up = b.add_floats({0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1}, 3);
+  b.doc()["meshes"][0]["primitives"][0]["targets"] = json::array({{{"POSITION", up}}});
+  b.doc()["meshes"][0]["weights"] = {0.5};
+  const int t = b.add_floats({0, 0, 0, 2, 0, 0}, 3);
+  b.doc()["nodes"][0]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"] = {{"TRANSLATION", t}};
+  b.doc()["extensionsUsed"] = {"EXT_mesh_gpu_instancing"};
+  const int times = b.add_floats({0, 1}, 1);
+  const int weights = b.add_floats({0, 1}, 1);
+  b.doc()["animations"] = json::array(
+      {{{"channels", {{{"sampler", 0}, {"target", {{"node", 0}, {"path", "weights"}}}}}},
+        {"samplers", {{{"input", times}, {"output", weights}}}}}});
+  b.write_embedded(dir_ / "weights.gltf");
+  GltfLoadReport report;
+  const Scene morphed = load_gltf(dir_ / "weights.gltf", &report);
+  EXPECT_EQ(count_containing(report.warnings,
+                             "animated morph weights of a node with "
+                             "EXT_mesh_gpu_instancing are not supported"),
+            1u);
+  EXPECT_TRUE(morphed.channels.empty());
+  ASSERT_EQ(morphed.nodes.size(), 3u);
+  EXPECT_EQ(morphed.nodes[1].mesh, 0);
+  EXPECT_EQ(morphed.nodes[2].mesh, 0);
+
+  GltfBuilder k;
+  add_quad(&k);
+  const int joints =
+      k.add_accessor(k.add_view(std::vector<uint8_t>(16, 0)), kUnsignedByte, "VEC4", 4);
+  const int joint_weights = k.add_floats({1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0}, 4);
+  k.doc()["meshes"][0]["primitives"][0]["attributes"]["JOINTS_0"] = joints;
+  k.doc()["meshes"][0]["primitives"][0]["attributes"]["WEIGHTS_0"] = joint_weights;
+  k.doc()["nodes"] = json::array(
+      {{{"mesh", 0},
+        {"skin", 0},
+        {"extensions", {{"EXT_mesh_gpu_instancing", {{"attributes", {{"TRANSLATION", t}}}}}}}},
+       {{"translation", {0, 0, -5}}}});
+  k.doc()["skins"] = json::array({{{"joints", {1}}}});
+  k.doc()["scenes"] = json::array({{{"nodes", {0, 1}}}});
+  k.doc()["extensionsUsed"] = {"EXT_mesh_gpu_instancing"};
+  k.write_embedded(dir_ / "skinned.gltf");
+  report = {};
+  const Scene skinned = load_gltf(dir_ / "skinned.gltf", &report);
+  EXPECT_EQ(count_containing(report.warnings,
+                             "EXT_mesh_gpu_instancing on a node with a skin is not supported"),
+            1u);
+  ASSERT_EQ(skinned.nodes.size(), 2u);
+  EXPECT_EQ(skinned.nodes[0].mesh, 0);
+  EXPECT_EQ(skinned.nodes[0].skin, 0);
+}
+
 // KHR_materials_clearcoat: its factors are read (default 0), also where a file requires it; its
 // textures are not (one warning); a factor out of range fails naming the material.
 TEST_F(GltfLoaderTest, ClearcoatFactorsAreRead) {
