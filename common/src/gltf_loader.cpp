@@ -226,6 +226,12 @@ class Loader {
   void load_materials();
   void read_transmission_and_ior(const tinygltf::Material& in, const std::string& what,
                                  Material* out);
+  const tinygltf::Value* material_extension(const tinygltf::Material& in, const char* name,
+                                            const std::string& what, std::string* where) const;
+  void read_number(const tinygltf::Value& e, const char* key, const std::string& where,
+                   bool (*ok)(double), const char* range, float* out) const;
+  void read_color(const tinygltf::Value& e, const char* key, const std::string& where,
+                  bool (*ok)(double), const char* range, glm::vec3* out) const;
   void read_specular(const tinygltf::Material& in, const std::string& what, Material* out);
   void read_clearcoat(const tinygltf::Material& in, const std::string& what, Material* out);
   void read_volume(const tinygltf::Material& in, const std::string& what, Material* out);
@@ -1506,30 +1512,60 @@ void Loader::read_transmission_and_ior(const tinygltf::Material& in, const std::
 
 // KHR_materials_specular: specularFactor (0 to 1, default 1) and specularColorFactor (three
 // numbers >= 0, default 1). Its textures are not read (one warning): the factors decide.
+// Material extension `name`'s object, or null where the material has none (fails where it is
+// not an object); *where names it in errors.
+const tinygltf::Value* Loader::material_extension(const tinygltf::Material& in, const char* name,
+                                                  const std::string& what,
+                                                  std::string* where) const {
+  const auto ext = in.extensions.find(name);
+  if (ext == in.extensions.end()) return nullptr;
+  *where = fmt::format("{} {}", what, name);
+  if (!ext->second.IsObject()) fail(*where + " is not an object");
+  return &ext->second;
+}
+
+// An extension's number `key`, where it has one: it must be a number that `ok` accepts (else an
+// error naming it and `range`).
+void Loader::read_number(const tinygltf::Value& e, const char* key, const std::string& where,
+                         bool (*ok)(double), const char* range, float* out) const {
+  if (!e.Has(key)) return;
+  const tinygltf::Value& f = e.Get(key);
+  const double v = f.IsNumber() ? f.GetNumberAsDouble() : std::nan("");
+  if (!ok(v)) fail(fmt::format("{} has an invalid {} ({})", where, key, range));
+  *out = float(v);
+}
+
+// An extension's color `key`, where it has one: three numbers that `ok` accepts.
+void Loader::read_color(const tinygltf::Value& e, const char* key, const std::string& where,
+                        bool (*ok)(double), const char* range, glm::vec3* out) const {
+  if (!e.Has(key)) return;
+  const tinygltf::Value& c = e.Get(key);
+  bool good = c.IsArray() && c.ArrayLen() == 3;
+  glm::vec3 color;
+  for (int i = 0; good && i < 3; ++i) {
+    const double v = c.Get(i).IsNumber() ? c.Get(i).GetNumberAsDouble() : std::nan("");
+    good = ok(v);
+    color[i] = float(v);
+  }
+  if (!good) fail(fmt::format("{} has an invalid {} ({})", where, key, range));
+  *out = color;
+}
+
+namespace {
+bool unit_interval(double v) { return v >= 0.0 && v <= 1.0; }
+bool non_negative(double v) { return v >= 0.0 && std::isfinite(v); }
+bool positive(double v) { return v > 0.0; }  // infinity too: no attenuation
+}  // namespace
+
 void Loader::read_specular(const tinygltf::Material& in, const std::string& what, Material* out) {
-  const auto ext = in.extensions.find("KHR_materials_specular");
-  if (ext == in.extensions.end()) return;
-  const tinygltf::Value& e = ext->second;
-  const std::string where = what + " KHR_materials_specular";
-  if (!e.IsObject()) fail(where + " is not an object");
+  std::string where;
+  const tinygltf::Value* e = material_extension(in, "KHR_materials_specular", what, &where);
+  if (e == nullptr) return;
   out->has_specular_extension = true;
-  if (e.Has("specularFactor")) {
-    const tinygltf::Value& f = e.Get("specularFactor");
-    const double v = f.IsNumber() ? f.GetNumberAsDouble() : -1.0;
-    if (!(v >= 0.0 && v <= 1.0)) fail(where + " has an invalid specularFactor (a number 0 to 1)");
-    out->specular = float(v);
-  }
-  if (e.Has("specularColorFactor")) {
-    const tinygltf::Value& c = e.Get("specularColorFactor");
-    bool ok = c.IsArray() && c.ArrayLen() == 3;
-    for (int i = 0; ok && i < 3; ++i) {
-      const double v = c.Get(i).IsNumber() ? c.Get(i).GetNumberAsDouble() : -1.0;
-      ok = v >= 0.0 && std::isfinite(v);
-      if (ok) out->specular_color[i] = float(v);
-    }
-    if (!ok) fail(where + " has an invalid specularColorFactor (three numbers >= 0)");
-  }
-  if (e.Has("specularTexture") || e.Has("specularColorTexture")) {
+  read_number(*e, "specularFactor", where, unit_interval, "a number 0 to 1", &out->specular);
+  read_color(*e, "specularColorFactor", where, non_negative, "three numbers >= 0",
+             &out->specular_color);
+  if (e->Has("specularTexture") || e->Has("specularColorTexture")) {
     warn_once("specular textures",
               fmt::format("{}: its specularTexture and specularColorTexture are not read (the "
                           "factors decide)",
@@ -1538,23 +1574,14 @@ void Loader::read_specular(const tinygltf::Material& in, const std::string& what
 }
 
 void Loader::read_clearcoat(const tinygltf::Material& in, const std::string& what, Material* out) {
-  const auto ext = in.extensions.find("KHR_materials_clearcoat");
-  if (ext == in.extensions.end()) return;
-  const tinygltf::Value& e = ext->second;
-  const std::string where = what + " KHR_materials_clearcoat";
-  if (!e.IsObject()) fail(where + " is not an object");
-  const auto factor = [&](const char* key, float* value) {
-    if (!e.Has(key)) return;
-    const tinygltf::Value& f = e.Get(key);
-    const double v = f.IsNumber() ? f.GetNumberAsDouble() : -1.0;
-    if (!(v >= 0.0 && v <= 1.0))
-      fail(fmt::format("{} has an invalid {} (a number 0 to 1)", where, key));
-    *value = float(v);
-  };
-  factor("clearcoatFactor", &out->clearcoat);
-  factor("clearcoatRoughnessFactor", &out->clearcoat_roughness);
-  if (e.Has("clearcoatTexture") || e.Has("clearcoatRoughnessTexture") ||
-      e.Has("clearcoatNormalTexture")) {
+  std::string where;
+  const tinygltf::Value* e = material_extension(in, "KHR_materials_clearcoat", what, &where);
+  if (e == nullptr) return;
+  read_number(*e, "clearcoatFactor", where, unit_interval, "a number 0 to 1", &out->clearcoat);
+  read_number(*e, "clearcoatRoughnessFactor", where, unit_interval, "a number 0 to 1",
+              &out->clearcoat_roughness);
+  if (e->Has("clearcoatTexture") || e->Has("clearcoatRoughnessTexture") ||
+      e->Has("clearcoatNormalTexture")) {
     warn_once("clearcoat textures",
               fmt::format("{}: its clearcoatTexture, clearcoatRoughnessTexture and "
                           "clearcoatNormalTexture are not read (the factors decide, on the "
@@ -1564,36 +1591,14 @@ void Loader::read_clearcoat(const tinygltf::Material& in, const std::string& wha
 }
 
 void Loader::read_volume(const tinygltf::Material& in, const std::string& what, Material* out) {
-  const auto ext = in.extensions.find("KHR_materials_volume");
-  if (ext == in.extensions.end()) return;
-  const tinygltf::Value& e = ext->second;
-  const std::string where = what + " KHR_materials_volume";
-  if (!e.IsObject()) fail(where + " is not an object");
-  const auto number = [&](const char* key) {
-    const tinygltf::Value& f = e.Get(key);
-    return f.IsNumber() ? f.GetNumberAsDouble() : std::nan("");
-  };
-  if (e.Has("thicknessFactor")) {
-    const double v = number("thicknessFactor");
-    if (!(v >= 0.0 && std::isfinite(v))) fail(where + " has an invalid thicknessFactor (>= 0)");
-    out->thickness = float(v);
-  }
-  if (e.Has("attenuationDistance")) {
-    const double v = number("attenuationDistance");
-    if (!(v > 0.0)) fail(where + " has an invalid attenuationDistance (> 0)");
-    out->attenuation_distance = float(v);
-  }
-  if (e.Has("attenuationColor")) {
-    const tinygltf::Value& c = e.Get("attenuationColor");
-    bool ok = c.IsArray() && c.ArrayLen() == 3;
-    for (int i = 0; ok && i < 3; ++i) {
-      const double v = c.Get(i).IsNumber() ? c.Get(i).GetNumberAsDouble() : -1.0;
-      ok = v >= 0.0 && v <= 1.0;
-      if (ok) out->attenuation_color[i] = float(v);
-    }
-    if (!ok) fail(where + " has an invalid attenuationColor (three numbers 0 to 1)");
-  }
-  if (e.Has("thicknessTexture")) {
+  std::string where;
+  const tinygltf::Value* e = material_extension(in, "KHR_materials_volume", what, &where);
+  if (e == nullptr) return;
+  read_number(*e, "thicknessFactor", where, non_negative, ">= 0", &out->thickness);
+  read_number(*e, "attenuationDistance", where, positive, "> 0", &out->attenuation_distance);
+  read_color(*e, "attenuationColor", where, unit_interval, "three numbers 0 to 1",
+             &out->attenuation_color);
+  if (e->Has("thicknessTexture")) {
     warn_once("thickness texture",
               fmt::format("{}: its thicknessTexture is not read (the tracer measures the "
                           "distance light travels inside)",

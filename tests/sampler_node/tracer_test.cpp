@@ -300,27 +300,37 @@ TEST(TracerTest, SpecularHighlightOnlyWhereTheMaterialHasOne) {
   }
 }
 
+// The color of a square of a white Lambertian material (metallic 0, roughness 1) as `dress`
+// changes it, lit by a sun of intensity 3 from behind the camera and seen straight on
+// (v = l = n).
+glm::vec3 square_lit_straight_on(const std::function<void(Material*)>& dress) {
+  Scene s;
+  const int mat = add_material(&s, glm::vec3(1.0f), 0.0f, 1.0f);
+  dress(&s.materials[size_t(mat)]);
+  add_mesh_node(&s, quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat));
+  Light sun;
+  sun.type = Light::Type::kDirectional;  // along -Z: from behind the camera
+  sun.intensity = 3.0f;
+  add_light_node(&s, sun, glm::dvec3(0.0));
+  s.finalize();
+  Tracer tracer(s);
+  TraceStats stats;
+  return tracer.trace(Ray{{0.2f, 0.1f, 0.0f}, {0, 0, -1}}, &stats).color;
+}
+
 // KHR_materials_specular: a black dielectric square lit and seen straight on (v = l = n, so
 // Fresnel is F0 exactly) shows only its highlight, F0 x D x vis x the light. Against glTF's core
 // (F0 0.04), the extension's color (1, 0.5, 0.25) at ior 1.5 tints it by that color, a factor of
 // 0.5 halves it, a factor of 0 removes it.
 TEST(TracerTest, SpecularFactorsSetTheDielectricHighlight) {
   auto highlight = [](bool extension, float factor, glm::vec3 color) {
-    Scene s;
-    const int mat = add_material(&s, glm::vec3(0.0f), 0.0f, 0.5f);
-    Material& m = s.materials[size_t(mat)];
-    m.has_specular_extension = extension;
-    m.specular = factor;
-    m.specular_color = color;
-    add_mesh_node(&s, quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat));
-    Light sun;
-    sun.type = Light::Type::kDirectional;  // along -Z: from behind the camera
-    sun.intensity = 3.0f;
-    add_light_node(&s, sun, glm::dvec3(0.0));
-    s.finalize();
-    Tracer tracer(s);
-    TraceStats stats;
-    return tracer.trace(Ray{{0.2f, 0.1f, 0.0f}, {0, 0, -1}}, &stats).color;
+    return square_lit_straight_on([&](Material* m) {
+      m->base_color_factor = glm::vec4(0.0f, 0.0f, 0.0f, 1.0f);
+      m->roughness = 0.5f;
+      m->has_specular_extension = extension;
+      m->specular = factor;
+      m->specular_color = color;
+    });
   };
   const glm::vec3 core = highlight(false, 1.0f, glm::vec3(1.0f));
   ASSERT_GT(core.r, 0.0f);
@@ -1151,20 +1161,11 @@ TEST(TracerTest, MirrorReflectsWhatItFaces) {
 // 0.5.
 TEST(TracerTest, ClearcoatLayersAClearDielectricOverTheMaterial) {
   const auto lit = [](float clearcoat, glm::vec3 emissive = glm::vec3(0.0f)) {
-    Scene s;
-    const int mat = add_material(&s, glm::vec3(1.0f), 0.0f, 1.0f);
-    s.materials[size_t(mat)].clearcoat = clearcoat;
-    s.materials[size_t(mat)].clearcoat_roughness = 0.5f;
-    s.materials[size_t(mat)].emissive = emissive;
-    add_mesh_node(&s, quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat));
-    Light sun;
-    sun.type = Light::Type::kDirectional;  // along -Z: from behind the camera
-    sun.intensity = 3.0f;
-    add_light_node(&s, sun, glm::dvec3(0.0));
-    s.finalize();
-    Tracer tracer(s);
-    TraceStats stats;
-    return tracer.trace(Ray{{0.2f, 0.1f, 0.0f}, {0, 0, -1}}, &stats).color;
+    return square_lit_straight_on([&](Material* m) {
+      m->clearcoat = clearcoat;
+      m->clearcoat_roughness = 0.5f;
+      m->emissive = emissive;
+    });
   };
   const float pi = float(M_PI), alpha = 0.25f;
   const float coat = 0.04f / (pi * alpha * alpha) * 0.25f;
