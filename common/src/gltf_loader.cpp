@@ -303,9 +303,9 @@ class Loader {
   // compressed (prepare_json), and each compressed buffer view's decoded bytes (decode_meshopt),
   // which buffer_view_bytes gives in place of its buffer's.
   std::set<int> placeholder_buffers_;
+  std::map<int, std::vector<uint8_t>> meshopt_bytes_;
   // Nodes whose mesh EXT_mesh_gpu_instancing moved to one child node per instance.
   std::set<int> instanced_nodes_;
-  std::map<int, std::vector<uint8_t>> meshopt_bytes_;
 };
 
 void Loader::warn_once(const std::string& feature, const std::string& message) {
@@ -842,7 +842,6 @@ double component_value(const uint8_t* p, int component_type, bool normalized) {
   }
 }
 
-// Components of accessor `index`, which must be of `type`, as floats; all finite.
 // EXT_ and KHR_meshopt_compression (one bitstream; KHR adds version 1 of the attribute codec and
 // a COLOR filter): every buffer view with the extension is decoded at load through meshoptimizer
 // into meshopt_bytes_, `count` elements of `byteStride` bytes (the view's byteLength), then
@@ -1100,6 +1099,7 @@ void Loader::decode_draco(const tinygltf::Primitive& in, const std::string& what
   }
 }
 
+// Components of accessor `index`, which must be of `type`, as floats; all finite.
 std::vector<float> Loader::read_floats(int index, int type, const std::string& what) {
   const tinygltf::Accessor* a = nullptr;
   const std::vector<uint8_t> bytes = gather(index, type, what, &a);
@@ -1477,41 +1477,6 @@ glm::vec3 Loader::read_rgb_extra(const tinygltf::Value& extras, const char* key,
   return glm::vec3(float(rgb[0]), float(rgb[1]), float(rgb[2]));
 }
 
-// KHR_materials_transmission (transmissionFactor in [0, 1], default 0) and KHR_materials_ior
-// (ior >= 1 or exactly 0, default 1.5).
-void Loader::read_transmission_and_ior(const tinygltf::Material& in, const std::string& what,
-                                       Material* out) {
-  if (const auto ext = in.extensions.find("KHR_materials_transmission");
-      ext != in.extensions.end()) {
-    if (ext->second.Has("transmissionFactor")) {
-      const tinygltf::Value& f = ext->second.Get("transmissionFactor");
-      const double v = f.IsNumber() ? f.GetNumberAsDouble() : NAN;
-      if (!(v >= 0.0 && v <= 1.0)) {
-        fail(what +
-             " has an invalid KHR_materials_transmission transmissionFactor (a number "
-             "in [0, 1] is expected)");
-      }
-      out->transmission = float(v);
-    }
-    if (ext->second.Has("transmissionTexture")) {
-      warn_once("transmissionTexture",
-                "KHR_materials_transmission transmissionTexture is not supported "
-                "(transmissionFactor is used)");
-    }
-  }
-  if (const auto ext = in.extensions.find("KHR_materials_ior");
-      ext != in.extensions.end() && ext->second.Has("ior")) {
-    const tinygltf::Value& i = ext->second.Get("ior");
-    const double v = i.IsNumber() ? i.GetNumberAsDouble() : NAN;
-    if (!(v == 0.0 || (v >= 1.0 && std::isfinite(v)))) {
-      fail(what + " has an invalid KHR_materials_ior ior (a number >= 1, or 0, is expected)");
-    }
-    out->ior = float(v);
-  }
-}
-
-// KHR_materials_specular: specularFactor (0 to 1, default 1) and specularColorFactor (three
-// numbers >= 0, default 1). Its textures are not read (one warning): the factors decide.
 // Material extension `name`'s object, or null where the material has none (fails where it is
 // not an object); *where names it in errors.
 const tinygltf::Value* Loader::material_extension(const tinygltf::Material& in, const char* name,
@@ -1555,8 +1520,32 @@ namespace {
 bool unit_interval(double v) { return v >= 0.0 && v <= 1.0; }
 bool non_negative(double v) { return v >= 0.0 && std::isfinite(v); }
 bool positive(double v) { return v > 0.0; }  // infinity too: no attenuation
+// KHR_materials_ior: 0 stands for a Fresnel term of 1.
+bool ior_value(double v) { return v == 0.0 || (v >= 1.0 && std::isfinite(v)); }
 }  // namespace
 
+// KHR_materials_transmission (transmissionFactor in [0, 1], default 0) and KHR_materials_ior
+// (ior >= 1 or exactly 0, default 1.5).
+void Loader::read_transmission_and_ior(const tinygltf::Material& in, const std::string& what,
+                                       Material* out) {
+  std::string where;
+  if (const tinygltf::Value* e =
+          material_extension(in, "KHR_materials_transmission", what, &where)) {
+    read_number(*e, "transmissionFactor", where, unit_interval, "a number 0 to 1",
+                &out->transmission);
+    if (e->Has("transmissionTexture")) {
+      warn_once("transmissionTexture",
+                "KHR_materials_transmission transmissionTexture is not supported "
+                "(transmissionFactor is used)");
+    }
+  }
+  if (const tinygltf::Value* e = material_extension(in, "KHR_materials_ior", what, &where)) {
+    read_number(*e, "ior", where, ior_value, "a number >= 1, or 0", &out->ior);
+  }
+}
+
+// KHR_materials_specular: specularFactor (0 to 1, default 1) and specularColorFactor (three
+// numbers >= 0, default 1). Its textures are not read (one warning): the factors decide.
 void Loader::read_specular(const tinygltf::Material& in, const std::string& what, Material* out) {
   std::string where;
   const tinygltf::Value* e = material_extension(in, "KHR_materials_specular", what, &where);
@@ -1631,13 +1620,12 @@ void Loader::load_materials() {
       out.emissive = glm::vec3(float(in.emissiveFactor[0]), float(in.emissiveFactor[1]),
                                float(in.emissiveFactor[2]));
     }
-    if (const auto ext = in.extensions.find("KHR_materials_emissive_strength");
-        ext != in.extensions.end() && ext->second.Has("emissiveStrength")) {
-      const tinygltf::Value& s = ext->second.Get("emissiveStrength");
-      if (!s.IsNumber() || !std::isfinite(s.GetNumberAsDouble()) || s.GetNumberAsDouble() < 0) {
-        fail(what + " has an invalid emissiveStrength");
-      }
-      out.emissive *= float(s.GetNumberAsDouble());
+    std::string where;
+    if (const tinygltf::Value* e =
+            material_extension(in, "KHR_materials_emissive_strength", what, &where)) {
+      float strength = 1.0f;
+      read_number(*e, "emissiveStrength", where, non_negative, ">= 0", &strength);
+      out.emissive *= strength;
     }
     read_transmission_and_ior(in, what, &out);
     read_specular(in, what, &out);

@@ -659,16 +659,13 @@ void Tracer::Impl::build() {
       ++static_copies[size_t(node.mesh)];
     }
   }
-  const auto shared = [&](int mesh) {
-    size_t vertices = 0;
-    for (const Primitive& p : scene_.meshes[size_t(mesh)].primitives) {
-      vertices += p.positions.size();
-    }
-    const size_t copies = static_copies[size_t(mesh)];
-    return copies > 1 && (copies - 1) * vertices > options_.max_copied_vertices;
-  };
   std::vector<char> mesh_shared(scene_.meshes.size(), 0);
-  for (size_t m = 0; m < scene_.meshes.size(); ++m) mesh_shared[m] = shared(int(m)) ? 1 : 0;
+  for (size_t m = 0; m < scene_.meshes.size(); ++m) {
+    size_t vertices = 0;
+    for (const Primitive& p : scene_.meshes[m].primitives) vertices += p.positions.size();
+    const size_t copies = static_copies[m];
+    mesh_shared[m] = copies > 1 && (copies - 1) * vertices > options_.max_copied_vertices;
+  }
   for (int n : scene_.scene_nodes()) {
     const Node& node = scene_.nodes[size_t(n)];
     if (node.light >= 0 && size_t(node.light) < scene_.lights.size()) light_nodes_.push_back(n);

@@ -142,6 +142,12 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
       "specular", [](Scene* s) { s->materials[0].has_specular_extension = true; },
       [](Scene* s) { s->materials[0].specular = 0.5f; });
   expect_seen(
+      "clearcoat", [](Scene* s) { s->materials[0].clearcoat = 1.0f; },
+      [](Scene* s) { s->materials[0].clearcoat_roughness = 0.5f; });
+  expect_seen(
+      "volume", [](Scene* s) { s->materials[0].thickness = 1.0f; },
+      [](Scene* s) { s->materials[0].attenuation_distance = 2.0f; });
+  expect_seen(
       "samplers", [](Scene* s) { s->textures[0].wrap_s = Texture::Wrap::kClampToEdge; },
       [](Scene* s) { s->textures[0].nearest = true; });
   expect_seen(
