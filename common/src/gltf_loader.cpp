@@ -224,7 +224,7 @@ class Loader {
   void load_skins();
   void drop_unused_joints();
   void load_materials();
-  void read_transmission_and_ior(const tinygltf::Material& in, const std::string& what,
+  void read_transmission_and_ior(size_t m, const tinygltf::Material& in, const std::string& what,
                                  Material* out);
   const tinygltf::Value* material_extension(const tinygltf::Material& in, const char* name,
                                             const std::string& what, std::string* where) const;
@@ -232,18 +232,30 @@ class Loader {
                    bool (*ok)(double), const char* range, float* out) const;
   void read_color(const tinygltf::Value& e, const char* key, const std::string& where,
                   bool (*ok)(double), const char* range, glm::vec3* out) const;
-  void read_specular(const tinygltf::Material& in, const std::string& what, Material* out);
-  void read_clearcoat(const tinygltf::Material& in, const std::string& what, Material* out);
+  void read_specular(size_t m, const tinygltf::Material& in, const std::string& what,
+                     Material* out);
+  void read_clearcoat(size_t m, const tinygltf::Material& in, const std::string& what,
+                      Material* out);
   void read_volume(const tinygltf::Material& in, const std::string& what, Material* out);
   std::optional<glm::dmat3> read_texture_transform(const tinygltf::ExtensionMap& extensions,
                                                    const std::string& what, int* tex_coord);
+  // How a texture slot reads its image: as sRGB-encoded color, as linear data, or as linear
+  // data taken from the image's alpha channel (KHR_materials_specular's specularTexture), which
+  // the Texture then holds in its red, green and blue.
+  enum class ImageData : uint8_t { kColor, kLinear, kAlpha };
   // One texture slot of material m (its index, texCoord and extensions as glTF gives them):
-  // the index of its decoded texture in Scene::textures (sRGB color or linear data), or -1
-  // where the slot is empty or its texture has no image. *set: the material's texture
-  // coordinate set the slot reads (uv_sources_), added where no slot before it reads the same
-  // TEXCOORD_n through the same KHR_texture_transform.
+  // the index of its decoded texture in Scene::textures, or -1 where the slot is empty or its
+  // texture has no image. *set: the material's texture coordinate set the slot reads
+  // (uv_sources_), added where no slot before it reads the same TEXCOORD_n through the same
+  // KHR_texture_transform.
   int read_texture_slot(size_t m, const char* slot, int index, int tex_coord,
-                        const tinygltf::ExtensionMap& extensions, bool srgb, uint8_t* set);
+                        const tinygltf::ExtensionMap& extensions, ImageData data, uint8_t* set);
+  // The same for a texture slot inside a material extension's object e (glTF's textureInfo:
+  // index, texCoord, extensions); -1 where e has no such key. *scale: the slot's "scale" where
+  // it is a normal texture (else null).
+  int read_extension_texture(size_t m, const tinygltf::Value& e, const char* key,
+                             const std::string& where, ImageData data, uint8_t* set,
+                             float* scale = nullptr);
   struct UvSource;
   void read_texture_coordinates(const tinygltf::Primitive& in, const std::vector<UvSource>& sources,
                                 const std::string& what, size_t vertex_count, Primitive* out);
@@ -259,7 +271,7 @@ class Loader {
     }
   };
   TextureSampling read_sampler(int sampler);
-  int texture_for_image(int image_index, bool srgb, const TextureSampling& sampling);
+  int texture_for_image(int image_index, ImageData data, const TextureSampling& sampling);
   int add_texture(Texture texture);
   void keep_mask_alphas();
   void load_cameras();
@@ -280,9 +292,10 @@ class Loader {
   Scene scene_;
   std::vector<int> camera_map_;  // glTF camera -> Scene::cameras, -1 when skipped
   std::vector<int> light_map_;   // glTF light -> Scene::lights, -1 when skipped
-  // (glTF image, decoded as sRGB color or as data, wrap s, wrap t, nearest) -> Scene::textures:
-  // an image may be read both ways (a base color reused as a mask) and through several samplers.
-  using TextureKey = std::tuple<int, bool, Texture::Wrap, Texture::Wrap, bool>;
+  // (glTF image, how it is read, wrap s, wrap t, nearest) -> Scene::textures: an image may be
+  // read several ways (a base color reused as a mask, a specular color whose alpha is the
+  // specular strength) and through several samplers.
+  using TextureKey = std::tuple<int, ImageData, Texture::Wrap, Texture::Wrap, bool>;
   std::map<TextureKey, int> textures_;
   // A texture coordinate set of a material (Material::TextureSets): a TEXCOORD_n through a
   // KHR_texture_transform (none: the identity), and the first slot that reads it.
@@ -292,8 +305,9 @@ class Loader {
     const char* slot = nullptr;
   };
   // Per glTF material, its sets in slot order (base color, metallic-roughness, emissive,
-  // occlusion, normal); empty for a material without textures, whose primitives read
-  // TEXCOORD_0 as they are.
+  // occlusion, normal, then the extensions' slots: transmission, specular, specular color,
+  // clearcoat, clearcoat roughness, clearcoat normal); empty for a material without textures, whose
+  // primitives read TEXCOORD_0 as they are.
   std::vector<std::vector<UvSource>> uv_sources_;
   size_t morph_displacements_ = 0;  // read so far, at most kMaxMorphDisplacements
   // The primitive being loaded, where it is Draco-compressed: its accessors' elements, decoded
@@ -1272,9 +1286,10 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
                            material ? uv_sources_[size_t(in.material)] : std::vector<UvSource>{},
                            what, vertex_count, out);
   // TANGENT (VEC4 of floats, or of normalized bytes or shorts with KHR_mesh_quantization), read
-  // only where the material's normal texture uses it; w taken by its sign.
+  // only where the material's normal textures use it; w taken by its sign.
   if (const auto tangent = in.attributes.find("TANGENT");
-      material && material->normal_texture >= 0 && tangent != in.attributes.end()) {
+      material && (material->normal_texture >= 0 || material->clearcoat_normal_texture >= 0) &&
+      tangent != in.attributes.end()) {
     const std::vector<float> t =
         read_floats(tangent->second, TINYGLTF_TYPE_VEC4, what + " TANGENT");
     if (t.size() / 4 != vertex_count) {
@@ -1526,18 +1541,15 @@ bool ior_value(double v) { return v == 0.0 || (v >= 1.0 && std::isfinite(v)); }
 
 // KHR_materials_transmission (transmissionFactor in [0, 1], default 0) and KHR_materials_ior
 // (ior >= 1 or exactly 0, default 1.5).
-void Loader::read_transmission_and_ior(const tinygltf::Material& in, const std::string& what,
-                                       Material* out) {
+void Loader::read_transmission_and_ior(size_t m, const tinygltf::Material& in,
+                                       const std::string& what, Material* out) {
   std::string where;
   if (const tinygltf::Value* e =
           material_extension(in, "KHR_materials_transmission", what, &where)) {
     read_number(*e, "transmissionFactor", where, unit_interval, "a number 0 to 1",
                 &out->transmission);
-    if (e->Has("transmissionTexture")) {
-      warn_once("transmissionTexture",
-                "KHR_materials_transmission transmissionTexture is not supported "
-                "(transmissionFactor is used)");
-    }
+    out->transmission_texture = read_extension_texture(
+        m, *e, "transmissionTexture", where, ImageData::kLinear, &out->uv_set.transmission);
   }
   if (const tinygltf::Value* e = material_extension(in, "KHR_materials_ior", what, &where)) {
     read_number(*e, "ior", where, ior_value, "a number >= 1, or 0", &out->ior);
@@ -1545,8 +1557,9 @@ void Loader::read_transmission_and_ior(const tinygltf::Material& in, const std::
 }
 
 // KHR_materials_specular: specularFactor (0 to 1, default 1) and specularColorFactor (three
-// numbers >= 0, default 1). Its textures are not read (one warning): the factors decide.
-void Loader::read_specular(const tinygltf::Material& in, const std::string& what, Material* out) {
+// numbers >= 0, default 1), and the textures that multiply them.
+void Loader::read_specular(size_t m, const tinygltf::Material& in, const std::string& what,
+                           Material* out) {
   std::string where;
   const tinygltf::Value* e = material_extension(in, "KHR_materials_specular", what, &where);
   if (e == nullptr) return;
@@ -1554,29 +1567,60 @@ void Loader::read_specular(const tinygltf::Material& in, const std::string& what
   read_number(*e, "specularFactor", where, unit_interval, "a number 0 to 1", &out->specular);
   read_color(*e, "specularColorFactor", where, non_negative, "three numbers >= 0",
              &out->specular_color);
-  if (e->Has("specularTexture") || e->Has("specularColorTexture")) {
-    warn_once("specular textures",
-              fmt::format("{}: its specularTexture and specularColorTexture are not read (the "
-                          "factors decide)",
-                          where));
-  }
+  out->specular_texture = read_extension_texture(m, *e, "specularTexture", where, ImageData::kAlpha,
+                                                 &out->uv_set.specular);
+  out->specular_color_texture = read_extension_texture(
+      m, *e, "specularColorTexture", where, ImageData::kColor, &out->uv_set.specular_color);
 }
 
-void Loader::read_clearcoat(const tinygltf::Material& in, const std::string& what, Material* out) {
+void Loader::read_clearcoat(size_t m, const tinygltf::Material& in, const std::string& what,
+                            Material* out) {
   std::string where;
   const tinygltf::Value* e = material_extension(in, "KHR_materials_clearcoat", what, &where);
   if (e == nullptr) return;
   read_number(*e, "clearcoatFactor", where, unit_interval, "a number 0 to 1", &out->clearcoat);
   read_number(*e, "clearcoatRoughnessFactor", where, unit_interval, "a number 0 to 1",
               &out->clearcoat_roughness);
-  if (e->Has("clearcoatTexture") || e->Has("clearcoatRoughnessTexture") ||
-      e->Has("clearcoatNormalTexture")) {
-    warn_once("clearcoat textures",
-              fmt::format("{}: its clearcoatTexture, clearcoatRoughnessTexture and "
-                          "clearcoatNormalTexture are not read (the factors decide, on the "
-                          "material's own normal)",
-                          where));
+  out->clearcoat_texture = read_extension_texture(m, *e, "clearcoatTexture", where,
+                                                  ImageData::kLinear, &out->uv_set.clearcoat);
+  out->clearcoat_roughness_texture =
+      read_extension_texture(m, *e, "clearcoatRoughnessTexture", where, ImageData::kLinear,
+                             &out->uv_set.clearcoat_roughness);
+  out->clearcoat_normal_texture =
+      read_extension_texture(m, *e, "clearcoatNormalTexture", where, ImageData::kLinear,
+                             &out->uv_set.clearcoat_normal, &out->clearcoat_normal_scale);
+}
+
+int Loader::read_extension_texture(size_t m, const tinygltf::Value& e, const char* key,
+                                   const std::string& where, ImageData data, uint8_t* set,
+                                   float* scale) {
+  if (!e.Has(key)) return -1;
+  const tinygltf::Value& info = e.Get(key);
+  const std::string slot = fmt::format("{} {}", where, key);
+  if (!info.IsObject()) fail(slot + " is not an object");
+  const tinygltf::Value& index = info.Get("index");
+  if (!index.IsInt() || index.GetNumberAsInt() < 0) {
+    fail(slot + " has no valid index (a texture index >= 0)");
   }
+  int tex_coord = 0;
+  if (info.Has("texCoord")) {
+    const tinygltf::Value& t = info.Get("texCoord");
+    if (!t.IsInt() || t.GetNumberAsInt() < 0) {
+      fail(slot + " has an invalid texCoord (an integer >= 0)");
+    }
+    tex_coord = t.GetNumberAsInt();
+  }
+  tinygltf::ExtensionMap extensions;
+  if (info.Has("extensions")) {
+    const tinygltf::Value& x = info.Get("extensions");
+    if (!x.IsObject()) fail(slot + " extensions is not an object");
+    for (const std::string& name : x.Keys()) extensions[name] = x.Get(name);
+  }
+  if (scale != nullptr) {
+    read_number(
+        info, "scale", slot, [](double v) { return std::isfinite(v); }, "a number", scale);
+  }
+  return read_texture_slot(m, key, index.GetNumberAsInt(), tex_coord, extensions, data, set);
 }
 
 void Loader::read_volume(const tinygltf::Material& in, const std::string& what, Material* out) {
@@ -1627,10 +1671,6 @@ void Loader::load_materials() {
       read_number(*e, "emissiveStrength", where, non_negative, ">= 0", &strength);
       out.emissive *= strength;
     }
-    read_transmission_and_ior(in, what, &out);
-    read_specular(in, what, &out);
-    read_clearcoat(in, what, &out);
-    read_volume(in, what, &out);
     out.unlit = in.extensions.count("KHR_materials_unlit") > 0;
     out.double_sided = in.doubleSided;
     if (in.alphaMode == "MASK") {
@@ -1650,23 +1690,24 @@ void Loader::load_materials() {
     }
     const tinygltf::TextureInfo& base = pbr.baseColorTexture;
     Material::TextureSets& sets = out.uv_set;
-    out.base_color_texture = read_texture_slot(m, "baseColorTexture", base.index, base.texCoord,
-                                               base.extensions, true, &sets.base_color);
+    out.base_color_texture =
+        read_texture_slot(m, "baseColorTexture", base.index, base.texCoord, base.extensions,
+                          ImageData::kColor, &sets.base_color);
     const tinygltf::TextureInfo& mr = pbr.metallicRoughnessTexture;
     out.metallic_roughness_texture =
         read_texture_slot(m, "metallicRoughnessTexture", mr.index, mr.texCoord, mr.extensions,
-                          false, &sets.metallic_roughness);
+                          ImageData::kLinear, &sets.metallic_roughness);
     const tinygltf::TextureInfo& emissive = in.emissiveTexture;
     out.emissive_texture =
         read_texture_slot(m, "emissiveTexture", emissive.index, emissive.texCoord,
-                          emissive.extensions, true, &sets.emissive);
+                          emissive.extensions, ImageData::kColor, &sets.emissive);
     const tinygltf::OcclusionTextureInfo& occlusion = in.occlusionTexture;
     out.occlusion_texture =
         read_texture_slot(m, "occlusionTexture", occlusion.index, occlusion.texCoord,
-                          occlusion.extensions, false, &sets.occlusion);
+                          occlusion.extensions, ImageData::kLinear, &sets.occlusion);
     const tinygltf::NormalTextureInfo& normal = in.normalTexture;
     out.normal_texture = read_texture_slot(m, "normalTexture", normal.index, normal.texCoord,
-                                           normal.extensions, false, &sets.normal);
+                                           normal.extensions, ImageData::kLinear, &sets.normal);
     if (out.normal_texture >= 0) {
       if (!std::isfinite(normal.scale)) {
         fail(fmt::format("{} has an invalid normalTexture scale ({})", what, normal.scale));
@@ -1680,6 +1721,11 @@ void Loader::load_materials() {
       }
       out.occlusion_strength = float(occlusion.strength);
     }
+    // The extensions' texture slots come after the core's in uv_sources_.
+    read_transmission_and_ior(m, in, what, &out);
+    read_specular(m, in, what, &out);
+    read_clearcoat(m, in, what, &out);
+    read_volume(in, what, &out);
     if (in.extras.Has("afr_ambient")) out.ambient = read_rgb_extra(in.extras, "afr_ambient", what);
     scene_.materials.push_back(std::move(out));
   }
@@ -1704,7 +1750,8 @@ void Loader::keep_mask_alphas() {
 }
 
 int Loader::read_texture_slot(size_t m, const char* slot, int index, int tex_coord,
-                              const tinygltf::ExtensionMap& extensions, bool srgb, uint8_t* set) {
+                              const tinygltf::ExtensionMap& extensions, ImageData data,
+                              uint8_t* set) {
   if (index < 0) return -1;
   const std::string what = fmt::format("material {} {}", m, slot);
   if (size_t(index) >= model_.textures.size()) {
@@ -1750,7 +1797,7 @@ int Loader::read_texture_slot(size_t m, const char* slot, int index, int tex_coo
     fail(fmt::format("texture {} refers to image {}, but there are {}", index, source,
                      model_.images.size()));
   }
-  return texture_for_image(source, srgb, sampling);
+  return texture_for_image(source, data, sampling);
 }
 
 // glTF sampler s (-1: none, the defaults: REPEAT, linear): its wrap modes and magnification.
@@ -1873,12 +1920,12 @@ void Loader::read_texture_coordinates(const tinygltf::Primitive& in,
 // Image `image_index` in Scene::textures, decoded as sRGB color or as data, with `sampling`:
 // its index there. Each image is decoded once per way it is read; a second sampling of it
 // copies the texels.
-int Loader::texture_for_image(int image_index, bool srgb, const TextureSampling& sampling) {
-  const TextureKey key{image_index, srgb, sampling.wrap_s, sampling.wrap_t, sampling.nearest};
+int Loader::texture_for_image(int image_index, ImageData data, const TextureSampling& sampling) {
+  const TextureKey key{image_index, data, sampling.wrap_s, sampling.wrap_t, sampling.nearest};
   if (const auto found = textures_.find(key); found != textures_.end()) return found->second;
-  const auto decoded_before = textures_.lower_bound(TextureKey{image_index, srgb, {}, {}, false});
+  const auto decoded_before = textures_.lower_bound(TextureKey{image_index, data, {}, {}, false});
   if (decoded_before != textures_.end() && std::get<0>(decoded_before->first) == image_index &&
-      std::get<1>(decoded_before->first) == srgb) {
+      std::get<1>(decoded_before->first) == data) {
     Texture texture = scene_.textures[size_t(decoded_before->second)];
     sampling.apply(&texture);
     return textures_[key] = add_texture(std::move(texture));
@@ -1907,6 +1954,7 @@ int Loader::texture_for_image(int image_index, bool srgb, const TextureSampling&
   texture.name = image.name.empty() ? image.uri : image.name;
   texture.width = decoded.width;
   texture.height = decoded.height;
+  const bool srgb = data == ImageData::kColor;
   texture.encoding = srgb ? Texture::Encoding::kSrgb : Texture::Encoding::kLinear;
   texture.codes.resize(size_t(decoded.width) * size_t(decoded.height));
   const size_t c = size_t(decoded.channels);
@@ -1916,7 +1964,8 @@ int Loader::texture_for_image(int image_index, bool srgb, const TextureSampling&
     // One channel is gray, two are gray and alpha.
     const uint32_t r = p[0], g = c >= 3 ? p[1] : p[0], b = c >= 3 ? p[2] : p[0];
     const uint32_t a = has_alpha ? p[c - 1] : 255;
-    texture.codes[i] = r | (g << 8) | (b << 16) | (a << 24);
+    texture.codes[i] = data == ImageData::kAlpha ? a | (a << 8) | (a << 16) | (255u << 24)
+                                                 : r | (g << 8) | (b << 16) | (a << 24);
   }
   // Alpha (linear in glTF) of a color image that has it, until load_materials() knows whether
   // a masking material reads it (keep_mask_alphas()).

@@ -397,14 +397,17 @@ void Scene::finalize() {
   }
   for (size_t m = 0; m < materials.size(); ++m) {
     const Material& mat = materials[m];
-    for (const int t : {mat.base_color_texture, mat.metallic_roughness_texture,
-                        mat.emissive_texture, mat.occlusion_texture, mat.normal_texture}) {
+    for (const int t :
+         {mat.base_color_texture, mat.metallic_roughness_texture, mat.emissive_texture,
+          mat.occlusion_texture, mat.normal_texture, mat.transmission_texture, mat.specular_texture,
+          mat.specular_color_texture, mat.clearcoat_texture, mat.clearcoat_roughness_texture,
+          mat.clearcoat_normal_texture}) {
       if (t != -1 && !in_range(t, textures.size())) {
         throw err(fmt::format("material {} ('{}') names texture {} of {}", m, mat.name, t,
                               textures.size()));
       }
     }
-    if (!std::isfinite(mat.normal_scale)) {
+    if (!std::isfinite(mat.normal_scale) || !std::isfinite(mat.clearcoat_normal_scale)) {
       throw err(
           fmt::format("material {} ('{}') has a normal scale that is not finite", m, mat.name));
     }

@@ -31,6 +31,23 @@ void derive(ShadeMaterial* m, float metallic, float roughness) {
                     !(m->metallic <= 0.0f && m->specular_f90 <= 0.0f && is_black(m->specular_f0));
 }
 
+// KHR_materials_specular's F0 and F90 from its strength and color (factor x texel).
+void set_specular(ShadeMaterial* m, float specular, const glm::vec3& color) {
+  const float strength = glm::clamp(specular, 0.0f, 1.0f);
+  m->specular_f0 =
+      glm::min(m->f0_ior * glm::max(color, glm::vec3(0.0f)), glm::vec3(1.0f)) * strength;
+  m->specular_f90 = strength;
+}
+
+// KHR_materials_clearcoat's weight and GGX alpha from its factor x texel and roughness.
+void set_clearcoat(ShadeMaterial* m, float clearcoat, float roughness) {
+  roughness = glm::clamp(roughness, 0.0f, 1.0f);
+  const float r = std::max(roughness, kMinDirectRoughness);
+  m->clearcoat = glm::clamp(clearcoat, 0.0f, 1.0f);
+  m->clearcoat_alpha = r * r;
+  m->clearcoat_mirror = m->clearcoat > 0.0f && roughness <= m->mirror_roughness;
+}
+
 // The scene's texture `index`, or null when there is none (or it is empty).
 const Texture* texture_at(int index, const Scene& scene) {
   if (index < 0 || size_t(index) >= scene.textures.size()) return nullptr;
@@ -57,7 +74,6 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
   if (!is_black(mat.emissive)) m.emissive_texture = texture_at(mat.emissive_texture, scene);
   m.occlusion = mat.occlusion_strength > 0.0f ? texture_at(mat.occlusion_texture, scene) : nullptr;
   m.occlusion_strength = glm::clamp(mat.occlusion_strength, 0.0f, 1.0f);
-  m.varies = m.metallic_roughness || m.emissive_texture || m.occlusion;
   m.normal_map = texture_at(mat.normal_texture, scene);
   m.normal_scale = mat.normal_scale;
   m.metallic_factor = glm::clamp(mat.metallic, 0.0f, 1.0f);
@@ -80,9 +96,12 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
   // for glass and KHR_materials_specular.
   const float r = (mat.ior - 1.0f) / (mat.ior + 1.0f);
   const float f0_ior = mat.ior > 0.0f ? r * r : 1.0f;
+  m.f0_ior = f0_ior;
   m.transmission = glm::clamp(mat.transmission, 0.0f, 1.0f);
+  m.transmission_factor = m.transmission;
   m.is_glass = m.transmission > 0.0f;
   if (m.is_glass) {
+    m.transmission_texture = texture_at(mat.transmission_texture, scene);
     m.shadow_transmittance = glm::clamp(m.transmission * (1.0f - m.metallic_factor) * m.base,
                                         glm::vec3(0.0f), glm::vec3(1.0f));
     m.ior = mat.ior;
@@ -95,18 +114,31 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
     }
   }
   if (mat.has_specular_extension) {
-    m.specular_f0 =
-        glm::min(f0_ior * glm::max(mat.specular_color, glm::vec3(0.0f)), glm::vec3(1.0f)) *
-        glm::clamp(mat.specular, 0.0f, 1.0f);
-    m.specular_f90 = glm::clamp(mat.specular, 0.0f, 1.0f);
+    m.specular_factor = mat.specular;
+    m.specular_color_factor = mat.specular_color;
+    set_specular(&m, m.specular_factor, m.specular_color_factor);
+    // A strength of 0, or a black color, the textures multiply to nothing.
+    if (mat.specular > 0.0f) {
+      m.specular_texture = texture_at(mat.specular_texture, scene);
+      if (!is_black(mat.specular_color)) {
+        m.specular_color_texture = texture_at(mat.specular_color_texture, scene);
+      }
+    }
   }
   if (mat.clearcoat > 0.0f) {
-    const float roughness = glm::clamp(mat.clearcoat_roughness, 0.0f, 1.0f);
-    const float r = std::max(roughness, kMinDirectRoughness);
-    m.clearcoat = glm::clamp(mat.clearcoat, 0.0f, 1.0f);
-    m.clearcoat_alpha = r * r;
-    m.clearcoat_mirror = roughness <= mirror_roughness;
+    m.clearcoat_factor = mat.clearcoat;
+    m.clearcoat_roughness_factor = mat.clearcoat_roughness;
+    set_clearcoat(&m, m.clearcoat_factor, m.clearcoat_roughness_factor);
+    m.clearcoat_texture = texture_at(mat.clearcoat_texture, scene);
+    if (mat.clearcoat_roughness > 0.0f) {
+      m.clearcoat_roughness_texture = texture_at(mat.clearcoat_roughness_texture, scene);
+    }
+    m.clearcoat_normal_map = texture_at(mat.clearcoat_normal_texture, scene);
+    m.clearcoat_normal_scale = mat.clearcoat_normal_scale;
   }
+  m.varies = m.metallic_roughness || m.emissive_texture || m.occlusion || m.transmission_texture ||
+             m.specular_texture || m.specular_color_texture || m.clearcoat_texture ||
+             m.clearcoat_roughness_texture;
   derive(&m, m.metallic_factor, m.roughness_factor);
   if (mat.unlit) {
     // Only the base color (and alpha) is left: prepare_local shows it and stops there, and
@@ -114,16 +146,27 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
     m.unlit = true;
     m.is_mirror = m.is_glass = m.varies = m.clearcoat_mirror = false;
     m.clearcoat = 0.0f;
-    m.normal_map = nullptr;
+    m.normal_map = m.clearcoat_normal_map = nullptr;
     m.shadow_transmittance = glm::vec3(0.0f);
   }
   return m;
 }
 
-void vary(ShadeMaterial* m, const glm::vec3& mr, const glm::vec3& emissive, float occlusion) {
-  m->emissive = m->emissive_factor * emissive;
-  derive(m, m->metallic_factor * mr.b, m->roughness_factor * mr.g);
-  const float o = 1.0f + m->occlusion_strength * (occlusion - 1.0f);
+void vary(ShadeMaterial* m, const Texels& t) {
+  m->emissive = m->emissive_factor * t.emissive;
+  if (m->transmission_texture) {
+    m->transmission = glm::clamp(m->transmission_factor * t.transmission, 0.0f, 1.0f);
+  }
+  if (m->specular_texture || m->specular_color_texture) {
+    set_specular(m, m->specular_factor * t.specular, m->specular_color_factor * t.specular_color);
+  }
+  if (m->clearcoat_texture || m->clearcoat_roughness_texture) {
+    set_clearcoat(m, m->clearcoat_factor * t.clearcoat,
+                  m->clearcoat_roughness_factor * t.clearcoat_roughness);
+  }
+  derive(m, m->metallic_factor * t.metallic_roughness.b,
+         m->roughness_factor * t.metallic_roughness.g);
+  const float o = 1.0f + m->occlusion_strength * (t.occlusion - 1.0f);
   if (o != 1.0f) {
     m->ambient *= o;
     m->has_ambient = !is_black(m->scene_ambient * m->ambient);

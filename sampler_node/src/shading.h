@@ -28,8 +28,9 @@ inline constexpr float kPi = 3.14159265358979323846f;
 inline constexpr float kMinDirectRoughness = 0.1f;
 
 // What the shader needs of one Material, with the work it implies decided once. A material
-// whose metallic-roughness, emissive or occlusion texture varies it over a surface (`varies`)
-// is decided again at each shading point (vary()), from the factors kept here.
+// whose textures vary it over a surface (`varies`: metallic-roughness, emissive, occlusion, or
+// an extension's transmission, specular or clearcoat texture) is decided again at each shading
+// point (vary()), from the factors kept here.
 struct ShadeMaterial {
   glm::vec3 base{1.0f};     // base color factor (rgb)
   glm::vec3 ambient{1.0f};  // reflectance of ambient light: ambient_reflectance, less below
@@ -41,15 +42,33 @@ struct ShadeMaterial {
   const Texture* emissive_texture = nullptr;
   const Texture* occlusion = nullptr;
   float occlusion_strength = 1.0f;
-  bool varies = false;  // one of the three above is set
+  // The extensions' (null: none, or a factor of 0 that they could not change): transmission
+  // (red), specular strength (the image's alpha, held in red), specular color, clearcoat (red),
+  // clearcoat roughness (green).
+  const Texture* transmission_texture = nullptr;
+  const Texture* specular_texture = nullptr;
+  const Texture* specular_color_texture = nullptr;
+  const Texture* clearcoat_texture = nullptr;
+  const Texture* clearcoat_roughness_texture = nullptr;
+  bool varies = false;  // one of the textures above is set
   // The normal texture (tangent space, linear data; null: none) and its scale: it bends the
   // shading normal (Tracer::Impl::make_surface), not the material.
   const Texture* normal_map = nullptr;
   float normal_scale = 1.0f;
+  // The clear coat's own normal texture and scale (null: the coat lies on the interpolated
+  // normal, unbent by normal_map).
+  const Texture* clearcoat_normal_map = nullptr;
+  float clearcoat_normal_scale = 1.0f;
   // The factors the textures multiply, and what the derived fields need of the scene.
   float metallic_factor = 1.0f;
   float roughness_factor = 1.0f;
   glm::vec3 emissive_factor{0.0f};
+  float transmission_factor = 0.0f;
+  float specular_factor = 1.0f;
+  glm::vec3 specular_color_factor{1.0f};
+  float f0_ior = 0.04f;  // ((ior - 1) / (ior + 1))^2, 1 for ior 0
+  float clearcoat_factor = 0.0f;
+  float clearcoat_roughness_factor = 0.0f;
   glm::vec3 ambient_reflectance{1.0f};  // Material::ambient, else the base color factor
   glm::vec3 scene_ambient{0.0f};
   float mirror_roughness = 0.0f;  // TracerOptions::mirror_roughness
@@ -107,13 +126,23 @@ struct ShadeMaterial {
 ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
                                   float mirror_roughness);
 
+// The texels of a varying material's textures at one point (linear; 1 for an absent texture).
+struct Texels {
+  glm::vec3 metallic_roughness{1.0f};  // green x the roughness factor, blue x the metallic
+  glm::vec3 emissive{1.0f};            // x the emissive factor
+  float occlusion = 1.0f;              // red: moved toward 1 by 1 - strength, x the ambient
+  float transmission = 1.0f;           // red x the transmission factor
+  float specular = 1.0f;               // the specular texture's alpha x the specular factor
+  glm::vec3 specular_color{1.0f};      // x the specular color factor
+  float clearcoat = 1.0f;              // red x the clearcoat factor
+  float clearcoat_roughness = 1.0f;    // green x the clearcoat roughness factor
+};
+
 // The material at one point of a surface whose material varies: `m` (as make_shade_material
-// made it) with the metallic-roughness texel `mr` (green, blue multiply the roughness and
-// metallic factors), the emissive texel `emissive` (multiplies the emissive factor) and the
-// occlusion texel's red channel `occlusion` (moved toward 1 by 1 - strength, it scales the
-// ambient reflectance). Texels of absent textures are 1. Glass's shadow transmittance stays
-// the factors' (shadow rays do not look up textures).
-void vary(ShadeMaterial* m, const glm::vec3& mr, const glm::vec3& emissive, float occlusion);
+// made it) with its textures' texels there. Glass's shadow transmittance stays the factors'
+// (shadow rays do not look up textures), and so does whether the material is glass: a
+// transmission texel of 0 leaves glass that only reflects and scatters diffusely there.
+void vary(ShadeMaterial* m, const Texels& texels);
 
 // One punctual light placed in the world at the current time.
 struct LightRecord {
@@ -192,28 +221,38 @@ inline float ggx_d_vis(float a, float n_dot_h, float n_dot_v, float n_dot_l) {
 }
 
 // BRDF x cos(theta_l) for unit n, v (toward the viewer), l (toward the light); n.v and n.l > 0.
+// `coat_n` (unit) is the clear coat's normal (glTF's clearcoatNormal), where m has a coat: the
+// coat takes clearcoat x F_coat(coat_n.v) of the light, with its own lobe and cosine, and the
+// material beneath the rest.
 inline glm::vec3 brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, const glm::vec3& f0,
                           const glm::vec3& n, const glm::vec3& v, const glm::vec3& l, float n_dot_v,
-                          float n_dot_l) {
+                          float n_dot_l, const glm::vec3& coat_n) {
   glm::vec3 f = diffuse * (1.0f / kPi);
+  float beneath = 1.0f, coat = 0.0f;
   if (m.has_specular || m.clearcoat > 0.0f) {
     glm::vec3 h = v + l;
     const float h_len2 = glm::dot(h, h);
     if (h_len2 > 1e-12f) {
       h *= 1.0f / std::sqrt(h_len2);
-      const float n_dot_h = glm::max(glm::dot(n, h), 0.0f);
       if (m.has_specular) {
+        const float n_dot_h = glm::max(glm::dot(n, h), 0.0f);
         const float v_dot_h = glm::max(glm::dot(v, h), 0.0f);
         f += fresnel_schlick(f0, v_dot_h, fresnel_f90(m)) *
              ggx_d_vis(m.alpha, n_dot_h, n_dot_v, n_dot_l);
       }
       if (m.clearcoat > 0.0f) {
-        const float w = m.clearcoat * coat_fresnel(n_dot_v);
-        f = f * (1.0f - w) + w * ggx_d_vis(m.clearcoat_alpha, n_dot_h, n_dot_v, n_dot_l);
+        const float c_v = glm::max(glm::dot(coat_n, v), 1e-4f);
+        const float c_l = glm::dot(coat_n, l);
+        const float w = m.clearcoat * coat_fresnel(c_v);
+        beneath = 1.0f - w;
+        if (c_l > 0.0f) {
+          const float c_h = glm::max(glm::dot(coat_n, h), 0.0f);
+          coat = w * ggx_d_vis(m.clearcoat_alpha, c_h, c_v, c_l) * c_l;
+        }
       }
     }
   }
-  return f * n_dot_l;
+  return f * (n_dot_l * beneath) + glm::vec3(coat);
 }
 
 }  // namespace afr::shading

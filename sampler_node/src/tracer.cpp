@@ -63,6 +63,12 @@ struct SlotUvs {
   const glm::vec2* emissive = nullptr;
   const glm::vec2* occlusion = nullptr;
   const glm::vec2* normal = nullptr;  // also the normal texture's frame without TANGENT
+  const glm::vec2* transmission = nullptr;
+  const glm::vec2* specular = nullptr;
+  const glm::vec2* specular_color = nullptr;
+  const glm::vec2* clearcoat = nullptr;
+  const glm::vec2* clearcoat_roughness = nullptr;
+  const glm::vec2* clearcoat_normal = nullptr;  // likewise for the clear coat's normal texture
 };
 
 // Set k of p's texture coordinates, or null where p has none.
@@ -138,7 +144,10 @@ struct SurfacePoint {
   glm::vec3 p{0.0f};
   glm::vec3 ng{0.0f, 0.0f, 1.0f};  // geometric normal, unit, toward the viewer when flipped
   glm::vec3 ns{0.0f, 0.0f, 1.0f};  // shading normal, unit
-  glm::vec2 uv{0.0f};              // in the base-color texture's set of coordinates (SlotUvs)
+  // The clear coat's normal (unit): the interpolated normal, bent by the coat's own normal
+  // texture only (ShadeMaterial::clearcoat_normal_map).
+  glm::vec3 coat_ns{0.0f, 0.0f, 1.0f};
+  glm::vec2 uv{0.0f};  // in the base-color texture's set of coordinates (SlotUvs)
   const ShadeMaterial* material = nullptr;
   const Instance* instance = nullptr;
   const GeomRecord* geom = nullptr;
@@ -467,8 +476,12 @@ struct Tracer::Impl {
     const bool own = p.material >= 0 && size_t(p.material) < scene_.materials.size();
     const Material::TextureSets sets =
         own ? scene_.materials[size_t(p.material)].uv_set : Material::TextureSets{};
-    return SlotUvs{uv_data(p, sets.base_color), uv_data(p, sets.metallic_roughness),
-                   uv_data(p, sets.emissive), uv_data(p, sets.occlusion), uv_data(p, sets.normal)};
+    return SlotUvs{uv_data(p, sets.base_color),      uv_data(p, sets.metallic_roughness),
+                   uv_data(p, sets.emissive),        uv_data(p, sets.occlusion),
+                   uv_data(p, sets.normal),          uv_data(p, sets.transmission),
+                   uv_data(p, sets.specular),        uv_data(p, sets.specular_color),
+                   uv_data(p, sets.clearcoat),       uv_data(p, sets.clearcoat_roughness),
+                   uv_data(p, sets.clearcoat_normal)};
   }
   // p's COLOR_0 alpha where its material (an index into materials_) tests alpha, else null.
   const float* tested_alpha(const Primitive& p, uint32_t material) const {
@@ -1048,16 +1061,16 @@ bool Tracer::Impl::blocked(const glm::vec3& o, const glm::vec3& d, float tnear, 
 }
 
 // The shading normal that a normal texture's texel asks for at barycentrics (w, u, v) of
-// triangle `tri`, whose shading normal is n (unit). The tangent frame is the file's where the
-// primitive has TANGENT (GeomRecord::tangents): t interpolated and made orthogonal to n, and
-// b = n x t times the tangent's w. Otherwise it is the triangle's own: t = dp/du made
-// orthogonal to n, and b = n x t, turned to point against dp/dv as glTF's flipped v expects
-// (so a mirrored mapping gets a mirrored b, as MikkTSpace's sign gives). `turned`: n is the
-// back of a double-sided surface, whose b stays the front's as in the triangle's own frame.
-// Without a usable frame (no uv area, degenerate) n stays.
+// triangle `tri`, whose shading normal is n (unit), the texture read through coordinates `uvs`. The
+// tangent frame is the file's where the primitive has TANGENT (GeomRecord::tangents): t
+// interpolated and made orthogonal to n, and b = n x t times the tangent's w. Otherwise it is the
+// triangle's own: t = dp/du made orthogonal to n, and b = n x t, turned to point against dp/dv as
+// glTF's flipped v expects (so a mirrored mapping gets a mirrored b, as MikkTSpace's sign gives).
+// `turned`: n is the back of a double-sided surface, whose b stays the front's as in the triangle's
+// own frame. Without a usable frame (no uv area, degenerate) n stays.
 static glm::vec3 mapped_normal(const GeomRecord& g, const Instance& inst, const uint32_t* tri,
                                const glm::vec3& bary, const glm::vec3& n, bool turned,
-                               const glm::vec3& texel, float scale) {
+                               const glm::vec2* uvs, const glm::vec3& texel, float scale) {
   glm::vec3 t, bt;
   if (g.tangents) {
     const glm::vec4& t0 = g.tangents[tri[0]];
@@ -1075,7 +1088,6 @@ static glm::vec3 mapped_normal(const GeomRecord& g, const Instance& inst, const 
     t *= 1.0f / std::sqrt(t_len2);
     bt = glm::cross(n, t) * sign;
   } else {
-    const glm::vec2* uvs = g.uvs.normal;
     const glm::vec2 d1 = uvs[tri[1]] - uvs[tri[0]], d2 = uvs[tri[2]] - uvs[tri[0]];
     const glm::vec3 e1 = g.positions[tri[1]] - g.positions[tri[0]];
     const glm::vec3 e2 = g.positions[tri[2]] - g.positions[tri[0]];
@@ -1155,6 +1167,7 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   }
   s->ng = ng;
   s->ns = ns;
+  s->coat_ns = ns;
   s->spread = spread;
   s->cone = cone + spread * hit.t;
   // A texture's lookup through the coordinates its slot reads (`uvs`): the point's coordinates
@@ -1179,18 +1192,44 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   s->lod = 0.0f;
   if (m.texture && g.uvs.base_color) place(*m.texture, g.uvs.base_color, &s->uv, &s->lod);
   if (m.normal_map && g.uvs.normal) {
-    s->ns = mapped_normal(g, inst, tri, s->barycentric, s->ns, turned,
+    s->ns = mapped_normal(g, inst, tri, s->barycentric, s->ns, turned, g.uvs.normal,
                           texel(m.normal_map, g.uvs.normal), m.normal_scale);
   }
-  // A material that varies over the surface, decided here from its textures.
-  if (m.varies && ((m.metallic_roughness && g.uvs.metallic_roughness) ||
-                   (m.emissive_texture && g.uvs.emissive) || (m.occlusion && g.uvs.occlusion))) {
-    const glm::vec3 mr = texel(m.metallic_roughness, g.uvs.metallic_roughness);
-    const glm::vec3 emissive = texel(m.emissive_texture, g.uvs.emissive);
-    const float occlusion = texel(m.occlusion, g.uvs.occlusion).r;
-    ShadeMaterial& here = s->at_point.emplace(m);
-    shading::vary(&here, mr, emissive, occlusion);
-    s->material = &here;
+  if (m.clearcoat_normal_map && g.uvs.clearcoat_normal) {
+    s->coat_ns = mapped_normal(
+        g, inst, tri, s->barycentric, s->coat_ns, turned, g.uvs.clearcoat_normal,
+        texel(m.clearcoat_normal_map, g.uvs.clearcoat_normal), m.clearcoat_normal_scale);
+  }
+  // A material that varies over the surface, decided here from its textures (those whose slot
+  // has coordinates on this primitive).
+  if (m.varies) {
+    shading::Texels t;
+    bool any = false;
+    auto present = [&](const Texture* texture, const glm::vec2* uvs) {
+      if (!texture || !uvs) return false;
+      any = true;
+      return true;
+    };
+    if (present(m.metallic_roughness, g.uvs.metallic_roughness))
+      t.metallic_roughness = texel(m.metallic_roughness, g.uvs.metallic_roughness);
+    if (present(m.emissive_texture, g.uvs.emissive))
+      t.emissive = texel(m.emissive_texture, g.uvs.emissive);
+    if (present(m.occlusion, g.uvs.occlusion)) t.occlusion = texel(m.occlusion, g.uvs.occlusion).r;
+    if (present(m.transmission_texture, g.uvs.transmission))
+      t.transmission = texel(m.transmission_texture, g.uvs.transmission).r;
+    if (present(m.specular_texture, g.uvs.specular))
+      t.specular = texel(m.specular_texture, g.uvs.specular).r;
+    if (present(m.specular_color_texture, g.uvs.specular_color))
+      t.specular_color = texel(m.specular_color_texture, g.uvs.specular_color);
+    if (present(m.clearcoat_texture, g.uvs.clearcoat))
+      t.clearcoat = texel(m.clearcoat_texture, g.uvs.clearcoat).r;
+    if (present(m.clearcoat_roughness_texture, g.uvs.clearcoat_roughness))
+      t.clearcoat_roughness = texel(m.clearcoat_roughness_texture, g.uvs.clearcoat_roughness).g;
+    if (any) {
+      ShadeMaterial& here = s->at_point.emplace(m);
+      shading::vary(&here, t);
+      s->material = &here;
+    }
   }
 }
 
@@ -1208,7 +1247,7 @@ bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const gl
   // A clear coat lies over the emission and what the material beneath reflects of the ambient
   // light: they keep 1 - clearcoat x F_coat(n.v) (the direct light's share is in brdf_cos).
   if (m.clearcoat > 0.0f && !s.back_face) {
-    *c *= 1.0f - m.clearcoat * shading::coat_fresnel(std::max(glm::dot(s.ns, wo), 0.0f));
+    *c *= 1.0f - m.clearcoat * shading::coat_fresnel(std::max(glm::dot(s.coat_ns, wo), 0.0f));
   }
   if (lights_.empty() || s.back_face || !(m.has_diffuse || m.has_specular || m.clearcoat > 0.0f)) {
     return false;
@@ -1236,7 +1275,7 @@ bool Tracer::Impl::light_contribution(const LightRecord& light, const Surface& s
   const float n_dot_l = glm::dot(s.ns, *l);
   if (n_dot_l <= 0.0f) return false;
   *contribution = incident * shading::brdf_cos(*s.material, terms.diffuse, terms.f0, s.ns, wo, *l,
-                                               terms.n_dot_v, n_dot_l);
+                                               terms.n_dot_v, n_dot_l, s.coat_ns);
   *shadow_tfar = distance - 2.0f * terms.offset;
   return true;
 }
@@ -1330,10 +1369,12 @@ inline glm::vec3 own_share(const Surface& s, const glm::vec3& local) {
   return s.opacity < 1.0f ? local * s.opacity : local;
 }
 
-// The mirror reflection of direction d at surface s (unit); false where there is none. An
-// interpolated normal can send the reflection under the surface: the true one is used then.
-static bool mirror_direction(const glm::vec3& d, const Surface& s, glm::vec3* r) {
-  *r = d - 2.0f * glm::dot(d, s.ns) * s.ns;
+// The mirror reflection of direction d at surface s about its normal n (unit; s.ns, or the
+// coat's); false where there is none. An interpolated or mapped normal can send the reflection
+// under the surface: the true one is used then.
+static bool mirror_direction(const glm::vec3& d, const Surface& s, const glm::vec3& n,
+                             glm::vec3* r) {
+  *r = d - 2.0f * glm::dot(d, n) * n;
   if (glm::dot(*r, s.ng) <= 0.0f) *r = d - 2.0f * glm::dot(d, s.ng) * s.ng;
   const float r_len2 = glm::dot(*r, *r);
   if (!(r_len2 > 0.0f)) return false;
@@ -1357,9 +1398,9 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
     if (m.clearcoat_mirror && !s.back_face && depth < options_.max_mirror_depth) {
       // A smooth clear coat reflects clearcoat x its Fresnel of the surroundings; what lies
       // beneath (a metal's mirror reflection below) keeps the rest.
-      const float w = m.clearcoat * shading::coat_fresnel(-glm::dot(s.ns, d));
+      const float w = m.clearcoat * shading::coat_fresnel(-glm::dot(s.coat_ns, d));
       glm::vec3 r;
-      if (mirror_direction(d, s, &r) &&
+      if (mirror_direction(d, s, s.coat_ns, &r) &&
           w * std::max(throughput.r, std::max(throughput.g, throughput.b)) >= kMinThroughput) {
         result += secondary(s.p + offset_at(s.p) * s.ng, r, s, depth + 1, throughput * w, stats);
       }
@@ -1376,7 +1417,7 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
                                            shading::fresnel_f90(m));
     if (std::max(throughput.r, std::max(throughput.g, throughput.b)) < kMinThroughput) break;
     glm::vec3 r;
-    if (!mirror_direction(d, s, &r)) break;
+    if (!mirror_direction(d, s, s.ns, &r)) break;
     const glm::vec3 origin = s.p + offset_at(s.p) * s.ng;
     ++stats->reflection_rays;
     const HitRef hit = intersect(origin, r, 0.0f);

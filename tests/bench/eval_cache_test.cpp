@@ -145,6 +145,17 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
       "clearcoat", [](Scene* s) { s->materials[0].clearcoat = 1.0f; },
       [](Scene* s) { s->materials[0].clearcoat_roughness = 0.5f; });
   expect_seen(
+      "extension textures", [](Scene* s) { s->materials[0].clearcoat_texture = 0; },
+      [](Scene* s) { s->materials[0].clearcoat_normal_scale = 0.5f; });
+  expect_seen(
+      "extension texture sets",
+      [](Scene* s) {
+        Primitive& p = s->meshes[0].primitives[0];
+        p.more_uvs = {p.uvs};
+        s->materials[0].specular_texture = 0;
+      },
+      [](Scene* s) { s->materials[0].uv_set.specular = 1; });
+  expect_seen(
       "volume", [](Scene* s) { s->materials[0].thickness = 1.0f; },
       [](Scene* s) { s->materials[0].attenuation_distance = 2.0f; });
   expect_seen(

@@ -279,20 +279,26 @@ TEST(GltfUserContentTest, TransmissionAndIorAreReadWithTheirDefaults) {
   EXPECT_TRUE(report.warnings.empty());  // both are read, neither is "ignored"
 }
 
-TEST(GltfUserContentTest, ATransmissionTextureWarnsOnceAndTheFactorIsUsed) {
+// A transmissionTexture is read (GltfLoaderTest.MaterialExtensionTexturesAreRead); one naming a
+// texture the file does not have fails naming the material, the slot and the file.
+TEST(GltfUserContentTest, ATransmissionTextureNamingNoTextureFailsNamingIt) {
   TempFolder dir;
   GltfContent g = unlit_box();
   g.doc()["extensionsUsed"] = {"KHR_materials_transmission"};
-  const json ext = {{"KHR_materials_transmission",
-                     {{"transmissionFactor", 0.5}, {"transmissionTexture", {{"index", 0}}}}}};
-  g.doc()["materials"][0]["extensions"] = ext;
-  g.doc()["materials"].push_back({{"extensions", ext}});
+  g.doc()["materials"][0]["extensions"] = {
+      {"KHR_materials_transmission",
+       {{"transmissionFactor", 0.5}, {"transmissionTexture", {{"index", 0}}}}}};
   g.write(dir / "textured_glass.gltf");
-  GltfLoadReport report;
-  const Scene scene = load_gltf(dir / "textured_glass.gltf", &report);
-  EXPECT_EQ(scene.materials[1].transmission, 0.5f);
-  ASSERT_EQ(report.warnings.size(), 1u);
-  EXPECT_NE(report.warnings[0].find("transmissionTexture"), std::string::npos);
+  try {
+    load_gltf(dir / "textured_glass.gltf");
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("material 0 transmissionTexture refers to texture 0, but there are 0"),
+              std::string::npos)
+        << what;
+    EXPECT_NE(what.find("textured_glass.gltf"), std::string::npos) << what;
+  }
 }
 
 TEST(GltfUserContentTest, BadTransmissionOrIorFailsNamingTheMaterialAndValue) {

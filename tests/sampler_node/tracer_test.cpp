@@ -303,10 +303,12 @@ TEST(TracerTest, SpecularHighlightOnlyWhereTheMaterialHasOne) {
 // The color of a square of a white Lambertian material (metallic 0, roughness 1) as `dress`
 // changes it, lit by a sun of intensity 3 from behind the camera and seen straight on
 // (v = l = n).
-glm::vec3 square_lit_straight_on(const std::function<void(Material*)>& dress) {
+glm::vec3 square_lit_straight_on_scene(const std::function<void(Scene*, Material*)>& dress) {
   Scene s;
   const int mat = add_material(&s, glm::vec3(1.0f), 0.0f, 1.0f);
-  dress(&s.materials[size_t(mat)]);
+  Material m = s.materials[size_t(mat)];
+  dress(&s, &m);  // may add textures to s
+  s.materials[size_t(mat)] = m;
   add_mesh_node(&s, quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat));
   Light sun;
   sun.type = Light::Type::kDirectional;  // along -Z: from behind the camera
@@ -316,6 +318,9 @@ glm::vec3 square_lit_straight_on(const std::function<void(Material*)>& dress) {
   Tracer tracer(s);
   TraceStats stats;
   return tracer.trace(Ray{{0.2f, 0.1f, 0.0f}, {0, 0, -1}}, &stats).color;
+}
+glm::vec3 square_lit_straight_on(const std::function<void(Material*)>& dress) {
+  return square_lit_straight_on_scene([&](Scene*, Material* m) { dress(m); });
 }
 
 // KHR_materials_specular: a black dielectric square lit and seen straight on (v = l = n, so
@@ -1193,6 +1198,129 @@ TEST(TracerTest, ClearcoatLayersAClearDielectricOverTheMaterial) {
                "over a metal");
 }
 
+// A one-texel texture of (linear) value `texel` appended to s; returns its index.
+int add_texel(Scene* s, glm::vec3 texel) {
+  Texture t;
+  t.width = t.height = 1;
+  t.texels = {texel};
+  s->textures.push_back(t);
+  return int(s->textures.size()) - 1;
+}
+
+// The extensions' textures multiply their factors at each point, as the core's do: a square lit
+// straight on shows with factor 1 and a texel of x what it shows with factor x and no texture:
+// the specular strength (the texture's red: the image's alpha), the specular color, the
+// clearcoat and its roughness. Over a square whose left texel is 0 and right 1, the coat shows
+// on the right only.
+TEST(TracerTest, ExtensionTexturesMultiplyTheirFactors) {
+  const auto textured = [](const std::function<void(Scene*, Material*)>& dress) {
+    return square_lit_straight_on_scene(dress);
+  };
+  const auto black_dielectric = [](Material* m) {
+    m->base_color_factor = glm::vec4(0.0f, 0.0f, 0.0f, 1.0f);
+    m->roughness = 0.5f;
+    m->has_specular_extension = true;
+  };
+  expect_near3(textured([&](Scene* s, Material* m) {
+                 black_dielectric(m);
+                 m->specular_texture = add_texel(s, glm::vec3(0.5f));
+               }),
+               textured([&](Scene*, Material* m) {
+                 black_dielectric(m);
+                 m->specular = 0.5f;
+               }),
+               1e-6f, "specular strength");
+  const glm::vec3 tint(1.0f, 0.5f, 0.25f);
+  expect_near3(textured([&](Scene* s, Material* m) {
+                 black_dielectric(m);
+                 m->specular_color_texture = add_texel(s, tint);
+               }),
+               textured([&](Scene*, Material* m) {
+                 black_dielectric(m);
+                 m->specular_color = tint;
+               }),
+               1e-6f, "specular color");
+  const glm::vec3 half_coat = textured([&](Scene*, Material* m) {
+    m->clearcoat = 0.5f;
+    m->clearcoat_roughness = 0.5f;
+  });
+  expect_near3(textured([&](Scene* s, Material* m) {
+                 m->clearcoat = 1.0f;
+                 m->clearcoat_roughness = 0.5f;
+                 m->clearcoat_texture = add_texel(s, {0.5f, 0.0f, 0.0f});  // red
+               }),
+               half_coat, 1e-6f, "clearcoat");
+  expect_near3(textured([&](Scene* s, Material* m) {
+                 m->clearcoat = 0.5f;
+                 m->clearcoat_roughness = 1.0f;
+                 m->clearcoat_roughness_texture = add_texel(s, {0.0f, 0.5f, 0.0f});  // green
+               }),
+               half_coat, 1e-6f, "clearcoat roughness");
+  ASSERT_GT(std::abs(half_coat.r - textured([](Scene*, Material*) {}).r), 1e-3f);
+
+  // Left texel 0, right texel 1 (u runs with x across the square).
+  Scene s;
+  s.background = glm::vec3(0.0f);
+  const int mat = add_material(&s, glm::vec3(0.0f), 0.0f, 1.0f);
+  Texture halves;
+  halves.width = 2;
+  halves.height = 1;
+  halves.texels = {glm::vec3(0.0f), glm::vec3(1.0f)};
+  s.textures.push_back(halves);
+  s.materials[size_t(mat)].clearcoat = 1.0f;
+  s.materials[size_t(mat)].clearcoat_roughness = 0.5f;
+  s.materials[size_t(mat)].clearcoat_texture = 0;
+  add_mesh_node(&s, quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat));
+  Light sun;
+  sun.type = Light::Type::kDirectional;
+  sun.intensity = 3.0f;
+  add_light_node(&s, sun, glm::dvec3(0.0));
+  s.finalize();
+  Tracer tracer(s);
+  TraceStats stats;
+  const float pi = float(M_PI), alpha = 0.25f;
+  const float coat = 3.0f * 0.04f / (pi * alpha * alpha) * 0.25f;
+  expect_near3(tracer.trace(Ray{{-0.5f, 0.0f, 0.0f}, {0, 0, -1}}, &stats).color, glm::vec3(0.0f),
+               1e-6f, "no coat on the left");
+  expect_near3(tracer.trace(Ray{{0.5f, 0.0f, 0.0f}, {0, 0, -1}}, &stats).color, glm::vec3(coat),
+               1e-5f, "a full coat on the right");
+}
+
+// The clear coat lies on its own normal (glTF's clearcoatNormal): the interpolated normal, which
+// the material's normal texture does not bend, bent only by clearcoatNormalTexture. A square
+// with only a coat (black base, no specular of its own) of roughness 0.5, lit and seen straight
+// on, shows 3 x 0.04 x D x vis whatever its normal texture; with a coat normal tilted 30 degrees,
+// the coat's lobe at n.h = n.v = n.l = cos 30 and its Fresnel there.
+TEST(TracerTest, ClearcoatLiesOnItsOwnNormal) {
+  const float sin30 = 0.5f, cos30 = std::sqrt(3.0f) / 2.0f;
+  const glm::vec3 toward_u(0.5f + 0.5f * sin30, 0.5f, 0.5f + 0.5f * cos30);
+  const auto coat_only = [&](bool base_normal, bool coat_normal) {
+    return square_lit_straight_on_scene([&](Scene* s, Material* m) {
+      m->base_color_factor = glm::vec4(0.0f, 0.0f, 0.0f, 1.0f);
+      m->has_specular_extension = true;
+      m->specular = 0.0f;
+      m->clearcoat = 1.0f;
+      m->clearcoat_roughness = 0.5f;
+      if (base_normal) m->normal_texture = add_texel(s, toward_u);
+      if (coat_normal) m->clearcoat_normal_texture = add_texel(s, toward_u);
+    });
+  };
+  const double pi = M_PI, a2 = 0.25 * 0.25;  // alpha = roughness^2
+  // GGX D x height-correlated Smith visibility at n.h = n.v = n.l = c, times n.l, and the
+  // coat's Schlick Fresnel at n.v = c.
+  const auto lobe = [&](double c) {
+    const double dd = c * c * (a2 - 1.0) + 1.0;
+    const double d = a2 / (pi * dd * dd);
+    const double vis = 0.5 / (2.0 * c * std::sqrt(c * c * (1.0 - a2) + a2));
+    const double fresnel = 0.04 + 0.96 * std::pow(1.0 - c, 5.0);
+    return float(3.0 * fresnel * d * vis * c);
+  };
+  expect_near3(coat_only(false, false), glm::vec3(lobe(1.0)), 1e-4f, "flat");
+  expect_near3(coat_only(true, false), glm::vec3(lobe(1.0)), 1e-4f, "the base's normal texture");
+  expect_near3(coat_only(false, true), glm::vec3(lobe(cos30)), 1e-4f, "the coat's normal texture");
+  ASSERT_GT(std::abs(lobe(1.0) - lobe(cos30)), 1e-2f);
+}
+
 TEST(TracerTest, MirrorDepthIsBounded) {
   // Two facing mirrors: a ray between them bounces exactly max_mirror_depth times.
   Scene s;
@@ -1393,6 +1521,29 @@ TEST(TracerTest, TransmissionZeroTracesAsBefore) {
   }
   EXPECT_EQ(sa.reflection_rays, sb.reflection_rays);
   EXPECT_EQ(sa.shadow_rays, sb.shadow_rays);
+}
+
+// KHR_materials_transmission's texture multiplies its factor: glass whose transmission texel is
+// 0.25 shows what glass of transmission 0.25 does (the rest of its light diffuse).
+TEST(TracerTest, TransmissionTextureMultipliesTheFactor) {
+  // Glass in front of an emitter, seen straight through.
+  const auto through_glass = [](float factor, bool texture) {
+    Scene s;
+    const int glass = add_glass(&s, 1.5f);
+    if (texture) s.materials[size_t(glass)].transmission_texture = add_texel(&s, glm::vec3(factor));
+    s.materials[size_t(glass)].transmission = texture ? 1.0f : factor;
+    s.materials[size_t(glass)].base_color_factor = glm::vec4(0.6f, 0.6f, 0.6f, 1.0f);
+    add_mesh_node(&s, quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, glass));
+    add_mesh_node(&s, quad_mesh({-5, -5, -4}, {10, 0, 0}, {0, 10, 0},
+                                add_emitter(&s, glm::vec3(1.0f, 0.5f, 0.25f))));
+    s.ambient = glm::vec3(0.5f);
+    s.finalize();
+    Tracer tracer(s);
+    TraceStats stats;
+    return tracer.trace(Ray{{0.2f, 0.1f, 0.0f}, {0, 0, -1}}, &stats).color;
+  };
+  expect_near3(through_glass(0.25f, true), through_glass(0.25f, false), 1e-6f, "transmission");
+  ASSERT_GT(std::abs(through_glass(0.25f, false).r - through_glass(1.0f, false).r), 1e-2f);
 }
 
 // Shadows through glass (a filter shadow): a floor lit by a sun straight above, under a box of

@@ -130,10 +130,30 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.value(m.normal_texture);
       h.value(m.normal_scale);
     }
+    // The extensions' textures likewise.
+    if (m.transmission_texture >= 0 || m.specular_texture >= 0 || m.specular_color_texture >= 0 ||
+        m.clearcoat_texture >= 0 || m.clearcoat_roughness_texture >= 0 ||
+        m.clearcoat_normal_texture >= 0) {
+      h.value(m.transmission_texture);
+      h.value(m.specular_texture);
+      h.value(m.specular_color_texture);
+      h.value(m.clearcoat_texture);
+      h.value(m.clearcoat_roughness_texture);
+      h.value(m.clearcoat_normal_texture);
+      h.value(m.clearcoat_normal_scale);
+    }
     if (m.uv_set != Material::TextureSets{}) {
       const Material::TextureSets& s = m.uv_set;
       for (uint8_t k : {s.base_color, s.metallic_roughness, s.emissive, s.occlusion, s.normal}) {
         h.value(k);
+      }
+      const Material::TextureSets core{s.base_color, s.metallic_roughness, s.emissive, s.occlusion,
+                                       s.normal};
+      if (s != core) {
+        for (uint8_t k : {s.transmission, s.specular, s.specular_color, s.clearcoat,
+                          s.clearcoat_roughness, s.clearcoat_normal}) {
+          h.value(k);
+        }
       }
     }
     if (m.unlit) h.value(m.unlit);

@@ -183,6 +183,12 @@ struct Material {
     uint8_t emissive = 0;
     uint8_t occlusion = 0;
     uint8_t normal = 0;
+    uint8_t transmission = 0;
+    uint8_t specular = 0;
+    uint8_t specular_color = 0;
+    uint8_t clearcoat = 0;
+    uint8_t clearcoat_roughness = 0;
+    uint8_t clearcoat_normal = 0;
     bool operator==(const TextureSets&) const = default;
   };
   TextureSets uv_set;
@@ -197,6 +203,7 @@ struct Material {
   // KHR_materials_transmission: the fraction of the non-metallic part that light passes
   // through (refracted, tinted by the base color) instead of reflecting diffusely; 0 = opaque.
   float transmission = 0.0f;
+  int transmission_texture = -1;  // linear data: its red channel multiplies `transmission`
   // KHR_materials_ior: the index of refraction inside the surface (outside is 1). Either >= 1,
   // or 0, which the extension defines as a Fresnel term of 1 (all reflection).
   float ior = 1.5f;
@@ -206,10 +213,23 @@ struct Material {
   float specular = 1.0f;
   glm::vec3 specular_color{1.0f};
   bool has_specular_extension = false;  // F0 from ior then (else 0.04, glTF's core default)
-  // KHR_materials_clearcoat (factors): a clear dielectric layer (F0 0.04) over the material,
-  // of weight `clearcoat` and roughness `clearcoat_roughness`, on the material's own normal.
+  // Its textures: specularTexture's alpha channel multiplies `specular` (decoded as linear data
+  // with the alpha in every channel, Texture's red), specularColorTexture's color (sRGB)
+  // multiplies `specular_color`. -1: none.
+  int specular_texture = -1;
+  int specular_color_texture = -1;
+  // KHR_materials_clearcoat: a clear dielectric layer (F0 0.04) over the material, of weight
+  // `clearcoat` and roughness `clearcoat_roughness`, times the red channel of
+  // clearcoat_texture and the green of clearcoat_roughness_texture (linear data; -1: none). The
+  // layer lies on the surface's interpolated normal, bent by its own clearcoat_normal_texture
+  // (tangent space, x and y scaled by clearcoat_normal_scale) where it has one, never by the
+  // material's normal texture.
   float clearcoat = 0.0f;
   float clearcoat_roughness = 0.0f;
+  int clearcoat_texture = -1;
+  int clearcoat_roughness_texture = -1;
+  int clearcoat_normal_texture = -1;
+  float clearcoat_normal_scale = 1.0f;
   // KHR_materials_volume: a transmissive material whose thickness is above 0 fills the volume
   // its closed mesh bounds, and light crossing it keeps attenuation_color per
   // attenuation_distance travelled (Beer-Lambert; infinity: none). Thickness 0 is a thin wall.
