@@ -53,14 +53,22 @@ constexpr size_t kMaxNodes = size_t(1) << 20;
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 15> kSupportedExtensions = {
-    "KHR_materials_specular",  "EXT_texture_webp",
-    "EXT_meshopt_compression", "KHR_meshopt_compression",
-    "EXT_mesh_gpu_instancing", "KHR_materials_clearcoat",
-    "KHR_materials_volume",    "KHR_draco_mesh_compression",
-    "KHR_lights_punctual",     "KHR_materials_emissive_strength",
-    "KHR_materials_ior",       "KHR_materials_transmission",
-    "KHR_materials_unlit",     "KHR_mesh_quantization",
+constexpr std::array<std::string_view, 16> kSupportedExtensions = {
+    "KHR_materials_specular",
+    "EXT_texture_webp",
+    "KHR_materials_sheen",
+    "EXT_meshopt_compression",
+    "KHR_meshopt_compression",
+    "EXT_mesh_gpu_instancing",
+    "KHR_materials_clearcoat",
+    "KHR_materials_volume",
+    "KHR_draco_mesh_compression",
+    "KHR_lights_punctual",
+    "KHR_materials_emissive_strength",
+    "KHR_materials_ior",
+    "KHR_materials_transmission",
+    "KHR_materials_unlit",
+    "KHR_mesh_quantization",
     "KHR_texture_transform"};
 
 // The default lighting of a scene without lights (what glTF viewers do): a directional
@@ -237,6 +245,7 @@ class Loader {
   void read_clearcoat(size_t m, const tinygltf::Material& in, const std::string& what,
                       Material* out);
   void read_volume(const tinygltf::Material& in, const std::string& what, Material* out);
+  void read_sheen(size_t m, const tinygltf::Material& in, const std::string& what, Material* out);
   std::optional<glm::dmat3> read_texture_transform(const tinygltf::ExtensionMap& extensions,
                                                    const std::string& what, int* tex_coord);
   // How a texture slot reads its image: as sRGB-encoded color, as linear data, or as linear
@@ -306,8 +315,8 @@ class Loader {
   };
   // Per glTF material, its sets in slot order (base color, metallic-roughness, emissive,
   // occlusion, normal, then the extensions' slots: transmission, specular, specular color,
-  // clearcoat, clearcoat roughness, clearcoat normal); empty for a material without textures, whose
-  // primitives read TEXCOORD_0 as they are.
+  // clearcoat, clearcoat roughness, clearcoat normal, sheen color, sheen roughness); empty for a
+  // material without textures, whose primitives read TEXCOORD_0 as they are.
   std::vector<std::vector<UvSource>> uv_sources_;
   size_t morph_displacements_ = 0;  // read so far, at most kMaxMorphDisplacements
   // The primitive being loaded, where it is Draco-compressed: its accessors' elements, decoded
@@ -1639,6 +1648,24 @@ void Loader::read_volume(const tinygltf::Material& in, const std::string& what, 
   }
 }
 
+// KHR_materials_sheen: sheenColorFactor (three numbers 0 to 1, default 0) and
+// sheenRoughnessFactor (0 to 1, default 0), and the textures that multiply them (the roughness
+// texture's alpha channel).
+void Loader::read_sheen(size_t m, const tinygltf::Material& in, const std::string& what,
+                        Material* out) {
+  std::string where;
+  const tinygltf::Value* e = material_extension(in, "KHR_materials_sheen", what, &where);
+  if (e == nullptr) return;
+  read_color(*e, "sheenColorFactor", where, unit_interval, "three numbers 0 to 1",
+             &out->sheen_color);
+  read_number(*e, "sheenRoughnessFactor", where, unit_interval, "a number 0 to 1",
+              &out->sheen_roughness);
+  out->sheen_color_texture = read_extension_texture(m, *e, "sheenColorTexture", where,
+                                                    ImageData::kColor, &out->uv_set.sheen_color);
+  out->sheen_roughness_texture = read_extension_texture(
+      m, *e, "sheenRoughnessTexture", where, ImageData::kAlpha, &out->uv_set.sheen_roughness);
+}
+
 void Loader::load_materials() {
   uv_sources_.assign(model_.materials.size(), {});
   for (size_t m = 0; m < model_.materials.size(); ++m) {
@@ -1726,6 +1753,7 @@ void Loader::load_materials() {
     read_specular(m, in, what, &out);
     read_clearcoat(m, in, what, &out);
     read_volume(in, what, &out);
+    read_sheen(m, in, what, &out);
     if (in.extras.Has("afr_ambient")) out.ambient = read_rgb_extra(in.extras, "afr_ambient", what);
     scene_.materials.push_back(std::move(out));
   }

@@ -1,6 +1,8 @@
 #include "shading.h"
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 
 namespace afr::shading {
 
@@ -46,6 +48,14 @@ void set_clearcoat(ShadeMaterial* m, float clearcoat, float roughness) {
   m->clearcoat = glm::clamp(clearcoat, 0.0f, 1.0f);
   m->clearcoat_alpha = r * r;
   m->clearcoat_mirror = m->clearcoat > 0.0f && roughness <= m->mirror_roughness;
+}
+
+// KHR_materials_sheen's color and alpha from its color and roughness (factor x texel).
+void set_sheen(ShadeMaterial* m, const glm::vec3& color, float roughness) {
+  m->sheen_color = glm::clamp(color, glm::vec3(0.0f), glm::vec3(1.0f));
+  m->sheen_max = std::max(m->sheen_color.r, std::max(m->sheen_color.g, m->sheen_color.b));
+  const float r = std::max(glm::clamp(roughness, 0.0f, 1.0f), kMinDirectRoughness);
+  m->sheen_alpha = r * r;
 }
 
 // The scene's texture `index`, or null when there is none (or it is empty).
@@ -136,16 +146,25 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
     m.clearcoat_normal_map = texture_at(mat.clearcoat_normal_texture, scene);
     m.clearcoat_normal_scale = mat.clearcoat_normal_scale;
   }
+  if (!is_black(mat.sheen_color)) {
+    m.sheen_color_factor = mat.sheen_color;
+    m.sheen_roughness_factor = mat.sheen_roughness;
+    set_sheen(&m, m.sheen_color_factor, m.sheen_roughness_factor);
+    m.sheen_color_texture = texture_at(mat.sheen_color_texture, scene);
+    if (mat.sheen_roughness > 0.0f) {
+      m.sheen_roughness_texture = texture_at(mat.sheen_roughness_texture, scene);
+    }
+  }
   m.varies = m.metallic_roughness || m.emissive_texture || m.occlusion || m.transmission_texture ||
              m.specular_texture || m.specular_color_texture || m.clearcoat_texture ||
-             m.clearcoat_roughness_texture;
+             m.clearcoat_roughness_texture || m.sheen_color_texture || m.sheen_roughness_texture;
   derive(&m, m.metallic_factor, m.roughness_factor);
   if (mat.unlit) {
     // Only the base color (and alpha) is left: prepare_local shows it and stops there, and
     // nothing bounces off, passes through or varies the surface.
     m.unlit = true;
     m.is_mirror = m.is_glass = m.varies = m.clearcoat_mirror = false;
-    m.clearcoat = 0.0f;
+    m.clearcoat = m.sheen_max = 0.0f;
     m.normal_map = m.clearcoat_normal_map = nullptr;
     m.shadow_transmittance = glm::vec3(0.0f);
   }
@@ -164,6 +183,10 @@ void vary(ShadeMaterial* m, const Texels& t) {
     set_clearcoat(m, m->clearcoat_factor * t.clearcoat,
                   m->clearcoat_roughness_factor * t.clearcoat_roughness);
   }
+  if (m->sheen_color_texture || m->sheen_roughness_texture) {
+    set_sheen(m, m->sheen_color_factor * t.sheen_color,
+              m->sheen_roughness_factor * t.sheen_roughness);
+  }
   derive(m, m->metallic_factor * t.metallic_roughness.b,
          m->roughness_factor * t.metallic_roughness.g);
   const float o = 1.0f + m->occlusion_strength * (t.occlusion - 1.0f);
@@ -171,6 +194,81 @@ void vary(ShadeMaterial* m, const Texels& t) {
     m->ambient *= o;
     m->has_ambient = !is_black(m->scene_ambient * m->ambient);
   }
+}
+
+namespace {
+
+// The extension's fit of the Charlie lobe's lambda at cosine x, for alpha a: five coefficients
+// blended between its fits at alpha 0 and 1 by (1 - a)^2.
+float sheen_lambda_fit(float x, float a) {
+  const float t = (1.0f - a) * (1.0f - a);
+  const auto mix = [t](float at1, float at0) { return at1 + (at0 - at1) * t; };
+  const float ca = mix(21.5473f, 25.3245f), cb = mix(3.82987f, 3.32435f);
+  const float cc = mix(0.19823f, 0.16801f), cd = mix(-1.97760f, -1.27393f);
+  const float ce = mix(-4.32054f, -4.85967f);
+  return ca / (1.0f + cb * std::pow(x, cc)) + cd * x + ce;
+}
+
+float sheen_lambda(float cosine, float a) {
+  if (cosine < 0.5f) return std::exp(sheen_lambda_fit(cosine, a));
+  return std::exp(2.0f * sheen_lambda_fit(0.5f, a) - sheen_lambda_fit(1.0f - cosine, a));
+}
+
+// sheen_albedo's table: E at n.v = i / (kCosines - 1) and roughness (the square root of alpha)
+// j / (kRoughnesses - 1), clamped as set_sheen clamps it.
+constexpr int kCosines = 32, kRoughnesses = 32;
+using AlbedoTable = std::array<float, size_t(kCosines) * kRoughnesses>;
+
+// E(n.v, alpha) = the integral over the hemisphere of D V n.l for a white sheen: a midpoint rule
+// in n.l (which the integrand's n.l factor makes smooth) and in the azimuth from the viewer's
+// plane (0 to pi, doubled by symmetry).
+AlbedoTable integrate_sheen_albedo() {
+  constexpr int kSteps = 64;
+  AlbedoTable table{};
+  for (int j = 0; j < kRoughnesses; ++j) {
+    const float r = std::max(float(j) / (kRoughnesses - 1), kMinDirectRoughness);
+    const float a = r * r;
+    for (int i = 0; i < kCosines; ++i) {
+      const float nv = std::max(float(i) / (kCosines - 1), 1e-3f);
+      const glm::vec3 v(std::sqrt(1.0f - nv * nv), 0.0f, nv);
+      double sum = 0.0;
+      for (int p = 0; p < kSteps; ++p) {
+        const float nl = (p + 0.5f) / kSteps;
+        const float sl = std::sqrt(1.0f - nl * nl);
+        for (int q = 0; q < kSteps; ++q) {
+          const float phi = kPi * (q + 0.5f) / kSteps;
+          const glm::vec3 l(sl * std::cos(phi), sl * std::sin(phi), nl);
+          const glm::vec3 h = glm::normalize(v + l);
+          sum += double(charlie_d(a, h.z) * sheen_visibility(a, nv, nl) * nl);
+        }
+      }
+      // d(omega) = d(n.l) d(phi), over phi in (0, 2 pi).
+      table[size_t(j) * kCosines + size_t(i)] =
+          float(sum * (1.0 / kSteps) * (2.0 * double(kPi) / kSteps));
+    }
+  }
+  return table;
+}
+
+}  // namespace
+
+float sheen_visibility(float a, float n_dot_v, float n_dot_l) {
+  const float v = 1.0f / ((1.0f + sheen_lambda(n_dot_v, a) + sheen_lambda(n_dot_l, a)) *
+                          (4.0f * n_dot_v * n_dot_l));
+  return glm::clamp(v, 0.0f, 1.0f);
+}
+
+float sheen_albedo(float a, float n_dot_v) {
+  static const AlbedoTable table = integrate_sheen_albedo();
+  const float x = glm::clamp(n_dot_v, 0.0f, 1.0f) * (kCosines - 1);
+  const float y = std::sqrt(glm::clamp(a, 0.0f, 1.0f)) * (kRoughnesses - 1);
+  const int i = std::min(int(x), kCosines - 2), j = std::min(int(y), kRoughnesses - 2);
+  const float fx = x - float(i), fy = y - float(j);
+  const float* row0 = &table[size_t(j) * kCosines];
+  const float* row1 = row0 + kCosines;
+  const float e0 = row0[i] + (row0[i + 1] - row0[i]) * fx;
+  const float e1 = row1[i] + (row1[i + 1] - row1[i]) * fx;
+  return glm::clamp(e0 + (e1 - e0) * fy, 0.0f, 1.0f);
 }
 
 LightRecord make_light_record(const Light& light, const glm::dmat4& world) {

@@ -9,6 +9,9 @@
 //   range window of KHR_lights_punctual and, for spots, the cone falloff;
 // - BRDF = diffuse / pi + GGX (Trowbridge-Reitz D, height-correlated Smith visibility, Schlick
 //   Fresnel), diffuse = base (1 - metallic) (1 - transmission), F0 = mix(0.04, base, metallic);
+//   with KHR_materials_sheen a Charlie lobe over it, which takes max(sheen color) x E(n.v) (its
+//   own directional albedo) from the BRDF beneath; with KHR_materials_clearcoat a GGX coat over
+//   both;
 // - base = base_color_factor x base-color texture x COLOR_0 (interpolated); the ambient
 //   reflectance (Material::ambient, else the base color factor) is multiplied by the texture
 //   and the vertex colors too, so they show in ambient light.
@@ -50,7 +53,9 @@ struct ShadeMaterial {
   const Texture* specular_color_texture = nullptr;
   const Texture* clearcoat_texture = nullptr;
   const Texture* clearcoat_roughness_texture = nullptr;
-  bool varies = false;  // one of the textures above is set
+  const Texture* sheen_color_texture = nullptr;      // sRGB color
+  const Texture* sheen_roughness_texture = nullptr;  // the image's alpha, held in red
+  bool varies = false;                               // one of the textures above is set
   // The normal texture (tangent space, linear data; null: none) and its scale: it bends the
   // shading normal (Tracer::Impl::make_surface), not the material.
   const Texture* normal_map = nullptr;
@@ -69,6 +74,8 @@ struct ShadeMaterial {
   float f0_ior = 0.04f;  // ((ior - 1) / (ior + 1))^2, 1 for ior 0
   float clearcoat_factor = 0.0f;
   float clearcoat_roughness_factor = 0.0f;
+  glm::vec3 sheen_color_factor{0.0f};
+  float sheen_roughness_factor = 0.0f;
   glm::vec3 ambient_reflectance{1.0f};  // Material::ambient, else the base color factor
   glm::vec3 scene_ambient{0.0f};
   float mirror_roughness = 0.0f;  // TracerOptions::mirror_roughness
@@ -95,6 +102,12 @@ struct ShadeMaterial {
   float clearcoat = 0.0f;
   float clearcoat_alpha = 1.0f;
   bool clearcoat_mirror = false;
+  // KHR_materials_sheen: the fibres' color (black: no sheen, and nothing else below is read),
+  // its largest channel, and the Charlie lobe's alpha (sheen roughness^2, the roughness
+  // clamped as the base's).
+  glm::vec3 sheen_color{0.0f};
+  float sheen_max = 0.0f;
+  float sheen_alpha = 1.0f;
   bool double_sided = false;
   bool unlit = false;  // KHR_materials_unlit: the base color as it is, no bounce or maps
   // alphaMode MASK and BLEND (Material::alpha_mode): `masked`: the surface's opacity
@@ -136,6 +149,8 @@ struct Texels {
   glm::vec3 specular_color{1.0f};      // x the specular color factor
   float clearcoat = 1.0f;              // red x the clearcoat factor
   float clearcoat_roughness = 1.0f;    // green x the clearcoat roughness factor
+  glm::vec3 sheen_color{1.0f};         // x the sheen color factor
+  float sheen_roughness = 1.0f;        // the sheen roughness texture's alpha x its factor
 };
 
 // The material at one point of a surface whose material varies: `m` (as make_shade_material
@@ -220,16 +235,37 @@ inline float ggx_d_vis(float a, float n_dot_h, float n_dot_v, float n_dot_l) {
   return D * vis;
 }
 
+// KHR_materials_sheen's lobe (the extension's "Charlie" sheen): its distribution D at n.h for
+// alpha `a`, and its visibility at n.v and n.l (Estevez and Kulla's fitted lambda), each as
+// the extension defines them.
+inline float charlie_d(float a, float n_dot_h) {
+  const float inv = 1.0f / a;
+  const float sin2 = std::max(1.0f - n_dot_h * n_dot_h, 0.0f);
+  return (2.0f + inv) * std::pow(sin2, 0.5f * inv) / (2.0f * kPi);
+}
+float sheen_visibility(float a, float n_dot_v, float n_dot_l);
+
+// The directional albedo E of a white sheen lobe of alpha `a` seen at n.v (0 to 1): the share
+// of uniform light it reflects, which the material beneath gives up (its albedo scaling,
+// 1 - max(sheen color) x E). Integrated once per process over a table of n.v and roughness, and
+// read bilinearly.
+float sheen_albedo(float a, float n_dot_v);
+
+// The share of light the material beneath a sheen keeps, seen at n.v (1 without sheen).
+inline float sheen_scaling(const ShadeMaterial& m, float n_dot_v) {
+  return m.sheen_max > 0.0f ? 1.0f - m.sheen_max * sheen_albedo(m.sheen_alpha, n_dot_v) : 1.0f;
+}
+
 // BRDF x cos(theta_l) for unit n, v (toward the viewer), l (toward the light); n.v and n.l > 0.
 // `coat_n` (unit) is the clear coat's normal (glTF's clearcoatNormal), where m has a coat: the
 // coat takes clearcoat x F_coat(coat_n.v) of the light, with its own lobe and cosine, and the
-// material beneath the rest.
+// material beneath the rest. `beneath_sheen` is sheen_scaling(m, n.v) (1 without sheen).
 inline glm::vec3 brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, const glm::vec3& f0,
                           const glm::vec3& n, const glm::vec3& v, const glm::vec3& l, float n_dot_v,
-                          float n_dot_l, const glm::vec3& coat_n) {
+                          float n_dot_l, const glm::vec3& coat_n, float beneath_sheen = 1.0f) {
   glm::vec3 f = diffuse * (1.0f / kPi);
   float beneath = 1.0f, coat = 0.0f;
-  if (m.has_specular || m.clearcoat > 0.0f) {
+  if (m.has_specular || m.clearcoat > 0.0f || m.sheen_max > 0.0f) {
     glm::vec3 h = v + l;
     const float h_len2 = glm::dot(h, h);
     if (h_len2 > 1e-12f) {
@@ -239,6 +275,14 @@ inline glm::vec3 brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, cons
         const float v_dot_h = glm::max(glm::dot(v, h), 0.0f);
         f += fresnel_schlick(f0, v_dot_h, fresnel_f90(m)) *
              ggx_d_vis(m.alpha, n_dot_h, n_dot_v, n_dot_l);
+      }
+      if (m.sheen_max > 0.0f) {
+        // The sheen takes, from what lies beneath it, the larger of its albedos toward the
+        // viewer and toward the light (the extension's min of the two scalings).
+        const float keep =
+            std::min(beneath_sheen, 1.0f - m.sheen_max * sheen_albedo(m.sheen_alpha, n_dot_l));
+        f = f * keep + m.sheen_color * (charlie_d(m.sheen_alpha, glm::max(glm::dot(n, h), 0.0f)) *
+                                        sheen_visibility(m.sheen_alpha, n_dot_v, n_dot_l));
       }
       if (m.clearcoat > 0.0f) {
         const float c_v = glm::max(glm::dot(coat_n, v), 1e-4f);

@@ -69,6 +69,8 @@ struct SlotUvs {
   const glm::vec2* clearcoat = nullptr;
   const glm::vec2* clearcoat_roughness = nullptr;
   const glm::vec2* clearcoat_normal = nullptr;  // likewise for the clear coat's normal texture
+  const glm::vec2* sheen_color = nullptr;
+  const glm::vec2* sheen_roughness = nullptr;
 };
 
 // Set k of p's texture coordinates, or null where p has none.
@@ -205,6 +207,7 @@ struct LocalTerms {
   glm::vec3 origin{0.0f};  // of shadow rays: off the surface on the side it faces
   float offset = 0.0f;
   float n_dot_v = 1.0f;
+  float beneath_sheen = 1.0f;  // shading::sheen_scaling at n.v (1 without sheen)
 };
 
 void init_ray(RTCRay* r, const glm::vec3& o, const glm::vec3& d, float tnear, float tfar) {
@@ -476,12 +479,13 @@ struct Tracer::Impl {
     const bool own = p.material >= 0 && size_t(p.material) < scene_.materials.size();
     const Material::TextureSets sets =
         own ? scene_.materials[size_t(p.material)].uv_set : Material::TextureSets{};
-    return SlotUvs{uv_data(p, sets.base_color),      uv_data(p, sets.metallic_roughness),
-                   uv_data(p, sets.emissive),        uv_data(p, sets.occlusion),
-                   uv_data(p, sets.normal),          uv_data(p, sets.transmission),
-                   uv_data(p, sets.specular),        uv_data(p, sets.specular_color),
-                   uv_data(p, sets.clearcoat),       uv_data(p, sets.clearcoat_roughness),
-                   uv_data(p, sets.clearcoat_normal)};
+    return SlotUvs{uv_data(p, sets.base_color),       uv_data(p, sets.metallic_roughness),
+                   uv_data(p, sets.emissive),         uv_data(p, sets.occlusion),
+                   uv_data(p, sets.normal),           uv_data(p, sets.transmission),
+                   uv_data(p, sets.specular),         uv_data(p, sets.specular_color),
+                   uv_data(p, sets.clearcoat),        uv_data(p, sets.clearcoat_roughness),
+                   uv_data(p, sets.clearcoat_normal), uv_data(p, sets.sheen_color),
+                   uv_data(p, sets.sheen_roughness)};
   }
   // p's COLOR_0 alpha where its material (an index into materials_) tests alpha, else null.
   const float* tested_alpha(const Primitive& p, uint32_t material) const {
@@ -1225,6 +1229,10 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
       t.clearcoat = texel(m.clearcoat_texture, g.uvs.clearcoat).r;
     if (present(m.clearcoat_roughness_texture, g.uvs.clearcoat_roughness))
       t.clearcoat_roughness = texel(m.clearcoat_roughness_texture, g.uvs.clearcoat_roughness).g;
+    if (present(m.sheen_color_texture, g.uvs.sheen_color))
+      t.sheen_color = texel(m.sheen_color_texture, g.uvs.sheen_color);
+    if (present(m.sheen_roughness_texture, g.uvs.sheen_roughness))
+      t.sheen_roughness = texel(m.sheen_roughness_texture, g.uvs.sheen_roughness).r;
     if (any) {
       ShadeMaterial& here = s->at_point.emplace(m);
       shading::vary(&here, t);
@@ -1243,15 +1251,26 @@ bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const gl
     return false;
   }
   if (m.has_emission) *c += m.emissive;
-  if (m.has_ambient) *c += scene_.ambient * m.ambient * tex;
+  // A sheen reflects E(n.v) x its color of the (uniform) ambient light, and the material
+  // beneath keeps the rest.
+  float beneath_sheen = 1.0f;
+  const bool sheen = m.sheen_max > 0.0f && !s.back_face;
+  if (sheen) {
+    const float n_dot_v = std::max(glm::dot(s.ns, wo), 1e-4f);
+    beneath_sheen = shading::sheen_scaling(m, n_dot_v);
+    *c += scene_.ambient * m.sheen_color * shading::sheen_albedo(m.sheen_alpha, n_dot_v);
+  }
+  if (m.has_ambient) *c += scene_.ambient * m.ambient * tex * beneath_sheen;
   // A clear coat lies over the emission and what the material beneath reflects of the ambient
   // light: they keep 1 - clearcoat x F_coat(n.v) (the direct light's share is in brdf_cos).
   if (m.clearcoat > 0.0f && !s.back_face) {
     *c *= 1.0f - m.clearcoat * shading::coat_fresnel(std::max(glm::dot(s.coat_ns, wo), 0.0f));
   }
-  if (lights_.empty() || s.back_face || !(m.has_diffuse || m.has_specular || m.clearcoat > 0.0f)) {
+  if (lights_.empty() || s.back_face ||
+      !(m.has_diffuse || m.has_specular || m.clearcoat > 0.0f || sheen)) {
     return false;
   }
+  terms->beneath_sheen = beneath_sheen;
   const glm::vec3 base = m.base * tex;
   terms->diffuse = base * m.diffuse_weight;
   terms->f0 = shading::fresnel_f0(m, base);
@@ -1274,8 +1293,9 @@ bool Tracer::Impl::light_contribution(const LightRecord& light, const Surface& s
   if (glm::dot(*l, s.ng) <= 0.0f) return false;
   const float n_dot_l = glm::dot(s.ns, *l);
   if (n_dot_l <= 0.0f) return false;
-  *contribution = incident * shading::brdf_cos(*s.material, terms.diffuse, terms.f0, s.ns, wo, *l,
-                                               terms.n_dot_v, n_dot_l, s.coat_ns);
+  *contribution =
+      incident * shading::brdf_cos(*s.material, terms.diffuse, terms.f0, s.ns, wo, *l,
+                                   terms.n_dot_v, n_dot_l, s.coat_ns, terms.beneath_sheen);
   *shadow_tfar = distance - 2.0f * terms.offset;
   return true;
 }
@@ -1405,6 +1425,10 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
         result += secondary(s.p + offset_at(s.p) * s.ng, r, s, depth + 1, throughput * w, stats);
       }
       throughput *= 1.0f - w;
+    }
+    // A sheen takes its share from the mirror reflection and the glass beneath it too.
+    if (m.sheen_max > 0.0f && !s.back_face) {
+      throughput *= shading::sheen_scaling(m, std::max(-glm::dot(s.ns, d), 0.0f));
     }
     if (!m.is_mirror || s.back_face || depth >= options_.max_mirror_depth) {
       // Glass (never is_mirror) branches; the test is here so that other surfaces pay nothing.

@@ -156,6 +156,9 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
       },
       [](Scene* s) { s->materials[0].uv_set.specular = 1; });
   expect_seen(
+      "sheen", [](Scene* s) { s->materials[0].sheen_color = glm::vec3(1.0f); },
+      [](Scene* s) { s->materials[0].sheen_roughness = 0.5f; });
+  expect_seen(
       "volume", [](Scene* s) { s->materials[0].thickness = 1.0f; },
       [](Scene* s) { s->materials[0].attenuation_distance = 2.0f; });
   expect_seen(

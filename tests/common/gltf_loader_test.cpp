@@ -1355,6 +1355,49 @@ TEST_F(GltfLoaderTest, MaterialExtensionTexturesAreRead) {
                "material 0 KHR_materials_clearcoat clearcoatNormalTexture has an invalid scale");
 }
 
+// KHR_materials_sheen: its factors (defaults 0) and textures are read, the roughness texture
+// from the image's alpha; a factor out of range fails naming the material.
+TEST_F(GltfLoaderTest, SheenIsRead) {
+  write_image8(DecodedImage{1, 1, 4, {128, 64, 32, 51}}, dir_ / "rgba.png");
+  GltfBuilder b;
+  add_quad(&b);
+  json& primitive = b.doc()["meshes"][0]["primitives"][0];
+  primitive["material"] = 0;
+  primitive["attributes"]["TEXCOORD_0"] = b.add_floats({0, 0, 1, 0, 1, 1, 0, 1}, 2);
+  b.doc()["images"] = json::array({{{"uri", "rgba.png"}}});
+  b.doc()["textures"] = json::array({{{"source", 0}}});
+  b.doc()["extensionsUsed"] = {"KHR_materials_sheen"};
+  b.doc()["extensionsRequired"] = {"KHR_materials_sheen"};
+  b.doc()["materials"] = json::array({{{"extensions",
+                                        {{"KHR_materials_sheen",
+                                          {{"sheenColorFactor", {1.0, 0.5, 0.25}},
+                                           {"sheenRoughnessFactor", 0.75},
+                                           {"sheenColorTexture", {{"index", 0}}},
+                                           {"sheenRoughnessTexture", {{"index", 0}}}}}}}},
+                                      {{"extensions", {{"KHR_materials_sheen", json::object()}}}}});
+  b.write_embedded(dir_ / "sheen.gltf");
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir_ / "sheen.gltf", &report);
+  ASSERT_EQ(scene.materials.size(), 2u);
+  const Material& m = scene.materials[0];
+  EXPECT_EQ(m.sheen_color, glm::vec3(1.0f, 0.5f, 0.25f));
+  EXPECT_EQ(m.sheen_roughness, 0.75f);
+  ASSERT_EQ(scene.textures.size(), 2u);
+  EXPECT_EQ(m.sheen_color_texture, 0);
+  EXPECT_EQ(m.sheen_roughness_texture, 1);
+  EXPECT_NEAR(scene.textures[0].texel(0).g, reference_srgb_to_linear(64 / 255.0), 1e-6);
+  EXPECT_NEAR(scene.textures[1].texel(0).r, 51 / 255.0, 1e-6);
+  EXPECT_EQ(scene.materials[1].sheen_color, glm::vec3(0.0f));
+  EXPECT_EQ(scene.materials[1].sheen_roughness, 0.0f);
+  EXPECT_EQ(scene.materials[1].sheen_color_texture, -1);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+
+  b.doc()["materials"][0]["extensions"]["KHR_materials_sheen"]["sheenColorFactor"] = {1.0, 2.0,
+                                                                                      0.0};
+  b.write_embedded(dir_ / "bad.gltf");
+  expect_error(dir_ / "bad.gltf", "material 0 KHR_materials_sheen has an invalid sheenColorFactor");
+}
+
 // KHR_materials_unlit is read, also where a file requires it.
 TEST_F(GltfLoaderTest, UnlitMaterialsAreRead) {
   GltfBuilder b;

@@ -165,6 +165,14 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.value(m.clearcoat);
       h.value(m.clearcoat_roughness);
     }
+    if (m.sheen_color != glm::vec3(0.0f) || m.sheen_color_texture >= 0) {
+      h.value(m.sheen_color);
+      h.value(m.sheen_roughness);
+      h.value(m.sheen_color_texture);
+      h.value(m.sheen_roughness_texture);
+      h.value(m.uv_set.sheen_color);
+      h.value(m.uv_set.sheen_roughness);
+    }
     if (m.thickness > 0.0f) {
       h.value(m.thickness);
       h.value(m.attenuation_color);

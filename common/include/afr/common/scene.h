@@ -189,6 +189,8 @@ struct Material {
     uint8_t clearcoat = 0;
     uint8_t clearcoat_roughness = 0;
     uint8_t clearcoat_normal = 0;
+    uint8_t sheen_color = 0;
+    uint8_t sheen_roughness = 0;
     bool operator==(const TextureSets&) const = default;
   };
   TextureSets uv_set;
@@ -230,6 +232,15 @@ struct Material {
   int clearcoat_roughness_texture = -1;
   int clearcoat_normal_texture = -1;
   float clearcoat_normal_scale = 1.0f;
+  // KHR_materials_sheen: a layer of fibres over the material (cloth, velvet) that reflects
+  // sheen_color toward grazing angles through a Charlie lobe of roughness sheen_roughness, and
+  // takes from the material beneath what it reflects. sheen_color_texture (sRGB) multiplies
+  // the color, sheen_roughness_texture's alpha channel (decoded as data, held in red) the
+  // roughness. A black color: no sheen.
+  glm::vec3 sheen_color{0.0f};
+  float sheen_roughness = 0.0f;
+  int sheen_color_texture = -1;
+  int sheen_roughness_texture = -1;
   // KHR_materials_volume: a transmissive material whose thickness is above 0 fills the volume
   // its closed mesh bounds, and light crossing it keeps attenuation_color per
   // attenuation_distance travelled (Beer-Lambert; infinity: none). Thickness 0 is a thin wall.
