@@ -150,6 +150,9 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
     m.sheen_color_factor = mat.sheen_color;
     m.sheen_roughness_factor = mat.sheen_roughness;
     set_sheen(&m, m.sheen_color_factor, m.sheen_roughness_factor);
+    // The albedo table's integration (a fifth of a second) happens here, as the tracer is
+    // built, not in the first sample that meets the sheen.
+    sheen_albedo(m.sheen_alpha, 1.0f);
     m.sheen_color_texture = texture_at(mat.sheen_color_texture, scene);
     if (mat.sheen_roughness > 0.0f) {
       m.sheen_roughness_texture = texture_at(mat.sheen_roughness_texture, scene);
