@@ -177,22 +177,22 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
 void vary(ShadeMaterial* m, const Texels& t) {
   m->emissive = m->emissive_factor * t.emissive;
   if (m->transmission_texture) {
-    m->transmission = glm::clamp(m->transmission_factor * t.transmission, 0.0f, 1.0f);
+    m->transmission = glm::clamp(m->transmission_factor * t.transmission.r, 0.0f, 1.0f);
   }
   if (m->specular_texture || m->specular_color_texture) {
-    set_specular(m, m->specular_factor * t.specular, m->specular_color_factor * t.specular_color);
+    set_specular(m, m->specular_factor * t.specular.r, m->specular_color_factor * t.specular_color);
   }
   if (m->clearcoat_texture || m->clearcoat_roughness_texture) {
-    set_clearcoat(m, m->clearcoat_factor * t.clearcoat,
-                  m->clearcoat_roughness_factor * t.clearcoat_roughness);
+    set_clearcoat(m, m->clearcoat_factor * t.clearcoat.r,
+                  m->clearcoat_roughness_factor * t.clearcoat_roughness.g);
   }
   if (m->sheen_color_texture || m->sheen_roughness_texture) {
     set_sheen(m, m->sheen_color_factor * t.sheen_color,
-              m->sheen_roughness_factor * t.sheen_roughness);
+              m->sheen_roughness_factor * t.sheen_roughness.r);
   }
   derive(m, m->metallic_factor * t.metallic_roughness.b,
          m->roughness_factor * t.metallic_roughness.g);
-  const float o = 1.0f + m->occlusion_strength * (t.occlusion - 1.0f);
+  const float o = 1.0f + m->occlusion_strength * (t.occlusion.r - 1.0f);
   if (o != 1.0f) {
     m->ambient *= o;
     m->has_ambient = !is_black(m->scene_ambient * m->ambient);

@@ -139,18 +139,19 @@ struct ShadeMaterial {
 ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
                                   float mirror_roughness);
 
-// The texels of a varying material's textures at one point (linear; 1 for an absent texture).
+// The texels of a varying material's textures at one point, as looked up (linear; white for an
+// absent texture). vary() reads the channels each slot defines.
 struct Texels {
-  glm::vec3 metallic_roughness{1.0f};  // green x the roughness factor, blue x the metallic
-  glm::vec3 emissive{1.0f};            // x the emissive factor
-  float occlusion = 1.0f;              // red: moved toward 1 by 1 - strength, x the ambient
-  float transmission = 1.0f;           // red x the transmission factor
-  float specular = 1.0f;               // the specular texture's alpha x the specular factor
-  glm::vec3 specular_color{1.0f};      // x the specular color factor
-  float clearcoat = 1.0f;              // red x the clearcoat factor
-  float clearcoat_roughness = 1.0f;    // green x the clearcoat roughness factor
-  glm::vec3 sheen_color{1.0f};         // x the sheen color factor
-  float sheen_roughness = 1.0f;        // the sheen roughness texture's alpha x its factor
+  glm::vec3 metallic_roughness{1.0f};   // green x the roughness factor, blue x the metallic
+  glm::vec3 emissive{1.0f};             // x the emissive factor
+  glm::vec3 occlusion{1.0f};            // red: moved toward 1 by 1 - strength, x the ambient
+  glm::vec3 transmission{1.0f};         // red x the transmission factor
+  glm::vec3 specular{1.0f};             // red (the image's alpha) x the specular factor
+  glm::vec3 specular_color{1.0f};       // x the specular color factor
+  glm::vec3 clearcoat{1.0f};            // red x the clearcoat factor
+  glm::vec3 clearcoat_roughness{1.0f};  // green x the clearcoat roughness factor
+  glm::vec3 sheen_color{1.0f};          // x the sheen color factor
+  glm::vec3 sheen_roughness{1.0f};      // red (the image's alpha) x the sheen roughness factor
 };
 
 // The material at one point of a surface whose material varies: `m` (as make_shade_material

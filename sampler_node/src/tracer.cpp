@@ -1209,30 +1209,21 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   if (m.varies) {
     shading::Texels t;
     bool any = false;
-    auto present = [&](const Texture* texture, const glm::vec2* uvs) {
-      if (!texture || !uvs) return false;
+    auto read = [&](const Texture* texture, const glm::vec2* uvs, glm::vec3* out) {
+      if (!texture || !uvs) return;
+      *out = texel(texture, uvs);
       any = true;
-      return true;
     };
-    if (present(m.metallic_roughness, g.uvs.metallic_roughness))
-      t.metallic_roughness = texel(m.metallic_roughness, g.uvs.metallic_roughness);
-    if (present(m.emissive_texture, g.uvs.emissive))
-      t.emissive = texel(m.emissive_texture, g.uvs.emissive);
-    if (present(m.occlusion, g.uvs.occlusion)) t.occlusion = texel(m.occlusion, g.uvs.occlusion).r;
-    if (present(m.transmission_texture, g.uvs.transmission))
-      t.transmission = texel(m.transmission_texture, g.uvs.transmission).r;
-    if (present(m.specular_texture, g.uvs.specular))
-      t.specular = texel(m.specular_texture, g.uvs.specular).r;
-    if (present(m.specular_color_texture, g.uvs.specular_color))
-      t.specular_color = texel(m.specular_color_texture, g.uvs.specular_color);
-    if (present(m.clearcoat_texture, g.uvs.clearcoat))
-      t.clearcoat = texel(m.clearcoat_texture, g.uvs.clearcoat).r;
-    if (present(m.clearcoat_roughness_texture, g.uvs.clearcoat_roughness))
-      t.clearcoat_roughness = texel(m.clearcoat_roughness_texture, g.uvs.clearcoat_roughness).g;
-    if (present(m.sheen_color_texture, g.uvs.sheen_color))
-      t.sheen_color = texel(m.sheen_color_texture, g.uvs.sheen_color);
-    if (present(m.sheen_roughness_texture, g.uvs.sheen_roughness))
-      t.sheen_roughness = texel(m.sheen_roughness_texture, g.uvs.sheen_roughness).r;
+    read(m.metallic_roughness, g.uvs.metallic_roughness, &t.metallic_roughness);
+    read(m.emissive_texture, g.uvs.emissive, &t.emissive);
+    read(m.occlusion, g.uvs.occlusion, &t.occlusion);
+    read(m.transmission_texture, g.uvs.transmission, &t.transmission);
+    read(m.specular_texture, g.uvs.specular, &t.specular);
+    read(m.specular_color_texture, g.uvs.specular_color, &t.specular_color);
+    read(m.clearcoat_texture, g.uvs.clearcoat, &t.clearcoat);
+    read(m.clearcoat_roughness_texture, g.uvs.clearcoat_roughness, &t.clearcoat_roughness);
+    read(m.sheen_color_texture, g.uvs.sheen_color, &t.sheen_color);
+    read(m.sheen_roughness_texture, g.uvs.sheen_roughness, &t.sheen_roughness);
     if (any) {
       ShadeMaterial& here = s->at_point.emplace(m);
       shading::vary(&here, t);
