@@ -53,22 +53,15 @@ constexpr size_t kMaxNodes = size_t(1) << 20;
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 16> kSupportedExtensions = {
-    "KHR_materials_specular",
-    "EXT_texture_webp",
-    "KHR_materials_sheen",
-    "EXT_meshopt_compression",
-    "KHR_meshopt_compression",
-    "EXT_mesh_gpu_instancing",
-    "KHR_materials_clearcoat",
-    "KHR_materials_volume",
-    "KHR_draco_mesh_compression",
-    "KHR_lights_punctual",
-    "KHR_materials_emissive_strength",
-    "KHR_materials_ior",
-    "KHR_materials_transmission",
-    "KHR_materials_unlit",
-    "KHR_mesh_quantization",
+constexpr std::array<std::string_view, 17> kSupportedExtensions = {
+    "EXT_mesh_gpu_instancing", "EXT_meshopt_compression",
+    "EXT_texture_webp",        "KHR_draco_mesh_compression",
+    "KHR_lights_punctual",     "KHR_materials_anisotropy",
+    "KHR_materials_clearcoat", "KHR_materials_emissive_strength",
+    "KHR_materials_ior",       "KHR_materials_sheen",
+    "KHR_materials_specular",  "KHR_materials_transmission",
+    "KHR_materials_unlit",     "KHR_materials_volume",
+    "KHR_mesh_quantization",   "KHR_meshopt_compression",
     "KHR_texture_transform"};
 
 // The default lighting of a scene without lights (what glTF viewers do): a directional
@@ -246,6 +239,8 @@ class Loader {
                       Material* out);
   void read_volume(const tinygltf::Material& in, const std::string& what, Material* out);
   void read_sheen(size_t m, const tinygltf::Material& in, const std::string& what, Material* out);
+  void read_anisotropy(size_t m, const tinygltf::Material& in, const std::string& what,
+                       Material* out);
   std::optional<glm::dmat3> read_texture_transform(const tinygltf::ExtensionMap& extensions,
                                                    const std::string& what, int* tex_coord);
   // How a texture slot reads its image: as sRGB-encoded color, as linear data, or as linear
@@ -315,7 +310,8 @@ class Loader {
   };
   // Per glTF material, its sets in slot order (base color, metallic-roughness, emissive,
   // occlusion, normal, then the extensions' slots: transmission, specular, specular color,
-  // clearcoat, clearcoat roughness, clearcoat normal, sheen color, sheen roughness); empty for a
+  // clearcoat, clearcoat roughness, clearcoat normal, sheen color, sheen roughness,
+  // anisotropy); empty for a
   // material without textures, whose primitives read TEXCOORD_0 as they are.
   std::vector<std::vector<UvSource>> uv_sources_;
   size_t morph_displacements_ = 0;  // read so far, at most kMaxMorphDisplacements
@@ -1297,7 +1293,9 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
   // TANGENT (VEC4 of floats, or of normalized bytes or shorts with KHR_mesh_quantization), read
   // only where the material's normal textures use it; w taken by its sign.
   if (const auto tangent = in.attributes.find("TANGENT");
-      material && (material->normal_texture >= 0 || material->clearcoat_normal_texture >= 0) &&
+      material &&
+      (material->normal_texture >= 0 || material->clearcoat_normal_texture >= 0 ||
+       material->anisotropy > 0.0f) &&
       tangent != in.attributes.end()) {
     const std::vector<float> t =
         read_floats(tangent->second, TINYGLTF_TYPE_VEC4, what + " TANGENT");
@@ -1666,6 +1664,21 @@ void Loader::read_sheen(size_t m, const tinygltf::Material& in, const std::strin
       m, *e, "sheenRoughnessTexture", where, ImageData::kAlpha, &out->uv_set.sheen_roughness);
 }
 
+// KHR_materials_anisotropy: anisotropyStrength (0 to 1, default 0), anisotropyRotation
+// (radians, default 0) and anisotropyTexture (direction in red and green, strength in blue).
+void Loader::read_anisotropy(size_t m, const tinygltf::Material& in, const std::string& what,
+                             Material* out) {
+  std::string where;
+  const tinygltf::Value* e = material_extension(in, "KHR_materials_anisotropy", what, &where);
+  if (e == nullptr) return;
+  read_number(*e, "anisotropyStrength", where, unit_interval, "a number 0 to 1", &out->anisotropy);
+  read_number(
+      *e, "anisotropyRotation", where, [](double v) { return std::isfinite(v); }, "a number",
+      &out->anisotropy_rotation);
+  out->anisotropy_texture = read_extension_texture(m, *e, "anisotropyTexture", where,
+                                                   ImageData::kLinear, &out->uv_set.anisotropy);
+}
+
 void Loader::load_materials() {
   uv_sources_.assign(model_.materials.size(), {});
   for (size_t m = 0; m < model_.materials.size(); ++m) {
@@ -1754,6 +1767,7 @@ void Loader::load_materials() {
     read_clearcoat(m, in, what, &out);
     read_volume(in, what, &out);
     read_sheen(m, in, what, &out);
+    read_anisotropy(m, in, what, &out);
     if (in.extras.Has("afr_ambient")) out.ambient = read_rgb_extra(in.extras, "afr_ambient", what);
     scene_.materials.push_back(std::move(out));
   }

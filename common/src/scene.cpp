@@ -401,7 +401,8 @@ void Scene::finalize() {
          {mat.base_color_texture, mat.metallic_roughness_texture, mat.emissive_texture,
           mat.occlusion_texture, mat.normal_texture, mat.transmission_texture, mat.specular_texture,
           mat.specular_color_texture, mat.clearcoat_texture, mat.clearcoat_roughness_texture,
-          mat.clearcoat_normal_texture, mat.sheen_color_texture, mat.sheen_roughness_texture}) {
+          mat.clearcoat_normal_texture, mat.sheen_color_texture, mat.sheen_roughness_texture,
+          mat.anisotropy_texture}) {
       if (t != -1 && !in_range(t, textures.size())) {
         throw err(fmt::format("material {} ('{}') names texture {} of {}", m, mat.name, t,
                               textures.size()));
@@ -414,6 +415,10 @@ void Scene::finalize() {
     if (!(mat.alpha_cutoff >= 0.0f && std::isfinite(mat.alpha_cutoff))) {
       throw err(fmt::format("material {} ('{}') has alpha cutoff {} (a number >= 0)", m, mat.name,
                             mat.alpha_cutoff));
+    }
+    if (!std::isfinite(mat.anisotropy_rotation)) {
+      throw err(fmt::format("material {} ('{}') has an anisotropy rotation that is not finite", m,
+                            mat.name));
     }
     if (!(mat.occlusion_strength >= 0.0f && mat.occlusion_strength <= 1.0f)) {
       throw err(fmt::format("material {} ('{}') has occlusion strength {} (0 to 1)", m, mat.name,

@@ -19,8 +19,12 @@ void derive(ShadeMaterial* m, float metallic, float roughness) {
   roughness = glm::clamp(roughness, 0.0f, 1.0f);
   const float r = std::max(roughness, kMinDirectRoughness);
   m->alpha = r * r;
+  m->alpha_t = m->alpha + (1.0f - m->alpha) * m->anisotropy * m->anisotropy;
   m->diffuse_weight = (1.0f - m->metallic) * (1.0f - m->transmission);
-  m->is_mirror = !m->is_glass && m->metallic > 0.0f && roughness <= m->mirror_roughness;
+  // An anisotropic surface is a mirror only where its roughness along the anisotropy is too.
+  const float r2 = roughness * roughness;
+  const float stretched = std::sqrt(r2 + (1.0f - r2) * m->anisotropy * m->anisotropy);
+  m->is_mirror = !m->is_glass && m->metallic > 0.0f && stretched <= m->mirror_roughness;
   // The metallic part of a mirror sees its surroundings through the reflection ray, so only
   // the rest of it takes ambient light; of glass, only its diffuse part.
   m->ambient = m->ambient_reflectance;
@@ -158,16 +162,23 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
       m.sheen_roughness_texture = texture_at(mat.sheen_roughness_texture, scene);
     }
   }
-  m.varies = m.metallic_roughness || m.emissive_texture || m.occlusion || m.transmission_texture ||
-             m.specular_texture || m.specular_color_texture || m.clearcoat_texture ||
-             m.clearcoat_roughness_texture || m.sheen_color_texture || m.sheen_roughness_texture;
+  if (mat.anisotropy > 0.0f) {
+    m.anisotropy = m.anisotropy_factor = std::min(mat.anisotropy, 1.0f);
+    m.anisotropy_rotation =
+        glm::vec2(std::cos(mat.anisotropy_rotation), std::sin(mat.anisotropy_rotation));
+    m.anisotropy_texture = texture_at(mat.anisotropy_texture, scene);
+  }
+  m.varies = m.anisotropy_texture || m.metallic_roughness || m.emissive_texture || m.occlusion ||
+             m.transmission_texture || m.specular_texture || m.specular_color_texture ||
+             m.clearcoat_texture || m.clearcoat_roughness_texture || m.sheen_color_texture ||
+             m.sheen_roughness_texture;
   derive(&m, m.metallic_factor, m.roughness_factor);
   if (mat.unlit) {
     // Only the base color (and alpha) is left: prepare_local shows it and stops there, and
     // nothing bounces off, passes through or varies the surface.
     m.unlit = true;
     m.is_mirror = m.is_glass = m.varies = m.clearcoat_mirror = false;
-    m.clearcoat = m.sheen_max = 0.0f;
+    m.clearcoat = m.sheen_max = m.anisotropy = 0.0f;
     m.normal_map = m.clearcoat_normal_map = nullptr;
     m.shadow_transmittance = glm::vec3(0.0f);
   }
@@ -190,6 +201,7 @@ void vary(ShadeMaterial* m, const Texels& t) {
     set_sheen(m, m->sheen_color_factor * t.sheen_color,
               m->sheen_roughness_factor * t.sheen_roughness.r);
   }
+  if (m->anisotropy_texture) m->anisotropy = m->anisotropy_factor * t.anisotropy.b;
   derive(m, m->metallic_factor * t.metallic_roughness.b,
          m->roughness_factor * t.metallic_roughness.g);
   const float o = 1.0f + m->occlusion_strength * (t.occlusion.r - 1.0f);

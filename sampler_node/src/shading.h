@@ -83,6 +83,15 @@ struct ShadeMaterial {
   // Weight of the base color in the diffuse lobe: (1 - metallic) (1 - transmission).
   float diffuse_weight = 0.0f;
   float alpha = 1.0f;  // GGX alpha = roughness^2 for direct light (roughness clamped)
+  // KHR_materials_anisotropy: its strength at this point (0: none), the factor it multiplies,
+  // its rotation (cos, sin) and texture (direction in red and green, strength in blue; null:
+  // none), and the lobe's alpha along its direction, alpha + (1 - alpha) strength^2 (alpha
+  // across it).
+  float anisotropy = 0.0f;
+  float anisotropy_factor = 0.0f;
+  glm::vec2 anisotropy_rotation{1.0f, 0.0f};
+  const Texture* anisotropy_texture = nullptr;
+  float alpha_t = 1.0f;
   // Glass (KHR_materials_transmission, KHR_materials_ior): what tracer.cpp's glass() needs.
   float transmission = 0.0f;
   float ior = 1.5f;
@@ -152,6 +161,7 @@ struct Texels {
   glm::vec3 clearcoat_roughness{1.0f};  // green x the clearcoat roughness factor
   glm::vec3 sheen_color{1.0f};          // x the sheen color factor
   glm::vec3 sheen_roughness{1.0f};      // red (the image's alpha) x the sheen roughness factor
+  glm::vec3 anisotropy{1.0f};           // blue x the anisotropy strength (red, green: make_surface)
 };
 
 // The material at one point of a surface whose material varies: `m` (as make_shade_material
@@ -257,13 +267,35 @@ inline float sheen_scaling(const ShadeMaterial& m, float n_dot_v) {
   return m.sheen_max > 0.0f ? 1.0f - m.sheen_max * sheen_albedo(m.sheen_alpha, n_dot_v) : 1.0f;
 }
 
+// KHR_materials_anisotropy's GGX D x height-correlated visibility, with alpha a_t along the
+// anisotropy's direction t and a_b along b = n x t (t, b, n unit and orthogonal), as the
+// extension defines them; the dot products are those of h, v and l with t, b and n.
+inline float ggx_anisotropic_d_vis(float a_t, float a_b, const glm::vec3& h_tbn,
+                                   const glm::vec3& v_tbn, const glm::vec3& l_tbn) {
+  const glm::vec3 f(a_b * h_tbn.x, a_t * h_tbn.y, a_t * a_b * h_tbn.z);
+  const float w = a_t * a_b / glm::dot(f, f);
+  const float D = a_t * a_b * w * w / kPi;
+  const float view = l_tbn.z * glm::length(glm::vec3(a_t * v_tbn.x, a_b * v_tbn.y, v_tbn.z));
+  const float light = v_tbn.z * glm::length(glm::vec3(a_t * l_tbn.x, a_b * l_tbn.y, l_tbn.z));
+  return D * glm::clamp(0.5f / (view + light), 0.0f, 1.0f);
+}
+
+// What brdf_cos needs of a shading point besides its shading normal.
+struct LobeFrame {
+  glm::vec3 coat_n{0.0f, 0.0f, 1.0f};  // the clear coat's normal (glTF's clearcoatNormal), unit
+  // The anisotropy's direction and its bitangent (unit, orthogonal to the shading normal);
+  // zero where the material has no anisotropy or the point no tangent frame (isotropic then).
+  glm::vec3 aniso_t{0.0f};
+  glm::vec3 aniso_b{0.0f};
+  float beneath_sheen = 1.0f;  // sheen_scaling(m, n.v) (1 without sheen)
+};
+
 // BRDF x cos(theta_l) for unit n, v (toward the viewer), l (toward the light); n.v and n.l > 0.
-// `coat_n` (unit) is the clear coat's normal (glTF's clearcoatNormal), where m has a coat: the
-// coat takes clearcoat x F_coat(coat_n.v) of the light, with its own lobe and cosine, and the
-// material beneath the rest. `beneath_sheen` is sheen_scaling(m, n.v) (1 without sheen).
+// Where m has a coat, the coat takes clearcoat x F_coat(coat_n.v) of the light, with its own
+// lobe and cosine, and the material beneath the rest.
 inline glm::vec3 brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, const glm::vec3& f0,
                           const glm::vec3& n, const glm::vec3& v, const glm::vec3& l, float n_dot_v,
-                          float n_dot_l, const glm::vec3& coat_n, float beneath_sheen = 1.0f) {
+                          float n_dot_l, const LobeFrame& frame) {
   glm::vec3 f = diffuse * (1.0f / kPi);
   float beneath = 1.0f, coat = 0.0f;
   if (m.has_specular || m.clearcoat > 0.0f || m.sheen_max > 0.0f) {
@@ -274,18 +306,27 @@ inline glm::vec3 brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, cons
       if (m.has_specular) {
         const float n_dot_h = glm::max(glm::dot(n, h), 0.0f);
         const float v_dot_h = glm::max(glm::dot(v, h), 0.0f);
-        f += fresnel_schlick(f0, v_dot_h, fresnel_f90(m)) *
-             ggx_d_vis(m.alpha, n_dot_h, n_dot_v, n_dot_l);
+        const glm::vec3& t = frame.aniso_t;
+        const float d_vis =
+            m.anisotropy > 0.0f && t != glm::vec3(0.0f)
+                ? ggx_anisotropic_d_vis(
+                      m.alpha_t, m.alpha,
+                      glm::vec3(glm::dot(t, h), glm::dot(frame.aniso_b, h), n_dot_h),
+                      glm::vec3(glm::dot(t, v), glm::dot(frame.aniso_b, v), n_dot_v),
+                      glm::vec3(glm::dot(t, l), glm::dot(frame.aniso_b, l), n_dot_l))
+                : ggx_d_vis(m.alpha, n_dot_h, n_dot_v, n_dot_l);
+        f += fresnel_schlick(f0, v_dot_h, fresnel_f90(m)) * d_vis;
       }
       if (m.sheen_max > 0.0f) {
         // The sheen takes, from what lies beneath it, the larger of its albedos toward the
         // viewer and toward the light (the extension's min of the two scalings).
-        const float keep =
-            std::min(beneath_sheen, 1.0f - m.sheen_max * sheen_albedo(m.sheen_alpha, n_dot_l));
+        const float keep = std::min(frame.beneath_sheen,
+                                    1.0f - m.sheen_max * sheen_albedo(m.sheen_alpha, n_dot_l));
         f = f * keep + m.sheen_color * (charlie_d(m.sheen_alpha, glm::max(glm::dot(n, h), 0.0f)) *
                                         sheen_visibility(m.sheen_alpha, n_dot_v, n_dot_l));
       }
       if (m.clearcoat > 0.0f) {
+        const glm::vec3& coat_n = frame.coat_n;
         const float c_v = glm::max(glm::dot(coat_n, v), 1e-4f);
         const float c_l = glm::dot(coat_n, l);
         const float w = m.clearcoat * coat_fresnel(c_v);

@@ -71,6 +71,7 @@ struct SlotUvs {
   const glm::vec2* clearcoat_normal = nullptr;  // likewise for the clear coat's normal texture
   const glm::vec2* sheen_color = nullptr;
   const glm::vec2* sheen_roughness = nullptr;
+  const glm::vec2* anisotropy = nullptr;  // also the anisotropy's tangent frame
 };
 
 // Set k of p's texture coordinates, or null where p has none.
@@ -149,6 +150,10 @@ struct SurfacePoint {
   // The clear coat's normal (unit): the interpolated normal, bent by the coat's own normal
   // texture only (ShadeMaterial::clearcoat_normal_map).
   glm::vec3 coat_ns{0.0f, 0.0f, 1.0f};
+  // KHR_materials_anisotropy's direction and its bitangent (unit, orthogonal to ns); zero where
+  // the material has none or the point no tangent frame (shading::LobeFrame).
+  glm::vec3 aniso_t{0.0f};
+  glm::vec3 aniso_b{0.0f};
   glm::vec2 uv{0.0f};  // in the base-color texture's set of coordinates (SlotUvs)
   const ShadeMaterial* material = nullptr;
   const Instance* instance = nullptr;
@@ -207,7 +212,7 @@ struct LocalTerms {
   glm::vec3 origin{0.0f};  // of shadow rays: off the surface on the side it faces
   float offset = 0.0f;
   float n_dot_v = 1.0f;
-  float beneath_sheen = 1.0f;  // shading::sheen_scaling at n.v (1 without sheen)
+  shading::LobeFrame frame;  // the coat's normal, the anisotropy's directions, the sheen's share
 };
 
 void init_ray(RTCRay* r, const glm::vec3& o, const glm::vec3& d, float tnear, float tfar) {
@@ -485,7 +490,7 @@ struct Tracer::Impl {
                    uv_data(p, sets.specular),         uv_data(p, sets.specular_color),
                    uv_data(p, sets.clearcoat),        uv_data(p, sets.clearcoat_roughness),
                    uv_data(p, sets.clearcoat_normal), uv_data(p, sets.sheen_color),
-                   uv_data(p, sets.sheen_roughness)};
+                   uv_data(p, sets.sheen_roughness),  uv_data(p, sets.anisotropy)};
   }
   // p's COLOR_0 alpha where its material (an index into materials_) tests alpha, else null.
   const float* tested_alpha(const Primitive& p, uint32_t material) const {
@@ -1064,18 +1069,19 @@ bool Tracer::Impl::blocked(const glm::vec3& o, const glm::vec3& d, float tnear, 
   return r.tfar < 0.0f;  // Embree sets tfar to -inf on a hit
 }
 
-// The shading normal that a normal texture's texel asks for at barycentrics (w, u, v) of
-// triangle `tri`, whose shading normal is n (unit), the texture read through coordinates `uvs`. The
-// tangent frame is the file's where the primitive has TANGENT (GeomRecord::tangents): t
-// interpolated and made orthogonal to n, and b = n x t times the tangent's w. Otherwise it is the
-// triangle's own: t = dp/du made orthogonal to n, and b = n x t, turned to point against dp/dv as
-// glTF's flipped v expects (so a mirrored mapping gets a mirrored b, as MikkTSpace's sign gives).
-// `turned`: n is the back of a double-sided surface, whose b stays the front's as in the triangle's
-// own frame. Without a usable frame (no uv area, degenerate) n stays.
-static glm::vec3 mapped_normal(const GeomRecord& g, const Instance& inst, const uint32_t* tri,
-                               const glm::vec3& bary, const glm::vec3& n, bool turned,
-                               const glm::vec2* uvs, const glm::vec3& texel, float scale) {
-  glm::vec3 t, bt;
+// The tangent frame (t, bt) at barycentrics (w, u, v) of triangle `tri`, whose shading normal
+// is n (unit), for a texture read through coordinates `uvs` (null: none). The frame is the
+// file's where the primitive has TANGENT (GeomRecord::tangents): t interpolated and made
+// orthogonal to n, and b = n x t times the tangent's w. Otherwise it is the triangle's own:
+// t = dp/du made orthogonal to n, and b = n x t, turned to point against dp/dv as glTF's flipped
+// v expects (so a mirrored mapping gets a mirrored b, as MikkTSpace's sign gives). `turned`: n is
+// the back of a double-sided surface, whose b stays the front's as in the triangle's own frame.
+// False where there is no usable frame (no coordinates or uv area, degenerate).
+static bool tangent_frame(const GeomRecord& g, const Instance& inst, const uint32_t* tri,
+                          const glm::vec3& bary, const glm::vec3& n, bool turned,
+                          const glm::vec2* uvs, glm::vec3* t_out, glm::vec3* bt_out) {
+  glm::vec3& t = *t_out;
+  glm::vec3& bt = *bt_out;
   if (g.tangents) {
     const glm::vec4& t0 = g.tangents[tri[0]];
     t = bary.x * glm::vec3(t0) + bary.y * glm::vec3(g.tangents[tri[1]]) +
@@ -1088,15 +1094,16 @@ static glm::vec3 mapped_normal(const GeomRecord& g, const Instance& inst, const 
     }
     t -= n * glm::dot(n, t);
     const float t_len2 = glm::dot(t, t);
-    if (!(t_len2 > 1e-30f) || !std::isfinite(t_len2)) return n;
+    if (!(t_len2 > 1e-30f) || !std::isfinite(t_len2)) return false;
     t *= 1.0f / std::sqrt(t_len2);
     bt = glm::cross(n, t) * sign;
   } else {
+    if (!uvs) return false;
     const glm::vec2 d1 = uvs[tri[1]] - uvs[tri[0]], d2 = uvs[tri[2]] - uvs[tri[0]];
     const glm::vec3 e1 = g.positions[tri[1]] - g.positions[tri[0]];
     const glm::vec3 e2 = g.positions[tri[2]] - g.positions[tri[0]];
     const float det = d1.x * d2.y - d2.x * d1.y;
-    if (!(std::abs(det) > 1e-20f)) return n;
+    if (!(std::abs(det) > 1e-20f)) return false;
     t = (e1 * d2.y - e2 * d1.y) / det;            // dp/du
     glm::vec3 b = (e2 * d1.x - e1 * d2.x) / det;  // dp/dv
     if (inst.transformed) {
@@ -1106,11 +1113,22 @@ static glm::vec3 mapped_normal(const GeomRecord& g, const Instance& inst, const 
     }
     t -= n * glm::dot(n, t);
     const float t_len2 = glm::dot(t, t);
-    if (!(t_len2 > 1e-30f) || !std::isfinite(t_len2)) return n;
+    if (!(t_len2 > 1e-30f) || !std::isfinite(t_len2)) return false;
     t *= 1.0f / std::sqrt(t_len2);
     bt = glm::cross(n, t);
     if (glm::dot(bt, b) > 0.0f) bt = -bt;
   }
+  return true;
+}
+
+// The shading normal that a normal texture's texel asks for at barycentrics `bary` of triangle
+// `tri`, whose shading normal is n (unit), the texture read through coordinates `uvs`, in the
+// tangent frame above (n stays where there is none).
+static glm::vec3 mapped_normal(const GeomRecord& g, const Instance& inst, const uint32_t* tri,
+                               const glm::vec3& bary, const glm::vec3& n, bool turned,
+                               const glm::vec2* uvs, const glm::vec3& texel, float scale) {
+  glm::vec3 t, bt;
+  if (!tangent_frame(g, inst, tri, bary, n, turned, uvs, &t, &bt)) return n;
   const glm::vec3 local = texel * 2.0f - 1.0f;
   const glm::vec3 mapped = t * (local.x * scale) + bt * (local.y * scale) + n * local.z;
   const float len2 = glm::dot(mapped, mapped);
@@ -1206,8 +1224,8 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   }
   // A material that varies over the surface, decided here from its textures (those whose slot
   // has coordinates on this primitive).
+  shading::Texels t;
   if (m.varies) {
-    shading::Texels t;
     bool any = false;
     auto read = [&](const Texture* texture, const glm::vec2* uvs, glm::vec3* out) {
       if (!texture || !uvs) return;
@@ -1224,10 +1242,32 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
     read(m.clearcoat_roughness_texture, g.uvs.clearcoat_roughness, &t.clearcoat_roughness);
     read(m.sheen_color_texture, g.uvs.sheen_color, &t.sheen_color);
     read(m.sheen_roughness_texture, g.uvs.sheen_roughness, &t.sheen_roughness);
+    read(m.anisotropy_texture, g.uvs.anisotropy, &t.anisotropy);
     if (any) {
       ShadeMaterial& here = s->at_point.emplace(m);
       shading::vary(&here, t);
       s->material = &here;
+    }
+  }
+  // KHR_materials_anisotropy's direction: the texture's red and green (else the tangent) in the
+  // tangent frame of its coordinates, turned by its rotation; none without a frame (isotropic).
+  s->aniso_t = s->aniso_b = glm::vec3(0.0f);
+  if (m.anisotropy_factor > 0.0f) {
+    glm::vec3 tangent, bitangent;
+    if (tangent_frame(g, inst, tri, s->barycentric, s->ns, turned, g.uvs.anisotropy, &tangent,
+                      &bitangent)) {
+      const glm::vec2 texel_direction = m.anisotropy_texture && g.uvs.anisotropy
+                                            ? glm::vec2(t.anisotropy) * 2.0f - 1.0f
+                                            : glm::vec2(1.0f, 0.0f);
+      const glm::vec2 c = m.anisotropy_rotation;  // cos, sin
+      const glm::vec2 direction(c.x * texel_direction.x - c.y * texel_direction.y,
+                                c.y * texel_direction.x + c.x * texel_direction.y);
+      const glm::vec3 along = tangent * direction.x + bitangent * direction.y;
+      const float len2 = glm::dot(along, along);
+      if (len2 > 1e-12f && std::isfinite(len2)) {
+        s->aniso_t = along * (1.0f / std::sqrt(len2));
+        s->aniso_b = glm::cross(s->ns, s->aniso_t);
+      }
     }
   }
 }
@@ -1261,7 +1301,10 @@ bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const gl
       !(m.has_diffuse || m.has_specular || m.clearcoat > 0.0f || sheen)) {
     return false;
   }
-  terms->beneath_sheen = beneath_sheen;
+  terms->frame.coat_n = s.coat_ns;
+  terms->frame.aniso_t = s.aniso_t;
+  terms->frame.aniso_b = s.aniso_b;
+  terms->frame.beneath_sheen = beneath_sheen;
   const glm::vec3 base = m.base * tex;
   terms->diffuse = base * m.diffuse_weight;
   terms->f0 = shading::fresnel_f0(m, base);
@@ -1284,9 +1327,8 @@ bool Tracer::Impl::light_contribution(const LightRecord& light, const Surface& s
   if (glm::dot(*l, s.ng) <= 0.0f) return false;
   const float n_dot_l = glm::dot(s.ns, *l);
   if (n_dot_l <= 0.0f) return false;
-  *contribution =
-      incident * shading::brdf_cos(*s.material, terms.diffuse, terms.f0, s.ns, wo, *l,
-                                   terms.n_dot_v, n_dot_l, s.coat_ns, terms.beneath_sheen);
+  *contribution = incident * shading::brdf_cos(*s.material, terms.diffuse, terms.f0, s.ns, wo, *l,
+                                               terms.n_dot_v, n_dot_l, terms.frame);
   *shadow_tfar = distance - 2.0f * terms.offset;
   return true;
 }

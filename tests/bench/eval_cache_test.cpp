@@ -159,6 +159,9 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
       "sheen", [](Scene* s) { s->materials[0].sheen_color = glm::vec3(1.0f); },
       [](Scene* s) { s->materials[0].sheen_roughness = 0.5f; });
   expect_seen(
+      "anisotropy", [](Scene* s) { s->materials[0].anisotropy = 0.5f; },
+      [](Scene* s) { s->materials[0].anisotropy_rotation = 1.0f; });
+  expect_seen(
       "volume", [](Scene* s) { s->materials[0].thickness = 1.0f; },
       [](Scene* s) { s->materials[0].attenuation_distance = 2.0f; });
   expect_seen(

@@ -1398,6 +1398,52 @@ TEST_F(GltfLoaderTest, SheenIsRead) {
   expect_error(dir_ / "bad.gltf", "material 0 KHR_materials_sheen has an invalid sheenColorFactor");
 }
 
+// KHR_materials_anisotropy: its strength (default 0), rotation (default 0) and texture (data)
+// are read; a strength out of range or a rotation that is not a number fails naming them.
+TEST_F(GltfLoaderTest, AnisotropyIsRead) {
+  write_image8(DecodedImage{1, 1, 3, {255, 128, 64}}, dir_ / "direction.png");
+  GltfBuilder b;
+  add_quad(&b);
+  json& primitive = b.doc()["meshes"][0]["primitives"][0];
+  primitive["material"] = 0;
+  primitive["attributes"]["TEXCOORD_0"] = b.add_floats({0, 0, 1, 0, 1, 1, 0, 1}, 2);
+  b.doc()["images"] = json::array({{{"uri", "direction.png"}}});
+  b.doc()["textures"] = json::array({{{"source", 0}}});
+  b.doc()["extensionsUsed"] = {"KHR_materials_anisotropy"};
+  b.doc()["extensionsRequired"] = {"KHR_materials_anisotropy"};
+  b.doc()["materials"] =
+      json::array({{{"extensions",
+                     {{"KHR_materials_anisotropy",
+                       {{"anisotropyStrength", 0.5},
+                        {"anisotropyRotation", 1.25},
+                        {"anisotropyTexture", {{"index", 0}}}}}}}},
+                   {{"extensions", {{"KHR_materials_anisotropy", json::object()}}}}});
+  b.write_embedded(dir_ / "anisotropy.gltf");
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir_ / "anisotropy.gltf", &report);
+  ASSERT_EQ(scene.materials.size(), 2u);
+  const Material& m = scene.materials[0];
+  EXPECT_EQ(m.anisotropy, 0.5f);
+  EXPECT_EQ(m.anisotropy_rotation, 1.25f);
+  ASSERT_EQ(m.anisotropy_texture, 0);
+  EXPECT_NEAR(scene.textures[0].texel(0).g, 128 / 255.0, 1e-6);  // data, not sRGB
+  EXPECT_EQ(scene.materials[1].anisotropy, 0.0f);
+  EXPECT_EQ(scene.materials[1].anisotropy_rotation, 0.0f);
+  EXPECT_EQ(scene.materials[1].anisotropy_texture, -1);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+
+  json& e = b.doc()["materials"][0]["extensions"]["KHR_materials_anisotropy"];
+  e["anisotropyStrength"] = 1.5;
+  b.write_embedded(dir_ / "strength.gltf");
+  expect_error(dir_ / "strength.gltf",
+               "material 0 KHR_materials_anisotropy has an invalid anisotropyStrength");
+  e["anisotropyStrength"] = 0.5;
+  e["anisotropyRotation"] = "left";
+  b.write_embedded(dir_ / "rotation.gltf");
+  expect_error(dir_ / "rotation.gltf",
+               "material 0 KHR_materials_anisotropy has an invalid anisotropyRotation");
+}
+
 // KHR_materials_unlit is read, also where a file requires it.
 TEST_F(GltfLoaderTest, UnlitMaterialsAreRead) {
   GltfBuilder b;

@@ -1458,6 +1458,76 @@ TEST(TracerTest, SheenReflectsTowardGrazingAndTakesItsAlbedoFromBeneath) {
                smoother, 1e-6f, "roughness texture");
 }
 
+// KHR_materials_anisotropy: a black dielectric square (F0 0.04) of roughness 0.3, its texture
+// coordinates' u along world +x (so its tangent is +x, its bitangent -y), seen straight on and
+// lit by a point light (irradiance 1) tilted 40 degrees along +x, shows F x D x V x n.l of the
+// extension's anisotropic GGX: alpha_t = mix(alpha, 1, strength^2) along the anisotropy's
+// direction and alpha across it. Strength 0 is the isotropic lobe; along +x (rotation 0) the
+// stretched lobe reaches the light, turned 90 degrees (toward the bitangent) it does not; a
+// texture's red and green turn it as the rotation does, and its blue scales the strength.
+TEST(TracerTest, AnisotropyStretchesTheHighlightAlongItsDirection) {
+  const float roughness = 0.3f;
+  const double theta = 40.0 * M_PI / 180.0;
+  const glm::dvec3 to_light(std::sin(theta), 0.0, std::cos(theta)), v(0.0, 0.0, 1.0);
+  const auto seen = [&](const std::function<void(Scene*, Material*)>& dress) {
+    Scene s;
+    const int mat = add_material(&s, glm::vec3(0.0f), 0.0f, roughness);
+    Material m = s.materials[size_t(mat)];
+    dress(&s, &m);
+    s.materials[size_t(mat)] = m;
+    add_mesh_node(&s, quad_mesh({-50, -50, -2}, {100, 0, 0}, {0, 100, 0}, mat));
+    Light bulb;
+    bulb.intensity = 100.0f;  // at distance 10: irradiance 1
+    add_light_node(&s, bulb, glm::dvec3(0.0, 0.0, -2.0) + 10.0 * to_light);
+    s.finalize();
+    Tracer tracer(s);
+    TraceStats stats;
+    return tracer.trace(Ray{{0.0f, 0.0f, 0.0f}, {0, 0, -1}}, &stats).color;
+  };
+  // The extension's lobe with its direction t (world), F0 0.04.
+  const auto reference = [&](double strength, glm::dvec3 t) {
+    const glm::dvec3 n(0.0, 0.0, 1.0), b = glm::cross(n, t), l = to_light;
+    const glm::dvec3 h = glm::normalize(v + l);
+    const double a = double(roughness) * roughness;
+    const double at = a + (1.0 - a) * strength * strength, ab = a;
+    const double th = glm::dot(t, h) / at, bh = glm::dot(b, h) / ab, nh = glm::dot(n, h);
+    const double s2 = th * th + bh * bh + nh * nh;
+    const double d = 1.0 / (M_PI * at * ab * s2 * s2);
+    const auto len = [&](glm::dvec3 w) {
+      return std::sqrt(std::pow(at * glm::dot(t, w), 2) + std::pow(ab * glm::dot(b, w), 2) +
+                       std::pow(glm::dot(n, w), 2));
+    };
+    const double vis = 0.5 / (l.z * len(v) + v.z * len(l));
+    const double fresnel = 0.04 + 0.96 * std::pow(1.0 - glm::dot(v, h), 5.0);
+    return glm::vec3(float(fresnel * d * vis * l.z));
+  };
+  const glm::dvec3 along_x(1.0, 0.0, 0.0), along_y(0.0, -1.0, 0.0);
+  const glm::vec3 isotropic = seen([](Scene*, Material*) {});
+  expect_near3(isotropic, reference(0.0, along_x), 1e-5f, "isotropic");
+  const auto anisotropic = [&](float rotation) {
+    return seen([&](Scene*, Material* m) {
+      m->anisotropy = 0.6f;
+      m->anisotropy_rotation = rotation;
+    });
+  };
+  const glm::vec3 stretched = anisotropic(0.0f), across = anisotropic(float(M_PI) / 2.0f);
+  expect_near3(stretched, reference(0.6, along_x), 1e-5f * (1.0f + stretched.r), "along +x");
+  expect_near3(across, reference(0.6, along_y), 1e-5f, "turned toward the bitangent");
+  EXPECT_GT(stretched.r, 2.0f * isotropic.r);
+  EXPECT_LT(across.r, isotropic.r);
+  // Red and green (0.5, 1): direction (0, 1), the bitangent; blue 0.5 halves the strength.
+  expect_near3(seen([&](Scene* s, Material* m) {
+                 m->anisotropy = 0.6f;
+                 m->anisotropy_texture = add_texel(s, {0.5f, 1.0f, 1.0f});
+               }),
+               across, 1e-5f, "texture direction");
+  expect_near3(seen([&](Scene* s, Material* m) {
+                 m->anisotropy = 0.6f;
+                 m->anisotropy_texture = add_texel(s, {1.0f, 0.5f, 0.5f});
+               }),
+               reference(0.3, along_x), 1e-5f, "texture strength");
+}
+
 TEST(TracerTest, MirrorDepthIsBounded) {
   // Two facing mirrors: a ray between them bounces exactly max_mirror_depth times.
   Scene s;

@@ -173,6 +173,12 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.value(m.uv_set.sheen_color);
       h.value(m.uv_set.sheen_roughness);
     }
+    if (m.anisotropy > 0.0f) {
+      h.value(m.anisotropy);
+      h.value(m.anisotropy_rotation);
+      h.value(m.anisotropy_texture);
+      h.value(m.uv_set.anisotropy);
+    }
     if (m.thickness > 0.0f) {
       h.value(m.thickness);
       h.value(m.attenuation_color);

@@ -191,6 +191,7 @@ struct Material {
     uint8_t clearcoat_normal = 0;
     uint8_t sheen_color = 0;
     uint8_t sheen_roughness = 0;
+    uint8_t anisotropy = 0;
     bool operator==(const TextureSets&) const = default;
   };
   TextureSets uv_set;
@@ -241,6 +242,13 @@ struct Material {
   float sheen_roughness = 0.0f;
   int sheen_color_texture = -1;
   int sheen_roughness_texture = -1;
+  // KHR_materials_anisotropy: the specular lobe stretched along a direction of the surface, by
+  // `anisotropy` (0: none, 1: fully) times anisotropy_texture's blue channel; the direction is
+  // the texture's red and green (tangent space, 0 to 1 for -1 to 1; without a texture the
+  // tangent), turned by anisotropy_rotation radians toward the bitangent. Linear data.
+  float anisotropy = 0.0f;
+  float anisotropy_rotation = 0.0f;
+  int anisotropy_texture = -1;
   // KHR_materials_volume: a transmissive material whose thickness is above 0 fills the volume
   // its closed mesh bounds, and light crossing it keeps attenuation_color per
   // attenuation_distance travelled (Beer-Lambert; infinity: none). Thickness 0 is a thin wall.
