@@ -1224,8 +1224,8 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   }
   // A material that varies over the surface, decided here from its textures (those whose slot
   // has coordinates on this primitive).
-  shading::Texels t;
   if (m.varies) {
+    shading::Texels t;
     bool any = false;
     auto read = [&](const Texture* texture, const glm::vec2* uvs, glm::vec3* out) {
       if (!texture || !uvs) return;
@@ -1242,7 +1242,7 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
     read(m.clearcoat_roughness_texture, g.uvs.clearcoat_roughness, &t.clearcoat_roughness);
     read(m.sheen_color_texture, g.uvs.sheen_color, &t.sheen_color);
     read(m.sheen_roughness_texture, g.uvs.sheen_roughness, &t.sheen_roughness);
-    read(m.anisotropy_texture, g.uvs.anisotropy, &t.anisotropy);
+    read(m.anisotropy_texture, g.uvs.anisotropy, &t.anisotropy);  // its blue: the strength
     if (any) {
       ShadeMaterial& here = s->at_point.emplace(m);
       shading::vary(&here, t);
@@ -1256,9 +1256,10 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
     glm::vec3 tangent, bitangent;
     if (tangent_frame(g, inst, tri, s->barycentric, s->ns, turned, g.uvs.anisotropy, &tangent,
                       &bitangent)) {
-      const glm::vec2 texel_direction = m.anisotropy_texture && g.uvs.anisotropy
-                                            ? glm::vec2(t.anisotropy) * 2.0f - 1.0f
-                                            : glm::vec2(1.0f, 0.0f);
+      const glm::vec2 texel_direction =
+          m.anisotropy_texture && g.uvs.anisotropy
+              ? glm::vec2(texel(m.anisotropy_texture, g.uvs.anisotropy)) * 2.0f - 1.0f
+              : glm::vec2(1.0f, 0.0f);
       const glm::vec2 c = m.anisotropy_rotation;  // cos, sin
       const glm::vec2 direction(c.x * texel_direction.x - c.y * texel_direction.y,
                                 c.y * texel_direction.x + c.x * texel_direction.y);
