@@ -1350,6 +1350,17 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
   }
   if (out->indices.empty()) return false;
   if (out->normals.empty()) generate_normals(out);
+  // A material that needs a tangent frame gets smooth tangents where the file has none, from the
+  // coordinates of its normal texture, else of its clearcoat normal's, else of its anisotropy's.
+  if (material && out->tangents.empty()) {
+    if (material->normal_texture >= 0) {
+      generate_tangents(out, material->uv_set.normal);
+    } else if (material->clearcoat_normal_texture >= 0) {
+      generate_tangents(out, material->uv_set.clearcoat_normal);
+    } else if (material->anisotropy > 0.0f) {
+      generate_tangents(out, material->uv_set.anisotropy);
+    }
+  }
   return true;
 }
 

@@ -264,6 +264,44 @@ void generate_normals(Primitive* p) {
   p->generated_normals = true;
 }
 
+void generate_tangents(Primitive* p, int uv_set) {
+  const std::vector<glm::vec2>& uvs = p->uv_set(uv_set);
+  const size_t n = p->positions.size();
+  if (uvs.size() != n || p->normals.size() != n) return;
+  std::vector<glm::vec3> along_u(n, glm::vec3(0.0f)), along_v(n, glm::vec3(0.0f));
+  for (size_t i = 0; i + 2 < p->indices.size(); i += 3) {
+    const uint32_t a = p->indices[i], b = p->indices[i + 1], c = p->indices[i + 2];
+    const glm::vec3 e1 = p->positions[b] - p->positions[a], e2 = p->positions[c] - p->positions[a];
+    const glm::vec2 d1 = uvs[b] - uvs[a], d2 = uvs[c] - uvs[a];
+    const float det = d1.x * d2.y - d2.x * d1.y;
+    if (!(std::abs(det) > 1e-20f)) continue;
+    const glm::vec3 du = (e1 * d2.y - e2 * d1.y) / det;  // dp/du
+    const glm::vec3 dv = (e2 * d1.x - e1 * d2.x) / det;  // dp/dv
+    const float du_len = glm::length(du), dv_len = glm::length(dv);
+    const float area = glm::length(glm::cross(e1, e2));
+    if (!(du_len > 0.0f && dv_len > 0.0f) || !std::isfinite(du_len + dv_len + area)) continue;
+    for (const uint32_t v : {a, b, c}) {
+      along_u[v] += du * (area / du_len);
+      along_v[v] += dv * (area / dv_len);
+    }
+  }
+  p->tangents.resize(n);
+  for (size_t v = 0; v < n; ++v) {
+    const glm::vec3& normal = p->normals[v];
+    glm::vec3 t = along_u[v] - normal * glm::dot(normal, along_u[v]);
+    const float len = glm::length(t);
+    if (len > 1e-20f && std::isfinite(len)) {
+      t /= len;
+    } else {  // any direction in the surface
+      const glm::vec3 other =
+          std::abs(normal.x) < 0.9f ? glm::vec3(1.0f, 0.0f, 0.0f) : glm::vec3(0.0f, 1.0f, 0.0f);
+      t = glm::normalize(glm::cross(other, normal));
+    }
+    const float w = glm::dot(glm::cross(normal, t), along_v[v]) > 0.0f ? -1.0f : 1.0f;
+    p->tangents[v] = glm::vec4(t, w);
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Validation and derived data
 

@@ -498,7 +498,7 @@ TEST_F(GltfLoaderTest, MaterialsAndEmbeddedPngTexturesDecodeToLinearTexels) {
 }
 
 // TANGENT is read where the material has a normal texture (w taken by its sign) and not
-// otherwise; a count other than the positions' fails naming the primitive.
+// otherwise (nor generated); a count other than the positions' fails naming the primitive.
 TEST_F(GltfLoaderTest, TangentsAreReadForNormalMappedMaterialsOnly) {
   write_image8(DecodedImage{1, 1, 3, {128, 128, 255}}, dir_ / "normal.png");
   GltfBuilder b;
@@ -528,6 +528,57 @@ TEST_F(GltfLoaderTest, TangentsAreReadForNormalMappedMaterialsOnly) {
       b.add_floats({1, 0, 0, 1, 1, 0, 0, 1}, 4);
   b.write_embedded(dir_ / "short.gltf");
   expect_error(dir_ / "short.gltf", "mesh 0 primitive 0 has 2 tangents for 4 positions");
+}
+
+// Where the file has no TANGENT, a material that needs a tangent frame gets smooth tangents:
+// per vertex, the area-weighted directions of +u of its triangles, w making the bitangent point
+// against dp/dv (glTF's v runs down the image). Upright coordinates on the quad give +x and
+// w = 1, mirrored ones -x and w = -1; where the two triangles map u differently, the vertices
+// they share blend both directions. Anisotropy asks for them too; a plain material does not.
+TEST_F(GltfLoaderTest, TangentsAreGeneratedWhereTheFileHasNone) {
+  write_image8(DecodedImage{1, 1, 3, {128, 128, 255}}, dir_ / "normal.png");
+  const auto tangents_of = [&](std::vector<float> uvs, const json& material) {
+    GltfBuilder b;
+    add_quad(&b);
+    json& primitive = b.doc()["meshes"][0]["primitives"][0];
+    primitive["material"] = 0;
+    primitive["attributes"]["TEXCOORD_0"] = b.add_floats(uvs, 2);
+    b.doc()["images"] = json::array({{{"uri", "normal.png"}}});
+    b.doc()["textures"] = json::array({{{"source", 0}}});
+    b.doc()["extensionsUsed"] = {"KHR_materials_anisotropy"};
+    b.doc()["materials"] = json::array({material});
+    b.write_embedded(dir_ / "generated.gltf");
+    return load_gltf(dir_ / "generated.gltf").meshes[0].primitives[0].tangents;
+  };
+  const json normal_mapped = {{"normalTexture", {{"index", 0}}}};
+  const auto expect_tangent = [](const glm::vec4& t, glm::vec3 direction, float w,
+                                 const char* what) {
+    const glm::vec3 d = glm::normalize(direction);
+    EXPECT_NEAR(t.x, d.x, 1e-6f) << what;
+    EXPECT_NEAR(t.y, d.y, 1e-6f) << what;
+    EXPECT_NEAR(t.z, d.z, 1e-6f) << what;
+    EXPECT_EQ(t.w, w) << what;
+  };
+  const std::vector<glm::vec4> upright = tangents_of({0, 1, 1, 1, 1, 0, 0, 0}, normal_mapped);
+  ASSERT_EQ(upright.size(), 4u);
+  for (const glm::vec4& t : upright) expect_tangent(t, {1, 0, 0}, 1.0f, "upright");
+  const std::vector<glm::vec4> mirrored = tangents_of({1, 1, 0, 1, 0, 0, 1, 0}, normal_mapped);
+  ASSERT_EQ(mirrored.size(), 4u);
+  for (const glm::vec4& t : mirrored) expect_tangent(t, {-1, 0, 0}, -1.0f, "mirrored");
+  // Triangle (0, 1, 2): dp/du = +x; triangle (0, 2, 3): dp/du = (2, 1, 0); both of area 1. v
+  // runs up (+y) here: w = -1.
+  const std::vector<glm::vec4> blended = tangents_of({0, 0, 1, 0, 1, 1, 1, 2}, normal_mapped);
+  ASSERT_EQ(blended.size(), 4u);
+  const glm::vec3 second = glm::normalize(glm::vec3(2, 1, 0));
+  expect_tangent(blended[1], {1, 0, 0}, -1.0f, "vertex 1: the first triangle's");
+  expect_tangent(blended[3], second, -1.0f, "vertex 3: the second's");
+  expect_tangent(blended[0], glm::vec3(1, 0, 0) + second, -1.0f, "vertex 0: both");
+  expect_tangent(blended[2], glm::vec3(1, 0, 0) + second, -1.0f, "vertex 2: both");
+
+  const json anisotropic = {
+      {"extensions", {{"KHR_materials_anisotropy", {{"anisotropyStrength", 0.5}}}}}};
+  EXPECT_EQ(tangents_of({0, 1, 1, 1, 1, 0, 0, 0}, anisotropic).size(), 4u);
+  EXPECT_TRUE(tangents_of({0, 1, 1, 1, 1, 0, 0, 0}, json::object()).empty());
 }
 
 // The metallic-roughness, emissive, occlusion and normal slots are read: data textures

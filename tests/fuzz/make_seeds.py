@@ -186,6 +186,39 @@ def gltf_seeds():
     g.doc["extensionsUsed"] = ["KHR_materials_emissive_strength"]
     write("gltf", "textured.gltf", g.embedded())
 
+    # Every material extension afr reads, each with its textures on two coordinate sets, on a
+    # primitive without TANGENT (the loader generates tangents).
+    g = Gltf()
+    n = g.floats([0, 0, 1] * 4, "VEC3")
+    t = g.floats([0, 0, 1, 0, 1, 1, 0, 1], "VEC2")
+    g.quad(NORMAL=n, TEXCOORD_0=t, TEXCOORD_1=t)["material"] = 0
+    image = png(1, 1, [128, 200, 64])
+    g.doc["images"] = [{"uri": "data:image/png;base64," + base64.b64encode(image).decode()}]
+    g.doc["textures"] = [{"source": 0}]
+    one = {"index": 0}
+    other = {"index": 0, "texCoord": 1,
+             "extensions": {"KHR_texture_transform": {"offset": [0.5, 0], "scale": [2, 2]}}}
+    g.doc["materials"] = [
+        {"normalTexture": one,
+         "extensions": {
+             "KHR_materials_transmission": {"transmissionFactor": 0.5, "transmissionTexture": one},
+             "KHR_materials_ior": {"ior": 1.4},
+             "KHR_materials_volume": {"thicknessFactor": 1, "attenuationDistance": 2,
+                                      "attenuationColor": [0.9, 0.8, 0.7]},
+             "KHR_materials_specular": {"specularFactor": 0.8, "specularTexture": other,
+                                        "specularColorFactor": [1, 0.9, 0.8], "specularColorTexture": one},
+             "KHR_materials_clearcoat": {"clearcoatFactor": 1, "clearcoatTexture": one,
+                                         "clearcoatRoughnessFactor": 0.3, "clearcoatRoughnessTexture": other,
+                                         "clearcoatNormalTexture": {"index": 0, "scale": 0.5}},
+             "KHR_materials_sheen": {"sheenColorFactor": [1, 0.5, 0.5], "sheenColorTexture": one,
+                                     "sheenRoughnessFactor": 0.5, "sheenRoughnessTexture": other},
+             "KHR_materials_anisotropy": {"anisotropyStrength": 0.6, "anisotropyRotation": 0.5,
+                                          "anisotropyTexture": other}}}]
+    g.doc["extensionsUsed"] = ["KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_volume",
+                               "KHR_materials_specular", "KHR_materials_clearcoat", "KHR_materials_sheen",
+                               "KHR_materials_anisotropy", "KHR_texture_transform"]
+    write("gltf", "material_extensions.gltf", g.embedded())
+
     # Strips and fans over one interleaved (strided) buffer view; 8-bit indices.
     g = Gltf()
     verts = []

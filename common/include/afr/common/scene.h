@@ -49,8 +49,10 @@ struct Primitive {
   // blends (Material::alpha_mode) and it is below 1 somewhere: it multiplies the opacity.
   std::vector<float> color_alpha;
   // glTF's TANGENT, one per vertex: a tangent (x, y, z, toward +u) and w = +1 or -1, the
-  // bitangent being cross(normal, tangent) x w. Kept only where the primitive's material has a
-  // normal texture; empty otherwise (each triangle's own frame is used then).
+  // bitangent being cross(normal, tangent) x w. Kept only where the primitive's material needs a
+  // tangent frame (a normal or clearcoat normal texture, anisotropy), and generated there when
+  // the file has none (generate_tangents); empty otherwise (each triangle's own frame is used
+  // then, as for a scene made in code).
   std::vector<glm::vec4> tangents;
   std::vector<uint32_t> indices;  // 3 per triangle
   int material = -1;              // index into Scene::materials; -1 = default material
@@ -408,5 +410,14 @@ class Scene {
 // triangles sharing a vertex, (0, 0, 1) where all of them are degenerate. Sets
 // Primitive::generated_normals.
 void generate_normals(Primitive* primitive);
+
+// Generates tangents for a primitive that has normals and texture coordinate set `uv_set`
+// (Primitive::uv_set) but no tangents: per vertex, the directions of +u over the triangles
+// sharing it (each triangle's dp/du, weighted by its area), made orthogonal to the vertex's
+// normal, so that the frame turns smoothly across a curved surface; w makes the bitangent point
+// against dp/dv, as glTF's v (down the image) and MikkTSpace's sign have it. A vertex whose
+// triangles have no uv area gets a tangent orthogonal to its normal. Nothing where the set is
+// missing.
+void generate_tangents(Primitive* primitive, int uv_set);
 
 }  // namespace afr
