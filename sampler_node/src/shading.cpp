@@ -33,6 +33,8 @@ void derive(ShadeMaterial* m, float metallic, float roughness) {
   m->has_emission = !is_black(m->emissive);
   m->has_ambient = !is_black(m->scene_ambient * m->ambient);
   m->has_diffuse = m->diffuse_weight > 0.0f && !is_black(m->base);
+  m->layered = m->sheen_max > 0.0f || m->clearcoat > 0.0f;
+  m->extended = m->layered || m->anisotropy > 0.0f;
   m->has_specular = !(roughness >= 1.0f && m->metallic <= 0.0f) &&
                     !(m->metallic <= 0.0f && m->specular_f90 <= 0.0f && is_black(m->specular_f0));
 }
@@ -172,6 +174,7 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
              m.transmission_texture || m.specular_texture || m.specular_color_texture ||
              m.clearcoat_texture || m.clearcoat_roughness_texture || m.sheen_color_texture ||
              m.sheen_roughness_texture;
+  m.needs_layers = m.clearcoat > 0.0f || m.anisotropy_factor > 0.0f;
   derive(&m, m.metallic_factor, m.roughness_factor);
   if (mat.unlit) {
     // Only the base color (and alpha) is left: prepare_local shows it and stops there, and
@@ -179,6 +182,7 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
     m.unlit = true;
     m.is_mirror = m.is_glass = m.varies = m.clearcoat_mirror = false;
     m.clearcoat = m.sheen_max = m.anisotropy = 0.0f;
+    m.layered = m.extended = m.needs_layers = false;
     m.normal_map = m.clearcoat_normal_map = nullptr;
     m.shadow_transmittance = glm::vec3(0.0f);
   }
@@ -284,6 +288,54 @@ float sheen_albedo(float a, float n_dot_v) {
   const float e0 = row0[i] + (row0[i + 1] - row0[i]) * fx;
   const float e1 = row1[i] + (row1[i + 1] - row1[i]) * fx;
   return glm::clamp(e0 + (e1 - e0) * fy, 0.0f, 1.0f);
+}
+
+glm::vec3 extended_brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, const glm::vec3& f0,
+                            const glm::vec3& n, const glm::vec3& v, const glm::vec3& l,
+                            float n_dot_v, float n_dot_l, const LayerFrame* layers,
+                            float beneath_sheen) {
+  glm::vec3 h = v + l;
+  const float h_len2 = glm::dot(h, h);
+  if (!(h_len2 > 1e-12f)) return diffuse * (n_dot_l / kPi);
+  h *= 1.0f / std::sqrt(h_len2);
+  const float n_dot_h = glm::max(glm::dot(n, h), 0.0f);
+  glm::vec3 f = diffuse * (1.0f / kPi);
+  if (m.has_specular) {
+    const float v_dot_h = glm::max(glm::dot(v, h), 0.0f);
+    float d_vis;
+    if (m.anisotropy > 0.0f && layers != nullptr && layers->aniso_t != glm::vec3(0.0f)) {
+      const glm::vec3& t = layers->aniso_t;
+      const glm::vec3& b = layers->aniso_b;
+      d_vis = ggx_anisotropic_d_vis(m.alpha_t, m.alpha,
+                                    glm::vec3(glm::dot(t, h), glm::dot(b, h), n_dot_h),
+                                    glm::vec3(glm::dot(t, v), glm::dot(b, v), n_dot_v),
+                                    glm::vec3(glm::dot(t, l), glm::dot(b, l), n_dot_l));
+    } else {
+      d_vis = ggx_d_vis(m.alpha, n_dot_h, n_dot_v, n_dot_l);
+    }
+    f += fresnel_schlick(f0, v_dot_h, fresnel_f90(m)) * d_vis;
+  }
+  if (m.sheen_max > 0.0f) {
+    // The sheen takes, from what lies beneath it, the larger of its albedos toward the viewer and
+    // toward the light (the extension's min of the two scalings).
+    const float keep =
+        std::min(beneath_sheen, 1.0f - m.sheen_max * sheen_albedo(m.sheen_alpha, n_dot_l));
+    f = f * keep + m.sheen_color * (charlie_d(m.sheen_alpha, n_dot_h) *
+                                    sheen_visibility(m.sheen_alpha, n_dot_v, n_dot_l));
+  }
+  glm::vec3 result = f * n_dot_l;
+  if (m.clearcoat > 0.0f && layers != nullptr) {
+    const glm::vec3& coat_n = layers->coat_n;
+    const float c_v = glm::max(glm::dot(coat_n, v), 1e-4f);
+    const float c_l = glm::dot(coat_n, l);
+    const float w = m.clearcoat * coat_fresnel(c_v);
+    result *= 1.0f - w;
+    if (c_l > 0.0f) {
+      const float c_h = glm::max(glm::dot(coat_n, h), 0.0f);
+      result += glm::vec3(w * ggx_d_vis(m.clearcoat_alpha, c_h, c_v, c_l) * c_l);
+    }
+  }
+  return result;
 }
 
 LightRecord make_light_record(const Light& light, const glm::dmat4& world) {

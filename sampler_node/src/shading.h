@@ -111,6 +111,10 @@ struct ShadeMaterial {
   float clearcoat = 0.0f;
   float clearcoat_alpha = 1.0f;
   bool clearcoat_mirror = false;
+  bool layered = false;   // a sheen or a clear coat lies over the material (derive() decides)
+  bool extended = false;  // layered or anisotropic: shaded by extended_brdf_cos (likewise)
+  // The material has a clear coat or anisotropy somewhere, so its points need a LayerFrame.
+  bool needs_layers = false;
   // KHR_materials_sheen: the fibres' color (black: no sheen, and nothing else below is read),
   // its largest channel, and the Charlie lobe's alpha (sheen roughness^2, the roughness
   // clamped as the base's).
@@ -280,65 +284,46 @@ inline float ggx_anisotropic_d_vis(float a_t, float a_b, const glm::vec3& h_tbn,
   return D * glm::clamp(0.5f / (view + light), 0.0f, 1.0f);
 }
 
-// What brdf_cos needs of a shading point besides its shading normal.
-struct LobeFrame {
+// Where the layers of a shading point lie, for a material with a clear coat or anisotropy
+// (Tracer::Impl::make_surface sets it only for those).
+struct LayerFrame {
   glm::vec3 coat_n{0.0f, 0.0f, 1.0f};  // the clear coat's normal (glTF's clearcoatNormal), unit
   // The anisotropy's direction and its bitangent (unit, orthogonal to the shading normal);
-  // zero where the material has no anisotropy or the point no tangent frame (isotropic then).
+  // zero where the point has no tangent frame (isotropic then).
   glm::vec3 aniso_t{0.0f};
   glm::vec3 aniso_b{0.0f};
-  float beneath_sheen = 1.0f;  // sheen_scaling(m, n.v) (1 without sheen)
 };
 
-// BRDF x cos(theta_l) for unit n, v (toward the viewer), l (toward the light); n.v and n.l > 0.
-// Where m has a coat, the coat takes clearcoat x F_coat(coat_n.v) of the light, with its own
-// lobe and cosine, and the material beneath the rest.
+// BRDF x cos(theta_l) for unit n, v (toward the viewer), l (toward the light); n.v and n.l > 0,
+// for a material without the extensions' layers or anisotropy (ShadeMaterial::extended false).
 inline glm::vec3 brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, const glm::vec3& f0,
                           const glm::vec3& n, const glm::vec3& v, const glm::vec3& l, float n_dot_v,
-                          float n_dot_l, const LobeFrame& frame) {
+                          float n_dot_l) {
   glm::vec3 f = diffuse * (1.0f / kPi);
-  float beneath = 1.0f, coat = 0.0f;
-  if (m.has_specular || m.clearcoat > 0.0f || m.sheen_max > 0.0f) {
+  if (m.has_specular) {
     glm::vec3 h = v + l;
     const float h_len2 = glm::dot(h, h);
     if (h_len2 > 1e-12f) {
       h *= 1.0f / std::sqrt(h_len2);
-      if (m.has_specular) {
-        const float n_dot_h = glm::max(glm::dot(n, h), 0.0f);
-        const float v_dot_h = glm::max(glm::dot(v, h), 0.0f);
-        const glm::vec3& t = frame.aniso_t;
-        const float d_vis =
-            m.anisotropy > 0.0f && t != glm::vec3(0.0f)
-                ? ggx_anisotropic_d_vis(
-                      m.alpha_t, m.alpha,
-                      glm::vec3(glm::dot(t, h), glm::dot(frame.aniso_b, h), n_dot_h),
-                      glm::vec3(glm::dot(t, v), glm::dot(frame.aniso_b, v), n_dot_v),
-                      glm::vec3(glm::dot(t, l), glm::dot(frame.aniso_b, l), n_dot_l))
-                : ggx_d_vis(m.alpha, n_dot_h, n_dot_v, n_dot_l);
-        f += fresnel_schlick(f0, v_dot_h, fresnel_f90(m)) * d_vis;
-      }
-      if (m.sheen_max > 0.0f) {
-        // The sheen takes, from what lies beneath it, the larger of its albedos toward the
-        // viewer and toward the light (the extension's min of the two scalings).
-        const float keep = std::min(frame.beneath_sheen,
-                                    1.0f - m.sheen_max * sheen_albedo(m.sheen_alpha, n_dot_l));
-        f = f * keep + m.sheen_color * (charlie_d(m.sheen_alpha, glm::max(glm::dot(n, h), 0.0f)) *
-                                        sheen_visibility(m.sheen_alpha, n_dot_v, n_dot_l));
-      }
-      if (m.clearcoat > 0.0f) {
-        const glm::vec3& coat_n = frame.coat_n;
-        const float c_v = glm::max(glm::dot(coat_n, v), 1e-4f);
-        const float c_l = glm::dot(coat_n, l);
-        const float w = m.clearcoat * coat_fresnel(c_v);
-        beneath = 1.0f - w;
-        if (c_l > 0.0f) {
-          const float c_h = glm::max(glm::dot(coat_n, h), 0.0f);
-          coat = w * ggx_d_vis(m.clearcoat_alpha, c_h, c_v, c_l) * c_l;
-        }
-      }
+      const float n_dot_h = glm::max(glm::dot(n, h), 0.0f);
+      const float v_dot_h = glm::max(glm::dot(v, h), 0.0f);
+      f += fresnel_schlick(f0, v_dot_h, fresnel_f90(m)) *
+           ggx_d_vis(m.alpha, n_dot_h, n_dot_v, n_dot_l);
     }
   }
-  return f * (n_dot_l * beneath) + glm::vec3(coat);
+  return f * n_dot_l;
 }
+
+// brdf_cos for a material with a sheen, a clear coat or anisotropy (ShadeMaterial::extended),
+// out of line so that the others' shading does not carry it. `layers` is the point's (null
+// where the material has neither a coat nor anisotropy): the specular lobe is anisotropic along
+// aniso_t where the material has anisotropy and the point a tangent frame; a sheen takes
+// max(sheen color) x E from what lies beneath it (`beneath_sheen`: sheen_scaling(m, n.v), 1
+// without sheen); a coat takes clearcoat x F_coat(coat_n.v) of the light, with its own lobe
+// and cosine, and the material beneath the rest.
+glm::vec3 extended_brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, const glm::vec3& f0,
+                            const glm::vec3& n, const glm::vec3& v, const glm::vec3& l,
+                            float n_dot_v, float n_dot_l, const LayerFrame* layers,
+                            float beneath_sheen);
 
 }  // namespace afr::shading

@@ -147,13 +147,10 @@ struct SurfacePoint {
   glm::vec3 p{0.0f};
   glm::vec3 ng{0.0f, 0.0f, 1.0f};  // geometric normal, unit, toward the viewer when flipped
   glm::vec3 ns{0.0f, 0.0f, 1.0f};  // shading normal, unit
-  // The clear coat's normal (unit): the interpolated normal, bent by the coat's own normal
-  // texture only (ShadeMaterial::clearcoat_normal_map).
-  glm::vec3 coat_ns{0.0f, 0.0f, 1.0f};
-  // KHR_materials_anisotropy's direction and its bitangent (unit, orthogonal to ns); zero where
-  // the material has none or the point no tangent frame (shading::LobeFrame).
-  glm::vec3 aniso_t{0.0f};
-  glm::vec3 aniso_b{0.0f};
+  // Where the material has a clear coat or anisotropy (only there: other surfaces do not pay
+  // for it), the coat's normal (the interpolated normal, bent only by the coat's own normal
+  // texture, ShadeMaterial::clearcoat_normal_map) and the anisotropy's directions.
+  std::optional<shading::LayerFrame> layers;
   glm::vec2 uv{0.0f};  // in the base-color texture's set of coordinates (SlotUvs)
   const ShadeMaterial* material = nullptr;
   const Instance* instance = nullptr;
@@ -212,7 +209,7 @@ struct LocalTerms {
   glm::vec3 origin{0.0f};  // of shadow rays: off the surface on the side it faces
   float offset = 0.0f;
   float n_dot_v = 1.0f;
-  shading::LobeFrame frame;  // the coat's normal, the anisotropy's directions, the sheen's share
+  float beneath_sheen = 1.0f;  // shading::sheen_scaling at n.v (1 without sheen)
 };
 
 void init_ray(RTCRay* r, const glm::vec3& o, const glm::vec3& d, float tnear, float tfar) {
@@ -1189,7 +1186,6 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   }
   s->ng = ng;
   s->ns = ns;
-  s->coat_ns = ns;
   s->spread = spread;
   s->cone = cone + spread * hit.t;
   // A texture's lookup through the coordinates its slot reads (`uvs`): the point's coordinates
@@ -1216,11 +1212,6 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   if (m.normal_map && g.uvs.normal) {
     s->ns = mapped_normal(g, inst, tri, s->barycentric, s->ns, turned, g.uvs.normal,
                           texel(m.normal_map, g.uvs.normal), m.normal_scale);
-  }
-  if (m.clearcoat_normal_map && g.uvs.clearcoat_normal) {
-    s->coat_ns = mapped_normal(
-        g, inst, tri, s->barycentric, s->coat_ns, turned, g.uvs.clearcoat_normal,
-        texel(m.clearcoat_normal_map, g.uvs.clearcoat_normal), m.clearcoat_normal_scale);
   }
   // A material that varies over the surface, decided here from its textures (those whose slot
   // has coordinates on this primitive).
@@ -1249,9 +1240,18 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
       s->material = &here;
     }
   }
+  if (!m.needs_layers) return;
+  // Where the layers lie (shading::LayerFrame): the coat on the interpolated normal, bent only
+  // by its own normal texture.
+  shading::LayerFrame& layers = s->layers.emplace();
+  layers.coat_n = ns;
+  if (m.clearcoat_normal_map && g.uvs.clearcoat_normal) {
+    layers.coat_n = mapped_normal(g, inst, tri, s->barycentric, ns, turned, g.uvs.clearcoat_normal,
+                                  texel(m.clearcoat_normal_map, g.uvs.clearcoat_normal),
+                                  m.clearcoat_normal_scale);
+  }
   // KHR_materials_anisotropy's direction: the texture's red and green (else the tangent) in the
   // tangent frame of its coordinates, turned by its rotation; none without a frame (isotropic).
-  s->aniso_t = s->aniso_b = glm::vec3(0.0f);
   if (m.anisotropy_factor > 0.0f) {
     glm::vec3 tangent, bitangent;
     if (tangent_frame(g, inst, tri, s->barycentric, s->ns, turned, g.uvs.anisotropy, &tangent,
@@ -1266,8 +1266,8 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
       const glm::vec3 along = tangent * direction.x + bitangent * direction.y;
       const float len2 = glm::dot(along, along);
       if (len2 > 1e-12f && std::isfinite(len2)) {
-        s->aniso_t = along * (1.0f / std::sqrt(len2));
-        s->aniso_b = glm::cross(s->ns, s->aniso_t);
+        layers.aniso_t = along * (1.0f / std::sqrt(len2));
+        layers.aniso_b = glm::cross(s->ns, layers.aniso_t);
       }
     }
   }
@@ -1283,29 +1283,29 @@ bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const gl
     return false;
   }
   if (m.has_emission) *c += m.emissive;
-  // A sheen reflects E(n.v) x its color of the (uniform) ambient light, and the material
-  // beneath keeps the rest.
   float beneath_sheen = 1.0f;
-  const bool sheen = m.sheen_max > 0.0f && !s.back_face;
-  if (sheen) {
-    const float n_dot_v = std::max(glm::dot(s.ns, wo), 1e-4f);
-    beneath_sheen = shading::sheen_scaling(m, n_dot_v);
-    *c += scene_.ambient * m.sheen_color * shading::sheen_albedo(m.sheen_alpha, n_dot_v);
+  if (m.layered && !s.back_face) {
+    // A sheen reflects E(n.v) x its color of the (uniform) ambient light, and the material
+    // beneath keeps the rest.
+    if (m.sheen_max > 0.0f) {
+      const float n_dot_v = std::max(glm::dot(s.ns, wo), 1e-4f);
+      beneath_sheen = shading::sheen_scaling(m, n_dot_v);
+      *c += scene_.ambient * m.sheen_color * shading::sheen_albedo(m.sheen_alpha, n_dot_v);
+    }
+    if (m.has_ambient) *c += scene_.ambient * m.ambient * tex * beneath_sheen;
+    // A clear coat lies over the emission and all the ambient light reflected beneath it: they
+    // keep 1 - clearcoat x F_coat(n.v) (the direct light's share is in extended_brdf_cos).
+    if (m.clearcoat > 0.0f) {
+      *c *= 1.0f -
+            m.clearcoat * shading::coat_fresnel(std::max(glm::dot(s.layers->coat_n, wo), 0.0f));
+    }
+  } else if (m.has_ambient) {
+    *c += scene_.ambient * m.ambient * tex;
   }
-  if (m.has_ambient) *c += scene_.ambient * m.ambient * tex * beneath_sheen;
-  // A clear coat lies over the emission and what the material beneath reflects of the ambient
-  // light: they keep 1 - clearcoat x F_coat(n.v) (the direct light's share is in brdf_cos).
-  if (m.clearcoat > 0.0f && !s.back_face) {
-    *c *= 1.0f - m.clearcoat * shading::coat_fresnel(std::max(glm::dot(s.coat_ns, wo), 0.0f));
-  }
-  if (lights_.empty() || s.back_face ||
-      !(m.has_diffuse || m.has_specular || m.clearcoat > 0.0f || sheen)) {
+  if (lights_.empty() || s.back_face || !(m.has_diffuse || m.has_specular || m.layered)) {
     return false;
   }
-  terms->frame.coat_n = s.coat_ns;
-  terms->frame.aniso_t = s.aniso_t;
-  terms->frame.aniso_b = s.aniso_b;
-  terms->frame.beneath_sheen = beneath_sheen;
+  terms->beneath_sheen = beneath_sheen;
   const glm::vec3 base = m.base * tex;
   terms->diffuse = base * m.diffuse_weight;
   terms->f0 = shading::fresnel_f0(m, base);
@@ -1328,8 +1328,13 @@ bool Tracer::Impl::light_contribution(const LightRecord& light, const Surface& s
   if (glm::dot(*l, s.ng) <= 0.0f) return false;
   const float n_dot_l = glm::dot(s.ns, *l);
   if (n_dot_l <= 0.0f) return false;
-  *contribution = incident * shading::brdf_cos(*s.material, terms.diffuse, terms.f0, s.ns, wo, *l,
-                                               terms.n_dot_v, n_dot_l, terms.frame);
+  const ShadeMaterial& m = *s.material;
+  *contribution =
+      incident * (m.extended ? shading::extended_brdf_cos(
+                                   m, terms.diffuse, terms.f0, s.ns, wo, *l, terms.n_dot_v, n_dot_l,
+                                   m.needs_layers ? &*s.layers : nullptr, terms.beneath_sheen)
+                             : shading::brdf_cos(m, terms.diffuse, terms.f0, s.ns, wo, *l,
+                                                 terms.n_dot_v, n_dot_l));
   *shadow_tfar = distance - 2.0f * terms.offset;
   return true;
 }
@@ -1449,20 +1454,22 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
       if (depth < kMaxBlendDepth) result += pass_through(d, s, depth, throughput, stats);
       throughput *= s.opacity;
     }
-    if (m.clearcoat_mirror && !s.back_face && depth < options_.max_mirror_depth) {
-      // A smooth clear coat reflects clearcoat x its Fresnel of the surroundings; what lies
-      // beneath (a metal's mirror reflection below) keeps the rest.
-      const float w = m.clearcoat * shading::coat_fresnel(-glm::dot(s.coat_ns, d));
-      glm::vec3 r;
-      if (mirror_direction(d, s, s.coat_ns, &r) &&
-          w * std::max(throughput.r, std::max(throughput.g, throughput.b)) >= kMinThroughput) {
-        result += secondary(s.p + offset_at(s.p) * s.ng, r, s, depth + 1, throughput * w, stats);
+    if (m.layered && !s.back_face) {
+      if (m.clearcoat_mirror && depth < options_.max_mirror_depth) {
+        // A smooth clear coat reflects clearcoat x its Fresnel of the surroundings; what lies
+        // beneath (a metal's mirror reflection below) keeps the rest.
+        const float w = m.clearcoat * shading::coat_fresnel(-glm::dot(s.layers->coat_n, d));
+        glm::vec3 r;
+        if (mirror_direction(d, s, s.layers->coat_n, &r) &&
+            w * std::max(throughput.r, std::max(throughput.g, throughput.b)) >= kMinThroughput) {
+          result += secondary(s.p + offset_at(s.p) * s.ng, r, s, depth + 1, throughput * w, stats);
+        }
+        throughput *= 1.0f - w;
       }
-      throughput *= 1.0f - w;
-    }
-    // A sheen takes its share from the mirror reflection and the glass beneath it too.
-    if (m.sheen_max > 0.0f && !s.back_face) {
-      throughput *= shading::sheen_scaling(m, std::max(-glm::dot(s.ns, d), 0.0f));
+      // A sheen takes its share from the mirror reflection and the glass beneath it too.
+      if (m.sheen_max > 0.0f) {
+        throughput *= shading::sheen_scaling(m, std::max(-glm::dot(s.ns, d), 0.0f));
+      }
     }
     if (!m.is_mirror || s.back_face || depth >= options_.max_mirror_depth) {
       // Glass (never is_mirror) branches; the test is here so that other surfaces pay nothing.
