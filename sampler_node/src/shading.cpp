@@ -23,7 +23,9 @@ void derive(ShadeMaterial* m, float metallic, float roughness) {
   m->diffuse_weight = (1.0f - m->metallic) * (1.0f - m->transmission);
   // An anisotropic surface is a mirror only where its roughness along the anisotropy is too.
   const float r2 = roughness * roughness;
-  const float stretched = std::sqrt(r2 + (1.0f - r2) * m->anisotropy * m->anisotropy);
+  const float stretched = m->anisotropy > 0.0f
+                              ? std::sqrt(r2 + (1.0f - r2) * m->anisotropy * m->anisotropy)
+                              : roughness;
   m->is_mirror = !m->is_glass && m->metallic > 0.0f && stretched <= m->mirror_roughness;
   // The metallic part of a mirror sees its surroundings through the reflection ray, so only
   // the rest of it takes ambient light; of glass, only its diffuse part.

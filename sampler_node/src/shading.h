@@ -9,9 +9,10 @@
 //   range window of KHR_lights_punctual and, for spots, the cone falloff;
 // - BRDF = diffuse / pi + GGX (Trowbridge-Reitz D, height-correlated Smith visibility, Schlick
 //   Fresnel), diffuse = base (1 - metallic) (1 - transmission), F0 = mix(0.04, base, metallic);
-//   with KHR_materials_sheen a Charlie lobe over it, which takes max(sheen color) x E(n.v) (its
-//   own directional albedo) from the BRDF beneath; with KHR_materials_clearcoat a GGX coat over
-//   both;
+//   with KHR_materials_anisotropy the GGX lobe stretched along a direction of the surface; with
+//   KHR_materials_sheen a Charlie lobe over it, which takes max(sheen color) x E(n.v) (its own
+//   directional albedo) from the BRDF beneath; with KHR_materials_clearcoat a GGX coat over
+//   both (extended_brdf_cos);
 // - base = base_color_factor x base-color texture x COLOR_0 (interpolated); the ambient
 //   reflectance (Material::ambient, else the base color factor) is multiplied by the texture
 //   and the vertex colors too, so they show in ambient light.
@@ -32,8 +33,8 @@ inline constexpr float kMinDirectRoughness = 0.1f;
 
 // What the shader needs of one Material, with the work it implies decided once. A material
 // whose textures vary it over a surface (`varies`: metallic-roughness, emissive, occlusion, or
-// an extension's transmission, specular or clearcoat texture) is decided again at each shading
-// point (vary()), from the factors kept here.
+// an extension's transmission, specular, clearcoat, sheen or anisotropy texture) is decided
+// again at each shading point (vary()), from the factors kept here.
 struct ShadeMaterial {
   glm::vec3 base{1.0f};     // base color factor (rgb)
   glm::vec3 ambient{1.0f};  // reflectance of ambient light: ambient_reflectance, less below

@@ -1288,9 +1288,10 @@ bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const gl
     // A sheen reflects E(n.v) x its color of the (uniform) ambient light, and the material
     // beneath keeps the rest.
     if (m.sheen_max > 0.0f) {
-      const float n_dot_v = std::max(glm::dot(s.ns, wo), 1e-4f);
-      beneath_sheen = shading::sheen_scaling(m, n_dot_v);
-      *c += scene_.ambient * m.sheen_color * shading::sheen_albedo(m.sheen_alpha, n_dot_v);
+      const float albedo =
+          shading::sheen_albedo(m.sheen_alpha, std::max(glm::dot(s.ns, wo), 1e-4f));
+      beneath_sheen = 1.0f - m.sheen_max * albedo;  // shading::sheen_scaling
+      *c += scene_.ambient * m.sheen_color * albedo;
     }
     if (m.has_ambient) *c += scene_.ambient * m.ambient * tex * beneath_sheen;
     // A clear coat lies over the emission and all the ambient light reflected beneath it: they
