@@ -53,16 +53,17 @@ constexpr size_t kMaxNodes = size_t(1) << 20;
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 17> kSupportedExtensions = {
-    "EXT_mesh_gpu_instancing", "EXT_meshopt_compression",
-    "EXT_texture_webp",        "KHR_draco_mesh_compression",
-    "KHR_lights_punctual",     "KHR_materials_anisotropy",
-    "KHR_materials_clearcoat", "KHR_materials_emissive_strength",
-    "KHR_materials_ior",       "KHR_materials_sheen",
-    "KHR_materials_specular",  "KHR_materials_transmission",
-    "KHR_materials_unlit",     "KHR_materials_volume",
-    "KHR_mesh_quantization",   "KHR_meshopt_compression",
-    "KHR_texture_transform"};
+constexpr std::array<std::string_view, 19> kSupportedExtensions = {
+    "EXT_mesh_gpu_instancing",    "EXT_meshopt_compression",
+    "EXT_texture_webp",           "KHR_draco_mesh_compression",
+    "KHR_lights_punctual",        "KHR_materials_anisotropy",
+    "KHR_materials_clearcoat",    "KHR_materials_emissive_strength",
+    "KHR_materials_ior",          "KHR_materials_pbrSpecularGlossiness",
+    "KHR_materials_sheen",        "KHR_materials_specular",
+    "KHR_materials_transmission", "KHR_materials_unlit",
+    "KHR_materials_variants",  // the default materials are drawn (read_material_variants)
+    "KHR_materials_volume",       "KHR_mesh_quantization",
+    "KHR_meshopt_compression",    "KHR_texture_transform"};
 
 // The default lighting of a scene without lights (what glTF viewers do): a directional
 // headlight that moves with the scene's camera and a uniform sky term. The headlight comes from
@@ -233,6 +234,11 @@ class Loader {
                    bool (*ok)(double), const char* range, float* out) const;
   void read_color(const tinygltf::Value& e, const char* key, const std::string& where,
                   bool (*ok)(double), const char* range, glm::vec3* out) const;
+  void read_numbers(const tinygltf::Value& e, const char* key, const std::string& where,
+                    bool (*ok)(double), const char* range, std::span<float> out) const;
+  void read_specular_glossiness(size_t m, const tinygltf::Value& e, const std::string& where,
+                                Material* out);
+  void read_material_variants();
   void read_specular(size_t m, const tinygltf::Material& in, const std::string& what,
                      Material* out);
   void read_clearcoat(size_t m, const tinygltf::Material& in, const std::string& what,
@@ -244,8 +250,10 @@ class Loader {
   std::optional<glm::dmat3> read_texture_transform(const tinygltf::ExtensionMap& extensions,
                                                    const std::string& what, int* tex_coord);
   // How a texture slot reads its image: as sRGB-encoded color, as linear data, or as linear
-  // data taken from the image's alpha channel (KHR_materials_specular's specularTexture), which
-  // the Texture then holds in its red, green and blue.
+  // data taken from the image's alpha channel (KHR_materials_specular's specularTexture,
+  // KHR_materials_sheen's sheenRoughnessTexture, the glossiness of
+  // KHR_materials_pbrSpecularGlossiness), which the Texture then holds in its red, green and
+  // blue.
   enum class ImageData : uint8_t { kColor, kLinear, kAlpha };
   // One texture slot of material m (its index, texCoord and extensions as glTF gives them):
   // the index of its decoded texture in Scene::textures, or -1 where the slot is empty or its
@@ -308,11 +316,11 @@ class Loader {
     glm::dmat3 transform{1.0};
     const char* slot = nullptr;
   };
-  // Per glTF material, its sets in slot order (base color, metallic-roughness, emissive,
-  // occlusion, normal, then the extensions' slots: transmission, specular, specular color,
-  // clearcoat, clearcoat roughness, clearcoat normal, sheen color, sheen roughness,
-  // anisotropy); empty for a
-  // material without textures, whose primitives read TEXCOORD_0 as they are.
+  // Per glTF material, its sets in slot order (base color, metallic-roughness, or for
+  // KHR_materials_pbrSpecularGlossiness diffuse, specular color and glossiness; emissive,
+  // occlusion, normal, then the other extensions' slots: transmission, specular, specular color,
+  // clearcoat, clearcoat roughness, clearcoat normal, sheen color, sheen roughness, anisotropy);
+  // empty for a material without textures, whose primitives read TEXCOORD_0 as they are.
   std::vector<std::vector<UvSource>> uv_sources_;
   size_t morph_displacements_ = 0;  // read so far, at most kMaxMorphDisplacements
   // The primitive being loaded, where it is Draco-compressed: its accessors' elements, decoded
@@ -1533,26 +1541,34 @@ void Loader::read_number(const tinygltf::Value& e, const char* key, const std::s
   *out = float(v);
 }
 
+// An extension's array `key` of out.size() numbers, where it has one: each a number that `ok`
+// accepts (else an error naming the key and `range`).
+void Loader::read_numbers(const tinygltf::Value& e, const char* key, const std::string& where,
+                          bool (*ok)(double), const char* range, std::span<float> out) const {
+  if (!e.Has(key)) return;
+  const tinygltf::Value& c = e.Get(key);
+  bool good = c.IsArray() && c.ArrayLen() == out.size();
+  std::vector<float> values(out.size());
+  for (size_t i = 0; good && i < out.size(); ++i) {
+    const double v = c.Get(int(i)).IsNumber() ? c.Get(int(i)).GetNumberAsDouble() : std::nan("");
+    good = ok(v);
+    values[i] = float(v);
+  }
+  if (!good) fail(fmt::format("{} has an invalid {} ({})", where, key, range));
+  std::copy(values.begin(), values.end(), out.begin());
+}
+
 // An extension's color `key`, where it has one: three numbers that `ok` accepts.
 void Loader::read_color(const tinygltf::Value& e, const char* key, const std::string& where,
                         bool (*ok)(double), const char* range, glm::vec3* out) const {
-  if (!e.Has(key)) return;
-  const tinygltf::Value& c = e.Get(key);
-  bool good = c.IsArray() && c.ArrayLen() == 3;
-  glm::vec3 color;
-  for (int i = 0; good && i < 3; ++i) {
-    const double v = c.Get(i).IsNumber() ? c.Get(i).GetNumberAsDouble() : std::nan("");
-    good = ok(v);
-    color[i] = float(v);
-  }
-  if (!good) fail(fmt::format("{} has an invalid {} ({})", where, key, range));
-  *out = color;
+  read_numbers(e, key, where, ok, range, std::span<float>(&(*out)[0], 3));
 }
 
 namespace {
 bool unit_interval(double v) { return v >= 0.0 && v <= 1.0; }
 bool non_negative(double v) { return v >= 0.0 && std::isfinite(v); }
 bool positive(double v) { return v > 0.0; }  // infinity too: no attenuation
+bool finite(double v) { return std::isfinite(v); }
 // KHR_materials_ior: 0 stands for a Fresnel term of 1.
 bool ior_value(double v) { return v == 0.0 || (v >= 1.0 && std::isfinite(v)); }
 }  // namespace
@@ -1581,6 +1597,13 @@ void Loader::read_specular(size_t m, const tinygltf::Material& in, const std::st
   std::string where;
   const tinygltf::Value* e = material_extension(in, "KHR_materials_specular", what, &where);
   if (e == nullptr) return;
+  if (out->specular_glossiness) {
+    warn_once("specular with specular-glossiness",
+              fmt::format("{} is ignored: the material's KHR_materials_pbrSpecularGlossiness "
+                          "gives its specular color",
+                          where));
+    return;
+  }
   out->has_specular_extension = true;
   read_number(*e, "specularFactor", where, unit_interval, "a number 0 to 1", &out->specular);
   read_color(*e, "specularColorFactor", where, non_negative, "three numbers >= 0",
@@ -1635,10 +1658,71 @@ int Loader::read_extension_texture(size_t m, const tinygltf::Value& e, const cha
     for (const std::string& name : x.Keys()) extensions[name] = x.Get(name);
   }
   if (scale != nullptr) {
-    read_number(
-        info, "scale", slot, [](double v) { return std::isfinite(v); }, "a number", scale);
+    read_number(info, "scale", slot, finite, "a number", scale);
   }
   return read_texture_slot(m, key, index.GetNumberAsInt(), tex_coord, extensions, data, set);
+}
+
+// KHR_materials_pbrSpecularGlossiness (archived by Khronos, still in files from older exporters),
+// in place of the material's pbrMetallicRoughness, which a file may add for viewers without it:
+// diffuseFactor and diffuseTexture are the base color; specularFactor and the color of
+// specularGlossinessTexture (sRGB) the specular color at normal incidence, F0 itself; and
+// glossinessFactor times that texture's alpha is 1 - roughness. Material::specular_glossiness
+// says how the shader reads them.
+void Loader::read_specular_glossiness(size_t m, const tinygltf::Value& e, const std::string& where,
+                                      Material* out) {
+  out->specular_glossiness = true;
+  out->base_color_factor = glm::vec4(1.0f);
+  read_numbers(e, "diffuseFactor", where, unit_interval, "four numbers 0 to 1",
+               std::span<float>(&out->base_color_factor[0], 4));
+  out->metallic = 0.0f;
+  out->has_specular_extension = true;
+  out->specular = 1.0f;
+  out->specular_color = glm::vec3(1.0f);
+  read_color(e, "specularFactor", where, unit_interval, "three numbers 0 to 1",
+             &out->specular_color);
+  float glossiness = 1.0f;
+  read_number(e, "glossinessFactor", where, unit_interval, "a number 0 to 1", &glossiness);
+  out->roughness = 1.0f - glossiness;
+  out->base_color_texture = read_extension_texture(m, e, "diffuseTexture", where, ImageData::kColor,
+                                                   &out->uv_set.base_color);
+  out->specular_color_texture = read_extension_texture(
+      m, e, "specularGlossinessTexture", where, ImageData::kColor, &out->uv_set.specular_color);
+  out->glossiness_texture = read_extension_texture(m, e, "specularGlossinessTexture", where,
+                                                   ImageData::kAlpha, &out->uv_set.glossiness);
+}
+
+// KHR_materials_variants: a file's alternative materials per primitive, named by variant. afr
+// draws the primitives' own materials, which the extension defines as what a viewer shows when
+// no variant is chosen, and says which variants the file offers. The variants are not drawn, so
+// a malformed list warns, naming what is wrong, and the file loads.
+void Loader::read_material_variants() {
+  const auto ext = model_.extensions.find("KHR_materials_variants");
+  if (ext == model_.extensions.end()) return;
+  const tinygltf::Value& variants = ext->second.Get("variants");
+  std::string problem;
+  std::vector<std::string> names;
+  if (!ext->second.IsObject() || !variants.IsArray() || variants.ArrayLen() == 0) {
+    problem = "has no \"variants\" array of one variant or more";
+  }
+  for (size_t i = 0; problem.empty() && i < variants.ArrayLen(); ++i) {
+    const tinygltf::Value& name = variants.Get(int(i)).Get("name");
+    if (!name.IsString())
+      problem = fmt::format("variant {} has no name", i);
+    else
+      names.push_back(fmt::format("\"{}\"", name.Get<std::string>()));
+  }
+  if (!problem.empty()) {
+    warn_once("KHR_materials_variants",
+              fmt::format("KHR_materials_variants {} (the default materials are drawn)", problem));
+    return;
+  }
+  constexpr size_t kNamed = 8;  // the rest only counted
+  const size_t count = names.size();
+  names.resize(std::min(count, kNamed));
+  spdlog::info("{}: {} material variant{} ({}{}): drawn with the default materials", path_.string(),
+               count, count == 1 ? "" : "s", fmt::join(names, ", "),
+               count > kNamed ? fmt::format(" and {} more", count - kNamed) : "");
 }
 
 void Loader::read_volume(const tinygltf::Material& in, const std::string& what, Material* out) {
@@ -1683,9 +1767,7 @@ void Loader::read_anisotropy(size_t m, const tinygltf::Material& in, const std::
   const tinygltf::Value* e = material_extension(in, "KHR_materials_anisotropy", what, &where);
   if (e == nullptr) return;
   read_number(*e, "anisotropyStrength", where, unit_interval, "a number 0 to 1", &out->anisotropy);
-  read_number(
-      *e, "anisotropyRotation", where, [](double v) { return std::isfinite(v); }, "a number",
-      &out->anisotropy_rotation);
+  read_number(*e, "anisotropyRotation", where, finite, "a number", &out->anisotropy_rotation);
   out->anisotropy_texture = read_extension_texture(m, *e, "anisotropyTexture", where,
                                                    ImageData::kLinear, &out->uv_set.anisotropy);
 }
@@ -1739,15 +1821,20 @@ void Loader::load_materials() {
                             "opaque)",
                             what, in.alphaMode));
     }
-    const tinygltf::TextureInfo& base = pbr.baseColorTexture;
     Material::TextureSets& sets = out.uv_set;
-    out.base_color_texture =
-        read_texture_slot(m, "baseColorTexture", base.index, base.texCoord, base.extensions,
-                          ImageData::kColor, &sets.base_color);
-    const tinygltf::TextureInfo& mr = pbr.metallicRoughnessTexture;
-    out.metallic_roughness_texture =
-        read_texture_slot(m, "metallicRoughnessTexture", mr.index, mr.texCoord, mr.extensions,
-                          ImageData::kLinear, &sets.metallic_roughness);
+    if (const tinygltf::Value* e =
+            material_extension(in, "KHR_materials_pbrSpecularGlossiness", what, &where)) {
+      read_specular_glossiness(m, *e, where, &out);
+    } else {
+      const tinygltf::TextureInfo& base = pbr.baseColorTexture;
+      out.base_color_texture =
+          read_texture_slot(m, "baseColorTexture", base.index, base.texCoord, base.extensions,
+                            ImageData::kColor, &sets.base_color);
+      const tinygltf::TextureInfo& mr = pbr.metallicRoughnessTexture;
+      out.metallic_roughness_texture =
+          read_texture_slot(m, "metallicRoughnessTexture", mr.index, mr.texCoord, mr.extensions,
+                            ImageData::kLinear, &sets.metallic_roughness);
+    }
     const tinygltf::TextureInfo& emissive = in.emissiveTexture;
     out.emissive_texture =
         read_texture_slot(m, "emissiveTexture", emissive.index, emissive.texCoord,
@@ -2516,6 +2603,7 @@ Scene Loader::load(std::span<const uint8_t> bytes) {
   decode_meshopt();
   scene_.source = path_.string();
   load_materials();  // first: a primitive reads the texture coordinates its material's do
+  read_material_variants();
   load_meshes();
   draco_bytes_.clear();
   load_cameras();

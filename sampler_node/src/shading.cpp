@@ -21,6 +21,11 @@ void derive(ShadeMaterial* m, float metallic, float roughness) {
   m->alpha = r * r;
   m->alpha_t = m->alpha + (1.0f - m->alpha) * m->anisotropy * m->anisotropy;
   m->diffuse_weight = (1.0f - m->metallic) * (1.0f - m->transmission);
+  float specular_share = 0.0f;  // of a specular-glossiness material's diffuse light
+  if (m->specular_glossiness) {
+    specular_share = std::max(m->specular_f0.r, std::max(m->specular_f0.g, m->specular_f0.b));
+    m->diffuse_weight *= 1.0f - specular_share;
+  }
   // An anisotropic surface is a mirror only where its roughness along the anisotropy is too.
   const float r2 = roughness * roughness;
   const float stretched = m->anisotropy > 0.0f
@@ -32,12 +37,21 @@ void derive(ShadeMaterial* m, float metallic, float roughness) {
   m->ambient = m->ambient_reflectance;
   if (m->is_mirror) m->ambient *= 1.0f - m->metallic;
   if (m->is_glass) m->ambient *= m->diffuse_weight;
+  // A metallic-roughness surface reflects ambient light by its base color, whatever its metal;
+  // a specular-glossiness one by its diffuse, as its diffuse light, and its F0 (where the color
+  // of its metal lies).
+  if (m->specular_glossiness) {
+    m->ambient *= 1.0f - specular_share;
+    m->ambient_specular = m->specular_f0;
+  }
   m->has_emission = !is_black(m->emissive);
-  m->has_ambient = !is_black(m->scene_ambient * m->ambient);
+  m->has_ambient = !is_black(m->scene_ambient * (m->ambient + m->ambient_specular));
   m->has_diffuse = m->diffuse_weight > 0.0f && !is_black(m->base);
   m->layered = m->sheen_max > 0.0f || m->clearcoat > 0.0f;
   m->extended = m->layered || m->anisotropy > 0.0f;
-  m->has_specular = !(roughness >= 1.0f && m->metallic <= 0.0f) &&
+  // A fully rough dielectric is left Lambertian (AFF and NFF materials, glTF's rough
+  // plastics), but not a specular-glossiness material, whose F0 may be a metal's.
+  m->has_specular = !(roughness >= 1.0f && m->metallic <= 0.0f && !m->specular_glossiness) &&
                     !(m->metallic <= 0.0f && m->specular_f90 <= 0.0f && is_black(m->specular_f0));
 }
 
@@ -132,6 +146,9 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
     }
   }
   if (mat.has_specular_extension) {
+    // KHR_materials_pbrSpecularGlossiness gives F0 itself as the specular color.
+    m.specular_glossiness = mat.specular_glossiness;
+    if (m.specular_glossiness) m.f0_ior = 1.0f;
     m.specular_factor = mat.specular;
     m.specular_color_factor = mat.specular_color;
     set_specular(&m, m.specular_factor, m.specular_color_factor);
@@ -172,10 +189,13 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
         glm::vec2(std::cos(mat.anisotropy_rotation), std::sin(mat.anisotropy_rotation));
     m.anisotropy_texture = texture_at(mat.anisotropy_texture, scene);
   }
+  if (m.specular_glossiness && mat.roughness < 1.0f) {
+    m.glossiness_texture = texture_at(mat.glossiness_texture, scene);
+  }
   m.varies = m.anisotropy_texture || m.metallic_roughness || m.emissive_texture || m.occlusion ||
              m.transmission_texture || m.specular_texture || m.specular_color_texture ||
              m.clearcoat_texture || m.clearcoat_roughness_texture || m.sheen_color_texture ||
-             m.sheen_roughness_texture;
+             m.sheen_roughness_texture || m.glossiness_texture;
   m.needs_layers = m.clearcoat > 0.0f || m.anisotropy_factor > 0.0f;
   derive(&m, m.metallic_factor, m.roughness_factor);
   if (mat.unlit) {
@@ -208,12 +228,15 @@ void vary(ShadeMaterial* m, const Texels& t) {
               m->sheen_roughness_factor * t.sheen_roughness.r);
   }
   if (m->anisotropy_texture) m->anisotropy = m->anisotropy_factor * t.anisotropy.b;
-  derive(m, m->metallic_factor * t.metallic_roughness.b,
-         m->roughness_factor * t.metallic_roughness.g);
+  const float roughness = m->specular_glossiness
+                              ? 1.0f - (1.0f - m->roughness_factor) * t.glossiness.r
+                              : m->roughness_factor * t.metallic_roughness.g;
+  derive(m, m->metallic_factor * t.metallic_roughness.b, roughness);
   const float o = 1.0f + m->occlusion_strength * (t.occlusion.r - 1.0f);
   if (o != 1.0f) {
     m->ambient *= o;
-    m->has_ambient = !is_black(m->scene_ambient * m->ambient);
+    m->ambient_specular *= o;
+    m->has_ambient = !is_black(m->scene_ambient * (m->ambient + m->ambient_specular));
   }
 }
 

@@ -38,6 +38,9 @@ inline constexpr float kMinDirectRoughness = 0.1f;
 struct ShadeMaterial {
   glm::vec3 base{1.0f};     // base color factor (rgb)
   glm::vec3 ambient{1.0f};  // reflectance of ambient light: ambient_reflectance, less below
+  // Added to the ambient reflectance after the base-color texel multiplies it: a
+  // specular-glossiness material's F0 (its metal's color), 0 for others.
+  glm::vec3 ambient_specular{0.0f};
   glm::vec3 emissive{0.0f};
   const Texture* texture = nullptr;  // base-color texture, or null
   // Textures that vary the material over its surface (null: none): metallic-roughness (green
@@ -56,7 +59,9 @@ struct ShadeMaterial {
   const Texture* clearcoat_roughness_texture = nullptr;
   const Texture* sheen_color_texture = nullptr;      // sRGB color
   const Texture* sheen_roughness_texture = nullptr;  // the image's alpha, held in red
-  bool varies = false;                               // one of the textures above is set
+  // KHR_materials_pbrSpecularGlossiness's glossiness (the image's alpha, held in red).
+  const Texture* glossiness_texture = nullptr;
+  bool varies = false;  // one of the textures above is set
   // The normal texture (tangent space, linear data; null: none) and its scale: it bends the
   // shading normal (Tracer::Impl::make_surface), not the material.
   const Texture* normal_map = nullptr;
@@ -77,6 +82,10 @@ struct ShadeMaterial {
   float clearcoat_roughness_factor = 0.0f;
   glm::vec3 sheen_color_factor{0.0f};
   float sheen_roughness_factor = 0.0f;
+  // KHR_materials_pbrSpecularGlossiness (Material::specular_glossiness): F0 is the specular
+  // color, the roughness 1 - (1 - roughness_factor) x the glossiness texel, and the diffuse
+  // weight is lowered by max(F0).
+  bool specular_glossiness = false;
   glm::vec3 ambient_reflectance{1.0f};  // Material::ambient, else the base color factor
   glm::vec3 scene_ambient{0.0f};
   float mirror_roughness = 0.0f;  // TracerOptions::mirror_roughness
@@ -167,6 +176,7 @@ struct Texels {
   glm::vec3 sheen_color{1.0f};          // x the sheen color factor
   glm::vec3 sheen_roughness{1.0f};      // red (the image's alpha) x the sheen roughness factor
   glm::vec3 anisotropy{1.0f};           // blue x the anisotropy strength (red, green: make_surface)
+  glm::vec3 glossiness{1.0f};           // red (the image's alpha) x the glossiness (1 - roughness)
 };
 
 // The material at one point of a surface whose material varies: `m` (as make_shade_material

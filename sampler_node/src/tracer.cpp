@@ -72,6 +72,7 @@ struct SlotUvs {
   const glm::vec2* sheen_color = nullptr;
   const glm::vec2* sheen_roughness = nullptr;
   const glm::vec2* anisotropy = nullptr;  // also the anisotropy's tangent frame
+  const glm::vec2* glossiness = nullptr;
 };
 
 // Set k of p's texture coordinates, or null where p has none.
@@ -487,7 +488,8 @@ struct Tracer::Impl {
                    uv_data(p, sets.specular),         uv_data(p, sets.specular_color),
                    uv_data(p, sets.clearcoat),        uv_data(p, sets.clearcoat_roughness),
                    uv_data(p, sets.clearcoat_normal), uv_data(p, sets.sheen_color),
-                   uv_data(p, sets.sheen_roughness),  uv_data(p, sets.anisotropy)};
+                   uv_data(p, sets.sheen_roughness),  uv_data(p, sets.anisotropy),
+                   uv_data(p, sets.glossiness)};
   }
   // p's COLOR_0 alpha where its material (an index into materials_) tests alpha, else null.
   const float* tested_alpha(const Primitive& p, uint32_t material) const {
@@ -1234,6 +1236,7 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
     read(m.sheen_color_texture, g.uvs.sheen_color, &t.sheen_color);
     read(m.sheen_roughness_texture, g.uvs.sheen_roughness, &t.sheen_roughness);
     read(m.anisotropy_texture, g.uvs.anisotropy, &t.anisotropy);  // its blue: the strength
+    read(m.glossiness_texture, g.uvs.glossiness, &t.glossiness);
     if (any) {
       ShadeMaterial& here = s->at_point.emplace(m);
       shading::vary(&here, t);
@@ -1293,7 +1296,9 @@ bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const gl
       beneath_sheen = 1.0f - m.sheen_max * albedo;  // shading::sheen_scaling
       *c += scene_.ambient * m.sheen_color * albedo;
     }
-    if (m.has_ambient) *c += scene_.ambient * m.ambient * tex * beneath_sheen;
+    if (m.has_ambient) {
+      *c += scene_.ambient * (m.ambient * tex + m.ambient_specular) * beneath_sheen;
+    }
     // A clear coat lies over the emission and all the ambient light reflected beneath it: they
     // keep 1 - clearcoat x F_coat(n.v) (the direct light's share is in extended_brdf_cos).
     if (m.clearcoat > 0.0f) {
@@ -1301,7 +1306,7 @@ bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const gl
             m.clearcoat * shading::coat_fresnel(std::max(glm::dot(s.layers->coat_n, wo), 0.0f));
     }
   } else if (m.has_ambient) {
-    *c += scene_.ambient * m.ambient * tex;
+    *c += scene_.ambient * (m.ambient * tex + m.ambient_specular);
   }
   if (lights_.empty() || s.back_face || !(m.has_diffuse || m.has_specular || m.layered)) {
     return false;

@@ -142,6 +142,13 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
       "specular", [](Scene* s) { s->materials[0].has_specular_extension = true; },
       [](Scene* s) { s->materials[0].specular = 0.5f; });
   expect_seen(
+      "specular glossiness",
+      [](Scene* s) {
+        s->materials[0].has_specular_extension = true;
+        s->materials[0].specular_glossiness = true;
+      },
+      [](Scene* s) { s->materials[0].glossiness_texture = 0; });
+  expect_seen(
       "clearcoat", [](Scene* s) { s->materials[0].clearcoat = 1.0f; },
       [](Scene* s) { s->materials[0].clearcoat_roughness = 0.5f; });
   expect_seen(

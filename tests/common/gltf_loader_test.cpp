@@ -1495,6 +1495,122 @@ TEST_F(GltfLoaderTest, AnisotropyIsRead) {
                "material 0 KHR_materials_anisotropy has an invalid anisotropyRotation");
 }
 
+// KHR_materials_pbrSpecularGlossiness replaces the material's pbrMetallicRoughness (whose
+// textures are then not decoded): its diffuse is the base color, its specular color F0 (sRGB),
+// the texture's alpha the glossiness (data), 1 - glossinessFactor the roughness, metallic 0.
+// Factors out of range fail naming them.
+TEST_F(GltfLoaderTest, SpecularGlossinessMaterialsAreRead) {
+  write_image8(DecodedImage{1, 1, 4, {128, 64, 32, 51}}, dir_ / "specgloss.png");
+  write_image8(DecodedImage{1, 1, 3, {10, 20, 30}}, dir_ / "fallback.png");
+  GltfBuilder b;
+  add_quad(&b);
+  json& primitive = b.doc()["meshes"][0]["primitives"][0];
+  primitive["material"] = 0;
+  primitive["attributes"]["TEXCOORD_0"] = b.add_floats({0, 0, 1, 0, 1, 1, 0, 1}, 2);
+  b.doc()["images"] = json::array({{{"uri", "specgloss.png"}}, {{"uri", "fallback.png"}}});
+  b.doc()["textures"] = json::array({{{"source", 0}}, {{"source", 1}}});
+  b.doc()["extensionsUsed"] = {"KHR_materials_pbrSpecularGlossiness"};
+  b.doc()["extensionsRequired"] = {"KHR_materials_pbrSpecularGlossiness"};
+  b.doc()["materials"] =
+      json::array({{{"pbrMetallicRoughness",
+                     {{"baseColorFactor", {0.1, 0.1, 0.1, 1.0}},
+                      {"baseColorTexture", {{"index", 1}}},
+                      {"metallicRoughnessTexture", {{"index", 1}}}}},
+                    {"extensions",
+                     {{"KHR_materials_pbrSpecularGlossiness",
+                       {{"diffuseFactor", {1.0, 0.5, 0.25, 0.75}},
+                        {"specularFactor", {0.5, 0.25, 1.0}},
+                        {"glossinessFactor", 0.8},
+                        {"diffuseTexture", {{"index", 0}}},
+                        {"specularGlossinessTexture", {{"index", 0}}}}}}}},
+                   {{"extensions", {{"KHR_materials_pbrSpecularGlossiness", json::object()}}}}});
+  b.write_embedded(dir_ / "specgloss.gltf");
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir_ / "specgloss.gltf", &report);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+  ASSERT_EQ(scene.materials.size(), 2u);
+  const Material& m = scene.materials[0];
+  EXPECT_TRUE(m.specular_glossiness);
+  EXPECT_TRUE(m.has_specular_extension);
+  EXPECT_EQ(m.base_color_factor, glm::vec4(1.0f, 0.5f, 0.25f, 0.75f));
+  EXPECT_EQ(m.specular_color, glm::vec3(0.5f, 0.25f, 1.0f));
+  EXPECT_EQ(m.specular, 1.0f);
+  EXPECT_NEAR(m.roughness, 0.2f, 1e-6f);
+  EXPECT_EQ(m.metallic, 0.0f);
+  EXPECT_EQ(m.metallic_roughness_texture, -1);
+  // The image read twice (color and alpha); the fallback's image never.
+  ASSERT_EQ(scene.textures.size(), 2u);
+  ASSERT_GE(m.base_color_texture, 0);
+  EXPECT_EQ(m.specular_color_texture, m.base_color_texture);
+  ASSERT_GE(m.glossiness_texture, 0);
+  EXPECT_NE(m.glossiness_texture, m.base_color_texture);
+  const Texture& color = scene.textures[size_t(m.specular_color_texture)];
+  EXPECT_NEAR(color.texel(0).g, reference_srgb_to_linear(64 / 255.0), 1e-6);
+  EXPECT_NEAR(scene.textures[size_t(m.glossiness_texture)].texel(0).r, 51 / 255.0, 1e-6);
+  EXPECT_EQ(m.uv_set.glossiness, m.uv_set.base_color);
+  // The defaults: white diffuse, white specular, glossiness 1.
+  const Material& plain = scene.materials[1];
+  EXPECT_TRUE(plain.specular_glossiness);
+  EXPECT_EQ(plain.base_color_factor, glm::vec4(1.0f));
+  EXPECT_EQ(plain.specular_color, glm::vec3(1.0f));
+  EXPECT_EQ(plain.roughness, 0.0f);
+  EXPECT_EQ(plain.glossiness_texture, -1);
+
+  json& e = b.doc()["materials"][0]["extensions"]["KHR_materials_pbrSpecularGlossiness"];
+  e["glossinessFactor"] = 1.5;
+  b.write_embedded(dir_ / "gloss.gltf");
+  expect_error(dir_ / "gloss.gltf",
+               "material 0 KHR_materials_pbrSpecularGlossiness has an invalid glossinessFactor");
+  e["glossinessFactor"] = 0.5;
+  e["diffuseFactor"] = {1.0, 0.5, 0.25};
+  b.write_embedded(dir_ / "diffuse.gltf");
+  expect_error(dir_ / "diffuse.gltf",
+               "material 0 KHR_materials_pbrSpecularGlossiness has an invalid diffuseFactor");
+  e["diffuseFactor"] = {1.0, 0.5, 0.25, 1.0};
+  e["specularGlossinessTexture"] = {{"index", 7}};
+  b.write_embedded(dir_ / "texture.gltf");
+  expect_error(dir_ / "texture.gltf", "refers to texture 7, but there are 2");
+}
+
+// KHR_materials_variants: a file that requires it loads with each primitive's own material
+// (what a viewer shows when no variant is chosen); a malformed variant list, which is not drawn,
+// warns naming what is wrong.
+TEST_F(GltfLoaderTest, MaterialVariantsLoadWithTheDefaultMaterials) {
+  GltfBuilder b;
+  add_quad(&b);
+  json& primitive = b.doc()["meshes"][0]["primitives"][0];
+  primitive["material"] = 1;
+  primitive["extensions"]["KHR_materials_variants"]["mappings"] =
+      json::array({{{"material", 0}, {"variants", {0}}}, {{"material", 1}, {"variants", {1}}}});
+  b.doc()["extensionsUsed"] = {"KHR_materials_variants"};
+  b.doc()["extensionsRequired"] = {"KHR_materials_variants"};
+  b.doc()["extensions"]["KHR_materials_variants"]["variants"] =
+      json::array({{{"name", "red"}}, {{"name", "blue"}}});
+  b.doc()["materials"] =
+      json::array({{{"pbrMetallicRoughness", {{"baseColorFactor", {1.0, 0.0, 0.0, 1.0}}}}},
+                   {{"pbrMetallicRoughness", {{"baseColorFactor", {0.0, 0.0, 1.0, 1.0}}}}}});
+  b.write_embedded(dir_ / "variants.gltf");
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir_ / "variants.gltf", &report);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+  ASSERT_EQ(scene.meshes.size(), 1u);
+  EXPECT_EQ(scene.meshes[0].primitives[0].material, 1);
+
+  for (const json& variants : {json::array({{{"name", "red"}}, {{"name", 3}}}), json::array()}) {
+    b.doc()["extensions"]["KHR_materials_variants"]["variants"] = variants;
+    b.write_embedded(dir_ / "malformed.gltf");
+    GltfLoadReport warned;
+    const Scene drawn = load_gltf(dir_ / "malformed.gltf", &warned);
+    EXPECT_EQ(drawn.meshes[0].primitives[0].material, 1);
+    ASSERT_EQ(warned.warnings.size(), 1u);
+    EXPECT_NE(warned.warnings[0].find(variants.empty()
+                                          ? "KHR_materials_variants has no \"variants\" array"
+                                          : "KHR_materials_variants variant 1 has no name"),
+              std::string::npos)
+        << warned.warnings[0];
+  }
+}
+
 // KHR_materials_unlit is read, also where a file requires it.
 TEST_F(GltfLoaderTest, UnlitMaterialsAreRead) {
   GltfBuilder b;

@@ -219,6 +219,26 @@ def gltf_seeds():
                                "KHR_materials_anisotropy", "KHR_texture_transform"]
     write("gltf", "material_extensions.gltf", g.embedded())
 
+    # The specular-glossiness workflow with its textures over a metallic-roughness fallback, and
+    # material variants.
+    g = Gltf()
+    g.quad(NORMAL=g.floats([0, 0, 1] * 4, "VEC3"),
+           TEXCOORD_0=g.floats([0, 0, 1, 0, 1, 1, 0, 1], "VEC2"))["material"] = 0
+    g.doc["meshes"][0]["primitives"][0]["extensions"] = {
+        "KHR_materials_variants": {"mappings": [{"material": 1, "variants": [0]}]}}
+    g.doc["images"] = [{"uri": "data:image/png;base64," + base64.b64encode(image).decode()}]
+    g.doc["textures"] = [{"source": 0}]
+    g.doc["materials"] = [
+        {"pbrMetallicRoughness": {"baseColorTexture": one},
+         "extensions": {"KHR_materials_pbrSpecularGlossiness": {
+             "diffuseFactor": [1, 0.8, 0.6, 1], "diffuseTexture": one, "specularFactor": [0.2, 0.2, 0.2],
+             "glossinessFactor": 0.7, "specularGlossinessTexture": one}}},
+        {"pbrMetallicRoughness": {"baseColorFactor": [1, 0, 0, 1]}}]
+    g.doc["extensions"] = {"KHR_materials_variants": {"variants": [{"name": "red"}]}}
+    g.doc["extensionsUsed"] = ["KHR_materials_pbrSpecularGlossiness", "KHR_materials_variants"]
+    g.doc["extensionsRequired"] = ["KHR_materials_pbrSpecularGlossiness", "KHR_materials_variants"]
+    write("gltf", "specular_glossiness.gltf", g.embedded())
+
     # Strips and fans over one interleaved (strided) buffer view; 8-bit indices.
     g = Gltf()
     verts = []

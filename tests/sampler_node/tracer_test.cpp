@@ -1288,6 +1288,71 @@ TEST(TracerTest, ExtensionTexturesMultiplyTheirFactors) {
                1e-5f, "a full coat on the right");
 }
 
+// KHR_materials_pbrSpecularGlossiness, on a square lit and seen straight on (Fresnel = F0):
+// the specular color is F0 itself (a black diffuse shows F0 / 0.04 x glTF's core highlight of
+// the same roughness), the diffuse keeps 1 - max(F0) of its light, the glossiness texel
+// multiplies 1 - roughness, and glossiness 0 with white specular is a white rough metal
+// (not the Lambertian surface a rough dielectric is).
+TEST(TracerTest, SpecularGlossinessSetsF0AndRoughness) {
+  const auto spec_gloss = [](glm::vec3 diffuse, glm::vec3 specular, float roughness) {
+    return [=](Material* m) {
+      m->base_color_factor = glm::vec4(diffuse, 1.0f);
+      m->metallic = 0.0f;
+      m->roughness = roughness;
+      m->has_specular_extension = true;
+      m->specular_glossiness = true;
+      m->specular_color = specular;
+    };
+  };
+  const glm::vec3 core = square_lit_straight_on([](Material* m) {
+    m->base_color_factor = glm::vec4(0.0f, 0.0f, 0.0f, 1.0f);
+    m->roughness = 0.5f;
+  });
+  ASSERT_GT(core.r, 0.0f);
+  const glm::vec3 f0(0.5f, 0.25f, 1.0f);
+  expect_near3(square_lit_straight_on(spec_gloss(glm::vec3(0.0f), f0, 0.5f)), f0 * core.r / 0.04f,
+               1e-5f, "F0");
+  const glm::vec3 lambert = square_lit_straight_on([](Material*) {});
+  const glm::vec3 f0_dim(0.5f, 0.25f, 0.0f);
+  expect_near3(square_lit_straight_on(spec_gloss(glm::vec3(1.0f), f0_dim, 0.5f)),
+               0.5f * lambert + f0_dim * core.r / 0.04f, 1e-5f, "diffuse less max(F0)");
+  expect_near3(square_lit_straight_on_scene([&](Scene* s, Material* m) {
+                 spec_gloss(glm::vec3(0.0f), f0, 0.0f)(m);
+                 m->glossiness_texture = add_texel(s, {0.5f, 0.0f, 0.0f});  // red: the alpha
+               }),
+               square_lit_straight_on(spec_gloss(glm::vec3(0.0f), f0, 0.5f)), 1e-6f,
+               "glossiness texture");
+  const glm::vec3 rough_metal = square_lit_straight_on([](Material* m) {
+    m->metallic = 1.0f;
+    m->roughness = 1.0f;
+  });
+  ASSERT_GT(std::abs(rough_metal.r - lambert.r), 1e-3f);
+  expect_near3(square_lit_straight_on(spec_gloss(glm::vec3(1.0f), glm::vec3(1.0f), 1.0f)),
+               rough_metal, 1e-6f, "glossiness 0");
+  // In ambient light too a gold of either workflow is the same gold: a metallic-roughness
+  // surface reflects ambient light by its base color, a specular-glossiness one by its diffuse
+  // (here black) and its F0.
+  const glm::vec3 gold(1.0f, 0.8f, 0.3f);
+  const auto in_ambient = [](const std::function<void(Material*)>& dress) {
+    return square_lit_straight_on_scene([&](Scene* s, Material* m) {
+      s->ambient = glm::vec3(0.5f);
+      dress(m);
+    });
+  };
+  const glm::vec3 metal = in_ambient([&](Material* m) {
+    m->base_color_factor = glm::vec4(gold, 1.0f);
+    m->metallic = 1.0f;
+    m->roughness = 0.5f;
+  });
+  ASSERT_GT(metal.r - square_lit_straight_on([&](Material* m) {
+                        m->base_color_factor = glm::vec4(gold, 1.0f);
+                        m->metallic = 1.0f;
+                        m->roughness = 0.5f;
+                      }).r,
+            0.4f);
+  expect_near3(in_ambient(spec_gloss(glm::vec3(0.0f), gold, 0.5f)), metal, 1e-5f, "gold");
+}
+
 // The clear coat lies on its own normal (glTF's clearcoatNormal): the interpolated normal, which
 // the material's normal texture does not bend, bent only by clearcoatNormalTexture. A square
 // with only a coat (black base, no specular of its own) of roughness 0.5, lit and seen straight

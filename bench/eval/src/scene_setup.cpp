@@ -161,6 +161,11 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.value(m.specular);
       h.value(m.specular_color);
     }
+    if (m.specular_glossiness) {
+      h.value(m.specular_glossiness);
+      h.value(m.glossiness_texture);
+      h.value(m.uv_set.glossiness);
+    }
     if (m.clearcoat > 0.0f) {
       h.value(m.clearcoat);
       h.value(m.clearcoat_roughness);

@@ -194,6 +194,7 @@ struct Material {
     uint8_t sheen_color = 0;
     uint8_t sheen_roughness = 0;
     uint8_t anisotropy = 0;
+    uint8_t glossiness = 0;
     bool operator==(const TextureSets&) const = default;
   };
   TextureSets uv_set;
@@ -251,6 +252,14 @@ struct Material {
   float anisotropy = 0.0f;
   float anisotropy_rotation = 0.0f;
   int anisotropy_texture = -1;
+  // KHR_materials_pbrSpecularGlossiness, read into the fields above: base_color_factor and
+  // base_color_texture are its diffuse; metallic is 0; specular_color and
+  // specular_color_texture its specular color, which is F0 itself here (not scaled by the ior's
+  // Fresnel term; specular 1); roughness is 1 - its glossiness factor, and glossiness_texture
+  // (the image's alpha, decoded as data and held in red) g makes it 1 - (1 - roughness) x g. The
+  // diffuse part keeps 1 - max(F0) of its light, as the extension's model has it.
+  bool specular_glossiness = false;
+  int glossiness_texture = -1;
   // KHR_materials_volume: a transmissive material whose thickness is above 0 fills the volume
   // its closed mesh bounds, and light crossing it keeps attenuation_color per
   // attenuation_distance travelled (Beer-Lambert; infinity: none). Thickness 0 is a thin wall.
