@@ -6,6 +6,7 @@
 #include <afr/common/cli.h>
 #include <afr/common/error.h>
 #include <afr/common/gltf_loader.h>
+#include <afr/common/gltf_pack.h>
 #include <afr/common/log.h>
 
 #include <fmt/format.h>
@@ -22,9 +23,12 @@ int main(int argc, char** argv) {
   int spp = 16, frames = 1, threads = 0;
   uint64_t seed = 1;
   std::vector<std::string> compare;
+  std::string variant;
   bool loop = false;
   app.add_option("scene", scene_path, "glTF 2.0 scene (.gltf/.glb); the built-in scene if omitted")
       ->check(CLI::ExistingFile);
+  app.add_option("--variant", variant,
+                 "KHR_materials_variants: draw the scene with this material variant (by name)");
   app.add_option("-t,--time", time, "scene time in seconds (first frame's time with --frames)");
   app.add_option("-s,--size", size_text, "image size WxH")->capture_default_str();
   app.add_option("--spp", spp, "samples per pixel, a square S*S (stratified S x S)")
@@ -57,7 +61,15 @@ int main(int argc, char** argv) {
       throw afr::Error(fmt::format(
           "--frames {} needs an output pattern with a frame number, e.g. out_%04d.png", frames));
     }
-    const afr::Scene scene = afr::load_scene(scene_path);
+    if (!variant.empty() && scene_path.empty()) {
+      throw afr::Error("--variant needs a scene file (the built-in scene has no variants)");
+    }
+    const afr::Scene scene =
+        variant.empty()
+            ? afr::load_scene(scene_path)
+            : afr::load_gltf_bytes(afr::select_material_variant(afr::read_scene_file(scene_path),
+                                                                scene_path, variant),
+                                   scene_path);
     spdlog::info("scene {}: {} triangles, {} lights, {:.2f} s of animation", scene.source,
                  scene.triangle_count(), scene.lights.size(), scene.duration());
     afr::Tracer tracer(scene);

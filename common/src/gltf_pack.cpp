@@ -7,6 +7,7 @@
 #include "gltf_meshopt_json.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <tiny_gltf.h>
 #include <nlohmann/json.hpp>
 
@@ -355,6 +356,99 @@ std::vector<std::string> gltf_external_files(std::span<const uint8_t> bytes,
   if (is_glb(bytes)) split_glb(bytes, path, &json, &bin);
   return gltf_external_uris(
       std::string_view(reinterpret_cast<const char*>(json.data()), json.size()), path);
+}
+
+std::vector<uint8_t> read_scene_file(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(fmt::format("{}: cannot open the scene file", path.string()));
+  std::vector<uint8_t> bytes{std::istreambuf_iterator<char>(in), {}};
+  if (bytes.empty()) throw Error(fmt::format("{}: the scene file is empty", path.string()));
+  return bytes;
+}
+
+std::vector<uint8_t> select_material_variant(std::span<const uint8_t> bytes,
+                                             const std::filesystem::path& path,
+                                             std::string_view variant) {
+  const auto fail = [&](const std::string& problem) {
+    throw Error(fmt::format("{}: {}", path.string(), problem));
+  };
+  constexpr const char* kExtension = "KHR_materials_variants";
+  std::span<const uint8_t> json_text = bytes, bin;
+  const bool glb = is_glb(bytes);
+  if (glb) split_glb(bytes, path, &json_text, &bin);
+  Json doc = Json::parse(json_text.begin(), json_text.end(), nullptr, /*allow_exceptions=*/false);
+  if (doc.is_discarded() || !doc.is_object()) fail("invalid glTF: not a JSON object");
+
+  // The variant's index among those the file offers.
+  std::vector<std::string> names;
+  if (doc.contains("extensions") && doc["extensions"].is_object() &&
+      doc["extensions"].contains(kExtension)) {
+    const Json& list = doc["extensions"][kExtension];
+    if (list.is_object() && list.contains("variants") && list["variants"].is_array()) {
+      for (const Json& v : list["variants"]) {
+        names.push_back(v.is_object() && v.contains("name") && v["name"].is_string()
+                            ? v["name"].get<std::string>()
+                            : std::string());
+      }
+    }
+  }
+  const auto found = std::find(names.begin(), names.end(), variant);
+  if (found == names.end()) {
+    if (names.empty()) fail(fmt::format("no material variant \"{}\": the file has none", variant));
+    std::vector<std::string> quoted;
+    for (const std::string& n : names) quoted.push_back(fmt::format("\"{}\"", n));
+    fail(fmt::format("no material variant \"{}\" (the file has {})", variant,
+                     fmt::join(quoted, ", ")));
+  }
+  const uint64_t index = uint64_t(found - names.begin());
+
+  // Each primitive's mapping for it, if any, becomes its material.
+  if (doc.contains("meshes") && doc["meshes"].is_array()) {
+    Json& meshes = doc["meshes"];
+    for (size_t m = 0; m < meshes.size(); ++m) {
+      if (!meshes[m].is_object() || !meshes[m].contains("primitives") ||
+          !meshes[m]["primitives"].is_array()) {
+        continue;  // the loader names what is wrong with the mesh
+      }
+      Json& primitives = meshes[m]["primitives"];
+      for (size_t p = 0; p < primitives.size(); ++p) {
+        Json& primitive = primitives[p];
+        if (!primitive.is_object() || !primitive.contains("extensions") ||
+            !primitive["extensions"].is_object() || !primitive["extensions"].contains(kExtension)) {
+          continue;
+        }
+        const std::string what = fmt::format("mesh {} primitive {} {}", m, p, kExtension);
+        const Json& e = primitive["extensions"][kExtension];
+        if (!e.is_object() || !e.contains("mappings") || !e["mappings"].is_array()) {
+          fail(what + " has no \"mappings\" array");
+        }
+        for (const Json& mapping : e["mappings"]) {
+          const bool good = mapping.is_object() && mapping.contains("material") &&
+                            count_of(mapping["material"]) && mapping.contains("variants") &&
+                            mapping["variants"].is_array();
+          if (!good) fail(what + " has a mapping without a material index and a variants array");
+          const Json& listed = mapping["variants"];
+          if (std::any_of(listed.begin(), listed.end(),
+                          [&](const Json& v) { return count_of(v) == index; })) {
+            primitive["material"] = *count_of(mapping["material"]);
+          }
+        }
+        primitive["extensions"].erase(kExtension);
+        if (primitive["extensions"].empty()) primitive.erase("extensions");
+      }
+    }
+  }
+  doc["extensions"].erase(kExtension);
+  if (doc["extensions"].empty()) doc.erase("extensions");
+  for (const char* key : {"extensionsUsed", "extensionsRequired"}) {
+    if (!doc.contains(key) || !doc[key].is_array()) continue;
+    Json& list = doc[key];
+    list.erase(std::remove(list.begin(), list.end(), Json(kExtension)), list.end());
+    if (list.empty()) doc.erase(key);
+  }
+  const std::string text = doc.dump();
+  if (glb) return make_glb(text, bin);
+  return std::vector<uint8_t>(text.begin(), text.end());
 }
 
 }  // namespace afr

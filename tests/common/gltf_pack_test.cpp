@@ -277,6 +277,80 @@ TEST_F(GltfPackTest, MissingShortOrOutsideFilesAreNamed) {
   EXPECT_NE(error_of(json::array()).find("invalid glTF: not a JSON object"), std::string::npos);
 }
 
+// KHR_materials_variants: choosing a variant gives the file (a .gltf as text, a packed .glb as
+// a .glb with its binary chunk) with each primitive that maps a material to the variant on that
+// material, the others unchanged, and without the extension; it loads as such. An unknown
+// name lists the file's variants; a file without variants, or with a malformed mapping, is
+// named.
+TEST_F(GltfPackTest, ChosenMaterialVariantBecomesThePrimitivesMaterial) {
+  json doc = doc_;
+  doc["materials"].push_back({{"name", "red"}});
+  doc["materials"].push_back({{"name", "blue"}});
+  json primitive = doc["meshes"][0]["primitives"][0];
+  primitive["extensions"]["KHR_materials_variants"]["mappings"] = {
+      {{"material", 1}, {"variants", {0}}}, {{"material", 2}, {"variants", {1, 2}}}};
+  doc["meshes"][0]["primitives"].push_back(primitive);
+  // A second mesh whose primitive maps only the first variant.
+  json other = doc["meshes"][0]["primitives"][0];
+  other["extensions"]["KHR_materials_variants"]["mappings"] = {
+      {{"material", 1}, {"variants", {0}}}};
+  doc["meshes"].push_back({{"primitives", {other}}});
+  doc["nodes"].push_back({{"mesh", 1}});
+  doc["scenes"][0]["nodes"].push_back(1);
+  doc["extensions"]["KHR_materials_variants"]["variants"] = {
+      {{"name", "Red"}}, {{"name", "Blue"}}, {{"name", "Dark blue"}}};
+  doc["extensionsUsed"] = {"KHR_materials_variants"};
+  doc["extensionsRequired"] = {"KHR_materials_variants"};
+  write_text(gltf_, doc.dump());
+  const std::vector<uint8_t> file = read_bytes(gltf_);
+
+  const std::vector<uint8_t> blue = select_material_variant(file, gltf_, "Blue");
+  const json chosen = json::parse(blue.begin(), blue.end());
+  EXPECT_EQ(chosen["meshes"][0]["primitives"][0]["material"], 0);  // no mappings: kept
+  EXPECT_EQ(chosen["meshes"][0]["primitives"][1]["material"], 2);
+  EXPECT_EQ(chosen["meshes"][1]["primitives"][0]["material"], 0);  // none for Blue: kept
+  EXPECT_FALSE(chosen["meshes"][0]["primitives"][1].contains("extensions"));
+  EXPECT_FALSE(chosen.contains("extensions"));
+  EXPECT_FALSE(chosen.contains("extensionsRequired"));
+  EXPECT_EQ(chosen["buffers"], doc["buffers"]);
+  const Scene scene = load_gltf_bytes(blue, gltf_);
+  EXPECT_EQ(scene.meshes[0].primitives[1].material, 2);
+  EXPECT_EQ(scene.meshes[1].primitives[0].material, 0);
+
+  const PackedGltf packed = pack_gltf(file, gltf_);
+  const std::vector<uint8_t> red = select_material_variant(packed.glb, gltf_, "Red");
+  const GlbParts parts = split(red);
+  EXPECT_EQ(parts.bin, split(packed.glb).bin);
+  EXPECT_EQ(parts.doc["meshes"][0]["primitives"][1]["material"], 1);
+  EXPECT_EQ(parts.doc["meshes"][1]["primitives"][0]["material"], 1);
+  fs::create_directories(dir_ / "alone");
+  EXPECT_EQ(load_gltf_bytes(red, dir_ / "alone" / "quad.glb").meshes[1].primitives[0].material, 1);
+
+  const auto error_of = [&](std::span<const uint8_t> bytes, std::string_view variant) {
+    try {
+      (void)select_material_variant(bytes, gltf_, variant);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(error_of(file, "Green"),
+            gltf_.string() +
+                ": no material variant \"Green\" (the file has \"Red\", \"Blue\", \"Dark blue\")");
+  EXPECT_EQ(error_of(read_bytes(dir_ / "scene" / "geometry.bin"), "Red"),
+            gltf_.string() + ": invalid glTF: not a JSON object");
+  write_text(gltf_, doc_.dump());
+  EXPECT_EQ(error_of(read_bytes(gltf_), "Red"),
+            gltf_.string() + ": no material variant \"Red\": the file has none");
+  doc["meshes"][0]["primitives"][1]["extensions"]["KHR_materials_variants"]["mappings"][0].erase(
+      "material");
+  write_text(gltf_, doc.dump());
+  EXPECT_NE(error_of(read_bytes(gltf_), "Red")
+                .find("mesh 0 primitive 1 KHR_materials_variants has a mapping without a "
+                      "material index and a variants array"),
+            std::string::npos);
+}
+
 // EXT_meshopt_compression: the compressed data (an external .bin) is packed; the placeholder
 // buffer without a uri and the fallback buffer (whose file is missing: a reader that decodes
 // never needs it) are kept without data after the binary chunk's, the views that name them

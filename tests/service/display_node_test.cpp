@@ -370,6 +370,13 @@ TEST_F(ServiceTest, MissingAndBrokenSceneFilesAreNamed) {
   const std::string log = missing_file->log();
   EXPECT_NE(log.find("external.gltf"), std::string::npos) << log;
   EXPECT_NE(log.find("mesh.bin"), std::string::npos) << log;
+  // A material variant the scene does not have (GltfPackTest's
+  // ChosenMaterialVariantBecomesThePrimitivesMaterial for one it has).
+  auto variant = display({kStaticScene, "--variant", "Gold", "--seconds", "1"}, "variant.log");
+  EXPECT_NE(variant->wait(10.0), 0);
+  EXPECT_NE(variant->log().find("no material variant \"Gold\": the file has none"),
+            std::string::npos)
+      << variant->log();
 }
 
 TEST_F(ServiceTest, NonLoopbackBindWithoutKeysIsRefused) {

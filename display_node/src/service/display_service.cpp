@@ -16,7 +16,6 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <iterator>
 #include <limits>
 #include <map>
@@ -32,16 +31,16 @@ using namespace afr::protocol;
 // ---------------------------------------------------------------------------------------------
 // Scene payload
 
-ScenePayload read_scene_payload(const std::string& path) {
+ScenePayload read_scene_payload(const std::string& path, const std::string& variant) {
   ScenePayload p;
   if (path.empty()) {
+    if (!variant.empty()) {
+      throw Error("a material variant needs a scene file (the built-in scene has none)");
+    }
     p.name = "builtin";
     p.bytes.assign(kBuiltinSceneBytes.begin(), kBuiltinSceneBytes.end());
   } else {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw Error(fmt::format("{}: cannot open the scene file", path));
-    p.bytes.assign(std::istreambuf_iterator<char>(in), {});
-    if (p.bytes.empty()) throw Error(fmt::format("{}: the scene file is empty", path));
+    p.bytes = read_scene_file(path);
     p.name = std::filesystem::path(path).filename().string();
     if (p.name.size() > kMaxNameBytes) p.name = p.name.substr(p.name.size() - kMaxNameBytes);
     // Only this one payload travels: a glTF that names other files (buffers, images) goes out
@@ -56,6 +55,9 @@ ScenePayload read_scene_payload(const std::string& path) {
       p.name = std::filesystem::path(path).stem().string() + ".glb";
       if (p.name.size() > kMaxNameBytes) p.name = p.name.substr(p.name.size() - kMaxNameBytes);
     }
+    // KHR_materials_variants: the samplers receive the file with the variant's materials in
+    // place (and its hash is the variant's, so a cached scene of another variant is not used).
+    if (!variant.empty()) p.bytes = select_material_variant(p.bytes, path, variant);
   }
   if (p.bytes.size() > kMaxSceneBytes) {
     throw Error(

@@ -35,6 +35,20 @@ PackedGltf pack_gltf(std::span<const uint8_t> bytes, const std::filesystem::path
 std::vector<std::string> gltf_external_files(std::span<const uint8_t> bytes,
                                              const std::filesystem::path& path);
 
+// The bytes of the scene file at `path`. Throws afr::Error naming it when it cannot be read or
+// is empty.
+std::vector<uint8_t> read_scene_file(const std::filesystem::path& path);
+
+// KHR_materials_variants: the .gltf or .glb `bytes` (at `path`, named in errors) with material
+// variant `variant` chosen, as one file of the same kind: each primitive that maps a material
+// to that variant takes it as its `material`, the others keep theirs, and the extension is
+// removed (so the file loads anywhere as the variant, and its identity is the variant's).
+// Throws afr::Error naming `path` and the problem: not glTF, no variant of that name (the
+// error lists those the file offers), or a primitive's mappings that are malformed.
+std::vector<uint8_t> select_material_variant(std::span<const uint8_t> bytes,
+                                             const std::filesystem::path& path,
+                                             std::string_view variant);
+
 // Whether `bytes` start as a .glb does ("glTF").
 bool is_glb(std::span<const uint8_t> bytes);
 
