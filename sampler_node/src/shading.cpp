@@ -143,6 +143,7 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
       // A color of 0 absorbs everything over any distance: 1e-6 per attenuation distance.
       const glm::vec3 c = glm::clamp(mat.attenuation_color, glm::vec3(1e-6f), glm::vec3(1.0f));
       m.absorption = -glm::log(c) / mat.attenuation_distance;
+      m.has_volume = true;
     }
   }
   if (mat.has_specular_extension) {

@@ -107,8 +107,10 @@ struct ShadeMaterial {
   float ior = 1.5f;
   float f0_dielectric = 0.04f;  // ((ior - 1) / (ior + 1))^2, 1 for ior 0
   // KHR_materials_volume: light inside the glass keeps exp(-absorption x distance)
-  // (-ln(attenuation color) / attenuation distance); 0 for none or a thin wall.
+  // (-ln(attenuation color) / attenuation distance); 0 for none or a thin wall. has_volume:
+  // it absorbs (shadow rays then measure the stretches inside: volume_transmittance).
   glm::vec3 absorption{0.0f};
+  bool has_volume = false;
   // The non-metallic part's specular reflection at normal and at grazing incidence: 0.04 and 1
   // (glTF's core), or with KHR_materials_specular (Material::specular) F0(ior) x its color x its
   // factor and the factor. Metals reflect their base color and 1 (fresnel_f0, fresnel_f90).

@@ -279,8 +279,11 @@ float texture_lod(const Texture& texture, glm::vec2 t0, glm::vec2 t1, glm::vec2 
 // (crosses), which multiplies it into the ray's transmittance and lets the ray go on, in
 // whatever order (products commute); any other surface ends the ray. The
 // high-quality BVH's spatial splits can report one triangle twice, so each ray remembers the
-// ones it has counted. Only shadow rays (id kShadowRayId + lane, with a ShadowContext) are
-// filtered: other occlusion queries (Tracer::occluded) stop at glass as at any surface.
+// ones it has counted. Inside absorbing glass (KHR_materials_volume) a shadow ray also keeps
+// exp(-absorption x the length it travels there): the crossings are kept with their distances
+// and sorted once the ray is through (volume_transmittance). Only shadow rays (id kShadowRayId
+// + lane, with a ShadowContext) are filtered: other occlusion queries (Tracer::occluded) stop at
+// glass as at any surface.
 //
 // ---- alphaMode MASK ----
 //
@@ -307,16 +310,20 @@ struct ShadowContext {
   static constexpr int kMaxCrossed = 16;  // more glass surfaces than this: blocked
   struct Crossed {
     unsigned inst, geom, prim;
+    float t;      // the distance along the ray
+    bool volume;  // glass that absorbs inside (ShadeMaterial::absorption)
   };
   glm::vec3 transmittance[kLanes];
   Crossed crossed[kLanes][kMaxCrossed];
   int n_crossed[kLanes];
+  bool volumes[kLanes];  // a crossing of glass that absorbs: see volume_transmittance
 
   ShadowContext() {
     rtcInitIntersectContext(&embree);
     for (int k = 0; k < kLanes; ++k) {
       transmittance[k] = glm::vec3(1.0f);
       n_crossed[k] = 0;
+      volumes[k] = false;
     }
   }
 };
@@ -362,13 +369,16 @@ struct GeometryFilter {
 
 // A shadow ray's crossing of a surface that lets `through` of the light pass, in lane i (see
 // above): false when the ray is to stop there.
-bool crosses(const RTCFilterFunctionNArguments* args, unsigned i, const glm::vec3& through) {
+bool crosses(const RTCFilterFunctionNArguments* args, unsigned i, const glm::vec3& through,
+             bool volume) {
   const unsigned lane = RTCRayN_id(args->ray, args->N, i) - kShadowRayId;
   if (lane >= unsigned(ShadowContext::kLanes)) return false;  // not a shadow ray: a blocker
   auto* ctx = reinterpret_cast<ShadowContext*>(args->context);
-  const ShadowContext::Crossed c{RTCHitN_instID(args->hit, args->N, i, 0),
-                                 RTCHitN_geomID(args->hit, args->N, i),
-                                 RTCHitN_primID(args->hit, args->N, i)};
+  // The hit's distance is the ray's tfar while the filter runs (the same in an instance's
+  // space, whose transform keeps the ray's parameter).
+  const ShadowContext::Crossed c{
+      RTCHitN_instID(args->hit, args->N, i, 0), RTCHitN_geomID(args->hit, args->N, i),
+      RTCHitN_primID(args->hit, args->N, i), RTCRayN_tfar(args->ray, args->N, i), volume};
   bool seen = false;
   for (int k = 0; k < ctx->n_crossed[lane]; ++k) {
     const ShadowContext::Crossed& o = ctx->crossed[lane][k];
@@ -378,6 +388,7 @@ bool crosses(const RTCFilterFunctionNArguments* args, unsigned i, const glm::vec
     if (ctx->n_crossed[lane] == ShadowContext::kMaxCrossed) return false;
     ctx->crossed[lane][ctx->n_crossed[lane]++] = c;
     ctx->transmittance[lane] *= through;
+    ctx->volumes[lane] |= volume;
   }
   const glm::vec3& tr = ctx->transmittance[lane];
   return std::max(tr.r, std::max(tr.g, tr.b)) >= kShadowCutoff;
@@ -393,10 +404,10 @@ void occlusion_filter(const RTCFilterFunctionNArguments* args) {
     if (m.blended && f->masked) {
       const float a = f->opacity(args, i);
       const glm::vec3 glass = m.is_glass ? m.shadow_transmittance : glm::vec3(0.0f);
-      if (!(a > 0.0f) || crosses(args, i, (1.0f - a) + a * glass)) args->valid[i] = 0;
+      if (!(a > 0.0f) || crosses(args, i, (1.0f - a) + a * glass, false)) args->valid[i] = 0;
     } else if (f->masked && !f->opaque_at(args, i)) {
       args->valid[i] = 0;
-    } else if (m.is_glass && crosses(args, i, m.shadow_transmittance)) {
+    } else if (m.is_glass && crosses(args, i, m.shadow_transmittance, m.has_volume)) {
       args->valid[i] = 0;
     }
   }
@@ -519,6 +530,8 @@ struct Tracer::Impl {
   // What a shadow ray from o along d (unit) up to tfar keeps: 0 when an opaque surface blocks
   // it, the product of the glass surfaces' transmittances it crosses otherwise.
   glm::vec3 shadow_transmittance(const glm::vec3& o, const glm::vec3& d, float tfar) const;
+  glm::vec3 volume_transmittance(const ShadowContext& ctx, int lane, const glm::vec3& d,
+                                 float tfar) const;
   // The surface of `hit` on the ray from o along d, whose cone was `cone` wide at o and grows by
   // `spread` per unit of distance.
   void make_surface(const HitRef& hit, const glm::vec3& o, const glm::vec3& d, float cone,
@@ -1056,7 +1069,57 @@ glm::vec3 Tracer::Impl::shadow_transmittance(const glm::vec3& o, const glm::vec3
   init_ray(&r, o, d, 0.0f, tfar);
   r.id = kShadowRayId;
   rtcOccluded1(top_, &ctx.embree, &r);
-  return r.tfar < 0.0f ? glm::vec3(0.0f) : ctx.transmittance[0];
+  if (r.tfar < 0.0f) return glm::vec3(0.0f);
+  return ctx.volumes[0] ? ctx.transmittance[0] * volume_transmittance(ctx, 0, d, tfar)
+                        : ctx.transmittance[0];
+}
+
+// KHR_materials_volume on a shadow ray's way: Embree reports the glass surfaces it crosses in
+// any order, so the crossings of absorbing glass are sorted by distance and each stretch inside
+// a volume, from a surface the ray enters by (or from the ray's origin, inside) to the next it
+// leaves by (or to the light, inside), keeps exp(-absorption x its length), as a refracted ray
+// inside keeps (secondary). The side is the triangle's own, as glass() tells it.
+glm::vec3 Tracer::Impl::volume_transmittance(const ShadowContext& ctx, int lane, const glm::vec3& d,
+                                             float tfar) const {
+  struct Stop {
+    float t;
+    bool entering;
+    glm::vec3 absorption;
+  };
+  std::array<Stop, ShadowContext::kMaxCrossed> stops;
+  int n = 0;
+  for (int k = 0; k < ctx.n_crossed[lane]; ++k) {
+    const ShadowContext::Crossed& c = ctx.crossed[lane][k];
+    if (!c.volume) continue;
+    const Instance& inst = instances_[c.inst];
+    const GeomRecord& g = blas_[size_t(inst.blas)].geoms[c.geom];
+    const uint32_t* tri = g.indices + 3 * size_t(c.prim);
+    const glm::vec3& p0 = g.positions[tri[0]];
+    glm::vec3 face = glm::cross(g.positions[tri[1]] - p0, g.positions[tri[2]] - p0);
+    if (g.flip_winding) face = -face;
+    if (inst.transformed) face = inst.normal_matrix * face;
+    stops[size_t(n++)] = {c.t, !(glm::dot(face, d) > 0.0f), materials_[g.material].absorption};
+  }
+  std::sort(stops.begin(), stops.begin() + n,
+            [](const Stop& a, const Stop& b) { return a.t < b.t; });
+  glm::vec3 optical_depth(0.0f);  // absorption x length, summed over the stretches
+  float from = 0.0f;              // where the current stretch began
+  const Stop* inside = nullptr;   // the surface entered, if any
+  bool before_first = true;       // the origin may lie inside: the first stop then leaves
+  for (int k = 0; k < n; ++k) {
+    const Stop& stop = stops[size_t(k)];
+    // A stretch ends at every stop inside a volume (one nested in another ends the outer one's
+    // there: the inner medium is what the ray crosses).
+    if (inside != nullptr) optical_depth += inside->absorption * (stop.t - from);
+    if (inside == nullptr && before_first && !stop.entering) {
+      optical_depth += stop.absorption * stop.t;
+    }
+    inside = stop.entering ? &stop : nullptr;
+    from = stop.t;
+    before_first = false;
+  }
+  if (inside != nullptr) optical_depth += inside->absorption * (tfar - from);
+  return glm::exp(-optical_depth);
 }
 
 bool Tracer::Impl::blocked(const glm::vec3& o, const glm::vec3& d, float tnear, float tfar) const {
@@ -1409,9 +1472,17 @@ void Tracer::Impl::shade_local8(const Surface* s, const glm::vec3* wo, const glm
     }
     for (int k = 0; k < 8; ++k) rays.id[k] = kShadowRayId + unsigned(k);
     ShadowContext ctx;
+    float tfar[8];
+    std::copy_n(rays.tfar, 8, tfar);
     rtcOccluded8(valid, top_, &ctx.embree, &rays);
     for (int k = 0; k < n; ++k) {
-      if (valid[k] && rays.tfar[k] >= 0.0f) out[k] += contribution[k] * ctx.transmittance[k];
+      if (!valid[k] || rays.tfar[k] < 0.0f) continue;
+      glm::vec3 kept = ctx.transmittance[k];
+      if (ctx.volumes[k]) {
+        const glm::vec3 d(rays.dir_x[k], rays.dir_y[k], rays.dir_z[k]);
+        kept *= volume_transmittance(ctx, k, d, tfar[k]);
+      }
+      out[k] += contribution[k] * kept;
     }
   }
 }

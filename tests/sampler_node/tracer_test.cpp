@@ -1885,6 +1885,84 @@ TEST(TracerTest, ShadowRaysPassThroughGlassDimmedByEachSurface) {
   }
 }
 
+// KHR_materials_volume: a shadow ray keeps exp(-absorption x the length it travels inside
+// absorbing glass), color^(length / attenuation distance), as a refracted ray does: through a
+// clear box 1 thick (the sun straight down onto the floor under it), from a point inside it (a
+// camera inside looking at a square 0.8 below the box's top, beside the shadow rays of the floor),
+// and toward a point light inside
+// it (0.5 of the way inside); a thin wall (thickness 0) absorbs nothing. Single rays and
+// packets agree.
+TEST(TracerTest, ShadowRaysThroughAVolumeAreAbsorbedByTheDistanceInside) {
+  const glm::vec3 color(0.5f, 0.25f, 1.0f);
+  const float distance = 2.0f;  // attenuationDistance
+  const glm::vec3 floor_base(0.8f, 0.6f, 0.4f);
+  const float pi = std::numbers::pi_v<float>;
+  struct Setup {
+    Scene s;
+    int glass = -1;
+  };
+  const auto scene_with = [&](float thickness, const std::function<void(Scene*)>& light) {
+    Setup u;
+    const int floor = add_material(&u.s, floor_base, 0.0f, 1.0f);
+    add_mesh_node(&u.s, quad_mesh({-5, 0, 5}, {10, 0, 0}, {0, 0, -10}, floor));
+    add_mesh_node(&u.s, quad_mesh({0.5f, 1.2f, 0.5f}, {1, 0, 0}, {0, 0, -1}, floor));  // inside
+    u.glass = add_material(&u.s, glm::vec3(1.0f), 0.0f, 0.0f);
+    Material& g = u.s.materials[size_t(u.glass)];
+    g.transmission = 1.0f;
+    g.thickness = thickness;
+    g.attenuation_color = color;
+    g.attenuation_distance = distance;
+    add_mesh_node(&u.s, box_mesh({2.0f, 0.5f, 2.0f}, u.glass), glm::dvec3(0.0, 1.5, 0.0));
+    light(&u.s);
+    u.s.finalize();
+    return u;
+  };
+  const auto sun = [](Scene* s) {
+    Light l;
+    l.type = Light::Type::kDirectional;
+    l.intensity = 3.0f;
+    add_light_node(s, l, {0, 5, 0}, pointing_down());
+  };
+  const auto lamp = [](Scene* s) {
+    Light l;
+    l.intensity = 3.0f;
+    add_light_node(s, l, {0, 1.5, 0});
+  };
+  // The floor under the box's middle, seen from beside it below the glass; and the square
+  // inside, seen from inside.
+  const Camera beside = Camera::look_at({4.5, 0.6, 0.0}, {0.0, 0.0, 0.0}, {0, 1, 0}, 1.2, 0.01);
+  const Camera within = Camera::look_at({0.0, 1.8, 0.0}, {1.0, 1.2, 0.0}, {0, 1, 0}, 1.2, 0.01);
+  const auto seen = [&](const Setup& u, const Camera& cam, bool packet) {
+    TracerOptions o;
+    o.packet_crosshair = packet;
+    Tracer tracer(u.s, o);
+    TraceStats stats;
+    std::array<ShadedSample, 5> cross;
+    tracer.trace_crosshair(cam, 32.0, 24.0, 64, 48, &cross, &stats);
+    expect_same_sample(cross[0], tracer.trace(cam.ray(32.0, 24.0, 64, 48), &stats), 1e-4f);
+    return cross[0];
+  };
+  const glm::vec3 lit = floor_base / pi * 3.0f;
+  for (bool packet : {true, false}) {
+    SCOPED_TRACE(packet ? "packets" : "single rays");
+    const ShadedSample through = seen(scene_with(1.0f, sun), beside, packet);
+    ASSERT_NEAR(through.position.y, 0.0f, 1e-3f);
+    expect_near3(through.color, lit * glm::pow(color, glm::vec3(1.0f / distance)), 1e-3f,
+                 "through the box");
+    expect_near3(seen(scene_with(0.0f, sun), beside, packet).color, lit, 1e-4f, "thin wall");
+    const ShadedSample from_inside = seen(scene_with(1.0f, sun), within, packet);
+    ASSERT_NEAR(from_inside.position.y, 1.2f, 1e-3f);
+    expect_near3(from_inside.color, lit * glm::pow(color, glm::vec3(0.8f / distance)), 1e-3f,
+                 "from inside");
+    const ShadedSample to_inside = seen(scene_with(1.0f, lamp), beside, packet);
+    const glm::vec3 to_lamp = glm::vec3(0, 1.5f, 0) - to_inside.position;
+    const float d2 = glm::dot(to_lamp, to_lamp);
+    const float cosine = to_lamp.y / std::sqrt(d2);
+    expect_near3(to_inside.color, lit / d2 * cosine * glm::pow(color, glm::vec3(0.5f / distance)),
+                 1e-3f, "to a light inside");
+  }
+}
+
 // A glass sphere-like box seen from many directions, on a lit floor: every sample is finite
 // and a sample's secondary rays stay within 2 + 4 + ... + 2^depth (two per glass hit).
 TEST(TracerTest, GlassSamplesAreFiniteAndBoundedInRays) {
