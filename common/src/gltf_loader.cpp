@@ -53,17 +53,27 @@ constexpr size_t kMaxNodes = size_t(1) << 20;
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 19> kSupportedExtensions = {
-    "EXT_mesh_gpu_instancing",    "EXT_meshopt_compression",
-    "EXT_texture_webp",           "KHR_draco_mesh_compression",
-    "KHR_lights_punctual",        "KHR_materials_anisotropy",
-    "KHR_materials_clearcoat",    "KHR_materials_emissive_strength",
-    "KHR_materials_ior",          "KHR_materials_pbrSpecularGlossiness",
-    "KHR_materials_sheen",        "KHR_materials_specular",
-    "KHR_materials_transmission", "KHR_materials_unlit",
+constexpr std::array<std::string_view, 20> kSupportedExtensions = {
+    "EXT_mesh_gpu_instancing",
+    "EXT_meshopt_compression",
+    "EXT_texture_webp",
+    "KHR_draco_mesh_compression",
+    "KHR_lights_punctual",
+    "KHR_materials_anisotropy",
+    "KHR_materials_clearcoat",
+    "KHR_materials_emissive_strength",
+    "KHR_materials_ior",
+    "KHR_materials_iridescence",
+    "KHR_materials_pbrSpecularGlossiness",
+    "KHR_materials_sheen",
+    "KHR_materials_specular",
+    "KHR_materials_transmission",
+    "KHR_materials_unlit",
     "KHR_materials_variants",  // the default materials are drawn (read_material_variants)
-    "KHR_materials_volume",       "KHR_mesh_quantization",
-    "KHR_meshopt_compression",    "KHR_texture_transform"};
+    "KHR_materials_volume",
+    "KHR_mesh_quantization",
+    "KHR_meshopt_compression",
+    "KHR_texture_transform"};
 
 // The default lighting of a scene without lights (what glTF viewers do): a directional
 // headlight that moves with the scene's camera and a uniform sky term. The headlight comes from
@@ -247,6 +257,8 @@ class Loader {
   void read_sheen(size_t m, const tinygltf::Material& in, const std::string& what, Material* out);
   void read_anisotropy(size_t m, const tinygltf::Material& in, const std::string& what,
                        Material* out);
+  void read_iridescence(size_t m, const tinygltf::Material& in, const std::string& what,
+                        Material* out);
   std::optional<glm::dmat3> read_texture_transform(const tinygltf::ExtensionMap& extensions,
                                                    const std::string& what, int* tex_coord);
   // How a texture slot reads its image: as sRGB-encoded color, as linear data, or as linear
@@ -319,7 +331,8 @@ class Loader {
   // Per glTF material, its sets in slot order (base color, metallic-roughness, or for
   // KHR_materials_pbrSpecularGlossiness diffuse, specular color and glossiness; emissive,
   // occlusion, normal, then the other extensions' slots: transmission, specular, specular color,
-  // clearcoat, clearcoat roughness, clearcoat normal, sheen color, sheen roughness, anisotropy);
+  // clearcoat, clearcoat roughness, clearcoat normal, sheen color, sheen roughness, anisotropy,
+  // iridescence, iridescence thickness);
   // empty for a material without textures, whose primitives read TEXCOORD_0 as they are.
   std::vector<std::vector<UvSource>> uv_sources_;
   size_t morph_displacements_ = 0;  // read so far, at most kMaxMorphDisplacements
@@ -1569,6 +1582,7 @@ bool unit_interval(double v) { return v >= 0.0 && v <= 1.0; }
 bool non_negative(double v) { return v >= 0.0 && std::isfinite(v); }
 bool positive(double v) { return v > 0.0; }  // infinity too: no attenuation
 bool finite(double v) { return std::isfinite(v); }
+bool at_least_one(double v) { return v >= 1.0 && std::isfinite(v); }
 // KHR_materials_ior: 0 stands for a Fresnel term of 1.
 bool ior_value(double v) { return v == 0.0 || (v >= 1.0 && std::isfinite(v)); }
 }  // namespace
@@ -1772,6 +1786,28 @@ void Loader::read_anisotropy(size_t m, const tinygltf::Material& in, const std::
                                                    ImageData::kLinear, &out->uv_set.anisotropy);
 }
 
+// KHR_materials_iridescence: iridescenceFactor (0 to 1, default 0), iridescenceIor (>= 1,
+// default 1.3), iridescenceThicknessMinimum and Maximum (nanometres >= 0, defaults 100 and 400),
+// iridescenceTexture (red: the factor) and iridescenceThicknessTexture (green: the thickness
+// between the two).
+void Loader::read_iridescence(size_t m, const tinygltf::Material& in, const std::string& what,
+                              Material* out) {
+  std::string where;
+  const tinygltf::Value* e = material_extension(in, "KHR_materials_iridescence", what, &where);
+  if (e == nullptr) return;
+  read_number(*e, "iridescenceFactor", where, unit_interval, "a number 0 to 1", &out->iridescence);
+  read_number(*e, "iridescenceIor", where, at_least_one, "a number >= 1", &out->iridescence_ior);
+  read_number(*e, "iridescenceThicknessMinimum", where, non_negative, "nanometres >= 0",
+              &out->iridescence_thickness_min);
+  read_number(*e, "iridescenceThicknessMaximum", where, non_negative, "nanometres >= 0",
+              &out->iridescence_thickness_max);
+  out->iridescence_texture = read_extension_texture(m, *e, "iridescenceTexture", where,
+                                                    ImageData::kLinear, &out->uv_set.iridescence);
+  out->iridescence_thickness_texture =
+      read_extension_texture(m, *e, "iridescenceThicknessTexture", where, ImageData::kLinear,
+                             &out->uv_set.iridescence_thickness);
+}
+
 void Loader::load_materials() {
   uv_sources_.assign(model_.materials.size(), {});
   for (size_t m = 0; m < model_.materials.size(); ++m) {
@@ -1866,6 +1902,7 @@ void Loader::load_materials() {
     read_volume(in, what, &out);
     read_sheen(m, in, what, &out);
     read_anisotropy(m, in, what, &out);
+    read_iridescence(m, in, what, &out);
     if (in.extras.Has("afr_ambient")) out.ambient = read_rgb_extra(in.extras, "afr_ambient", what);
     scene_.materials.push_back(std::move(out));
   }

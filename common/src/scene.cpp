@@ -440,7 +440,8 @@ void Scene::finalize() {
           mat.occlusion_texture, mat.normal_texture, mat.transmission_texture, mat.specular_texture,
           mat.specular_color_texture, mat.clearcoat_texture, mat.clearcoat_roughness_texture,
           mat.clearcoat_normal_texture, mat.sheen_color_texture, mat.sheen_roughness_texture,
-          mat.anisotropy_texture, mat.glossiness_texture}) {
+          mat.anisotropy_texture, mat.glossiness_texture, mat.iridescence_texture,
+          mat.iridescence_thickness_texture}) {
       if (t != -1 && !in_range(t, textures.size())) {
         throw err(fmt::format("material {} ('{}') names texture {} of {}", m, mat.name, t,
                               textures.size()));

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <numbers>
 
 namespace afr::shading {
 
@@ -48,7 +49,7 @@ void derive(ShadeMaterial* m, float metallic, float roughness) {
   m->has_ambient = !is_black(m->scene_ambient * (m->ambient + m->ambient_specular));
   m->has_diffuse = m->diffuse_weight > 0.0f && !is_black(m->base);
   m->layered = m->sheen_max > 0.0f || m->clearcoat > 0.0f;
-  m->extended = m->layered || m->anisotropy > 0.0f;
+  m->extended = m->layered || m->anisotropy > 0.0f || m->iridescence > 0.0f;
   // A fully rough dielectric is left Lambertian (AFF and NFF materials, glTF's rough
   // plastics), but not a specular-glossiness material, whose F0 may be a metal's.
   m->has_specular = !(roughness >= 1.0f && m->metallic <= 0.0f && !m->specular_glossiness) &&
@@ -190,13 +191,22 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
         glm::vec2(std::cos(mat.anisotropy_rotation), std::sin(mat.anisotropy_rotation));
     m.anisotropy_texture = texture_at(mat.anisotropy_texture, scene);
   }
+  if (mat.iridescence > 0.0f) {
+    m.iridescence = m.iridescence_factor = std::min(mat.iridescence, 1.0f);
+    m.iridescence_ior = mat.iridescence_ior;
+    m.iridescence_thickness_min = mat.iridescence_thickness_min;
+    m.iridescence_thickness_max = m.iridescence_thickness = mat.iridescence_thickness_max;
+    m.iridescence_texture = texture_at(mat.iridescence_texture, scene);
+    m.iridescence_thickness_texture = texture_at(mat.iridescence_thickness_texture, scene);
+  }
   if (m.specular_glossiness && mat.roughness < 1.0f) {
     m.glossiness_texture = texture_at(mat.glossiness_texture, scene);
   }
   m.varies = m.anisotropy_texture || m.metallic_roughness || m.emissive_texture || m.occlusion ||
              m.transmission_texture || m.specular_texture || m.specular_color_texture ||
              m.clearcoat_texture || m.clearcoat_roughness_texture || m.sheen_color_texture ||
-             m.sheen_roughness_texture || m.glossiness_texture;
+             m.sheen_roughness_texture || m.glossiness_texture || m.iridescence_texture ||
+             m.iridescence_thickness_texture;
   m.needs_layers = m.clearcoat > 0.0f || m.anisotropy_factor > 0.0f;
   derive(&m, m.metallic_factor, m.roughness_factor);
   if (mat.unlit) {
@@ -204,7 +214,7 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
     // nothing bounces off, passes through or varies the surface.
     m.unlit = true;
     m.is_mirror = m.is_glass = m.varies = m.clearcoat_mirror = false;
-    m.clearcoat = m.sheen_max = m.anisotropy = 0.0f;
+    m.clearcoat = m.sheen_max = m.anisotropy = m.iridescence = 0.0f;
     m.layered = m.extended = m.needs_layers = false;
     m.normal_map = m.clearcoat_normal_map = nullptr;
     m.shadow_transmittance = glm::vec3(0.0f);
@@ -229,6 +239,12 @@ void vary(ShadeMaterial* m, const Texels& t) {
               m->sheen_roughness_factor * t.sheen_roughness.r);
   }
   if (m->anisotropy_texture) m->anisotropy = m->anisotropy_factor * t.anisotropy.b;
+  if (m->iridescence_texture) m->iridescence = m->iridescence_factor * t.iridescence.r;
+  if (m->iridescence_thickness_texture) {
+    m->iridescence_thickness =
+        m->iridescence_thickness_min +
+        (m->iridescence_thickness_max - m->iridescence_thickness_min) * t.iridescence_thickness.g;
+  }
   const float roughness = m->specular_glossiness
                               ? 1.0f - (1.0f - m->roughness_factor) * t.glossiness.r
                               : m->roughness_factor * t.metallic_roughness.g;
@@ -319,7 +335,7 @@ float sheen_albedo(float a, float n_dot_v) {
 glm::vec3 extended_brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, const glm::vec3& f0,
                             const glm::vec3& n, const glm::vec3& v, const glm::vec3& l,
                             float n_dot_v, float n_dot_l, const LayerFrame* layers,
-                            float beneath_sheen) {
+                            float beneath_sheen, const glm::vec3& iridescent) {
   glm::vec3 h = v + l;
   const float h_len2 = glm::dot(h, h);
   if (!(h_len2 > 1e-12f)) return diffuse * (n_dot_l / kPi);
@@ -339,7 +355,9 @@ glm::vec3 extended_brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, co
     } else {
       d_vis = ggx_d_vis(m.alpha, n_dot_h, n_dot_v, n_dot_l);
     }
-    f += fresnel_schlick(f0, v_dot_h, fresnel_f90(m)) * d_vis;
+    glm::vec3 fresnel = fresnel_schlick(f0, v_dot_h, fresnel_f90(m));
+    if (m.iridescence > 0.0f) fresnel = glm::mix(fresnel, iridescent, m.iridescence);
+    f += fresnel * d_vis;
   }
   if (m.sheen_max > 0.0f) {
     // The sheen takes, from what lies beneath it, the larger of its albedos toward the viewer and
@@ -362,6 +380,83 @@ glm::vec3 extended_brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, co
     }
   }
   return result;
+}
+
+namespace {
+
+// iridescent_fresnel's helpers, as the extension defines them.
+// The normal-incidence reflectance between media of indices n_t and n_i.
+float ior_to_f0(float n_t, float n_i) {
+  const float r = (n_t - n_i) / (n_t + n_i);
+  return r * r;
+}
+float schlick(float f0, float cos_theta) {
+  const float k = 1.0f - cos_theta;
+  const float k2 = k * k;
+  return f0 + (1.0f - f0) * (k2 * k2 * k);
+}
+// The CIE observer's sensitivity in Fourier space at optical path difference opd (nanometres)
+// with phase shift `shift` per channel, as linear sRGB: the extension's Gaussian fit of X, Y
+// and Z (X with a second lobe), through the XYZ-to-Rec.709 matrix.
+glm::dvec3 eval_sensitivity(double opd, const glm::dvec3& shift) {
+  const double phase = 2.0 * std::numbers::pi * opd * 1.0e-9;
+  const glm::dvec3 val(5.4856e-13, 4.4201e-13, 5.2481e-13);
+  const glm::dvec3 pos(1.6810e+06, 1.7953e+06, 2.2084e+06);
+  const glm::dvec3 var(4.3278e+09, 9.3046e+09, 6.6121e+09);
+  glm::dvec3 xyz = val * glm::sqrt(2.0 * std::numbers::pi * var) * glm::cos(pos * phase + shift) *
+                   glm::exp(-(phase * phase) * var);
+  xyz.x += 9.7470e-14 * std::sqrt(2.0 * std::numbers::pi * 4.5282e+09) *
+           std::cos(2.2399e+06 * phase + shift.x) * std::exp(-4.5282e+09 * phase * phase);
+  xyz /= 1.0685e-7;
+  const glm::dmat3 xyz_to_rec709(3.2404542, -0.9692660, 0.0556434,   // column x
+                                 -1.5371385, 1.8760108, -0.2040259,  // column y
+                                 -0.4985314, 0.0415560, 1.0572252);  // column z
+  return xyz_to_rec709 * xyz;
+}
+
+}  // namespace
+
+glm::vec3 iridescent_fresnel(float film_ior, float thickness_nm, float cos_theta,
+                             const glm::vec3& base_f0) {
+  constexpr float kOutside = 1.0f;  // air
+  cos_theta = glm::clamp(cos_theta, 0.0f, 1.0f);
+  // The film's ior goes to the outside's as its thickness goes to 0 (no film).
+  const float t = glm::clamp(thickness_nm / 0.03f, 0.0f, 1.0f);
+  const float ior = kOutside + (film_ior - kOutside) * (t * t * (3.0f - 2.0f * t));
+  // Snell into the film; total internal reflection reflects everything.
+  const float sin2_film = (kOutside / ior) * (kOutside / ior) * (1.0f - cos_theta * cos_theta);
+  const float cos2_film = 1.0f - sin2_film;
+  if (cos2_film < 0.0f) return glm::vec3(1.0f);
+  const float cos_film = std::sqrt(cos2_film);
+
+  // The first interface (outside to film), and its phase shifts.
+  const float r12 = schlick(ior_to_f0(ior, kOutside), cos_theta);
+  const float t121 = 1.0f - r12;
+  const double phi12 = ior < kOutside ? std::numbers::pi : 0.0;
+  const double phi21 = std::numbers::pi - phi12;
+  // The second (film to base): the base's ior from its F0, guarded below 1.
+  glm::vec3 r23;
+  glm::dvec3 phi23(0.0);
+  for (int c = 0; c < 3; ++c) {
+    const float s = std::sqrt(glm::clamp(base_f0[c], 0.0f, 0.9999f));
+    const float base_ior = (1.0f + s) / (1.0f - s);
+    r23[c] = schlick(ior_to_f0(base_ior, ior), cos_film);
+    if (base_ior < ior) phi23[c] = std::numbers::pi;
+  }
+  // The optical path difference of one round trip through the film, and the phase.
+  const double opd = 2.0 * double(ior) * double(thickness_nm) * double(cos_film);
+  const glm::dvec3 phi = glm::dvec3(phi21) + phi23;
+  // The series of reflections: its mean (m = 0) and its first two orders.
+  const glm::dvec3 r123 = glm::clamp(glm::dvec3(r12 * r23), 1e-5, 0.9999);
+  const glm::dvec3 root = glm::sqrt(r123);
+  const glm::dvec3 rs = double(t121) * double(t121) * glm::dvec3(r23) / (1.0 - r123);
+  glm::dvec3 reflectance = double(r12) + rs;
+  glm::dvec3 cm = rs - double(t121);
+  for (int m = 1; m <= 2; ++m) {
+    cm *= root;
+    reflectance += cm * 2.0 * eval_sensitivity(m * opd, double(m) * phi);
+  }
+  return glm::vec3(glm::max(reflectance, glm::dvec3(0.0)));
 }
 
 LightRecord make_light_record(const Light& light, const glm::dmat4& world) {

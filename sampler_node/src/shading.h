@@ -12,7 +12,8 @@
 //   with KHR_materials_anisotropy the GGX lobe stretched along a direction of the surface; with
 //   KHR_materials_sheen a Charlie lobe over it, which takes max(sheen color) x E(n.v) (its own
 //   directional albedo) from the BRDF beneath; with KHR_materials_clearcoat a GGX coat over
-//   both (extended_brdf_cos);
+//   both; with KHR_materials_iridescence a thin film's reflectance mixed into the Fresnel term
+//   (extended_brdf_cos); with KHR_materials_pbrSpecularGlossiness F0 given, metallic 0;
 // - base = base_color_factor x base-color texture x COLOR_0 (interpolated); the ambient
 //   reflectance (Material::ambient, else the base color factor) is multiplied by the texture
 //   and the vertex colors too, so they show in ambient light.
@@ -33,7 +34,8 @@ inline constexpr float kMinDirectRoughness = 0.1f;
 
 // What the shader needs of one Material, with the work it implies decided once. A material
 // whose textures vary it over a surface (`varies`: metallic-roughness, emissive, occlusion, or
-// an extension's transmission, specular, clearcoat, sheen or anisotropy texture) is decided
+// an extension's transmission, specular, clearcoat, sheen, anisotropy, glossiness or
+// iridescence texture) is decided
 // again at each shading point (vary()), from the factors kept here.
 struct ShadeMaterial {
   glm::vec3 base{1.0f};     // base color factor (rgb)
@@ -61,6 +63,9 @@ struct ShadeMaterial {
   const Texture* sheen_roughness_texture = nullptr;  // the image's alpha, held in red
   // KHR_materials_pbrSpecularGlossiness's glossiness (the image's alpha, held in red).
   const Texture* glossiness_texture = nullptr;
+  // KHR_materials_iridescence's weight (red) and film thickness (green).
+  const Texture* iridescence_texture = nullptr;
+  const Texture* iridescence_thickness_texture = nullptr;
   bool varies = false;  // one of the textures above is set
   // The normal texture (tangent space, linear data; null: none) and its scale: it bends the
   // shading normal (Tracer::Impl::make_surface), not the material.
@@ -102,6 +107,14 @@ struct ShadeMaterial {
   glm::vec2 anisotropy_rotation{1.0f, 0.0f};
   const Texture* anisotropy_texture = nullptr;
   float alpha_t = 1.0f;
+  // KHR_materials_iridescence: the film's weight at this point (0: none; the factor x the
+  // texel), the factor, its ior, and its thickness in nanometres at this point and its range.
+  float iridescence = 0.0f;
+  float iridescence_factor = 0.0f;
+  float iridescence_ior = 1.3f;
+  float iridescence_thickness = 400.0f;
+  float iridescence_thickness_min = 100.0f;
+  float iridescence_thickness_max = 400.0f;
   // Glass (KHR_materials_transmission, KHR_materials_ior): what tracer.cpp's glass() needs.
   float transmission = 0.0f;
   float ior = 1.5f;
@@ -123,8 +136,9 @@ struct ShadeMaterial {
   float clearcoat = 0.0f;
   float clearcoat_alpha = 1.0f;
   bool clearcoat_mirror = false;
-  bool layered = false;   // a sheen or a clear coat lies over the material (derive() decides)
-  bool extended = false;  // layered or anisotropic: shaded by extended_brdf_cos (likewise)
+  bool layered = false;  // a sheen or a clear coat lies over the material (derive() decides)
+  // Layered, anisotropic or iridescent: shaded by extended_brdf_cos (likewise).
+  bool extended = false;
   // The material has a clear coat or anisotropy somewhere, so its points need a LayerFrame.
   bool needs_layers = false;
   // KHR_materials_sheen: the fibres' color (black: no sheen, and nothing else below is read),
@@ -179,6 +193,8 @@ struct Texels {
   glm::vec3 sheen_roughness{1.0f};      // red (the image's alpha) x the sheen roughness factor
   glm::vec3 anisotropy{1.0f};           // blue x the anisotropy strength (red, green: make_surface)
   glm::vec3 glossiness{1.0f};           // red (the image's alpha) x the glossiness (1 - roughness)
+  glm::vec3 iridescence{1.0f};          // red x the iridescence factor
+  glm::vec3 iridescence_thickness{1.0f};  // green: the thickness from its minimum to its maximum
 };
 
 // The material at one point of a surface whose material varies: `m` (as make_shade_material
@@ -249,6 +265,14 @@ inline glm::vec3 fresnel_f0(const ShadeMaterial& m, const glm::vec3& base) {
 inline float fresnel_f90(const ShadeMaterial& m) {
   return m.specular_f90 + (1.0f - m.specular_f90) * m.metallic;
 }
+
+// KHR_materials_iridescence: the reflectance of a thin film of index film_ior and thickness
+// `thickness_nm` over a base of normal-incidence reflectance base_f0, in air, seen at cosine
+// cos_theta: the extension's evaluation (Belcour and Barla's, the interference of the film's
+// first two orders of reflection, integrated against the CIE observer through its Gaussian fit
+// and turned into linear sRGB), clamped at 0. A film of thickness 0 vanishes (ior -> 1).
+glm::vec3 iridescent_fresnel(float film_ior, float thickness_nm, float cos_theta,
+                             const glm::vec3& base_f0);
 
 // The share of the light a clear coat (F0 0.04, glTF's fresnel_coat) reflects at n.v.
 inline float coat_fresnel(float n_dot_v) { return fresnel_schlick(glm::vec3(0.04f), n_dot_v).x; }
@@ -327,8 +351,11 @@ inline glm::vec3 brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, cons
   return f * n_dot_l;
 }
 
-// brdf_cos for a material with a sheen, a clear coat or anisotropy (ShadeMaterial::extended),
-// out of line so that the others' shading does not carry it. `layers` is the point's (null
+// brdf_cos for a material with a sheen, a clear coat, anisotropy or iridescence
+// (ShadeMaterial::extended), out of line so that the others' shading does not carry it. An
+// iridescent film mixes `iridescent` (iridescent_fresnel at n.v, computed once per point, as the
+// extension's sample viewer does) into the specular lobe's Fresnel term by its weight. `layers`
+// is the point's (null
 // where the material has neither a coat nor anisotropy): the specular lobe is anisotropic along
 // aniso_t where the material has anisotropy and the point a tangent frame; a sheen takes
 // max(sheen color) x E from what lies beneath it (`beneath_sheen`: sheen_scaling(m, n.v), 1
@@ -337,6 +364,6 @@ inline glm::vec3 brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, cons
 glm::vec3 extended_brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, const glm::vec3& f0,
                             const glm::vec3& n, const glm::vec3& v, const glm::vec3& l,
                             float n_dot_v, float n_dot_l, const LayerFrame* layers,
-                            float beneath_sheen);
+                            float beneath_sheen, const glm::vec3& iridescent);
 
 }  // namespace afr::shading

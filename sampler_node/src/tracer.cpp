@@ -73,6 +73,8 @@ struct SlotUvs {
   const glm::vec2* sheen_roughness = nullptr;
   const glm::vec2* anisotropy = nullptr;  // also the anisotropy's tangent frame
   const glm::vec2* glossiness = nullptr;
+  const glm::vec2* iridescence = nullptr;
+  const glm::vec2* iridescence_thickness = nullptr;
 };
 
 // Set k of p's texture coordinates, or null where p has none.
@@ -211,6 +213,7 @@ struct LocalTerms {
   float offset = 0.0f;
   float n_dot_v = 1.0f;
   float beneath_sheen = 1.0f;  // shading::sheen_scaling at n.v (1 without sheen)
+  glm::vec3 iridescent{0.0f};  // shading::iridescent_fresnel at n.v, where the film has weight
 };
 
 void init_ray(RTCRay* r, const glm::vec3& o, const glm::vec3& d, float tnear, float tfar) {
@@ -493,14 +496,23 @@ struct Tracer::Impl {
     const bool own = p.material >= 0 && size_t(p.material) < scene_.materials.size();
     const Material::TextureSets sets =
         own ? scene_.materials[size_t(p.material)].uv_set : Material::TextureSets{};
-    return SlotUvs{uv_data(p, sets.base_color),       uv_data(p, sets.metallic_roughness),
-                   uv_data(p, sets.emissive),         uv_data(p, sets.occlusion),
-                   uv_data(p, sets.normal),           uv_data(p, sets.transmission),
-                   uv_data(p, sets.specular),         uv_data(p, sets.specular_color),
-                   uv_data(p, sets.clearcoat),        uv_data(p, sets.clearcoat_roughness),
-                   uv_data(p, sets.clearcoat_normal), uv_data(p, sets.sheen_color),
-                   uv_data(p, sets.sheen_roughness),  uv_data(p, sets.anisotropy),
-                   uv_data(p, sets.glossiness)};
+    return SlotUvs{uv_data(p, sets.base_color),
+                   uv_data(p, sets.metallic_roughness),
+                   uv_data(p, sets.emissive),
+                   uv_data(p, sets.occlusion),
+                   uv_data(p, sets.normal),
+                   uv_data(p, sets.transmission),
+                   uv_data(p, sets.specular),
+                   uv_data(p, sets.specular_color),
+                   uv_data(p, sets.clearcoat),
+                   uv_data(p, sets.clearcoat_roughness),
+                   uv_data(p, sets.clearcoat_normal),
+                   uv_data(p, sets.sheen_color),
+                   uv_data(p, sets.sheen_roughness),
+                   uv_data(p, sets.anisotropy),
+                   uv_data(p, sets.glossiness),
+                   uv_data(p, sets.iridescence),
+                   uv_data(p, sets.iridescence_thickness)};
   }
   // p's COLOR_0 alpha where its material (an index into materials_) tests alpha, else null.
   const float* tested_alpha(const Primitive& p, uint32_t material) const {
@@ -1300,6 +1312,8 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
     read(m.sheen_roughness_texture, g.uvs.sheen_roughness, &t.sheen_roughness);
     read(m.anisotropy_texture, g.uvs.anisotropy, &t.anisotropy);  // its blue: the strength
     read(m.glossiness_texture, g.uvs.glossiness, &t.glossiness);
+    read(m.iridescence_texture, g.uvs.iridescence, &t.iridescence);
+    read(m.iridescence_thickness_texture, g.uvs.iridescence_thickness, &t.iridescence_thickness);
     if (any) {
       ShadeMaterial& here = s->at_point.emplace(m);
       shading::vary(&here, t);
@@ -1381,6 +1395,10 @@ bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const gl
   terms->offset = offset_at(s.p);
   terms->origin = s.p + terms->offset * s.ng;
   terms->n_dot_v = std::max(glm::dot(s.ns, wo), 1e-4f);
+  if (m.iridescence > 0.0f) {
+    terms->iridescent = shading::iridescent_fresnel(m.iridescence_ior, m.iridescence_thickness,
+                                                    terms->n_dot_v, terms->f0);
+  }
   return true;
 }
 
@@ -1399,11 +1417,12 @@ bool Tracer::Impl::light_contribution(const LightRecord& light, const Surface& s
   if (n_dot_l <= 0.0f) return false;
   const ShadeMaterial& m = *s.material;
   *contribution =
-      incident * (m.extended ? shading::extended_brdf_cos(
-                                   m, terms.diffuse, terms.f0, s.ns, wo, *l, terms.n_dot_v, n_dot_l,
-                                   m.needs_layers ? &*s.layers : nullptr, terms.beneath_sheen)
-                             : shading::brdf_cos(m, terms.diffuse, terms.f0, s.ns, wo, *l,
-                                                 terms.n_dot_v, n_dot_l));
+      incident *
+      (m.extended
+           ? shading::extended_brdf_cos(m, terms.diffuse, terms.f0, s.ns, wo, *l, terms.n_dot_v,
+                                        n_dot_l, m.needs_layers ? &*s.layers : nullptr,
+                                        terms.beneath_sheen, terms.iridescent)
+           : shading::brdf_cos(m, terms.diffuse, terms.f0, s.ns, wo, *l, terms.n_dot_v, n_dot_l));
   *shadow_tfar = distance - 2.0f * terms.offset;
   return true;
 }
@@ -1555,8 +1574,15 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
       break;
     }
     const float n_dot_v = -glm::dot(s.ns, d);
-    throughput *= shading::fresnel_schlick(shading::fresnel_f0(m, m.base * tex), n_dot_v,
-                                           shading::fresnel_f90(m));
+    const glm::vec3 f0 = shading::fresnel_f0(m, m.base * tex);
+    glm::vec3 fresnel = shading::fresnel_schlick(f0, n_dot_v, shading::fresnel_f90(m));
+    if (m.iridescence > 0.0f) {
+      fresnel = glm::mix(
+          fresnel,
+          shading::iridescent_fresnel(m.iridescence_ior, m.iridescence_thickness, n_dot_v, f0),
+          m.iridescence);
+    }
+    throughput *= fresnel;
     if (std::max(throughput.r, std::max(throughput.g, throughput.b)) < kMinThroughput) break;
     glm::vec3 r;
     if (!mirror_direction(d, s, s.ns, &r)) break;

@@ -149,6 +149,9 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
       },
       [](Scene* s) { s->materials[0].glossiness_texture = 0; });
   expect_seen(
+      "iridescence", [](Scene* s) { s->materials[0].iridescence = 1.0f; },
+      [](Scene* s) { s->materials[0].iridescence_thickness_max = 300.0f; });
+  expect_seen(
       "clearcoat", [](Scene* s) { s->materials[0].clearcoat = 1.0f; },
       [](Scene* s) { s->materials[0].clearcoat_roughness = 0.5f; });
   expect_seen(

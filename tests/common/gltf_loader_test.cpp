@@ -1611,6 +1611,61 @@ TEST_F(GltfLoaderTest, MaterialVariantsLoadWithTheDefaultMaterials) {
   }
 }
 
+// KHR_materials_iridescence: its factor, ior, thickness range and textures (data) are read,
+// with the extension's defaults; an ior below 1 or a negative thickness fails naming them.
+TEST_F(GltfLoaderTest, IridescenceIsRead) {
+  write_image8(DecodedImage{1, 1, 3, {255, 128, 64}}, dir_ / "film.png");
+  GltfBuilder b;
+  add_quad(&b);
+  json& primitive = b.doc()["meshes"][0]["primitives"][0];
+  primitive["material"] = 0;
+  primitive["attributes"]["TEXCOORD_0"] = b.add_floats({0, 0, 1, 0, 1, 1, 0, 1}, 2);
+  b.doc()["images"] = json::array({{{"uri", "film.png"}}});
+  b.doc()["textures"] = json::array({{{"source", 0}}});
+  b.doc()["extensionsUsed"] = {"KHR_materials_iridescence"};
+  b.doc()["extensionsRequired"] = {"KHR_materials_iridescence"};
+  b.doc()["materials"] =
+      json::array({{{"extensions",
+                     {{"KHR_materials_iridescence",
+                       {{"iridescenceFactor", 0.75},
+                        {"iridescenceIor", 1.8},
+                        {"iridescenceThicknessMinimum", 50.0},
+                        {"iridescenceThicknessMaximum", 800.0},
+                        {"iridescenceTexture", {{"index", 0}}},
+                        {"iridescenceThicknessTexture", {{"index", 0}}}}}}}},
+                   {{"extensions", {{"KHR_materials_iridescence", json::object()}}}}});
+  b.write_embedded(dir_ / "iridescence.gltf");
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir_ / "iridescence.gltf", &report);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+  ASSERT_EQ(scene.materials.size(), 2u);
+  const Material& m = scene.materials[0];
+  EXPECT_EQ(m.iridescence, 0.75f);
+  EXPECT_EQ(m.iridescence_ior, 1.8f);
+  EXPECT_EQ(m.iridescence_thickness_min, 50.0f);
+  EXPECT_EQ(m.iridescence_thickness_max, 800.0f);
+  ASSERT_EQ(m.iridescence_texture, 0);
+  EXPECT_EQ(m.iridescence_thickness_texture, 0);
+  EXPECT_NEAR(scene.textures[0].texel(0).g, 128 / 255.0, 1e-6);  // data, not sRGB
+  const Material& plain = scene.materials[1];
+  EXPECT_EQ(plain.iridescence, 0.0f);
+  EXPECT_EQ(plain.iridescence_ior, 1.3f);
+  EXPECT_EQ(plain.iridescence_thickness_min, 100.0f);
+  EXPECT_EQ(plain.iridescence_thickness_max, 400.0f);
+  EXPECT_EQ(plain.iridescence_texture, -1);
+
+  json& e = b.doc()["materials"][0]["extensions"]["KHR_materials_iridescence"];
+  e["iridescenceIor"] = 0.5;
+  b.write_embedded(dir_ / "ior.gltf");
+  expect_error(dir_ / "ior.gltf",
+               "material 0 KHR_materials_iridescence has an invalid iridescenceIor");
+  e["iridescenceIor"] = 1.3;
+  e["iridescenceThicknessMaximum"] = -1.0;
+  b.write_embedded(dir_ / "thickness.gltf");
+  expect_error(dir_ / "thickness.gltf",
+               "material 0 KHR_materials_iridescence has an invalid iridescenceThicknessMaximum");
+}
+
 // KHR_materials_unlit is read, also where a file requires it.
 TEST_F(GltfLoaderTest, UnlitMaterialsAreRead) {
   GltfBuilder b;

@@ -213,10 +213,15 @@ def gltf_seeds():
              "KHR_materials_sheen": {"sheenColorFactor": [1, 0.5, 0.5], "sheenColorTexture": one,
                                      "sheenRoughnessFactor": 0.5, "sheenRoughnessTexture": other},
              "KHR_materials_anisotropy": {"anisotropyStrength": 0.6, "anisotropyRotation": 0.5,
-                                          "anisotropyTexture": other}}}]
+                                          "anisotropyTexture": other},
+             "KHR_materials_iridescence": {"iridescenceFactor": 0.8, "iridescenceTexture": one,
+                                           "iridescenceIor": 1.4, "iridescenceThicknessMinimum": 150,
+                                           "iridescenceThicknessMaximum": 500,
+                                           "iridescenceThicknessTexture": other}}}]
     g.doc["extensionsUsed"] = ["KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_volume",
                                "KHR_materials_specular", "KHR_materials_clearcoat", "KHR_materials_sheen",
-                               "KHR_materials_anisotropy", "KHR_texture_transform"]
+                               "KHR_materials_anisotropy", "KHR_materials_iridescence",
+                               "KHR_texture_transform"]
     write("gltf", "material_extensions.gltf", g.embedded())
 
     # The specular-glossiness workflow with its textures over a metallic-roughness fallback, and

@@ -1353,6 +1353,53 @@ TEST(TracerTest, SpecularGlossinessSetsF0AndRoughness) {
   expect_near3(in_ambient(spec_gloss(glm::vec3(0.0f), gold, 0.5f)), metal, 1e-5f, "gold");
 }
 
+// KHR_materials_iridescence on a black dielectric square lit and seen straight on (v = l = n =
+// h): the highlight's Fresnel term becomes mix(F0, F_film, weight). A film far thicker than
+// light's coherence (20 um) shows no interference: F_film is the sum of the film's incoherent
+// reflections, r12 + (1 - r12)^2 r23 / (1 - r12 r23) with r12 between air and the film (ior
+// 1.3) and r23 between the film and the base (ior 1.5, from F0 0.04), the same in every
+// channel. A film 300 nm thick colors the highlight (its channels differ); the textures scale
+// the weight (red) and place the thickness between minimum and maximum (green) as the factors
+// do; weight 0 is no film.
+TEST(TracerTest, IridescenceMixesTheThinFilmsReflectanceIntoTheHighlight) {
+  const auto highlight = [](float weight, float thickness_max,
+                            const std::function<void(Scene*, Material*)>& more = {}) {
+    return square_lit_straight_on_scene([&](Scene* s, Material* m) {
+      m->base_color_factor = glm::vec4(0.0f, 0.0f, 0.0f, 1.0f);
+      m->roughness = 0.5f;
+      m->iridescence = weight;
+      m->iridescence_ior = 1.3f;
+      m->iridescence_thickness_max = thickness_max;
+      if (more) more(s, m);
+    });
+  };
+  const glm::vec3 core = highlight(0.0f, 400.0f);
+  ASSERT_GT(core.r, 0.0f);
+  const auto f0 = [](double a, double b) { return ((a - b) / (a + b)) * ((a - b) / (a + b)); };
+  const double r12 = f0(1.3, 1.0), r23 = f0(1.5, 1.3);
+  const double incoherent = r12 + (1.0 - r12) * (1.0 - r12) * r23 / (1.0 - r12 * r23);
+  expect_near3(highlight(1.0f, 20000.0f) / core.r, glm::vec3(float(incoherent / 0.04)), 1e-3f,
+               "thick film");
+  expect_near3(highlight(0.5f, 20000.0f) / core.r, glm::vec3(float(0.5 + 0.5 * incoherent / 0.04)),
+               1e-3f, "half weight");
+  const glm::vec3 film = highlight(1.0f, 300.0f) / core.r;
+  EXPECT_GT(std::max({film.r, film.g, film.b}) - std::min({film.r, film.g, film.b}), 0.1f)
+      << film.r << " " << film.g << " " << film.b;
+  expect_near3(highlight(1.0f, 300.0f,
+                         [](Scene* s, Material* m) {
+                           m->iridescence_thickness_min = 200.0f;
+                           m->iridescence_thickness_max = 400.0f;
+                           m->iridescence_thickness_texture = add_texel(s, {0.0f, 0.5f, 0.0f});
+                         }),
+               highlight(1.0f, 300.0f), 1e-6f, "thickness texture");
+  expect_near3(highlight(1.0f, 300.0f,
+                         [](Scene* s, Material* m) {
+                           m->iridescence_texture = add_texel(s, {0.5f, 0.0f, 0.0f});
+                         }),
+               highlight(0.5f, 300.0f), 1e-6f, "weight texture");
+  expect_near3(highlight(0.0f, 300.0f), core, 0.0f, "no film");
+}
+
 // The clear coat lies on its own normal (glTF's clearcoatNormal): the interpolated normal, which
 // the material's normal texture does not bend, bent only by clearcoatNormalTexture. A square
 // with only a coat (black base, no specular of its own) of roughness 0.5, lit and seen straight

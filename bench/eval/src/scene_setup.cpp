@@ -161,6 +161,16 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.value(m.specular);
       h.value(m.specular_color);
     }
+    if (m.iridescence > 0.0f) {
+      h.value(m.iridescence);
+      h.value(m.iridescence_ior);
+      h.value(m.iridescence_thickness_min);
+      h.value(m.iridescence_thickness_max);
+      h.value(m.iridescence_texture);
+      h.value(m.iridescence_thickness_texture);
+      h.value(m.uv_set.iridescence);
+      h.value(m.uv_set.iridescence_thickness);
+    }
     if (m.specular_glossiness) {
       h.value(m.specular_glossiness);
       h.value(m.glossiness_texture);

@@ -195,6 +195,8 @@ struct Material {
     uint8_t sheen_roughness = 0;
     uint8_t anisotropy = 0;
     uint8_t glossiness = 0;
+    uint8_t iridescence = 0;
+    uint8_t iridescence_thickness = 0;
     bool operator==(const TextureSets&) const = default;
   };
   TextureSets uv_set;
@@ -260,6 +262,17 @@ struct Material {
   // diffuse part keeps 1 - max(F0) of its light, as the extension's model has it.
   bool specular_glossiness = false;
   int glossiness_texture = -1;
+  // KHR_materials_iridescence: a thin film over the material, of weight `iridescence` (times
+  // iridescence_texture's red) and index of refraction iridescence_ior, whose interference
+  // colors its specular reflection: the Fresnel term becomes mix(F, F_film, weight), F_film the
+  // extension's thin-film reflectance for a film of thickness iridescence_thickness_max
+  // nanometres, or with iridescence_thickness_texture mix(min, max, its green). Linear data.
+  float iridescence = 0.0f;
+  float iridescence_ior = 1.3f;
+  float iridescence_thickness_min = 100.0f;
+  float iridescence_thickness_max = 400.0f;
+  int iridescence_texture = -1;
+  int iridescence_thickness_texture = -1;
   // KHR_materials_volume: a transmissive material whose thickness is above 0 fills the volume
   // its closed mesh bounds, and light crossing it keeps attenuation_color per
   // attenuation_distance travelled (Beer-Lambert; infinity: none). Thickness 0 is a thin wall.
