@@ -335,7 +335,7 @@ float sheen_albedo(float a, float n_dot_v) {
 glm::vec3 extended_brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, const glm::vec3& f0,
                             const glm::vec3& n, const glm::vec3& v, const glm::vec3& l,
                             float n_dot_v, float n_dot_l, const LayerFrame* layers,
-                            float beneath_sheen, const glm::vec3& iridescent) {
+                            float beneath_sheen) {
   glm::vec3 h = v + l;
   const float h_len2 = glm::dot(h, h);
   if (!(h_len2 > 1e-12f)) return diffuse * (n_dot_l / kPi);
@@ -356,7 +356,11 @@ glm::vec3 extended_brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, co
       d_vis = ggx_d_vis(m.alpha, n_dot_h, n_dot_v, n_dot_l);
     }
     glm::vec3 fresnel = fresnel_schlick(f0, v_dot_h, fresnel_f90(m));
-    if (m.iridescence > 0.0f) fresnel = glm::mix(fresnel, iridescent, m.iridescence);
+    if (m.iridescence > 0.0f) {
+      const glm::vec3 film =
+          iridescent_fresnel(m.iridescence_ior, m.iridescence_thickness, n_dot_v, f0);
+      fresnel = glm::mix(fresnel, film, m.iridescence);
+    }
     f += fresnel * d_vis;
   }
   if (m.sheen_max > 0.0f) {
@@ -435,7 +439,7 @@ glm::vec3 iridescent_fresnel(float film_ior, float thickness_nm, float cos_theta
   const double phi12 = ior < kOutside ? std::numbers::pi : 0.0;
   const double phi21 = std::numbers::pi - phi12;
   // The second (film to base): the base's ior from its F0, guarded below 1.
-  glm::vec3 r23;
+  glm::vec3 r23(0.0f);
   glm::dvec3 phi23(0.0);
   for (int c = 0; c < 3; ++c) {
     const float s = std::sqrt(glm::clamp(base_f0[c], 0.0f, 0.9999f));

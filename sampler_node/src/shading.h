@@ -353,9 +353,9 @@ inline glm::vec3 brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, cons
 
 // brdf_cos for a material with a sheen, a clear coat, anisotropy or iridescence
 // (ShadeMaterial::extended), out of line so that the others' shading does not carry it. An
-// iridescent film mixes `iridescent` (iridescent_fresnel at n.v, computed once per point, as the
-// extension's sample viewer does) into the specular lobe's Fresnel term by its weight. `layers`
-// is the point's (null
+// iridescent film mixes iridescent_fresnel at n.v (not at v.h, as the extension's sample viewer
+// evaluates it) into the specular lobe's Fresnel term by its weight. `layers` is the point's
+// (null
 // where the material has neither a coat nor anisotropy): the specular lobe is anisotropic along
 // aniso_t where the material has anisotropy and the point a tangent frame; a sheen takes
 // max(sheen color) x E from what lies beneath it (`beneath_sheen`: sheen_scaling(m, n.v), 1
@@ -364,6 +364,6 @@ inline glm::vec3 brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, cons
 glm::vec3 extended_brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, const glm::vec3& f0,
                             const glm::vec3& n, const glm::vec3& v, const glm::vec3& l,
                             float n_dot_v, float n_dot_l, const LayerFrame* layers,
-                            float beneath_sheen, const glm::vec3& iridescent);
+                            float beneath_sheen);
 
 }  // namespace afr::shading

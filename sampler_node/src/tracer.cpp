@@ -213,7 +213,6 @@ struct LocalTerms {
   float offset = 0.0f;
   float n_dot_v = 1.0f;
   float beneath_sheen = 1.0f;  // shading::sheen_scaling at n.v (1 without sheen)
-  glm::vec3 iridescent{0.0f};  // shading::iridescent_fresnel at n.v, where the film has weight
 };
 
 void init_ray(RTCRay* r, const glm::vec3& o, const glm::vec3& d, float tnear, float tfar) {
@@ -313,20 +312,18 @@ struct ShadowContext {
   static constexpr int kMaxCrossed = 16;  // more glass surfaces than this: blocked
   struct Crossed {
     unsigned inst, geom, prim;
-    float t;      // the distance along the ray
-    bool volume;  // glass that absorbs inside (ShadeMaterial::absorption)
+    float t;  // the distance along the ray
   };
   glm::vec3 transmittance[kLanes];
   Crossed crossed[kLanes][kMaxCrossed];
   int n_crossed[kLanes];
-  bool volumes[kLanes];  // a crossing of glass that absorbs: see volume_transmittance
+  uint32_t volume_lanes = 0;  // bit k: lane k crossed glass that absorbs (volume_transmittance)
 
   ShadowContext() {
     rtcInitIntersectContext(&embree);
     for (int k = 0; k < kLanes; ++k) {
       transmittance[k] = glm::vec3(1.0f);
       n_crossed[k] = 0;
-      volumes[k] = false;
     }
   }
 };
@@ -381,7 +378,7 @@ bool crosses(const RTCFilterFunctionNArguments* args, unsigned i, const glm::vec
   // space, whose transform keeps the ray's parameter).
   const ShadowContext::Crossed c{
       RTCHitN_instID(args->hit, args->N, i, 0), RTCHitN_geomID(args->hit, args->N, i),
-      RTCHitN_primID(args->hit, args->N, i), RTCRayN_tfar(args->ray, args->N, i), volume};
+      RTCHitN_primID(args->hit, args->N, i), RTCRayN_tfar(args->ray, args->N, i)};
   bool seen = false;
   for (int k = 0; k < ctx->n_crossed[lane]; ++k) {
     const ShadowContext::Crossed& o = ctx->crossed[lane][k];
@@ -391,7 +388,7 @@ bool crosses(const RTCFilterFunctionNArguments* args, unsigned i, const glm::vec
     if (ctx->n_crossed[lane] == ShadowContext::kMaxCrossed) return false;
     ctx->crossed[lane][ctx->n_crossed[lane]++] = c;
     ctx->transmittance[lane] *= through;
-    ctx->volumes[lane] |= volume;
+    ctx->volume_lanes |= uint32_t(volume) << lane;
   }
   const glm::vec3& tr = ctx->transmittance[lane];
   return std::max(tr.r, std::max(tr.g, tr.b)) >= kShadowCutoff;
@@ -540,10 +537,18 @@ struct Tracer::Impl {
   HitRef intersect(const glm::vec3& o, const glm::vec3& d, float tnear) const;
   bool blocked(const glm::vec3& o, const glm::vec3& d, float tnear, float tfar) const;
   // What a shadow ray from o along d (unit) up to tfar keeps: 0 when an opaque surface blocks
-  // it, the product of the glass surfaces' transmittances it crosses otherwise.
-  glm::vec3 shadow_transmittance(const glm::vec3& o, const glm::vec3& d, float tfar) const;
-  glm::vec3 volume_transmittance(const ShadowContext& ctx, int lane, const glm::vec3& d,
-                                 float tfar) const;
+  // it, the product of the glass surfaces' transmittances it crosses otherwise. Scenes without
+  // glass or blending ask only whether it is blocked.
+  glm::vec3 shadow_transmittance(const glm::vec3& o, const glm::vec3& d, float tfar) const {
+    if (!has_translucent_) return blocked(o, d, 0.0f, tfar) ? glm::vec3(0.0f) : glm::vec3(1.0f);
+    return filtered_shadow(o, d, tfar);
+  }
+  // Out of line, so that scenes without glass, and shadow rays that cross no absorbing glass,
+  // pay nothing for them.
+  [[gnu::noinline]] glm::vec3 filtered_shadow(const glm::vec3& o, const glm::vec3& d,
+                                              float tfar) const;
+  [[gnu::noinline]] glm::vec3 volume_transmittance(const ShadowContext& ctx, int lane,
+                                                   const glm::vec3& d, float tfar) const;
   // The surface of `hit` on the ray from o along d, whose cone was `cone` wide at o and grows by
   // `spread` per unit of distance.
   void make_surface(const HitRef& hit, const glm::vec3& o, const glm::vec3& d, float cone,
@@ -1073,17 +1078,17 @@ HitRef Tracer::Impl::intersect(const glm::vec3& o, const glm::vec3& d, float tne
   return h;
 }
 
-glm::vec3 Tracer::Impl::shadow_transmittance(const glm::vec3& o, const glm::vec3& d,
-                                             float tfar) const {
-  if (!has_translucent_) return blocked(o, d, 0.0f, tfar) ? glm::vec3(0.0f) : glm::vec3(1.0f);
+glm::vec3 Tracer::Impl::filtered_shadow(const glm::vec3& o, const glm::vec3& d, float tfar) const {
   ShadowContext ctx;
   RTCRay r;
   init_ray(&r, o, d, 0.0f, tfar);
   r.id = kShadowRayId;
   rtcOccluded1(top_, &ctx.embree, &r);
   if (r.tfar < 0.0f) return glm::vec3(0.0f);
-  return ctx.volumes[0] ? ctx.transmittance[0] * volume_transmittance(ctx, 0, d, tfar)
-                        : ctx.transmittance[0];
+  if ((ctx.volume_lanes & 1u) == 0) return ctx.transmittance[0];
+  // A ray that passed keeps its direction and tfar (the filters' rejected hits restore it).
+  const glm::vec3 dir(r.dir_x, r.dir_y, r.dir_z);
+  return ctx.transmittance[0] * volume_transmittance(ctx, 0, dir, r.tfar);
 }
 
 // KHR_materials_volume on a shadow ray's way: Embree reports the glass surfaces it crosses in
@@ -1102,9 +1107,9 @@ glm::vec3 Tracer::Impl::volume_transmittance(const ShadowContext& ctx, int lane,
   int n = 0;
   for (int k = 0; k < ctx.n_crossed[lane]; ++k) {
     const ShadowContext::Crossed& c = ctx.crossed[lane][k];
-    if (!c.volume) continue;
     const Instance& inst = instances_[c.inst];
     const GeomRecord& g = blas_[size_t(inst.blas)].geoms[c.geom];
+    if (!materials_[g.material].has_volume) continue;
     const uint32_t* tri = g.indices + 3 * size_t(c.prim);
     const glm::vec3& p0 = g.positions[tri[0]];
     glm::vec3 face = glm::cross(g.positions[tri[1]] - p0, g.positions[tri[2]] - p0);
@@ -1395,10 +1400,6 @@ bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const gl
   terms->offset = offset_at(s.p);
   terms->origin = s.p + terms->offset * s.ng;
   terms->n_dot_v = std::max(glm::dot(s.ns, wo), 1e-4f);
-  if (m.iridescence > 0.0f) {
-    terms->iridescent = shading::iridescent_fresnel(m.iridescence_ior, m.iridescence_thickness,
-                                                    terms->n_dot_v, terms->f0);
-  }
   return true;
 }
 
@@ -1417,12 +1418,11 @@ bool Tracer::Impl::light_contribution(const LightRecord& light, const Surface& s
   if (n_dot_l <= 0.0f) return false;
   const ShadeMaterial& m = *s.material;
   *contribution =
-      incident *
-      (m.extended
-           ? shading::extended_brdf_cos(m, terms.diffuse, terms.f0, s.ns, wo, *l, terms.n_dot_v,
-                                        n_dot_l, m.needs_layers ? &*s.layers : nullptr,
-                                        terms.beneath_sheen, terms.iridescent)
-           : shading::brdf_cos(m, terms.diffuse, terms.f0, s.ns, wo, *l, terms.n_dot_v, n_dot_l));
+      incident * (m.extended ? shading::extended_brdf_cos(
+                                   m, terms.diffuse, terms.f0, s.ns, wo, *l, terms.n_dot_v, n_dot_l,
+                                   m.needs_layers ? &*s.layers : nullptr, terms.beneath_sheen)
+                             : shading::brdf_cos(m, terms.diffuse, terms.f0, s.ns, wo, *l,
+                                                 terms.n_dot_v, n_dot_l));
   *shadow_tfar = distance - 2.0f * terms.offset;
   return true;
 }
@@ -1497,7 +1497,7 @@ void Tracer::Impl::shade_local8(const Surface* s, const glm::vec3* wo, const glm
     for (int k = 0; k < n; ++k) {
       if (!valid[k] || rays.tfar[k] < 0.0f) continue;
       glm::vec3 kept = ctx.transmittance[k];
-      if (ctx.volumes[k]) {
+      if ((ctx.volume_lanes >> k) & 1u) {
         const glm::vec3 d(rays.dir_x[k], rays.dir_y[k], rays.dir_z[k]);
         kept *= volume_transmittance(ctx, k, d, tfar[k]);
       }
