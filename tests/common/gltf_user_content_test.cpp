@@ -215,18 +215,18 @@ TEST(GltfUserContentTest, AnUnsupportedRequiredExtensionIsAnErrorNamingIt) {
 TEST(GltfUserContentTest, AnUnsupportedUsedExtensionIsOneWarningNamingIt) {
   TempFolder dir;
   GltfContent g = unlit_box();
-  g.doc()["extensionsUsed"] = {"KHR_materials_iridescence", "KHR_materials_emissive_strength"};
+  g.doc()["extensionsUsed"] = {"KHR_materials_dispersion", "KHR_materials_emissive_strength"};
   g.doc()["extensionsRequired"] = {"KHR_materials_emissive_strength"};
   g.doc()["materials"][0]["extensions"] = {
-      {"KHR_materials_iridescence", {{"iridescenceFactor", 1.0}}},
+      {"KHR_materials_dispersion", {{"dispersion", 0.5}}},
       {"KHR_materials_emissive_strength", {{"emissiveStrength", 2.0}}}};
-  g.write(dir / "iridescence.gltf");
+  g.write(dir / "dispersion.gltf");
   LogCapture log;
   GltfLoadReport report;
-  load_gltf(dir / "iridescence.gltf", &report);
+  load_gltf(dir / "dispersion.gltf", &report);
   ASSERT_EQ(report.warnings.size(), 1u);
-  EXPECT_NE(report.warnings[0].find("KHR_materials_iridescence"), std::string::npos);
-  EXPECT_EQ(log.lines_with("KHR_materials_iridescence").size(), 1u);
+  EXPECT_NE(report.warnings[0].find("KHR_materials_dispersion"), std::string::npos);
+  EXPECT_EQ(log.lines_with("KHR_materials_dispersion").size(), 1u);
   EXPECT_EQ(log.count_level("warning"), 1u);
 }
 
