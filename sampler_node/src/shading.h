@@ -170,7 +170,8 @@ struct ShadeMaterial {
                               // and not glass
   bool is_glass = false;      // transmission > 0: reflects and refracts (Whitted), any roughness
   // What a shadow ray keeps of the light crossing this surface: transmission x (1 - metallic) x
-  // base color factor (glass only; 0 for every other surface, which blocks).
+  // base color factor (glass only; 0 for every other surface, which blocks), where no texture
+  // or vertex color varies it (tracer.cpp's GeometryFilter::glass_transmittance then).
   glm::vec3 shadow_transmittance{0.0f};
 };
 
@@ -198,9 +199,9 @@ struct Texels {
 };
 
 // The material at one point of a surface whose material varies: `m` (as make_shade_material
-// made it) with its textures' texels there. Glass's shadow transmittance stays the factors'
-// (shadow rays do not look up textures), and so does whether the material is glass: a
-// transmission texel of 0 leaves glass that only reflects and scatters diffusely there.
+// made it) with its textures' texels there. Whether the material is glass stays the factor's:
+// a transmission texel of 0 leaves glass that only reflects and scatters diffusely there (and
+// lets no shadow ray through there: the shadow rays' filter reads the textures itself).
 void vary(ShadeMaterial* m, const Texels& texels);
 
 // One punctual light placed in the world at the current time.

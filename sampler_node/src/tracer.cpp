@@ -274,16 +274,18 @@ float texture_lod(const Texture& texture, glm::vec2 t0, glm::vec2 t1, glm::vec2 
 //
 // A shadow ray passes through glass, dimmed by each glass surface it crosses
 // (ShadeMaterial::shadow_transmittance): a Whitted-style filter shadow, as BART's scenes
-// expect of their light behind a glass ceiling. The shadow ray is not refracted, and neither
-// Fresnel nor the texture dims it. It passes a blended surface (alphaMode BLEND) dimmed by its
-// opacity a at the point: 1 - a goes through, and the rest as through that surface's glass, if
-// it is glass. Embree reports each such surface on the ray's way to occlusion_filter
-// (crosses), which multiplies it into the ray's transmittance and lets the ray go on, in
-// whatever order (products commute); any other surface ends the ray. The
-// high-quality BVH's spatial splits can report one triangle twice, so each ray remembers the
-// ones it has counted. Inside absorbing glass (KHR_materials_volume) a shadow ray also keeps
-// exp(-absorption x the length it travels there): the crossings are kept with their distances
-// and sorted once the ray is through (volume_transmittance). Only shadow rays (id kShadowRayId
+// expect of their light behind a glass ceiling: transmission x (1 - metallic) x base color,
+// where the transmission and the base color are, as for the camera's rays, the factors times
+// the textures (level 0) and COLOR_0 at the point (GeometryFilter::glass_transmittance). The
+// shadow ray is not refracted, and Fresnel does not dim it. It passes a blended surface (alphaMode
+// BLEND) dimmed by its opacity a at the point: 1 - a goes through, and the rest as through that
+// surface's glass, if it is glass. Embree reports each such surface on the ray's way to
+// occlusion_filter (crosses), which multiplies it into the ray's transmittance and lets the ray go
+// on, in whatever order (products commute); any other surface ends the ray. The high-quality BVH's
+// spatial splits can report one triangle twice, so each ray remembers the ones it has counted.
+// Inside absorbing glass (KHR_materials_volume) a shadow ray also keeps exp(-absorption x the
+// length it travels there): the crossings are kept with their distances and sorted once the ray is
+// through (volume_transmittance). Only shadow rays (id kShadowRayId
 // + lane, with a ShadowContext) are filtered: other occlusion queries (Tracer::occluded) stop at
 // glass as at any surface.
 //
@@ -354,6 +356,33 @@ struct GeometryFilter {
   const glm::vec2* uvs = nullptr;      // null: the primitive has none (the factor alone decides)
   const float* color_alpha = nullptr;  // COLOR_0's alpha per vertex, or null
   const uint32_t* indices = nullptr;
+  // Glass whose shadow transmittance varies over it (a base-color or transmission texture with
+  // coordinates, or COLOR_0), with what places a hit in its textures and colors.
+  bool textured_glass = false;
+  const glm::vec2* transmission_uvs = nullptr;
+  const glm::vec3* colors = nullptr;  // COLOR_0 per vertex, or null
+
+  // What a shadow ray keeps of the light crossing the glass at the hit: the material's
+  // shadow_transmittance, or with textures and colors their values there multiplied in.
+  glm::vec3 glass_transmittance(const RTCFilterFunctionNArguments* args, unsigned i) const {
+    const shading::ShadeMaterial& m = *material;
+    if (!textured_glass) return m.shadow_transmittance;
+    const uint32_t* tri = indices + 3 * size_t(RTCHitN_primID(args->hit, args->N, i));
+    const float u = RTCHitN_u(args->hit, args->N, i), v = RTCHitN_v(args->hit, args->N, i);
+    const float w = 1.0f - u - v;
+    const auto at = [&](const auto* values) {
+      return w * values[tri[0]] + u * values[tri[1]] + v * values[tri[2]];
+    };
+    glm::vec3 base = m.base;
+    if (m.texture && uvs) base *= m.texture->sample(at(uvs), 0.0f);
+    if (colors) base *= at(colors);
+    float transmission = m.transmission_factor;
+    if (m.transmission_texture && transmission_uvs) {
+      transmission *= m.transmission_texture->sample(at(transmission_uvs), 0.0f).r;
+    }
+    return glm::clamp(glm::clamp(transmission, 0.0f, 1.0f) * (1.0f - m.metallic_factor) * base,
+                      glm::vec3(0.0f), glm::vec3(1.0f));
+  }
 
   float opacity(const RTCFilterFunctionNArguments* args, unsigned i) const {
     const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
@@ -403,11 +432,11 @@ void occlusion_filter(const RTCFilterFunctionNArguments* args) {
     if (args->valid[i] != -1) continue;
     if (m.blended && f->masked) {
       const float a = f->opacity(args, i);
-      const glm::vec3 glass = m.is_glass ? m.shadow_transmittance : glm::vec3(0.0f);
+      const glm::vec3 glass = m.is_glass ? f->glass_transmittance(args, i) : glm::vec3(0.0f);
       if (!(a > 0.0f) || crosses(args, i, (1.0f - a) + a * glass, false)) args->valid[i] = 0;
     } else if (f->masked && !f->opaque_at(args, i)) {
       args->valid[i] = 0;
-    } else if (m.is_glass && crosses(args, i, m.shadow_transmittance, m.has_volume)) {
+    } else if (m.is_glass && crosses(args, i, f->glass_transmittance(args, i), m.has_volume)) {
       args->valid[i] = 0;
     }
   }
@@ -645,6 +674,12 @@ void Tracer::Impl::set_filters(RTCGeometry g, uint32_t material, const Primitive
   f.uvs = slot_uvs(p).base_color;
   f.color_alpha = vertex_alpha;
   f.indices = p.indices.data();
+  if (m.is_glass) {
+    f.transmission_uvs = slot_uvs(p).transmission;
+    f.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
+    f.textured_glass = (m.texture && f.uvs) || (m.transmission_texture && f.transmission_uvs) ||
+                       f.colors != nullptr;
+  }
   rtcSetGeometryUserData(g, &f);
   rtcSetGeometryOccludedFilterFunction(g, &occlusion_filter);
   if (masked) rtcSetGeometryIntersectFilterFunction(g, &mask_filter);

@@ -1868,9 +1868,10 @@ TEST(TracerTest, TransmissionTextureMultipliesTheFactor) {
 // Shadows through glass (a filter shadow): a floor lit by a sun straight above, under a box of
 // glass between y = 1 and y = 2. A shadow ray crosses the box's bottom and top, each keeping
 // transmission x base color, so the floor below gets the sun times base^2 (a clear box: all of
-// it; an opaque box: none; a glass of transmission 0.5, tinted: (0.5 base)^2 per channel),
-// beside the box the whole sun. The crosshair's 8-wide shadow packets agree with single rays,
-// and the sampler's occlusion rays still stop at glass (it is a visible surface).
+// it; an opaque box: none; a glass of transmission 0.5, tinted: (0.5 base)^2 per channel, the
+// same where textures give the transmission and the tint), beside the box the whole sun. The
+// crosshair's 8-wide shadow packets agree with single rays, and the sampler's occlusion rays still
+// stop at glass (it is a visible surface).
 TEST(TracerTest, ShadowRaysPassThroughGlassDimmedByEachSurface) {
   const glm::vec3 floor_base(0.8f, 0.6f, 0.4f);
   const float intensity = 3.0f;
@@ -1879,12 +1880,15 @@ TEST(TracerTest, ShadowRaysPassThroughGlassDimmedByEachSurface) {
     float transmission;
     glm::vec3 base;
     glm::vec3 kept;  // what the two surfaces keep of the sun
+    bool textures;   // the transmission and base color as textures, their factors 1
   };
   const Case cases[] = {
-      {"clear", 1.0f, glm::vec3(1.0f), glm::vec3(1.0f)},
-      {"tinted", 0.5f, glm::vec3(1.0f, 0.5f, 0.25f),
-       glm::vec3(0.25f, 0.0625f, 0.015625f)},  // (0.5 base)^2
-      {"opaque", 0.0f, glm::vec3(1.0f), glm::vec3(0.0f)},
+      {"clear", 1.0f, glm::vec3(1.0f), glm::vec3(1.0f), false},
+      {"tinted", 0.5f, glm::vec3(1.0f, 0.5f, 0.25f), glm::vec3(0.25f, 0.0625f, 0.015625f),
+       false},  // (0.5 base)^2
+      {"tinted by textures", 0.5f, glm::vec3(1.0f, 0.5f, 0.25f),
+       glm::vec3(0.25f, 0.0625f, 0.015625f), true},
+      {"opaque", 0.0f, glm::vec3(1.0f), glm::vec3(0.0f), false},
   };
   for (const Case& c : cases) {
     for (bool packet : {true, false}) {
@@ -1892,8 +1896,13 @@ TEST(TracerTest, ShadowRaysPassThroughGlassDimmedByEachSurface) {
       Scene s;
       const int floor = add_material(&s, floor_base, 0.0f, 1.0f);
       add_mesh_node(&s, quad_mesh({-5, 0, 5}, {10, 0, 0}, {0, 0, -10}, floor));
-      const int glass = add_material(&s, c.base, 0.0f, 0.0f);
-      s.materials[size_t(glass)].transmission = c.transmission;
+      const int glass = add_material(&s, c.textures ? glm::vec3(1.0f) : c.base, 0.0f, 0.0f);
+      s.materials[size_t(glass)].transmission = c.textures ? 1.0f : c.transmission;
+      if (c.textures) {
+        s.materials[size_t(glass)].base_color_texture = add_texel(&s, c.base);
+        s.materials[size_t(glass)].transmission_texture =
+            add_texel(&s, glm::vec3(c.transmission, 0.0f, 0.0f));  // red
+      }
       s.materials[size_t(glass)].ior = 1.5f;
       add_mesh_node(&s, box_mesh({2.0f, 0.5f, 2.0f}, glass), glm::dvec3(0.0, 1.5, 0.0));
       Light sun;
