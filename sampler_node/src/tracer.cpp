@@ -1706,11 +1706,19 @@ glm::vec3 Tracer::Impl::glass(const glm::vec3& d, const Surface& s, const glm::v
       F = m.f0_dielectric + (1.0f - m.f0_dielectric) * (k2 * k2 * k);
     }
   }
+  // An iridescent film (KHR_materials_iridescence) colors the Fresnel term, seen from the air.
+  glm::vec3 fresnel(F);
+  if (m.iridescence > 0.0f && F < 1.0f) {
+    fresnel = glm::mix(fresnel,
+                       shading::iridescent_fresnel(m.iridescence_ior, m.iridescence_thickness,
+                                                   cos_outer, glm::vec3(m.f0_dielectric)),
+                       m.iridescence);
+  }
   // The metallic part reflects as a mirror tinted by the base color.
   const glm::vec3 reflect_w =
       F >= 1.0f ? glm::vec3(1.0f)
-                : glm::mix(glm::vec3(F), shading::fresnel_schlick(base, cos_outer), m.metallic);
-  const glm::vec3 transmit_w = (m.transmission * (1.0f - m.metallic) * (1.0f - F)) * base;
+                : glm::mix(fresnel, shading::fresnel_schlick(base, cos_outer), m.metallic);
+  const glm::vec3 transmit_w = (m.transmission * (1.0f - m.metallic)) * (1.0f - fresnel) * base;
 
   glm::vec3 result(0.0f);
   const float offset = offset_at(s.p);

@@ -1400,6 +1400,39 @@ TEST(TracerTest, IridescenceMixesTheThinFilmsReflectanceIntoTheHighlight) {
   expect_near3(highlight(0.0f, 300.0f), core, 0.0f, "no film");
 }
 
+// The film colors glass's Fresnel term too: a thin wall of glass (one square, ior 1.5) seen
+// straight on, with an unlit white square behind the camera and nothing beyond the glass,
+// shows exactly its reflection weight: F0 = 0.04 without a film, the film's incoherent
+// reflectance under a 20 um film (TracerTest.IridescenceMixesTheThinFilmsReflectanceIntoThe-
+// Highlight), and their mix by the film's weight.
+TEST(TracerTest, IridescenceColorsGlassReflection) {
+  const auto reflected = [](float weight) {
+    Scene s;
+    s.background = glm::vec3(0.0f);
+    const int glass = add_material(&s, glm::vec3(1.0f), 0.0f, 0.0f);
+    Material& g = s.materials[size_t(glass)];
+    g.transmission = 1.0f;
+    g.ior = 1.5f;
+    g.iridescence = weight;
+    g.iridescence_ior = 1.3f;
+    g.iridescence_thickness_max = 20000.0f;
+    add_mesh_node(&s, quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, glass));
+    const int white = add_material(&s, glm::vec3(1.0f), 0.0f, 1.0f);
+    s.materials[size_t(white)].unlit = true;
+    add_mesh_node(&s, quad_mesh({-5, -5, 1}, {0, 10, 0}, {10, 0, 0}, white));  // faces -z
+    s.finalize();
+    Tracer tracer(s);
+    TraceStats stats;
+    return tracer.trace(Ray{{0.1f, 0.2f, 0.0f}, {0, 0, -1}}, &stats).color;
+  };
+  const auto f0 = [](double a, double b) { return ((a - b) / (a + b)) * ((a - b) / (a + b)); };
+  const double r12 = f0(1.3, 1.0), r23 = f0(1.5, 1.3);
+  const float film = float(r12 + (1.0 - r12) * (1.0 - r12) * r23 / (1.0 - r12 * r23));
+  expect_near3(reflected(0.0f), glm::vec3(0.04f), 1e-5f, "no film");
+  expect_near3(reflected(1.0f), glm::vec3(film), 1e-4f, "film");
+  expect_near3(reflected(0.5f), glm::vec3(0.5f * (0.04f + film)), 1e-4f, "half");
+}
+
 // The clear coat lies on its own normal (glTF's clearcoatNormal): the interpolated normal, which
 // the material's normal texture does not bend, bent only by clearcoatNormalTexture. A square
 // with only a coat (black base, no specular of its own) of roughness 0.5, lit and seen straight
