@@ -1403,8 +1403,8 @@ TEST(TracerTest, IridescenceMixesTheThinFilmsReflectanceIntoTheHighlight) {
 // The film colors glass's Fresnel term too: a thin wall of glass (one square, ior 1.5) seen
 // straight on, with an unlit white square behind the camera and nothing beyond the glass,
 // shows exactly its reflection weight: F0 = 0.04 without a film, the film's incoherent
-// reflectance under a 20 um film (TracerTest.IridescenceMixesTheThinFilmsReflectanceIntoThe-
-// Highlight), and their mix by the film's weight.
+// reflectance under a 20 um film (as in IridescenceMixesTheThinFilmsReflectanceIntoTheHighlight),
+// and their mix by the film's weight.
 TEST(TracerTest, IridescenceColorsGlassReflection) {
   const auto reflected = [](float weight) {
     Scene s;
