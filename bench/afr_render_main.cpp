@@ -70,6 +70,7 @@ int main(int argc, char** argv) {
             : afr::load_gltf_bytes(afr::select_material_variant(afr::read_scene_file(scene_path),
                                                                 scene_path, variant),
                                    scene_path);
+    if (!variant.empty()) spdlog::info("material variant \"{}\" chosen", variant);
     spdlog::info("scene {}: {} triangles, {} lights, {:.2f} s of animation", scene.source,
                  scene.triangle_count(), scene.lights.size(), scene.duration());
     afr::Tracer tracer(scene);

@@ -132,6 +132,34 @@ TEST_F(ServiceTest, GltfWithExternalFilesIsServedAsOnePackedTransfer) {
   EXPECT_EQ(log.find(" error "), std::string::npos) << log;
 }
 
+// KHR_materials_variants: `--variant NAME` serves the scene with that variant's materials in
+// place (GltfPackTest.ChosenMaterialVariantBecomesThePrimitivesMaterial), which the sampler
+// loads as any scene.
+TEST_F(ServiceTest, ChosenMaterialVariantIsServedToTheSamplers) {
+  std::ifstream in(kStaticScene);
+  nlohmann::json doc = nlohmann::json::parse(in);
+  doc["materials"].push_back({{"pbrMetallicRoughness", {{"baseColorFactor", {1, 0, 0, 1}}}}});
+  doc["meshes"][0]["primitives"][0]["extensions"]["KHR_materials_variants"]["mappings"] = {
+      {{"material", doc["materials"].size() - 1}, {"variants", {0}}}};
+  doc["extensions"]["KHR_materials_variants"]["variants"] = {{{"name", "Red"}}};
+  doc["extensionsUsed"].push_back("KHR_materials_variants");
+  std::ofstream(path("variants.gltf")) << doc.dump(1);
+
+  auto d = display({path("variants.gltf"), "--variant", "Red", "--size", "64x64", "--fps", "20"},
+                   "display.log");
+  auto s = sampler({"--max-samples-per-second", "50000"}, "s1.log");
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const nlohmann::json st = get_stats(metrics_port());
+        return members(st) == 1 && st["samplers"][0]["samples"].get<uint64_t>() > 0;
+      },
+      10.0))
+      << d->log() << s->log();
+  EXPECT_NE(d->log().find("variants.gltf: material variant \"Red\" chosen"), std::string::npos)
+      << d->log();
+  EXPECT_EQ(s->log().find(" error "), std::string::npos) << s->log();
+}
+
 // A sampler that cannot serve the session (here one that says so, as a sampler does whose
 // scene does not load: SamplerThatCannotLoadTheSceneTellsTheDisplayWhyAndLeaves) is logged by
 // id and name with its reason, and is no member any more.

@@ -57,7 +57,10 @@ ScenePayload read_scene_payload(const std::string& path, const std::string& vari
     }
     // KHR_materials_variants: the samplers receive the file with the variant's materials in
     // place (and its hash is the variant's, so a cached scene of another variant is not used).
-    if (!variant.empty()) p.bytes = select_material_variant(p.bytes, path, variant);
+    if (!variant.empty()) {
+      p.bytes = select_material_variant(p.bytes, path, variant);
+      spdlog::info("{}: material variant \"{}\" chosen", path, variant);
+    }
   }
   if (p.bytes.size() > kMaxSceneBytes) {
     throw Error(
