@@ -422,6 +422,7 @@ std::vector<uint8_t> select_material_variant(std::span<const uint8_t> bytes,
         if (!e.is_object() || !e.contains("mappings") || !e["mappings"].is_array()) {
           fail(what + " has no \"mappings\" array");
         }
+        std::optional<uint64_t> chosen;
         for (const Json& mapping : e["mappings"]) {
           const bool good = mapping.is_object() && mapping.contains("material") &&
                             count_of(mapping["material"]) && mapping.contains("variants") &&
@@ -430,9 +431,12 @@ std::vector<uint8_t> select_material_variant(std::span<const uint8_t> bytes,
           const Json& listed = mapping["variants"];
           if (std::any_of(listed.begin(), listed.end(),
                           [&](const Json& v) { return count_of(v) == index; })) {
-            primitive["material"] = *count_of(mapping["material"]);
+            chosen = count_of(mapping["material"]);
           }
         }
+        // Set once the mappings are read: adding "material" may move the primitive's members
+        // (an ordered JSON object is a vector), and `e` with them.
+        if (chosen) primitive["material"] = *chosen;
         primitive["extensions"].erase(kExtension);
         if (primitive["extensions"].empty()) primitive.erase("extensions");
       }

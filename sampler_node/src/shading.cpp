@@ -355,13 +355,8 @@ glm::vec3 extended_brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, co
     } else {
       d_vis = ggx_d_vis(m.alpha, n_dot_h, n_dot_v, n_dot_l);
     }
-    glm::vec3 fresnel = fresnel_schlick(f0, v_dot_h, fresnel_f90(m));
-    if (m.iridescence > 0.0f) {
-      const glm::vec3 film =
-          iridescent_fresnel(m.iridescence_ior, m.iridescence_thickness, n_dot_v, f0);
-      fresnel = glm::mix(fresnel, film, m.iridescence);
-    }
-    f += fresnel * d_vis;
+    // The film at n.v, not v.h, as the extension's sample viewer evaluates it.
+    f += with_film(m, fresnel_schlick(f0, v_dot_h, fresnel_f90(m)), n_dot_v, f0) * d_vis;
   }
   if (m.sheen_max > 0.0f) {
     // The sheen takes, from what lies beneath it, the larger of its albedos toward the viewer and
@@ -393,11 +388,6 @@ namespace {
 float ior_to_f0(float n_t, float n_i) {
   const float r = (n_t - n_i) / (n_t + n_i);
   return r * r;
-}
-float schlick(float f0, float cos_theta) {
-  const float k = 1.0f - cos_theta;
-  const float k2 = k * k;
-  return f0 + (1.0f - f0) * (k2 * k2 * k);
 }
 // The CIE observer's sensitivity in Fourier space at optical path difference opd (nanometres)
 // with phase shift `shift` per channel, as linear sRGB: the extension's Gaussian fit of X, Y
@@ -434,19 +424,20 @@ glm::vec3 iridescent_fresnel(float film_ior, float thickness_nm, float cos_theta
   const float cos_film = std::sqrt(cos2_film);
 
   // The first interface (outside to film), and its phase shifts.
-  const float r12 = schlick(ior_to_f0(ior, kOutside), cos_theta);
+  const float r12 = fresnel_schlick(glm::vec3(ior_to_f0(ior, kOutside)), cos_theta).x;
   const float t121 = 1.0f - r12;
   const double phi12 = ior < kOutside ? std::numbers::pi : 0.0;
   const double phi21 = std::numbers::pi - phi12;
   // The second (film to base): the base's ior from its F0, guarded below 1.
-  glm::vec3 r23(0.0f);
+  glm::vec3 f0_23(0.0f);
   glm::dvec3 phi23(0.0);
   for (int c = 0; c < 3; ++c) {
     const float s = std::sqrt(glm::clamp(base_f0[c], 0.0f, 0.9999f));
     const float base_ior = (1.0f + s) / (1.0f - s);
-    r23[c] = schlick(ior_to_f0(base_ior, ior), cos_film);
+    f0_23[c] = ior_to_f0(base_ior, ior);
     if (base_ior < ior) phi23[c] = std::numbers::pi;
   }
+  const glm::vec3 r23 = fresnel_schlick(f0_23, cos_film);
   // The optical path difference of one round trip through the film, and the phase.
   const double opd = 2.0 * double(ior) * double(thickness_nm) * double(cos_film);
   const glm::dvec3 phi = glm::dvec3(phi21) + phi23;

@@ -274,6 +274,15 @@ inline float fresnel_f90(const ShadeMaterial& m) {
 // and turned into linear sRGB), clamped at 0. A film of thickness 0 vanishes (ior -> 1).
 glm::vec3 iridescent_fresnel(float film_ior, float thickness_nm, float cos_theta,
                              const glm::vec3& base_f0);
+// A Fresnel term `fresnel` of base reflectance f0 at cosine cos_theta, with m's iridescent film
+// mixed in by its weight (unchanged without one).
+inline glm::vec3 with_film(const ShadeMaterial& m, const glm::vec3& fresnel, float cos_theta,
+                           const glm::vec3& f0) {
+  if (!(m.iridescence > 0.0f)) return fresnel;
+  return glm::mix(fresnel,
+                  iridescent_fresnel(m.iridescence_ior, m.iridescence_thickness, cos_theta, f0),
+                  m.iridescence);
+}
 
 // The share of the light a clear coat (F0 0.04, glTF's fresnel_coat) reflects at n.v.
 inline float coat_fresnel(float n_dot_v) { return fresnel_schlick(glm::vec3(0.04f), n_dot_v).x; }

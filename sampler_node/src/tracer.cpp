@@ -285,9 +285,9 @@ float texture_lod(const Texture& texture, glm::vec2 t0, glm::vec2 t1, glm::vec2 
 // spatial splits can report one triangle twice, so each ray remembers the ones it has counted.
 // Inside absorbing glass (KHR_materials_volume) a shadow ray also keeps exp(-absorption x the
 // length it travels there): the crossings are kept with their distances and sorted once the ray is
-// through (volume_transmittance). Only shadow rays (id kShadowRayId
-// + lane, with a ShadowContext) are filtered: other occlusion queries (Tracer::occluded) stop at
-// glass as at any surface.
+// through (volume_transmittance). Only shadow rays (id kShadowRayId + lane, with a
+// ShadowContext) are filtered: other occlusion queries (Tracer::occluded) stop at glass as at any
+// surface.
 //
 // ---- alphaMode MASK ----
 //
@@ -671,11 +671,12 @@ void Tracer::Impl::set_filters(RTCGeometry g, uint32_t material, const Primitive
   GeometryFilter& f = filters_.emplace_back();
   f.material = &m;
   f.masked = masked;
-  f.uvs = slot_uvs(p).base_color;
+  const SlotUvs uvs = slot_uvs(p);
+  f.uvs = uvs.base_color;
   f.color_alpha = vertex_alpha;
   f.indices = p.indices.data();
   if (m.is_glass) {
-    f.transmission_uvs = slot_uvs(p).transmission;
+    f.transmission_uvs = uvs.transmission;
     f.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
     f.textured_glass = (m.texture && f.uvs) || (m.transmission_texture && f.transmission_uvs) ||
                        f.colors != nullptr;
@@ -1610,14 +1611,8 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
     }
     const float n_dot_v = -glm::dot(s.ns, d);
     const glm::vec3 f0 = shading::fresnel_f0(m, m.base * tex);
-    glm::vec3 fresnel = shading::fresnel_schlick(f0, n_dot_v, shading::fresnel_f90(m));
-    if (m.iridescence > 0.0f) {
-      fresnel = glm::mix(
-          fresnel,
-          shading::iridescent_fresnel(m.iridescence_ior, m.iridescence_thickness, n_dot_v, f0),
-          m.iridescence);
-    }
-    throughput *= fresnel;
+    throughput *= shading::with_film(
+        m, shading::fresnel_schlick(f0, n_dot_v, shading::fresnel_f90(m)), n_dot_v, f0);
     if (std::max(throughput.r, std::max(throughput.g, throughput.b)) < kMinThroughput) break;
     glm::vec3 r;
     if (!mirror_direction(d, s, s.ns, &r)) break;
@@ -1707,13 +1702,9 @@ glm::vec3 Tracer::Impl::glass(const glm::vec3& d, const Surface& s, const glm::v
     }
   }
   // An iridescent film (KHR_materials_iridescence) colors the Fresnel term, seen from the air.
-  glm::vec3 fresnel(F);
-  if (m.iridescence > 0.0f && F < 1.0f) {
-    fresnel = glm::mix(fresnel,
-                       shading::iridescent_fresnel(m.iridescence_ior, m.iridescence_thickness,
-                                                   cos_outer, glm::vec3(m.f0_dielectric)),
-                       m.iridescence);
-  }
+  const glm::vec3 fresnel =
+      F < 1.0f ? shading::with_film(m, glm::vec3(F), cos_outer, glm::vec3(m.f0_dielectric))
+               : glm::vec3(F);
   // The metallic part reflects as a mirror tinted by the base color.
   const glm::vec3 reflect_w =
       F >= 1.0f ? glm::vec3(1.0f)

@@ -290,11 +290,14 @@ TEST_F(GltfPackTest, ChosenMaterialVariantBecomesThePrimitivesMaterial) {
   primitive["extensions"]["KHR_materials_variants"]["mappings"] = {
       {{"material", 1}, {"variants", {0}}}, {{"material", 2}, {"variants", {1, 2}}}};
   doc["meshes"][0]["primitives"].push_back(primitive);
-  // A second mesh whose primitive maps only the first variant.
+  // A second mesh whose primitive maps only the first variant; and a primitive without a
+  // material of its own, which the first variant gives one.
   json other = doc["meshes"][0]["primitives"][0];
   other["extensions"]["KHR_materials_variants"]["mappings"] = {
       {{"material", 1}, {"variants", {0}}}};
-  doc["meshes"].push_back({{"primitives", {other}}});
+  json bare = other;
+  bare.erase("material");
+  doc["meshes"].push_back({{"primitives", {other, bare}}});
   doc["nodes"].push_back({{"mesh", 1}});
   doc["scenes"][0]["nodes"].push_back(1);
   doc["extensions"]["KHR_materials_variants"]["variants"] = {
@@ -309,6 +312,7 @@ TEST_F(GltfPackTest, ChosenMaterialVariantBecomesThePrimitivesMaterial) {
   EXPECT_EQ(chosen["meshes"][0]["primitives"][0]["material"], 0);  // no mappings: kept
   EXPECT_EQ(chosen["meshes"][0]["primitives"][1]["material"], 2);
   EXPECT_EQ(chosen["meshes"][1]["primitives"][0]["material"], 0);  // none for Blue: kept
+  EXPECT_FALSE(chosen["meshes"][1]["primitives"][1].contains("material"));
   EXPECT_FALSE(chosen["meshes"][0]["primitives"][1].contains("extensions"));
   EXPECT_FALSE(chosen.contains("extensions"));
   EXPECT_FALSE(chosen.contains("extensionsRequired"));
@@ -323,6 +327,7 @@ TEST_F(GltfPackTest, ChosenMaterialVariantBecomesThePrimitivesMaterial) {
   EXPECT_EQ(parts.bin, split(packed.glb).bin);
   EXPECT_EQ(parts.doc["meshes"][0]["primitives"][1]["material"], 1);
   EXPECT_EQ(parts.doc["meshes"][1]["primitives"][0]["material"], 1);
+  EXPECT_EQ(parts.doc["meshes"][1]["primitives"][1]["material"], 1);
   fs::create_directories(dir_ / "alone");
   EXPECT_EQ(load_gltf_bytes(red, dir_ / "alone" / "quad.glb").meshes[1].primitives[0].material, 1);
 

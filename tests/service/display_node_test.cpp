@@ -115,13 +115,7 @@ TEST_F(ServiceTest, GltfWithExternalFilesIsServedAsOnePackedTransfer) {
   auto d = display({path("static.gltf"), "--size", "64x64", "--fps", "20"}, "display.log");
   auto s = sampler({"--max-samples-per-second", "50000"}, "s1.log");
   ASSERT_TRUE(wait_members(1, 5.0)) << d->log() << s->log();
-  ASSERT_TRUE(wait_until(
-      [&] {
-        const nlohmann::json st = get_stats(metrics_port());
-        return members(st) == 1 && st["samplers"][0]["samples"].get<uint64_t>() > 0;
-      },
-      10.0))
-      << d->log() << s->log();
+  ASSERT_TRUE(wait_one_sampling(10.0)) << d->log() << s->log();
   EXPECT_NE(d->log().find("static.gltf: 1 external file(s) (static scene.bin) packed with it into "
                           "one .glb"),
             std::string::npos)
@@ -148,13 +142,7 @@ TEST_F(ServiceTest, ChosenMaterialVariantIsServedToTheSamplers) {
   auto d = display({path("variants.gltf"), "--variant", "Red", "--size", "64x64", "--fps", "20"},
                    "display.log");
   auto s = sampler({"--max-samples-per-second", "50000"}, "s1.log");
-  ASSERT_TRUE(wait_until(
-      [&] {
-        const nlohmann::json st = get_stats(metrics_port());
-        return members(st) == 1 && st["samplers"][0]["samples"].get<uint64_t>() > 0;
-      },
-      10.0))
-      << d->log() << s->log();
+  ASSERT_TRUE(wait_one_sampling(10.0)) << d->log() << s->log();
   EXPECT_NE(d->log().find("variants.gltf: material variant \"Red\" chosen"), std::string::npos)
       << d->log();
   EXPECT_EQ(s->log().find(" error "), std::string::npos) << s->log();

@@ -41,6 +41,15 @@ class ServiceTest : public ProcessTest {
   bool wait_members(int n, double timeout) {
     return wait_until([&] { return members(get_stats(metrics_port())) == n; }, timeout);
   }
+  // Until one sampler is a member and the display has taken samples from it.
+  bool wait_one_sampling(double timeout) {
+    return wait_until(
+        [&] {
+          const nlohmann::json st = get_stats(metrics_port());
+          return members(st) == 1 && st["samplers"][0]["samples"].get<uint64_t>() > 0;
+        },
+        timeout);
+  }
   // Region of a member sampler (x0, y0, x1, y1), by position in /stats among members.
   std::vector<std::array<int, 4>> member_regions() {
     std::vector<std::array<int, 4>> out;
