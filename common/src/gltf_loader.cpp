@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -530,6 +531,59 @@ std::string prepare_json(std::string_view text, bool binary, std::set<int>* plac
   return changed ? doc.dump() : std::string();
 }
 
+// Why afr cannot read an asset of this `asset.version` and `asset.minVersion`, or "" when it
+// can: glTF 2.x without a minVersion above 2.0 (a later 2.x stays readable as 2.0). glTF 1.0
+// is another format (objects keyed by ID, shaders in the file), which tinygltf would read as an
+// empty scene or refuse over some unrelated property, so the version is told first.
+std::string version_problem(const std::string& version, const std::string& min_version) {
+  const auto major_minor = [](const std::string& text) -> std::optional<std::pair<int, int>> {
+    int major = 0;
+    int minor = 0;
+    char rest = 0;
+    if (std::sscanf(text.c_str(), "%d.%d%c", &major, &minor, &rest) != 2) return std::nullopt;
+    return std::pair(major, minor);
+  };
+  const auto v = major_minor(version);
+  int major = 0;
+  char rest = 0;
+  const bool major_only = std::sscanf(version.c_str(), "%d%c", &major, &rest) == 1;
+  if (!v && !(major_only && major != 2)) {
+    return fmt::format("asset.version \"{}\" is not a glTF version (major.minor, such as 2.0)",
+                       version);
+  }
+  if (!v || v->first != 2) {
+    return fmt::format(
+        "glTF {}: afr reads glTF 2.0 (a 1.0 file can be converted to 2.0, for "
+        "example with gltf-pipeline)",
+        version);
+  }
+  if (min_version.empty()) return {};
+  const auto m = major_minor(min_version);
+  if (!m) return fmt::format("asset.minVersion \"{}\" is not a glTF version", min_version);
+  if (*m > std::pair(2, 0)) {
+    return fmt::format("the file requires glTF {} (asset.minVersion): afr reads glTF 2.0",
+                       min_version);
+  }
+  return {};
+}
+
+// version_problem() for a file tinygltf refused, read from its JSON; "" when the JSON has no
+// asset.version to blame.
+std::string version_problem_in(std::string_view json) {
+  const nlohmann::json doc = nlohmann::json::parse(json, nullptr, false);
+  if (doc.is_discarded() || !doc.is_object()) return {};
+  const auto asset = doc.find("asset");
+  if (asset == doc.end() || !asset->is_object()) return {};
+  const auto version = asset->find("version");
+  if (version == asset->end()) return {};
+  // (glTF 1.0 files in the wild write it as a number too.)
+  const std::string text = version->is_string() ? version->get<std::string>() : version->dump();
+  const auto min_version = asset->find("minVersion");
+  return version_problem(text, min_version != asset->end() && min_version->is_string()
+                                   ? min_version->get<std::string>()
+                                   : std::string());
+}
+
 }  // namespace
 
 void Loader::parse(std::span<const uint8_t> bytes) {
@@ -552,13 +606,15 @@ void Loader::parse(std::span<const uint8_t> bytes) {
   // A .glb without the chunks check_glb_layout skips, or a file whose JSON prepare_json
   // changed.
   std::vector<uint8_t> rewritten;
+  std::string_view json_text;  // as in the file, for version_problem_in
   const auto as_text = [](std::span<const uint8_t> b) {
     return std::string_view(reinterpret_cast<const char*>(b.data()), b.size());
   };
   if (binary) {
     std::vector<std::span<const uint8_t>> chunks;
     check_glb_layout(bytes, &chunks);
-    std::string json = prepare_json(as_text(chunks[0].subspan(8)), true, &placeholder_buffers_);
+    json_text = as_text(chunks[0].subspan(8));
+    std::string json = prepare_json(json_text, true, &placeholder_buffers_);
     size_t kept_bytes = 12;
     for (const auto& c : chunks) kept_bytes += c.size();
     if (!json.empty() || kept_bytes != size_t(read_u32_le(bytes, 8))) {
@@ -581,10 +637,12 @@ void Loader::parse(std::span<const uint8_t> bytes) {
       for (int i = 0; i < 4; ++i) rewritten[size_t(8 + i)] = uint8_t(rewritten.size() >> (8 * i));
       bytes = rewritten;
     }
-  } else if (std::string json = prepare_json(as_text(bytes), false, &placeholder_buffers_);
-             !json.empty()) {
-    rewritten.assign(json.begin(), json.end());
-    bytes = rewritten;
+  } else {
+    json_text = as_text(bytes);
+    if (std::string json = prepare_json(json_text, false, &placeholder_buffers_); !json.empty()) {
+      rewritten.assign(json.begin(), json.end());
+      bytes = rewritten;
+    }
   }
   bool ok = false;
   // tinygltf mostly reports through `err`, but some inputs (such as an empty data URI) make it
@@ -602,12 +660,17 @@ void Loader::parse(std::span<const uint8_t> bytes) {
     fail(fmt::format("invalid glTF: {}", e.what()));
   }
   if (!ok) {
+    if (std::string problem = version_problem_in(json_text); !problem.empty()) fail(problem);
     // Some failures (an empty image file) are told only as a warning.
     std::string problem = one_line(err.empty() ? warn : err);
     for (const std::string& file : access_.refused) {
       problem += fmt::format(" (refused to read {}: outside the folder of the glTF file)", file);
     }
     fail(fmt::format("invalid glTF: {}", problem.empty() ? "unknown error" : problem));
+  }
+  if (std::string problem = version_problem(model_.asset.version, model_.asset.minVersion);
+      !problem.empty()) {
+    fail(problem);
   }
   // tinygltf warns about things such as a missing external image, and tells in `err` what it
   // skipped without failing (an animation channel without a target node: glTF allows those for
@@ -2656,6 +2719,10 @@ Scene Loader::load(std::span<const uint8_t> bytes) {
     const std::string message = e.what();
     if (message.find(path_.string()) != std::string::npos) throw;
     fail(message);
+  }
+  if (scene_.triangle_count() == 0) {
+    warn_once("nothing to draw",
+              "the displayed scene has no triangles: its images show only the background");
   }
   add_default_lighting();
   return std::move(scene_);

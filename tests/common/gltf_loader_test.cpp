@@ -2120,6 +2120,53 @@ TEST_F(GltfLoaderTest, MalformedJsonFails) {
   expect_error(path, "parse error");
 }
 
+// glTF 1.0 (objects keyed by ID, which tinygltf reads as an empty scene) and a file that needs a
+// later 2.x are refused naming the version; a later 2.x that 2.0 can read loads.
+TEST_F(GltfLoaderTest, OtherGltfVersionsAreRefusedNamingTheVersion) {
+  const fs::path v1 = dir_ / "v1.gltf";
+  write_text(v1, R"({"asset": {"version": "1.0"}, "meshes": {"box": {"primitives": []}},
+                     "scene": "main", "scenes": {"main": {"nodes": []}}})");
+  expect_error(v1, "glTF 1.0: afr reads glTF 2.0");
+  write_text(v1, R"({"asset": {"version": 1}, "meshes": {}})");  // as some 1.0 exporters wrote it
+  expect_error(v1, "glTF 1: afr reads glTF 2.0");
+
+  GltfBuilder b;
+  add_quad(&b);
+  const fs::path path = dir_ / "versions.gltf";
+  b.doc()["asset"] = {{"version", "2.3"}};
+  b.write_embedded(path);
+  EXPECT_EQ(load_gltf(path).triangle_count(), 2u);
+  b.doc()["asset"]["minVersion"] = "2.0";
+  b.write_embedded(path);
+  EXPECT_EQ(load_gltf(path).triangle_count(), 2u);
+  b.doc()["asset"]["minVersion"] = "2.1";
+  b.write_embedded(path);
+  expect_error(path, "requires glTF 2.1 (asset.minVersion)");
+  b.doc()["asset"] = {{"version", "3.0"}};
+  b.write_glb(dir_ / "versions.glb");
+  expect_error(dir_ / "versions.glb", "glTF 3.0: afr reads glTF 2.0");
+  b.doc()["asset"] = {{"version", "two"}};
+  b.write_embedded(path);
+  expect_error(path, "asset.version \"two\" is not a glTF version");
+}
+
+// A valid file whose displayed scene draws nothing loads, and says so once.
+TEST_F(GltfLoaderTest, ASceneWithNothingToDrawLoadsWithAWarning) {
+  GltfBuilder b;
+  add_quad(&b);
+  const fs::path path = dir_ / "empty.gltf";
+  b.write_embedded(path);
+  GltfLoadReport report;
+  EXPECT_EQ(load_gltf(path, &report).triangle_count(), 2u);
+  EXPECT_EQ(count_containing(report.warnings, "no triangles"), 0u);
+
+  b.doc()["nodes"][0].erase("mesh");  // the mesh stays in the file, drawn by no node
+  b.write_embedded(path);
+  report = {};
+  EXPECT_EQ(load_gltf(path, &report).triangle_count(), 0u);
+  EXPECT_EQ(count_containing(report.warnings, "the displayed scene has no triangles"), 1u);
+}
+
 TEST_F(GltfLoaderTest, AccessorOutOfBoundsOfItsBufferViewFails) {
   GltfBuilder b;
   const int positions = add_quad(&b);
