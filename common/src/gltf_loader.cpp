@@ -616,23 +616,40 @@ void Loader::parse(std::span<const uint8_t> bytes) {
     json_text = as_text(chunks[0].subspan(8));
     std::string json = prepare_json(json_text, true, &placeholder_buffers_);
     size_t kept_bytes = 12;
-    for (const auto& c : chunks) kept_bytes += c.size();
-    if (!json.empty() || kept_bytes != size_t(read_u32_le(bytes, 8))) {
+    bool unpadded = false;
+    for (size_t c = 0; c < chunks.size(); ++c) {
+      kept_bytes += chunks[c].size();
+      if (chunks[c].size() % 4 != 0) {
+        // The format pads every chunk to 4 bytes; some writers leave the last one unpadded,
+        // which viewers read, and so does afr (tinygltf refuses a BIN chunk so left).
+        unpadded = true;
+        warn_once("glb padding",
+                  fmt::format(".glb chunk {} is {} bytes long, not a multiple of 4 as the format "
+                              "requires: read as if padded",
+                              c, chunks[c].size() - 8));
+      }
+    }
+    if (!json.empty() || unpadded || kept_bytes != size_t(read_u32_le(bytes, 8))) {
       const auto put_u32 = [&](size_t v) {
         for (int i = 0; i < 4; ++i) rewritten.push_back(uint8_t(v >> (8 * i)));
       };
+      // A chunk: its length, its type, its data, padded with `pad` to 4 bytes.
+      const auto put_chunk = [&](std::span<const uint8_t> type, std::span<const uint8_t> data,
+                                 uint8_t pad) {
+        const size_t padded = (data.size() + 3) / 4 * 4;
+        put_u32(padded);
+        rewritten.insert(rewritten.end(), type.begin(), type.end());
+        rewritten.insert(rewritten.end(), data.begin(), data.end());
+        rewritten.resize(rewritten.size() + (padded - data.size()), pad);
+      };
       rewritten.assign(bytes.begin(), bytes.begin() + 8);
       put_u32(0);  // the length, once known
-      if (json.empty()) {
-        rewritten.insert(rewritten.end(), chunks[0].begin(), chunks[0].end());
-      } else {
-        json.resize((json.size() + 3) / 4 * 4, ' ');  // chunks are 4-byte aligned
-        put_u32(json.size());
-        rewritten.insert(rewritten.end(), chunks[0].begin() + 4, chunks[0].begin() + 8);
-        rewritten.insert(rewritten.end(), json.begin(), json.end());
-      }
+      const auto json_data =
+          json.empty() ? chunks[0].subspan(8)
+                       : std::span(reinterpret_cast<const uint8_t*>(json.data()), json.size());
+      put_chunk(chunks[0].subspan(4, 4), json_data, ' ');
       for (size_t c = 1; c < chunks.size(); ++c) {
-        rewritten.insert(rewritten.end(), chunks[c].begin(), chunks[c].end());
+        put_chunk(chunks[c].subspan(4, 4), chunks[c].subspan(8), 0);
       }
       for (int i = 0; i < 4; ++i) rewritten[size_t(8 + i)] = uint8_t(rewritten.size() >> (8 * i));
       bytes = rewritten;

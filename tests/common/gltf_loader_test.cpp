@@ -2101,6 +2101,35 @@ TEST_F(GltfLoaderTest, GlbLayoutErrorsAreNamedAndUnknownChunksSkipped) {
   EXPECT_EQ(scene2.meshes.at(0).primitives.at(0).positions.at(2), glm::vec3(1, 1, 0));
   ASSERT_EQ(report2.warnings.size(), 1u);
   EXPECT_NE(report2.warnings[0].find("second BIN chunk"), std::string::npos) << report2.warnings[0];
+
+  // Chunks left unpadded (the format pads each to 4 bytes; some writers do not): read as if
+  // padded, with one warning. Here both are 2 bytes short of a multiple of 4.
+  GltfBuilder odd;
+  add_quad(&odd);
+  odd.add_view(std::vector<uint8_t>{7, 7});  // the buffer ends 2 bytes past a multiple of 4
+  json doc = odd.doc();
+  doc["buffers"] = json::array({{{"byteLength", odd.bin().size()}}});
+  std::string text = doc.dump();
+  while (text.size() % 4 != 2) text += ' ';
+  v.clear();
+  const auto put = [&](uint32_t x) {
+    for (int i = 0; i < 4; ++i) v.push_back(uint8_t(x >> (8 * i)));
+  };
+  v.insert(v.end(), {'g', 'l', 'T', 'F'});
+  put(2);
+  put(uint32_t(12 + 8 + text.size() + 8 + odd.bin().size()));
+  put(uint32_t(text.size()));
+  put(0x4E4F534A);
+  v.insert(v.end(), text.begin(), text.end());
+  put(uint32_t(odd.bin().size()));
+  put(0x004E4942);
+  v.insert(v.end(), odd.bin().begin(), odd.bin().end());
+  ASSERT_EQ(odd.bin().size() % 4, 2u);
+  GltfLoadReport report3;
+  const Scene scene3 = load_gltf(variant("unpadded.glb", v), &report3);
+  EXPECT_EQ(scene3.meshes.at(0).primitives.at(0).positions.at(2), glm::vec3(1, 1, 0));
+  EXPECT_EQ(scene3.meshes.at(0).primitives.at(0).indices.size(), 6u);
+  EXPECT_EQ(count_containing(report3.warnings, "not a multiple of 4"), 1u);
 }
 
 TEST_F(GltfLoaderTest, TruncatedBinFails) {
