@@ -54,7 +54,7 @@ constexpr size_t kMaxNodes = size_t(1) << 20;
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 20> kSupportedExtensions = {
+constexpr std::array<std::string_view, 21> kSupportedExtensions = {
     "EXT_mesh_gpu_instancing",
     "EXT_meshopt_compression",
     "EXT_texture_webp",
@@ -62,6 +62,7 @@ constexpr std::array<std::string_view, 20> kSupportedExtensions = {
     "KHR_lights_punctual",
     "KHR_materials_anisotropy",
     "KHR_materials_clearcoat",
+    "KHR_materials_dispersion",
     "KHR_materials_emissive_strength",
     "KHR_materials_ior",
     "KHR_materials_iridescence",
@@ -255,6 +256,7 @@ class Loader {
   void read_clearcoat(size_t m, const tinygltf::Material& in, const std::string& what,
                       Material* out);
   void read_volume(const tinygltf::Material& in, const std::string& what, Material* out);
+  void read_dispersion(const tinygltf::Material& in, const std::string& what, Material* out);
   void read_sheen(size_t m, const tinygltf::Material& in, const std::string& what, Material* out);
   void read_anisotropy(size_t m, const tinygltf::Material& in, const std::string& what,
                        Material* out);
@@ -1835,6 +1837,21 @@ void Loader::read_volume(const tinygltf::Material& in, const std::string& what, 
   }
 }
 
+// KHR_materials_dispersion: dispersion (>= 0, default 0), 20 / the Abbe number. It builds on
+// KHR_materials_volume's refraction, so on a material without a volume it is told and unused.
+void Loader::read_dispersion(const tinygltf::Material& in, const std::string& what, Material* out) {
+  std::string where;
+  const tinygltf::Value* e = material_extension(in, "KHR_materials_dispersion", what, &where);
+  if (e == nullptr) return;
+  read_number(*e, "dispersion", where, non_negative, ">= 0", &out->dispersion);
+  if (out->dispersion > 0.0f && !(out->transmission > 0.0f && out->thickness > 0.0f)) {
+    warn_once("dispersion without volume",
+              fmt::format("{}: dispersion has no effect without transmission and a volume "
+                          "(KHR_materials_volume thicknessFactor > 0), which it builds on",
+                          where));
+  }
+}
+
 // KHR_materials_sheen: sheenColorFactor (three numbers 0 to 1, default 0) and
 // sheenRoughnessFactor (0 to 1, default 0), and the textures that multiply them (the roughness
 // texture's alpha channel).
@@ -1980,6 +1997,7 @@ void Loader::load_materials() {
     read_specular(m, in, what, &out);
     read_clearcoat(m, in, what, &out);
     read_volume(in, what, &out);
+    read_dispersion(in, what, &out);
     read_sheen(m, in, what, &out);
     read_anisotropy(m, in, what, &out);
     read_iridescence(m, in, what, &out);

@@ -146,6 +146,10 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
       m.absorption = -glm::log(c) / mat.attenuation_distance;
       m.has_volume = true;
     }
+    if (mat.thickness > 0.0f && mat.dispersion > 0.0f && mat.ior > 0.0f) {
+      // (ior - 1) / (2 V_d), dispersion being 20 / V_d.
+      m.dispersion_spread = (mat.ior - 1.0f) * 0.025f * mat.dispersion;
+    }
   }
   if (mat.has_specular_extension) {
     // KHR_materials_pbrSpecularGlossiness gives F0 itself as the specular color.

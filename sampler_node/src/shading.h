@@ -124,6 +124,9 @@ struct ShadeMaterial {
   // it absorbs (shadow rays then measure the stretches inside: volume_transmittance).
   glm::vec3 absorption{0.0f};
   bool has_volume = false;
+  // KHR_materials_dispersion in a volume: red refracts with ior - this, green with ior, blue
+  // with ior + this, (ior - 1) / (2 V_d) as the extension's method spreads them; 0 for none.
+  float dispersion_spread = 0.0f;
   // The non-metallic part's specular reflection at normal and at grazing incidence: 0.04 and 1
   // (glTF's core), or with KHR_materials_specular (Material::specular) F0(ior) x its color x its
   // factor and the factor. Metals reflect their base color and 1 (fresnel_f0, fresnel_f90).

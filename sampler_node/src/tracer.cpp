@@ -1659,6 +1659,53 @@ glm::vec3 Tracer::Impl::pass_through(const glm::vec3& d, const Surface& s, int d
   return secondary(s.p - offset_at(s.p) * ng, d, s, depth + 1, behind, stats);
 }
 
+namespace {
+
+// Snell's refraction of d about n (on the side d arrives from, cos_i = -n.d) into a medium of
+// index ior entering it (1 / ior) or out of it (ior), with Schlick's Fresnel term of F0 f0 at
+// the cosine on the outer side; ior 0 or total internal reflection: t 0, F 1.
+struct Refraction {
+  glm::vec3 t{0.0f};
+  float F = 1.0f;
+  float cos_outer = 1.0f;
+};
+Refraction refraction(const glm::vec3& d, const glm::vec3& n, float cos_i, bool entering, float ior,
+                      float f0) {
+  Refraction r;
+  r.cos_outer = cos_i;
+  if (!(ior > 0.0f)) return r;
+  const float eta = entering ? 1.0f / ior : ior;  // n_from / n_to; outside is 1
+  const float sin2_t = eta * eta * (1.0f - cos_i * cos_i);
+  if (!(sin2_t < 1.0f)) return r;
+  const float cos_t = std::sqrt(1.0f - sin2_t);
+  r.t = eta * d + (eta * cos_i - cos_t) * n;
+  if (!entering) r.cos_outer = cos_t;
+  const float k = 1.0f - r.cos_outer;
+  const float k2 = k * k;
+  r.F = f0 + (1.0f - f0) * (k2 * k2 * k);
+  return r;
+}
+
+float dielectric_f0(float ior) {
+  const float r = (ior - 1.0f) / (ior + 1.0f);
+  return r * r;
+}
+
+// The ior of color channel c (0 red, 1 green, 2 blue) in dispersive glass, never below 1.
+float channel_ior(const ShadeMaterial& m, int c) {
+  return std::max(m.ior + m.dispersion_spread * float(c - 1), 1.0f);
+}
+
+// The one color channel a throughput carries, the other two exactly 0; -1 for none or several.
+int single_channel(const glm::vec3& t) {
+  if (t.g == 0.0f && t.b == 0.0f) return t.r != 0.0f ? 0 : -1;
+  if (t.r == 0.0f && t.b == 0.0f) return 1;
+  if (t.r == 0.0f && t.g == 0.0f) return 2;
+  return -1;
+}
+
+}  // namespace
+
 // Whitted glass at s, hit along d (docs/scene-model.md, "Transmission and refraction"): a
 // reflected ray weighted by Schlick's Fresnel and a refracted one (Snell) weighted by the rest
 // times transmission and base color; total internal reflection past the critical angle.
@@ -1685,30 +1732,42 @@ glm::vec3 Tracer::Impl::glass(const glm::vec3& d, const Surface& s, const glm::v
   cos_i = glm::clamp(cos_i, 0.0f, 1.0f);
   const glm::vec3 base = m.base * tex;
 
-  // Snell: eta = n_from / n_to; outside is 1.
-  glm::vec3 t(0.0f);
-  float F = 1.0f;  // ior 0, or total internal reflection
-  float cos_outer = cos_i;
-  if (m.ior > 0.0f) {
-    const float eta = entering ? 1.0f / m.ior : m.ior;
-    const float sin2_t = eta * eta * (1.0f - cos_i * cos_i);
-    if (sin2_t < 1.0f) {
-      const float cos_t = std::sqrt(1.0f - sin2_t);
-      t = eta * d + (eta * cos_i - cos_t) * n;
-      if (!entering) cos_outer = cos_t;
-      const float k = 1.0f - cos_outer;
-      const float k2 = k * k;
-      F = m.f0_dielectric + (1.0f - m.f0_dielectric) * (k2 * k2 * k);
+  // KHR_materials_dispersion: each color channel refracts with its own ior. A ray that carries
+  // more than one channel splits into one refracted ray per channel (the reflected one stays
+  // one ray: its direction is the same for all); a ray that carries one channel only, as
+  // every ray inside dispersive glass does, takes that channel's ior.
+  int channel = -1;  // the one channel the ray carries, where the ior depends on it
+  bool split = false;
+  float ior = m.ior;
+  if (m.dispersion_spread > 0.0f) {
+    channel = single_channel(throughput);
+    split = channel < 0;
+    if (!split) ior = channel_ior(m, channel);
+  }
+  const Refraction main =
+      refraction(d, n, cos_i, entering, ior, channel < 0 ? m.f0_dielectric : dielectric_f0(ior));
+  glm::vec3 F(main.F);
+  Refraction per_channel[3];
+  if (split) {
+    for (int c = 0; c < 3; ++c) {
+      const float ior_c = channel_ior(m, c);
+      per_channel[c] = refraction(d, n, cos_i, entering, ior_c, dielectric_f0(ior_c));
+      F[c] = per_channel[c].F;
     }
   }
-  // An iridescent film (KHR_materials_iridescence) colors the Fresnel term, seen from the air.
-  const glm::vec3 fresnel =
-      F < 1.0f ? shading::with_film(m, glm::vec3(F), cos_outer, glm::vec3(m.f0_dielectric))
-               : glm::vec3(F);
+  // An iridescent film (KHR_materials_iridescence) colors the Fresnel term, seen from the air;
+  // a channel past its critical angle reflects all.
+  glm::vec3 fresnel = F;
+  if (main.F < 1.0f || split) {
+    const glm::vec3 film = shading::with_film(m, F, main.cos_outer, glm::vec3(m.f0_dielectric));
+    for (int c = 0; c < 3; ++c) fresnel[c] = F[c] < 1.0f ? film[c] : 1.0f;
+  }
   // The metallic part reflects as a mirror tinted by the base color.
-  const glm::vec3 reflect_w =
-      F >= 1.0f ? glm::vec3(1.0f)
-                : glm::mix(fresnel, shading::fresnel_schlick(base, cos_outer), m.metallic);
+  const glm::vec3 metal = shading::fresnel_schlick(base, main.cos_outer);
+  glm::vec3 reflect_w;
+  for (int c = 0; c < 3; ++c) {
+    reflect_w[c] = F[c] >= 1.0f ? 1.0f : glm::mix(fresnel[c], metal[c], m.metallic);
+  }
   const glm::vec3 transmit_w = (m.transmission * (1.0f - m.metallic)) * (1.0f - fresnel) * base;
 
   glm::vec3 result(0.0f);
@@ -1722,19 +1781,24 @@ glm::vec3 Tracer::Impl::glass(const glm::vec3& d, const Surface& s, const glm::v
       result += secondary(s.p + offset * ng, r * (1.0f / std::sqrt(len2)), s, depth + 1,
                           r_throughput, stats, entering ? glm::vec3(0.0f) : m.absorption);
   }
-  const glm::vec3 t_throughput = throughput * transmit_w;
-  if (std::max(t_throughput.r, std::max(t_throughput.g, t_throughput.b)) >= kMinThroughput) {
+  // One refracted ray (of the given ior) carrying t_throughput.
+  const auto refract_ray = [&](glm::vec3 t, float ior_t, const glm::vec3& t_throughput) {
+    if (std::max(t_throughput.r, std::max(t_throughput.g, t_throughput.b)) < kMinThroughput) return;
     // An interpolated normal can bend the ray back to the side it came from: use the true one.
-    if (glm::dot(t, ng) >= 0.0f) {
-      const float c = -glm::dot(ng, d);
-      const float eta = entering ? 1.0f / m.ior : m.ior;
-      const float sin2 = eta * eta * (1.0f - c * c);
-      t = sin2 < 1.0f ? eta * d + (eta * c - std::sqrt(1.0f - sin2)) * ng : glm::vec3(0.0f);
-    }
+    if (glm::dot(t, ng) >= 0.0f) t = refraction(d, ng, -glm::dot(ng, d), entering, ior_t, 0.0f).t;
     const float len2 = glm::dot(t, t);
     if (len2 > 0.0f && std::isfinite(len2))
       result += secondary(s.p - offset * ng, t * (1.0f / std::sqrt(len2)), s, depth + 1,
                           t_throughput, stats, entering ? m.absorption : glm::vec3(0.0f));
+  };
+  if (!split) {
+    refract_ray(main.t, ior, throughput * transmit_w);
+  } else {
+    for (int c = 0; c < 3; ++c) {
+      glm::vec3 one(0.0f);
+      one[c] = throughput[c] * transmit_w[c];
+      refract_ray(per_channel[c].t, channel_ior(m, c), one);
+    }
   }
   return result;
 }

@@ -1290,6 +1290,47 @@ TEST_F(GltfLoaderTest, VolumeFactorsAreRead) {
                "material 0 KHR_materials_volume has an invalid attenuationColor");
 }
 
+// KHR_materials_dispersion: read (default 0), also where a file requires it; on a material
+// without a volume, which it builds on, it warns; a negative value fails naming the material.
+TEST_F(GltfLoaderTest, DispersionIsRead) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  b.doc()["extensionsUsed"] = {"KHR_materials_dispersion", "KHR_materials_volume",
+                               "KHR_materials_transmission"};
+  b.doc()["extensionsRequired"] = {"KHR_materials_dispersion"};
+  const json glass = {{"KHR_materials_transmission", {{"transmissionFactor", 1.0}}},
+                      {"KHR_materials_volume", {{"thicknessFactor", 0.5}}},
+                      {"KHR_materials_dispersion", {{"dispersion", 0.36}}}};
+  b.doc()["materials"] = json::array(
+      {{{"extensions", glass}}, {{"extensions", {{"KHR_materials_dispersion", json::object()}}}}});
+  b.write_embedded(dir_ / "dispersion.gltf");
+  GltfLoadReport report;
+  Scene scene = load_gltf(dir_ / "dispersion.gltf", &report);
+  ASSERT_EQ(scene.materials.size(), 2u);
+  EXPECT_EQ(scene.materials[0].dispersion, 0.36f);
+  EXPECT_EQ(scene.materials[1].dispersion, 0.0f);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+
+  json thin = glass;  // a thin wall: nothing to disperse in
+  thin["KHR_materials_volume"]["thicknessFactor"] = 0;
+  b.doc()["materials"][1] = {{"extensions", thin}};
+  b.write_embedded(dir_ / "thin.gltf");
+  report = {};
+  scene = load_gltf(dir_ / "thin.gltf", &report);
+  EXPECT_EQ(scene.materials[1].dispersion, 0.36f);
+  ASSERT_EQ(report.warnings.size(), 1u);
+  EXPECT_NE(report.warnings[0].find("material 1 KHR_materials_dispersion: dispersion has no "
+                                    "effect without transmission and a volume"),
+            std::string::npos)
+      << report.warnings[0];
+
+  b.doc()["materials"][0]["extensions"]["KHR_materials_dispersion"]["dispersion"] = -1;
+  b.write_embedded(dir_ / "negative.gltf");
+  expect_error(dir_ / "negative.gltf",
+               "material 0 KHR_materials_dispersion has an invalid dispersion");
+}
+
 // KHR_materials_specular: its factors are read (defaults 1), also where a file requires it; a
 // factor out of range fails naming the material.
 TEST_F(GltfLoaderTest, SpecularExtensionFactorsAreRead) {

@@ -215,18 +215,19 @@ TEST(GltfUserContentTest, AnUnsupportedRequiredExtensionIsAnErrorNamingIt) {
 TEST(GltfUserContentTest, AnUnsupportedUsedExtensionIsOneWarningNamingIt) {
   TempFolder dir;
   GltfContent g = unlit_box();
-  g.doc()["extensionsUsed"] = {"KHR_materials_dispersion", "KHR_materials_emissive_strength"};
+  g.doc()["extensionsUsed"] = {"KHR_materials_diffuse_transmission",
+                               "KHR_materials_emissive_strength"};
   g.doc()["extensionsRequired"] = {"KHR_materials_emissive_strength"};
   g.doc()["materials"][0]["extensions"] = {
-      {"KHR_materials_dispersion", {{"dispersion", 0.5}}},
+      {"KHR_materials_diffuse_transmission", {{"diffuseTransmissionFactor", 0.5}}},
       {"KHR_materials_emissive_strength", {{"emissiveStrength", 2.0}}}};
-  g.write(dir / "dispersion.gltf");
+  g.write(dir / "diffuse_transmission.gltf");
   LogCapture log;
   GltfLoadReport report;
-  load_gltf(dir / "dispersion.gltf", &report);
+  load_gltf(dir / "diffuse_transmission.gltf", &report);
   ASSERT_EQ(report.warnings.size(), 1u);
-  EXPECT_NE(report.warnings[0].find("KHR_materials_dispersion"), std::string::npos);
-  EXPECT_EQ(log.lines_with("KHR_materials_dispersion").size(), 1u);
+  EXPECT_NE(report.warnings[0].find("KHR_materials_diffuse_transmission"), std::string::npos);
+  EXPECT_EQ(log.lines_with("KHR_materials_diffuse_transmission").size(), 1u);
   EXPECT_EQ(log.count_level("warning"), 1u);
 }
 

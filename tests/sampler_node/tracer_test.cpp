@@ -1818,6 +1818,57 @@ TEST(TracerTest, GlassVolumeAttenuatesByTheDistanceInside) {
   EXPECT_NEAR(filled.g, t * t * std::pow(0.25, inside / 2.0), 1e-4);
 }
 
+// KHR_materials_dispersion: in a slab of glass 4 thick (a volume), each color channel refracts
+// with its own ior, 1.5 -/+ (1.5 - 1) / (2 V_d) for red and blue, and so leaves displaced by its
+// own h (tan theta - tan theta_c). A tiny white emitter where one channel lands lights that
+// channel alone, by its own Fresnel terms; without dispersion, or in a thin wall (thickness 0),
+// where the rays do not split, the emitter under green's path lights all three.
+TEST(TracerTest, DispersionRefractsEachColorChannelWithItsOwnIor) {
+  const double ior = 1.5, h = 4.0, dispersion = 2.0;  // V_d = 10: an exaggerated glass
+  const double half_spread = (ior - 1.0) / (2.0 * (20.0 / dispersion));
+  const double theta = 40.0 * M_PI / 180.0;
+  const glm::vec3 d(float(std::sin(theta)), 0.0f, -float(std::cos(theta)));
+  const glm::vec3 origin = glm::vec3(0.0f, 0.0f, float(h / 2)) - 2.0f * d;
+  const double z_target = -h / 2 - 2.0;
+  const auto landing = [&](double ior_c) {
+    return h * std::tan(std::asin(std::sin(theta) / ior_c)) + 2.0 * std::tan(theta);
+  };
+  const auto seen = [&](double x_target, float thickness, float disp) {
+    Scene s;
+    const int glass = add_glass(&s, float(ior));
+    s.materials[size_t(glass)].thickness = thickness;
+    s.materials[size_t(glass)].dispersion = disp;
+    add_mesh_node(&s, box_mesh({50.0f, 50.0f, float(h / 2)}, glass));
+    const float w = 0.01f;
+    add_mesh_node(&s, quad_mesh({float(x_target) - w / 2, -w / 2, float(z_target)}, {w, 0, 0},
+                                {0, w, 0}, add_emitter(&s, {1, 1, 1})));
+    s.finalize();
+    Tracer tracer(s);
+    TraceStats stats;
+    const ShadedSample out = tracer.trace(Ray{origin, d}, &stats);
+    EXPECT_EQ(stats.sanitized, 0u);
+    return out.color;
+  };
+  const double iors[3] = {ior - half_spread, ior, ior + half_spread};
+  ASSERT_GT(landing(iors[0]) - landing(iors[1]), 0.03);  // the channels land 3 widths apart
+  ASSERT_GT(landing(iors[1]) - landing(iors[2]), 0.03);
+  for (int c = 0; c < 3; ++c) {
+    const glm::vec3 color = seen(landing(iors[c]), 1.0f, float(dispersion));
+    const double t = 1.0 - schlick(iors[c], std::cos(theta));  // in and out at the same angle
+    for (int k = 0; k < 3; ++k) {
+      if (k == c) {
+        EXPECT_NEAR(color[k], t * t, 1e-4) << "channel " << c;
+      } else {
+        EXPECT_EQ(color[k], 0.0f) << "channel " << k << " at channel " << c << "'s landing";
+      }
+    }
+  }
+  const double t = 1.0 - schlick(ior, std::cos(theta));
+  for (const glm::vec3& color : {seen(landing(ior), 1.0f, 0.0f), seen(landing(ior), 0.0f, 2.0f)}) {
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(color[k], t * t, 1e-4) << "channel " << k;
+  }
+}
+
 // A ray inside a slab of ior 1.5 meets its faces at the angle it starts with: below the
 // critical angle asin(1 / 1.5) = 41.81 degrees it leaves (and lights up the emitter below);
 // beyond it every bounce reflects totally, nothing leaves, and the depth limit ends the chain.

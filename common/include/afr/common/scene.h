@@ -279,6 +279,9 @@ struct Material {
   float thickness = 0.0f;
   glm::vec3 attenuation_color{1.0f};
   float attenuation_distance = std::numeric_limits<float>::infinity();
+  // KHR_materials_dispersion: 20 / the Abbe number V_d (0: none). In a volume (thickness > 0)
+  // each color channel refracts with its own ior, red the smallest.
+  float dispersion = 0.0f;
   bool double_sided = false;
   // KHR_materials_unlit: the surface shows its base color (factor x texture x COLOR_0) as it
   // is, whatever the light; every other property but alpha is ignored.
