@@ -23,12 +23,15 @@ int main(int argc, char** argv) {
   int spp = 16, frames = 1, threads = 0;
   uint64_t seed = 1;
   std::vector<std::string> compare;
-  std::string variant;
+  std::string variant, camera;
   bool loop = false;
   app.add_option("scene", scene_path, "glTF 2.0 scene (.gltf/.glb); the built-in scene if omitted")
       ->check(CLI::ExistingFile);
   app.add_option("--variant", variant,
                  "KHR_materials_variants: draw the scene with this material variant (by name)");
+  app.add_option("--camera", camera,
+                 "the scene's camera to draw from: a camera's or its node's name, or an index "
+                 "into the glTF's cameras (default: the first camera node of the scene)");
   app.add_option("-t,--time", time, "scene time in seconds (first frame's time with --frames)");
   app.add_option("-s,--size", size_text, "image size WxH")->capture_default_str();
   app.add_option("--spp", spp, "samples per pixel, a square S*S (stratified S x S)")
@@ -64,12 +67,16 @@ int main(int argc, char** argv) {
     if (!variant.empty() && scene_path.empty()) {
       throw afr::Error("--variant needs a scene file (the built-in scene has no variants)");
     }
-    const afr::Scene scene =
-        variant.empty()
-            ? afr::load_scene(scene_path)
-            : afr::load_gltf_bytes(afr::select_material_variant(afr::read_scene_file(scene_path),
-                                                                scene_path, variant),
-                                   scene_path);
+    if (!camera.empty() && scene_path.empty()) throw afr::Error("--camera needs a scene file");
+    const afr::Scene scene = [&] {
+      if (variant.empty() && camera.empty()) return afr::load_scene(scene_path);
+      std::vector<uint8_t> bytes = afr::read_scene_file(scene_path);
+      if (!variant.empty()) bytes = afr::select_material_variant(bytes, scene_path, variant);
+      if (!camera.empty()) bytes = afr::select_camera(bytes, scene_path, camera);
+      afr::Scene chosen = afr::load_gltf_bytes(bytes, scene_path);
+      if (!camera.empty()) afr::check_chosen_camera(chosen, camera);
+      return chosen;
+    }();
     if (!variant.empty()) spdlog::info("material variant \"{}\" chosen", variant);
     spdlog::info("scene {}: {} triangles, {} lights, {:.2f} s of animation", scene.source,
                  scene.triangle_count(), scene.lights.size(), scene.duration());

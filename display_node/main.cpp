@@ -54,7 +54,7 @@ int main(int argc, char** argv) {
   std::string scene_path, size_text = "256x256", backend_text = "auto", preset = "balanced",
                           mode_text = "adaptive", keys_dir, key_file, allow_file, record, replay,
                           output = "out", log_level = "info", wall_text = "1x1", cell_text = "0,0",
-                          follow, advertise, variant;
+                          follow, advertise, variant, camera;
   DisplayServiceOptions o;
   bool headless = false, insecure = false, interactive = false;
   double fps = 30.0, seconds = 0.0, stats_interval = 2.0;
@@ -69,6 +69,9 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   app.add_option("--variant", variant,
                  "KHR_materials_variants: serve and show the scene with this material variant");
+  app.add_option("--camera", camera,
+                 "the scene's camera to view from: a camera's or its node's name, or an index "
+                 "into the glTF's cameras (default: the first camera node of the scene)");
   app.add_option("--bind", o.bind, "base endpoint tcp://HOST:PORT (uses PORT..PORT+2)")
       ->capture_default_str();
   app.add_option("-s,--size", size_text, "image size WxH (a wall's whole virtual display)")
@@ -215,8 +218,8 @@ int main(int argc, char** argv) {
     // lead sends it to every node in the layout.
     o.wall.margin =
         margin >= 0 ? margin : afr::auto_viewport_margin(afr::ReconstructorConfig{}.splat);
-    if (follower &&
-        (wall_text != "1x1" || margin != -1 || !scene_path.empty() || !variant.empty())) {
+    if (follower && (wall_text != "1x1" || margin != -1 || !scene_path.empty() ||
+                     !variant.empty() || !camera.empty())) {
       throw afr::Error(
           "--follow: the wall's grid, margin and scene are the lead's; give only --cell");
     }
@@ -256,13 +259,14 @@ int main(int argc, char** argv) {
       }
       role = wall_follower.get();
     } else {
-      if (variant.empty()) {
+      if (variant.empty() && camera.empty()) {
         scene = std::make_unique<afr::Scene>(afr::load_scene(scene_path));
         o.scene = afr::service::read_scene_payload(scene_path);
       } else {
-        // The variant's scene, as the samplers will load it.
-        o.scene = afr::service::read_scene_payload(scene_path, variant);
+        // The chosen variant's or camera's scene, as the samplers will load it.
+        o.scene = afr::service::read_scene_payload(scene_path, variant, camera);
         scene = std::make_unique<afr::Scene>(afr::load_gltf_bytes(o.scene.bytes, scene_path));
+        if (!camera.empty()) afr::check_chosen_camera(*scene, camera);
       }
       if (g_stop.load()) return 0;  // a signal while the scene loaded
       if (!replay.empty()) {

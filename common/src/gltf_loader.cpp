@@ -2809,6 +2809,17 @@ Scene load_gltf_bytes(std::span<const uint8_t> bytes, const std::filesystem::pat
   return Loader(path, report).load(bytes);
 }
 
+void check_chosen_camera(const Scene& scene, std::string_view camera) {
+  const int node = scene.camera_node();
+  if (node == -1) {
+    throw Error(fmt::format("{}: camera \"{}\" is on no node of the displayed scene", scene.source,
+                            camera));
+  }
+  const std::string& name = scene.nodes[size_t(node)].name;
+  spdlog::info("{}: camera \"{}\" chosen (node {}{})", scene.source, camera, node,
+               name.empty() ? std::string() : fmt::format(" \"{}\"", name));
+}
+
 Scene load_scene(const std::filesystem::path& path) {
   if (path.empty()) return make_builtin_scene();
   return load_gltf(path);

@@ -455,4 +455,83 @@ std::vector<uint8_t> select_material_variant(std::span<const uint8_t> bytes,
   return std::vector<uint8_t>(text.begin(), text.end());
 }
 
+std::vector<uint8_t> select_camera(std::span<const uint8_t> bytes,
+                                   const std::filesystem::path& path, std::string_view camera) {
+  const auto fail = [&](const std::string& problem) {
+    throw Error(fmt::format("{}: {}", path.string(), problem));
+  };
+  std::span<const uint8_t> json_text = bytes, bin;
+  const bool glb = is_glb(bytes);
+  if (glb) split_glb(bytes, path, &json_text, &bin);
+  Json doc = Json::parse(json_text.begin(), json_text.end(), nullptr, /*allow_exceptions=*/false);
+  if (doc.is_discarded() || !doc.is_object()) fail("invalid glTF: not a JSON object");
+
+  const auto name_of = [](const Json& object) {
+    return object.is_object() && object.contains("name") && object["name"].is_string()
+               ? object["name"].get<std::string>()
+               : std::string();
+  };
+  const Json empty = Json::array();
+  const Json& nodes = doc.contains("nodes") && doc["nodes"].is_array() ? doc["nodes"] : empty;
+  const Json& cameras =
+      doc.contains("cameras") && doc["cameras"].is_array() ? doc["cameras"] : empty;
+  // The camera each node carries, if any.
+  const auto camera_of = [&](size_t n) -> std::optional<uint64_t> {
+    const Json& node = nodes[n];
+    if (!node.is_object() || !node.contains("camera")) return std::nullopt;
+    return count_of(node["camera"]);
+  };
+  const auto first_node_with = [&](uint64_t c) -> std::optional<size_t> {
+    for (size_t n = 0; n < nodes.size(); ++n) {
+      if (camera_of(n) == c) return n;
+    }
+    return std::nullopt;
+  };
+
+  std::optional<size_t> chosen;
+  for (size_t n = 0; n < nodes.size() && !chosen; ++n) {
+    if (camera_of(n) && name_of(nodes[n]) == camera) chosen = n;
+  }
+  std::optional<uint64_t> index;
+  for (size_t c = 0; c < cameras.size() && !chosen && !index; ++c) {
+    if (name_of(cameras[c]) == camera) index = c;
+  }
+  if (!chosen && !index && !camera.empty() &&
+      std::all_of(camera.begin(), camera.end(), [](char ch) { return ch >= '0' && ch <= '9'; }) &&
+      camera.size() < 10) {
+    const uint64_t i = std::stoull(std::string(camera));
+    if (i < cameras.size()) index = i;
+  }
+  if (!chosen && index) {
+    chosen = first_node_with(*index);
+    if (!chosen) fail(fmt::format("camera \"{}\" (cameras[{}]) is on no node", camera, *index));
+  }
+  if (!chosen) {
+    std::vector<std::string> listed;
+    for (size_t c = 0; c < cameras.size(); ++c) {
+      const std::string name = name_of(cameras[c]);
+      const std::optional<size_t> node = first_node_with(c);
+      std::string entry = name.empty() ? fmt::format("{}", c) : fmt::format("{} \"{}\"", c, name);
+      if (node && !name_of(nodes[*node]).empty()) {
+        entry += fmt::format(" on node \"{}\"", name_of(nodes[*node]));
+      }
+      listed.push_back(std::move(entry));
+    }
+    if (listed.empty()) fail(fmt::format("no camera \"{}\": the file has none", camera));
+    fail(fmt::format("no camera \"{}\" (the file's cameras: {})", camera, fmt::join(listed, ", ")));
+  }
+  if (const std::optional<uint64_t> c = camera_of(*chosen);
+      c && *c < cameras.size() && cameras[*c].is_object() &&
+      cameras[*c].value("type", "") == "orthographic") {
+    fail(fmt::format("camera \"{}\" is orthographic, and afr draws perspective cameras only",
+                     camera));
+  }
+  for (size_t n = 0; n < nodes.size(); ++n) {
+    if (n != *chosen && doc["nodes"][n].is_object()) doc["nodes"][n].erase("camera");
+  }
+  const std::string text = doc.dump();
+  if (glb) return make_glb(text, bin);
+  return std::vector<uint8_t>(text.begin(), text.end());
+}
+
 }  // namespace afr

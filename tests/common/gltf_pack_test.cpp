@@ -356,6 +356,94 @@ TEST_F(GltfPackTest, ChosenMaterialVariantBecomesThePrimitivesMaterial) {
             std::string::npos);
 }
 
+// Choosing a camera leaves the camera on the chosen node alone, so that the loader's camera
+// node is that one: by a node's name, by a camera's name or by index (each its first node), in
+// a .gltf and a packed .glb alike. An unknown camera lists the file's; a camera on a node
+// outside the displayed scene is named once the scene is loaded (check_chosen_camera).
+TEST_F(GltfPackTest, ChosenCameraIsTheScenesCamera) {
+  json doc = doc_;
+  const json perspective = {{"type", "perspective"},
+                            {"perspective", {{"yfov", 0.5}, {"znear", 0.1}}}};
+  doc["cameras"] = {perspective, perspective, perspective};
+  doc["cameras"][0]["name"] = "Main";
+  doc["cameras"][1]["name"] = "Side";
+  doc["cameras"][1]["perspective"]["yfov"] = 0.9;
+  doc["nodes"].push_back({{"name", "main node"}, {"camera", 0}});  // 1
+  doc["nodes"].push_back({{"name", "side node"}, {"camera", 1}});  // 2
+  doc["nodes"].push_back({{"name", "far side"}, {"camera", 1}, {"translation", {0, 0, 9}}});
+  doc["nodes"].push_back({{"name", "off stage"}, {"camera", 2}});  // 4
+  doc["scenes"][0]["nodes"] = {0, 1, 2, 3};                        // node 4 is in no scene
+  write_text(gltf_, doc.dump());
+  const std::vector<uint8_t> file = read_bytes(gltf_);
+  EXPECT_EQ(load_gltf_bytes(file, gltf_).camera_node(), 1);  // the default: the first
+
+  const auto kept = [](std::span<const uint8_t> bytes) {
+    const json chosen = is_glb(bytes) ? split(bytes).doc : json::parse(bytes.begin(), bytes.end());
+    std::vector<int> nodes;
+    for (size_t n = 0; n < chosen["nodes"].size(); ++n) {
+      if (chosen["nodes"][n].contains("camera")) nodes.push_back(int(n));
+    }
+    return nodes;
+  };
+  EXPECT_EQ(kept(select_camera(file, gltf_, "Side")), std::vector<int>{2});
+  EXPECT_EQ(kept(select_camera(file, gltf_, "1")), std::vector<int>{2});
+  EXPECT_EQ(kept(select_camera(file, gltf_, "far side")), std::vector<int>{3});
+  EXPECT_EQ(kept(select_camera(file, gltf_, "0")), std::vector<int>{1});
+  const std::vector<uint8_t> side = select_camera(file, gltf_, "far side");
+  const Scene scene = load_gltf_bytes(side, gltf_);
+  EXPECT_EQ(scene.camera_node(), 3);
+  EXPECT_NEAR(scene.camera_at(scene.evaluate(0.0)).yfov, 0.9, 1e-6);
+  EXPECT_NO_THROW(check_chosen_camera(scene, "far side"));
+
+  const PackedGltf packed = pack_gltf(file, gltf_);
+  const std::vector<uint8_t> glb = select_camera(packed.glb, gltf_, "Main");
+  EXPECT_EQ(split(glb).bin, split(packed.glb).bin);
+  EXPECT_EQ(kept(glb), std::vector<int>{1});
+  fs::create_directories(dir_ / "alone");
+  EXPECT_EQ(load_gltf_bytes(glb, dir_ / "alone" / "quad.glb").camera_node(), 1);
+
+  // Camera 2 is on node 4, which no scene shows: the loaded scene has no camera node.
+  const Scene off = load_gltf_bytes(select_camera(file, gltf_, "2"), gltf_);
+  EXPECT_EQ(off.camera_node(), -1);
+  try {
+    check_chosen_camera(off, "2");
+    ADD_FAILURE() << "a camera outside the displayed scene was accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              gltf_.string() + ": camera \"2\" is on no node of the displayed scene");
+  }
+
+  const auto error_of = [&](std::span<const uint8_t> bytes, std::string_view camera) {
+    try {
+      (void)select_camera(bytes, gltf_, camera);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(error_of(file, "Top"),
+            gltf_.string() +
+                ": no camera \"Top\" (the file's cameras: 0 \"Main\" on node "
+                "\"main node\", 1 \"Side\" on node \"side node\", 2 on node "
+                "\"off stage\")");
+  EXPECT_NE(error_of(file, "3").find("no camera \"3\""), std::string::npos);
+  doc["nodes"].erase(4);
+  doc["scenes"][0]["nodes"] = {0, 1, 2, 3};
+  write_text(gltf_, doc.dump());
+  EXPECT_EQ(error_of(read_bytes(gltf_), "2"),
+            gltf_.string() + ": camera \"2\" (cameras[2]) is on no node");
+  doc["cameras"][2] = {{"type", "orthographic"},
+                       {"orthographic", {{"xmag", 1}, {"ymag", 1}, {"znear", 0}, {"zfar", 9}}}};
+  doc["nodes"][3]["camera"] = 2;
+  write_text(gltf_, doc.dump());
+  EXPECT_EQ(error_of(read_bytes(gltf_), "far side"),
+            gltf_.string() +
+                ": camera \"far side\" is orthographic, and afr draws perspective cameras only");
+  write_text(gltf_, doc_.dump());
+  EXPECT_EQ(error_of(read_bytes(gltf_), "Main"),
+            gltf_.string() + ": no camera \"Main\": the file has none");
+}
+
 // EXT_meshopt_compression: the compressed data (an external .bin) is packed; the placeholder
 // buffer without a uri and the fallback buffer (whose file is missing: a reader that decodes
 // never needs it) are kept without data after the binary chunk's, the views that name them

@@ -148,6 +148,30 @@ TEST_F(ServiceTest, ChosenMaterialVariantIsServedToTheSamplers) {
   EXPECT_EQ(s->log().find(" error "), std::string::npos) << s->log();
 }
 
+// `--camera NAME` serves the scene with only the chosen node's camera
+// (GltfPackTest.ChosenCameraIsTheScenesCamera), so the display's views and the samplers' scene
+// start from it.
+TEST_F(ServiceTest, ChosenCameraIsServedToTheSamplers) {
+  std::ifstream in(kStaticScene);
+  nlohmann::json doc = nlohmann::json::parse(in);
+  doc["nodes"].push_back({{"name", "overhead"},
+                          {"camera", 0},
+                          {"translation", {0, 4, 0}},
+                          {"rotation", {-0.7071068, 0, 0, 0.7071068}}});
+  doc["scenes"][0]["nodes"].push_back(doc["nodes"].size() - 1);
+  std::ofstream(path("cameras.gltf")) << doc.dump(1);
+
+  auto d = display({path("cameras.gltf"), "--camera", "overhead", "--size", "64x64", "--fps", "20"},
+                   "display.log");
+  auto s = sampler({"--max-samples-per-second", "50000"}, "s1.log");
+  ASSERT_TRUE(wait_one_sampling(10.0)) << d->log() << s->log();
+  EXPECT_NE(d->log().find("cameras.gltf: camera \"overhead\" chosen (node " +
+                          std::to_string(doc["nodes"].size() - 1) + " \"overhead\")"),
+            std::string::npos)
+      << d->log();
+  EXPECT_EQ(s->log().find(" error "), std::string::npos) << s->log();
+}
+
 // A sampler that cannot serve the session (here one that says so, as a sampler does whose
 // scene does not load: SamplerThatCannotLoadTheSceneTellsTheDisplayWhyAndLeaves) is logged by
 // id and name with its reason, and is no member any more.
@@ -393,6 +417,11 @@ TEST_F(ServiceTest, MissingAndBrokenSceneFilesAreNamed) {
   EXPECT_NE(variant->log().find("no material variant \"Gold\": the file has none"),
             std::string::npos)
       << variant->log();
+  // A camera the scene does not have: the error lists those it has.
+  auto camera = display({kStaticScene, "--camera", "Top", "--seconds", "1"}, "camera.log");
+  EXPECT_NE(camera->wait(10.0), 0);
+  EXPECT_NE(camera->log().find("no camera \"Top\" (the file's cameras: 0)"), std::string::npos)
+      << camera->log();
 }
 
 TEST_F(ServiceTest, NonLoopbackBindWithoutKeysIsRefused) {

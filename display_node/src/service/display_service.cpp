@@ -31,12 +31,14 @@ using namespace afr::protocol;
 // ---------------------------------------------------------------------------------------------
 // Scene payload
 
-ScenePayload read_scene_payload(const std::string& path, const std::string& variant) {
+ScenePayload read_scene_payload(const std::string& path, const std::string& variant,
+                                const std::string& camera) {
   ScenePayload p;
   if (path.empty()) {
     if (!variant.empty()) {
       throw Error("a material variant needs a scene file (the built-in scene has none)");
     }
+    if (!camera.empty()) throw Error("choosing a camera needs a scene file");
     p.name = "builtin";
     p.bytes.assign(kBuiltinSceneBytes.begin(), kBuiltinSceneBytes.end());
   } else {
@@ -61,6 +63,7 @@ ScenePayload read_scene_payload(const std::string& path, const std::string& vari
       p.bytes = select_material_variant(p.bytes, path, variant);
       spdlog::info("{}: material variant \"{}\" chosen", path, variant);
     }
+    if (!camera.empty()) p.bytes = select_camera(p.bytes, path, camera);
   }
   if (p.bytes.size() > kMaxSceneBytes) {
     throw Error(

@@ -28,6 +28,11 @@ Scene load_gltf(const std::filesystem::path& path, GltfLoadReport* report = null
 Scene load_gltf_bytes(std::span<const uint8_t> bytes, const std::filesystem::path& path,
                       GltfLoadReport* report = nullptr);
 
+// After select_camera (gltf_pack.h): logs which node views from the chosen `camera`, or throws
+// afr::Error naming the scene's file when that node is not in the displayed scene (which then
+// has no camera node).
+void check_chosen_camera(const Scene& scene, std::string_view camera);
+
 // A scene from a file, or the built-in scene when `path` is empty.
 Scene load_scene(const std::filesystem::path& path);
 

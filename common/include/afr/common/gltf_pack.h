@@ -49,6 +49,16 @@ std::vector<uint8_t> select_material_variant(std::span<const uint8_t> bytes,
                                              const std::filesystem::path& path,
                                              std::string_view variant);
 
+// The .gltf or .glb `bytes` (at `path`, named in errors) with camera `camera` chosen as the
+// scene's camera, the one the views start from, as one file of the same kind: every other
+// node loses its `camera`, so that the loader's camera node (the first in the displayed scene
+// that carries one) is the chosen node. `camera` is the name of a node that carries a camera,
+// the name of a camera (its first node), or an index into `cameras` (its first node). Throws
+// afr::Error naming `path` and the problem: not glTF, or no such camera on any node (the error
+// lists the file's cameras).
+std::vector<uint8_t> select_camera(std::span<const uint8_t> bytes,
+                                   const std::filesystem::path& path, std::string_view camera);
+
 // Whether `bytes` start as a .glb does ("glTF").
 bool is_glb(std::span<const uint8_t> bytes);
 

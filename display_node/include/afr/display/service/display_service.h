@@ -47,9 +47,11 @@ struct ScenePayload {
 };
 // Reads a scene file (empty path: the built-in scene). A glTF that refers to other files
 // (buffers, images) is packed with them into one .glb (afr/common/gltf_pack.h), since only this
-// one payload travels; `name` then ends in .glb. A `variant` (KHR_materials_variants) is
-// chosen in the payload (select_material_variant). Throws afr::Error naming the file.
-ScenePayload read_scene_payload(const std::string& path, const std::string& variant = "");
+// one payload travels; `name` then ends in .glb. A `variant` (KHR_materials_variants) and a
+// `camera` are chosen in the payload (select_material_variant, select_camera), so that the
+// samplers load the scene as the display shows it. Throws afr::Error naming the file.
+ScenePayload read_scene_payload(const std::string& path, const std::string& variant = "",
+                                const std::string& camera = "");
 
 struct DisplayServiceOptions {
   std::string bind = "tcp://127.0.0.1:7100";  // base endpoint; ports P, P+1, P+2
