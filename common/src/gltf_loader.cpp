@@ -54,7 +54,7 @@ constexpr size_t kMaxNodes = size_t(1) << 20;
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 21> kSupportedExtensions = {
+constexpr std::array<std::string_view, 22> kSupportedExtensions = {
     "EXT_mesh_gpu_instancing",
     "EXT_meshopt_compression",
     "EXT_texture_webp",
@@ -75,6 +75,7 @@ constexpr std::array<std::string_view, 21> kSupportedExtensions = {
     "KHR_materials_volume",
     "KHR_mesh_quantization",
     "KHR_meshopt_compression",
+    "KHR_node_visibility",
     "KHR_texture_transform"};
 
 // The default lighting of a scene without lights (what glTF viewers do): a directional
@@ -214,6 +215,7 @@ class Loader {
   void check_glb_layout(std::span<const uint8_t> bytes,
                         std::vector<std::span<const uint8_t>>* kept);
   void check_extensions();
+  void hide_invisible_nodes();
   void add_default_lighting();
 
   // Accessors.
@@ -349,6 +351,8 @@ class Loader {
   std::map<int, std::vector<uint8_t>> meshopt_bytes_;
   // Nodes whose mesh EXT_mesh_gpu_instancing moved to one child node per instance.
   std::set<int> instanced_nodes_;
+  // Nodes KHR_node_visibility hides (hide_invisible_nodes): they keep no mesh or light.
+  std::set<int> hidden_nodes_;
 };
 
 void Loader::warn_once(const std::string& feature, const std::string& message) {
@@ -2443,6 +2447,42 @@ void Loader::load_nodes() {
     if (!reached[i]) fail(fmt::format("node {} is part of a cycle in the node graph", i));
   }
   for (size_t i = 0; i < count; ++i) instance_node(int(i));
+  hide_invisible_nodes();
+}
+
+// KHR_node_visibility: a node whose `visible` is false hides its own and all its descendants'
+// meshes and lights, whatever theirs say (cameras stay: visibility does not affect them). The
+// value is the file's; KHR_animation_pointer, which could animate it, is not read.
+void Loader::hide_invisible_nodes() {
+  size_t hidden = 0;
+  std::vector<int> stack;
+  for (size_t i = 0; i < model_.nodes.size(); ++i) {
+    const auto ext = model_.nodes[i].extensions.find("KHR_node_visibility");
+    if (ext == model_.nodes[i].extensions.end()) continue;
+    const tinygltf::Value& e = ext->second;
+    if (!e.IsObject()) fail(fmt::format("node {} KHR_node_visibility is not an object", i));
+    if (!e.Has("visible")) continue;  // default: true
+    if (!e.Get("visible").IsBool()) {
+      fail(fmt::format("node {} KHR_node_visibility has an invalid visible (true or false)", i));
+    }
+    if (e.Get("visible").Get<bool>()) continue;
+    stack.push_back(int(i));
+    while (!stack.empty()) {  // the node graph is a tree here (load_nodes checked)
+      hidden_nodes_.insert(stack.back());
+      Node& node = scene_.nodes[size_t(stack.back())];
+      stack.pop_back();
+      hidden += node.mesh >= 0 || node.light >= 0 ? 1 : 0;
+      node.mesh = -1;
+      node.light = -1;
+      node.skin = -1;
+      node.weights.clear();
+      for (int child : node.children) stack.push_back(child);
+    }
+  }
+  if (hidden > 0) {
+    spdlog::info("{}: {} node(s) with a mesh or light hidden by KHR_node_visibility",
+                 path_.string(), hidden);
+  }
 }
 
 // EXT_mesh_gpu_instancing: a node's mesh drawn once for each element of its instance attributes
@@ -2616,6 +2656,9 @@ void Loader::load_animations() {
         warn_once("path " + in.target_path,
                   fmt::format("animations of \"{}\" are not supported (skipped)", in.target_path));
         continue;
+      }
+      if (channel.path == AnimatedPath::kWeights && hidden_nodes_.count(in.target_node) != 0) {
+        continue;  // KHR_node_visibility hid its mesh: nothing is drawn to morph
       }
       if (channel.path == AnimatedPath::kWeights && instanced_nodes_.count(in.target_node) != 0) {
         warn_once("instanced weights",

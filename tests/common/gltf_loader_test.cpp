@@ -1162,6 +1162,57 @@ TEST_F(GltfLoaderTest, GpuInstancingDrawsTheMeshOncePerInstance) {
                "node 0 EXT_mesh_gpu_instancing has none of TRANSLATION, ROTATION and SCALE");
 }
 
+// KHR_node_visibility: a node whose `visible` is false hides its own and its descendants'
+// meshes and lights (a child's own `true` does not show it again); cameras stay, and an
+// animation of a hidden mesh's morph weights is dropped with it. A `visible` that is not a
+// boolean fails naming the node.
+TEST_F(GltfLoaderTest, NodeVisibilityHidesTheMeshesAndLightsBelowAHiddenNode) {
+  GltfBuilder b;
+  const int positions = add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["targets"] = {{{"POSITION", positions}}};
+  b.doc()["meshes"][0]["weights"] = {0.0};
+  const json hidden = {{"KHR_node_visibility", {{"visible", false}}}};
+  const json shown = {{"KHR_node_visibility", {{"visible", true}}}};
+  b.doc()["nodes"] = json::array(
+      {{{"mesh", 0}, {"children", {1}}, {"extensions", hidden}},
+       {{"mesh", 0},
+        {"camera", 0},
+        {"extensions",
+         {{"KHR_node_visibility", {{"visible", true}}}, {"KHR_lights_punctual", {{"light", 0}}}}}},
+       {{"mesh", 0}},
+       {{"mesh", 0}, {"extensions", shown}, {"translation", {0, 0, 1}}}});
+  b.doc()["scenes"][0]["nodes"] = {0, 2, 3};
+  b.doc()["cameras"] = {
+      {{"type", "perspective"}, {"perspective", {{"yfov", 0.8}, {"znear", 0.1}}}}};
+  b.doc()["extensions"]["KHR_lights_punctual"]["lights"] = {{{"type", "point"}}};
+  b.doc()["extensionsUsed"] = {"KHR_node_visibility", "KHR_lights_punctual"};
+  b.doc()["extensionsRequired"] = {"KHR_node_visibility"};
+  const int times = b.add_floats({0, 1}, 1);
+  const int weights = b.add_floats({0, 1}, 1);
+  b.doc()["animations"] = {
+      {{"channels", {{{"sampler", 0}, {"target", {{"node", 1}, {"path", "weights"}}}}}},
+       {"samplers", {{{"input", times}, {"output", weights}}}}}};
+  const fs::path path = dir_ / "visibility.gltf";
+  b.write_embedded(path);
+  GltfLoadReport report;
+  const Scene scene = load_gltf(path, &report);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+  ASSERT_EQ(scene.nodes.size(), 4u);
+  EXPECT_EQ(scene.nodes[0].mesh, -1);
+  EXPECT_EQ(scene.nodes[1].mesh, -1);  // its own `true` does not show it below a hidden node
+  EXPECT_EQ(scene.nodes[1].light, -1);
+  EXPECT_EQ(scene.nodes[1].camera, 0);
+  EXPECT_EQ(scene.nodes[2].mesh, 0);
+  EXPECT_EQ(scene.nodes[3].mesh, 0);
+  EXPECT_EQ(scene.triangle_count(), 4u);
+  EXPECT_EQ(scene.camera_node(), 1);
+  EXPECT_TRUE(scene.channels.empty());
+
+  b.doc()["nodes"][0]["extensions"]["KHR_node_visibility"]["visible"] = "no";
+  b.write_embedded(path);
+  expect_error(path, "node 0 KHR_node_visibility has an invalid visible (true or false)");
+}
+
 // EXT_mesh_gpu_instancing where afr does not follow it: an animation of an instanced node's
 // morph weights warns and is skipped (the instances keep the weights they load with); on a
 // skinned node the extension warns and the mesh is drawn once, where its joints put it.
