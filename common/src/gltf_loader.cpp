@@ -54,10 +54,11 @@ constexpr size_t kMaxNodes = size_t(1) << 20;
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 22> kSupportedExtensions = {
+constexpr std::array<std::string_view, 23> kSupportedExtensions = {
     "EXT_mesh_gpu_instancing",
     "EXT_meshopt_compression",
     "EXT_texture_webp",
+    "KHR_animation_pointer",  // a node's transform and weights (read_animation_pointers)
     "KHR_draco_mesh_compression",
     "KHR_lights_punctual",
     "KHR_materials_anisotropy",
@@ -216,6 +217,9 @@ class Loader {
                         std::vector<std::span<const uint8_t>>* kept);
   void check_extensions();
   void hide_invisible_nodes();
+  void read_animation_pointers(std::string_view json);
+  void add_channel(const tinygltf::Animation& animation, int sampler_index, int node_index,
+                   const std::string& path, const std::string& what);
   void add_default_lighting();
 
   // Accessors.
@@ -353,6 +357,18 @@ class Loader {
   std::set<int> instanced_nodes_;
   // Nodes KHR_node_visibility hides (hide_invisible_nodes): they keep no mesh or light.
   std::set<int> hidden_nodes_;
+  // KHR_animation_pointer channels that target a node's transform or morph weights
+  // (read_animation_pointers), which tinygltf drops for want of a target node.
+  struct PointerChannel {
+    size_t animation = 0;
+    size_t channel = 0;  // its index among the animation's channels in the file
+    int sampler = -1;
+    int node = -1;
+    std::string path;  // translation, rotation, scale or weights
+    std::string pointer;
+  };
+  std::vector<PointerChannel> pointer_channels_;
+  bool nodeless_channels_are_pointers_ = false;
 };
 
 void Loader::warn_once(const std::string& feature, const std::string& message) {
@@ -695,6 +711,9 @@ void Loader::parse(std::span<const uint8_t> bytes) {
       !problem.empty()) {
     fail(problem);
   }
+  if (json_text.find("KHR_animation_pointer") != std::string_view::npos) {
+    read_animation_pointers(json_text);
+  }
   // tinygltf warns about things such as a missing external image, and tells in `err` what it
   // skipped without failing (an animation channel without a target node: glTF allows those for
   // extensions to drive, tinygltf drops them); pass them on.
@@ -710,8 +729,11 @@ void Loader::parse(std::span<const uint8_t> bytes) {
         if (line.find("`node` field is missing in animation.channels.target") !=
                 std::string::npos ||
             line == "'node' property is missing.") {
-          warn_once("channel without node",
-                    "animation channels without a target node are not supported (skipped)");
+          // (KHR_animation_pointer's channels have none; read_animation_pointers reads them.)
+          if (!nodeless_channels_are_pointers_) {
+            warn_once("channel without node",
+                      "animation channels without a target node are not supported (skipped)");
+          }
         } else {
           warn_once("tinygltf: " + line, line);
         }
@@ -2620,6 +2642,85 @@ void Loader::drop_unused_joints() {
 
 // ---- Animations ----
 
+// KHR_animation_pointer: a channel whose target's path is "pointer" animates the property its
+// JSON pointer names. Those that name a node's translation, rotation, scale or morph weights
+// (/nodes/N/...) become channels as any (add_channel); any other property (a material's, a
+// light's, a camera's) is not animated, one warning per kind of pointer naming it.
+void Loader::read_animation_pointers(std::string_view json) {
+  const nlohmann::json doc = nlohmann::json::parse(json, nullptr, false);
+  if (doc.is_discarded() || !doc.is_object() || !doc.contains("animations") ||
+      !doc["animations"].is_array()) {
+    return;
+  }
+  bool other_nodeless = false;
+  const nlohmann::json& animations = doc["animations"];
+  for (size_t a = 0; a < animations.size(); ++a) {
+    if (!animations[a].is_object() || !animations[a].contains("channels") ||
+        !animations[a]["channels"].is_array()) {
+      continue;  // tinygltf has named it
+    }
+    const nlohmann::json& channels = animations[a]["channels"];
+    for (size_t c = 0; c < channels.size(); ++c) {
+      const nlohmann::json& channel = channels[c];
+      if (!channel.is_object() || !channel.contains("target") || !channel["target"].is_object()) {
+        continue;
+      }
+      const nlohmann::json& target = channel["target"];
+      if (target.contains("node")) continue;  // tinygltf's
+      if (target.value("path", "") != "pointer") {
+        other_nodeless = true;
+        continue;
+      }
+      const std::string what = fmt::format("animation {} channel {} KHR_animation_pointer", a, c);
+      const nlohmann::json* e = nullptr;
+      if (target.contains("extensions") && target["extensions"].is_object() &&
+          target["extensions"].contains("KHR_animation_pointer")) {
+        e = &target["extensions"]["KHR_animation_pointer"];
+      }
+      if (e == nullptr || !e->is_object() || !e->contains("pointer") ||
+          !(*e)["pointer"].is_string()) {
+        fail(what + " has no \"pointer\" string");
+      }
+      const std::string pointer = (*e)["pointer"].get<std::string>();
+      // /nodes/N/PATH, N a plain decimal index.
+      unsigned long long node = 0;
+      char path[16] = {};
+      int consumed = 0;
+      const bool node_pointer =
+          std::sscanf(pointer.c_str(), "/nodes/%llu/%15[a-z]%n", &node, path, &consumed) == 2 &&
+          size_t(consumed) == pointer.size() && pointer.compare(7, 1, "+") != 0 &&
+          pointer.compare(7, 1, "-") != 0 && pointer.compare(7, 1, " ") != 0;
+      const std::string property = path;
+      if (!node_pointer || (property != "translation" && property != "rotation" &&
+                            property != "scale" && property != "weights")) {
+        // The kind of property: the pointer with its indices left out.
+        std::string kind;
+        for (char ch : pointer) {
+          if (ch >= '0' && ch <= '9') {
+            if (kind.empty() || kind.back() != '#') kind += '#';
+          } else {
+            kind += ch;
+          }
+        }
+        warn_once("pointer " + kind,
+                  fmt::format("KHR_animation_pointer animations of {} are not supported (only a "
+                              "node's translation, rotation, scale and weights are animated)",
+                              kind));
+        continue;
+      }
+      if (node >= model_.nodes.size()) {
+        fail(fmt::format("{} \"{}\" targets node {}, but there are {}", what, pointer, node,
+                         model_.nodes.size()));
+      }
+      const int sampler = channel.contains("sampler") && channel["sampler"].is_number_integer()
+                              ? channel["sampler"].get<int>()
+                              : -1;
+      pointer_channels_.push_back({a, c, sampler, int(node), property, pointer});
+    }
+  }
+  nodeless_channels_are_pointers_ = !other_nodeless;
+}
+
 void Loader::load_animations() {
   for (size_t a = 0; a < model_.animations.size(); ++a) {
     const tinygltf::Animation& animation = model_.animations[a];
@@ -2635,98 +2736,113 @@ void Loader::load_animations() {
                   "animation channels without a target node are not supported (skipped)");
         continue;
       }
-      if (size_t(in.target_node) >= model_.nodes.size()) {
-        fail(fmt::format("{} targets node {}, but there are {}", what, in.target_node,
-                         model_.nodes.size()));
+      add_channel(animation, in.sampler, in.target_node, in.target_path, what);
+    }
+    for (const PointerChannel& p : pointer_channels_) {
+      if (p.animation != a) continue;
+      const std::string what = fmt::format("animation {} channel {} (KHR_animation_pointer \"{}\")",
+                                           a, p.channel, p.pointer);
+      if (p.sampler < 0 || size_t(p.sampler) >= animation.samplers.size()) {
+        fail(fmt::format("{} refers to sampler {}, but there are {}", what, p.sampler,
+                         animation.samplers.size()));
       }
-      AnimationChannel channel;
-      channel.node = in.target_node;
-      int value_type = TINYGLTF_TYPE_VEC3;
-      if (in.target_path == "translation") {
-        channel.path = AnimatedPath::kTranslation;
-      } else if (in.target_path == "rotation") {
-        channel.path = AnimatedPath::kRotation;
-        value_type = TINYGLTF_TYPE_VEC4;
-      } else if (in.target_path == "scale") {
-        channel.path = AnimatedPath::kScale;
-      } else if (in.target_path == "weights") {
-        channel.path = AnimatedPath::kWeights;
-        value_type = TINYGLTF_TYPE_SCALAR;
-      } else {
-        warn_once("path " + in.target_path,
-                  fmt::format("animations of \"{}\" are not supported (skipped)", in.target_path));
-        continue;
-      }
-      if (channel.path == AnimatedPath::kWeights && hidden_nodes_.count(in.target_node) != 0) {
-        continue;  // KHR_node_visibility hid its mesh: nothing is drawn to morph
-      }
-      if (channel.path == AnimatedPath::kWeights && instanced_nodes_.count(in.target_node) != 0) {
-        warn_once("instanced weights",
-                  "animated morph weights of a node with EXT_mesh_gpu_instancing are not "
-                  "supported (its instances keep the node's weights)");
-        continue;
-      }
-      if (channel.path != AnimatedPath::kWeights && scene_.nodes[size_t(in.target_node)].matrix) {
-        warn_once("animated matrix node",
-                  "animations of nodes given as a matrix are not supported (skipped)");
-        continue;
-      }
-      const tinygltf::AnimationSampler& sampler = animation.samplers[size_t(in.sampler)];
-      if (sampler.interpolation == "LINEAR") {
-        channel.interpolation = Interpolation::kLinear;
-      } else if (sampler.interpolation == "STEP") {
-        channel.interpolation = Interpolation::kStep;
-      } else if (sampler.interpolation == "CUBICSPLINE") {
-        channel.interpolation = Interpolation::kCubicSpline;
-      } else {
-        warn_once("interpolation " + sampler.interpolation,
-                  fmt::format("interpolation \"{}\" is not supported (channel skipped)",
-                              sampler.interpolation));
-        continue;
-      }
-      const std::vector<float> times =
-          read_floats(sampler.input, TINYGLTF_TYPE_SCALAR, what + " input");
-      const std::vector<float> values = read_floats(sampler.output, value_type, what + " output");
-      const size_t per_key = channel.interpolation == Interpolation::kCubicSpline ? 3 : 1;
-      if (channel.path == AnimatedPath::kWeights) {
-        // As many weights per value as the node's mesh has morph targets (glTF 2.0, 3.11).
-        const Node& node = scene_.nodes[size_t(in.target_node)];
-        const size_t targets = node.mesh >= 0 ? scene_.meshes[size_t(node.mesh)].weights.size() : 0;
-        if (targets == 0) {
-          fail(fmt::format("{} animates the morph weights of node {}, which has {}", what,
-                           in.target_node,
-                           node.mesh >= 0 ? "a mesh without morph targets" : "no mesh"));
-        }
-        if (times.empty() || values.size() != times.size() * per_key * targets) {
-          fail(fmt::format(
-              "{} has {} keyframe times and {} weights ({} per key expected: {} morph targets{})",
-              what, times.size(), values.size(), per_key * targets, targets,
-              per_key == 3 ? " times in-tangent, value, out-tangent" : ""));
-        }
-        channel.times.assign(times.begin(), times.end());
-        channel.weights.assign(values.begin(), values.end());
-        channel.weight_count = targets;
-        repair_key_order(&channel, what);
-        channel.validate(fmt::format("{} of {}", what, path_.string()));
-        scene_.channels.push_back(std::move(channel));
-        continue;
-      }
-      const size_t width = value_type == TINYGLTF_TYPE_VEC4 ? 4 : 3;
-      if (times.empty() || values.size() != times.size() * per_key * width) {
-        fail(fmt::format("{} has {} keyframe times and {} values ({} per key expected)", what,
-                         times.size(), values.size() / width, per_key));
-      }
-      channel.times.assign(times.begin(), times.end());
-      channel.values.resize(values.size() / width);
-      for (size_t i = 0; i < channel.values.size(); ++i) {
-        const float* v = &values[i * width];
-        channel.values[i] = glm::dvec4(v[0], v[1], v[2], width == 4 ? v[3] : 0.0f);
-      }
-      repair_key_order(&channel, what);
-      channel.validate(fmt::format("{} of {}", what, path_.string()));
-      scene_.channels.push_back(std::move(channel));
+      add_channel(animation, p.sampler, p.node, p.path, what);
     }
   }
+}
+
+// One channel of `animation`: its sampler `sampler_index` drives `path` of node `node_index`.
+void Loader::add_channel(const tinygltf::Animation& animation, int sampler_index, int node_index,
+                         const std::string& path, const std::string& what) {
+  if (size_t(node_index) >= model_.nodes.size()) {
+    fail(
+        fmt::format("{} targets node {}, but there are {}", what, node_index, model_.nodes.size()));
+  }
+  AnimationChannel channel;
+  channel.node = node_index;
+  int value_type = TINYGLTF_TYPE_VEC3;
+  if (path == "translation") {
+    channel.path = AnimatedPath::kTranslation;
+  } else if (path == "rotation") {
+    channel.path = AnimatedPath::kRotation;
+    value_type = TINYGLTF_TYPE_VEC4;
+  } else if (path == "scale") {
+    channel.path = AnimatedPath::kScale;
+  } else if (path == "weights") {
+    channel.path = AnimatedPath::kWeights;
+    value_type = TINYGLTF_TYPE_SCALAR;
+  } else {
+    warn_once("path " + path,
+              fmt::format("animations of \"{}\" are not supported (skipped)", path));
+    return;
+  }
+  if (channel.path == AnimatedPath::kWeights && hidden_nodes_.count(node_index) != 0) {
+    return;  // KHR_node_visibility hid its mesh: nothing is drawn to morph
+  }
+  if (channel.path == AnimatedPath::kWeights && instanced_nodes_.count(node_index) != 0) {
+    warn_once("instanced weights",
+              "animated morph weights of a node with EXT_mesh_gpu_instancing are not "
+              "supported (its instances keep the node's weights)");
+    return;
+  }
+  if (channel.path != AnimatedPath::kWeights && scene_.nodes[size_t(node_index)].matrix) {
+    warn_once("animated matrix node",
+              "animations of nodes given as a matrix are not supported (skipped)");
+    return;
+  }
+  const tinygltf::AnimationSampler& sampler = animation.samplers[size_t(sampler_index)];
+  if (sampler.interpolation == "LINEAR") {
+    channel.interpolation = Interpolation::kLinear;
+  } else if (sampler.interpolation == "STEP") {
+    channel.interpolation = Interpolation::kStep;
+  } else if (sampler.interpolation == "CUBICSPLINE") {
+    channel.interpolation = Interpolation::kCubicSpline;
+  } else {
+    warn_once("interpolation " + sampler.interpolation,
+              fmt::format("interpolation \"{}\" is not supported (channel skipped)",
+                          sampler.interpolation));
+    return;
+  }
+  const std::vector<float> times =
+      read_floats(sampler.input, TINYGLTF_TYPE_SCALAR, what + " input");
+  const std::vector<float> values = read_floats(sampler.output, value_type, what + " output");
+  const size_t per_key = channel.interpolation == Interpolation::kCubicSpline ? 3 : 1;
+  if (channel.path == AnimatedPath::kWeights) {
+    // As many weights per value as the node's mesh has morph targets (glTF 2.0, 3.11).
+    const Node& node = scene_.nodes[size_t(node_index)];
+    const size_t targets = node.mesh >= 0 ? scene_.meshes[size_t(node.mesh)].weights.size() : 0;
+    if (targets == 0) {
+      fail(fmt::format("{} animates the morph weights of node {}, which has {}", what, node_index,
+                       node.mesh >= 0 ? "a mesh without morph targets" : "no mesh"));
+    }
+    if (times.empty() || values.size() != times.size() * per_key * targets) {
+      fail(fmt::format(
+          "{} has {} keyframe times and {} weights ({} per key expected: {} morph targets{})", what,
+          times.size(), values.size(), per_key * targets, targets,
+          per_key == 3 ? " times in-tangent, value, out-tangent" : ""));
+    }
+    channel.times.assign(times.begin(), times.end());
+    channel.weights.assign(values.begin(), values.end());
+    channel.weight_count = targets;
+    repair_key_order(&channel, what);
+    channel.validate(fmt::format("{} of {}", what, path_.string()));
+    scene_.channels.push_back(std::move(channel));
+    return;
+  }
+  const size_t width = value_type == TINYGLTF_TYPE_VEC4 ? 4 : 3;
+  if (times.empty() || values.size() != times.size() * per_key * width) {
+    fail(fmt::format("{} has {} keyframe times and {} values ({} per key expected)", what,
+                     times.size(), values.size() / width, per_key));
+  }
+  channel.times.assign(times.begin(), times.end());
+  channel.values.resize(values.size() / width);
+  for (size_t i = 0; i < channel.values.size(); ++i) {
+    const float* v = &values[i * width];
+    channel.values[i] = glm::dvec4(v[0], v[1], v[2], width == 4 ? v[3] : 0.0f);
+  }
+  repair_key_order(&channel, what);
+  channel.validate(fmt::format("{} of {}", what, path_.string()));
+  scene_.channels.push_back(std::move(channel));
 }
 
 // ---- Scene ----

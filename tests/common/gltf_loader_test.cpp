@@ -2098,6 +2098,56 @@ TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {
   EXPECT_EQ(scene.channels[0].path, AnimatedPath::kScale);
 }
 
+// KHR_animation_pointer: channels whose pointer names a node's translation, rotation, scale or
+// morph weights animate it as a channel of that node and path would; a pointer to another
+// property (here a material's color) warns once per kind and is skipped; a pointer to a node
+// the file lacks, or a channel without a pointer, fails naming the channel.
+TEST_F(GltfLoaderTest, AnimationPointersToANodesTransformAreAnimated) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["materials"] = json::array({json::object(), json::object()});
+  const int times = b.add_floats({0, 2}, 1);
+  const int moves = b.add_floats({0, 0, 0, 4, 0, 0}, 3);
+  const int colors = b.add_floats({1, 0, 0, 1, 0, 0, 1, 1}, 4);
+  const auto pointer_channel = [](int sampler, const std::string& pointer) {
+    return json{{"sampler", sampler},
+                {"target",
+                 {{"path", "pointer"},
+                  {"extensions", {{"KHR_animation_pointer", {{"pointer", pointer}}}}}}}};
+  };
+  b.doc()["animations"] = {
+      {{"channels",
+        {pointer_channel(1, "/materials/0/pbrMetallicRoughness/baseColorFactor"),
+         pointer_channel(0, "/nodes/0/translation"),
+         pointer_channel(1, "/materials/1/pbrMetallicRoughness/baseColorFactor")}},
+       {"samplers",
+        {{{"input", times}, {"output", moves}}, {{"input", times}, {"output", colors}}}}}};
+  b.doc()["extensionsUsed"] = {"KHR_animation_pointer"};
+  const fs::path path = dir_ / "pointer.gltf";
+  b.write_embedded(path);
+  GltfLoadReport report;
+  const Scene scene = load_gltf(path, &report);
+  ASSERT_EQ(scene.channels.size(), 1u);
+  EXPECT_EQ(scene.channels[0].node, 0);
+  EXPECT_EQ(scene.channels[0].path, AnimatedPath::kTranslation);
+  EXPECT_NEAR(scene.evaluate(1.0).world[0][3].x, 2.0, 1e-9);  // halfway to x = 4
+  ASSERT_EQ(report.warnings.size(), 1u) << report.warnings.back();
+  EXPECT_NE(report.warnings[0].find("KHR_animation_pointer animations of "
+                                    "/materials/#/pbrMetallicRoughness/baseColorFactor are not "
+                                    "supported"),
+            std::string::npos)
+      << report.warnings[0];
+
+  b.doc()["animations"][0]["channels"][1] = pointer_channel(0, "/nodes/7/translation");
+  b.write_embedded(path);
+  expect_error(path,
+               "animation 0 channel 1 KHR_animation_pointer \"/nodes/7/translation\" "
+               "targets node 7, but there are 1");
+  b.doc()["animations"][0]["channels"][1]["target"].erase("extensions");
+  b.write_embedded(path);
+  expect_error(path, "animation 0 channel 1 KHR_animation_pointer has no \"pointer\" string");
+}
+
 // glTF requires strictly increasing keyframe times, but exporters write repeated and unordered
 // ones: the channel is repaired with a warning naming it, not the whole scene refused.
 TEST_F(GltfLoaderTest, KeyframeTimesOutOfOrderAreSortedWithAWarning) {
