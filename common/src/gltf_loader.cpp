@@ -2645,7 +2645,7 @@ void Loader::drop_unused_joints() {
 // KHR_animation_pointer: a channel whose target's path is "pointer" animates the property its
 // JSON pointer names. Those that name a node's translation, rotation, scale or morph weights
 // (/nodes/N/...) become channels as any (add_channel); any other property (a material's, a
-// light's, a camera's) is not animated, one warning per kind of pointer naming it.
+// light's, a camera's) is not animated, and one warning names the kinds skipped.
 void Loader::read_animation_pointers(std::string_view json) {
   const nlohmann::json doc = nlohmann::json::parse(json, nullptr, false);
   if (doc.is_discarded() || !doc.is_object() || !doc.contains("animations") ||
@@ -2653,6 +2653,7 @@ void Loader::read_animation_pointers(std::string_view json) {
     return;
   }
   bool other_nodeless = false;
+  std::vector<std::string> skipped;  // the kinds of property not animated, in file order
   const nlohmann::json& animations = doc["animations"];
   for (size_t a = 0; a < animations.size(); ++a) {
     if (!animations[a].is_object() || !animations[a].contains("channels") ||
@@ -2702,10 +2703,9 @@ void Loader::read_animation_pointers(std::string_view json) {
             kind += ch;
           }
         }
-        warn_once("pointer " + kind,
-                  fmt::format("KHR_animation_pointer animations of {} are not supported (only a "
-                              "node's translation, rotation, scale and weights are animated)",
-                              kind));
+        if (std::find(skipped.begin(), skipped.end(), kind) == skipped.end()) {
+          skipped.push_back(kind);
+        }
         continue;
       }
       if (node >= model_.nodes.size()) {
@@ -2719,6 +2719,16 @@ void Loader::read_animation_pointers(std::string_view json) {
     }
   }
   nodeless_channels_are_pointers_ = !other_nodeless;
+  if (!skipped.empty()) {
+    constexpr size_t kNamed = 3;
+    const size_t count = skipped.size();
+    skipped.resize(std::min(count, kNamed));
+    warn_once("animation pointers",
+              fmt::format("KHR_animation_pointer animations of {}{} are not supported (skipped: "
+                          "only a node's translation, rotation, scale and weights are animated)",
+                          fmt::join(skipped, ", "),
+                          count > kNamed ? fmt::format(" and {} more kinds", count - kNamed) : ""));
+  }
 }
 
 void Loader::load_animations() {
