@@ -2474,7 +2474,7 @@ void Loader::load_nodes() {
 
 // KHR_node_visibility: a node whose `visible` is false hides its own and all its descendants'
 // meshes and lights, whatever theirs say (cameras stay: visibility does not affect them). The
-// value is the file's; KHR_animation_pointer, which could animate it, is not read.
+// value is the file's: KHR_animation_pointer does not animate it (read_animation_pointers).
 void Loader::hide_invisible_nodes() {
   size_t hidden = 0;
   std::vector<int> stack;
@@ -2689,8 +2689,7 @@ void Loader::read_animation_pointers(std::string_view json) {
       int consumed = 0;
       const bool node_pointer =
           std::sscanf(pointer.c_str(), "/nodes/%llu/%15[a-z]%n", &node, path, &consumed) == 2 &&
-          size_t(consumed) == pointer.size() && pointer.compare(7, 1, "+") != 0 &&
-          pointer.compare(7, 1, "-") != 0 && pointer.compare(7, 1, " ") != 0;
+          size_t(consumed) == pointer.size() && pointer[7] >= '0' && pointer[7] <= '9';
       const std::string property = path;
       if (!node_pointer || (property != "translation" && property != "rotation" &&
                             property != "scale" && property != "weights")) {
@@ -2737,10 +2736,6 @@ void Loader::load_animations() {
     for (size_t c = 0; c < animation.channels.size(); ++c) {
       const tinygltf::AnimationChannel& in = animation.channels[c];
       const std::string what = fmt::format("animation {} channel {}", a, c);
-      if (in.sampler < 0 || size_t(in.sampler) >= animation.samplers.size()) {
-        fail(fmt::format("{} refers to sampler {}, but there are {}", what, in.sampler,
-                         animation.samplers.size()));
-      }
       if (in.target_node < 0) {
         warn_once("channel without node",
                   "animation channels without a target node are not supported (skipped)");
@@ -2752,10 +2747,6 @@ void Loader::load_animations() {
       if (p.animation != a) continue;
       const std::string what = fmt::format("animation {} channel {} (KHR_animation_pointer \"{}\")",
                                            a, p.channel, p.pointer);
-      if (p.sampler < 0 || size_t(p.sampler) >= animation.samplers.size()) {
-        fail(fmt::format("{} refers to sampler {}, but there are {}", what, p.sampler,
-                         animation.samplers.size()));
-      }
       add_channel(animation, p.sampler, p.node, p.path, what);
     }
   }
@@ -2764,6 +2755,10 @@ void Loader::load_animations() {
 // One channel of `animation`: its sampler `sampler_index` drives `path` of node `node_index`.
 void Loader::add_channel(const tinygltf::Animation& animation, int sampler_index, int node_index,
                          const std::string& path, const std::string& what) {
+  if (sampler_index < 0 || size_t(sampler_index) >= animation.samplers.size()) {
+    fail(fmt::format("{} refers to sampler {}, but there are {}", what, sampler_index,
+                     animation.samplers.size()));
+  }
   if (size_t(node_index) >= model_.nodes.size()) {
     fail(
         fmt::format("{} targets node {}, but there are {}", what, node_index, model_.nodes.size()));
@@ -2831,25 +2826,21 @@ void Loader::add_channel(const tinygltf::Animation& animation, int sampler_index
           times.size(), values.size(), per_key * targets, targets,
           per_key == 3 ? " times in-tangent, value, out-tangent" : ""));
     }
-    channel.times.assign(times.begin(), times.end());
     channel.weights.assign(values.begin(), values.end());
     channel.weight_count = targets;
-    repair_key_order(&channel, what);
-    channel.validate(fmt::format("{} of {}", what, path_.string()));
-    scene_.channels.push_back(std::move(channel));
-    return;
-  }
-  const size_t width = value_type == TINYGLTF_TYPE_VEC4 ? 4 : 3;
-  if (times.empty() || values.size() != times.size() * per_key * width) {
-    fail(fmt::format("{} has {} keyframe times and {} values ({} per key expected)", what,
-                     times.size(), values.size() / width, per_key));
+  } else {
+    const size_t width = value_type == TINYGLTF_TYPE_VEC4 ? 4 : 3;
+    if (times.empty() || values.size() != times.size() * per_key * width) {
+      fail(fmt::format("{} has {} keyframe times and {} values ({} per key expected)", what,
+                       times.size(), values.size() / width, per_key));
+    }
+    channel.values.resize(values.size() / width);
+    for (size_t i = 0; i < channel.values.size(); ++i) {
+      const float* v = &values[i * width];
+      channel.values[i] = glm::dvec4(v[0], v[1], v[2], width == 4 ? v[3] : 0.0f);
+    }
   }
   channel.times.assign(times.begin(), times.end());
-  channel.values.resize(values.size() / width);
-  for (size_t i = 0; i < channel.values.size(); ++i) {
-    const float* v = &values[i * width];
-    channel.values[i] = glm::dvec4(v[0], v[1], v[2], width == 4 ? v[3] : 0.0f);
-  }
   repair_key_order(&channel, what);
   channel.validate(fmt::format("{} of {}", what, path_.string()));
   scene_.channels.push_back(std::move(channel));

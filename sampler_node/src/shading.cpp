@@ -127,8 +127,7 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
   }
   // Normal-incidence Fresnel of a dielectric of this ior (KHR_materials_ior: ior 0 means F = 1),
   // for glass and KHR_materials_specular.
-  const float r = (mat.ior - 1.0f) / (mat.ior + 1.0f);
-  const float f0_ior = mat.ior > 0.0f ? r * r : 1.0f;
+  const float f0_ior = mat.ior > 0.0f ? ior_to_f0(mat.ior) : 1.0f;
   m.f0_ior = f0_ior;
   m.transmission = glm::clamp(mat.transmission, 0.0f, 1.0f);
   m.transmission_factor = m.transmission;
@@ -388,11 +387,6 @@ glm::vec3 extended_brdf_cos(const ShadeMaterial& m, const glm::vec3& diffuse, co
 namespace {
 
 // iridescent_fresnel's helpers, as the extension defines them.
-// The normal-incidence reflectance between media of indices n_t and n_i.
-float ior_to_f0(float n_t, float n_i) {
-  const float r = (n_t - n_i) / (n_t + n_i);
-  return r * r;
-}
 // The CIE observer's sensitivity in Fourier space at optical path difference opd (nanometres)
 // with phase shift `shift` per channel, as linear sRGB: the extension's Gaussian fit of X, Y
 // and Z (X with a second lobe), through the XYZ-to-Rec.709 matrix.

@@ -256,6 +256,12 @@ inline bool light_incidence(const LightRecord& light, const glm::vec3& p, glm::v
   return true;
 }
 
+// The normal-incidence reflectance between media of indices n_t and n_i (outside: 1).
+inline float ior_to_f0(float n_t, float n_i = 1.0f) {
+  const float r = (n_t - n_i) / (n_t + n_i);
+  return r * r;
+}
+
 inline glm::vec3 fresnel_schlick(const glm::vec3& f0, float cos_theta, float f90 = 1.0f) {
   const float m = 1.0f - glm::clamp(cos_theta, 0.0f, 1.0f);
   const float m2 = m * m;

@@ -1680,15 +1680,8 @@ Refraction refraction(const glm::vec3& d, const glm::vec3& n, float cos_i, bool 
   const float cos_t = std::sqrt(1.0f - sin2_t);
   r.t = eta * d + (eta * cos_i - cos_t) * n;
   if (!entering) r.cos_outer = cos_t;
-  const float k = 1.0f - r.cos_outer;
-  const float k2 = k * k;
-  r.F = f0 + (1.0f - f0) * (k2 * k2 * k);
+  r.F = shading::fresnel_schlick(glm::vec3(f0), r.cos_outer).x;
   return r;
-}
-
-float dielectric_f0(float ior) {
-  const float r = (ior - 1.0f) / (ior + 1.0f);
-  return r * r;
 }
 
 // The ior of color channel c (0 red, 1 green, 2 blue) in dispersive glass, never below 1.
@@ -1744,17 +1737,21 @@ glm::vec3 Tracer::Impl::glass(const glm::vec3& d, const Surface& s, const glm::v
     split = channel < 0;
     if (!split) ior = channel_ior(m, channel);
   }
-  const Refraction main =
-      refraction(d, n, cos_i, entering, ior, channel < 0 ? m.f0_dielectric : dielectric_f0(ior));
-  glm::vec3 F(main.F);
   Refraction per_channel[3];
   if (split) {
     for (int c = 0; c < 3; ++c) {
       const float ior_c = channel_ior(m, c);
-      per_channel[c] = refraction(d, n, cos_i, entering, ior_c, dielectric_f0(ior_c));
-      F[c] = per_channel[c].F;
+      per_channel[c] = refraction(d, n, cos_i, entering, ior_c, shading::ior_to_f0(ior_c));
     }
   }
+  // Green's refraction stands for all where they split (its cosine on the outer side weighs
+  // the film and the metallic part).
+  const Refraction main = split
+                              ? per_channel[1]
+                              : refraction(d, n, cos_i, entering, ior,
+                                           channel < 0 ? m.f0_dielectric : shading::ior_to_f0(ior));
+  const glm::vec3 F =
+      split ? glm::vec3(per_channel[0].F, per_channel[1].F, per_channel[2].F) : glm::vec3(main.F);
   // An iridescent film (KHR_materials_iridescence) colors the Fresnel term, seen from the air;
   // a channel past its critical angle reflects all.
   glm::vec3 fresnel = F;

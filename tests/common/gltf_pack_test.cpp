@@ -46,6 +46,20 @@ uint32_t u32_at(std::span<const uint8_t> b, size_t at) {
   return v;
 }
 
+// What `select` (select_material_variant or select_camera) throws choosing `choice` in `bytes`,
+// or "no error".
+std::string selection_error(std::vector<uint8_t> (*select)(std::span<const uint8_t>,
+                                                           const fs::path&, std::string_view),
+                            std::span<const uint8_t> bytes, const fs::path& path,
+                            std::string_view choice) {
+  try {
+    (void)select(bytes, path, choice);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
 // The JSON and binary chunks of a .glb, read by the format's layout (independently of the
 // packer's own reader).
 struct GlbParts {
@@ -332,12 +346,7 @@ TEST_F(GltfPackTest, ChosenMaterialVariantBecomesThePrimitivesMaterial) {
   EXPECT_EQ(load_gltf_bytes(red, dir_ / "alone" / "quad.glb").meshes[1].primitives[0].material, 1);
 
   const auto error_of = [&](std::span<const uint8_t> bytes, std::string_view variant) {
-    try {
-      (void)select_material_variant(bytes, gltf_, variant);
-    } catch (const Error& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
+    return selection_error(&select_material_variant, bytes, gltf_, variant);
   };
   EXPECT_EQ(error_of(file, "Green"),
             gltf_.string() +
@@ -414,12 +423,7 @@ TEST_F(GltfPackTest, ChosenCameraIsTheScenesCamera) {
   }
 
   const auto error_of = [&](std::span<const uint8_t> bytes, std::string_view camera) {
-    try {
-      (void)select_camera(bytes, gltf_, camera);
-    } catch (const Error& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
+    return selection_error(&select_camera, bytes, gltf_, camera);
   };
   EXPECT_EQ(error_of(file, "Top"),
             gltf_.string() +
