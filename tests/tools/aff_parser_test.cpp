@@ -278,6 +278,26 @@ TEST(AffParserTest, ErrorsInsideAnIncludeNameThatFileAndLine) {
   std::filesystem::remove_all(dir);
 }
 
+// An include emptied by a failed copy (one of the museum's files in a public copy of BART)
+// adds nothing: the conversion goes on and says so once, however often it is included.
+TEST(AffParserTest, AnEmptyIncludeIsNamedInAWarning) {
+  const auto dir = test::fresh_temp_dir("aff-empty-include");
+  test::write_file(dir / "empty.aff", "");
+  test::write_file(dir / "comments.aff", "% only a comment\n# and another\n\n");
+  test::write_file(dir / "tri.aff", "p 3 0 0 0 1 0 0 0 1 0\n");
+  const Scene s = parse_aff_text(
+      "f 1 1 1 1 0 0 0 0\ni 0 empty.aff\ni 0 tri.aff\ni 0 empty.aff\ni 0 comments.aff\n",
+      "main.aff", dir);
+  EXPECT_EQ(s.nodes[0].meshes.size(), 1u);
+  EXPECT_EQ(s.warnings,
+            (std::vector<std::string>{
+                "main.aff:2: include file 'empty.aff' holds no directives: it adds nothing to "
+                "the scene",
+                "main.aff:5: include file 'comments.aff' holds no directives: it adds nothing "
+                "to the scene"}));
+  std::filesystem::remove_all(dir);
+}
+
 TEST(AffParserTest, BracesMayOpenInOneFileAndCloseInAnother) {
   const auto dir = test::fresh_temp_dir("aff-braces");
   test::write_file(dir / "open.aff", "xs 1 1 1 0 1 0 0 0 0 0 {\n");

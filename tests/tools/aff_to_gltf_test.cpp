@@ -584,6 +584,23 @@ TEST(RobotsGltfTest, ConvertsWithTheOneBackwardsKeyBlockRepaired) {
   std::filesystem::remove_all(dir);
 }
 
+// A file that draws nothing (only a view, or emptied) converts, with a warning saying so.
+TEST(AffToGltfTest, AFileWithoutGeometryConvertsWithAWarning) {
+  const auto dir = test::fresh_temp_dir("aff-no-geometry");
+  test::write_file(dir / "view.aff",
+                   "v\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 45\nhither 0.1\n"
+                   "resolution 64 64\n");
+  const ConvertReport report = convert_aff_to_gltf(dir / "view.aff", dir / "view.gltf");
+  EXPECT_EQ(report.triangles, 0u);
+  EXPECT_EQ(report.warnings,
+            std::vector<std::string>{"view.aff: no geometry: the glTF has no triangles to draw"});
+  EXPECT_EQ(test::load_gltf((dir / "view.gltf").string()).cameras.size(), 1u);
+  EXPECT_FALSE(std::filesystem::exists(dir / "view.bin"));  // glTF has no empty buffers
+  convert_aff_to_gltf(dir / "view.aff", dir / "view.glb");
+  EXPECT_EQ(test::load_gltf((dir / "view.glb").string()).cameras.size(), 1u);
+  std::filesystem::remove_all(dir);
+}
+
 // ---- The program --------------------------------------------------------------------------
 
 TEST(Aff2GltfProgramTest, PrintsFileAndLineAndExitsOneOnMalformedInput) {

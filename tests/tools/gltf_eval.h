@@ -165,6 +165,7 @@ inline size_t scene_triangles(const tinygltf::Model& m) {
   return total;
 }
 
+// A .gltf, or a .glb by its extension.
 inline tinygltf::Model load_gltf(const std::string& path) {
   tinygltf::TinyGLTF loader;
   tinygltf::Model model;
@@ -173,7 +174,9 @@ inline tinygltf::Model load_gltf(const std::string& path) {
   loader.SetImageLoader([](tinygltf::Image*, const int, std::string*, std::string*, int, int,
                            const unsigned char*, int, void*) { return true; },
                         nullptr);
-  if (!loader.LoadASCIIFromFile(&model, &err, &warn, path)) {
+  const bool binary = path.size() > 4 && path.compare(path.size() - 4, 4, ".glb") == 0;
+  if (!(binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path)
+               : loader.LoadASCIIFromFile(&model, &err, &warn, path))) {
     throw std::runtime_error(path + ": " + err);
   }
   return model;

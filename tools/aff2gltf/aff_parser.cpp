@@ -220,18 +220,21 @@ class Parser {
   // material, has normals, has uvs.
   using MergeKey = std::tuple<int, bool, bool>;
 
-  void parse_file(std::string_view text, const std::string& name, const std::filesystem::path& dir,
-                  int depth) {
+  // Returns the number of directives and braces read (comments aside).
+  uint64_t parse_file(std::string_view text, const std::string& name,
+                      const std::filesystem::path& dir, int depth) {
     Cursor in(text, name);
-    for (uint64_t directives = 0;; ++directives) {
-      if (directives % 4096 == 0) progress(in);
+    uint64_t read = 0;
+    for (uint64_t steps = 0;; ++steps) {
+      if (steps % 4096 == 0) progress(in);
       in.skip_space();
-      if (in.at_end()) return;
+      if (in.at_end()) return read;
       const char c = in.peek();
       if (c == '#' || c == '%') {
         in.skip_line();
         continue;
       }
+      ++read;
       if (c == '}') {
         if (stack_.size() == 1) in.fail("'}' without a matching '{'");
         in.advance();
@@ -766,15 +769,22 @@ class Parser {
       }
     }
     if (path.empty()) {
-      throw Error(at.str() + ": cannot open include file '" + name + "' (looked in " +
-                  root_dir_.string() + ")");
+      std::string looked = root_dir_.string();
+      if (dir.lexically_normal() != root_dir_.lexically_normal()) looked += " and " + dir.string();
+      throw Error(at.str() + ": cannot open include file '" + name + "' (looked in " + looked +
+                  ")");
     }
     const std::string key = path.lexically_normal().string();
     auto it = files_.find(key);
     if (it == files_.end()) {
       it = files_.emplace(key, std::make_unique<std::string>(read_bytes(path))).first;
     }
-    parse_file(*it->second, path.string(), path.parent_path(), depth + 1);
+    // A file emptied by a failed copy or download converts to nothing: say so, once a file.
+    if (parse_file(*it->second, path.string(), path.parent_path(), depth + 1) == 0 &&
+        empty_includes_.insert(key).second) {
+      scene_->warnings.push_back(at.str() + ": include file '" + name +
+                                 "' holds no directives: it adds nothing to the scene");
+    }
   }
 
   // Warnings for names that refer to nothing (the scene still converts: identity motion).
@@ -813,6 +823,7 @@ class Parser {
   std::map<std::filesystem::path, int> material_cache_;  // texture -> index, current material
   std::map<std::string, std::filesystem::path> texture_paths_;
   std::map<std::string, std::unique_ptr<std::string>> files_;  // include bytes, read once
+  std::set<std::string> empty_includes_;                       // warned of already
   std::set<std::string> used_names_;
 };
 

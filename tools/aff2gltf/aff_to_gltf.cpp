@@ -882,7 +882,12 @@ void write_gltf_files(GltfScene* gltf, const std::filesystem::path& path) {
   const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : ".";
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
-  gltf->model.buffers.at(0).uri = path.stem().string() + ".bin";
+  // A scene without geometry or keys has no bytes: glTF allows no empty buffer, so it has none.
+  if (gltf->model.buffers.at(0).data.empty() && gltf->model.bufferViews.empty()) {
+    gltf->model.buffers.clear();
+  } else {
+    gltf->model.buffers.at(0).uri = path.stem().string() + ".bin";
+  }
   for (const GltfImage& image : gltf->images) {
     write_image8(decode_image_file(image.source), dir / image.uri);
   }
@@ -955,6 +960,10 @@ ConvertReport convert_aff_to_gltf(const std::filesystem::path& aff_path,
   for (const auto& a : gltf.model.animations) report.animation_channels += a.channels.size();
   report.warnings = scene.warnings;
   report.warnings.insert(report.warnings.end(), gltf.warnings.begin(), gltf.warnings.end());
+  if (report.triangles == 0) {
+    report.warnings.push_back(aff_path.filename().string() +
+                              ": no geometry: the glTF has no triangles to draw");
+  }
   return report;
 }
 
