@@ -54,7 +54,8 @@ constexpr size_t kMaxNodes = size_t(1) << 20;
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 23> kSupportedExtensions = {
+constexpr std::array<std::string_view, 24> kSupportedExtensions = {
+    "CESIUM_RTC",  // drawn relative to its center (read_rtc_center)
     "EXT_mesh_gpu_instancing",
     "EXT_meshopt_compression",
     "EXT_texture_webp",
@@ -257,6 +258,7 @@ class Loader {
   void read_specular_glossiness(size_t m, const tinygltf::Value& e, const std::string& where,
                                 Material* out);
   void read_material_variants();
+  void read_rtc_center();
   void read_specular(size_t m, const tinygltf::Material& in, const std::string& what,
                      Material* out);
   void read_clearcoat(size_t m, const tinygltf::Material& in, const std::string& what,
@@ -1847,6 +1849,27 @@ void Loader::read_material_variants() {
                count > kNamed ? fmt::format(" and {} more", count - kNamed) : "");
 }
 
+// CESIUM_RTC (3D Tiles' batched models): the positions are relative to a center, often a point on
+// the Earth millions of meters out. Adding it would move the whole scene, camera nodes included,
+// and leave positions with a float's half meter of precision; the picture is the same without
+// it, so afr draws the scene relative to its center. The center must still be three finite
+// numbers.
+void Loader::read_rtc_center() {
+  const auto ext = model_.extensions.find("CESIUM_RTC");
+  if (ext == model_.extensions.end()) return;
+  const tinygltf::Value& center = ext->second.Get("center");
+  bool valid = center.IsArray() && center.ArrayLen() == 3;
+  std::array<double, 3> c{};
+  for (size_t i = 0; valid && i < 3; ++i) {
+    const tinygltf::Value& v = center.Get(int(i));
+    valid = v.IsNumber() && std::isfinite(v.GetNumberAsDouble());
+    if (valid) c[i] = v.GetNumberAsDouble();
+  }
+  if (!valid) fail("CESIUM_RTC: \"center\" must be an array of 3 finite numbers");
+  spdlog::info("{}: CESIUM_RTC: drawn relative to its center ({}, {}, {})", path_.string(), c[0],
+               c[1], c[2]);
+}
+
 void Loader::read_volume(const tinygltf::Material& in, const std::string& what, Material* out) {
   std::string where;
   const tinygltf::Value* e = material_extension(in, "KHR_materials_volume", what, &where);
@@ -2895,6 +2918,7 @@ Scene Loader::load() { return load(read_file()); }
 Scene Loader::load(std::span<const uint8_t> bytes) {
   parse(bytes);
   check_extensions();
+  read_rtc_center();
   decode_meshopt();
   scene_.source = path_.string();
   load_materials();  // first: a primitive reads the texture coordinates its material's do

@@ -27,6 +27,7 @@
 
 #include "support/base64.h"
 #include "support/files.h"
+#include "support/log_capture.h"
 #include "support/srgb.h"
 #include "support/webp.h"
 
@@ -1160,6 +1161,37 @@ TEST_F(GltfLoaderTest, GpuInstancingDrawsTheMeshOncePerInstance) {
   none.write_embedded(dir_ / "none.gltf");
   expect_error(dir_ / "none.gltf",
                "node 0 EXT_mesh_gpu_instancing has none of TRANSLATION, ROTATION and SCALE");
+}
+
+// CESIUM_RTC (3D Tiles' batched models, here required as such files require it): the scene is
+// drawn relative to its center, which the log names: nodes keep their own transforms, so a
+// center far out on the Earth costs no precision. A center that is not 3 finite numbers fails.
+TEST_F(GltfLoaderTest, RtcCenterIsNamedAndTheSceneDrawnRelativeToIt) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["nodes"][0]["translation"] = {0, 0, -3};
+  b.doc()["extensions"]["CESIUM_RTC"]["center"] = {1215012.5, -4736313.0, 4081605.25};
+  b.doc()["extensionsUsed"] = {"CESIUM_RTC"};
+  b.doc()["extensionsRequired"] = {"CESIUM_RTC"};
+  b.write_glb(dir_ / "rtc.glb");
+  testing::LogCapture log;
+  GltfLoadReport report;
+  const Scene scene = load_gltf(dir_ / "rtc.glb", &report);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+  EXPECT_EQ(log.lines_with("CESIUM_RTC: drawn relative to its center (1215012.5, -4736313, "
+                           "4081605.25)")
+                .size(),
+            1u);
+  const glm::dvec3 corner = glm::dvec3(scene.evaluate(0.0).world[0] * glm::dvec4(1, 0, 0, 1));
+  EXPECT_EQ(corner, glm::dvec3(1, 0, -3));
+
+  for (const json& center : {json::array({1, 2}), json::array({1, 2, "3"}), json(7)}) {
+    GltfBuilder bad = b;
+    bad.doc()["extensions"]["CESIUM_RTC"]["center"] = center;
+    bad.write_embedded(dir_ / "bad_rtc.gltf");
+    expect_error(dir_ / "bad_rtc.gltf",
+                 "CESIUM_RTC: \"center\" must be an array of 3 finite numbers");
+  }
 }
 
 // KHR_node_visibility: a node whose `visible` is false hides its own and its descendants'

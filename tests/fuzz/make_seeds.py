@@ -417,6 +417,49 @@ def gltf_seeds():
     g.doc["extensionsRequired"] = ["KHR_draco_mesh_compression", "EXT_mesh_gpu_instancing"]
     write("gltf", "draco_instanced.glb", g.glb())
 
+    # The extensions read from the JSON beside tinygltf: KHR_animation_pointer channels (a node's
+    # translation and weights, a material's factor that is skipped), KHR_node_visibility,
+    # KHR_materials_dispersion in a volume, emissive strength and unlit; asset minVersion.
+    g = Gltf()
+    prim = g.quad()
+    prim["targets"] = [{"POSITION": g.floats([0, 0, 1] * 4, "VEC3")}]
+    prim["material"] = 0
+    g.doc["asset"] = {"version": "2.1", "minVersion": "2.0"}
+    g.doc["materials"] = [
+        {"extensions": {"KHR_materials_transmission": {"transmissionFactor": 1},
+                        "KHR_materials_volume": {"thicknessFactor": 0.5},
+                        "KHR_materials_dispersion": {"dispersion": 2.0},
+                        "KHR_materials_emissive_strength": {"emissiveStrength": 4}},
+         "emissiveFactor": [1, 0.5, 0]},
+        {"extensions": {"KHR_materials_unlit": {}}}]
+    g.doc["nodes"] = [{"mesh": 0}, {"children": [0], "extensions": {"KHR_node_visibility": {"visible": True}}},
+                      {"mesh": 0, "extensions": {"KHR_node_visibility": {"visible": False}}}]
+    g.doc["scenes"] = [{"nodes": [1, 2]}]
+    times = g.floats([0, 1], "SCALAR", min=[0], max=[1])
+    pointer = lambda path: {"sampler": 0, "target": {"path": "pointer", "extensions": {
+        "KHR_animation_pointer": {"pointer": path}}}}
+    g.doc["animations"] = [{"samplers": [
+        {"input": times, "output": g.floats([0, 0, 0, 1, 0, 0], "VEC3")},
+        {"input": times, "output": g.floats([0, 1], "SCALAR")},
+        {"input": times, "output": g.floats([1, 1, 1, 0, 0, 0], "VEC3")}],
+        "channels": [pointer("/nodes/1/translation"),
+                     dict(pointer("/nodes/0/weights"), sampler=1),
+                     dict(pointer("/materials/0/emissiveFactor"), sampler=2)]}]
+    g.doc["extensionsUsed"] = ["KHR_animation_pointer", "KHR_node_visibility", "KHR_materials_transmission",
+                               "KHR_materials_volume", "KHR_materials_dispersion",
+                               "KHR_materials_emissive_strength", "KHR_materials_unlit"]
+    write("gltf", "pointer_visibility_dispersion.gltf", g.embedded())
+
+    # A .glb whose BIN chunk is not padded to 4 bytes (read as if padded, with a warning).
+    g = Gltf()
+    g.quad()
+    text = json.dumps(dict(g.doc, buffers=[{"byteLength": len(g.bin) + 2}]), separators=(",", ":")).encode()
+    text += b" " * (-len(text) % 4)
+    data = bytes(g.bin) + b"\0\0"
+    total = 12 + 8 + len(text) + 8 + len(data)
+    write("gltf", "unpadded.glb", b"glTF" + struct.pack("<II", 2, total) + struct.pack("<I", len(text)) +
+          b"JSON" + text + struct.pack("<I", len(data)) + b"BIN\0" + data)
+
 
 # meshoptimizer 0.18's meshopt_encodeVertexBuffer (positions: the unit quad as floats; normals:
 # meshopt_encodeFilterOct at 8 bits of (0, 0, 1), (0.6, 0, 0.8), (0, -0.6, 0.8), (0, 0, 1)) and
