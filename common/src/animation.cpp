@@ -36,6 +36,62 @@ std::string_view to_string(AnimatedPath path) {
   return "?";
 }
 
+std::string_view to_string(AnimatedProperty property) {
+  switch (property) {
+    case AnimatedProperty::kLightColor:
+      return "light color";
+    case AnimatedProperty::kLightIntensity:
+      return "light intensity";
+    case AnimatedProperty::kLightRange:
+      return "light range";
+    case AnimatedProperty::kLightInnerCone:
+      return "spot inner cone angle";
+    case AnimatedProperty::kLightOuterCone:
+      return "spot outer cone angle";
+    case AnimatedProperty::kCameraYfov:
+      return "camera yfov";
+    case AnimatedProperty::kCameraZnear:
+      return "camera znear";
+    case AnimatedProperty::kBaseColorFactor:
+      return "base color factor";
+    case AnimatedProperty::kMetallicFactor:
+      return "metallic factor";
+    case AnimatedProperty::kRoughnessFactor:
+      return "roughness factor";
+    case AnimatedProperty::kEmissiveFactor:
+      return "emissive factor";
+    case AnimatedProperty::kEmissiveStrength:
+      return "emissive strength";
+    case AnimatedProperty::kAlphaCutoff:
+      return "alpha cutoff";
+    case AnimatedProperty::kNormalScale:
+      return "normal texture scale";
+    case AnimatedProperty::kOcclusionStrength:
+      return "occlusion strength";
+  }
+  return "?";
+}
+
+int component_count(AnimatedProperty property) {
+  switch (property) {
+    case AnimatedProperty::kLightColor:
+    case AnimatedProperty::kEmissiveFactor:
+      return 3;
+    case AnimatedProperty::kBaseColorFactor:
+      return 4;
+    default:
+      return 1;
+  }
+}
+
+bool is_light_property(AnimatedProperty property) {
+  return property <= AnimatedProperty::kLightOuterCone;
+}
+
+bool is_camera_property(AnimatedProperty property) {
+  return property == AnimatedProperty::kCameraYfov || property == AnimatedProperty::kCameraZnear;
+}
+
 AnimationChannel::KeyRepair AnimationChannel::repair_key_order() {
   KeyRepair result;
   const size_t n = times.size();

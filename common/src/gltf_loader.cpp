@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <array>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -219,6 +220,10 @@ class Loader {
   void check_extensions();
   void hide_invisible_nodes();
   void read_animation_pointers(std::string_view json);
+  void add_property_channel(const tinygltf::Animation& animation, int sampler_index,
+                            AnimatedProperty property, size_t gltf_index, const std::string& what);
+  bool read_sampler(const tinygltf::Animation& animation, int sampler_index, int value_type,
+                    const std::string& what, AnimationChannel* channel, std::vector<float>* values);
   void add_channel(const tinygltf::Animation& animation, int sampler_index, int node_index,
                    const std::string& path, const std::string& what);
   void add_default_lighting();
@@ -359,14 +364,17 @@ class Loader {
   std::set<int> instanced_nodes_;
   // Nodes KHR_node_visibility hides (hide_invisible_nodes): they keep no mesh or light.
   std::set<int> hidden_nodes_;
-  // KHR_animation_pointer channels that target a node's transform or morph weights
-  // (read_animation_pointers), which tinygltf drops for want of a target node.
+  // KHR_animation_pointer channels that target a node's transform or morph weights, or a
+  // property of a light, camera or material (read_animation_pointers), which tinygltf drops
+  // for want of a target node.
   struct PointerChannel {
     size_t animation = 0;
     size_t channel = 0;  // its index among the animation's channels in the file
     int sampler = -1;
-    int node = -1;
-    std::string path;  // translation, rotation, scale or weights
+    int node = -1;     // a node's: translation, rotation, scale or weights in `path`
+    std::string path;  //
+    std::optional<AnimatedProperty> property;  // else: a property of glTF's light, camera or
+    size_t index = 0;                          // material `index`
     std::string pointer;
   };
   std::vector<PointerChannel> pointer_channels_;
@@ -1979,11 +1987,13 @@ void Loader::load_materials() {
       out.emissive = glm::vec3(float(in.emissiveFactor[0]), float(in.emissiveFactor[1]),
                                float(in.emissiveFactor[2]));
     }
+    out.emissive_factor = out.emissive;
     std::string where;
     if (const tinygltf::Value* e =
             material_extension(in, "KHR_materials_emissive_strength", what, &where)) {
       float strength = 1.0f;
       read_number(*e, "emissiveStrength", where, non_negative, ">= 0", &strength);
+      out.emissive_strength = strength;
       out.emissive *= strength;
     }
     out.unlit = in.extensions.count("KHR_materials_unlit") > 0;
@@ -2669,6 +2679,54 @@ void Loader::drop_unused_joints() {
 // JSON pointer names. Those that name a node's translation, rotation, scale or morph weights
 // (/nodes/N/...) become channels as any (add_channel); any other property (a material's, a
 // light's, a camera's) is not animated, and one warning names the kinds skipped.
+namespace {
+
+// The light, camera or material property a KHR_animation_pointer names, with the glTF index
+// of its light, camera or material; nothing for any other pointer.
+std::optional<std::pair<AnimatedProperty, size_t>> property_pointer(const std::string& pointer) {
+  struct Form {
+    std::string_view prefix, suffix;
+    AnimatedProperty property;
+  };
+  static constexpr std::string_view kLights = "/extensions/KHR_lights_punctual/lights/";
+  static const Form kForms[] = {
+      {kLights, "/color", AnimatedProperty::kLightColor},
+      {kLights, "/intensity", AnimatedProperty::kLightIntensity},
+      {kLights, "/range", AnimatedProperty::kLightRange},
+      {kLights, "/spot/innerConeAngle", AnimatedProperty::kLightInnerCone},
+      {kLights, "/spot/outerConeAngle", AnimatedProperty::kLightOuterCone},
+      {"/cameras/", "/perspective/yfov", AnimatedProperty::kCameraYfov},
+      {"/cameras/", "/perspective/znear", AnimatedProperty::kCameraZnear},
+      {"/materials/", "/pbrMetallicRoughness/baseColorFactor", AnimatedProperty::kBaseColorFactor},
+      {"/materials/", "/pbrMetallicRoughness/metallicFactor", AnimatedProperty::kMetallicFactor},
+      {"/materials/", "/pbrMetallicRoughness/roughnessFactor", AnimatedProperty::kRoughnessFactor},
+      {"/materials/", "/emissiveFactor", AnimatedProperty::kEmissiveFactor},
+      {"/materials/", "/extensions/KHR_materials_emissive_strength/emissiveStrength",
+       AnimatedProperty::kEmissiveStrength},
+      {"/materials/", "/alphaCutoff", AnimatedProperty::kAlphaCutoff},
+      {"/materials/", "/normalTexture/scale", AnimatedProperty::kNormalScale},
+      {"/materials/", "/occlusionTexture/strength", AnimatedProperty::kOcclusionStrength},
+  };
+  const std::string_view p = pointer;
+  for (const Form& f : kForms) {
+    if (p.size() <= f.prefix.size() + f.suffix.size() || !p.starts_with(f.prefix) ||
+        !p.ends_with(f.suffix)) {
+      continue;
+    }
+    const std::string_view digits =
+        p.substr(f.prefix.size(), p.size() - f.prefix.size() - f.suffix.size());
+    size_t index = 0;
+    const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), index);
+    if (ec == std::errc() && end == digits.data() + digits.size() && digits.size() < 10 &&
+        digits.find_first_not_of("0123456789") == std::string_view::npos) {
+      return std::make_pair(f.property, index);
+    }
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
 void Loader::read_animation_pointers(std::string_view json) {
   const nlohmann::json doc = nlohmann::json::parse(json, nullptr, false);
   if (doc.is_discarded() || !doc.is_object() || !doc.contains("animations") ||
@@ -2706,6 +2764,9 @@ void Loader::read_animation_pointers(std::string_view json) {
         fail(what + " has no \"pointer\" string");
       }
       const std::string pointer = (*e)["pointer"].get<std::string>();
+      const int sampler = channel.contains("sampler") && channel["sampler"].is_number_integer()
+                              ? channel["sampler"].get<int>()
+                              : -1;
       // /nodes/N/PATH, N a plain decimal index.
       unsigned long long node = 0;
       char path[16] = {};
@@ -2714,6 +2775,12 @@ void Loader::read_animation_pointers(std::string_view json) {
           std::sscanf(pointer.c_str(), "/nodes/%llu/%15[a-z]%n", &node, path, &consumed) == 2 &&
           size_t(consumed) == pointer.size() && pointer[7] >= '0' && pointer[7] <= '9';
       const std::string property = path;
+      if (const std::optional<std::pair<AnimatedProperty, size_t>> target =
+              property_pointer(pointer)) {
+        pointer_channels_.push_back(
+            {a, c, sampler, -1, "", target->first, target->second, pointer});
+        continue;
+      }
       if (!node_pointer || (property != "translation" && property != "rotation" &&
                             property != "scale" && property != "weights")) {
         // The kind of property: the pointer with its indices left out.
@@ -2734,10 +2801,7 @@ void Loader::read_animation_pointers(std::string_view json) {
         fail(fmt::format("{} \"{}\" targets node {}, but there are {}", what, pointer, node,
                          model_.nodes.size()));
       }
-      const int sampler = channel.contains("sampler") && channel["sampler"].is_number_integer()
-                              ? channel["sampler"].get<int>()
-                              : -1;
-      pointer_channels_.push_back({a, c, sampler, int(node), property, pointer});
+      pointer_channels_.push_back({a, c, sampler, int(node), property, std::nullopt, 0, pointer});
     }
   }
   nodeless_channels_are_pointers_ = !other_nodeless;
@@ -2747,7 +2811,7 @@ void Loader::read_animation_pointers(std::string_view json) {
     skipped.resize(std::min(count, kNamed));
     warn_once("animation pointers",
               fmt::format("KHR_animation_pointer animations of {}{} are not supported (skipped: "
-                          "only a node's translation, rotation, scale and weights are animated)",
+                          "see docs/scene-model.md for the properties afr animates)",
                           fmt::join(skipped, ", "),
                           count > kNamed ? fmt::format(" and {} more kinds", count - kNamed) : ""));
   }
@@ -2770,7 +2834,11 @@ void Loader::load_animations() {
       if (p.animation != a) continue;
       const std::string what = fmt::format("animation {} channel {} (KHR_animation_pointer \"{}\")",
                                            a, p.channel, p.pointer);
-      add_channel(animation, p.sampler, p.node, p.path, what);
+      if (p.property) {
+        add_property_channel(animation, p.sampler, *p.property, p.index, what);
+      } else {
+        add_channel(animation, p.sampler, p.node, p.path, what);
+      }
     }
   }
 }
@@ -2818,22 +2886,9 @@ void Loader::add_channel(const tinygltf::Animation& animation, int sampler_index
               "animations of nodes given as a matrix are not supported (skipped)");
     return;
   }
-  const tinygltf::AnimationSampler& sampler = animation.samplers[size_t(sampler_index)];
-  if (sampler.interpolation == "LINEAR") {
-    channel.interpolation = Interpolation::kLinear;
-  } else if (sampler.interpolation == "STEP") {
-    channel.interpolation = Interpolation::kStep;
-  } else if (sampler.interpolation == "CUBICSPLINE") {
-    channel.interpolation = Interpolation::kCubicSpline;
-  } else {
-    warn_once("interpolation " + sampler.interpolation,
-              fmt::format("interpolation \"{}\" is not supported (channel skipped)",
-                          sampler.interpolation));
-    return;
-  }
-  const std::vector<float> times =
-      read_floats(sampler.input, TINYGLTF_TYPE_SCALAR, what + " input");
-  const std::vector<float> values = read_floats(sampler.output, value_type, what + " output");
+  std::vector<float> values;
+  if (!read_sampler(animation, sampler_index, value_type, what, &channel, &values)) return;
+  const std::vector<double> times = channel.times;
   const size_t per_key = channel.interpolation == Interpolation::kCubicSpline ? 3 : 1;
   if (channel.path == AnimatedPath::kWeights) {
     // As many weights per value as the node's mesh has morph targets (glTF 2.0, 3.11).
@@ -2863,10 +2918,119 @@ void Loader::add_channel(const tinygltf::Animation& animation, int sampler_index
       channel.values[i] = glm::dvec4(v[0], v[1], v[2], width == 4 ? v[3] : 0.0f);
     }
   }
-  channel.times.assign(times.begin(), times.end());
   repair_key_order(&channel, what);
   channel.validate(fmt::format("{} of {}", what, path_.string()));
   scene_.channels.push_back(std::move(channel));
+}
+
+// The interpolation and key times of sampler `sampler_index` into `channel`, its output values
+// of `value_type` into `values`. False, with a warning, for an interpolation glTF lacks.
+bool Loader::read_sampler(const tinygltf::Animation& animation, int sampler_index, int value_type,
+                          const std::string& what, AnimationChannel* channel,
+                          std::vector<float>* values) {
+  const tinygltf::AnimationSampler& sampler = animation.samplers[size_t(sampler_index)];
+  if (sampler.interpolation == "LINEAR") {
+    channel->interpolation = Interpolation::kLinear;
+  } else if (sampler.interpolation == "STEP") {
+    channel->interpolation = Interpolation::kStep;
+  } else if (sampler.interpolation == "CUBICSPLINE") {
+    channel->interpolation = Interpolation::kCubicSpline;
+  } else {
+    warn_once("interpolation " + sampler.interpolation,
+              fmt::format("interpolation \"{}\" is not supported (channel skipped)",
+                          sampler.interpolation));
+    return false;
+  }
+  const std::vector<float> times =
+      read_floats(sampler.input, TINYGLTF_TYPE_SCALAR, what + " input");
+  channel->times.assign(times.begin(), times.end());
+  *values = read_floats(sampler.output, value_type, what + " output");
+  return true;
+}
+
+// A KHR_animation_pointer channel that drives a property of a light, camera or material. Each
+// key must hold a value the property may take (glTF's ranges); the target must exist, and a
+// light or camera that afr skipped (an unsupported type) takes its animation with it.
+void Loader::add_property_channel(const tinygltf::Animation& animation, int sampler_index,
+                                  AnimatedProperty property, size_t gltf_index,
+                                  const std::string& what) {
+  if (sampler_index < 0 || size_t(sampler_index) >= animation.samplers.size()) {
+    fail(fmt::format("{} refers to sampler {}, but there are {}", what, sampler_index,
+                     animation.samplers.size()));
+  }
+  const bool light = is_light_property(property), camera = is_camera_property(property);
+  const std::vector<int>* map = light ? &light_map_ : camera ? &camera_map_ : nullptr;
+  const size_t count = map ? map->size() : scene_.materials.size();
+  if (gltf_index >= count) {
+    fail(fmt::format("{} targets {} {}, but there are {}", what,
+                     light    ? "light"
+                     : camera ? "camera"
+                              : "material",
+                     gltf_index, count));
+  }
+  const int index = map ? (*map)[gltf_index] : int(gltf_index);
+  if (index < 0) return;  // a skipped light or camera: named when it was skipped
+
+  PropertyChannel out;
+  out.property = property;
+  out.index = index;
+  const int width = component_count(property);
+  const int type = width == 1   ? TINYGLTF_TYPE_SCALAR
+                   : width == 3 ? TINYGLTF_TYPE_VEC3
+                                : TINYGLTF_TYPE_VEC4;
+  std::vector<float> values;
+  if (!read_sampler(animation, sampler_index, type, what, &out.curve, &values)) return;
+  const size_t per_key = out.curve.interpolation == Interpolation::kCubicSpline ? 3 : 1;
+  const size_t keys = out.curve.times.size();
+  if (keys == 0 || values.size() != keys * per_key * size_t(width)) {
+    fail(fmt::format("{} has {} keyframe times and {} values ({} per key expected)", what, keys,
+                     values.size() / size_t(width), per_key));
+  }
+  // The range each key's value must lie in (tangents are not values).
+  double lo = 0.0, hi = std::numeric_limits<double>::infinity();
+  bool open_lo = false;
+  switch (property) {
+    case AnimatedProperty::kLightRange:
+    case AnimatedProperty::kCameraYfov:
+    case AnimatedProperty::kCameraZnear:
+      open_lo = true;
+      hi = property == AnimatedProperty::kCameraYfov ? std::numbers::pi : hi;
+      break;
+    case AnimatedProperty::kLightInnerCone:
+    case AnimatedProperty::kLightOuterCone:
+      hi = 0.5 * std::numbers::pi;
+      break;
+    case AnimatedProperty::kBaseColorFactor:
+    case AnimatedProperty::kMetallicFactor:
+    case AnimatedProperty::kRoughnessFactor:
+    case AnimatedProperty::kEmissiveFactor:
+    case AnimatedProperty::kOcclusionStrength:
+      hi = 1.0;
+      break;
+    case AnimatedProperty::kNormalScale:
+      lo = -hi;  // any finite number
+      break;
+    default:
+      break;
+  }
+  out.curve.values.resize(values.size() / size_t(width));
+  for (size_t i = 0; i < out.curve.values.size(); ++i) {
+    const float* v = &values[i * size_t(width)];
+    glm::dvec4& value = out.curve.values[i];
+    for (int k = 0; k < width; ++k) value[k] = v[k];
+    if (per_key == 3 && i % 3 != 1) continue;
+    for (int k = 0; k < width; ++k) {
+      const double x = value[k];
+      if (!(open_lo ? x > lo : x >= lo) || !(x <= hi) || (std::isinf(hi) && !std::isfinite(x))) {
+        fail(fmt::format("{}: key {} sets the {} to {}, outside {}{}, {}]", what, i / per_key,
+                         to_string(property), x, open_lo ? "(" : "[", lo,
+                         std::isinf(hi) ? std::string("inf") : fmt::format("{:.6g}", hi)));
+      }
+    }
+  }
+  repair_key_order(&out.curve, what);
+  out.curve.validate(fmt::format("{} of {}", what, path_.string()));
+  scene_.property_channels.push_back(std::move(out));
 }
 
 // ---- Scene ----

@@ -658,6 +658,7 @@ void Scene::finalize() {
     duration_ = std::max(duration_, ch.end_time());
   }
   for (size_t i = 0; i < nodes.size(); ++i) channel_start_[i + 1] += channel_start_[i];
+  finalize_property_channels();
   channel_index_.assign(channels.size(), 0);
   {
     std::vector<uint32_t> fill(channel_start_.begin(), channel_start_.end() - 1);
@@ -733,6 +734,32 @@ void Scene::finalize() {
     if (nodes[i].camera != -1 && camera_node_ == -1) camera_node_ = i;
   }
   if (camera_node_ == -1) frame_default_camera();
+}
+
+// Checks each property channel's target and curve, and notes which kinds and materials they
+// animate.
+void Scene::finalize_property_channels() {
+  animated_materials_.clear();
+  lights_animated_ = cameras_animated_ = false;
+  for (size_t c = 0; c < property_channels.size(); ++c) {
+    const PropertyChannel& pc = property_channels[c];
+    const bool light = is_light_property(pc.property), camera = is_camera_property(pc.property);
+    const size_t count = light ? lights.size() : camera ? cameras.size() : materials.size();
+    const char* kind = light ? "light" : camera ? "camera" : "material";
+    const std::string what = fmt::format("{}: property channel {} ({} of {} {})", source, c,
+                                         to_string(pc.property), kind, pc.index);
+    if (pc.index < 0 || size_t(pc.index) >= count) {
+      throw Error(fmt::format("{}: there are {} {}s", what, count, kind));
+    }
+    pc.curve.validate(what);
+    duration_ = std::max(duration_, pc.curve.end_time());
+    lights_animated_ |= light;
+    cameras_animated_ |= camera;
+    if (!light && !camera) animated_materials_.push_back(pc.index);
+  }
+  std::sort(animated_materials_.begin(), animated_materials_.end());
+  animated_materials_.erase(std::unique(animated_materials_.begin(), animated_materials_.end()),
+                            animated_materials_.end());
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -833,6 +860,7 @@ void Scene::evaluate(double t, SceneState* state) const {
     }
     state->world[i] = n.parent == -1 ? local : state->world[n.parent] * local;
   }
+  evaluate_properties(t, state);
   // Weights channels may drive nodes given as a matrix too: a loop of their own.
   for (const AnimationChannel& ch : channels) {
     if (ch.path == AnimatedPath::kWeights) {
@@ -846,6 +874,79 @@ void Scene::evaluate(double t, SceneState* state) const {
       state->joint_matrices[skin_start_[k] + j] =
           glm::mat4x3(state->world[skin.joints[j]] * skin.inverse_bind_matrices[j]);
     }
+  }
+}
+
+namespace {
+
+// A property's value as the renderer may use it: a cubic spline may overshoot its keys (the
+// loader checks each key against the same ranges).
+void apply(AnimatedProperty property, const glm::dvec4& v, Light* light, CameraModel* camera,
+           Material* material) {
+  const float x = float(v.x);
+  switch (property) {
+    case AnimatedProperty::kLightColor:
+      light->color = glm::max(glm::vec3(v), glm::vec3(0.0f));
+      break;
+    case AnimatedProperty::kLightIntensity:
+      light->intensity = std::max(x, 0.0f);
+      break;
+    case AnimatedProperty::kLightRange:
+      light->range = std::max(x, 1e-6f);  // 0 would mean no range at all
+      break;
+    case AnimatedProperty::kLightInnerCone:
+      light->inner_cone_angle = std::clamp(x, 0.0f, float(0.5 * kPi));
+      break;
+    case AnimatedProperty::kLightOuterCone:
+      light->outer_cone_angle = std::clamp(x, 0.0f, float(0.5 * kPi));
+      break;
+    case AnimatedProperty::kCameraYfov:
+      camera->yfov = std::clamp(v.x, 1e-6, kPi - 1e-6);
+      break;
+    case AnimatedProperty::kCameraZnear:
+      camera->znear = std::max(v.x, 1e-9);
+      break;
+    case AnimatedProperty::kBaseColorFactor:
+      material->base_color_factor = glm::clamp(glm::vec4(v), glm::vec4(0.0f), glm::vec4(1.0f));
+      break;
+    case AnimatedProperty::kMetallicFactor:
+      material->metallic = std::clamp(x, 0.0f, 1.0f);
+      break;
+    case AnimatedProperty::kRoughnessFactor:
+      material->roughness = std::clamp(x, 0.0f, 1.0f);
+      break;
+    case AnimatedProperty::kEmissiveFactor:
+      material->emissive_factor = glm::clamp(glm::vec3(v), glm::vec3(0.0f), glm::vec3(1.0f));
+      material->emissive = material->emissive_factor * material->emissive_strength;
+      break;
+    case AnimatedProperty::kEmissiveStrength:
+      material->emissive_strength = std::max(x, 0.0f);
+      material->emissive = material->emissive_factor * material->emissive_strength;
+      break;
+    case AnimatedProperty::kAlphaCutoff:
+      material->alpha_cutoff = std::max(x, 0.0f);
+      break;
+    case AnimatedProperty::kNormalScale:
+      material->normal_scale = x;
+      break;
+    case AnimatedProperty::kOcclusionStrength:
+      material->occlusion_strength = std::clamp(x, 0.0f, 1.0f);
+      break;
+  }
+}
+
+}  // namespace
+
+void Scene::evaluate_properties(double t, SceneState* state) const {
+  if (lights_animated_) state->lights = lights;
+  if (cameras_animated_) state->cameras = cameras;
+  if (!animated_materials_.empty()) state->materials = materials;
+  for (const PropertyChannel& pc : property_channels) {
+    const size_t i = size_t(pc.index);
+    const bool light = is_light_property(pc.property), camera = is_camera_property(pc.property);
+    apply(pc.property, pc.curve.evaluate(t), light ? &state->lights[i] : nullptr,
+          camera ? &state->cameras[i] : nullptr,
+          !light && !camera ? &state->materials[i] : nullptr);
   }
 }
 
@@ -987,7 +1088,8 @@ void Scene::bounds(const SceneState& state, glm::dvec3* lo, glm::dvec3* hi) cons
 
 Camera Scene::camera_at(const SceneState& state) const {
   if (camera_node_ == -1) return default_camera_;
-  const CameraModel& model = cameras[nodes[camera_node_].camera];
+  const int index = nodes[camera_node_].camera;
+  const CameraModel& model = state.cameras.empty() ? cameras[index] : state.cameras[index];
   return Camera::from_transform(state.world[camera_node_], model.yfov, model.znear);
 }
 

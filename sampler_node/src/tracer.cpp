@@ -719,6 +719,12 @@ void Tracer::Impl::build() {
   for (const Material& m : scene_.materials)
     materials_.push_back(shading::make_shade_material(&m, scene_, options_.mirror_roughness));
   materials_.push_back(shading::make_shade_material(nullptr, scene_, options_.mirror_roughness));
+  // An animated material is made again at each time (set_time); where its alpha is tested, its
+  // opacity may cross the cutoff, so its geometry gets the opacity filter whatever the factor
+  // is now.
+  for (int i : scene_.animated_materials()) {
+    if (materials_[size_t(i)].alpha_tested) materials_[size_t(i)].masked = true;
+  }
   auto material_of = [&](const Primitive& p) {
     return p.material >= 0 && size_t(p.material) < scene_.materials.size() ? uint32_t(p.material)
                                                                            : default_material;
@@ -1066,12 +1072,19 @@ void Tracer::Impl::set_time(double t) {
   rtcCommitScene(top_);
   check_device("committing the top-level scene");
 
+  for (int i : scene_.animated_materials()) {
+    shading::ShadeMaterial& m = materials_[size_t(i)];
+    const bool masked = m.masked;  // the filter's choice (build) stands
+    m = shading::make_shade_material(&scene_.material_at(state_, size_t(i)), scene_,
+                                     options_.mirror_roughness);
+    m.masked = m.masked || masked;
+  }
   camera_ = scene_.camera_at(state_);
   lights_.clear();  // capacity stays: no allocation after the first call
   // A black light would cost a shadow ray per shading point for nothing.
   for (int n : light_nodes_) {
     const LightRecord r = shading::make_light_record(
-        scene_.lights[size_t(scene_.nodes[size_t(n)].light)], state_.world[size_t(n)]);
+        scene_.light_at(state_, size_t(scene_.nodes[size_t(n)].light)), state_.world[size_t(n)]);
     if (r.radiance != glm::vec3(0.0f)) lights_.push_back(r);
   }
   node_light_count_ = lights_.size();
@@ -1086,7 +1099,7 @@ void Tracer::Impl::place_camera_lights(const Camera& camera) {
   const glm::dmat4 frame(glm::dvec4(camera.right, 0.0), glm::dvec4(camera.up, 0.0),
                          glm::dvec4(-camera.forward, 0.0), glm::dvec4(camera.eye, 1.0));
   for (int l : camera_lights_) {
-    const Light& light = scene_.lights[size_t(l)];
+    const Light& light = scene_.light_at(state_, size_t(l));
     const LightRecord r =
         shading::make_light_record(light, frame * glm::mat4_cast(light.camera_rotation));
     if (r.radiance != glm::vec3(0.0f)) lights_.push_back(r);

@@ -2149,9 +2149,9 @@ TEST_F(GltfLoaderTest, AnimationPointersToANodesTransformAreAnimated) {
   };
   b.doc()["animations"] = {
       {{"channels",
-        {pointer_channel(1, "/materials/0/pbrMetallicRoughness/baseColorFactor"),
+        {pointer_channel(1, "/materials/0/extensions/KHR_materials_ior/ior"),
          pointer_channel(0, "/nodes/0/translation"),
-         pointer_channel(1, "/materials/1/pbrMetallicRoughness/baseColorFactor")}},
+         pointer_channel(1, "/materials/1/extensions/KHR_materials_ior/ior")}},
        {"samplers",
         {{{"input", times}, {"output", moves}}, {{"input", times}, {"output", colors}}}}}};
   b.doc()["extensionsUsed"] = {"KHR_animation_pointer"};
@@ -2164,11 +2164,12 @@ TEST_F(GltfLoaderTest, AnimationPointersToANodesTransformAreAnimated) {
   EXPECT_EQ(scene.channels[0].path, AnimatedPath::kTranslation);
   EXPECT_NEAR(scene.evaluate(1.0).world[0][3].x, 2.0, 1e-9);  // halfway to x = 4
   ASSERT_EQ(report.warnings.size(), 1u) << report.warnings.back();
-  EXPECT_NE(report.warnings[0].find("KHR_animation_pointer animations of "
-                                    "/materials/#/pbrMetallicRoughness/baseColorFactor are not "
-                                    "supported"),
-            std::string::npos)
+  EXPECT_NE(
+      report.warnings[0].find("KHR_animation_pointer animations of "
+                              "/materials/#/extensions/KHR_materials_ior/ior are not supported"),
+      std::string::npos)
       << report.warnings[0];
+  EXPECT_TRUE(scene.property_channels.empty());
 
   b.doc()["animations"][0]["channels"][1] = pointer_channel(0, "/nodes/7/translation");
   b.write_embedded(path);
@@ -2178,6 +2179,109 @@ TEST_F(GltfLoaderTest, AnimationPointersToANodesTransformAreAnimated) {
   b.doc()["animations"][0]["channels"][1]["target"].erase("extensions");
   b.write_embedded(path);
   expect_error(path, "animation 0 channel 1 KHR_animation_pointer has no \"pointer\" string");
+}
+
+// KHR_animation_pointer's pointers to a light's, a camera's and a material's properties animate
+// them (SceneState's lights, cameras and materials; Scene::camera_at takes the camera's yfov);
+// a key outside the property's range, or a light, camera or material the file lacks, fails
+// naming the channel.
+TEST_F(GltfLoaderTest, AnimationPointersToLightsCamerasAndMaterialsAreAnimated) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 1;
+  b.doc()["materials"] = json::array(
+      {json::object(),
+       {{"emissiveFactor", {1, 0.5, 0}},
+        {"extensions", {{"KHR_materials_emissive_strength", {{"emissiveStrength", 2}}}}}}});
+  b.doc()["cameras"] = {
+      {{"type", "perspective"}, {"perspective", {{"yfov", 0.5}, {"znear", 0.1}}}}};
+  b.doc()["extensions"]["KHR_lights_punctual"]["lights"] = {
+      {{"type", "spot"}, {"intensity", 3}, {"spot", {{"outerConeAngle", 0.5}}}}};
+  b.doc()["nodes"].push_back({{"camera", 0}, {"translation", {0, 0, 5}}});
+  b.doc()["nodes"].push_back({{"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}});
+  b.doc()["scenes"][0]["nodes"] = {0, 1, 2};
+  const int times = b.add_floats({0, 2}, 1);
+  const int scalars = b.add_floats({0.5, 1.5}, 1);
+  const int colors = b.add_floats({1, 1, 1, 0, 0, 1}, 3);
+  const int factors = b.add_floats({1, 0, 0, 1, 0, 0, 1, 0.5}, 4);
+  const auto pointer_channel = [](int sampler, const std::string& pointer) {
+    return json{{"sampler", sampler},
+                {"target",
+                 {{"path", "pointer"},
+                  {"extensions", {{"KHR_animation_pointer", {{"pointer", pointer}}}}}}}};
+  };
+  b.doc()["animations"] = {
+      {{"channels",
+        {pointer_channel(0, "/cameras/0/perspective/yfov"),
+         pointer_channel(0, "/extensions/KHR_lights_punctual/lights/0/intensity"),
+         pointer_channel(1, "/extensions/KHR_lights_punctual/lights/0/color"),
+         pointer_channel(0, "/extensions/KHR_lights_punctual/lights/0/spot/innerConeAngle"),
+         pointer_channel(2, "/materials/1/pbrMetallicRoughness/baseColorFactor"),
+         pointer_channel(0, "/materials/1/pbrMetallicRoughness/roughnessFactor"),
+         pointer_channel(0,
+                         "/materials/1/extensions/KHR_materials_emissive_strength/"
+                         "emissiveStrength"),
+         pointer_channel(0, "/materials/1/alphaCutoff"),
+         pointer_channel(0, "/materials/1/normalTexture/scale")}},
+       {"samplers",
+        {{{"input", times}, {"output", scalars}},
+         {{"input", times}, {"output", colors}},
+         {{"input", times}, {"output", factors}}}}}};
+  b.doc()["extensionsUsed"] = {"KHR_animation_pointer", "KHR_lights_punctual",
+                               "KHR_materials_emissive_strength"};
+  // Roughness 0.5 to 1.5 is out of range: that channel is left out of this first file.
+  b.doc()["animations"][0]["channels"].erase(5);
+  const fs::path path = dir_ / "properties.gltf";
+  b.write_embedded(path);
+  GltfLoadReport report;
+  const Scene scene = load_gltf(path, &report);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+  ASSERT_EQ(scene.property_channels.size(), 8u);
+  EXPECT_EQ(scene.channels.size(), 0u);
+  EXPECT_TRUE(scene.is_animated());
+  EXPECT_DOUBLE_EQ(scene.duration(), 2.0);
+  EXPECT_EQ(scene.animated_materials(), std::vector<int>{1});
+
+  const SceneState at1 = scene.evaluate(1.0);  // halfway
+  EXPECT_NEAR(scene.camera_at(at1).yfov, 1.0, 1e-6);
+  EXPECT_NEAR(scene.camera_at(scene.evaluate(0.0)).yfov, 0.5, 1e-6);
+  const Light& light = scene.light_at(at1, 0);
+  EXPECT_NEAR(light.intensity, 1.0f, 1e-6f);
+  EXPECT_NEAR(light.inner_cone_angle, 1.0f, 1e-6f);
+  EXPECT_NEAR(light.outer_cone_angle, 0.5f, 1e-6f);  // not animated
+  EXPECT_NEAR(light.color.x, 0.5f, 1e-6f);
+  EXPECT_NEAR(light.color.z, 1.0f, 1e-6f);
+  const Material& m = scene.material_at(at1, 1);
+  EXPECT_NEAR(m.base_color_factor.a, 0.75f, 1e-6f);
+  EXPECT_NEAR(m.emissive.x, 1.0f, 1e-6f);  // factor 1 x strength 1
+  EXPECT_NEAR(m.emissive.y, 0.5f, 1e-6f);
+  EXPECT_NEAR(scene.material_at(scene.evaluate(2.0), 1).emissive.x, 1.5f, 1e-6f);
+  EXPECT_NEAR(scene.materials[1].emissive.x, 2.0f, 1e-6f);  // the file's, unanimated
+  EXPECT_NEAR(scene.material_at(scene.evaluate(2.0), 1).alpha_cutoff, 1.5f, 1e-6f);
+  EXPECT_NEAR(scene.material_at(scene.evaluate(2.0), 1).normal_scale, 1.5f, 1e-6f);
+
+  b.doc()["animations"][0]["channels"].push_back(
+      pointer_channel(0, "/materials/1/pbrMetallicRoughness/roughnessFactor"));
+  b.write_embedded(path);
+  expect_error(path,
+               "animation 0 channel 8 (KHR_animation_pointer "
+               "\"/materials/1/pbrMetallicRoughness/roughnessFactor\"): key 1 sets the roughness "
+               "factor to 1.5, outside [0, 1]");
+  b.doc()["animations"][0]["channels"][8] = pointer_channel(0, "/materials/2/emissiveFactor");
+  b.write_embedded(path);
+  expect_error(path, "targets material 2, but there are 2");
+  b.doc()["animations"][0]["channels"][8] =
+      pointer_channel(0, "/materials/0/occlusionTexture/strength");
+  b.write_embedded(path);
+  expect_error(path, "key 1 sets the occlusion strength to 1.5, outside [0, 1]");
+  b.doc()["animations"][0]["channels"][8] =
+      pointer_channel(1, "/extensions/KHR_lights_punctual/lights/3/color");
+  b.write_embedded(path);
+  expect_error(path, "targets light 3, but there are 1");
+  b.doc()["animations"][0]["channels"][8] = pointer_channel(0, "/cameras/0/perspective/znear");
+  b.doc()["animations"][0]["samplers"][0]["output"] = b.add_floats({0.5, 0}, 1);
+  b.write_embedded(path);
+  expect_error(path, "key 1 sets the camera yfov to 0, outside (0, 3.14159]");
 }
 
 // glTF requires strictly increasing keyframe times, but exporters write repeated and unordered

@@ -248,6 +248,50 @@ TEST(TracerTest, LightWithoutFalloffAndLightRange) {
                lambert_reference(b, p, false, true), 1e-6f, "beyond range");
 }
 
+// KHR_animation_pointer's properties reach the shading at each time: the light's intensity
+// doubles and the floor's base color halves from 0 s to 1 s, the floor's emission grows with
+// its animated strength; between and beyond the keys, as the channels interpolate and hold.
+TEST(TracerTest, AnimatedLightAndMaterialPropertiesShadeAtEachTime) {
+  ShadowScene sc{Light{}};
+  auto channel = [](AnimatedProperty property, int index, std::vector<glm::dvec4> values) {
+    PropertyChannel c;
+    c.property = property;
+    c.index = index;
+    c.curve.times = {0.0, 1.0};
+    c.curve.values = std::move(values);
+    return c;
+  };
+  const glm::dvec4 base(sc.base, 1.0);
+  sc.s.property_channels = {
+      channel(AnimatedProperty::kLightIntensity, 0, {{10, 0, 0, 0}, {20, 0, 0, 0}}),
+      channel(AnimatedProperty::kBaseColorFactor, 0, {base, base * glm::dvec4(0.5, 0.5, 0.5, 1)}),
+      channel(AnimatedProperty::kEmissiveFactor, 0, {{0.5, 0.25, 0, 0}, {0.5, 0.25, 0, 0}}),
+      channel(AnimatedProperty::kEmissiveStrength, 0, {{0, 0, 0, 0}, {2, 0, 0, 0}})};
+  sc.s.finalize();
+  EXPECT_EQ(sc.s.animated_materials(), std::vector<int>{0});
+  EXPECT_TRUE(sc.s.is_animated());
+  EXPECT_DOUBLE_EQ(sc.s.duration(), 1.0);
+  Tracer tracer(sc.s);
+  TraceStats stats;
+  const glm::vec3 eye(0.0f, 1.0f, 3.0f), p(2.0f, 0.0f, 0.0f);
+  const glm::vec3 at0 = lambert_reference(sc, p, true, true);
+  expect_near3(tracer.trace(ray_to(eye, p), &stats).color, at0, 1e-5f, "t = 0");
+  for (const double t : {0.5, 1.0, 3.0}) {
+    tracer.set_time(t);
+    const float s = float(std::min(t, 1.0));
+    // Base color x (1 - s / 2); light x (1 + s); emission (0.5, 0.25, 0) x 2 s.
+    ShadowScene want{Light{}};
+    want.base *= 1.0f - 0.5f * s;
+    want.intensity *= 1.0f + s;
+    const glm::vec3 color =
+        lambert_reference(want, p, true, true) + glm::vec3(0.5f, 0.25f, 0.0f) * (2.0f * s);
+    expect_near3(tracer.trace(ray_to(eye, p), &stats).color, color, 1e-5f,
+                 ("t = " + std::to_string(t)).c_str());
+  }
+  tracer.set_time(0.0);
+  expect_near3(tracer.trace(ray_to(eye, p), &stats).color, at0, 1e-5f, "back at 0 s");
+}
+
 TEST(TracerTest, SpotLightConeAndDirectionalLight) {
   const glm::vec3 eye(0.0f, 1.0f, 3.0f);
   TraceStats stats;

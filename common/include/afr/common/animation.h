@@ -61,4 +61,40 @@ struct AnimationChannel {
   double end_time() const { return times.back(); }
 };
 
+// A property of a light, a camera or a material that a KHR_animation_pointer channel drives
+// (a node's transform and weights are AnimationChannel's paths). Light angles are radians, as
+// in glTF; colors and factors are the glTF values (a base color factor with its alpha).
+enum class AnimatedProperty {
+  kLightColor,         // /extensions/KHR_lights_punctual/lights/N/color
+  kLightIntensity,     //   .../intensity
+  kLightRange,         //   .../range
+  kLightInnerCone,     //   .../spot/innerConeAngle
+  kLightOuterCone,     //   .../spot/outerConeAngle
+  kCameraYfov,         // /cameras/N/perspective/yfov
+  kCameraZnear,        //   .../znear
+  kBaseColorFactor,    // /materials/N/pbrMetallicRoughness/baseColorFactor
+  kMetallicFactor,     //   .../pbrMetallicRoughness/metallicFactor
+  kRoughnessFactor,    //   .../pbrMetallicRoughness/roughnessFactor
+  kEmissiveFactor,     // /materials/N/emissiveFactor
+  kEmissiveStrength,   //   .../extensions/KHR_materials_emissive_strength/emissiveStrength
+  kAlphaCutoff,        // /materials/N/alphaCutoff
+  kNormalScale,        // /materials/N/normalTexture/scale
+  kOcclusionStrength,  // /materials/N/occlusionTexture/strength
+};
+
+std::string_view to_string(AnimatedProperty property);
+// Components of the property's value: 1 (a scalar), 3 (a color) or 4 (a base color factor).
+int component_count(AnimatedProperty property);
+// True for the properties of lights, of cameras, of materials.
+bool is_light_property(AnimatedProperty property);
+bool is_camera_property(AnimatedProperty property);
+
+// One property channel: `curve` (path kTranslation: each component interpolated on its own;
+// node unused) drives `property` of light, camera or material `index` of the Scene.
+struct PropertyChannel {
+  AnimatedProperty property = AnimatedProperty::kLightIntensity;
+  int index = -1;
+  AnimationChannel curve;
+};
+
 }  // namespace afr

@@ -166,8 +166,12 @@ struct Material {
   // glTF's metallicRoughnessTexture (linear data): its green channel multiplies `roughness`,
   // its blue `metallic`, at each point. -1: none.
   int metallic_roughness_texture = -1;
-  glm::vec3 emissive{0.0f};
+  glm::vec3 emissive{0.0f};   // emissive_factor x emissive_strength
   int emissive_texture = -1;  // sRGB-decoded color multiplying `emissive`; -1: none
+  // glTF's emissiveFactor and KHR_materials_emissive_strength, kept apart for an animation of
+  // either (PropertyChannel), which sets `emissive` to their product again.
+  glm::vec3 emissive_factor{0.0f};
+  float emissive_strength = 1.0f;
   // glTF's occlusionTexture (linear data): its red channel, moved toward 1 by
   // 1 - occlusion_strength, scales the ambient light a point receives. -1: none.
   int occlusion_texture = -1;
@@ -337,6 +341,12 @@ struct SceneState {
   // world(joint) x inverse bind matrix for every joint of every skin, skin after skin.
   std::vector<float> morph_weights;
   std::vector<glm::mat4x3> joint_matrices;  // affine: the bottom row is (0, 0, 0, 1)
+  // Where property channels drive them (Scene::property_channels), the lights, cameras and
+  // materials at this time, indexed like the Scene's; each empty when none of its kind is
+  // animated (read them through Scene::light_at, camera_at, material_at).
+  std::vector<Light> lights;
+  std::vector<CameraModel> cameras;
+  std::vector<Material> materials;
 };
 
 class Scene {
@@ -351,8 +361,9 @@ class Scene {
   std::vector<Skin> skins;
   std::vector<int> roots;  // nodes of the displayed scene with no parent
   std::vector<AnimationChannel> channels;
-  glm::vec3 background{0.0f};  // radiance of rays that hit nothing
-  glm::vec3 ambient{0.0f};     // ambient light, times Material::ambient
+  std::vector<PropertyChannel> property_channels;  // lights', cameras' and materials' properties
+  glm::vec3 background{0.0f};                      // radiance of rays that hit nothing
+  glm::vec3 ambient{0.0f};                         // ambient light, times Material::ambient
 
   // Checks every index and channel, fills Node::parent from children, and derives which
   // nodes move. Call once after building or loading, before any other method. Throws
@@ -361,7 +372,7 @@ class Scene {
 
   // Seconds covered by the animation (0 for a static scene).
   double duration() const { return duration_; }
-  bool is_animated() const { return !channels.empty(); }
+  bool is_animated() const { return !channels.empty() || !property_channels.empty(); }
   // True when the world transform of node i depends on time (it or an ancestor is animated).
   bool node_moves(int i) const { return node_moves_[i]; }
   // True when node i carries a mesh that is skinned or has morph targets: its vertices are
@@ -400,6 +411,17 @@ class Scene {
   // fixed camera that looks from the +Z side at the bounds of the whole animation (their
   // union over time 0 and every keyframe time), so a moving object moves across the image.
   Camera camera_at(const SceneState& state) const;
+  // Light and material i at the state's time: the Scene's own unless a property channel
+  // animates its kind.
+  const Light& light_at(const SceneState& state, size_t i) const {
+    return state.lights.empty() ? lights[i] : state.lights[i];
+  }
+  const Material& material_at(const SceneState& state, size_t i) const {
+    return state.materials.empty() ? materials[i] : state.materials[i];
+  }
+  // The materials that property channels animate, ascending (a renderer re-derives what it
+  // keeps of them at each time).
+  const std::vector<int>& animated_materials() const { return animated_materials_; }
 
   // World-space bounds of all geometry at time t, deformed geometry included.
   void bounds(const SceneState& state, glm::dvec3* lo, glm::dvec3* hi) const;
@@ -408,6 +430,8 @@ class Scene {
 
  private:
   void frame_default_camera();  // sets default_camera_ (finalize, without a camera node)
+  void finalize_property_channels();
+  void evaluate_properties(double t, SceneState* state) const;
 
   std::vector<char> node_moves_;
   std::vector<char> node_deforms_;
@@ -428,6 +452,8 @@ class Scene {
   bool has_moving_geometry_ = false;
   int camera_node_ = -1;
   double duration_ = 0.0;
+  std::vector<int> animated_materials_;
+  bool lights_animated_ = false, cameras_animated_ = false;
   Camera default_camera_;  // the camera without a camera node
 };
 
