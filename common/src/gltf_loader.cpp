@@ -1237,6 +1237,22 @@ void Loader::decode_draco(const tinygltf::Primitive& in, const std::string& what
     if (attribute == nullptr) {
       fail(fmt::format("{}: its attribute {} names no attribute of the Draco data", where, name));
     }
+    // glTF's component types; Draco's others (64-bit, bool) have no accessor to fill, and
+    // libdraco reads a bool's byte as it is, whatever its value.
+    switch (attribute->data_type()) {
+      case draco::DT_INT8:
+      case draco::DT_UINT8:
+      case draco::DT_INT16:
+      case draco::DT_UINT16:
+      case draco::DT_INT32:
+      case draco::DT_UINT32:
+      case draco::DT_FLOAT32:
+        break;
+      default:
+        fail(fmt::format("{}: its attribute {} has Draco data type {}, which no glTF component "
+                         "type matches",
+                         where, name, int(attribute->data_type())));
+    }
     // Up to four components of each point's value (the accessor's beyond the data's are 0).
     const int8_t available = int8_t(std::min(int(attribute->num_components()), 4));
     store(accessor->second, points, name, [&](size_t i, int type, int components, uint8_t* out) {

@@ -917,6 +917,42 @@ TEST_F(GltfLoaderTest, DracoCompressedPrimitivesAreDecoded) {
            ["bufferView"] = cut.add_view(half);
   cut.write_embedded(dir_ / "cut.gltf");
   expect_error(dir_ / "cut.gltf", "mesh 0 primitive 0 KHR_draco_mesh_compression: cannot decode");
+
+  // Draco data whose attribute is of a type no glTF component type matches (a bool, which
+  // libdraco would read byte by byte whatever the byte: found by afr_fuzz_gltf).
+  draco::TriangleSoupMeshBuilder flags;
+  flags.Start(2);
+  const int flag_position =
+      flags.AddAttribute(draco::GeometryAttribute::POSITION, 3, draco::DT_FLOAT32);
+  const int flag = flags.AddAttribute(draco::GeometryAttribute::GENERIC, 1, draco::DT_BOOL);
+  const bool on[3] = {true, false, true};
+  for (uint32_t f = 0; f < 2; ++f) {
+    const int* t = triangles[f];
+    flags.SetAttributeValuesForFace(flag_position, draco::FaceIndex(f), &corners[size_t(t[0])],
+                                    &corners[size_t(t[1])], &corners[size_t(t[2])]);
+    flags.SetAttributeValuesForFace(flag, draco::FaceIndex(f), &on[0], &on[1], &on[2]);
+  }
+  const std::unique_ptr<draco::Mesh> flagged = flags.Finalize();
+  ASSERT_TRUE(flagged);
+  draco::EncoderBuffer flagged_encoded;
+  ASSERT_TRUE(draco::Encoder().EncodeMeshToBuffer(*flagged, &flagged_encoded).ok());
+  GltfBuilder typed = b;
+  typed.doc()["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"] = {
+      {"bufferView", typed.add_view(std::vector<uint8_t>(
+                         flagged_encoded.data(), flagged_encoded.data() + flagged_encoded.size()))},
+      {"attributes",
+       {{"POSITION", flagged->attribute(flag_position)->unique_id()},
+        {"TEXCOORD_0", flagged->attribute(flag)->unique_id()}}}};
+  draco::DecoderBuffer flagged_peek;
+  flagged_peek.Init(flagged_encoded.data(), flagged_encoded.size());
+  const size_t flagged_points =
+      draco::Decoder().DecodeMeshFromBuffer(&flagged_peek).value()->num_points();
+  typed.doc()["accessors"][positions]["count"] = flagged_points;
+  typed.doc()["accessors"][uvs]["count"] = flagged_points;
+  typed.write_embedded(dir_ / "typed.gltf");
+  expect_error(dir_ / "typed.gltf",
+               "mesh 0 primitive 0 KHR_draco_mesh_compression: its attribute TEXCOORD_0 has Draco "
+               "data type 11, which no glTF component type matches");
 }
 
 // EXT_ and KHR_meshopt_compression: buffer views compressed with meshoptimizer's encoders (the
