@@ -45,6 +45,19 @@ int keygen(const std::string& dir, int samplers) {
   return 0;
 }
 
+// The metrics server's port must not be one of the three the service binds: its bind would
+// fail with no better reason than "port in use", the service's own use.
+void check_metrics_port(const std::string& bind, int metrics_port) {
+  if (metrics_port <= 0 || bind.rfind("tcp://", 0) != 0) return;
+  const std::string samples = afr::protocol::service_endpoints(bind).samples;
+  const int last = std::stoi(samples.substr(samples.rfind(':') + 1));
+  if (metrics_port >= last - 2 && metrics_port <= last) {
+    throw afr::Error(fmt::format(
+        "--metrics-port {} is one of the ports --bind {} takes ({} to {}): choose another",
+        metrics_port, bind, last - 2, last));
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -205,6 +218,7 @@ int main(int argc, char** argv) {
           "image (up to {} a side) needs a wall (--wall COLUMNSxROWS) whose cells are within it",
           size.width, size.height, afr::kMaxOutputSide, afr::kMaxImageDimension));
     }
+    check_metrics_port(o.bind, o.metrics_port);
     o.image = size;
     o.refresh_interval = 1.0 / fps;
     o.coordinator.liveness.ceiling =

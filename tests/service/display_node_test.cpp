@@ -11,6 +11,7 @@
 #include <afr/protocol/channels.h>
 #include <afr/protocol/codec.h>
 #include <afr/sampler/sampler_pool.h>
+#include <fmt/format.h>
 
 #include <gtest/gtest.h>
 #include <zmq.hpp>
@@ -431,6 +432,21 @@ TEST_F(ServiceTest, NonLoopbackBindWithoutKeysIsRefused) {
                                 path("display.log"));
   EXPECT_EQ(d->wait(10.0), 1);
   EXPECT_NE(d->log().find("reachable from other machines"), std::string::npos) << d->log();
+}
+
+// The metrics server on one of the three ports the service binds is refused naming them, not
+// left to fail as a port "in use" (by the display itself).
+TEST_F(ServiceTest, AMetricsPortAmongTheServicesPortsIsRefusedNamingThem) {
+  auto d = std::make_unique<Process>(
+      std::vector<std::string>{kDisplay, "--headless", "--bind", endpoint(), "--metrics-port",
+                               std::to_string(port_ + 1)},
+      path("display.log"));
+  EXPECT_EQ(d->wait(10.0), 1);
+  EXPECT_NE(d->log().find(fmt::format("--metrics-port {} is one of the ports --bind {} takes ({} "
+                                      "to {})",
+                                      port_ + 1, endpoint(), port_, port_ + 2)),
+            std::string::npos)
+      << d->log();
 }
 
 TEST_F(ServiceTest, InteractiveCameraWithoutAWindowIsRefusedWithTheReason) {
