@@ -371,10 +371,12 @@ class Loader {
     size_t animation = 0;
     size_t channel = 0;  // its index among the animation's channels in the file
     int sampler = -1;
-    int node = -1;     // a node's: translation, rotation, scale or weights in `path`
-    std::string path;  //
-    std::optional<AnimatedProperty> property;  // else: a property of glTF's light, camera or
-    size_t index = 0;                          // material `index`
+    // A node's translation, rotation, scale or weights (`path`); or with node -1, a property of
+    // glTF's light, camera or material `index`, or (no property) the weights of mesh `index`.
+    int node = -1;
+    std::string path;
+    std::optional<AnimatedProperty> property;
+    size_t index = 0;
     std::string pointer;
   };
   std::vector<PointerChannel> pointer_channels_;
@@ -1249,9 +1251,10 @@ void Loader::decode_draco(const tinygltf::Primitive& in, const std::string& what
       case draco::DT_FLOAT32:
         break;
       default:
-        fail(fmt::format("{}: its attribute {} has Draco data type {}, which no glTF component "
-                         "type matches",
-                         where, name, int(attribute->data_type())));
+        fail(
+            fmt::format("{}: its attribute {} has Draco data type {}, which no glTF component "
+                        "type matches",
+                        where, name, int(attribute->data_type())));
     }
     // Up to four components of each point's value (the accessor's beyond the data's are 0).
     const int8_t available = int8_t(std::min(int(attribute->num_components()), 4));
@@ -2797,6 +2800,19 @@ void Loader::read_animation_pointers(std::string_view json) {
             {a, c, sampler, -1, "", target->first, target->second, pointer});
         continue;
       }
+      // /meshes/N/weights: the morph weights of every node that shows mesh N with its weights.
+      unsigned long long mesh = 0;
+      consumed = 0;
+      if (std::sscanf(pointer.c_str(), "/meshes/%llu/weights%n", &mesh, &consumed) == 1 &&
+          size_t(consumed) == pointer.size() && pointer[8] >= '0' && pointer[8] <= '9') {
+        if (mesh >= model_.meshes.size()) {
+          fail(fmt::format("{} \"{}\" targets mesh {}, but there are {}", what, pointer, mesh,
+                           model_.meshes.size()));
+        }
+        pointer_channels_.push_back(
+            {a, c, sampler, -1, "mesh weights", std::nullopt, size_t(mesh), pointer});
+        continue;
+      }
       if (!node_pointer || (property != "translation" && property != "rotation" &&
                             property != "scale" && property != "weights")) {
         // The kind of property: the pointer with its indices left out.
@@ -2852,6 +2868,12 @@ void Loader::load_animations() {
                                            a, p.channel, p.pointer);
       if (p.property) {
         add_property_channel(animation, p.sampler, *p.property, p.index, what);
+      } else if (p.node == -1) {  // a mesh's weights: those of each node showing them
+        for (size_t n = 0; n < model_.nodes.size(); ++n) {
+          if (model_.nodes[n].mesh == int(p.index) && model_.nodes[n].weights.empty()) {
+            add_channel(animation, p.sampler, int(n), "weights", what);
+          }
+        }
       } else {
         add_channel(animation, p.sampler, p.node, p.path, what);
       }

@@ -2217,6 +2217,42 @@ TEST_F(GltfLoaderTest, AnimationPointersToANodesTransformAreAnimated) {
   expect_error(path, "animation 0 channel 1 KHR_animation_pointer has no \"pointer\" string");
 }
 
+// A pointer to a mesh's weights animates the morph weights of every node that shows the mesh
+// with the mesh's own weights (a node with weights of its own keeps them, as glTF has it).
+TEST_F(GltfLoaderTest, AnimationPointersToAMeshsWeightsAnimateTheNodesShowingIt) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["targets"] = {
+      {{"POSITION", b.add_floats({0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1}, 3)}}};
+  b.doc()["meshes"][0]["weights"] = {0};
+  b.doc()["nodes"].push_back({{"mesh", 0}, {"weights", {0.5}}});
+  b.doc()["nodes"].push_back({{"mesh", 0}, {"translation", {3, 0, 0}}});
+  b.doc()["scenes"][0]["nodes"] = {0, 1, 2};
+  const auto pointer_channel = [](const std::string& pointer) {
+    return json{{"sampler", 0},
+                {"target",
+                 {{"path", "pointer"},
+                  {"extensions", {{"KHR_animation_pointer", {{"pointer", pointer}}}}}}}};
+  };
+  b.doc()["animations"] = {
+      {{"channels", {pointer_channel("/meshes/0/weights")}},
+       {"samplers", {{{"input", b.add_floats({0, 1}, 1)}, {"output", b.add_floats({0, 1}, 1)}}}}}};
+  b.doc()["extensionsUsed"] = {"KHR_animation_pointer"};
+  const fs::path path = dir_ / "mesh_weights.gltf";
+  b.write_embedded(path);
+  const Scene scene = load_gltf(path);
+  ASSERT_EQ(scene.channels.size(), 2u);
+  for (const AnimationChannel& c : scene.channels) {
+    EXPECT_EQ(c.path, AnimatedPath::kWeights);
+    EXPECT_NE(c.node, 1);  // its own weights
+  }
+  EXPECT_NE(scene.channels[0].node, scene.channels[1].node);
+
+  b.doc()["animations"][0]["channels"][0] = pointer_channel("/meshes/4/weights");
+  b.write_embedded(path);
+  expect_error(path, "\"/meshes/4/weights\" targets mesh 4, but there are 1");
+}
+
 // KHR_animation_pointer's pointers to a light's, a camera's and a material's properties animate
 // them (SceneState's lights, cameras and materials; Scene::camera_at takes the camera's yfov);
 // a key outside the property's range, or a light, camera or material the file lacks, fails
