@@ -100,6 +100,63 @@ void main() {
 }
 )";
 
+// The other way round (--block 0, "rows"): one work group per run of 8 pixels of a row, one
+// invocation per pixel, each evaluating every sample within reach at its pixel. The records are
+// sorted by pixel in row-major order, so what a run needs from one row of cells is one
+// contiguous range. Each lane loads a different record of a batch of 8 and the batch is
+// broadcast across the subgroup (GL_ARB_shader_ballot's readInvocationARB; Mesa 22.3 offers
+// GL_KHR_shader_subgroup to no GL shader), so no lane loads what another has: the loads that
+// cost llvmpipe most are shared, at the price of evaluating each sample at whole runs of
+// pixels. Needs subgroups of 8 lanes or more (llvmpipe with AVX2, NVIDIA's 32); a pixel whose
+// subgroup is smaller is written -1, which the row reports.
+const char* const kRowsCompute = R"(
+#extension GL_ARB_shader_ballot : require
+#extension GL_ARB_gpu_shader_int64 : enable
+layout(local_size_x = 8) in;
+#define EVAL(j) { vec4 w4 = readInvocationARB(where, j); vec3 c3 = readInvocationARB(color, j); vec4 k4 = readInvocationARB(kernel, j); vec4 e4 = readInvocationARB(extent, j); float dx = float(p.x) + 0.5 - w4.x, dy = float(p.y) + 0.5 - w4.y; float wx = abs(dx) < e4.x ? exp(-dx * dx * k4.x) - k4.z : 0.0; float wy = abs(dy) < e4.y ? exp(-dy * dy * k4.y) - k4.w : 0.0; float wt = max(exp(-w4.z * w4.z * w4.w), u_min_wt) * e4.w; float w = wx * wy * wt; if (wx > 0.0 && wy > 0.0 && w > u_min_weight) { sums += vec4(c3 * w, w); coverage += vec2(1.0, e4.z); } }
+uniform usampler2D u_cells;
+uniform sampler2D u_kernel;
+uniform sampler2D u_extent;
+uniform samplerBuffer u_where;
+uniform samplerBuffer u_color;
+uniform ivec2 u_size;
+uniform float u_min_wt;
+uniform float u_min_weight;
+layout(rgba32f, binding = 0) uniform writeonly image2D u_sums;
+layout(rg32f, binding = 1) uniform writeonly image2D u_coverage;
+void main() {
+  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+  int x0 = int(gl_WorkGroupID.x) * 8, y = int(gl_WorkGroupID.y);
+  uint lane = gl_SubGroupInvocationARB;
+  if (gl_SubGroupSizeARB < 8u) {
+    if (p.x < u_size.x) imageStore(u_sums, p, vec4(-1.0));
+    return;
+  }
+  vec4 sums = vec4(0.0);
+  vec2 coverage = vec2(0.0);
+  int lo_x = max(x0 - REACH, 0), hi_x = min(x0 + 7 + REACH, u_size.x - 1);
+  for (int cy = max(y - REACH, 0); cy <= min(y + REACH, u_size.y - 1); ++cy) {
+    uint first = texelFetch(u_cells, ivec2(lo_x, cy), 0).x;
+    uvec2 last = texelFetch(u_cells, ivec2(hi_x, cy), 0).xy;
+    uint end = last.x + last.y;
+    for (uint base = first; base < end; base += 8u) {
+      uint i = base + lane;
+      bool valid = i < end;
+      vec4 where = valid ? texelFetch(u_where, int(i)) : vec4(-1e9, -1e9, 0.0, 0.0);
+      vec3 color = texelFetch(u_color, int(i)).rgb;
+      ivec2 at = clamp(ivec2(where.xy), ivec2(0), u_size - 1);
+      vec4 kernel = texelFetch(u_kernel, at, 0);
+      vec4 extent = texelFetch(u_extent, at, 0);
+      EVAL(0u) EVAL(1u) EVAL(2u) EVAL(3u) EVAL(4u) EVAL(5u) EVAL(6u) EVAL(7u)
+    }
+  }
+  if (p.x < u_size.x) {
+    imageStore(u_sums, p, sums);
+    imageStore(u_coverage, p, vec4(coverage, 0.0, 0.0));
+  }
+}
+)";
+
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
@@ -113,7 +170,8 @@ struct Row {
   int width = 0, height = 0, reach = 0, block = 0;
   size_t samples = 0;
   double bin = 0, upload = 0, gather = 0;
-  double hit_pixels = 0;  // pixels with weight: a check that the kernel ran
+  double hit_pixels = 0;   // pixels with weight: a check that the kernel ran
+  double mean_weight = 0;  // over the pixels: every variant gathers the same sums
 };
 
 // One size, reach and block: `repeats` timed passes after one untimed.
@@ -146,8 +204,9 @@ Row run(int width, int height, int reach, int block, int spp, int repeats) {
     std::copy_n(cell_extent, 4, &extent[4 * c]);
   }
 
+  const bool rows = block == 0;
   const std::string source = fmt::format("#version 430 core\n#define B {}\n#define REACH {}\n{}",
-                                         block, reach, kGatherCompute);
+                                         block, reach, rows ? kRowsCompute : kGatherCompute);
   const GLuint program = afr::compute_program(source.c_str(), "binned gather");
   GLuint cell_tex = afr::make_texture(GL_RG32UI, width, height);
   GLuint kernel_tex = afr::make_texture(GL_RGBA32F, width, height);
@@ -221,8 +280,13 @@ Row run(int width, int height, int reach, int block, int spp, int repeats) {
     glUniform1f(glGetUniformLocation(program, "u_min_weight"), 1e-30f);
     glBindImageTexture(0, sums_tex, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
     glBindImageTexture(1, coverage_tex, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RG32F);
-    const int group = 8 * block;
-    glDispatchCompute(GLuint((width + group - 1) / group), GLuint((height + group - 1) / group), 1);
+    if (rows) {
+      glDispatchCompute(GLuint((width + 7) / 8), GLuint(height), 1);
+    } else {
+      const int group = 8 * block;
+      glDispatchCompute(GLuint((width + group - 1) / group), GLuint((height + group - 1) / group),
+                        1);
+    }
     glMemoryBarrier(GL_ALL_BARRIER_BITS);
     glFinish();
     const double gather_ms = ms_since(t2);
@@ -235,8 +299,15 @@ Row run(int width, int height, int reach, int block, int spp, int repeats) {
   std::vector<float> sums(cells * 4);
   glBindTexture(GL_TEXTURE_2D, sums_tex);
   glGetTexImage(GL_TEXTURE_2D, 0, GL_RGBA, GL_FLOAT, sums.data());
-  size_t hit = 0;
-  for (size_t c = 0; c < cells; ++c) hit += sums[4 * c + 3] > 0.0f ? 1 : 0;
+  size_t hit = 0, small_subgroups = 0;
+  for (size_t c = 0; c < cells; ++c) {
+    hit += sums[4 * c + 3] > 0.0f ? 1 : 0;
+    row.mean_weight += double(sums[4 * c + 3]) / double(cells);
+    small_subgroups += sums[4 * c + 3] < 0.0f ? 1 : 0;
+  }
+  if (small_subgroups > 0) {
+    throw afr::Error("the rows gather needs subgroups of 8 lanes or more; this device's are fewer");
+  }
   row.hit_pixels = double(hit) / double(cells);
   row.bin = median(bins);
   row.upload = median(uploads);
@@ -269,9 +340,11 @@ int main(int argc, char** argv) {
                  "comma separated")
       ->delimiter(',')
       ->check(CLI::Range(1, 8));
-  app.add_option("--block", blocks, "pixels a side of one invocation's block, comma separated")
+  app.add_option("--block", blocks,
+                 "pixels a side of one invocation's block, comma separated (0: rows, one "
+                 "invocation per pixel sharing the records across the subgroup)")
       ->delimiter(',')
-      ->check(CLI::Range(1, 8));
+      ->check(CLI::Range(0, 8));
   app.add_option("--repeats", repeats, "timed passes per row")->check(CLI::Range(1, 1000));
   app.add_option("--spp", spp, "samples per pixel: N = spp x pixels")->check(CLI::Range(1, 64));
   app.add_option("--gpu", gpu, "EGL device (-1: hardware first)")->check(CLI::Range(-1, 63));
@@ -290,15 +363,17 @@ int main(int argc, char** argv) {
                context->version());
     fmt::print(
         "| resolution | N | reach | block | bin ms | upload ms | gather ms | sum ms | "
-        "pixels reached |\n");
-    fmt::print("|---|---|---|---|---|---|---|---|---|\n");
+        "pixels reached | mean weight |\n");
+    fmt::print("|---|---|---|---|---|---|---|---|---|---|\n");
     for (const int size : sizes) {
       for (const int reach : reaches) {
         for (const int block : blocks) {
           const Row r = run(size, size, reach, block, spp, repeats);
-          fmt::print("| {}x{} | {} | {} | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.3f} |\n",
-                     r.width, r.height, r.samples, r.reach, r.block, r.bin, r.upload, r.gather,
-                     r.bin + r.upload + r.gather, r.hit_pixels);
+          fmt::print(
+              "| {}x{} | {} | {} | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {:.3f} | {:.5f} |\n",
+              r.width, r.height, r.samples, r.reach,
+              r.block == 0 ? std::string("rows") : std::to_string(r.block), r.bin, r.upload,
+              r.gather, r.bin + r.upload + r.gather, r.hit_pixels, r.mean_weight);
           std::fflush(stdout);
         }
       }

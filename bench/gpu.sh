@@ -79,7 +79,7 @@ else
   [ -x "${binned[0]}" ] || binned=()
 fi
 if [ ${#binned[@]} -gt 0 ]; then
-  "${binned[@]}" --gpu "$gpu" --repeats "$repeats" --sizes 256,512 --reach 2,3 --block 1,2,4 |
+  "${binned[@]}" --gpu "$gpu" --repeats "$repeats" --sizes 256,512 --reach 2,3 --block 1,2,4,0 |
     tee "$tmp/binned.md"
 else
   echo "(afr-bench-binned-gather not built or bundled)" | tee "$tmp/binned.md"
