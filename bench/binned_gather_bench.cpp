@@ -36,8 +36,8 @@
 
 namespace {
 
-const char* const kGatherCompute = R"(
-layout(local_size_x = 8, local_size_y = 8) in;
+// What both gathers read and write.
+const char* const kGatherInputs = R"(
 uniform usampler2D u_cells;        // per pixel: first record, count
 uniform sampler2D u_kernel;        // per pixel: k_x, k_y, off_x, off_y of a splat landing there
 uniform sampler2D u_extent;        // per pixel: r_x, r_y, growth, 1 / (sigma_x sigma_y)
@@ -48,6 +48,10 @@ uniform float u_min_wt;
 uniform float u_min_weight;
 layout(rgba32f, binding = 0) uniform writeonly image2D u_sums;
 layout(rg32f, binding = 1) uniform writeonly image2D u_coverage;
+)";
+
+const char* const kGatherCompute = R"(
+layout(local_size_x = 8, local_size_y = 8) in;
 void main() {
   ivec2 b = ivec2(gl_GlobalInvocationID.xy) * B;
   if (b.x >= u_size.x || b.y >= u_size.y) return;
@@ -109,21 +113,29 @@ void main() {
 // cost llvmpipe most are shared, at the price of evaluating each sample at whole runs of
 // pixels. Needs subgroups of 8 lanes or more (llvmpipe with AVX2, NVIDIA's 32); a pixel whose
 // subgroup is smaller is written -1, which the row reports.
-const char* const kRowsCompute = R"(
+const char* const kRowsExtensions = R"(
 #extension GL_ARB_shader_ballot : require
 #extension GL_ARB_gpu_shader_int64 : enable
+)";
+// readInvocationARB's lane must be a constant: the eight evaluations of a batch are written
+// out by the macro EVAL, lane j's record at this invocation's pixel.
+const char* const kRowsCompute = R"(
 layout(local_size_x = 8) in;
-#define EVAL(j) { vec4 w4 = readInvocationARB(where, j); vec3 c3 = readInvocationARB(color, j); vec4 k4 = readInvocationARB(kernel, j); vec4 e4 = readInvocationARB(extent, j); float dx = float(p.x) + 0.5 - w4.x, dy = float(p.y) + 0.5 - w4.y; float wx = abs(dx) < e4.x ? exp(-dx * dx * k4.x) - k4.z : 0.0; float wy = abs(dy) < e4.y ? exp(-dy * dy * k4.y) - k4.w : 0.0; float wt = max(exp(-w4.z * w4.z * w4.w), u_min_wt) * e4.w; float w = wx * wy * wt; if (wx > 0.0 && wy > 0.0 && w > u_min_weight) { sums += vec4(c3 * w, w); coverage += vec2(1.0, e4.z); } }
-uniform usampler2D u_cells;
-uniform sampler2D u_kernel;
-uniform sampler2D u_extent;
-uniform samplerBuffer u_where;
-uniform samplerBuffer u_color;
-uniform ivec2 u_size;
-uniform float u_min_wt;
-uniform float u_min_weight;
-layout(rgba32f, binding = 0) uniform writeonly image2D u_sums;
-layout(rg32f, binding = 1) uniform writeonly image2D u_coverage;
+#define EVAL(j) {                                                         \
+    vec4 w4 = readInvocationARB(where, j);                                \
+    vec3 c3 = readInvocationARB(color, j);                                \
+    vec4 k4 = readInvocationARB(kernel, j);                               \
+    vec4 e4 = readInvocationARB(extent, j);                               \
+    float dx = float(p.x) + 0.5 - w4.x, dy = float(p.y) + 0.5 - w4.y;     \
+    float wx = abs(dx) < e4.x ? exp(-dx * dx * k4.x) - k4.z : 0.0;        \
+    float wy = abs(dy) < e4.y ? exp(-dy * dy * k4.y) - k4.w : 0.0;        \
+    float wt = max(exp(-w4.z * w4.z * w4.w), u_min_wt) * e4.w;            \
+    float w = wx * wy * wt;                                               \
+    if (wx > 0.0 && wy > 0.0 && w > u_min_weight) {                       \
+      sums += vec4(c3 * w, w);                                            \
+      coverage += vec2(1.0, e4.z);                                        \
+    }                                                                     \
+  }
 void main() {
   ivec2 p = ivec2(gl_GlobalInvocationID.xy);
   int x0 = int(gl_WorkGroupID.x) * 8, y = int(gl_WorkGroupID.y);
@@ -205,8 +217,9 @@ Row run(int width, int height, int reach, int block, int spp, int repeats) {
   }
 
   const bool rows = block == 0;
-  const std::string source = fmt::format("#version 430 core\n#define B {}\n#define REACH {}\n{}",
-                                         block, reach, rows ? kRowsCompute : kGatherCompute);
+  const std::string source =
+      fmt::format("#version 430 core\n#define B {}\n#define REACH {}\n{}{}{}", block, reach,
+                  rows ? kRowsExtensions : "", kGatherInputs, rows ? kRowsCompute : kGatherCompute);
   const GLuint program = afr::compute_program(source.c_str(), "binned gather");
   GLuint cell_tex = afr::make_texture(GL_RG32UI, width, height);
   GLuint kernel_tex = afr::make_texture(GL_RGBA32F, width, height);

@@ -145,6 +145,14 @@ class GltfBuilder {
   json more_buffers_ = json::array();
 };
 
+// An animation channel whose sampler drives the property a KHR_animation_pointer names.
+json pointer_channel(int sampler, const std::string& pointer) {
+  return json{
+      {"sampler", sampler},
+      {"target",
+       {{"path", "pointer"}, {"extensions", {{"KHR_animation_pointer", {{"pointer", pointer}}}}}}}};
+}
+
 // The unit quad in the z = 0 plane, counter-clockwise seen from +z, as mesh 0 on node 0 of
 // scene 0. Returns the POSITION accessor.
 int add_quad(GltfBuilder* b) {
@@ -2168,7 +2176,7 @@ TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {
 
 // KHR_animation_pointer: channels whose pointer names a node's translation, rotation, scale or
 // morph weights animate it as a channel of that node and path would; a pointer to another
-// property (here a material's color) warns once per kind and is skipped; a pointer to a node
+// property (here a material's ior) warns once per kind and is skipped; a pointer to a node
 // the file lacks, or a channel without a pointer, fails naming the channel.
 TEST_F(GltfLoaderTest, AnimationPointersToANodesTransformAreAnimated) {
   GltfBuilder b;
@@ -2177,12 +2185,6 @@ TEST_F(GltfLoaderTest, AnimationPointersToANodesTransformAreAnimated) {
   const int times = b.add_floats({0, 2}, 1);
   const int moves = b.add_floats({0, 0, 0, 4, 0, 0}, 3);
   const int colors = b.add_floats({1, 0, 0, 1, 0, 0, 1, 1}, 4);
-  const auto pointer_channel = [](int sampler, const std::string& pointer) {
-    return json{{"sampler", sampler},
-                {"target",
-                 {{"path", "pointer"},
-                  {"extensions", {{"KHR_animation_pointer", {{"pointer", pointer}}}}}}}};
-  };
   b.doc()["animations"] = {
       {{"channels",
         {pointer_channel(1, "/materials/0/extensions/KHR_materials_ior/ior"),
@@ -2228,14 +2230,8 @@ TEST_F(GltfLoaderTest, AnimationPointersToAMeshsWeightsAnimateTheNodesShowingIt)
   b.doc()["nodes"].push_back({{"mesh", 0}, {"weights", {0.5}}});
   b.doc()["nodes"].push_back({{"mesh", 0}, {"translation", {3, 0, 0}}});
   b.doc()["scenes"][0]["nodes"] = {0, 1, 2};
-  const auto pointer_channel = [](const std::string& pointer) {
-    return json{{"sampler", 0},
-                {"target",
-                 {{"path", "pointer"},
-                  {"extensions", {{"KHR_animation_pointer", {{"pointer", pointer}}}}}}}};
-  };
   b.doc()["animations"] = {
-      {{"channels", {pointer_channel("/meshes/0/weights")}},
+      {{"channels", {pointer_channel(0, "/meshes/0/weights")}},
        {"samplers", {{{"input", b.add_floats({0, 1}, 1)}, {"output", b.add_floats({0, 1}, 1)}}}}}};
   b.doc()["extensionsUsed"] = {"KHR_animation_pointer"};
   const fs::path path = dir_ / "mesh_weights.gltf";
@@ -2248,7 +2244,7 @@ TEST_F(GltfLoaderTest, AnimationPointersToAMeshsWeightsAnimateTheNodesShowingIt)
   }
   EXPECT_NE(scene.channels[0].node, scene.channels[1].node);
 
-  b.doc()["animations"][0]["channels"][0] = pointer_channel("/meshes/4/weights");
+  b.doc()["animations"][0]["channels"][0] = pointer_channel(0, "/meshes/4/weights");
   b.write_embedded(path);
   expect_error(path, "\"/meshes/4/weights\" targets mesh 4, but there are 1");
 }
@@ -2276,12 +2272,6 @@ TEST_F(GltfLoaderTest, AnimationPointersToLightsCamerasAndMaterialsAreAnimated) 
   const int scalars = b.add_floats({0.5, 1.5}, 1);
   const int colors = b.add_floats({1, 1, 1, 0, 0, 1}, 3);
   const int factors = b.add_floats({1, 0, 0, 1, 0, 0, 1, 0.5}, 4);
-  const auto pointer_channel = [](int sampler, const std::string& pointer) {
-    return json{{"sampler", sampler},
-                {"target",
-                 {{"path", "pointer"},
-                  {"extensions", {{"KHR_animation_pointer", {{"pointer", pointer}}}}}}}};
-  };
   b.doc()["animations"] = {
       {{"channels",
         {pointer_channel(0, "/cameras/0/perspective/yfov"),
