@@ -3041,7 +3041,6 @@ void Loader::add_property_channel(const tinygltf::Animation& animation, int samp
     case AnimatedProperty::kBaseColorFactor:
     case AnimatedProperty::kMetallicFactor:
     case AnimatedProperty::kRoughnessFactor:
-    case AnimatedProperty::kEmissiveFactor:
     case AnimatedProperty::kOcclusionStrength:
       hi = 1.0;
       break;
@@ -3059,11 +3058,23 @@ void Loader::add_property_channel(const tinygltf::Animation& animation, int samp
     if (per_key == 3 && i % 3 != 1) continue;
     for (int k = 0; k < width; ++k) {
       const double x = value[k];
-      if (!(open_lo ? x > lo : x >= lo) || !(x <= hi) || (std::isinf(hi) && !std::isfinite(x))) {
-        fail(fmt::format("{}: key {} sets the {} to {}, outside {}{}, {}]", what, i / per_key,
-                         to_string(property), x, open_lo ? "(" : "[", lo,
-                         std::isinf(hi) ? std::string("inf") : fmt::format("{:.6g}", hi)));
+      if (!std::isfinite(x)) {
+        fail(
+            fmt::format("{}: key {} sets the {} to {}", what, i / per_key, to_string(property), x));
       }
+      if ((open_lo ? x > lo : x >= lo) && x <= hi) continue;
+      const std::string problem =
+          fmt::format("{}: key {} sets the {} to {}, outside {}{}, {}]", what, i / per_key,
+                      to_string(property), x, open_lo ? "(" : "[", lo,
+                      std::isinf(hi) ? std::string("inf") : fmt::format("{:.6g}", hi));
+      // As the loader takes these factors when they are not animated: clamped where they are
+      // used. What is an error there (a camera's yfov, a negative intensity, ...) is one here.
+      const bool clamped = property == AnimatedProperty::kBaseColorFactor ||
+                           property == AnimatedProperty::kMetallicFactor ||
+                           property == AnimatedProperty::kRoughnessFactor ||
+                           property == AnimatedProperty::kEmissiveFactor;
+      if (!clamped) fail(problem);
+      warn_once("clamped " + what, problem + ": clamped where it is used");
     }
   }
   repair_key_order(&out.curve, what);

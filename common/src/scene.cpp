@@ -916,7 +916,7 @@ void apply(AnimatedProperty property, const glm::dvec4& v, Light* light, CameraM
       material->roughness = std::clamp(x, 0.0f, 1.0f);
       break;
     case AnimatedProperty::kEmissiveFactor:
-      material->emissive_factor = glm::clamp(glm::vec3(v), glm::vec3(0.0f), glm::vec3(1.0f));
+      material->emissive_factor = glm::max(glm::vec3(v), glm::vec3(0.0f));
       material->emissive = material->emissive_factor * material->emissive_strength;
       break;
     case AnimatedProperty::kEmissiveStrength:

@@ -2291,14 +2291,19 @@ TEST_F(GltfLoaderTest, AnimationPointersToLightsCamerasAndMaterialsAreAnimated) 
          {{"input", times}, {"output", factors}}}}}};
   b.doc()["extensionsUsed"] = {"KHR_animation_pointer", "KHR_lights_punctual",
                                "KHR_materials_emissive_strength"};
-  // Roughness 0.5 to 1.5 is out of range: that channel is left out of this first file.
-  b.doc()["animations"][0]["channels"].erase(5);
   const fs::path path = dir_ / "properties.gltf";
   b.write_embedded(path);
   GltfLoadReport report;
   const Scene scene = load_gltf(path, &report);
-  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
-  ASSERT_EQ(scene.property_channels.size(), 8u);
+  // Roughness 0.5 to 1.5 goes past 1: clamped, as a roughness factor without an animation is.
+  ASSERT_EQ(report.warnings.size(), 1u);
+  EXPECT_NE(report.warnings[0].find(
+                "animation 0 channel 5 (KHR_animation_pointer "
+                "\"/materials/1/pbrMetallicRoughness/roughnessFactor\"): key 1 sets the roughness "
+                "factor to 1.5, outside [0, 1]: clamped where it is used"),
+            std::string::npos)
+      << report.warnings[0];
+  ASSERT_EQ(scene.property_channels.size(), 9u);
   EXPECT_EQ(scene.channels.size(), 0u);
   EXPECT_TRUE(scene.is_animated());
   EXPECT_DOUBLE_EQ(scene.duration(), 2.0);
@@ -2321,26 +2326,24 @@ TEST_F(GltfLoaderTest, AnimationPointersToLightsCamerasAndMaterialsAreAnimated) 
   EXPECT_NEAR(scene.materials[1].emissive.x, 2.0f, 1e-6f);  // the file's, unanimated
   EXPECT_NEAR(scene.material_at(scene.evaluate(2.0), 1).alpha_cutoff, 1.5f, 1e-6f);
   EXPECT_NEAR(scene.material_at(scene.evaluate(2.0), 1).normal_scale, 1.5f, 1e-6f);
+  EXPECT_NEAR(scene.material_at(scene.evaluate(2.0), 1).roughness, 1.0f, 1e-6f);
 
+  // What is an error without an animation is one with it.
   b.doc()["animations"][0]["channels"].push_back(
-      pointer_channel(0, "/materials/1/pbrMetallicRoughness/roughnessFactor"));
+      pointer_channel(0, "/materials/0/occlusionTexture/strength"));
   b.write_embedded(path);
   expect_error(path,
-               "animation 0 channel 8 (KHR_animation_pointer "
-               "\"/materials/1/pbrMetallicRoughness/roughnessFactor\"): key 1 sets the roughness "
-               "factor to 1.5, outside [0, 1]");
-  b.doc()["animations"][0]["channels"][8] = pointer_channel(0, "/materials/2/emissiveFactor");
+               "animation 0 channel 9 (KHR_animation_pointer "
+               "\"/materials/0/occlusionTexture/strength\"): key 1 sets the occlusion strength to "
+               "1.5, outside [0, 1]");
+  b.doc()["animations"][0]["channels"][9] = pointer_channel(0, "/materials/2/emissiveFactor");
   b.write_embedded(path);
   expect_error(path, "targets material 2, but there are 2");
-  b.doc()["animations"][0]["channels"][8] =
-      pointer_channel(0, "/materials/0/occlusionTexture/strength");
-  b.write_embedded(path);
-  expect_error(path, "key 1 sets the occlusion strength to 1.5, outside [0, 1]");
-  b.doc()["animations"][0]["channels"][8] =
+  b.doc()["animations"][0]["channels"][9] =
       pointer_channel(1, "/extensions/KHR_lights_punctual/lights/3/color");
   b.write_embedded(path);
   expect_error(path, "targets light 3, but there are 1");
-  b.doc()["animations"][0]["channels"][8] = pointer_channel(0, "/cameras/0/perspective/znear");
+  b.doc()["animations"][0]["channels"][9] = pointer_channel(0, "/cameras/0/perspective/znear");
   b.doc()["animations"][0]["samplers"][0]["output"] = b.add_floats({0.5, 0}, 1);
   b.write_embedded(path);
   expect_error(path, "key 1 sets the camera yfov to 0, outside (0, 3.14159]");
