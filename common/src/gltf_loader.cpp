@@ -60,7 +60,7 @@ constexpr std::array<std::string_view, 24> kSupportedExtensions = {
     "EXT_mesh_gpu_instancing",
     "EXT_meshopt_compression",
     "EXT_texture_webp",
-    "KHR_animation_pointer",  // a node's transform and weights (read_animation_pointers)
+    "KHR_animation_pointer",  // the properties pointer_target names (read_animation_pointers)
     "KHR_draco_mesh_compression",
     "KHR_lights_punctual",
     "KHR_materials_anisotropy",
@@ -193,6 +193,70 @@ bool keep_encoded_image(tinygltf::Image* image, const int, std::string*, std::st
 }
 
 // ---- The loader ----
+
+// What a KHR_animation_pointer names that afr animates, with the glTF index of its node, mesh,
+// light, camera or material.
+struct PointerTarget {
+  enum class Kind { kNode, kMeshWeights, kProperty };
+  Kind kind = Kind::kNode;
+  std::string_view path;  // kNode: translation, rotation, scale or weights
+  AnimatedProperty property = AnimatedProperty::kLightIntensity;  // kProperty
+  size_t index = 0;
+};
+
+// The target of `pointer` (PREFIX INDEX SUFFIX, the index plain decimal digits), or nothing
+// for a pointer afr does not animate.
+std::optional<PointerTarget> pointer_target(std::string_view pointer) {
+  using Kind = PointerTarget::Kind;
+  struct Form {
+    std::string_view prefix, suffix;
+    Kind kind;
+    AnimatedProperty property = AnimatedProperty::kLightIntensity;
+  };
+  static constexpr std::string_view kLights = "/extensions/KHR_lights_punctual/lights/";
+  static const Form kForms[] = {
+      {"/nodes/", "/translation", Kind::kNode},
+      {"/nodes/", "/rotation", Kind::kNode},
+      {"/nodes/", "/scale", Kind::kNode},
+      {"/nodes/", "/weights", Kind::kNode},
+      {"/meshes/", "/weights", Kind::kMeshWeights},
+      {kLights, "/color", Kind::kProperty, AnimatedProperty::kLightColor},
+      {kLights, "/intensity", Kind::kProperty, AnimatedProperty::kLightIntensity},
+      {kLights, "/range", Kind::kProperty, AnimatedProperty::kLightRange},
+      {kLights, "/spot/innerConeAngle", Kind::kProperty, AnimatedProperty::kLightInnerCone},
+      {kLights, "/spot/outerConeAngle", Kind::kProperty, AnimatedProperty::kLightOuterCone},
+      {"/cameras/", "/perspective/yfov", Kind::kProperty, AnimatedProperty::kCameraYfov},
+      {"/cameras/", "/perspective/znear", Kind::kProperty, AnimatedProperty::kCameraZnear},
+      {"/materials/", "/pbrMetallicRoughness/baseColorFactor", Kind::kProperty,
+       AnimatedProperty::kBaseColorFactor},
+      {"/materials/", "/pbrMetallicRoughness/metallicFactor", Kind::kProperty,
+       AnimatedProperty::kMetallicFactor},
+      {"/materials/", "/pbrMetallicRoughness/roughnessFactor", Kind::kProperty,
+       AnimatedProperty::kRoughnessFactor},
+      {"/materials/", "/emissiveFactor", Kind::kProperty, AnimatedProperty::kEmissiveFactor},
+      {"/materials/", "/extensions/KHR_materials_emissive_strength/emissiveStrength",
+       Kind::kProperty, AnimatedProperty::kEmissiveStrength},
+      {"/materials/", "/alphaCutoff", Kind::kProperty, AnimatedProperty::kAlphaCutoff},
+      {"/materials/", "/normalTexture/scale", Kind::kProperty, AnimatedProperty::kNormalScale},
+      {"/materials/", "/occlusionTexture/strength", Kind::kProperty,
+       AnimatedProperty::kOcclusionStrength},
+  };
+  for (const Form& f : kForms) {
+    if (pointer.size() <= f.prefix.size() + f.suffix.size() || !pointer.starts_with(f.prefix) ||
+        !pointer.ends_with(f.suffix)) {
+      continue;
+    }
+    const std::string_view digits =
+        pointer.substr(f.prefix.size(), pointer.size() - f.prefix.size() - f.suffix.size());
+    size_t index = 0;
+    const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), index);
+    if (ec == std::errc() && end == digits.data() + digits.size() && digits.size() < 10 &&
+        digits.find_first_not_of("0123456789") == std::string_view::npos) {
+      return PointerTarget{f.kind, f.suffix.substr(1), f.property, index};
+    }
+  }
+  return std::nullopt;
+}
 
 class Loader {
  public:
@@ -364,19 +428,13 @@ class Loader {
   std::set<int> instanced_nodes_;
   // Nodes KHR_node_visibility hides (hide_invisible_nodes): they keep no mesh or light.
   std::set<int> hidden_nodes_;
-  // KHR_animation_pointer channels that target a node's transform or morph weights, or a
-  // property of a light, camera or material (read_animation_pointers), which tinygltf drops
-  // for want of a target node.
+  // KHR_animation_pointer channels whose pointer afr animates (read_animation_pointers), which
+  // tinygltf drops for want of a target node.
   struct PointerChannel {
     size_t animation = 0;
     size_t channel = 0;  // its index among the animation's channels in the file
     int sampler = -1;
-    // A node's translation, rotation, scale or weights (`path`); or with node -1, a property of
-    // glTF's light, camera or material `index`, or (no property) the weights of mesh `index`.
-    int node = -1;
-    std::string path;
-    std::optional<AnimatedProperty> property;
-    size_t index = 0;
+    PointerTarget target;
     std::string pointer;
   };
   std::vector<PointerChannel> pointer_channels_;
@@ -2695,57 +2753,10 @@ void Loader::drop_unused_joints() {
 // ---- Animations ----
 
 // KHR_animation_pointer: a channel whose target's path is "pointer" animates the property its
-// JSON pointer names. Those that name a node's translation, rotation, scale or morph weights
-// (/nodes/N/...) become channels as any (add_channel); any other property (a material's, a
-// light's, a camera's) is not animated, and one warning names the kinds skipped.
-namespace {
-
-// The light, camera or material property a KHR_animation_pointer names, with the glTF index
-// of its light, camera or material; nothing for any other pointer.
-std::optional<std::pair<AnimatedProperty, size_t>> property_pointer(const std::string& pointer) {
-  struct Form {
-    std::string_view prefix, suffix;
-    AnimatedProperty property;
-  };
-  static constexpr std::string_view kLights = "/extensions/KHR_lights_punctual/lights/";
-  static const Form kForms[] = {
-      {kLights, "/color", AnimatedProperty::kLightColor},
-      {kLights, "/intensity", AnimatedProperty::kLightIntensity},
-      {kLights, "/range", AnimatedProperty::kLightRange},
-      {kLights, "/spot/innerConeAngle", AnimatedProperty::kLightInnerCone},
-      {kLights, "/spot/outerConeAngle", AnimatedProperty::kLightOuterCone},
-      {"/cameras/", "/perspective/yfov", AnimatedProperty::kCameraYfov},
-      {"/cameras/", "/perspective/znear", AnimatedProperty::kCameraZnear},
-      {"/materials/", "/pbrMetallicRoughness/baseColorFactor", AnimatedProperty::kBaseColorFactor},
-      {"/materials/", "/pbrMetallicRoughness/metallicFactor", AnimatedProperty::kMetallicFactor},
-      {"/materials/", "/pbrMetallicRoughness/roughnessFactor", AnimatedProperty::kRoughnessFactor},
-      {"/materials/", "/emissiveFactor", AnimatedProperty::kEmissiveFactor},
-      {"/materials/", "/extensions/KHR_materials_emissive_strength/emissiveStrength",
-       AnimatedProperty::kEmissiveStrength},
-      {"/materials/", "/alphaCutoff", AnimatedProperty::kAlphaCutoff},
-      {"/materials/", "/normalTexture/scale", AnimatedProperty::kNormalScale},
-      {"/materials/", "/occlusionTexture/strength", AnimatedProperty::kOcclusionStrength},
-  };
-  const std::string_view p = pointer;
-  for (const Form& f : kForms) {
-    if (p.size() <= f.prefix.size() + f.suffix.size() || !p.starts_with(f.prefix) ||
-        !p.ends_with(f.suffix)) {
-      continue;
-    }
-    const std::string_view digits =
-        p.substr(f.prefix.size(), p.size() - f.prefix.size() - f.suffix.size());
-    size_t index = 0;
-    const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), index);
-    if (ec == std::errc() && end == digits.data() + digits.size() && digits.size() < 10 &&
-        digits.find_first_not_of("0123456789") == std::string_view::npos) {
-      return std::make_pair(f.property, index);
-    }
-  }
-  return std::nullopt;
-}
-
-}  // namespace
-
+// JSON pointer names. Those pointer_target knows become channels: a node's (add_channel, as
+// any node's channel), a mesh's weights (those of the nodes showing them), a light's, camera's
+// or material's property (add_property_channel). Any other pointer is not animated, and one
+// warning names the kinds skipped.
 void Loader::read_animation_pointers(std::string_view json) {
   const nlohmann::json doc = nlohmann::json::parse(json, nullptr, false);
   if (doc.is_discarded() || !doc.is_object() || !doc.contains("animations") ||
@@ -2786,35 +2797,8 @@ void Loader::read_animation_pointers(std::string_view json) {
       const int sampler = channel.contains("sampler") && channel["sampler"].is_number_integer()
                               ? channel["sampler"].get<int>()
                               : -1;
-      // /nodes/N/PATH, N a plain decimal index.
-      unsigned long long node = 0;
-      char path[16] = {};
-      int consumed = 0;
-      const bool node_pointer =
-          std::sscanf(pointer.c_str(), "/nodes/%llu/%15[a-z]%n", &node, path, &consumed) == 2 &&
-          size_t(consumed) == pointer.size() && pointer[7] >= '0' && pointer[7] <= '9';
-      const std::string property = path;
-      if (const std::optional<std::pair<AnimatedProperty, size_t>> target =
-              property_pointer(pointer)) {
-        pointer_channels_.push_back(
-            {a, c, sampler, -1, "", target->first, target->second, pointer});
-        continue;
-      }
-      // /meshes/N/weights: the morph weights of every node that shows mesh N with its weights.
-      unsigned long long mesh = 0;
-      consumed = 0;
-      if (std::sscanf(pointer.c_str(), "/meshes/%llu/weights%n", &mesh, &consumed) == 1 &&
-          size_t(consumed) == pointer.size() && pointer[8] >= '0' && pointer[8] <= '9') {
-        if (mesh >= model_.meshes.size()) {
-          fail(fmt::format("{} \"{}\" targets mesh {}, but there are {}", what, pointer, mesh,
-                           model_.meshes.size()));
-        }
-        pointer_channels_.push_back(
-            {a, c, sampler, -1, "mesh weights", std::nullopt, size_t(mesh), pointer});
-        continue;
-      }
-      if (!node_pointer || (property != "translation" && property != "rotation" &&
-                            property != "scale" && property != "weights")) {
+      const std::optional<PointerTarget> named = pointer_target(pointer);
+      if (!named) {
         // The kind of property: the pointer with its indices left out.
         std::string kind;
         for (char ch : pointer) {
@@ -2829,11 +2813,14 @@ void Loader::read_animation_pointers(std::string_view json) {
         }
         continue;
       }
-      if (node >= model_.nodes.size()) {
-        fail(fmt::format("{} \"{}\" targets node {}, but there are {}", what, pointer, node,
-                         model_.nodes.size()));
+      // Nodes and meshes are checked here; lights, cameras and materials once loaded.
+      const bool node = named->kind == PointerTarget::Kind::kNode;
+      const size_t count = node ? model_.nodes.size() : model_.meshes.size();
+      if (named->kind != PointerTarget::Kind::kProperty && named->index >= count) {
+        fail(fmt::format("{} \"{}\" targets {} {}, but there are {}", what, pointer,
+                         node ? "node" : "mesh", named->index, count));
       }
-      pointer_channels_.push_back({a, c, sampler, int(node), property, std::nullopt, 0, pointer});
+      pointer_channels_.push_back({a, c, sampler, *named, pointer});
     }
   }
   nodeless_channels_are_pointers_ = !other_nodeless;
@@ -2866,16 +2853,21 @@ void Loader::load_animations() {
       if (p.animation != a) continue;
       const std::string what = fmt::format("animation {} channel {} (KHR_animation_pointer \"{}\")",
                                            a, p.channel, p.pointer);
-      if (p.property) {
-        add_property_channel(animation, p.sampler, *p.property, p.index, what);
-      } else if (p.node == -1) {  // a mesh's weights: those of each node showing them
-        for (size_t n = 0; n < model_.nodes.size(); ++n) {
-          if (model_.nodes[n].mesh == int(p.index) && model_.nodes[n].weights.empty()) {
-            add_channel(animation, p.sampler, int(n), "weights", what);
+      const PointerTarget& t = p.target;
+      switch (t.kind) {
+        case PointerTarget::Kind::kNode:
+          add_channel(animation, p.sampler, int(t.index), std::string(t.path), what);
+          break;
+        case PointerTarget::Kind::kMeshWeights:  // those of each node showing the mesh's own
+          for (size_t n = 0; n < model_.nodes.size(); ++n) {
+            if (model_.nodes[n].mesh == int(t.index) && model_.nodes[n].weights.empty()) {
+              add_channel(animation, p.sampler, int(n), "weights", what);
+            }
           }
-        }
-      } else {
-        add_channel(animation, p.sampler, p.node, p.path, what);
+          break;
+        case PointerTarget::Kind::kProperty:
+          add_property_channel(animation, p.sampler, t.property, t.index, what);
+          break;
       }
     }
   }
@@ -2884,10 +2876,6 @@ void Loader::load_animations() {
 // One channel of `animation`: its sampler `sampler_index` drives `path` of node `node_index`.
 void Loader::add_channel(const tinygltf::Animation& animation, int sampler_index, int node_index,
                          const std::string& path, const std::string& what) {
-  if (sampler_index < 0 || size_t(sampler_index) >= animation.samplers.size()) {
-    fail(fmt::format("{} refers to sampler {}, but there are {}", what, sampler_index,
-                     animation.samplers.size()));
-  }
   if (size_t(node_index) >= model_.nodes.size()) {
     fail(
         fmt::format("{} targets node {}, but there are {}", what, node_index, model_.nodes.size()));
@@ -2926,7 +2914,7 @@ void Loader::add_channel(const tinygltf::Animation& animation, int sampler_index
   }
   std::vector<float> values;
   if (!read_sampler(animation, sampler_index, value_type, what, &channel, &values)) return;
-  const std::vector<double> times = channel.times;
+  const std::vector<double>& times = channel.times;
   const size_t per_key = channel.interpolation == Interpolation::kCubicSpline ? 3 : 1;
   if (channel.path == AnimatedPath::kWeights) {
     // As many weights per value as the node's mesh has morph targets (glTF 2.0, 3.11).
@@ -2962,10 +2950,15 @@ void Loader::add_channel(const tinygltf::Animation& animation, int sampler_index
 }
 
 // The interpolation and key times of sampler `sampler_index` into `channel`, its output values
-// of `value_type` into `values`. False, with a warning, for an interpolation glTF lacks.
+// of `value_type` into `values`. False, with a warning, for an interpolation glTF lacks; an
+// error for a sampler the animation lacks.
 bool Loader::read_sampler(const tinygltf::Animation& animation, int sampler_index, int value_type,
                           const std::string& what, AnimationChannel* channel,
                           std::vector<float>* values) {
+  if (sampler_index < 0 || size_t(sampler_index) >= animation.samplers.size()) {
+    fail(fmt::format("{} refers to sampler {}, but there are {}", what, sampler_index,
+                     animation.samplers.size()));
+  }
   const tinygltf::AnimationSampler& sampler = animation.samplers[size_t(sampler_index)];
   if (sampler.interpolation == "LINEAR") {
     channel->interpolation = Interpolation::kLinear;
@@ -2986,16 +2979,13 @@ bool Loader::read_sampler(const tinygltf::Animation& animation, int sampler_inde
   return true;
 }
 
-// A KHR_animation_pointer channel that drives a property of a light, camera or material. Each
-// key must hold a value the property may take (glTF's ranges); the target must exist, and a
-// light or camera that afr skipped (an unsupported type) takes its animation with it.
+// A KHR_animation_pointer channel that drives a property of a light, camera or material. A key
+// outside the property's glTF range is taken as the same value without an animation is
+// (clamped, or an error); the target must exist, and a light or camera that afr skipped (an
+// unsupported type) takes its animation with it.
 void Loader::add_property_channel(const tinygltf::Animation& animation, int sampler_index,
                                   AnimatedProperty property, size_t gltf_index,
                                   const std::string& what) {
-  if (sampler_index < 0 || size_t(sampler_index) >= animation.samplers.size()) {
-    fail(fmt::format("{} refers to sampler {}, but there are {}", what, sampler_index,
-                     animation.samplers.size()));
-  }
   const bool light = is_light_property(property), camera = is_camera_property(property);
   const std::vector<int>* map = light ? &light_map_ : camera ? &camera_map_ : nullptr;
   const size_t count = map ? map->size() : scene_.materials.size();

@@ -1074,10 +1074,9 @@ void Tracer::Impl::set_time(double t) {
 
   for (int i : scene_.animated_materials()) {
     shading::ShadeMaterial& m = materials_[size_t(i)];
-    const bool masked = m.masked;  // the filter's choice (build) stands
     m = shading::make_shade_material(&scene_.material_at(state_, size_t(i)), scene_,
                                      options_.mirror_roughness);
-    m.masked = m.masked || masked;
+    m.masked = m.masked || m.alpha_tested;  // as build() chose for its filter
   }
   camera_ = scene_.camera_at(state_);
   lights_.clear();  // capacity stays: no allocation after the first call

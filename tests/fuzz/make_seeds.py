@@ -418,7 +418,7 @@ def gltf_seeds():
     write("gltf", "draco_instanced.glb", g.glb())
 
     # The extensions read from the JSON beside tinygltf: KHR_animation_pointer channels (a node's
-    # translation and weights, a material's factor that is skipped), KHR_node_visibility,
+    # translation and weights, a material's emissive factor), KHR_node_visibility,
     # KHR_materials_dispersion in a volume, emissive strength and unlit; asset minVersion.
     g = Gltf()
     prim = g.quad()
