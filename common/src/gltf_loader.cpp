@@ -439,6 +439,9 @@ class Loader {
   };
   std::vector<PointerChannel> pointer_channels_;
   bool nodeless_channels_are_pointers_ = false;
+  // Per animation, the index in the file of each channel tinygltf kept, where it dropped some
+  // (read_animation_pointers), so that messages name the file's channel; empty otherwise.
+  std::vector<std::vector<size_t>> kept_channels_;
 };
 
 void Loader::warn_once(const std::string& feature, const std::string& message) {
@@ -676,6 +679,42 @@ std::string version_problem_in(std::string_view json) {
                                    : std::string());
 }
 
+// tinygltf refuses some files without saying why (a skin without joints). The first object
+// that lacks a property glTF requires, named, or empty when none does.
+std::string missing_property_in(std::string_view json) {
+  struct Required {
+    const char* array;     // top-level array
+    const char* singular;  // how its elements are named
+    const char* property;
+  };
+  static constexpr Required kRequired[] = {
+      {"accessors", "accessor", "componentType"},
+      {"accessors", "accessor", "count"},
+      {"accessors", "accessor", "type"},
+      {"animations", "animation", "channels"},
+      {"animations", "animation", "samplers"},
+      {"buffers", "buffer", "byteLength"},
+      {"bufferViews", "buffer view", "buffer"},
+      {"bufferViews", "buffer view", "byteLength"},
+      {"cameras", "camera", "type"},
+      {"meshes", "mesh", "primitives"},
+      {"skins", "skin", "joints"},
+  };
+  const nlohmann::json doc = nlohmann::json::parse(json, nullptr, false);
+  if (doc.is_discarded() || !doc.is_object()) return {};
+  for (const Required& r : kRequired) {
+    const auto array = doc.find(r.array);
+    if (array == doc.end() || !array->is_array()) continue;
+    for (size_t i = 0; i < array->size(); ++i) {
+      const nlohmann::json& element = (*array)[i];
+      if (element.is_object() && !element.contains(r.property)) {
+        return fmt::format("{} {} has no \"{}\", which glTF requires", r.singular, i, r.property);
+      }
+    }
+  }
+  return {};
+}
+
 }  // namespace
 
 void Loader::parse(std::span<const uint8_t> bytes) {
@@ -775,13 +814,16 @@ void Loader::parse(std::span<const uint8_t> bytes) {
     for (const std::string& file : access_.refused) {
       problem += fmt::format(" (refused to read {}: outside the folder of the glTF file)", file);
     }
-    fail(fmt::format("invalid glTF: {}", problem.empty() ? "unknown error" : problem));
+    if (problem.empty()) problem = missing_property_in(json_text);
+    fail(fmt::format("invalid glTF: {}",
+                     problem.empty() ? "the parser gave no reason (tinygltf)" : problem));
   }
   if (std::string problem = version_problem(model_.asset.version, model_.asset.minVersion);
       !problem.empty()) {
     fail(problem);
   }
-  if (json_text.find("KHR_animation_pointer") != std::string_view::npos) {
+  if (json_text.find("KHR_animation_pointer") != std::string_view::npos ||
+      err.find("field is missing in animation.channels.target") != std::string::npos) {
     read_animation_pointers(json_text);
   }
   // tinygltf warns about things such as a missing external image, and tells in `err` what it
@@ -1446,7 +1488,7 @@ void Loader::load_meshes() {
   }
 }
 
-// Returns false for a primitive that is skipped (not triangles, or no triangles at all).
+// Returns false for a primitive that is skipped (not triangles, no positions, or no triangles).
 bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& what,
                             Primitive* out) {
   const int mode = in.mode < 0 ? TINYGLTF_MODE_TRIANGLES : in.mode;
@@ -1458,6 +1500,11 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
     return false;
   }
   for (const auto& [name, accessor] : in.attributes) {
+    // Checked here for every attribute, since only those the scene needs are read.
+    if (accessor < 0 || size_t(accessor) >= model_.accessors.size()) {
+      fail(fmt::format("{} attribute {} refers to accessor {}, but there are {}", what, name,
+                       accessor, model_.accessors.size()));
+    }
     if (name.rfind("COLOR_", 0) == 0 && name != "COLOR_0") {
       warn_once("more colors",
                 fmt::format("vertex color sets other than COLOR_0 ({}) are ignored", name));
@@ -1477,8 +1524,16 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
   }
   out->material = in.material;
 
+  // glTF 2.0 (3.7.2.1) allows a primitive without positions and asks that it be skipped unless
+  // an extension gives them (Draco's are among the attributes by now).
   const auto position = in.attributes.find("POSITION");
-  if (position == in.attributes.end()) fail(what + " has no POSITION attribute");
+  if (position == in.attributes.end()) {
+    warn_once("no POSITION",
+              fmt::format("primitives without a POSITION attribute draw nothing and are skipped, "
+                          "as glTF asks ({} is the first)",
+                          what));
+    return false;
+  }
   const std::vector<float> p =
       read_floats(position->second, TINYGLTF_TYPE_VEC3, what + " POSITION");
   const size_t vertex_count = p.size() / 3;
@@ -1548,8 +1603,15 @@ bool Loader::load_primitive(const tinygltf::Primitive& in, const std::string& wh
   }
   // glTF 2.0, section 3.7.2.1: strips and fans as lists, keeping the winding.
   if (mode == TINYGLTF_MODE_TRIANGLES) {
+    // The glTF Validator warns of such a count (MESH_PRIMITIVE_INCOMPATIBLE_MODE) rather than
+    // refusing it; the whole triangles are drawn.
     if (indices.size() % 3 != 0) {
-      fail(fmt::format("{} has {} indices, not a multiple of 3", what, indices.size()));
+      warn_once("incomplete triangle",
+                fmt::format("{} has {} {}, not a multiple of 3: the last {} not drawn (said once "
+                            "for every such primitive)",
+                            what, indices.size(), in.indices >= 0 ? "indices" : "vertices",
+                            indices.size() % 3 == 1 ? "one is" : "two are"));
+      indices.resize(indices.size() - indices.size() % 3);
     }
     out->indices = std::move(indices);
   } else {
@@ -2354,7 +2416,13 @@ int Loader::texture_for_image(int image_index, ImageData data, const TextureSamp
   }
   if (bytes.empty()) {
     std::string reason = "its data could not be read";
-    if (!access_.refused.empty()) reason += " (files outside the folder of the glTF are refused)";
+    if (!access_.refused.empty()) {
+      reason += " (files outside the folder of the glTF are refused)";
+    } else if (const fs::path file = path_.parent_path() / image.uri;
+               !image.uri.empty() && image.uri.rfind("data:", 0) != 0) {
+      std::error_code ec;
+      if (!fs::exists(file, ec)) reason = fmt::format("no such file: {}", file.string());
+    }
     throw Error(fmt::format("{}: {}", name, reason));
   }
   const DecodedImage decoded = decode_image(bytes, name);
@@ -2756,7 +2824,8 @@ void Loader::drop_unused_joints() {
 // JSON pointer names. Those pointer_target knows become channels: a node's (add_channel, as
 // any node's channel), a mesh's weights (those of the nodes showing them), a light's, camera's
 // or material's property (add_property_channel). Any other pointer is not animated, and one
-// warning names the kinds skipped.
+// warning names the kinds skipped. tinygltf drops every channel without a target node, so this
+// also notes which of the file's channels it kept (kept_channels_).
 void Loader::read_animation_pointers(std::string_view json) {
   const nlohmann::json doc = nlohmann::json::parse(json, nullptr, false);
   if (doc.is_discarded() || !doc.is_object() || !doc.contains("animations") ||
@@ -2766,6 +2835,7 @@ void Loader::read_animation_pointers(std::string_view json) {
   bool other_nodeless = false;
   std::vector<std::string> skipped;  // the kinds of property not animated, in file order
   const nlohmann::json& animations = doc["animations"];
+  kept_channels_.assign(animations.size(), {});
   for (size_t a = 0; a < animations.size(); ++a) {
     if (!animations[a].is_object() || !animations[a].contains("channels") ||
         !animations[a]["channels"].is_array()) {
@@ -2774,11 +2844,22 @@ void Loader::read_animation_pointers(std::string_view json) {
     const nlohmann::json& channels = animations[a]["channels"];
     for (size_t c = 0; c < channels.size(); ++c) {
       const nlohmann::json& channel = channels[c];
-      if (!channel.is_object() || !channel.contains("target") || !channel["target"].is_object()) {
+      if (!channel.is_object()) continue;
+      // tinygltf keeps a channel with a sampler and either no target or one naming a node and
+      // a path.
+      const bool sampled = channel.contains("sampler") && channel["sampler"].is_number_integer();
+      if (!channel.contains("target") || !channel["target"].is_object()) {
+        if (sampled) kept_channels_[a].push_back(c);
         continue;
       }
       const nlohmann::json& target = channel["target"];
-      if (target.contains("node")) continue;  // tinygltf's
+      if (target.contains("node")) {
+        if (sampled && target["node"].is_number_integer() && target.contains("path") &&
+            target["path"].is_string()) {
+          kept_channels_[a].push_back(c);
+        }
+        continue;
+      }
       if (target.value("path", "") != "pointer") {
         other_nodeless = true;
         continue;
@@ -2794,9 +2875,7 @@ void Loader::read_animation_pointers(std::string_view json) {
         fail(what + " has no \"pointer\" string");
       }
       const std::string pointer = (*e)["pointer"].get<std::string>();
-      const int sampler = channel.contains("sampler") && channel["sampler"].is_number_integer()
-                              ? channel["sampler"].get<int>()
-                              : -1;
+      const int sampler = sampled ? channel["sampler"].get<int>() : -1;
       const std::optional<PointerTarget> named = pointer_target(pointer);
       if (!named) {
         // The kind of property: the pointer with its indices left out.
@@ -2841,7 +2920,9 @@ void Loader::load_animations() {
     const tinygltf::Animation& animation = model_.animations[a];
     for (size_t c = 0; c < animation.channels.size(); ++c) {
       const tinygltf::AnimationChannel& in = animation.channels[c];
-      const std::string what = fmt::format("animation {} channel {}", a, c);
+      const bool renumbered = a < kept_channels_.size() && c < kept_channels_[a].size();
+      const std::string what =
+          fmt::format("animation {} channel {}", a, renumbered ? kept_channels_[a][c] : c);
       if (in.target_node < 0) {
         warn_once("channel without node",
                   "animation channels without a target node are not supported (skipped)");
@@ -2950,8 +3031,8 @@ void Loader::add_channel(const tinygltf::Animation& animation, int sampler_index
 }
 
 // The interpolation and key times of sampler `sampler_index` into `channel`, its output values
-// of `value_type` into `values`. False, with a warning, for an interpolation glTF lacks; an
-// error for a sampler the animation lacks.
+// of `value_type` into `values`. False, with a warning, for an interpolation glTF lacks or a
+// sampler without keys; an error for a sampler the animation lacks.
 bool Loader::read_sampler(const tinygltf::Animation& animation, int sampler_index, int value_type,
                           const std::string& what, AnimationChannel* channel,
                           std::vector<float>* values) {
@@ -2974,8 +3055,17 @@ bool Loader::read_sampler(const tinygltf::Animation& animation, int sampler_inde
   }
   const std::vector<float> times =
       read_floats(sampler.input, TINYGLTF_TYPE_SCALAR, what + " input");
-  channel->times.assign(times.begin(), times.end());
   *values = read_floats(sampler.output, value_type, what + " output");
+  // glTF's accessors hold at least one element, but exporters write empty tracks, which animate
+  // nothing: skipped rather than refusing the scene.
+  if (times.empty() && values->empty()) {
+    warn_once("no keyframes",
+              fmt::format("animation channels without keyframes animate nothing and are skipped "
+                          "({} is the first)",
+                          what));
+    return false;
+  }
+  channel->times.assign(times.begin(), times.end());
   return true;
 }
 

@@ -325,6 +325,11 @@ TEST(DeformationTest, BadSkinsAreErrorsNamingTheProblem) {
         g.add_accessor(joints, 5121, "VEC4", 10);
     expect_load_error(g, "vertex 3 of primitive 0 of mesh 0 names joint 2, but skin 0 has 2");
   }
+  {  // tinygltf refuses it without a reason; the loader finds the property missing
+    GltfContent g = SkinnedStrip::make();
+    g.doc()["skins"][0].erase("joints");
+    expect_load_error(g, "invalid glTF: skin 0 has no \"joints\", which glTF requires");
+  }
   {
     GltfContent g = SkinnedStrip::make();
     g.doc()["meshes"][0]["primitives"][0]["attributes"]["JOINTS_0"] =

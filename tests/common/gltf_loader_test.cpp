@@ -419,6 +419,32 @@ TEST_F(GltfLoaderTest, TriangleStripsAndFansBecomeListsWithTheirWinding) {
   }
 }
 
+// The glTF Validator only warns of a triangle list whose count is not a multiple of 3
+// (MESH_PRIMITIVE_INCOMPATIBLE_MODE): its whole triangles are drawn, with one warning.
+TEST_F(GltfLoaderTest, TrianglesBeyondTheLastWholeOneAreLeftOutWithAWarning) {
+  GltfBuilder b;
+  const int positions = b.add_floats({0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0}, 3);
+  b.doc()["meshes"].push_back(
+      {{"primitives", json::array({{{"attributes", {{"POSITION", positions}}},
+                                    {"indices", b.add_indices16({0, 1, 2, 2, 1})}},
+                                   {{"attributes", {{"POSITION", positions}}}}})}});
+  b.doc()["nodes"].push_back({{"mesh", 0}});
+  b.doc()["scenes"] = json::array({{{"nodes", {0}}}});
+  const fs::path path = dir_ / "incomplete.gltf";
+  b.write_embedded(path);
+
+  GltfLoadReport report;
+  const Scene scene = load_gltf(path, &report);
+  ASSERT_EQ(scene.meshes.at(0).primitives.size(), 2u);
+  EXPECT_EQ(scene.meshes[0].primitives[0].indices, (std::vector<uint32_t>{0, 1, 2}));
+  EXPECT_EQ(scene.meshes[0].primitives[1].indices, (std::vector<uint32_t>{0, 1, 2}));
+  ASSERT_EQ(report.warnings.size(), 1u);
+  EXPECT_NE(report.warnings[0].find("mesh 0 primitive 0 has 5 indices, not a multiple of 3: the "
+                                    "last two are not drawn"),
+            std::string::npos)
+      << report.warnings[0];
+}
+
 // ---- Materials and textures ----
 
 TEST_F(GltfLoaderTest, MaterialsAndEmbeddedPngTexturesDecodeToLinearTexels) {
@@ -1916,6 +1942,11 @@ TEST_F(GltfLoaderTest, UndecodableTextureFailsNamingTheImage) {
   const fs::path path = dir_ / "bad_texture.gltf";
   b.write_embedded(path);
   expect_error(path, "image 0");
+  // An image file the folder lacks is named with the path looked for.
+  b.doc()["images"] = json::array({{{"uri", "textures/absent.png"}}});
+  b.write_embedded(path);
+  expect_error(path, "image 0 (textures/absent.png) of " + path.string() +
+                         ": no such file: " + (dir_ / "textures" / "absent.png").string());
 }
 
 TEST_F(GltfLoaderTest, EmptyImageDataUriFails) {
@@ -2133,21 +2164,40 @@ TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {
       {{"attributes", {{"POSITION", positions}}}, {"mode", 1}, {"targets", targets}});
   b.doc()["meshes"][0]["primitives"].push_back(
       {{"attributes", {{"POSITION", positions}}}, {"mode", 1}, {"targets", targets}});
+  // Two primitives without positions, which glTF allows and asks readers to skip.
+  b.doc()["meshes"][0]["primitives"].push_back(
+      {{"attributes", {{"TEXCOORD_0", uv_deltas}}}, {"targets", targets}});
+  b.doc()["meshes"][0]["primitives"].push_back({{"attributes", json::object()},
+                                                {"indices", b.add_indices16({0, 1, 2})},
+                                                {"targets", targets}});
   b.doc()["cameras"] =
       json::array({{{"type", "orthographic"},
                     {"orthographic", {{"xmag", 1}, {"ymag", 1}, {"znear", 0.1}, {"zfar", 10}}}}});
   const int times = b.add_floats({0, 1}, 1);
   const int values = b.add_floats({0, 0, 0, 1, 1, 1}, 3);
+  // Empty tracks, as exporters write them: two channels of a sampler with no keys.
+  json no_keys = b.doc()["accessors"][size_t(times)];
+  no_keys["count"] = 0;
+  no_keys.erase("min");
+  no_keys.erase("max");
+  b.doc()["accessors"].push_back(no_keys);
+  const int empty_times = int(b.doc()["accessors"].size()) - 1;
+  no_keys["type"] = "VEC3";
+  b.doc()["accessors"].push_back(no_keys);
+  const int empty_values = int(b.doc()["accessors"].size()) - 1;
   b.doc()["animations"] =
       json::array({{{"channels",
                      {{{"sampler", 0}, {"target", {{"node", 0}, {"path", "translation"}}}},
                       {{"sampler", 0}, {"target", {{"node", 1}, {"path", "translation"}}}},
                       {{"sampler", 1}, {"target", {{"node", 1}, {"path", "scale"}}}},
                       {{"sampler", 1}, {"target", {{"path", "scale"}}}},
-                      {{"sampler", 1}, {"target", {{"path", "translation"}}}}}},
+                      {{"sampler", 1}, {"target", {{"path", "translation"}}}},
+                      {{"sampler", 2}, {"target", {{"node", 0}, {"path", "scale"}}}},
+                      {{"sampler", 2}, {"target", {{"node", 1}, {"path", "translation"}}}}}},
                     {"samplers",
                      {{{"input", times}, {"output", values}, {"interpolation", "SMOOTHSTEP"}},
-                      {{"input", times}, {"output", values}}}}}});
+                      {{"input", times}, {"output", values}},
+                      {{"input", empty_times}, {"output", empty_values}}}}}});
   const fs::path path = dir_ / "unsupported.gltf";
   b.write_embedded(path);
 
@@ -2162,7 +2212,15 @@ TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {
   EXPECT_EQ(count_containing(report.warnings, "SMOOTHSTEP"), 1u);
   EXPECT_EQ(count_containing(report.warnings, "morph targets of TEXCOORD_0"), 1u);
   EXPECT_EQ(count_containing(report.warnings, "without a target node"), 1u);
-  EXPECT_EQ(report.warnings.size(), 6u);
+  EXPECT_EQ(count_containing(report.warnings,
+                             "without a POSITION attribute draw nothing and are skipped, as glTF "
+                             "asks (mesh 0 primitive 3 is the first)"),
+            1u);
+  EXPECT_EQ(count_containing(report.warnings,
+                             "without keyframes animate nothing and are skipped (animation 0 "
+                             "channel 5 is the first)"),
+            1u);
+  EXPECT_EQ(report.warnings.size(), 8u);
 
   ASSERT_EQ(scene.meshes.size(), 1u);
   ASSERT_EQ(scene.meshes[0].primitives.size(), 1u);
@@ -2588,6 +2646,14 @@ TEST_F(GltfLoaderTest, BadReferencesFail) {
     b.write_embedded(dir_ / "bad_accessor.gltf");
   }
   expect_error(dir_ / "bad_accessor.gltf", "accessor 42");
+  {  // an attribute afr has no use for, in a primitive it would skip for lack of positions
+    GltfBuilder b;
+    add_quad(&b);
+    b.doc()["meshes"][0]["primitives"][0]["attributes"] = {{"TEXCOORD_5", 9}};
+    b.write_embedded(dir_ / "bad_unused_accessor.gltf");
+  }
+  expect_error(dir_ / "bad_unused_accessor.gltf",
+               "mesh 0 primitive 0 attribute TEXCOORD_5 refers to accessor 9, but there are");
   {
     GltfBuilder b;
     add_quad(&b);
