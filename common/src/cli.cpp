@@ -32,8 +32,8 @@ ImageExtent parse_image_size(std::string_view text) {
   return size;
 }
 
-void refuse_non_finite(CLI::App& app) {
-  const CLI::Validator finite(
+CLI::Validator finite_number() {
+  return CLI::Validator(
       [](std::string& text) -> std::string {
         char* end = nullptr;
         const double v = std::strtod(text.c_str(), &end);
@@ -43,6 +43,10 @@ void refuse_non_finite(CLI::App& app) {
         return {};
       },
       "FINITE");
+}
+
+void refuse_non_finite(CLI::App& app) {
+  const CLI::Validator finite = finite_number();
   for (CLI::Option* option : app.get_options()) {
     if (option->get_type_name().find("FLOAT") != std::string::npos) option->check(finite);
   }

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "gltf_meshopt_json.h"
+#include "image_formats.h"
 
 #include <algorithm>
 #include <array>
@@ -2425,6 +2426,24 @@ int Loader::texture_for_image(int image_index, ImageData data, const TextureSamp
     }
     throw Error(fmt::format("{}: {}", name, reason));
   }
+  // An image of a format afr does not decode (KTX2, as files written for KHR_texture_basisu
+  // viewers name without the extension) leaves its textures out, as a texture without a
+  // source is; broken data of a format afr decodes is an error.
+  if (const std::string format = image_formats::sniff(bytes);
+      format.empty() || !image_formats::decoded_in_memory(format)) {
+    const bool ktx2 = bytes.size() >= 8 && std::memcmp(bytes.data(), "\xABKTX 20\xBB", 8) == 0;
+    warn_once(fmt::format("image format {}", image_index),
+              fmt::format("image {}{}: {} is not an image format afr decodes as a texture (PNG, "
+                          "JPEG or WebP): the textures of it are ignored",
+                          image_index,
+                          image.uri.empty() || image.uri.rfind("data:", 0) == 0
+                              ? std::string()
+                              : fmt::format(" ({})", image.uri),
+                          ktx2             ? std::string("KTX2")
+                          : format.empty() ? std::string("its data")
+                                           : format));
+    return -1;
+  }
   const DecodedImage decoded = decode_image(bytes, name);
 
   // The image's 8-bit values are kept as they are (Texture::codes), decoded at each lookup:
@@ -3183,19 +3202,49 @@ void Loader::load_scene_roots() {
   }
   const tinygltf::Scene& in = model_.scenes[size_t(index)];
   const std::string what = fmt::format("scene {}", index);
-  std::vector<char> is_child(scene_.nodes.size(), 0);
-  for (const Node& node : scene_.nodes) {
-    for (int child : node.children) is_child[size_t(child)] = 1;
+  std::vector<int> parent(scene_.nodes.size(), -1);
+  for (size_t i = 0; i < scene_.nodes.size(); ++i) {
+    for (int child : scene_.nodes[i].children) parent[size_t(child)] = int(i);
   }
-  std::vector<char> seen(scene_.nodes.size(), 0);
+  std::vector<char> listed(scene_.nodes.size(), 0);
   for (int root : in.nodes) {
     if (root < 0 || size_t(root) >= scene_.nodes.size()) {
       fail(fmt::format("{} refers to node {}, but there are {}", what, root, scene_.nodes.size()));
     }
-    if (is_child[size_t(root)] || seen[size_t(root)]) {
-      fail(fmt::format("{} lists node {}, which is not a distinct root node", what, root));
+    listed[size_t(root)]++;
+  }
+  // glTF requires a scene's nodes to be distinct roots, but exporters list children too
+  // (UniGLTF lists its only node and not the parent it adds): a child whose ancestors are not
+  // in the scene is drawn as a root, without their transforms, as viewers draw it; one under
+  // a listed ancestor, or listed twice, is drawn once.
+  std::vector<char> taken(scene_.nodes.size(), 0);
+  for (int root : in.nodes) {
+    int listed_ancestor = -1;  // (steps bounded, though load_nodes has refused cycles)
+    int a = parent[size_t(root)];
+    for (size_t step = 0; a >= 0 && step < parent.size(); ++step, a = parent[size_t(a)]) {
+      if (listed[size_t(a)]) {
+        listed_ancestor = a;
+        break;
+      }
     }
-    seen[size_t(root)] = 1;
+    if (taken[size_t(root)] || listed_ancestor >= 0) {
+      warn_once("scene lists a node twice",
+                fmt::format("{} lists node {} {}, which glTF forbids: it is drawn once", what, root,
+                            listed_ancestor >= 0
+                                ? fmt::format("and its ancestor node {}", listed_ancestor)
+                                : std::string("twice")));
+      continue;
+    }
+    taken[size_t(root)] = 1;
+    if (const int p = parent[size_t(root)]; p >= 0) {
+      warn_once("scene lists a child",
+                fmt::format("{} lists node {}, a child of node {}, which is not in the scene; "
+                            "glTF requires a scene's nodes to be roots: it is drawn as one, "
+                            "without its parents' transforms",
+                            what, root, p));
+      std::vector<int>& siblings = scene_.nodes[size_t(p)].children;
+      siblings.erase(std::find(siblings.begin(), siblings.end(), root));
+    }
     scene_.roots.push_back(root);
   }
   if (in.extras.Has("afr_background")) {

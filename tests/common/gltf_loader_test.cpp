@@ -1949,6 +1949,36 @@ TEST_F(GltfLoaderTest, UndecodableTextureFailsNamingTheImage) {
                          ": no such file: " + (dir_ / "textures" / "absent.png").string());
 }
 
+// An image of a format afr does not decode (KTX2, which files for KHR_texture_basisu viewers
+// name without the extension) leaves its textures out with one warning, as a texture without
+// a source does.
+TEST_F(GltfLoaderTest, ATextureOfAnUndecodedFormatIsIgnoredWithAWarning) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  b.doc()["materials"] = json::array(
+      {{{"pbrMetallicRoughness",
+         {{"baseColorTexture", {{"index", 0}}}, {"metallicRoughnessTexture", {{"index", 0}}}}}}});
+  b.doc()["textures"] = json::array({{{"source", 0}}});
+  const std::vector<uint8_t> ktx2 = {0xAB, 'K',  'T', 'X', ' ', '2', '0', 0xBB, 0x0D, 0x0A,
+                                     0x1A, 0x0A, 0,   0,   0,   0,   0,   0,    0,    0};
+  b.doc()["images"] = json::array({{{"uri", "data:image/ktx2;base64," + testing::base64(ktx2)}}});
+  const fs::path path = dir_ / "ktx2.gltf";
+  b.write_embedded(path);
+  GltfLoadReport report;
+  const Scene scene = load_gltf(path, &report);
+  ASSERT_EQ(scene.materials.size(), 1u);
+  EXPECT_EQ(scene.materials[0].base_color_texture, -1);
+  EXPECT_EQ(scene.materials[0].metallic_roughness_texture, -1);
+  EXPECT_TRUE(scene.textures.empty());
+  ASSERT_EQ(report.warnings.size(), 1u);
+  EXPECT_NE(report.warnings[0].find(path.string() +
+                                    ": image 0: KTX2 is not an image format afr decodes as a "
+                                    "texture (PNG, JPEG or WebP): the textures of it are ignored"),
+            std::string::npos)
+      << report.warnings[0];
+}
+
 TEST_F(GltfLoaderTest, EmptyImageDataUriFails) {
   GltfBuilder b;
   add_quad(&b);
@@ -2622,6 +2652,46 @@ TEST_F(GltfLoaderTest, IndexOutOfRangeOfTheVerticesFails) {
   const fs::path path = dir_ / "bad_index.gltf";
   b.write_embedded(path);
   expect_error(path, "out of range");
+}
+
+// glTF requires a scene's nodes to be distinct roots; UniGLTF lists a child whose parent is
+// outside the scene, which is drawn as a root with its own transform, as viewers draw it. A
+// node listed with its ancestor, or twice, is drawn once.
+TEST_F(GltfLoaderTest, SceneNodesThatAreNotRootsAreDrawnOnceWithAWarning) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["nodes"] =
+      json::array({{{"name", "tmpParent"}, {"children", {1}}, {"translation", {5, 0, 0}}},
+                   {{"mesh", 0}, {"translation", {0, 2, 0}}, {"children", {2}}},
+                   {{"mesh", 0}, {"translation", {0, 0, 3}}}});
+  b.doc()["scenes"] = json::array({{{"nodes", {1}}}});
+  const fs::path path = dir_ / "unigltf.gltf";
+  b.write_embedded(path);
+  GltfLoadReport report;
+  Scene scene = load_gltf(path, &report);
+  EXPECT_EQ(scene.roots, (std::vector<int>{1}));
+  SceneState state = scene.evaluate(0.0);
+  EXPECT_EQ(glm::dvec3(state.world[1][3]), glm::dvec3(0, 2, 0));
+  EXPECT_EQ(glm::dvec3(state.world[2][3]), glm::dvec3(0, 2, 3));
+  ASSERT_EQ(report.warnings.size(), 1u);
+  EXPECT_NE(report.warnings[0].find("scene 0 lists node 1, a child of node 0, which is not in the "
+                                    "scene; glTF requires a scene's nodes to be roots: it is drawn "
+                                    "as one, without its parents' transforms"),
+            std::string::npos)
+      << report.warnings[0];
+
+  b.doc()["scenes"] = json::array({{{"nodes", {2, 0, 0}}}});
+  b.write_embedded(path);
+  report = {};
+  scene = load_gltf(path, &report);
+  EXPECT_EQ(scene.roots, (std::vector<int>{0}));
+  state = scene.evaluate(0.0);
+  EXPECT_EQ(glm::dvec3(state.world[2][3]), glm::dvec3(5, 2, 3));
+  ASSERT_EQ(report.warnings.size(), 1u);
+  EXPECT_NE(report.warnings[0].find("scene 0 lists node 2 and its ancestor node 0, which glTF "
+                                    "forbids: it is drawn once"),
+            std::string::npos)
+      << report.warnings[0];
 }
 
 TEST_F(GltfLoaderTest, BadReferencesFail) {

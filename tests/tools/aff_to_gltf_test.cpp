@@ -619,6 +619,42 @@ TEST(Aff2GltfProgramTest, PrintsFileAndLineAndExitsOneOnMalformedInput) {
   std::filesystem::remove_all(dir);
 }
 
+// The formats leave light intensity open: 1 is NFF's unit, `spd` the Standard Procedural
+// Databases' sqrt(N) / (2 N); anything else is refused naming the option.
+TEST(Aff2GltfProgramTest, LightIntensityIsAFactorOrTheSpdFormula) {
+  const auto dir = test::fresh_temp_dir("aff-lights");
+  const auto aff = test::write_hand_scene(dir);  // 3 lights
+  const auto run = [&](const std::string& flag, const std::string& name) {
+    const std::string command = std::string(AFF2GLTF_PATH) + " " + aff.string() + " -o " +
+                                (dir / name).string() + " " + flag + " > " +
+                                (dir / "log.txt").string() + " 2>&1";
+    return std::system(command.c_str());
+  };
+  const auto intensities = [&](const std::string& name) {
+    std::vector<double> out;
+    for (const auto& light : test::load_gltf((dir / name).string()).lights) {
+      out.push_back(light.intensity);
+    }
+    return out;
+  };
+  ASSERT_EQ(run("--light-intensity 0.25", "quarter.gltf"), 0);
+  for (const double i : intensities("quarter.gltf")) EXPECT_DOUBLE_EQ(i, 0.25 * M_PI);
+  ASSERT_EQ(run("--light-intensity spd", "spd.gltf"), 0);
+  const std::vector<double> spd = intensities("spd.gltf");
+  ASSERT_EQ(spd.size(), 3u);
+  for (const double i : spd) EXPECT_DOUBLE_EQ(i, std::sqrt(3.0) / 6.0 * M_PI);
+  for (const std::string bad : {"-1", "nan", "bright", "2e6"}) {
+    const int status = run("--light-intensity " + bad, "bad.gltf");
+    ASSERT_TRUE(WIFEXITED(status));
+    EXPECT_NE(WEXITSTATUS(status), 0) << bad;
+    std::ifstream log(dir / "log.txt");
+    const std::string message((std::istreambuf_iterator<char>(log)), {});
+    EXPECT_NE(message.find("--light-intensity"), std::string::npos) << message;
+    EXPECT_FALSE(std::filesystem::exists(dir / "bad.gltf")) << bad;
+  }
+  std::filesystem::remove_all(dir);
+}
+
 TEST(Aff2GltfProgramTest, GlbOutputIsOneBinaryFileWithTheGltfsContent) {
   const auto dir = test::fresh_temp_dir("aff-glb");
   const auto aff = test::write_hand_scene(dir);

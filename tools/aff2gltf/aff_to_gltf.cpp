@@ -778,14 +778,16 @@ class Builder {
   }
 
   // KHR_lights_punctual point light; AFF lights do not fall off (extras.afr_falloff). NFF
-  // shades diffuse x light colour x cos; glTF's Lambertian BRDF divides by pi, so the
-  // intensity is pi to give the same brightness.
+  // shades diffuse x light colour x cos; glTF's Lambertian BRDF divides by pi, so an intensity
+  // of pi gives the same brightness (GltfOptions::light_intensity = 1).
   int add_light(size_t index) {
     const Light& l = scene_.lights[index];
     tinygltf::Light light;
     light.name = l.name.empty() ? "light" + std::to_string(index) : l.name;
     light.type = "point";
-    light.intensity = std::numbers::pi;
+    const double n = double(scene_.lights.size());
+    light.intensity = std::numbers::pi * (options_.spd_light_intensity ? std::sqrt(n) / (2.0 * n)
+                                                                       : options_.light_intensity);
     light.color = {l.color.r, l.color.g, l.color.b};
     light.extras = Value(Value::Object{{"afr_falloff", Value(std::string("none"))}});
     model_.lights.push_back(std::move(light));

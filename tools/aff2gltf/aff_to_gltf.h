@@ -26,6 +26,12 @@ struct GltfOptions {
   // Baked translations/scales (only where key times repeat): midpoint error at most this
   // fraction of the channel's largest absolute value (and at least 1e-7 absolute).
   double position_tolerance = 1e-5;
+  // Each light's intensity in NFF's units (1: diffuse x light colour x cos). The formats leave
+  // it open; with `spd_light_intensity` it is sqrt(N) / (2 N) for the scene's N lights, the
+  // Standard Procedural Databases' readme's suggestion, which keeps scenes of many lights from
+  // washing out.
+  double light_intensity = 1.0;
+  bool spd_light_intensity = false;
 };
 
 // A texture to write: `source` is the AFF's .ppm, `uri` the PNG name next to the .gltf.

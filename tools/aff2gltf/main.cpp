@@ -47,8 +47,19 @@ int main(int argc, char** argv) {
                  "middle of two samples, degrees")
       ->capture_default_str()
       ->check(CLI::Range(1e-6, 10.0));
+  std::string light_intensity = "1";
+  app.add_option("--light-intensity", light_intensity,
+                 "Each light's intensity, 1 being NFF's (diffuse x light colour x cos), or 'spd': "
+                 "sqrt(N) / (2 N) for N lights, as the Standard Procedural Databases suggest")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"spd"}) | (afr::finite_number() & CLI::Range(0.0, 1e6)));
   afr::refuse_non_finite(app);
   CLI11_PARSE(app, argc, argv);
+  if (light_intensity == "spd") {
+    gltf_options.spd_light_intensity = true;
+  } else {
+    CLI::detail::lexical_cast(light_intensity, gltf_options.light_intensity);
+  }
   if (output.empty()) output = std::filesystem::path(input).replace_extension(".gltf").filename();
 
   try {

@@ -9,7 +9,8 @@
 
 namespace CLI {
 class App;
-}
+class Validator;
+}  // namespace CLI
 
 namespace afr {
 
@@ -22,5 +23,8 @@ ImageExtent parse_image_size(std::string_view text);
 // and infinities, naming the option and the value (CLI::Range lets NaN through: every
 // comparison with it is false). Call once the options are added, before parsing.
 void refuse_non_finite(CLI::App& app);
+
+// That check, for an option of another type that takes numbers too (a word or a number).
+CLI::Validator finite_number();
 
 }  // namespace afr
