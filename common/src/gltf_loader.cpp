@@ -847,7 +847,9 @@ void Loader::parse(std::span<const uint8_t> bytes) {
             warn_once("channel without node",
                       "animation channels without a target node are not supported (skipped)");
           }
-        } else {
+        } else if (line != "'inverseBindMatrices' property is missing in Skin.") {
+          // (tinygltf takes that optional property for a required one: glTF's default, identity
+          // matrices, is what load_skins uses.)
           warn_once("tinygltf: " + line, line);
         }
       }

@@ -814,12 +814,18 @@ void Scene::frame_default_camera() {
   // floor of 1e-3 made it a dot in the middle of the view). Only a scene of one point (or
   // none) gets a size from where it is.
   const glm::dvec3 center = 0.5 * (lo + hi);
-  const double extent = 0.5 * glm::length(hi - lo);
+  const glm::dvec3 size = hi - lo;
+  const double extent = 0.5 * glm::length(size);
   const double radius = extent > 0.0 ? extent : std::max(1e-3 * glm::length(center), 1e-3);
   const double yfov = 0.8;
   const double distance = radius / std::sin(0.5 * yfov);
-  default_camera_ = Camera::look_at(center + glm::dvec3(0.0, 0.0, distance), center,
-                                    glm::dvec3(0.0, 1.0, 0.0), yfov, (distance - radius) * 0.1);
+  // A scene flat in y (a ground, a terrain, a plane lying in xz) or in x would be seen edge on
+  // from +Z, as nothing: it is looked at from 45 degrees above (or beside) instead.
+  const double flat = 1e-3 * std::max({size.x, size.y, size.z});
+  const glm::dvec3 from =
+      glm::normalize(glm::dvec3(size.x <= flat ? 1.0 : 0.0, size.y <= flat ? 1.0 : 0.0, 1.0));
+  default_camera_ = Camera::look_at(center + distance * from, center, glm::dvec3(0.0, 1.0, 0.0),
+                                    yfov, (distance - radius) * 0.1);
 }
 
 // ---------------------------------------------------------------------------------------------

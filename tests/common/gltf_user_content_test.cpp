@@ -128,6 +128,35 @@ TEST(GltfUserContentTest, ScenesThatBringLightOrAmbientGetNoDefault) {
 
 // ---- Default camera ----
 
+// A scene flat in y (a ground lying in xz, as Khronos's TwoSidedPlane) is seen edge on from
+// +Z: the default camera looks down on it from 45 degrees instead, and sees it whole.
+TEST(GltfUserContentTest, DefaultCameraLooksDownOnAFlatScene) {
+  TempFolder dir;
+  GltfContent g;
+  g.add_mesh({-2, 0, -1, 2, 0, -1, 2, 0, 1, -2, 0, 1}, {0, 2, 1, 0, 3, 2});
+  g.doc()["nodes"] = json::array({{{"mesh", 0}}});
+  g.doc()["scenes"] = json::array({{{"nodes", {0}}}});
+  g.write(dir / "ground.gltf");
+  const Scene scene = load_gltf(dir / "ground.gltf");
+  const Camera camera = scene.camera_at(scene.evaluate(0.0));
+  EXPECT_NEAR(camera.forward.y, -std::sqrt(0.5), 1e-9);  // 45 degrees down
+  EXPECT_NEAR(camera.forward.x, 0.0, 1e-9);
+  const int kSize = 100;
+  double top = kSize, bottom = 0.0;
+  for (const glm::dvec3 corner :
+       {glm::dvec3(-2, 0, -1), glm::dvec3(2, 0, -1), glm::dvec3(2, 0, 1), glm::dvec3(-2, 0, 1)}) {
+    glm::dvec2 xy;
+    ASSERT_TRUE(camera.project(corner, kSize, kSize, &xy, nullptr));
+    EXPECT_GE(xy.x, 0.0);
+    EXPECT_LE(xy.x, kSize);
+    top = std::min(top, xy.y);
+    bottom = std::max(bottom, xy.y);
+  }
+  EXPECT_GE(top, 0.0);
+  EXPECT_LE(bottom, kSize);
+  EXPECT_GT(bottom - top, 0.2 * kSize);  // seen as an area, not a line
+}
+
 TEST(GltfUserContentTest, DefaultCameraFramesTheWholeAnimationOnce) {
   // A box sliding 6 units along +X and back up over 3 s, keyed late (from 0.5 s) as exported
   // content often is; no camera in the file.
