@@ -824,7 +824,7 @@ void Loader::parse(std::span<const uint8_t> bytes) {
     fail(problem);
   }
   if (json_text.find("KHR_animation_pointer") != std::string_view::npos ||
-      err.find("field is missing in animation.channels.target") != std::string::npos) {
+      err.find("field is missing in animation") != std::string::npos) {  // a channel dropped
     read_animation_pointers(json_text);
   }
   // tinygltf warns about things such as a missing external image, and tells in `err` what it
@@ -3213,7 +3213,7 @@ void Loader::load_scene_roots() {
     if (root < 0 || size_t(root) >= scene_.nodes.size()) {
       fail(fmt::format("{} refers to node {}, but there are {}", what, root, scene_.nodes.size()));
     }
-    listed[size_t(root)]++;
+    listed[size_t(root)] = 1;
   }
   // glTF requires a scene's nodes to be distinct roots, but exporters list children too
   // (UniGLTF lists its only node and not the parent it adds): a child whose ancestors are not
