@@ -2407,10 +2407,10 @@ int Loader::texture_for_image(int image_index, ImageData data, const TextureSamp
     return textures_[key] = add_texture(std::move(texture));
   }
   const tinygltf::Image& image = model_.images[size_t(image_index)];
-  const std::string name =
-      image.uri.empty() || image.uri.rfind("data:", 0) == 0
-          ? fmt::format("image {} of {}", image_index, path_.string())
-          : fmt::format("image {} ({}) of {}", image_index, image.uri, path_.string());
+  const bool file = !image.uri.empty() && image.uri.rfind("data:", 0) != 0;
+  const std::string label = file ? fmt::format("image {} ({})", image_index, image.uri)
+                                 : fmt::format("image {}", image_index);
+  const std::string name = fmt::format("{} of {}", label, path_.string());
   std::span<const uint8_t> bytes;
   if (image.bufferView >= 0) {
     bytes = buffer_view_bytes(image.bufferView, fmt::format("image {}", image_index));
@@ -2421,10 +2421,9 @@ int Loader::texture_for_image(int image_index, ImageData data, const TextureSamp
     std::string reason = "its data could not be read";
     if (!access_.refused.empty()) {
       reason += " (files outside the folder of the glTF are refused)";
-    } else if (const fs::path file = path_.parent_path() / image.uri;
-               !image.uri.empty() && image.uri.rfind("data:", 0) != 0) {
+    } else if (const fs::path where = path_.parent_path() / image.uri; file) {
       std::error_code ec;
-      if (!fs::exists(file, ec)) reason = fmt::format("no such file: {}", file.string());
+      if (!fs::exists(where, ec)) reason = fmt::format("no such file: {}", where.string());
     }
     throw Error(fmt::format("{}: {}", name, reason));
   }
@@ -2435,12 +2434,9 @@ int Loader::texture_for_image(int image_index, ImageData data, const TextureSamp
       format.empty() || !image_formats::decoded_in_memory(format)) {
     const bool ktx2 = bytes.size() >= 8 && std::memcmp(bytes.data(), "\xABKTX 20\xBB", 8) == 0;
     warn_once(fmt::format("image format {}", image_index),
-              fmt::format("image {}{}: {} is not an image format afr decodes as a texture (PNG, "
-                          "JPEG or WebP): the textures of it are ignored",
-                          image_index,
-                          image.uri.empty() || image.uri.rfind("data:", 0) == 0
-                              ? std::string()
-                              : fmt::format(" ({})", image.uri),
+              fmt::format("{}: {} is not an image format afr decodes as a texture (PNG, JPEG or "
+                          "WebP): the textures of it are ignored",
+                          label,
                           ktx2             ? std::string("KTX2")
                           : format.empty() ? std::string("its data")
                                            : format));
