@@ -64,6 +64,7 @@ Image render_ideal(Tracer& tracer, const IdealRenderOptions& o, IdealRenderStats
               // filters textures over that much (docs/scene-model.md, "Texture filtering").
               Ray ray = camera.ray(px, py, o.width, o.height);
               ray.spread /= float(o.strata);
+              ray.cone /= float(o.strata);
               const ShadedSample s = tracer.trace(ray, &ts);
               // Splat into the pixels of this block within the filter radius.
               for (int qy = std::max(y0, y - reach); qy <= std::min(y1 - 1, y + reach); ++qy) {

@@ -52,6 +52,8 @@ std::string_view to_string(AnimatedProperty property) {
       return "camera yfov";
     case AnimatedProperty::kCameraZnear:
       return "camera znear";
+    case AnimatedProperty::kCameraYmag:
+      return "camera ymag";
     case AnimatedProperty::kBaseColorFactor:
       return "base color factor";
     case AnimatedProperty::kMetallicFactor:
@@ -89,7 +91,8 @@ bool is_light_property(AnimatedProperty property) {
 }
 
 bool is_camera_property(AnimatedProperty property) {
-  return property == AnimatedProperty::kCameraYfov || property == AnimatedProperty::kCameraZnear;
+  return property == AnimatedProperty::kCameraYfov || property == AnimatedProperty::kCameraZnear ||
+         property == AnimatedProperty::kCameraYmag;
 }
 
 AnimationChannel::KeyRepair AnimationChannel::repair_key_order() {

@@ -46,8 +46,14 @@ Camera Camera::look_at(const glm::dvec3& eye, const glm::dvec3& target, const gl
 }
 
 Ray Camera::ray(double x, double y, int width, int height) const {
-  const double tan_half = std::tan(0.5 * yfov);
   const double aspect = double(width) / double(height);
+  if (orthographic()) {
+    const double sx = (2.0 * x / width - 1.0) * ymag * aspect;
+    const double sy = (1.0 - 2.0 * y / height) * ymag;
+    return Ray{glm::vec3(eye + sx * right + sy * up), glm::vec3(forward), 0.0f,
+               float(2.0 * ymag / height)};
+  }
+  const double tan_half = std::tan(0.5 * yfov);
   const double sx = (2.0 * x / width - 1.0) * tan_half * aspect;
   const double sy = (1.0 - 2.0 * y / height) * tan_half;
   const glm::dvec3 d = glm::normalize(forward + sx * right + sy * up);
@@ -62,10 +68,11 @@ bool Camera::project(const glm::dvec3& p, int width, int height, glm::dvec2* xy,
   const glm::dvec3 d = p - eye;
   const double z = glm::dot(d, forward);
   if (!(z >= znear)) return false;
-  const double tan_half = std::tan(0.5 * yfov);
   const double aspect = double(width) / double(height);
-  const double sx = glm::dot(d, right) / (z * tan_half * aspect);
-  const double sy = glm::dot(d, up) / (z * tan_half);
+  // The half height of the view at p's depth: the same at every depth when orthographic.
+  const double half = orthographic() ? ymag : z * std::tan(0.5 * yfov);
+  const double sx = glm::dot(d, right) / (half * aspect);
+  const double sy = glm::dot(d, up) / half;
   *xy = glm::dvec2((sx + 1.0) * 0.5 * width, (1.0 - sy) * 0.5 * height);
   if (depth) *depth = z;
   return true;

@@ -53,6 +53,15 @@ std::string key_problem(const CameraKey& k, const CameraKey* previous) {
   if (!(k.yfov > 0.0 && k.yfov < std::numbers::pi)) {
     return fmt::format("yfov {} is outside (0, pi) radians", k.yfov);
   }
+  if (!(k.ymag >= 0.0 && std::isfinite(k.ymag))) {
+    return fmt::format("ymag {} is not finite and >= 0", k.ymag);
+  }
+  if (previous != nullptr && (k.ymag > 0.0) != (previous->ymag > 0.0)) {
+    return fmt::format(
+        "ymag {} after the previous key's {}: a path is perspective (0) or "
+        "orthographic (> 0) throughout",
+        k.ymag, previous->ymag);
+  }
   return {};
 }
 
@@ -107,6 +116,7 @@ CameraKey CameraPath::pose(double t) const {
   out.time = t;
   out.eye = glm::mix(a.eye, b.eye, u);
   out.yfov = a.yfov + (b.yfov - a.yfov) * u;
+  out.ymag = a.ymag + (b.ymag - a.ymag) * u;
   // Slerp along the shorter arc (q and -q are the same rotation).
   glm::dquat qb = b.rotation;
   if (glm::dot(a.rotation, qb) < 0.0) qb = -qb;
@@ -116,7 +126,10 @@ CameraKey CameraPath::pose(double t) const {
 
 Camera CameraPath::camera(double t, double znear) const {
   const CameraKey k = pose(t);
-  return Camera::from_transform(compose_trs(k.eye, k.rotation, glm::dvec3(1.0)), k.yfov, znear);
+  Camera camera =
+      Camera::from_transform(compose_trs(k.eye, k.rotation, glm::dvec3(1.0)), k.yfov, znear);
+  camera.ymag = k.ymag;
+  return camera;
 }
 
 CameraKey camera_key(double time, const Camera& camera) {
@@ -127,6 +140,7 @@ CameraKey camera_key(double time, const Camera& camera) {
   k.eye = camera.eye;
   k.rotation = glm::normalize(glm::quat_cast(basis));
   k.yfov = camera.yfov;
+  k.ymag = camera.ymag;
   return k;
 }
 
@@ -153,14 +167,15 @@ CameraPath parse_camera_path(std::string_view text, std::string_view name) {
     }
     if (line.empty() || line.front() == '#') continue;
     const std::vector<std::string_view> fields = fields_of(line);
-    if (fields.size() != 9) {
-      throw error(
-          line_number,
-          fmt::format("expected 9 numbers (t ex ey ez qx qy qz qw yfov), found {}", fields.size()));
+    if (fields.size() != 9 && fields.size() != 10) {
+      throw error(line_number,
+                  fmt::format("expected 9 or 10 numbers (t ex ey ez qx qy qz qw yfov [ymag]), "
+                              "found {}",
+                              fields.size()));
     }
-    double v[9];
-    for (int i = 0; i < 9; ++i) {
-      const std::string_view f = fields[size_t(i)];
+    double v[10] = {};
+    for (size_t i = 0; i < fields.size(); ++i) {
+      const std::string_view f = fields[i];
       const auto [ptr, ec] = std::from_chars(f.data(), f.data() + f.size(), v[i]);
       if (ec != std::errc() || ptr != f.data() + f.size()) {
         throw error(line_number, fmt::format("'{}' is not a number", f));
@@ -174,6 +189,7 @@ CameraPath parse_camera_path(std::string_view text, std::string_view name) {
     k.eye = glm::dvec3(v[1], v[2], v[3]);
     k.rotation = glm::dquat(v[7], v[4], v[5], v[6]);
     k.yfov = v[8];
+    k.ymag = v[9];
     const std::string problem = key_problem(k, keys.empty() ? nullptr : &keys.back());
     if (!problem.empty()) throw error(line_number, problem);
     keys.push_back(k);
@@ -193,12 +209,17 @@ CameraPath read_camera_path(const std::filesystem::path& path) {
 }
 
 std::string format_camera_path(const CameraPath& path) {
-  std::string out = fmt::format("{}\n# t ex ey ez qx qy qz qw yfov\n", kCameraPathHeader);
+  // A perspective path keeps the nine columns every reader of the format knows.
+  const bool orthographic = path.keys().front().ymag > 0.0;
+  std::string out = fmt::format("{}\n# t ex ey ez qx qy qz qw yfov{}\n", kCameraPathHeader,
+                                orthographic ? " ymag" : "");
   auto it = std::back_inserter(out);
   for (const CameraKey& k : path.keys()) {
     // fmt's "{}" writes the shortest text that reads back as the same double.
-    fmt::format_to(it, "{} {} {} {} {} {} {} {} {}\n", k.time, k.eye.x, k.eye.y, k.eye.z,
+    fmt::format_to(it, "{} {} {} {} {} {} {} {} {}", k.time, k.eye.x, k.eye.y, k.eye.z,
                    k.rotation.x, k.rotation.y, k.rotation.z, k.rotation.w, k.yfov);
+    if (orthographic) fmt::format_to(it, " {}", k.ymag);
+    out.push_back('\n');
   }
   return out;
 }

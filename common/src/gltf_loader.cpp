@@ -228,6 +228,8 @@ std::optional<PointerTarget> pointer_target(std::string_view pointer) {
       {kLights, "/spot/outerConeAngle", Kind::kProperty, AnimatedProperty::kLightOuterCone},
       {"/cameras/", "/perspective/yfov", Kind::kProperty, AnimatedProperty::kCameraYfov},
       {"/cameras/", "/perspective/znear", Kind::kProperty, AnimatedProperty::kCameraZnear},
+      {"/cameras/", "/orthographic/znear", Kind::kProperty, AnimatedProperty::kCameraZnear},
+      {"/cameras/", "/orthographic/ymag", Kind::kProperty, AnimatedProperty::kCameraYmag},
       {"/materials/", "/pbrMetallicRoughness/baseColorFactor", Kind::kProperty,
        AnimatedProperty::kBaseColorFactor},
       {"/materials/", "/pbrMetallicRoughness/metallicFactor", Kind::kProperty,
@@ -2480,24 +2482,45 @@ int Loader::add_texture(Texture texture) {
 void Loader::load_cameras() {
   for (size_t i = 0; i < model_.cameras.size(); ++i) {
     const tinygltf::Camera& in = model_.cameras[i];
-    if (in.type != "perspective") {
-      // afr's camera and the display's reprojection are perspective only.
+    const std::string what =
+        fmt::format("camera {}{}", i, in.name.empty() ? "" : " ('" + in.name + "')");
+    CameraModel camera;
+    camera.name = in.name;
+    if (in.type == "perspective") {
+      const double yfov = in.perspective.yfov;
+      const double znear = in.perspective.znear;
+      if (!(yfov > 0.0 && yfov < std::numbers::pi) || !(znear > 0.0 && std::isfinite(znear))) {
+        fail(fmt::format("{} has an invalid yfov ({}) or znear ({})", what, yfov, znear));
+      }
+      camera.yfov = yfov;
+      camera.znear = znear;
+    } else if (in.type == "orthographic") {
+      // The view is 2 ymag high; its width follows from the image's aspect ratio, as a
+      // perspective camera's does (aspectRatio), so xmag is not used. zfar is not either: a
+      // ray tracer needs no far plane.
+      const double ymag = in.orthographic.ymag;
+      const double znear = in.orthographic.znear;
+      if (!std::isfinite(ymag) || ymag == 0.0 || !(znear >= 0.0 && std::isfinite(znear))) {
+        fail(
+            fmt::format("{} is orthographic with an invalid ymag ({}) or znear ({}): ymag must "
+                        "be finite and not 0, znear finite and >= 0",
+                        what, ymag, znear));
+      }
+      if (ymag < 0.0) {
+        warn_once("negative ymag " + what,
+                  fmt::format("{} has a negative ymag ({}): its magnitude is used", what, ymag));
+      }
+      camera.ymag = std::abs(ymag);
+      // The near plane at 0 (glTF allows it here) is kept just in front of the eye's plane.
+      camera.znear = std::max(znear, 1e-9);
+    } else {
       warn_once("camera " + in.type,
-                fmt::format("{} cameras are not supported: camera {}{} is skipped, and the "
-                            "first perspective camera (else the default camera) is used",
-                            in.type, i, in.name.empty() ? "" : " ('" + in.name + "')"));
+                fmt::format("{} cameras are not supported: {} is skipped, and the first other "
+                            "camera (else the default camera) is used",
+                            in.type, what));
       camera_map_.push_back(-1);
       continue;
     }
-    const double yfov = in.perspective.yfov;
-    const double znear = in.perspective.znear;
-    if (!(yfov > 0.0 && yfov < std::numbers::pi) || !(znear > 0.0 && std::isfinite(znear))) {
-      fail(fmt::format("camera {} has an invalid yfov ({}) or znear ({})", i, yfov, znear));
-    }
-    CameraModel camera;
-    camera.name = in.name;
-    camera.yfov = yfov;
-    camera.znear = znear;
     camera_map_.push_back(int(scene_.cameras.size()));
     scene_.cameras.push_back(std::move(camera));
   }
@@ -3127,9 +3150,15 @@ void Loader::add_property_channel(const tinygltf::Animation& animation, int samp
   switch (property) {
     case AnimatedProperty::kLightRange:
     case AnimatedProperty::kCameraYfov:
-    case AnimatedProperty::kCameraZnear:
       open_lo = true;
-      hi = property == AnimatedProperty::kCameraYfov ? std::numbers::pi : hi;
+      hi = std::numbers::pi;
+      break;
+    case AnimatedProperty::kCameraZnear:
+      // glTF lets an orthographic camera's near plane be 0, not a perspective one's.
+      open_lo = scene_.cameras[size_t(index)].ymag == 0.0;
+      break;
+    case AnimatedProperty::kCameraYmag:
+      lo = -hi;  // any finite number but 0 (below); a negative one is taken as its magnitude
       break;
     case AnimatedProperty::kLightInnerCone:
     case AnimatedProperty::kLightOuterCone:
@@ -3155,9 +3184,9 @@ void Loader::add_property_channel(const tinygltf::Animation& animation, int samp
     if (per_key == 3 && i % 3 != 1) continue;
     for (int k = 0; k < width; ++k) {
       const double x = value[k];
-      if (!std::isfinite(x)) {
-        fail(
-            fmt::format("{}: key {} sets the {} to {}", what, i / per_key, to_string(property), x));
+      if (!std::isfinite(x) || (property == AnimatedProperty::kCameraYmag && x == 0.0)) {
+        fail(fmt::format("{}: key {} sets the {} to {}{}", what, i / per_key, to_string(property),
+                         x, std::isfinite(x) ? " (glTF forbids a view of height 0)" : ""));
       }
       if ((open_lo ? x > lo : x >= lo) && x <= hi) continue;
       const std::string problem =

@@ -520,12 +520,6 @@ std::vector<uint8_t> select_camera(std::span<const uint8_t> bytes,
     if (listed.empty()) fail(fmt::format("no camera \"{}\": the file has none", camera));
     fail(fmt::format("no camera \"{}\" (the file's cameras: {})", camera, fmt::join(listed, ", ")));
   }
-  if (const std::optional<uint64_t> c = camera_of(*chosen);
-      c && *c < cameras.size() && cameras[*c].is_object() &&
-      cameras[*c].value("type", "") == "orthographic") {
-    fail(fmt::format("camera \"{}\" is orthographic, and afr draws perspective cameras only",
-                     camera));
-  }
   for (size_t n = 0; n < nodes.size(); ++n) {
     if (n != *chosen && doc["nodes"][n].is_object()) doc["nodes"][n].erase("camera");
   }

@@ -912,6 +912,10 @@ void apply(AnimatedProperty property, const glm::dvec4& v, Light* light, CameraM
     case AnimatedProperty::kCameraZnear:
       camera->znear = std::max(v.x, 1e-9);
       break;
+    case AnimatedProperty::kCameraYmag:
+      // Only an orthographic camera's (a perspective one stays perspective).
+      if (camera->ymag > 0.0) camera->ymag = std::max(std::abs(v.x), 1e-12);
+      break;
     case AnimatedProperty::kBaseColorFactor:
       material->base_color_factor = glm::clamp(glm::vec4(v), glm::vec4(0.0f), glm::vec4(1.0f));
       break;
@@ -1096,7 +1100,9 @@ Camera Scene::camera_at(const SceneState& state) const {
   if (camera_node_ == -1) return default_camera_;
   const int index = nodes[camera_node_].camera;
   const CameraModel& model = state.cameras.empty() ? cameras[index] : state.cameras[index];
-  return Camera::from_transform(state.world[camera_node_], model.yfov, model.znear);
+  Camera camera = Camera::from_transform(state.world[camera_node_], model.yfov, model.znear);
+  camera.ymag = model.ymag;
+  return camera;
 }
 
 size_t Scene::triangle_count() const {

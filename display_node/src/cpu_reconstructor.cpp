@@ -705,11 +705,13 @@ struct CpuReconstructor::Impl {
       const Float8 dz = qz - select8(miss, fzero, splat8(pr.eye.z));
       const Float8 z = dx * pr.forward.x + dy * pr.forward.y + dz * pr.forward.z;
       const Int8 in_front =
-          select8(miss, Int8(z > splat8(Projector::kMinDirectionZ)), Int8(z >= splat8(pr.znear)));
+          select8(miss, pr.orthographic ? zero : Int8(z > splat8(Projector::kMinDirectionZ)),
+                  Int8(z >= splat8(pr.znear)));
+      const Float8 w = pr.orthographic ? splat8(1.0f) : z;
       const Float8 ix =
-          pr.half_width + (dx * pr.axis_x.x + dy * pr.axis_x.y + dz * pr.axis_x.z) / z;
+          pr.half_width + (dx * pr.axis_x.x + dy * pr.axis_x.y + dz * pr.axis_x.z) / w;
       const Float8 iy =
-          pr.half_height - (dx * pr.axis_y.x + dy * pr.axis_y.y + dz * pr.axis_y.z) / z;
+          pr.half_height - (dx * pr.axis_y.x + dy * pr.axis_y.y + dz * pr.axis_y.z) / w;
       const Float8 max_coordinate = splat8(Projector::kMaxCoordinate);
       const Int8 projects = in_front & (abs8(ix) < max_coordinate) & (abs8(iy) < max_coordinate);
       // Where the sample lands: reprojected, or where it was traced.

@@ -697,6 +697,7 @@ void GlReconstructor::do_reconstruct(const Camera& camera, double time, int widt
     u.set("u_axis_x", proj.axis_x);
     u.set("u_axis_y", proj.axis_y);
     u.set("u_znear", proj.znear);
+    u.set("u_orthographic", proj.orthographic ? 1 : 0);
     u.set("u_half", glm::vec2(proj.half_width, proj.half_height));
     u.set("u_min_direction_z", Projector::kMinDirectionZ);
     u.set("u_max_coordinate", Projector::kMaxCoordinate);

@@ -24,6 +24,7 @@ uniform vec3 u_forward;
 uniform vec3 u_axis_x;
 uniform vec3 u_axis_y;
 uniform float u_znear;
+uniform bool u_orthographic;
 uniform vec2 u_half;  // the whole image's center
 uniform float u_min_direction_z;
 uniform float u_max_coordinate;
@@ -97,7 +98,7 @@ bool prepare_splat(double time, vec2 xy, uint flags, vec3 position, vec3 velocit
     if ((flags & 2u) != 0u) {
       d = position;
       z = dot(d, u_forward);
-      if (!(z > u_min_direction_z)) return false;
+      if (!(z > u_min_direction_z) || u_orthographic) return false;
     } else {
       vec3 w = position;
       if ((flags & 4u) != 0u) w += velocity * age_signed;
@@ -105,7 +106,8 @@ bool prepare_splat(double time, vec2 xy, uint flags, vec3 position, vec3 velocit
       z = dot(d, u_forward);
       if (!(z >= u_znear)) return false;
     }
-    p = vec2(u_half.x + dot(d, u_axis_x) / z, u_half.y - dot(d, u_axis_y) / z);
+    float w = u_orthographic ? 1.0 : z;
+    p = vec2(u_half.x + dot(d, u_axis_x) / w, u_half.y - dot(d, u_axis_y) / w);
     if (!(abs(p.x) < u_max_coordinate) || !(abs(p.y) < u_max_coordinate)) return false;
     p = quantize_position(p) - u_origin;
   } else {

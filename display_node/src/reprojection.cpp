@@ -6,14 +6,17 @@ namespace afr {
 
 Projector::Projector(const Camera& camera, double width, double height, double grid_x,
                      double grid_y) {
-  const double tan_half = std::tan(0.5 * camera.yfov);
+  // The view's half height at depth 1 (perspective) or at every depth (orthographic).
+  const double half = camera.orthographic() ? camera.ymag : std::tan(0.5 * camera.yfov);
   const double aspect = width / height;
-  // Camera::project: x = (sx + 1) W / 2 with sx = dot(d, right) / (z tan_half aspect).
+  // Camera::project: x = (sx + 1) W / 2 with sx = dot(d, right) / (z tan_half aspect), or
+  // dot(d, right) / (ymag aspect) when orthographic.
   eye = glm::vec3(camera.eye);
   forward = glm::vec3(camera.forward);
-  axis_x = glm::vec3(camera.right * (0.5 * width / (tan_half * aspect)));
-  axis_y = glm::vec3(camera.up * (0.5 * height / tan_half));
+  axis_x = glm::vec3(camera.right * (0.5 * width / (half * aspect)));
+  axis_y = glm::vec3(camera.up * (0.5 * height / half));
   znear = float(camera.znear);
+  orthographic = camera.orthographic();
   // Positions are computed in the whole image and rounded (quantize_position) before the
   // origin is subtracted, so that every grid gets the same positions up to whole pixels.
   half_width = float(0.5 * width);

@@ -353,12 +353,12 @@ Status decode(Bytes message, RegionAssignment* out) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// View: u64 sequence, f64 time, f64[3] eye, right, up, forward, f64 yfov, f64 znear
+// View: u64 sequence, f64 time, f64[3] eye, right, up, forward, f64 yfov, f64 znear, f64 ymag
 
 Status encode(const View& m, std::vector<uint8_t>* out) {
   out->clear();
   if (Status s = validate(m); !s) return s;
-  Writer w = wire::begin_message(MessageType::kView, 128, out);
+  Writer w = wire::begin_message(MessageType::kView, 136, out);
   w.u64(m.sequence);
   w.f64(m.time);
   write_dvec3(w, m.camera.eye);
@@ -367,6 +367,7 @@ Status encode(const View& m, std::vector<uint8_t>* out) {
   write_dvec3(w, m.camera.forward);
   w.f64(m.camera.yfov);
   w.f64(m.camera.znear);
+  w.f64(m.camera.ymag);
   AFR_CHECK(w.done());
   return {};
 }
@@ -378,7 +379,8 @@ Status decode(Bytes message, View* out) {
     read_dvec3(r, &out->camera.right, "camera.right");
     read_dvec3(r, &out->camera.up, "camera.up");
     read_dvec3(r, &out->camera.forward, "camera.forward");
-    r.f64(&out->camera.yfov, "camera.yfov") && r.f64(&out->camera.znear, "camera.znear");
+    r.f64(&out->camera.yfov, "camera.yfov") && r.f64(&out->camera.znear, "camera.znear") &&
+        r.f64(&out->camera.ymag, "camera.ymag");
   });
 }
 

@@ -311,6 +311,10 @@ Status validate(const View& m) {
   if (!std::isfinite(c.znear) || !(c.znear > 0.0)) {
     return field_error("view", "camera.znear", std::to_string(c.znear) + " is not finite and > 0");
   }
+  if (!std::isfinite(c.ymag) || !(c.ymag >= 0.0)) {
+    return field_error("view", "camera.ymag",
+                       std::to_string(c.ymag) + " is not finite and >= 0 (0: perspective)");
+  }
   return {};
 }
 

@@ -252,7 +252,7 @@ void Sampler::advance_scene_time() {
         tracer_.set_view(camera_);  // a headlight goes where this sampler looks from
       }
     }
-    tan_half_fov_ = std::tan(0.5 * camera_.yfov);
+    view_half_ = camera_.orthographic() ? camera_.ymag : std::tan(0.5 * camera_.yfov);
     scene_time_ = t;
     scene_time_set_ = true;
     // Moving a deforming mesh to a new time takes the tracer a while (a large skinned mesh,
@@ -475,7 +475,10 @@ void Sampler::reproject(int tile) {
   // far away.
   const auto now_at = [&](const glm::vec3& position, bool hit, uint32_t space, glm::dvec3* p) {
     if (!hit) {
-      *p = camera_.eye + glm::dvec3(position) * (1e3 * (1.0 + camera_.znear));
+      // A perspective view's miss is a direction; an orthographic view's a point (place_miss).
+      *p = camera_.orthographic()
+               ? glm::dvec3(position)
+               : camera_.eye + glm::dvec3(position) * (1e3 * (1.0 + camera_.znear));
     } else if (space == Crosshair::kWorld) {
       *p = glm::dvec3(position) + motion;
     } else {
@@ -570,10 +573,10 @@ bool Sampler::project_point(const glm::dvec3& p, glm::dvec2* xy) const {
   const glm::dvec3 d = p - camera_.eye;
   const double z = glm::dot(d, camera_.forward);
   if (!(z >= camera_.znear)) return false;
-  const double tan_half = tan_half_fov_;
   const double aspect = double(config_.image.width) / double(config_.image.height);
-  const double sx = glm::dot(d, camera_.right) / (z * tan_half * aspect);
-  const double sy = glm::dot(d, camera_.up) / (z * tan_half);
+  const double half = camera_.orthographic() ? view_half_ : z * view_half_;
+  const double sx = glm::dot(d, camera_.right) / (half * aspect);
+  const double sy = glm::dot(d, camera_.up) / half;
   *xy = glm::dvec2((sx + 1.0) * 0.5 * config_.image.width, (1.0 - sy) * 0.5 * config_.image.height);
   return true;
 }
@@ -588,17 +591,31 @@ void Sampler::trace_crosshair(double x, double y, std::array<ShadedSample, 5>* o
   counters_.sanitized += trace_stats_.sanitized - sanitized;
   clock_.primary_rays_traced(5);
   static constexpr double kOffsets[5][2] = {{0, 0}, {-1, 0}, {1, 0}, {0, -1}, {0, 1}};
-  for (int k = 0; k < 5; ++k) emit(x + kOffsets[k][0], y + kOffsets[k][1], (*out)[k]);
+  for (int k = 0; k < 5; ++k) {
+    place_miss(x + kOffsets[k][0], y + kOffsets[k][1], &(*out)[k]);
+    emit(x + kOffsets[k][0], y + kOffsets[k][1], (*out)[k]);
+  }
 }
 
 ShadedSample Sampler::trace_one(double x, double y) {
   const uint64_t sanitized = trace_stats_.sanitized;
-  const ShadedSample s =
+  ShadedSample s =
       tracer_.trace(camera_.ray(x, y, config_.image.width, config_.image.height), &trace_stats_);
   counters_.sanitized += trace_stats_.sanitized - sanitized;
   clock_.primary_rays_traced(1);
+  place_miss(x, y, &s);
   emit(x, y, s);
   return s;
+}
+
+// An orthographic camera's rays all run along `forward`, so a miss's direction cannot say
+// where it is seen. It becomes a point far along its ray instead, which projects back to its
+// pixel wherever the camera moves across the view (and less than that distance along it), and
+// is sent as a point, not a miss.
+void Sampler::place_miss(double x, double y, ShadedSample* s) const {
+  if (s->hit || !camera_.orthographic()) return;
+  const Ray ray = camera_.ray(x, y, config_.image.width, config_.image.height);
+  s->position = ray.origin + ray.direction * float(kOrthographicMissDistance * camera_.ymag);
 }
 
 void Sampler::emit(double x, double y, const ShadedSample& s) {
@@ -613,7 +630,7 @@ void Sampler::emit(double x, double y, const ShadedSample& s) {
   out.color = s.color;
   if (fields_ & kFieldPosition) {
     out.position = s.position;
-    out.miss = !s.hit;
+    out.miss = !s.hit && !camera_.orthographic();  // place_miss made an orthographic one a point
   }
   if (fields_ & kFieldVelocity) out.velocity = s.velocity;
   batch_.samples.push_back(out);

@@ -1825,7 +1825,7 @@ bool Tracer::Impl::begin_sample(const Ray& ray, const HitRef& hit, ShadedSample*
     o->hit = false;
     return false;
   }
-  make_surface(hit, ray.origin, ray.direction, 0.0f, ray.spread, s);
+  make_surface(hit, ray.origin, ray.direction, ray.cone, ray.spread, s);
   o->position = s->p;
   if (s->instance->moves) {
     o->velocity = glm::vec3(s->instance->velocity * glm::vec4(s->p, 1.0f));

@@ -138,9 +138,16 @@ TEST(CameraPathTest, MalformedFilesNameTheFileAndLine) {
   EXPECT_EQ(parse_error(h), "paths/test.path:1: no keys after the header");
   EXPECT_EQ(parse_error(h + "# only comments\n\n"), "paths/test.path:3: no keys after the header");
   EXPECT_EQ(parse_error(h + "0 0 0 0 0 0 0 1 1\n1 0 0 0 0 0 1\n"),
-            "paths/test.path:3: expected 9 numbers (t ex ey ez qx qy qz qw yfov), found 7");
-  EXPECT_EQ(parse_error(h + "0 0 0 0 0 0 0 1 1 5\n"),
-            "paths/test.path:2: expected 9 numbers (t ex ey ez qx qy qz qw yfov), found 10");
+            "paths/test.path:3: expected 9 or 10 numbers (t ex ey ez qx qy qz qw yfov [ymag]), "
+            "found 7");
+  EXPECT_EQ(parse_error(h + "0 0 0 0 0 0 0 1 1 5 6\n"),
+            "paths/test.path:2: expected 9 or 10 numbers (t ex ey ez qx qy qz qw yfov [ymag]), "
+            "found 11");
+  EXPECT_EQ(parse_error(h + "0 0 0 0 0 0 0 1 1 -2\n"),
+            "paths/test.path:2: ymag -2 is not finite and >= 0");
+  EXPECT_EQ(parse_error(h + "0 0 0 0 0 0 0 1 1 2\n1 0 0 0 0 0 0 1 1\n"),
+            "paths/test.path:3: ymag 0 after the previous key's 2: a path is perspective (0) or "
+            "orthographic (> 0) throughout");
   EXPECT_EQ(parse_error(h + "0 0 0 x 0 0 0 1 1\n"), "paths/test.path:2: 'x' is not a number");
   EXPECT_EQ(parse_error(h + "0 0 0 1.5e 0 0 0 1 1\n"), "paths/test.path:2: '1.5e' is not a number");
   EXPECT_EQ(parse_error(h + "0 0 0 0 0 0 0 1 1\n\n0 0 0 0 0 0 0 1 1\n"),
@@ -155,6 +162,28 @@ TEST(CameraPathTest, MalformedFilesNameTheFileAndLine) {
             "paths/test.path:2: yfov 3.5 is outside (0, pi) radians");
   EXPECT_THROW(read_camera_path("/nonexistent/afr/none.path"), Error);
   EXPECT_THROW(CameraPath(std::vector<CameraKey>{}), Error);
+}
+
+TEST(CameraPathTest, AnOrthographicPathKeepsItsYmagAndReadsBack) {
+  CameraKey a, b;
+  a.ymag = 2.0;
+  b.time = 1.0;
+  b.eye = glm::dvec3(4.0, 0.0, 0.0);
+  b.ymag = 3.0;
+  const CameraPath path({a, b});
+  EXPECT_DOUBLE_EQ(path.pose(0.5).ymag, 2.5);
+  const Camera middle = path.camera(0.5);
+  EXPECT_TRUE(middle.orthographic());
+  EXPECT_DOUBLE_EQ(middle.ymag, 2.5);
+  EXPECT_EQ(camera_key(0.5, middle).ymag, 2.5);
+  const std::string text = format_camera_path(path);
+  EXPECT_NE(text.find("yfov ymag\n"), std::string::npos) << text;
+  const CameraPath again = parse_camera_path(text, "again");
+  EXPECT_EQ(again.keys()[1].ymag, 3.0);
+  // A perspective path is written in the nine columns it always had.
+  const std::string perspective = format_camera_path(CameraPath({CameraKey{}}));
+  EXPECT_EQ(perspective.find("ymag"), std::string::npos) << perspective;
+  EXPECT_FALSE(parse_camera_path(perspective, "p").camera(0.0).orthographic());
 }
 
 // Fuzzing found this (docs/robustness.md): a quaternion with a component near 1e308 has a

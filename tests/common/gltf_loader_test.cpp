@@ -2178,10 +2178,10 @@ TEST_F(GltfLoaderTest, CameraAndAllThreeLightTypesLoadWithExtras) {
 TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {
   GltfBuilder b;
   const int positions = add_quad(&b);
-  // An unknown extension in two places, two line primitives, an orthographic camera, an
-  // unknown interpolation used twice, a morph target of texture coordinates used twice and two
+  // An unknown extension in two places, two line primitives, an unknown interpolation used
+  // twice, a morph target of texture coordinates used twice and two
   // channels without a target node (glTF allows them, for extensions to drive).
-  b.doc()["nodes"] = json::array({{{"mesh", 0}, {"children", {1}}}, {{"mesh", 0}, {"camera", 0}}});
+  b.doc()["nodes"] = json::array({{{"mesh", 0}, {"children", {1}}}, {{"mesh", 0}}});
   b.doc()["extensionsUsed"] = {"EXT_made_up"};
   b.doc()["materials"] = json::array({{{"extensions", {{"EXT_made_up", {{"x", 1}}}}}}});
   b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
@@ -2200,9 +2200,6 @@ TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {
   b.doc()["meshes"][0]["primitives"].push_back({{"attributes", json::object()},
                                                 {"indices", b.add_indices16({0, 1, 2})},
                                                 {"targets", targets}});
-  b.doc()["cameras"] =
-      json::array({{{"type", "orthographic"},
-                    {"orthographic", {{"xmag", 1}, {"ymag", 1}, {"znear", 0.1}, {"zfar", 10}}}}});
   const int times = b.add_floats({0, 1}, 1);
   const int values = b.add_floats({0, 0, 0, 1, 1, 1}, 3);
   // Empty tracks, as exporters write them: two channels of a sampler with no keys.
@@ -2238,7 +2235,6 @@ TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {
   }
   EXPECT_EQ(count_containing(report.warnings, "EXT_made_up"), 1u);
   EXPECT_EQ(count_containing(report.warnings, "mode 1"), 1u);
-  EXPECT_EQ(count_containing(report.warnings, "orthographic"), 1u);
   EXPECT_EQ(count_containing(report.warnings, "SMOOTHSTEP"), 1u);
   EXPECT_EQ(count_containing(report.warnings, "morph targets of TEXCOORD_0"), 1u);
   EXPECT_EQ(count_containing(report.warnings, "without a target node"), 1u);
@@ -2250,14 +2246,12 @@ TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {
                              "without keyframes animate nothing and are skipped (animation 0 "
                              "channel 5 is the first)"),
             1u);
-  EXPECT_EQ(report.warnings.size(), 8u);
+  EXPECT_EQ(report.warnings.size(), 7u);
 
   ASSERT_EQ(scene.meshes.size(), 1u);
   ASSERT_EQ(scene.meshes[0].primitives.size(), 1u);
   EXPECT_EQ(scene.meshes[0].primitives[0].triangle_count(), 2u);
   EXPECT_EQ(scene.meshes[0].primitives[0].targets.size(), 2u);  // positions kept
-  EXPECT_EQ(scene.nodes[1].camera, -1);
-  EXPECT_TRUE(scene.cameras.empty());
   ASSERT_EQ(scene.channels.size(), 1u);
   EXPECT_EQ(scene.channels[0].path, AnimatedPath::kScale);
 }
@@ -2335,6 +2329,56 @@ TEST_F(GltfLoaderTest, AnimationPointersToAMeshsWeightsAnimateTheNodesShowingIt)
   b.doc()["animations"][0]["channels"][0] = pointer_channel(0, "/meshes/4/weights");
   b.write_embedded(path);
   expect_error(path, "\"/meshes/4/weights\" targets mesh 4, but there are 1");
+}
+
+// An orthographic camera's ymag and znear are animated through their own pointers; its near
+// plane may reach 0 (glTF allows it there), its ymag may not.
+TEST_F(GltfLoaderTest, AnimationPointersToAnOrthographicCameraAnimateItsView) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["cameras"] = {
+      {{"type", "orthographic"},
+       {"orthographic", {{"xmag", 1}, {"ymag", 2}, {"znear", 0.5}, {"zfar", 9}}}}};
+  b.doc()["nodes"].push_back({{"camera", 0}, {"translation", {0, 0, 5}}});
+  b.doc()["scenes"][0]["nodes"] = {0, 1};
+  const int times = b.add_floats({0, 2}, 1);
+  const int ymags = b.add_floats({2, 4}, 1);
+  const int nears = b.add_floats({0.5, 0}, 1);
+  b.doc()["animations"] = {
+      {{"channels",
+        {pointer_channel(0, "/cameras/0/orthographic/ymag"),
+         pointer_channel(1, "/cameras/0/orthographic/znear")}},
+       {"samplers",
+        {{{"input", times}, {"output", ymags}}, {{"input", times}, {"output", nears}}}}}};
+  b.doc()["extensionsUsed"] = {"KHR_animation_pointer"};
+  const fs::path path = dir_ / "ortho_zoom.gltf";
+  b.write_embedded(path);
+  GltfLoadReport report;
+  const Scene scene = load_gltf(path, &report);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings[0];
+  ASSERT_EQ(scene.property_channels.size(), 2u);
+  const Camera half = scene.camera_at(scene.evaluate(1.0));
+  EXPECT_TRUE(half.orthographic());
+  EXPECT_NEAR(half.ymag, 3.0, 1e-6);
+  EXPECT_NEAR(half.znear, 0.25, 1e-6);
+  const Camera end = scene.camera_at(scene.evaluate(2.0));
+  EXPECT_NEAR(end.ymag, 4.0, 1e-6);
+  EXPECT_GT(end.znear, 0.0);  // kept just in front of the eye's plane
+
+  GltfBuilder zero;
+  add_quad(&zero);
+  zero.doc()["cameras"] = b.doc()["cameras"];
+  zero.doc()["nodes"].push_back({{"camera", 0}});
+  zero.doc()["scenes"][0]["nodes"] = {0, 1};
+  const int zero_times = zero.add_floats({0, 2}, 1);
+  const int zero_ymags = zero.add_floats({2, 0}, 1);
+  zero.doc()["animations"] = {{{"channels", {pointer_channel(0, "/cameras/0/orthographic/ymag")}},
+                               {"samplers", {{{"input", zero_times}, {"output", zero_ymags}}}}}};
+  zero.doc()["extensionsUsed"] = {"KHR_animation_pointer"};
+  zero.write_embedded(path);
+  expect_error(path,
+               "animation 0 channel 0 (KHR_animation_pointer \"/cameras/0/orthographic/ymag\"): "
+               "key 1 sets the camera ymag to 0 (glTF forbids a view of height 0)");
 }
 
 // KHR_animation_pointer's pointers to a light's, a camera's and a material's properties animate

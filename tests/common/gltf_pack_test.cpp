@@ -436,13 +436,6 @@ TEST_F(GltfPackTest, ChosenCameraIsTheScenesCamera) {
   write_text(gltf_, doc.dump());
   EXPECT_EQ(error_of(read_bytes(gltf_), "2"),
             gltf_.string() + ": camera \"2\" (cameras[2]) is on no node");
-  doc["cameras"][2] = {{"type", "orthographic"},
-                       {"orthographic", {{"xmag", 1}, {"ymag", 1}, {"znear", 0}, {"zfar", 9}}}};
-  doc["nodes"][3]["camera"] = 2;
-  write_text(gltf_, doc.dump());
-  EXPECT_EQ(error_of(read_bytes(gltf_), "far side"),
-            gltf_.string() +
-                ": camera \"far side\" is orthographic, and afr draws perspective cameras only");
   write_text(gltf_, doc_.dump());
   EXPECT_EQ(error_of(read_bytes(gltf_), "Main"),
             gltf_.string() + ": no camera \"Main\": the file has none");

@@ -203,21 +203,61 @@ TEST(GltfUserContentTest, DefaultCameraFramesTheWholeAnimationOnce) {
   EXPECT_LT(end.y, middle.y - 0.05 * kSize);  // image y points down
 }
 
-TEST(GltfUserContentTest, OrthographicCameraIsAWarningNamingItAndTheDefaultCameraIsUsed) {
+TEST(GltfUserContentTest, AnOrthographicCameraViewsTheSceneAlongItsAxis) {
   TempFolder dir;
   GltfContent g = unlit_box();
+  // xmag is not used: the width follows from the image, as a perspective camera's does. A near
+  // plane at 0 is allowed for an orthographic camera.
   g.doc()["cameras"] =
       json::array({{{"type", "orthographic"},
                     {"name", "plan view"},
-                    {"orthographic", {{"xmag", 1}, {"ymag", 1}, {"znear", 0.1}, {"zfar", 10}}}}});
+                    {"orthographic", {{"xmag", 3}, {"ymag", 2}, {"znear", 0}, {"zfar", 10}}}}});
   g.set_roots({0, g.add_node({{"camera", 0}, {"translation", {0, 0, 3}}})});
   g.write(dir / "ortho.gltf");
   GltfLoadReport report;
   const Scene scene = load_gltf(dir / "ortho.gltf", &report);
-  ASSERT_EQ(report.warnings.size(), 1u);
-  EXPECT_NE(report.warnings[0].find("orthographic"), std::string::npos) << report.warnings[0];
-  EXPECT_NE(report.warnings[0].find("plan view"), std::string::npos) << report.warnings[0];
-  EXPECT_EQ(scene.camera_node(), -1);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings[0];
+  ASSERT_NE(scene.camera_node(), -1);
+  const Camera camera = scene.camera_at(scene.evaluate(0.0));
+  ASSERT_TRUE(camera.orthographic());
+  EXPECT_EQ(camera.ymag, 2.0);
+  EXPECT_GT(camera.znear, 0.0);
+  EXPECT_LT(camera.znear, 1e-6);
+  // The box's front and back corners land on the same pixel, a quarter of the half height
+  // (0.5 of 2) right of and above the center of a 200 x 200 image.
+  for (double z : {0.5, -0.5}) {
+    glm::dvec2 xy;
+    ASSERT_TRUE(camera.project(glm::dvec3(0.5, 0.5, z), 200, 200, &xy, nullptr));
+    EXPECT_NEAR(xy.x, 125.0, 1e-9);
+    EXPECT_NEAR(xy.y, 75.0, 1e-9);
+  }
+  // Every ray runs along the view; the corner pixel's starts 2 x 2 units from the axis.
+  const Ray corner = camera.ray(0.0, 0.0, 200, 200);
+  EXPECT_NEAR(corner.direction.z, -1.0f, 1e-7f);
+  EXPECT_NEAR(corner.origin.x, -2.0f, 1e-6f);
+  EXPECT_NEAR(corner.origin.y, 2.0f, 1e-6f);
+
+  // glTF asks writers not to give a negative ymag: its magnitude is used, with a warning.
+  g.doc()["cameras"][0]["orthographic"]["ymag"] = -2;
+  g.write(dir / "negative.gltf");
+  GltfLoadReport negative;
+  EXPECT_EQ(load_gltf(dir / "negative.gltf", &negative).cameras.at(0).ymag, 2.0);
+  ASSERT_EQ(negative.warnings.size(), 1u);
+  EXPECT_NE(negative.warnings[0].find("camera 0 ('plan view') has a negative ymag (-2)"),
+            std::string::npos)
+      << negative.warnings[0];
+  // A ymag of 0 is no view at all.
+  g.doc()["cameras"][0]["orthographic"]["ymag"] = 0;
+  g.write(dir / "flat.gltf");
+  try {
+    load_gltf(dir / "flat.gltf");
+    ADD_FAILURE() << "a ymag of 0 loaded";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("camera 0 ('plan view') is orthographic with an invalid "
+                                         "ymag (0)"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 // ---- Extensions ----

@@ -643,6 +643,53 @@ TEST(CpuReconstructorTest, ReprojectionMatchesTheAnalyticImageOfATranslatedView)
   EXPECT_GT(rms[1], 4.0 * rms[0]) << "not reprojected";
 }
 
+TEST(CpuReconstructorTest, ReprojectionMatchesTheAnalyticImageOfAnOrthographicView) {
+  // An orthographic camera looking down at the floor, moved across and along its view and
+  // zoomed out: every sample is a hit, placed by the orthographic projection.
+  const int W = 96, H = 72;
+  const test::FloorScene scene;
+  Camera a = Camera::look_at({0, 2, 0}, {0, -1, -4}, {0, 1, 0}, 1.0, 0.01);
+  a.ymag = 1.5;
+  Camera b = a;
+  b.eye += glm::dvec3(0.5, 0.15, -0.3);
+  b.ymag = 1.6;
+  Pcg32 rng(14);
+  const SampleBatch batch = test::scene_batch(scene, a, rng, 4 * W * H, W, H, 0.0, 1.0, false);
+  for (const Sample& s : batch.samples) ASSERT_FALSE(s.miss);
+  const Image truth = test::scene_image(scene, b, W, H, 1.0);
+  const std::vector<bool> mask = seen_from(scene, a, b, W, H, 3.0);
+  double rms[3];
+  int k = 0;
+  for (ReconstructionMode mode :
+       {ReconstructionMode::kAdaptive, ReconstructionMode::kAdaptiveNoReprojection}) {
+    ReconstructorConfig cfg = config(W, H);
+    cfg.mode = mode;
+    CpuReconstructor rec(cfg);
+    rec.set_tiling(uniform_tiling(W, H, 0.0f, 0.0f, 0.0f, 4.0f));
+    rec.add_batch(batch);
+    Image image;
+    for (int frame = 0; frame < 3; ++frame) rec.reconstruct(b, 1.0, W, H, &image);
+    EXPECT_TRUE(all_finite(image));
+    const test::Diff8 d = diff8(image, truth, &mask);
+    EXPECT_GT(d.compared, size_t(W * H / 2));
+    rms[k++] = d.rms;
+  }
+  // The same view taken as a perspective one misplaces the samples.
+  {
+    CpuReconstructor rec(config(W, H));
+    rec.set_tiling(uniform_tiling(W, H, 0.0f, 0.0f, 0.0f, 4.0f));
+    rec.add_batch(batch);
+    Camera perspective = b;
+    perspective.ymag = 0.0;
+    Image image;
+    for (int frame = 0; frame < 3; ++frame) rec.reconstruct(perspective, 1.0, W, H, &image);
+    rms[k++] = diff8(image, truth, &mask).rms;
+  }
+  EXPECT_LT(rms[0], 3.0) << "reprojected";
+  EXPECT_GT(rms[1], 4.0 * rms[0]) << "not reprojected";
+  EXPECT_GT(rms[2], 4.0 * rms[0]) << "reprojected as a perspective view";
+}
+
 TEST(CpuReconstructorTest, VelocityCarriesSamplesOfMovingSurfaces) {
   const int W = 80, H = 60;
   test::FloorScene scene;

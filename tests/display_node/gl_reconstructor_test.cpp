@@ -103,6 +103,48 @@ TEST(GlReconstructorTest, AgreesWithTheCpuBackendOnRandomSampleSets) {
   }
 }
 
+TEST(GlReconstructorTest, AgreesWithTheCpuBackendInAMovingOrthographicView) {
+  AFR_REQUIRE_GL(context);
+  test::FloorScene scene;
+  scene.velocity = glm::dvec3(0.7, 0.0, 0.2);
+  const int W = 96, H = 64;
+  for (const GlReconstructorOptions& pass : kEveryPass) {
+    SCOPED_TRACE(std::string(gl_splat_name(pass.splat)) + " " + std::to_string(pass.tile));
+    const ReconstructorConfig cfg = config(W, H, ReconstructionMode::kAdaptive);
+    CpuReconstructor cpu(cfg);
+    GlReconstructor gl(cfg, context, pass);
+    Pcg32 rng(21);
+    double t = 0.0;
+    for (int frame = 0; frame < 4; ++frame) {
+      const double t1 = t + 0.25;
+      Camera sampled =
+          Camera::look_at({0.1 * frame, 2.0, 0.0}, {0.0, -1.0, -4.0}, {0, 1, 0}, 1.0, 0.01);
+      sampled.ymag = 1.5;
+      const SampleBatch b =
+          test::scene_batch(scene, sampled, rng, size_t(W * H), W, H, t, t1, frame % 2 == 0);
+      const TilingSnapshot tiling = test::random_tiling(rng, W, H, 8 + 4 * frame, t1);
+      for (Reconstructor* r :
+           {static_cast<Reconstructor*>(&cpu), static_cast<Reconstructor*>(&gl)}) {
+        r->add_batch(b);
+        r->set_tiling(tiling);
+      }
+      t = t1;
+      Camera view = sampled;
+      view.eye += glm::dvec3(0.2, 0.05, -0.1);
+      view.ymag = 1.4;
+      const Image a = cpu.reconstruct(view, t, W, H);
+      const Image g = gl.reconstruct(view, t, W, H);
+      const test::Diff8 d = diff8(a, g);
+      EXPECT_LE(d.rms, 1.0) << "frame " << frame;
+      EXPECT_LE(d.max, 4) << "frame " << frame;
+      EXPECT_NEAR(double(gl.frame_stats().hole_pixels), double(cpu.frame_stats().hole_pixels),
+                  0.002 * W * H);
+      // The samples moved: most pixels see some (the view is not all holes).
+      EXPECT_LT(cpu.frame_stats().hole_pixels, size_t(W * H / 4)) << "frame " << frame;
+    }
+  }
+}
+
 TEST(GlReconstructorTest, WeightsAndCoverageMatchTheCpuBackend) {
   AFR_REQUIRE_GL(context);
   for (const GlSplat splat : kSplatPasses) {

@@ -31,6 +31,36 @@ TEST(ReprojectionTest, ProjectorAgreesWithTheCamerasDoubleProjection) {
   EXPECT_GT(in_front, 500);
 }
 
+TEST(ReprojectionTest, AnOrthographicProjectorAgreesWithTheCameraAndPlacesNoDirection) {
+  Camera cam = Camera::look_at({1, 2, 3}, {-1, 0.5, -2}, {0, 1, 0.2}, 0.9, 0.05);
+  cam.ymag = 2.5;
+  const Projector proj(cam, 320, 200);
+  Pcg32 rng(6);
+  int in_front = 0;
+  for (int i = 0; i < 2000; ++i) {
+    const glm::dvec3 p(20 * rng.next_double() - 10, 20 * rng.next_double() - 10,
+                       20 * rng.next_double() - 10);
+    glm::dvec2 want;
+    const bool ok = cam.project(p, 320, 200, &want, nullptr);
+    float x, y;
+    const bool got = proj.project_point(glm::vec3(p), &x, &y);
+    if (std::abs(glm::dot(p - cam.eye, cam.forward) - cam.znear) < 1e-4) continue;
+    ASSERT_EQ(ok, got) << i;
+    if (!got) continue;
+    ++in_front;
+    EXPECT_NEAR(x, want.x, 2e-3);
+    EXPECT_NEAR(y, want.y, 2e-3);
+  }
+  EXPECT_GT(in_front, 500);
+  // Its rays share one direction, so a direction says nothing of where a miss is seen.
+  float x, y;
+  EXPECT_FALSE(proj.project_direction(glm::vec3(cam.forward), &x, &y));
+  StoredSample miss;
+  miss.position = glm::vec3(cam.forward);
+  miss.flags = kStoredHasPosition | kStoredMiss;
+  EXPECT_FALSE(proj.project(miss, 0.0f, &x, &y));
+}
+
 TEST(ReprojectionTest, DirectionsProjectLikePointsAtInfinityAndIgnoreTheEye) {
   const Camera a = Camera::look_at({0, 0, 0}, {0, 0, -1}, {0, 1, 0}, 1.0, 0.01);
   Camera b = a;

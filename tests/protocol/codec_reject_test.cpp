@@ -287,6 +287,9 @@ TEST(CodecRejectTest, NonFiniteValuesAreRejectedWhereForbidden) {
     b = encoded(random_view(rng));
     put_f64(b, 120, x);
     EXPECT_REJECTED(b, "view.camera.znear");
+    b = encoded(random_view(rng));
+    put_f64(b, 128, x);
+    EXPECT_REJECTED(b, "view.camera.ymag");
 
     b = encoded(random_welcome(rng));
     put_f64(b, 20, x);
@@ -339,6 +342,9 @@ TEST(CodecRejectTest, NegativeValuesAreRejectedWhereForbidden) {
   b = encoded(random_view(rng));
   put_f64(b, 112, 3.2);
   EXPECT_REJECTED(b, "yfov");
+  b = encoded(random_view(rng));
+  put_f64(b, 128, -0.5);
+  EXPECT_REJECTED(b, "view.camera.ymag");
   b = encoded(random_tiling(rng, 1));
   put_f32(b, 32 + 20, -0.5f);  // v
   EXPECT_REJECTED(b, "tiles[0].v: negative");

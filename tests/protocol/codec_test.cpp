@@ -166,11 +166,11 @@ TEST(CodecTest, JoinBytesAreTheDocumentedLayout) {
   std::vector<uint8_t> bytes;
   ASSERT_TRUE(encode(join, &bytes).ok());
   const std::vector<uint8_t> expected = {'A',  'F',  'R',  'P',   // magic
-                                         4,    0,                 // version
+                                         5,    0,                 // version
                                          1,    0,                 // type: join
                                          16,   0,    0,    0,     // payload bytes
                                          0x04, 0x03, 0x02, 0x01,  // sampler_id
-                                         4,    0,                 // protocol_version
+                                         5,    0,                 // protocol_version
                                          8,    0,                 // threads
                                          5,    0,    0,    0,     // capabilities
                                          2,    0,    'a',  'b'};  // name
@@ -482,7 +482,7 @@ TEST(CodecTest, WallCoverageBytesAreTheDocumentedLayout) {
   std::vector<uint8_t> bytes;
   ASSERT_TRUE(encode(m, &bytes).ok());
   const std::vector<uint8_t> expected = {
-      'A',  'F',  'R',  'P',  4,    0,    14,   0,    40, 0, 0, 0,  // header: version 4, type 14
+      'A',  'F',  'R',  'P',  5,    0,    14,   0,    40, 0, 0, 0,  // header: version 5, type 14
       0x04, 0x03, 0x02, 0x01,                                       // node_id
       0,    0,    0,    0,    0,    0,    0x00, 0x40,               // time: 2.0
       3,    0,    4,    0,    5,    0,    5,    0,                  // rect x0, y0, x1, y1

@@ -106,6 +106,7 @@ inline View random_view(Pcg32& rng) {
                        rng.next_double() * 100 - 50);
   m.camera = Camera::look_at(eye, eye + random_unit(rng), glm::dvec3(0, 1, 0),
                              0.1 + rng.next_double() * 2.5, 1e-3 + rng.next_double());
+  if (rng.next_below(2) == 0) m.camera.ymag = 1e-3 + rng.next_double() * 10.0;  // orthographic
   return m;
 }
 

@@ -3,12 +3,15 @@
 // ones (a rotation, translation and rotation, a skin, morph weights) render differently at
 // those two times while the static ones do not (issue 18, item 6).
 #include <afr/common/gltf_loader.h>
+#include <afr/common/gltf_pack.h>
 #include <afr/sampler/tracer.h>
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -126,6 +129,39 @@ TEST(KhronosModelTest, BoxVertexColorsShowTheirHues) {
   }
   ASSERT_GT(lit, kSize * kSize / 20);
   EXPECT_GT(colored, lit / 4) << lit << " lit pixels";
+}
+
+// Cameras: a square tilted away from its two cameras. The perspective one sees a trapezoid,
+// narrower at the far (top) edge; the orthographic one a rectangle, as wide at the top as at
+// the bottom, 1 of the view's 2 units (ymag 1): half the image.
+TEST(KhronosModelTest, CamerasShowTheTiltedSquareInPerspectiveAndOrthographic) {
+  const std::filesystem::path path = model_path("Cameras.gltf");
+  std::ifstream in(path, std::ios::binary);
+  const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                                   std::istreambuf_iterator<char>());
+  for (const char* camera : {"0", "1"}) {
+    SCOPED_TRACE(std::string("camera ") + camera);
+    const Scene scene = load_gltf_bytes(select_camera(bytes, path, camera), path);
+    Tracer tracer(scene);
+    ASSERT_EQ(tracer.camera().orthographic(), camera[0] == '1');
+    TraceStats stats;
+    // The square's width in pixels on each row that sees it, top to bottom.
+    std::vector<int> widths;
+    for (int y = 0; y < kSize; ++y) {
+      int width = 0;
+      for (int x = 0; x < kSize; ++x) {
+        width += tracer.trace(tracer.camera().ray(x + 0.5, y + 0.5, kSize, kSize), &stats).hit;
+      }
+      if (width > 0) widths.push_back(width);
+    }
+    ASSERT_GT(widths.size(), size_t(kSize / 8));
+    if (camera[0] == '1') {
+      EXPECT_NEAR(widths.front(), kSize / 2, 1);
+      EXPECT_NEAR(widths.back(), kSize / 2, 1);
+    } else {
+      EXPECT_LT(widths.front() + 2, widths.back());
+    }
+  }
 }
 
 }  // namespace

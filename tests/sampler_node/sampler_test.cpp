@@ -424,6 +424,110 @@ TEST(SamplerTest, ReprojectedCrosshairsLandWhereAFreshTraceSeesTheirPoint) {
   EXPECT_GT(checked, 50);
 }
 
+// An orthographic camera (ymag 1) at the origin looking down -Z: two squares of one size, one
+// at 2 and one at 20 units, left and right of the center, and nothing behind the right half of
+// the view but them.
+Scene orthographic_scene() {
+  Scene scene = testing::camera_scene();
+  scene.cameras[0].ymag = 1.0;
+  testing::add_quad(&scene, glm::vec3(0.5f), {-0.8f, -0.3f}, {-0.2f, 0.3f}, -2.0f);
+  testing::add_quad(&scene, glm::vec3(1.0f), {0.2f, -0.3f}, {0.8f, 0.3f}, -20.0f);
+  testing::add_quad(&scene, glm::vec3(0.25f), {-20.0f, -20.0f}, {0.0f, 20.0f}, -30.0f);
+  return scene;
+}
+
+TEST(SamplerTest, AnOrthographicCameraSeesEqualSquaresAtAnyDepthAtOneSize) {
+  for (bool orthographic : {true, false}) {
+    Scene scene = orthographic_scene();
+    if (!orthographic) scene.cameras[0].ymag = 0.0;
+    scene.finalize();
+    Tracer tracer(scene);
+    const Camera camera = tracer.camera();
+    ASSERT_EQ(camera.orthographic(), orthographic);
+    // Pixels across the middle row that see each square.
+    int near = 0, far = 0;
+    TraceStats stats;
+    for (int x = 0; x < 400; ++x) {
+      const ShadedSample s = tracer.trace(camera.ray(x + 0.5, 100.5, 400, 200), &stats);
+      near += s.hit && std::abs(s.color.r - 0.5f) < 1e-3f;
+      far += s.hit && std::abs(s.color.r - 1.0f) < 1e-3f;
+    }
+    if (orthographic) {
+      // 0.6 of the view's 4 units of width: 60 pixels each.
+      EXPECT_NEAR(near, 60, 1);
+      EXPECT_NEAR(far, 60, 1);
+    } else {
+      EXPECT_GT(near, 5 * far);
+    }
+  }
+}
+
+TEST(SamplerTest, AnOrthographicViewSendsMissesAsPointsThatReprojectToTheirPixels) {
+  // The camera jumps right and up at t = 0.25 s and then holds still.
+  Scene scene = orthographic_scene();
+  AnimationChannel ch;
+  ch.node = 0;
+  ch.path = AnimatedPath::kTranslation;
+  ch.interpolation = Interpolation::kStep;
+  ch.times = {0.0, 0.25};
+  ch.values = {{0, 0, 0, 0}, {0.3, 0.1, 0, 0}};
+  scene.channels.push_back(ch);
+  scene.finalize();
+  Tracer tracer(scene);
+  VirtualClock clock(2e5);
+  CollectingSink sink;
+  SamplerConfig config = small_config(64, 64);
+  config.loop_animation = false;
+  Sampler sampler(scene, tracer, clock, config, sink);
+  sampler.fill();
+  while (clock.now() < 0.5) sampler.step();
+
+  // Every sample is a point that the camera of its time projects to where it was traced; the
+  // misses lie far along their rays.
+  tracer.set_time(0.0);
+  const Camera before = tracer.camera();
+  tracer.set_time(0.5);
+  const Camera after = tracer.camera();
+  ASSERT_TRUE(before.orthographic() && after.orthographic());
+  size_t far_points = 0;
+  for (const Sample& s : sink.samples) {
+    ASSERT_FALSE(s.miss);
+    if (std::abs(s.time - 0.25) < 1e-3) continue;
+    glm::dvec2 xy;
+    ASSERT_TRUE(
+        (s.time < 0.25 ? before : after).project(glm::dvec3(s.position), 64, 64, &xy, nullptr));
+    EXPECT_NEAR(xy.x, s.x, 0.01);
+    EXPECT_NEAR(xy.y, s.y, 0.01);
+    far_points += s.position.z < -50.0f;
+  }
+  EXPECT_GT(far_points, sink.samples.size() / 8);
+
+  // Crosshairs traced before the jump, misses among them, were moved to where the camera now
+  // projects their points: all by the same 9.6 x 3.2 pixels (0.3 and 0.1 of a 2-unit view).
+  int moved = 0, moved_misses = 0;
+  const PixelRect r = sampler.tiling().region();
+  for (int32_t y = r.y0; y < r.y1; ++y) {
+    for (int32_t x = r.x0; x < r.x1; ++x) {
+      for (int k = 0; k < sampler.buffer().count(x, y); ++k) {
+        const Crosshair& c = sampler.buffer().at(x, y, k);
+        if (c.time >= 0.25) continue;
+        glm::dvec2 now, then;
+        ASSERT_TRUE(after.project(glm::dvec3(c.position), 64, 64, &now, nullptr));
+        ASSERT_TRUE(before.project(glm::dvec3(c.position), 64, 64, &then, nullptr));
+        if (glm::length(then - glm::dvec2(c.x, c.y)) < 0.01) continue;  // not moved yet
+        EXPECT_NEAR(c.x, now.x, 0.01);
+        EXPECT_NEAR(c.y, now.y, 0.01);
+        EXPECT_NEAR(then.x - now.x, 9.6, 0.01);
+        EXPECT_NEAR(now.y - then.y, 3.2, 0.01);
+        ++moved;
+        moved_misses += !c.has(Crosshair::kCenterHit);
+      }
+    }
+  }
+  EXPECT_GT(moved, 50);
+  EXPECT_GT(moved_misses, 10);
+}
+
 // One animated mesh, `motion` moving its node: piece i of `pieces` (a convex polygon, taken
 // as a triangle fan) glows i / pieces.size(), so a point's luminance names the piece it
 // belongs to, and a fresh trace says which piece is at an image position.

@@ -151,12 +151,15 @@ TEST_F(ServiceTest, ChosenMaterialVariantIsServedToTheSamplers) {
 
 // `--camera NAME` serves the scene with only the chosen node's camera
 // (GltfPackTest.ChosenCameraIsTheScenesCamera), so the display's views and the samplers' scene
-// start from it.
+// start from it; here an orthographic one, whose views carry its ymag.
 TEST_F(ServiceTest, ChosenCameraIsServedToTheSamplers) {
   std::ifstream in(kStaticScene);
   nlohmann::json doc = nlohmann::json::parse(in);
+  doc["cameras"].push_back(
+      {{"type", "orthographic"},
+       {"orthographic", {{"xmag", 2}, {"ymag", 2}, {"znear", 0.01}, {"zfar", 50}}}});
   doc["nodes"].push_back({{"name", "overhead"},
-                          {"camera", 0},
+                          {"camera", doc["cameras"].size() - 1},
                           {"translation", {0, 4, 0}},
                           {"rotation", {-0.7071068, 0, 0, 0.7071068}}});
   doc["scenes"][0]["nodes"].push_back(doc["nodes"].size() - 1);

@@ -12,16 +12,19 @@ namespace afr::eval {
 void apply_camera_path(const CameraPath& path, Scene* scene) {
   const std::vector<CameraKey>& keys = path.keys();
   for (const CameraKey& k : keys) {
-    if (k.yfov != keys.front().yfov) {
+    if (k.yfov != keys.front().yfov || k.ymag != keys.front().ymag) {
       throw Error(fmt::format(
-          "camera path: yfov changes from {} to {} at t = {} s; the scene model has one field "
+          "camera path: {} changes from {} to {} at t = {} s; the scene model has one field "
           "of view per camera",
-          keys.front().yfov, k.yfov, k.time));
+          k.yfov != keys.front().yfov ? "yfov" : "ymag",
+          k.yfov != keys.front().yfov ? keys.front().yfov : keys.front().ymag,
+          k.yfov != keys.front().yfov ? k.yfov : k.ymag, k.time));
     }
   }
   CameraModel lens;
   lens.name = "camera path";
   lens.yfov = keys.front().yfov;
+  lens.ymag = keys.front().ymag;
   scene->cameras.push_back(lens);
   Node node;
   node.name = "camera path";
@@ -249,6 +252,7 @@ uint64_t render_fingerprint(const Scene& scene) {
   for (const CameraModel& c : scene.cameras) {
     h.value(c.yfov);
     h.value(c.znear);
+    if (c.ymag > 0.0) h.value(c.ymag);  // perspective cameras' fingerprints stay what they were
   }
   h.value(uint64_t(scene.nodes.size()));
   for (const Node& n : scene.nodes) {

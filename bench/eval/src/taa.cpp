@@ -2,6 +2,7 @@
 
 #include <afr/common/check.h>
 #include <afr/display/fast_exp.h>
+#include <afr/sampler/sampler.h>
 
 #include <algorithm>
 #include <chrono>
@@ -82,13 +83,20 @@ const Image& TemporalAccumulator::render(Tracer& tracer, int64_t k, double time,
     for (int a = 0; a < grid_width_; ++a) {
       GridSample& g = grid_[size_t(b) * size_t(grid_width_) + size_t(a)];
       const double px = (a + j.x) * cell_x, py = (b + j.y) * cell_y;
-      const ShadedSample s = tracer.trace(camera.ray(px, py, width_, height_), &ts);
+      const Ray ray = camera.ray(px, py, width_, height_);
+      const ShadedSample s = tracer.trace(ray, &ts);
       g.color = s.color;
       g.position = glm::vec2(float(px), float(py));
       g.has_motion = false;
       if (!has_history_) continue;
-      const glm::dvec3 p = s.hit ? glm::dvec3(s.position) - glm::dvec3(s.velocity) * dt
-                                 : previous_camera_.eye + glm::dvec3(s.position) * 1e3;
+      // A miss is far along its direction: from the eye, or, as a sampler places it, along
+      // an orthographic camera's own ray (all of its rays share one direction).
+      const glm::dvec3 p =
+          s.hit ? glm::dvec3(s.position) - glm::dvec3(s.velocity) * dt
+          : camera.orthographic()
+              ? glm::dvec3(ray.origin) +
+                    glm::dvec3(s.position) * (kOrthographicMissDistance * camera.ymag)
+              : previous_camera_.eye + glm::dvec3(s.position) * 1e3;
       glm::dvec2 xy;
       if (previous_camera_.project(p, width_, height_, &xy, nullptr)) {
         g.motion = glm::vec2(float(xy.x - px), float(xy.y - py));

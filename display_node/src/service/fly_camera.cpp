@@ -12,7 +12,9 @@ constexpr double kMaxPitch = 1.55;  // radians: just short of straight up or dow
 Camera oriented(const Camera& c, double yaw, double pitch) {
   const glm::dvec3 forward(-std::sin(yaw) * std::cos(pitch), std::sin(pitch),
                            -std::cos(yaw) * std::cos(pitch));
-  return Camera::look_at(c.eye, c.eye + forward, glm::dvec3(0.0, 1.0, 0.0), c.yfov, c.znear);
+  Camera out = Camera::look_at(c.eye, c.eye + forward, glm::dvec3(0.0, 1.0, 0.0), c.yfov, c.znear);
+  out.ymag = c.ymag;  // an orthographic view stays one
+  return out;
 }
 
 }  // namespace

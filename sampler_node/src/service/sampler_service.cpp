@@ -52,7 +52,8 @@ class ViewCamera final : public CameraSource {
       scene_own = glm::length(own.eye - v.camera.eye) <= tolerance &&
                   glm::dot(own.forward, v.camera.forward) >= 1.0 - 1e-9 &&
                   glm::dot(own.up, v.camera.up) >= 1.0 - 1e-9 &&
-                  std::abs(own.yfov - v.camera.yfov) <= 1e-9;
+                  std::abs(own.yfov - v.camera.yfov) <= 1e-9 &&
+                  std::abs(own.ymag - v.camera.ymag) <= 1e-9 * (1.0 + own.ymag);
     }
     std::lock_guard<std::mutex> lock(mutex_);
     latest_ = scene_own ? std::nullopt : std::optional<Camera>(v.camera);

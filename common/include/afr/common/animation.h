@@ -71,7 +71,8 @@ enum class AnimatedProperty {
   kLightInnerCone,     //   .../spot/innerConeAngle
   kLightOuterCone,     //   .../spot/outerConeAngle
   kCameraYfov,         // /cameras/N/perspective/yfov
-  kCameraZnear,        //   .../znear
+  kCameraZnear,        //   .../znear (/perspective/ or /orthographic/)
+  kCameraYmag,         // /cameras/N/orthographic/ymag
   kBaseColorFactor,    // /materials/N/pbrMetallicRoughness/baseColorFactor
   kMetallicFactor,     //   .../pbrMetallicRoughness/metallicFactor
   kRoughnessFactor,    //   .../pbrMetallicRoughness/roughnessFactor

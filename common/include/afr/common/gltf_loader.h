@@ -1,9 +1,9 @@
 // Loads glTF 2.0 (.gltf with external or embedded buffers, and .glb) into the scene model.
-// Unsupported features (skins, morph targets, unknown extensions the file does not require,
-// non-triangle primitives, orthographic cameras) are skipped with one warning each that names
-// them; a broken file, or one that requires an extension afr lacks, is an afr::Error naming
-// the file and what is wrong. A scene without lights gets the default lighting
-// (docs/scene-model.md), said in one info line.
+// Unsupported features (unknown extensions the file does not require, non-triangle primitives,
+// ...: docs/scene-model.md) are skipped with one warning each that names them; a broken file,
+// or one that requires an extension afr lacks, is an afr::Error naming the file and what is
+// wrong. A scene without lights gets the default lighting (docs/scene-model.md), said in one
+// info line.
 #pragma once
 
 #include <afr/common/scene.h>

@@ -316,6 +316,7 @@ struct CameraModel {
   std::string name;
   double yfov = 0.8;  // radians, full vertical field of view
   double znear = 0.01;
+  double ymag = 0.0;  // > 0: orthographic, the view's half height (Camera::ymag); yfov unused
 };
 
 struct Node {

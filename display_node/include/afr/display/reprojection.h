@@ -35,8 +35,9 @@ class Projector {
             double origin_y = 0.0);
 
   // The image position of a world point (hit) or of a direction (miss). False when the point
-  // is behind the camera or nearer than znear, the direction points away from the view, or
-  // the result is not finite.
+  // is behind the camera or nearer than znear, the direction points away from the view or the
+  // view is orthographic (its samplers send misses as points: Sampler::place_miss), or the
+  // result is not finite.
   bool project_point(const glm::vec3& p, float* x, float* y) const {
     const glm::vec3 d = p - eye;
     const float z = glm::dot(d, forward);
@@ -45,7 +46,7 @@ class Projector {
   }
   bool project_direction(const glm::vec3& d, float* x, float* y) const {
     const float z = glm::dot(d, forward);
-    if (!(z > kMinDirectionZ)) return false;
+    if (!(z > kMinDirectionZ) || orthographic) return false;
     return finish(d, z, x, y);
   }
   // A stored sample at `age` seconds (signed: now - sample time); uses velocity when present.
@@ -58,13 +59,14 @@ class Projector {
   }
 
   // The projection, as uniforms for a shader: with d = p - eye (or the direction),
-  //   z = dot(d, forward), x = q(half_width + dot(d, axis_x) / z) - origin_x,
-  //   y = q(half_height - dot(d, axis_y) / z) - origin_y, q = quantize_position.
+  //   z = dot(d, forward), w = orthographic ? 1 : z, x = q(half_width + dot(d, axis_x) / w) -
+  //   origin_x, y = q(half_height - dot(d, axis_y) / w) - origin_y, q = quantize_position.
   glm::vec3 eye{0.0f};
   glm::vec3 forward{0.0f, 0.0f, -1.0f};
   glm::vec3 axis_x{1.0f, 0.0f, 0.0f};
   glm::vec3 axis_y{0.0f, 1.0f, 0.0f};
   float znear = 0.01f;
+  bool orthographic = false;
   float half_width = 0.0f;  // the whole image's center
   float half_height = 0.0f;
   float origin_x = 0.0f;  // the grid's first pixel in the whole image
@@ -77,8 +79,9 @@ class Projector {
 
  private:
   bool finish(const glm::vec3& d, float z, float* x, float* y) const {
-    const float px = half_width + glm::dot(d, axis_x) / z;
-    const float py = half_height - glm::dot(d, axis_y) / z;
+    const float w = orthographic ? 1.0f : z;
+    const float px = half_width + glm::dot(d, axis_x) / w;
+    const float py = half_height - glm::dot(d, axis_y) / w;
     if (!(std::abs(px) < kMaxCoordinate) || !(std::abs(py) < kMaxCoordinate)) return false;
     *x = quantize_position(px) - origin_x;
     *y = quantize_position(py) - origin_y;

@@ -72,7 +72,7 @@ inline constexpr size_t kMaxSampleChannelMessage =
     std::max(batch_message_bytes(kFieldPosition | kFieldVelocity, kMaxSamplesPerBatch),
              snapshot_message_bytes(kMaxTilesPerSnapshot));
 inline constexpr size_t kMaxControlChannelMessage = kHeaderBytes + 64 + kMaxChunkBytes;
-inline constexpr size_t kMaxViewChannelMessage = kHeaderBytes + 128;
+inline constexpr size_t kMaxViewChannelMessage = kHeaderBytes + 136;
 
 // The image that decoded samples and tiles must lie in. Receivers that know the current
 // image size pass it; the default only enforces the protocol's 32768 x 32768.

@@ -21,8 +21,9 @@ namespace afr::protocol {
 // Bumped on every change of a byte layout; a peer of another version is refused (a decoder
 // still reads the header of any version, so it can say why). Version 2 added the display wall
 // (DisplayJoin, WallLayout), version 3 wall coverage, version 4 the member token (Welcome::token,
-// carried by every sample batch and tiling snapshot).
-inline constexpr uint16_t kProtocolVersion = 4;
+// carried by every sample batch and tiling snapshot), version 5 orthographic views
+// (View::camera.ymag).
+inline constexpr uint16_t kProtocolVersion = 5;
 
 inline constexpr int32_t kMaxImageSize = 32768;          // pixels a side (DESIGN.md, "Samples")
 inline constexpr uint32_t kMaxSamplesPerBatch = 65536;   // the sampler's batch_size limit
@@ -208,12 +209,12 @@ struct Leave {
 struct View {
   uint64_t sequence = 0;
   double time = 0.0;  // finite, >= 0
-  Camera camera;      // finite; orthonormal basis; 0 < yfov < pi; znear > 0
+  Camera camera;      // finite; orthonormal basis; 0 < yfov < pi; znear > 0; ymag >= 0
   bool operator==(const View& o) const {
     return sequence == o.sequence && time == o.time && camera.eye == o.camera.eye &&
            camera.right == o.camera.right && camera.up == o.camera.up &&
            camera.forward == o.camera.forward && camera.yfov == o.camera.yfov &&
-           camera.znear == o.camera.znear;
+           camera.znear == o.camera.znear && camera.ymag == o.camera.ymag;
   }
 };
 

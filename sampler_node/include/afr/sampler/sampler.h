@@ -38,6 +38,12 @@ struct SamplerCounters {
   uint64_t batches = 0;
 };
 
+// How far along its ray, in units of the view's half height (Camera::ymag), an orthographic
+// camera's miss is placed (Sampler::place_miss): far enough that the camera moving forward
+// rarely passes it, near enough that a float still places it within 1/50 pixel at 4096 rows
+// (6e-8 x 100 ymag against a pixel's 2 ymag / 4096).
+inline constexpr double kOrthographicMissDistance = 100.0;
+
 // Sample weights decline with age a as exp(-kAgeDecay * a) (section 4).
 inline constexpr double kAgeDecay = 3.47;
 
@@ -164,6 +170,7 @@ class Sampler {
   // Tracing, with emission to the sink.
   void trace_crosshair(double x, double y, std::array<ShadedSample, 5>* out);
   ShadedSample trace_one(double x, double y);
+  void place_miss(double x, double y, ShadedSample* s) const;
   void emit(double x, double y, const ShadedSample& s);
   Crosshair make_crosshair(double x, double y, const std::array<ShadedSample, 5>& s) const;
 
@@ -203,7 +210,7 @@ class Sampler {
   std::vector<double> error_;                 // by tiling node id
   std::vector<std::array<double, 3>> terms_;  // v, u, o per tile, scratch of compute_errors
   Camera camera_;
-  double tan_half_fov_ = 0.0;  // of camera_
+  double view_half_ = 0.0;  // camera_'s tan(yfov / 2), or its ymag when orthographic
   const CameraSource* camera_source_ = nullptr;
   double scene_time_ = 0.0;
   bool scene_time_set_ = false;
