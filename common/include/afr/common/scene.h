@@ -1,6 +1,6 @@
 // The scene model of afr: what a glTF 2.0 file (or the built-in scene) describes, in plain
 // structs: meshes (with skins and morph targets), materials, textures, a node hierarchy,
-// animations of node transforms and morph weights, perspective cameras and punctual lights.
+// animations of node transforms and morph weights, cameras and punctual lights.
 // Scene::evaluate gives every node's world transform at a time t, deform the vertices of a
 // skinned or morphed mesh at that time; camera_at gives the active camera.
 #pragma once
