@@ -2489,8 +2489,12 @@ void Loader::load_cameras() {
     if (in.type == "perspective") {
       const double yfov = in.perspective.yfov;
       const double znear = in.perspective.znear;
-      if (!(yfov > 0.0 && yfov < std::numbers::pi) || !(znear > 0.0 && std::isfinite(znear))) {
-        fail(fmt::format("{} has an invalid yfov ({}) or znear ({})", what, yfov, znear));
+      if (!(yfov > 0.0 && yfov < std::numbers::pi)) {
+        fail(fmt::format("{} has a yfov of {} radians, outside (0, pi)", what, yfov));
+      }
+      if (!(znear > 0.0 && std::isfinite(znear))) {
+        fail(fmt::format("{} has a znear of {}: a perspective camera's is finite and > 0", what,
+                         znear));
       }
       camera.yfov = yfov;
       camera.znear = znear;
@@ -2500,11 +2504,17 @@ void Loader::load_cameras() {
       // ray tracer needs no far plane.
       const double ymag = in.orthographic.ymag;
       const double znear = in.orthographic.znear;
-      if (!std::isfinite(ymag) || ymag == 0.0 || !(znear >= 0.0 && std::isfinite(znear))) {
+      if (!std::isfinite(ymag) || ymag == 0.0) {
         fail(
-            fmt::format("{} is orthographic with an invalid ymag ({}) or znear ({}): ymag must "
-                        "be finite and not 0, znear finite and >= 0",
-                        what, ymag, znear));
+            fmt::format("{} is orthographic with a ymag of {}: glTF requires a finite ymag "
+                        "other than 0",
+                        what, ymag));
+      }
+      if (!(znear >= 0.0 && std::isfinite(znear))) {
+        fail(
+            fmt::format("{} is orthographic with a znear of {}: glTF requires a finite znear "
+                        ">= 0",
+                        what, znear));
       }
       if (ymag < 0.0) {
         warn_once("negative ymag " + what,

@@ -253,11 +253,33 @@ TEST(GltfUserContentTest, AnOrthographicCameraViewsTheSceneAlongItsAxis) {
     load_gltf(dir / "flat.gltf");
     ADD_FAILURE() << "a ymag of 0 loaded";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("camera 0 ('plan view') is orthographic with an invalid "
-                                         "ymag (0)"),
+    EXPECT_NE(std::string(e.what()).find("camera 0 ('plan view') is orthographic with a ymag of "
+                                         "0: glTF requires a finite ymag other than 0"),
               std::string::npos)
         << e.what();
   }
+  // Each field out of its range is named, in either kind of camera.
+  const auto error_of = [&](const json& camera) -> std::string {
+    g.doc()["cameras"][0] = camera;
+    g.write(dir / "bad.gltf");
+    try {
+      load_gltf(dir / "bad.gltf");
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "loaded";
+  };
+  EXPECT_NE(error_of({{"type", "orthographic"},
+                      {"orthographic", {{"xmag", 1}, {"ymag", 1}, {"znear", -1}, {"zfar", 9}}}})
+                .find("camera 0 is orthographic with a znear of -1: glTF requires a finite znear "
+                      ">= 0"),
+            std::string::npos);
+  EXPECT_NE(error_of({{"type", "perspective"}, {"perspective", {{"yfov", 4}, {"znear", 1}}}})
+                .find("camera 0 has a yfov of 4 radians, outside (0, pi)"),
+            std::string::npos);
+  EXPECT_NE(error_of({{"type", "perspective"}, {"perspective", {{"yfov", 1}, {"znear", 0}}}})
+                .find("camera 0 has a znear of 0: a perspective camera's is finite and > 0"),
+            std::string::npos);
 }
 
 // ---- Extensions ----
