@@ -180,6 +180,21 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
   expect_seen(
       "occlusion", [](Scene* s) { s->materials[0].occlusion_texture = 0; },
       [](Scene* s) { s->materials[0].occlusion_strength = 0.5f; });
+  expect_seen(
+      "orthographic camera", [](Scene* s) { s->cameras[0].ymag = 2.0; },
+      [](Scene* s) { s->cameras[0].ymag = 3.0; });
+  expect_seen(
+      "animated properties",
+      [](Scene* s) {
+        PropertyChannel p;
+        p.property = AnimatedProperty::kLightIntensity;
+        p.index = 0;
+        p.curve.interpolation = Interpolation::kLinear;
+        p.curve.times = {0.0, 1.0};
+        p.curve.values = {glm::dvec4(1.0), glm::dvec4(2.0)};
+        s->property_channels.push_back(p);
+      },
+      [](Scene* s) { s->property_channels[0].curve.values[1].x = 3.0; });
   Scene with_path = make_builtin_scene();
   CameraKey k;
   k.eye = glm::dvec3(0, 1, 5);

@@ -42,12 +42,25 @@ TEST(SceneSetupTest, SceneCameraFollowsTheCameraPath) {
   }
 }
 
-TEST(SceneSetupTest, PathWithChangingFieldOfViewIsRefused) {
-  CameraKey a, b;
-  b.time = 1.0;
-  b.yfov = a.yfov * 1.5;
-  Scene scene = make_builtin_scene();
-  EXPECT_THROW(apply_camera_path(CameraPath({a, b}), &scene), Error);
+TEST(SceneSetupTest, APathThatZoomsAnimatesTheCamerasFieldOfView) {
+  for (bool orthographic : {false, true}) {
+    CameraKey a, b, c;
+    b.time = 1.0;
+    b.yfov = a.yfov * 1.5;
+    c.time = 3.0;
+    c.yfov = a.yfov;
+    if (orthographic) a.ymag = 1.0, b.ymag = 2.0, c.ymag = 4.0;
+    const CameraPath path({a, b, c});
+    Scene scene = make_builtin_scene();
+    apply_camera_path(path, &scene);
+    EXPECT_EQ(scene.property_channels.size(), orthographic ? 2u : 1u);
+    for (double t : {-1.0, 0.0, 0.25, 1.0, 2.0, 2.9, 3.0, 5.0}) {
+      const Camera got = scene.camera_at(scene.evaluate(t)), want = path.camera(t);
+      EXPECT_NEAR(got.yfov, want.yfov, 1e-9) << t;
+      EXPECT_NEAR(got.ymag, want.ymag, 1e-9) << t;
+      EXPECT_EQ(got.orthographic(), orthographic);
+    }
+  }
 }
 
 TEST(PresetsTest, NamedPresetsSetTheirKnobsAndValidate) {

@@ -11,16 +11,6 @@ namespace afr::eval {
 
 void apply_camera_path(const CameraPath& path, Scene* scene) {
   const std::vector<CameraKey>& keys = path.keys();
-  for (const CameraKey& k : keys) {
-    if (k.yfov != keys.front().yfov || k.ymag != keys.front().ymag) {
-      throw Error(fmt::format(
-          "camera path: {} changes from {} to {} at t = {} s; the scene model has one field "
-          "of view per camera",
-          k.yfov != keys.front().yfov ? "yfov" : "ymag",
-          k.yfov != keys.front().yfov ? keys.front().yfov : keys.front().ymag,
-          k.yfov != keys.front().yfov ? k.yfov : k.ymag, k.time));
-    }
-  }
   CameraModel lens;
   lens.name = "camera path";
   lens.yfov = keys.front().yfov;
@@ -49,6 +39,24 @@ void apply_camera_path(const CameraPath& path, Scene* scene) {
   }
   scene->channels.push_back(std::move(translation));
   scene->channels.push_back(std::move(rotation));
+  // A zoom (the path's yfov or ymag changing) animates the camera as KHR_animation_pointer's
+  // channels do, linear between the keys as the path is.
+  const auto zoom = [&](AnimatedProperty property, double CameraKey::*field) {
+    bool changes = false;
+    for (const CameraKey& k : keys) changes |= k.*field != keys.front().*field;
+    if (!changes) return;
+    PropertyChannel p;
+    p.property = property;
+    p.index = node.camera;
+    p.curve.interpolation = Interpolation::kLinear;
+    for (const CameraKey& k : keys) {
+      p.curve.times.push_back(k.time);
+      p.curve.values.push_back(glm::dvec4(k.*field, 0.0, 0.0, 0.0));
+    }
+    scene->property_channels.push_back(std::move(p));
+  };
+  zoom(AnimatedProperty::kCameraYfov, &CameraKey::yfov);
+  zoom(AnimatedProperty::kCameraYmag, &CameraKey::ymag);
   scene->finalize();
 }
 
@@ -289,6 +297,15 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.value(uint64_t(c.weight_count));
       h.array(c.weights);
     }
+  }
+  // KHR_animation_pointer's channels (lights, cameras, materials over time) add bytes only
+  // where a scene has them.
+  for (const PropertyChannel& p : scene.property_channels) {
+    h.value(p.property);
+    h.value(p.index);
+    h.value(p.curve.interpolation);
+    h.array(p.curve.times);
+    h.array(p.curve.values);
   }
   h.value(scene.background);
   h.value(scene.ambient);
