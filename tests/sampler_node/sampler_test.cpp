@@ -373,6 +373,19 @@ TEST(SamplerTest, SameSeedGivesTheSameSampleStream) {
   EXPECT_EQ(a.snapshots.size(), b.snapshots.size());
 }
 
+// Moves the camera (node 0 of testing::camera_scene) by (0.3, 0.1, 0) at t = 0.25 s, and
+// finalizes the scene.
+void add_camera_jump(Scene* scene) {
+  AnimationChannel ch;
+  ch.node = 0;
+  ch.path = AnimatedPath::kTranslation;
+  ch.interpolation = Interpolation::kStep;
+  ch.times = {0.0, 0.25};
+  ch.values = {{0, 0, 0, 0}, {0.3, 0.1, 0, 0}};
+  scene->channels.push_back(ch);
+  scene->finalize();
+}
+
 TEST(SamplerTest, ReprojectedCrosshairsLandWhereAFreshTraceSeesTheirPoint) {
   // A static wall and a square in front of it; the camera jumps sideways at t = 0.25 s and
   // then holds still, so every crosshair traced before the jump and moved after it was
@@ -380,14 +393,7 @@ TEST(SamplerTest, ReprojectedCrosshairsLandWhereAFreshTraceSeesTheirPoint) {
   Scene scene = testing::camera_scene();
   testing::add_quad(&scene, glm::vec3(0.5f), {-20, -20}, {20, 20}, -3.0f);
   testing::add_quad(&scene, glm::vec3(1.0f), {-0.5f, -0.5f}, {0.5f, 0.5f}, -2.0f);
-  AnimationChannel ch;
-  ch.node = 0;
-  ch.path = AnimatedPath::kTranslation;
-  ch.interpolation = Interpolation::kStep;
-  ch.times = {0.0, 0.25};
-  ch.values = {{0, 0, 0, 0}, {0.3, 0.1, 0, 0}};
-  scene.channels.push_back(ch);
-  scene.finalize();
+  add_camera_jump(&scene);
   Tracer tracer(scene);
   VirtualClock clock(2e5);
   CollectingSink sink;
@@ -465,14 +471,7 @@ TEST(SamplerTest, AnOrthographicCameraSeesEqualSquaresAtAnyDepthAtOneSize) {
 TEST(SamplerTest, AnOrthographicViewSendsMissesAsPointsThatReprojectToTheirPixels) {
   // The camera jumps right and up at t = 0.25 s and then holds still.
   Scene scene = orthographic_scene();
-  AnimationChannel ch;
-  ch.node = 0;
-  ch.path = AnimatedPath::kTranslation;
-  ch.interpolation = Interpolation::kStep;
-  ch.times = {0.0, 0.25};
-  ch.values = {{0, 0, 0, 0}, {0.3, 0.1, 0, 0}};
-  scene.channels.push_back(ch);
-  scene.finalize();
+  add_camera_jump(&scene);
   Tracer tracer(scene);
   VirtualClock clock(2e5);
   CollectingSink sink;
