@@ -535,10 +535,15 @@ void Sampler::reproject(int tile) {
     c.flags |= Crosshair::kHasTemporalGradient;
   }
 
-  // Occlusion: is the center's surface point still visible from the eye?
+  // Occlusion: is the center's surface point still visible from the eye (an orthographic
+  // view's eye being the point of its plane that the point is seen from, along its axis)?
   if (hit && config_.occlusion_rays) {
     ++counters_.occlusion_rays;
-    const glm::dvec3 to_eye = camera_.eye - center;
+    const glm::dvec3 eye =
+        camera_.orthographic()
+            ? center - glm::dot(center - camera_.eye, camera_.forward) * camera_.forward
+            : camera_.eye;
+    const glm::dvec3 to_eye = eye - center;
     const double len = glm::length(to_eye);
     if (len > 0.0) {
       const glm::dvec3 dir = to_eye / len;
@@ -547,7 +552,7 @@ void Sampler::reproject(int tile) {
       // the ray still starts between the point and the eye.
       const double eps = std::min(1e-4 * len + 1e-6 * glm::length(center), 0.5 * len);
       const glm::vec3 from(center + eps * dir);
-      if (tracer_.occluded(from, glm::vec3(camera_.eye), &trace_stats_)) {
+      if (tracer_.occluded(from, glm::vec3(eye), &trace_stats_)) {
         // Replace it by a new crosshair at the same image location; the hidden sample is its
         // old sample, so the occlusion shows as a temporal edge.
         ++counters_.occlusion_hits;

@@ -774,6 +774,23 @@ TEST(SamplerTest, OcclusionRaysCatchAnObjectMovingInFront) {
   EXPECT_GT(sampler.counters().occlusion_hits, 0u);
 }
 
+TEST(SamplerTest, AnOrthographicViewsOcclusionRaysRunAlongItsAxis) {
+  // A still orthographic view of a wall 20 units away with a small square 2 units away in
+  // front of its center: no point the view sees is hidden, though the lines from nearly all
+  // of them to the eye itself cross the square.
+  Scene scene = testing::camera_scene();
+  scene.cameras[0].ymag = 1.0;
+  testing::add_quad(&scene, glm::vec3(0.5f), {-20, -20}, {20, 20}, -20.0f);
+  testing::add_quad(&scene, glm::vec3(1.0f), {-0.1f, -0.1f}, {0.1f, 0.1f}, -2.0f);
+  scene.finalize();
+  SamplerRig rig(std::move(scene), 2e5, small_config(64, 64));
+  auto& [s, tracer, clock, sink, sampler] = rig;
+  sampler.fill();
+  while (clock.now() < 0.5) sampler.step();
+  EXPECT_GT(sampler.counters().occlusion_rays, 1000u);
+  EXPECT_LT(sampler.counters().occlusion_hits, sampler.counters().occlusion_rays / 100);
+}
+
 TEST(SamplerTest, OcclusionsCountForTheirAgeNotForAsLongAsTheirCrosshairsStay) {
   // The square moves in front of the background until 2 s and then stands still: occlusions
   // happen until then, and stop soon after. The deep buffer is far from full at this
