@@ -583,7 +583,9 @@ bool Sampler::project_point(const glm::dvec3& p, glm::dvec2* xy) const {
   const double sx = glm::dot(d, camera_.right) / (half * aspect);
   const double sy = glm::dot(d, camera_.up) / half;
   *xy = glm::dvec2((sx + 1.0) * 0.5 * config_.image.width, (1.0 - sy) * 0.5 * config_.image.height);
-  return true;
+  // Beyond any image (a point a hair in front of the eye, a view a hair high) it is as good as
+  // behind the camera, and its pixel would not fit an integer.
+  return std::abs(xy->x) < kMaxProjected && std::abs(xy->y) < kMaxProjected;
 }
 
 // ---------------------------------------------------------------------------------------------

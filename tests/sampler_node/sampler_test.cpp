@@ -791,6 +791,29 @@ TEST(SamplerTest, AnOrthographicViewsOcclusionRaysRunAlongItsAxis) {
   EXPECT_LT(sampler.counters().occlusion_hits, sampler.counters().occlusion_rays / 100);
 }
 
+TEST(SamplerTest, AnOrthographicViewAHairHighSamplesAndDropsWhatItCannotPlace) {
+  // A view 2e-300 units high (glTF allows any ymag but 0), which then jumps 0.3 units aside:
+  // every point it saw projects some 1e299 pixels away, beyond any pixel index, and its
+  // crosshair is dropped.
+  Scene scene = testing::camera_scene();
+  scene.cameras[0].ymag = 1e-300;
+  testing::add_quad(&scene, glm::vec3(0.5f), {-20, -20}, {20, 20}, -2.0f);
+  add_camera_jump(&scene);
+  SamplerConfig config = small_config(32, 32);
+  config.loop_animation = false;
+  SamplerRig rig(std::move(scene), 2e5, config);
+  auto& [s, tracer, clock, sink, sampler] = rig;
+  sampler.fill();
+  while (clock.now() < 0.5) sampler.step();
+  for (const Sample& out : sink.samples) {
+    ASSERT_TRUE(std::isfinite(out.x) && std::isfinite(out.y));
+    ASSERT_TRUE(std::isfinite(out.color.r));
+  }
+  EXPECT_GT(sampler.counters().reprojections, 0u);
+  EXPECT_GT(sampler.counters().reprojections_dropped, 0u);
+  EXPECT_TRUE(sampler.tiling().is_valid());
+}
+
 TEST(SamplerTest, OcclusionsCountForTheirAgeNotForAsLongAsTheirCrosshairsStay) {
   // The square moves in front of the background until 2 s and then stands still: occlusions
   // happen until then, and stop soon after. The deep buffer is far from full at this

@@ -44,6 +44,9 @@ struct SamplerCounters {
 // (6e-8 x 100 ymag against a pixel's 2 ymag / 4096).
 inline constexpr double kOrthographicMissDistance = 100.0;
 
+// Image positions beyond this many pixels do not project (Sampler::project_point).
+inline constexpr double kMaxProjected = 1e9;
+
 // Sample weights decline with age a as exp(-kAgeDecay * a) (section 4).
 inline constexpr double kAgeDecay = 3.47;
 
