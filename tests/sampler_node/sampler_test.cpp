@@ -472,12 +472,10 @@ TEST(SamplerTest, AnOrthographicViewSendsMissesAsPointsThatReprojectToTheirPixel
   // The camera jumps right and up at t = 0.25 s and then holds still.
   Scene scene = orthographic_scene();
   add_camera_jump(&scene);
-  Tracer tracer(scene);
-  VirtualClock clock(2e5);
-  CollectingSink sink;
   SamplerConfig config = small_config(64, 64);
   config.loop_animation = false;
-  Sampler sampler(scene, tracer, clock, config, sink);
+  SamplerRig rig(std::move(scene), 2e5, config);
+  auto& [served, tracer, clock, sink, sampler] = rig;
   sampler.fill();
   while (clock.now() < 0.5) sampler.step();
 
