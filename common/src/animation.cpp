@@ -70,6 +70,12 @@ std::string_view to_string(AnimatedProperty property) {
       return "normal texture scale";
     case AnimatedProperty::kOcclusionStrength:
       return "occlusion strength";
+    case AnimatedProperty::kUvOffset:
+      return "texture transform offset";
+    case AnimatedProperty::kUvRotation:
+      return "texture transform rotation";
+    case AnimatedProperty::kUvScale:
+      return "texture transform scale";
   }
   return "?";
 }
@@ -81,6 +87,9 @@ int component_count(AnimatedProperty property) {
       return 3;
     case AnimatedProperty::kBaseColorFactor:
       return 4;
+    case AnimatedProperty::kUvOffset:
+    case AnimatedProperty::kUvScale:
+      return 2;
     default:
       return 1;
   }
@@ -88,6 +97,11 @@ int component_count(AnimatedProperty property) {
 
 bool is_light_property(AnimatedProperty property) {
   return property <= AnimatedProperty::kLightOuterCone;
+}
+
+bool is_uv_property(AnimatedProperty property) {
+  return property == AnimatedProperty::kUvOffset || property == AnimatedProperty::kUvRotation ||
+         property == AnimatedProperty::kUvScale;
 }
 
 bool is_camera_property(AnimatedProperty property) {

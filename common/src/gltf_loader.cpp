@@ -203,7 +203,77 @@ struct PointerTarget {
   std::string_view path;  // kNode: translation, rotation, scale or weights
   AnimatedProperty property = AnimatedProperty::kLightIntensity;  // kProperty
   size_t index = 0;
+  // A texture transform's property (is_uv_property): its texture slot's path in the material
+  // (kTextureSlots).
+  std::string texture;
 };
+
+// The paths in a material of the texture slots afr reads, as KHR_animation_pointer names them
+// (the object model's, and those of the archived KHR_materials_pbrSpecularGlossiness).
+constexpr std::string_view kTextureSlots[] = {
+    "pbrMetallicRoughness/baseColorTexture",
+    "pbrMetallicRoughness/metallicRoughnessTexture",
+    "emissiveTexture",
+    "occlusionTexture",
+    "normalTexture",
+    "extensions/KHR_materials_transmission/transmissionTexture",
+    "extensions/KHR_materials_specular/specularTexture",
+    "extensions/KHR_materials_specular/specularColorTexture",
+    "extensions/KHR_materials_clearcoat/clearcoatTexture",
+    "extensions/KHR_materials_clearcoat/clearcoatRoughnessTexture",
+    "extensions/KHR_materials_clearcoat/clearcoatNormalTexture",
+    "extensions/KHR_materials_sheen/sheenColorTexture",
+    "extensions/KHR_materials_sheen/sheenRoughnessTexture",
+    "extensions/KHR_materials_anisotropy/anisotropyTexture",
+    "extensions/KHR_materials_iridescence/iridescenceTexture",
+    "extensions/KHR_materials_iridescence/iridescenceThicknessTexture",
+    "extensions/KHR_materials_pbrSpecularGlossiness/diffuseTexture",
+    "extensions/KHR_materials_pbrSpecularGlossiness/specularGlossinessTexture",
+};
+
+// Index digits as a pointer writes them (plain decimal, fewer than 10), or nothing.
+std::optional<size_t> pointer_index(std::string_view digits) {
+  size_t index = 0;
+  const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), index);
+  if (ec != std::errc() || end != digits.data() + digits.size() || digits.size() >= 10 ||
+      digits.find_first_not_of("0123456789") != std::string_view::npos) {
+    return std::nullopt;
+  }
+  return index;
+}
+
+// A pointer to a texture slot's KHR_texture_transform offset, rotation or scale
+// (/materials/N/SLOT/extensions/KHR_texture_transform/PROPERTY), or nothing.
+std::optional<PointerTarget> texture_transform_target(std::string_view pointer) {
+  static constexpr std::string_view kPrefix = "/materials/";
+  static constexpr std::string_view kTransform = "/extensions/KHR_texture_transform/";
+  const size_t at = pointer.rfind(kTransform);
+  if (!pointer.starts_with(kPrefix) || at == std::string_view::npos) return std::nullopt;
+  const std::string_view property = pointer.substr(at + kTransform.size());
+  PointerTarget t;
+  t.kind = PointerTarget::Kind::kProperty;
+  if (property == "offset") {
+    t.property = AnimatedProperty::kUvOffset;
+  } else if (property == "rotation") {
+    t.property = AnimatedProperty::kUvRotation;
+  } else if (property == "scale") {
+    t.property = AnimatedProperty::kUvScale;
+  } else {
+    return std::nullopt;  // texCoord: not animated
+  }
+  const std::string_view rest = pointer.substr(kPrefix.size(), at - kPrefix.size());
+  const size_t slash = rest.find('/');
+  if (slash == std::string_view::npos) return std::nullopt;
+  const std::optional<size_t> index = pointer_index(rest.substr(0, slash));
+  const std::string_view slot = rest.substr(slash + 1);
+  if (!index || std::find(std::begin(kTextureSlots), std::end(kTextureSlots), slot) ==
+                    std::end(kTextureSlots)) {
+    return std::nullopt;
+  }
+  t.index = *index;
+  t.texture = std::string(slot);
+  return t;
+}
 
 // The target of `pointer` (PREFIX INDEX SUFFIX, the index plain decimal digits), or nothing
 // for a pointer afr does not animate.
@@ -249,16 +319,11 @@ std::optional<PointerTarget> pointer_target(std::string_view pointer) {
         !pointer.ends_with(f.suffix)) {
       continue;
     }
-    const std::string_view digits =
-        pointer.substr(f.prefix.size(), pointer.size() - f.prefix.size() - f.suffix.size());
-    size_t index = 0;
-    const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), index);
-    if (ec == std::errc() && end == digits.data() + digits.size() && digits.size() < 10 &&
-        digits.find_first_not_of("0123456789") == std::string_view::npos) {
-      return PointerTarget{f.kind, f.suffix.substr(1), f.property, index};
-    }
+    const std::optional<size_t> index = pointer_index(
+        pointer.substr(f.prefix.size(), pointer.size() - f.prefix.size() - f.suffix.size()));
+    if (index) return PointerTarget{f.kind, f.suffix.substr(1), f.property, *index, {}};
   }
-  return std::nullopt;
+  return texture_transform_target(pointer);
 }
 
 class Loader {
@@ -288,7 +353,8 @@ class Loader {
   void hide_invisible_nodes();
   void read_animation_pointers(std::string_view json);
   void add_property_channel(const tinygltf::Animation& animation, int sampler_index,
-                            AnimatedProperty property, size_t gltf_index, const std::string& what);
+                            AnimatedProperty property, size_t gltf_index, const std::string& what,
+                            int uv_set = -1);
   bool read_sampler(const tinygltf::Animation& animation, int sampler_index, int value_type,
                     const std::string& what, AnimationChannel* channel, std::vector<float>* values);
   void add_channel(const tinygltf::Animation& animation, int sampler_index, int node_index,
@@ -342,20 +408,21 @@ class Loader {
                        Material* out);
   void read_iridescence(size_t m, const tinygltf::Material& in, const std::string& what,
                         Material* out);
-  std::optional<glm::dmat3> read_texture_transform(const tinygltf::ExtensionMap& extensions,
-                                                   const std::string& what, int* tex_coord);
+  std::optional<Material::UvTransform> read_texture_transform(
+      const tinygltf::ExtensionMap& extensions, const std::string& what, int* tex_coord);
   // How a texture slot reads its image: as sRGB-encoded color, as linear data, or as linear
   // data taken from the image's alpha channel (KHR_materials_specular's specularTexture,
   // KHR_materials_sheen's sheenRoughnessTexture, the glossiness of
   // KHR_materials_pbrSpecularGlossiness), which the Texture then holds in its red, green and
   // blue.
   enum class ImageData : uint8_t { kColor, kLinear, kAlpha };
-  // One texture slot of material m (its index, texCoord and extensions as glTF gives them):
-  // the index of its decoded texture in Scene::textures, or -1 where the slot is empty or its
-  // texture has no image. *set: the material's texture coordinate set the slot reads
-  // (uv_sources_), added where no slot before it reads the same TEXCOORD_n through the same
-  // KHR_texture_transform.
-  int read_texture_slot(size_t m, const char* slot, int index, int tex_coord,
+  // One texture slot of material m (its path in the material, kTextureSlots, its index,
+  // texCoord and extensions as glTF gives them): the index of its decoded texture in
+  // Scene::textures, or -1 where the slot is empty or its texture has no image. *set: the
+  // material's texture coordinate set the slot reads (uv_sources_), added where no slot before
+  // it reads the same TEXCOORD_n through the same KHR_texture_transform, or where an animation
+  // drives the slot's transform (animated_uv_slots_).
+  int read_texture_slot(size_t m, std::string_view path, int index, int tex_coord,
                         const tinygltf::ExtensionMap& extensions, ImageData data, uint8_t* set);
   // The same for a texture slot inside a material extension's object e (glTF's textureInfo:
   // index, texCoord, extensions); -1 where e has no such key. *scale: the slot's "scale" where
@@ -409,8 +476,16 @@ class Loader {
   struct UvSource {
     int tex_coord = 0;
     glm::dmat3 transform{1.0};
-    const char* slot = nullptr;
+    std::string slot;
+    // A slot whose transform an animation drives: its set holds TEXCOORD_n as it is (transform
+    // stays the identity), shared with no other slot, and this is the file's transform, where
+    // the animation starts from (Material::uv_transforms).
+    std::optional<Material::UvTransform> animated;
   };
+  // (glTF material, slot path) of each texture slot whose KHR_texture_transform a
+  // KHR_animation_pointer channel drives (read_animation_pointers), and once the materials are
+  // read, the set each of them reads.
+  std::map<std::pair<size_t, std::string>, int> animated_uv_slots_;
   // Per glTF material, its sets in slot order (base color, metallic-roughness, or for
   // KHR_materials_pbrSpecularGlossiness diffuse, specular color and glossiness; emissive,
   // occlusion, normal, then the other extensions' slots: transmission, specular, specular color,
@@ -1936,7 +2011,9 @@ int Loader::read_extension_texture(size_t m, const tinygltf::Value& e, const cha
   if (scale != nullptr) {
     read_number(info, "scale", slot, finite, "a number", scale);
   }
-  return read_texture_slot(m, key, index.GetNumberAsInt(), tex_coord, extensions, data, set);
+  // (`where` is material_extension's "material M EXTENSION".)
+  const std::string path = fmt::format("extensions/{}/{}", where.substr(where.rfind(' ') + 1), key);
+  return read_texture_slot(m, path, index.GetNumberAsInt(), tex_coord, extensions, data, set);
 }
 
 // KHR_materials_pbrSpecularGlossiness (archived by Khronos, still in files from older exporters),
@@ -2164,12 +2241,12 @@ void Loader::load_materials() {
     } else {
       const tinygltf::TextureInfo& base = pbr.baseColorTexture;
       out.base_color_texture =
-          read_texture_slot(m, "baseColorTexture", base.index, base.texCoord, base.extensions,
-                            ImageData::kColor, &sets.base_color);
+          read_texture_slot(m, "pbrMetallicRoughness/baseColorTexture", base.index, base.texCoord,
+                            base.extensions, ImageData::kColor, &sets.base_color);
       const tinygltf::TextureInfo& mr = pbr.metallicRoughnessTexture;
-      out.metallic_roughness_texture =
-          read_texture_slot(m, "metallicRoughnessTexture", mr.index, mr.texCoord, mr.extensions,
-                            ImageData::kLinear, &sets.metallic_roughness);
+      out.metallic_roughness_texture = read_texture_slot(
+          m, "pbrMetallicRoughness/metallicRoughnessTexture", mr.index, mr.texCoord, mr.extensions,
+          ImageData::kLinear, &sets.metallic_roughness);
     }
     const tinygltf::TextureInfo& emissive = in.emissiveTexture;
     out.emissive_texture =
@@ -2205,6 +2282,13 @@ void Loader::load_materials() {
     read_anisotropy(m, in, what, &out);
     read_iridescence(m, in, what, &out);
     if (in.extras.Has("afr_ambient")) out.ambient = read_rgb_extra(in.extras, "afr_ambient", what);
+    const std::vector<UvSource>& sources = uv_sources_[m];
+    if (std::any_of(sources.begin(), sources.end(), [](const UvSource& u) { return u.animated; })) {
+      out.uv_transforms.resize(sources.size());
+      for (size_t k = 0; k < sources.size(); ++k) {
+        if (sources[k].animated) out.uv_transforms[k] = *sources[k].animated;
+      }
+    }
     scene_.materials.push_back(std::move(out));
   }
   keep_mask_alphas();
@@ -2227,27 +2311,38 @@ void Loader::keep_mask_alphas() {
   }
 }
 
-int Loader::read_texture_slot(size_t m, const char* slot, int index, int tex_coord,
+int Loader::read_texture_slot(size_t m, std::string_view path, int index, int tex_coord,
                               const tinygltf::ExtensionMap& extensions, ImageData data,
                               uint8_t* set) {
   if (index < 0) return -1;
+  const std::string slot(path.substr(path.rfind('/') + 1));  // its name, as messages give it
   const std::string what = fmt::format("material {} {}", m, slot);
   if (size_t(index) >= model_.textures.size()) {
     fail(fmt::format("{} refers to texture {}, but there are {}", what, index,
                      model_.textures.size()));
   }
-  const std::optional<glm::dmat3> transform = read_texture_transform(extensions, what, &tex_coord);
-  // Slots that read one TEXCOORD_n through one transform share a set: a primitive stores each
-  // set once (applied at load, so a lookup costs the tracer no transform).
+  const std::optional<Material::UvTransform> transform =
+      read_texture_transform(extensions, what, &tex_coord);
   std::vector<UvSource>& sources = uv_sources_[m];
-  const glm::dmat3 matrix = transform.value_or(glm::dmat3(1.0));
-  size_t k = 0;
-  while (k < sources.size() &&
-         !(sources[k].tex_coord == tex_coord && sources[k].transform == matrix)) {
-    ++k;
+  const auto animated = animated_uv_slots_.find({m, std::string(path)});
+  if (animated != animated_uv_slots_.end()) {
+    // An animated transform: applied at each lookup, to a set of the slot's own.
+    animated->second = int(sources.size());
+    *set = uint8_t(sources.size());
+    sources.push_back(
+        {tex_coord, glm::dmat3(1.0), slot, transform.value_or(Material::UvTransform{})});
+  } else {
+    // Slots that read one TEXCOORD_n through one transform share a set: a primitive stores
+    // each set once (applied at load, so a lookup costs the tracer no transform).
+    const glm::dmat3 matrix = transform ? transform->matrix() : glm::dmat3(1.0);
+    size_t k = 0;
+    while (k < sources.size() && !(sources[k].tex_coord == tex_coord && !sources[k].animated &&
+                                   sources[k].transform == matrix)) {
+      ++k;
+    }
+    if (k == sources.size()) sources.push_back({tex_coord, matrix, slot, std::nullopt});
+    *set = uint8_t(k);
   }
-  if (k == sources.size()) sources.push_back({tex_coord, matrix, slot});
-  *set = uint8_t(k);
   const tinygltf::Texture& texture = model_.textures[size_t(index)];
   if (texture.sampler >= int(model_.samplers.size())) {
     fail(fmt::format("texture {} refers to sampler {}, but there are {}", index, texture.sampler,
@@ -2306,14 +2401,14 @@ Loader::TextureSampling Loader::read_sampler(int s) {
   return out;
 }
 
-// KHR_texture_transform on a texture reference: the matrix that maps the primitive's texture
-// coordinates to the texture's, and its texCoord (which replaces the reference's own). The
-// order is the Khronos sample viewer's, translation x rotation x scale, with the rotation
-// turning (u, v) to (c u + s v, -s u + c v): TextureTransformTest's green marker. The GLSL of
-// the extension's text writes the rotation transposed; viewers and the test model agree on
-// this one.
-std::optional<glm::dmat3> Loader::read_texture_transform(const tinygltf::ExtensionMap& extensions,
-                                                         const std::string& what, int* tex_coord) {
+// KHR_texture_transform on a texture reference: the transform that maps the primitive's
+// texture coordinates to the texture's, and its texCoord (which replaces the reference's own).
+// The order is the Khronos sample viewer's, translation x rotation x scale, with the rotation
+// turning (u, v) to (c u + s v, -s u + c v) (Material::UvTransform): TextureTransformTest's
+// green marker. The GLSL of the extension's text writes the rotation transposed; viewers and
+// the test model agree on this one.
+std::optional<Material::UvTransform> Loader::read_texture_transform(
+    const tinygltf::ExtensionMap& extensions, const std::string& what, int* tex_coord) {
   const auto ext = extensions.find("KHR_texture_transform");
   if (ext == extensions.end()) return std::nullopt;
   const tinygltf::Value& t = ext->second;
@@ -2348,13 +2443,7 @@ std::optional<glm::dmat3> Loader::read_texture_transform(const tinygltf::Extensi
     }
     *tex_coord = c.GetNumberAsInt();
   }
-  const double c = std::cos(rotation), s = std::sin(rotation);
-  // glm is column-major: m[column][row].
-  glm::dmat3 m(1.0);
-  m[0] = glm::dvec3(c * scale[0], -s * scale[0], 0.0);
-  m[1] = glm::dvec3(s * scale[1], c * scale[1], 0.0);
-  m[2] = glm::dvec3(offset[0], offset[1], 1.0);
-  return m;
+  return Material::UvTransform{{offset[0], offset[1]}, rotation, {scale[0], scale[1]}};
 }
 
 // A primitive's texture coordinate sets, those of its material (`sources`; none: TEXCOORD_0
@@ -2949,6 +3038,7 @@ void Loader::read_animation_pointers(std::string_view json) {
         fail(fmt::format("{} \"{}\" targets {} {}, but there are {}", what, pointer,
                          node ? "node" : "mesh", named->index, count));
       }
+      if (is_uv_property(named->property)) animated_uv_slots_[{named->index, named->texture}] = -1;
       pointer_channels_.push_back({a, c, sampler, *named, pointer});
     }
   }
@@ -2997,7 +3087,21 @@ void Loader::load_animations() {
           }
           break;
         case PointerTarget::Kind::kProperty:
-          add_property_channel(animation, p.sampler, t.property, t.index, what);
+          if (is_uv_property(t.property)) {
+            // The set read_texture_slot gave the slot; -1 where the material has no texture
+            // there (or no such material: add_property_channel names that).
+            const auto slot = animated_uv_slots_.find({t.index, t.texture});
+            if (t.index < scene_.materials.size() && slot->second < 0) {
+              warn_once("animated empty texture slot",
+                        fmt::format("{} animates the transform of a texture slot without a "
+                                    "texture (skipped)",
+                                    what));
+              break;
+            }
+            add_property_channel(animation, p.sampler, t.property, t.index, what, slot->second);
+          } else {
+            add_property_channel(animation, p.sampler, t.property, t.index, what);
+          }
           break;
       }
     }
@@ -3125,7 +3229,7 @@ bool Loader::read_sampler(const tinygltf::Animation& animation, int sampler_inde
 // unsupported type) takes its animation with it.
 void Loader::add_property_channel(const tinygltf::Animation& animation, int sampler_index,
                                   AnimatedProperty property, size_t gltf_index,
-                                  const std::string& what) {
+                                  const std::string& what, int uv_set) {
   const bool light = is_light_property(property), camera = is_camera_property(property);
   const std::vector<int>* map = light ? &light_map_ : camera ? &camera_map_ : nullptr;
   const size_t count = map ? map->size() : scene_.materials.size();
@@ -3142,8 +3246,10 @@ void Loader::add_property_channel(const tinygltf::Animation& animation, int samp
   PropertyChannel out;
   out.property = property;
   out.index = index;
+  out.uv_set = uv_set;
   const int width = component_count(property);
   const int type = width == 1   ? TINYGLTF_TYPE_SCALAR
+                   : width == 2 ? TINYGLTF_TYPE_VEC2
                    : width == 3 ? TINYGLTF_TYPE_VEC3
                                 : TINYGLTF_TYPE_VEC4;
   std::vector<float> values;
@@ -3181,6 +3287,9 @@ void Loader::add_property_channel(const tinygltf::Animation& animation, int samp
       hi = 1.0;
       break;
     case AnimatedProperty::kNormalScale:
+    case AnimatedProperty::kUvOffset:
+    case AnimatedProperty::kUvRotation:
+    case AnimatedProperty::kUvScale:
       lo = -hi;  // any finite number
       break;
     default:

@@ -232,6 +232,15 @@ glm::vec3 Texture::sample(glm::vec2 uv, float lod) const {
   return f > 0.0f ? glm::mix(a, level(lower + 1), f) : a;
 }
 
+glm::dmat3 Material::UvTransform::matrix() const {
+  const double c = std::cos(rotation), s = std::sin(rotation);
+  glm::dmat3 m(1.0);  // m[column][row]
+  m[0] = glm::dvec3(c * scale.x, -s * scale.x, 0.0);
+  m[1] = glm::dvec3(s * scale.y, c * scale.y, 0.0);
+  m[2] = glm::dvec3(offset, 1.0);
+  return m;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Normals
 
@@ -751,6 +760,11 @@ void Scene::finalize_property_channels() {
     if (pc.index < 0 || size_t(pc.index) >= count) {
       throw Error(fmt::format("{}: there are {} {}s", what, count, kind));
     }
+    if (is_uv_property(pc.property) &&
+        (pc.uv_set < 0 || size_t(pc.uv_set) >= materials[size_t(pc.index)].uv_transforms.size())) {
+      throw Error(fmt::format("{}: the material has no animated texture coordinate set {}", what,
+                              pc.uv_set));
+    }
     pc.curve.validate(what);
     duration_ = std::max(duration_, pc.curve.end_time());
     lights_animated_ |= light;
@@ -888,7 +902,7 @@ namespace {
 // A property's value as the renderer may use it: a cubic spline may overshoot its keys (the
 // loader checks each key against the same ranges).
 void apply(AnimatedProperty property, const glm::dvec4& v, Light* light, CameraModel* camera,
-           Material* material) {
+           Material* material, int uv_set) {
   const float x = float(v.x);
   switch (property) {
     case AnimatedProperty::kLightColor:
@@ -942,6 +956,15 @@ void apply(AnimatedProperty property, const glm::dvec4& v, Light* light, CameraM
     case AnimatedProperty::kOcclusionStrength:
       material->occlusion_strength = std::clamp(x, 0.0f, 1.0f);
       break;
+    case AnimatedProperty::kUvOffset:
+      material->uv_transforms[size_t(uv_set)].offset = glm::dvec2(v);
+      break;
+    case AnimatedProperty::kUvRotation:
+      material->uv_transforms[size_t(uv_set)].rotation = v.x;
+      break;
+    case AnimatedProperty::kUvScale:
+      material->uv_transforms[size_t(uv_set)].scale = glm::dvec2(v);
+      break;
   }
 }
 
@@ -955,8 +978,8 @@ void Scene::evaluate_properties(double t, SceneState* state) const {
     const size_t i = size_t(pc.index);
     const bool light = is_light_property(pc.property), camera = is_camera_property(pc.property);
     apply(pc.property, pc.curve.evaluate(t), light ? &state->lights[i] : nullptr,
-          camera ? &state->cameras[i] : nullptr,
-          !light && !camera ? &state->materials[i] : nullptr);
+          camera ? &state->cameras[i] : nullptr, !light && !camera ? &state->materials[i] : nullptr,
+          pc.uv_set);
   }
 }
 

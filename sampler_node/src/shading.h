@@ -32,6 +32,16 @@ inline constexpr float kPi = 3.14159265358979323846f;
 // mirror reflection carries the sharp part instead.
 inline constexpr float kMinDirectRoughness = 0.1f;
 
+// An animated KHR_texture_transform (Material::UvTransform) as a lookup applies it: uv ->
+// linear uv + offset.
+struct UvAffine {
+  glm::mat2 linear{1.0f};
+  glm::vec2 offset{0.0f};
+  explicit UvAffine(const Material::UvTransform& t)
+      : linear(glm::mat2(glm::dmat2(t.matrix()))), offset(glm::vec2(t.offset)) {}
+  glm::vec2 operator()(glm::vec2 uv) const { return linear * uv + offset; }
+};
+
 // What the shader needs of one Material, with the work it implies decided once. A material
 // whose textures vary it over a surface (`varies`: metallic-roughness, emissive, occlusion, or
 // an extension's transmission, specular, clearcoat, sheen, anisotropy, glossiness or
@@ -176,6 +186,14 @@ struct ShadeMaterial {
   // base color factor (glass only; 0 for every other surface, which blocks), where no texture
   // or vertex color varies it (tracer.cpp's GeometryFilter::glass_transmittance then).
   glm::vec3 shadow_transmittance{0.0f};
+  // Where an animation drives texture transforms (Material::uv_transforms), each texture
+  // coordinate set's transform at this time, indexed like the sets (the tracer owns them);
+  // null where none is animated.
+  const UvAffine* uv_transforms = nullptr;
+  // Texture coordinates of set `set` as its slots read them.
+  glm::vec2 uv_in_set(uint8_t set, glm::vec2 uv) const {
+    return uv_transforms ? uv_transforms[set](uv) : uv;
+  }
 };
 
 // `material` may be null (the glTF default material). `textures` is the scene's list.

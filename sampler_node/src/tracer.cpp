@@ -54,33 +54,46 @@ float max_abs(const glm::vec3& v) {
   return std::max(std::abs(v.x), std::max(std::abs(v.y), std::abs(v.z)));
 }
 
-// A primitive's texture coordinates as each texture slot of its material reads them
-// (Material::TextureSets; null: none for that slot, whose factors then decide). Slots on one set
-// share its pointer.
-struct SlotUvs {
-  const glm::vec2* base_color = nullptr;  // also the opacity's (alphaMode MASK and BLEND)
-  const glm::vec2* metallic_roughness = nullptr;
-  const glm::vec2* emissive = nullptr;
-  const glm::vec2* occlusion = nullptr;
-  const glm::vec2* normal = nullptr;  // also the normal texture's frame without TANGENT
-  const glm::vec2* transmission = nullptr;
-  const glm::vec2* specular = nullptr;
-  const glm::vec2* specular_color = nullptr;
-  const glm::vec2* clearcoat = nullptr;
-  const glm::vec2* clearcoat_roughness = nullptr;
-  const glm::vec2* clearcoat_normal = nullptr;  // likewise for the clear coat's normal texture
-  const glm::vec2* sheen_color = nullptr;
-  const glm::vec2* sheen_roughness = nullptr;
-  const glm::vec2* anisotropy = nullptr;  // also the anisotropy's tangent frame
-  const glm::vec2* glossiness = nullptr;
-  const glm::vec2* iridescence = nullptr;
-  const glm::vec2* iridescence_thickness = nullptr;
+// The texture coordinates one texture slot reads on a primitive: its set's per-vertex
+// coordinates (null: the primitive has none) and the set's index (for its animated transform,
+// ShadeMaterial::uv_in_set).
+struct SlotCoords {
+  const glm::vec2* uvs = nullptr;
+  uint8_t set = 0;
+  explicit operator bool() const { return uvs != nullptr; }
+  // At barycentrics (u, v) of triangle `tri`, as material m's slot reads them.
+  glm::vec2 at(const shading::ShadeMaterial& m, const uint32_t* tri, float u, float v) const {
+    return m.uv_in_set(set, (1.0f - u - v) * uvs[tri[0]] + u * uvs[tri[1]] + v * uvs[tri[2]]);
+  }
 };
 
-// Set k of p's texture coordinates, or null where p has none.
-const glm::vec2* uv_data(const Primitive& p, int k) {
+// A primitive's texture coordinates as each texture slot of its material reads them
+// (Material::TextureSets; none for a slot whose factors then decide). Slots on one set share
+// its coordinates.
+struct SlotUvs {
+  SlotCoords base_color;  // also the opacity's (alphaMode MASK and BLEND)
+  SlotCoords metallic_roughness;
+  SlotCoords emissive;
+  SlotCoords occlusion;
+  SlotCoords normal;  // also the normal texture's frame without TANGENT
+  SlotCoords transmission;
+  SlotCoords specular;
+  SlotCoords specular_color;
+  SlotCoords clearcoat;
+  SlotCoords clearcoat_roughness;
+  SlotCoords clearcoat_normal;  // likewise for the clear coat's normal texture
+  SlotCoords sheen_color;
+  SlotCoords sheen_roughness;
+  SlotCoords anisotropy;  // also the anisotropy's tangent frame
+  SlotCoords glossiness;
+  SlotCoords iridescence;
+  SlotCoords iridescence_thickness;
+};
+
+// Set k of p's texture coordinates (null where p has none).
+SlotCoords uv_data(const Primitive& p, uint8_t k) {
   const std::vector<glm::vec2>& uvs = p.uv_set(k);
-  return !uvs.empty() && uvs.size() == p.positions.size() ? uvs.data() : nullptr;
+  return {!uvs.empty() && uvs.size() == p.positions.size() ? uvs.data() : nullptr, k};
 }
 
 // The value of a per-vertex attribute at barycentrics `bary` of triangle `tri`.
@@ -334,13 +347,10 @@ static_assert(offsetof(ShadowContext, embree) == 0);
 // The opacity of a masked or blended material at barycentrics (u, v) of triangle `tri`: the base
 // color factor's alpha x the texture's alpha (level 0, bilinear: a mip level would average a
 // cutout's edge away) x COLOR_0's alpha. uvs and color_alpha may be null (none).
-float opacity_at(const shading::ShadeMaterial& m, const glm::vec2* uvs, const float* color_alpha,
+float opacity_at(const shading::ShadeMaterial& m, SlotCoords uvs, const float* color_alpha,
                  const uint32_t* tri, float u, float v) {
   float opacity = m.opacity_factor;
-  if (m.opacity_texture && uvs) {
-    const glm::vec2 uv = (1.0f - u - v) * uvs[tri[0]] + u * uvs[tri[1]] + v * uvs[tri[2]];
-    opacity *= m.opacity_texture->sample_alpha(uv);
-  }
+  if (m.opacity_texture && uvs) opacity *= m.opacity_texture->sample_alpha(uvs.at(m, tri, u, v));
   if (color_alpha) {
     opacity *=
         (1.0f - u - v) * color_alpha[tri[0]] + u * color_alpha[tri[1]] + v * color_alpha[tri[2]];
@@ -353,13 +363,13 @@ float opacity_at(const shading::ShadeMaterial& m, const glm::vec2* uvs, const fl
 struct GeometryFilter {
   const shading::ShadeMaterial* material = nullptr;
   bool masked = false;  // the material's `masked`, or a vertex alpha (color_alpha) it tests
-  const glm::vec2* uvs = nullptr;      // null: the primitive has none (the factor alone decides)
+  SlotCoords uvs;       // the base color's (none: the factor alone decides)
   const float* color_alpha = nullptr;  // COLOR_0's alpha per vertex, or null
   const uint32_t* indices = nullptr;
   // Glass whose shadow transmittance varies over it (a base-color or transmission texture with
   // coordinates, or COLOR_0), with what places a hit in its textures and colors.
   bool textured_glass = false;
-  const glm::vec2* transmission_uvs = nullptr;
+  SlotCoords transmission_uvs;
   const glm::vec3* colors = nullptr;  // COLOR_0 per vertex, or null
 
   // What a shadow ray keeps of the light crossing the glass at the hit: the material's
@@ -374,11 +384,11 @@ struct GeometryFilter {
       return w * values[tri[0]] + u * values[tri[1]] + v * values[tri[2]];
     };
     glm::vec3 base = m.base;
-    if (m.texture && uvs) base *= m.texture->sample(at(uvs), 0.0f);
+    if (m.texture && uvs) base *= m.texture->sample(uvs.at(m, tri, u, v), 0.0f);
     if (colors) base *= at(colors);
     float transmission = m.transmission_factor;
     if (m.transmission_texture && transmission_uvs) {
-      transmission *= m.transmission_texture->sample(at(transmission_uvs), 0.0f).r;
+      transmission *= m.transmission_texture->sample(transmission_uvs.at(m, tri, u, v), 0.0f).r;
     }
     return glm::clamp(glm::clamp(transmission, 0.0f, 1.0f) * (1.0f - m.metallic_factor) * base,
                       glm::vec3(0.0f), glm::vec3(1.0f));
@@ -474,6 +484,14 @@ struct Tracer::Impl {
   std::vector<Instance> instances_;
   std::vector<int> moving_instance_of_node_;  // per scene node: its moving instance or -1
   std::vector<ShadeMaterial> materials_;      // scene materials, then the default material
+  // Per scene material, its sets' animated texture transforms at this time (empty: none),
+  // which its ShadeMaterial's uv_transforms points at (use_uv_transforms).
+  std::vector<std::vector<shading::UvAffine>> uv_transforms_;
+  void use_uv_transforms(size_t i, const Material& m) {
+    uv_transforms_[i].clear();
+    for (const Material::UvTransform& t : m.uv_transforms) uv_transforms_[i].emplace_back(t);
+    if (!m.uv_transforms.empty()) materials_[i].uv_transforms = uv_transforms_[i].data();
+  }
   bool has_translucent_ = false;  // glass or blended geometry lets shadow rays through (crosses)
   std::deque<GeometryFilter> filters_;  // the user data of masked and glass geometries
   std::vector<int> light_nodes_;        // scene nodes that carry a light
@@ -719,6 +737,8 @@ void Tracer::Impl::build() {
   for (const Material& m : scene_.materials)
     materials_.push_back(shading::make_shade_material(&m, scene_, options_.mirror_roughness));
   materials_.push_back(shading::make_shade_material(nullptr, scene_, options_.mirror_roughness));
+  uv_transforms_.resize(scene_.materials.size());
+  for (size_t i = 0; i < scene_.materials.size(); ++i) use_uv_transforms(i, scene_.materials[i]);
   // An animated material is made again at each time (set_time); where its alpha is tested, its
   // opacity may cross the cutoff, so its geometry gets the opacity filter whatever the factor
   // is now.
@@ -1074,9 +1094,10 @@ void Tracer::Impl::set_time(double t) {
 
   for (int i : scene_.animated_materials()) {
     shading::ShadeMaterial& m = materials_[size_t(i)];
-    m = shading::make_shade_material(&scene_.material_at(state_, size_t(i)), scene_,
-                                     options_.mirror_roughness);
+    const Material& now = scene_.material_at(state_, size_t(i));
+    m = shading::make_shade_material(&now, scene_, options_.mirror_roughness);
     m.masked = m.masked || m.alpha_tested;  // as build() chose for its filter
+    use_uv_transforms(size_t(i), now);
   }
   camera_ = scene_.camera_at(state_);
   lights_.clear();  // capacity stays: no allocation after the first call
@@ -1321,15 +1342,18 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   // A texture's lookup through the coordinates its slot reads (`uvs`): the point's coordinates
   // and the level of detail of this ray cone there (textures and sets differ in size).
   const float cosine = std::abs(glm::dot(d, ng));
-  auto place = [&](const Texture& t, const glm::vec2* uvs, glm::vec2* uv, float* lod) {
-    *uv = interpolate(uvs, tri, s->barycentric);
-    *lod = s->cone > 0.0f
-               ? texture_lod(t, uvs[tri[0]], uvs[tri[1]], uvs[tri[2]], world_area2, s->cone, cosine)
-               : 0.0f;
+  auto place = [&](const Texture& t, SlotCoords c, glm::vec2* uv, float* lod) {
+    // (An animated transform is affine: the corners' transformed coordinates interpolate to the
+    // point's, and give the texels the triangle covers.)
+    const glm::vec2 t0 = m.uv_in_set(c.set, c.uvs[tri[0]]), t1 = m.uv_in_set(c.set, c.uvs[tri[1]]),
+                    t2 = m.uv_in_set(c.set, c.uvs[tri[2]]);
+    const glm::vec3& b = s->barycentric;
+    *uv = b.x * t0 + b.y * t1 + b.z * t2;
+    *lod = s->cone > 0.0f ? texture_lod(t, t0, t1, t2, world_area2, s->cone, cosine) : 0.0f;
   };
   // Texture t at this point; white where there is none or its slot has no coordinates (the
   // factors alone decide then, as glTF viewers read it).
-  auto texel = [&](const Texture* t, const glm::vec2* uvs) {
+  auto texel = [&](const Texture* t, SlotCoords uvs) {
     if (!t || !uvs) return glm::vec3(1.0f);
     glm::vec2 uv;
     float lod;
@@ -1340,7 +1364,7 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   s->lod = 0.0f;
   if (m.texture && g.uvs.base_color) place(*m.texture, g.uvs.base_color, &s->uv, &s->lod);
   if (m.normal_map && g.uvs.normal) {
-    s->ns = mapped_normal(g, inst, tri, s->barycentric, s->ns, turned, g.uvs.normal,
+    s->ns = mapped_normal(g, inst, tri, s->barycentric, s->ns, turned, g.uvs.normal.uvs,
                           texel(m.normal_map, g.uvs.normal), m.normal_scale);
   }
   // A material that varies over the surface, decided here from its textures (those whose slot
@@ -1348,7 +1372,7 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   if (m.varies) {
     shading::Texels t;
     bool any = false;
-    auto read = [&](const Texture* texture, const glm::vec2* uvs, glm::vec3* out) {
+    auto read = [&](const Texture* texture, SlotCoords uvs, glm::vec3* out) {
       if (!texture || !uvs) return;
       *out = texel(texture, uvs);
       any = true;
@@ -1379,15 +1403,15 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   shading::LayerFrame& layers = s->layers.emplace();
   layers.coat_n = ns;
   if (m.clearcoat_normal_map && g.uvs.clearcoat_normal) {
-    layers.coat_n = mapped_normal(g, inst, tri, s->barycentric, ns, turned, g.uvs.clearcoat_normal,
-                                  texel(m.clearcoat_normal_map, g.uvs.clearcoat_normal),
-                                  m.clearcoat_normal_scale);
+    layers.coat_n = mapped_normal(
+        g, inst, tri, s->barycentric, ns, turned, g.uvs.clearcoat_normal.uvs,
+        texel(m.clearcoat_normal_map, g.uvs.clearcoat_normal), m.clearcoat_normal_scale);
   }
   // KHR_materials_anisotropy's direction: the texture's red and green (else the tangent) in the
   // tangent frame of its coordinates, turned by its rotation; none without a frame (isotropic).
   if (m.anisotropy_factor > 0.0f) {
     glm::vec3 tangent, bitangent;
-    if (tangent_frame(g, inst, tri, s->barycentric, s->ns, turned, g.uvs.anisotropy, &tangent,
+    if (tangent_frame(g, inst, tri, s->barycentric, s->ns, turned, g.uvs.anisotropy.uvs, &tangent,
                       &bitangent)) {
       const glm::vec2 texel_direction =
           m.anisotropy_texture && g.uvs.anisotropy

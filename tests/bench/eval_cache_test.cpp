@@ -195,6 +195,24 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
         s->property_channels.push_back(p);
       },
       [](Scene* s) { s->property_channels[0].curve.values[1].x = 3.0; });
+  expect_seen(
+      "animated texture transforms", [](Scene* s) { s->materials[0].uv_transforms.resize(1); },
+      [](Scene* s) { s->materials[0].uv_transforms[0].rotation = 0.5; });
+  expect_seen(
+      "the set a texture transform's channel drives",
+      [](Scene* s) {
+        Material& m = s->materials[0];
+        m.uv_transforms.resize(2);
+        m.uv_set.emissive = 1;
+        PropertyChannel p;
+        p.property = AnimatedProperty::kUvRotation;
+        p.index = 0;
+        p.uv_set = 0;
+        p.curve.times = {0.0, 1.0};
+        p.curve.values = {glm::dvec4(0.0), glm::dvec4(1.0)};
+        s->property_channels.push_back(p);
+      },
+      [](Scene* s) { s->property_channels[0].uv_set = 1; });
   Scene with_path = make_builtin_scene();
   CameraKey k;
   k.eye = glm::dvec3(0, 1, 5);

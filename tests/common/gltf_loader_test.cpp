@@ -2481,6 +2481,116 @@ TEST_F(GltfLoaderTest, AnimationPointersToLightsCamerasAndMaterialsAreAnimated) 
   expect_error(path, "key 1 sets the camera yfov to 0, outside (0, 3.14159]");
 }
 
+// KHR_animation_pointer drives a texture slot's KHR_texture_transform: the slot reads a set of
+// its own that holds TEXCOORD_0 untransformed (where the same transform unanimated would share
+// the emissive slot's set, transformed at load), and the material's uv_transforms carry the
+// file's transform, then the animated one at each time, in a core slot and an extension's.
+TEST_F(GltfLoaderTest, AnimationPointersToTextureTransformsAnimateTheirSlotsSets) {
+  const DecodedImage gray{1, 1, 3, {128, 128, 128}};
+  write_image8(gray, dir_ / "gray.png");
+  GltfBuilder b;
+  add_quad(&b);
+  json& primitive = b.doc()["meshes"][0]["primitives"][0];
+  primitive["material"] = 0;
+  primitive["attributes"]["TEXCOORD_0"] = b.add_floats({0, 0, 1, 0, 1, 1, 0, 1}, 2);
+  b.doc()["images"] = json::array({{{"uri", "gray.png"}}});
+  b.doc()["textures"] = json::array({{{"source", 0}}});
+  const json turned = {
+      {"KHR_texture_transform", {{"offset", {0.5, 0.0}}, {"rotation", 0.5}, {"scale", {2, 3}}}}};
+  b.doc()["materials"] = json::array(
+      {{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}, {"extensions", turned}}}}},
+        {"emissiveFactor", {1, 1, 1}},
+        {"emissiveTexture", {{"index", 0}, {"extensions", turned}}},
+        {"extensions",
+         {{"KHR_materials_clearcoat",
+           {{"clearcoatFactor", 1}, {"clearcoatTexture", {{"index", 0}}}}}}}}});
+  const int times = b.add_floats({0, 2}, 1);
+  const int offsets = b.add_floats({0, 0, 1, 0.5f}, 2);
+  const int angles = b.add_floats({0, 1}, 1);
+  const int scales = b.add_floats({1, 1, 3, 5}, 2);
+  const std::string base = "/materials/0/pbrMetallicRoughness/baseColorTexture";
+  const std::string coat = "/materials/0/extensions/KHR_materials_clearcoat/clearcoatTexture";
+  const std::string transform = "/extensions/KHR_texture_transform/";
+  b.doc()["animations"] = {{{"channels",
+                             {pointer_channel(0, base + transform + "offset"),
+                              pointer_channel(1, base + transform + "rotation"),
+                              pointer_channel(2, coat + transform + "scale")}},
+                            {"samplers",
+                             {{{"input", times}, {"output", offsets}},
+                              {{"input", times}, {"output", angles}},
+                              {{"input", times}, {"output", scales}}}}}};
+  b.doc()["extensionsUsed"] = {"KHR_animation_pointer", "KHR_texture_transform",
+                               "KHR_materials_clearcoat"};
+  const fs::path path = dir_ / "uvs.gltf";
+  b.write_embedded(path);
+  GltfLoadReport report;
+  const Scene scene = load_gltf(path, &report);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+  ASSERT_EQ(scene.property_channels.size(), 3u);
+  EXPECT_EQ(scene.animated_materials(), std::vector<int>{0});
+  EXPECT_DOUBLE_EQ(scene.duration(), 2.0);
+
+  const Material& m = scene.materials[0];
+  EXPECT_EQ(m.uv_set.base_color, 0);  // its own set
+  EXPECT_EQ(m.uv_set.emissive, 1);    // the same transform, baked
+  EXPECT_EQ(m.uv_set.clearcoat, 2);   // animated: its own, though it reads TEXCOORD_0 as it is
+  const Primitive& p = scene.meshes[0].primitives[0];
+  const std::vector<glm::vec2> raw = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+  EXPECT_EQ(p.uv_set(0), raw);
+  EXPECT_EQ(p.uv_set(2), raw);
+  // The emissive set: T(0.5, 0) R(0.5) S(2, 3) applied at load; (1, 0) goes to
+  // (0.5 + 2 cos 0.5, -2 sin 0.5).
+  EXPECT_NEAR(p.uv_set(1)[1].x, 0.5 + 2 * std::cos(0.5), 1e-6);
+  EXPECT_NEAR(p.uv_set(1)[1].y, -2 * std::sin(0.5), 1e-6);
+  ASSERT_EQ(m.uv_transforms.size(), 3u);
+  EXPECT_EQ(m.uv_transforms[0], (Material::UvTransform{{0.5, 0.0}, 0.5, {2.0, 3.0}}));
+  EXPECT_EQ(m.uv_transforms[1], Material::UvTransform{});  // baked
+  EXPECT_EQ(m.uv_transforms[2], Material::UvTransform{});  // the file has none there
+  // The matrix maps (1, 0) where the load maps it.
+  const glm::dvec3 moved = m.uv_transforms[0].matrix() * glm::dvec3(1, 0, 1);
+  EXPECT_NEAR(moved.x, p.uv_set(1)[1].x, 1e-6);
+  EXPECT_NEAR(moved.y, p.uv_set(1)[1].y, 1e-6);
+
+  const SceneState at1 = scene.evaluate(1.0);
+  const Material& half = scene.material_at(at1, 0);
+  EXPECT_EQ(half.uv_transforms[0].offset, glm::dvec2(0.5, 0.25));
+  EXPECT_DOUBLE_EQ(half.uv_transforms[0].rotation, 0.5);
+  EXPECT_EQ(half.uv_transforms[0].scale, glm::dvec2(2.0, 3.0));  // not animated: the file's
+  EXPECT_EQ(half.uv_transforms[2].scale, glm::dvec2(2.0, 3.0));
+  EXPECT_EQ(half.uv_transforms[1], Material::UvTransform{});
+
+  // A pointer to an empty slot is skipped with a warning naming the channel; one to texCoord
+  // is a kind afr does not animate; one to a slot afr does not know, likewise.
+  b.doc()["animations"][0]["channels"] = {
+      pointer_channel(0, "/materials/0/normalTexture/extensions/KHR_texture_transform/offset"),
+      pointer_channel(1, base + transform + "texCoord"),
+      pointer_channel(0, "/materials/0/nosuchTexture/extensions/KHR_texture_transform/offset")};
+  b.write_embedded(path);
+  GltfLoadReport skipped;
+  const Scene without = load_gltf(path, &skipped);
+  EXPECT_TRUE(without.property_channels.empty());
+  EXPECT_TRUE(without.materials[0].uv_transforms.empty());
+  EXPECT_EQ(without.materials[0].uv_set.base_color, without.materials[0].uv_set.emissive);
+  ASSERT_EQ(skipped.warnings.size(), 2u);
+  EXPECT_EQ(count_containing(skipped.warnings,
+                             "animation 0 channel 0 (KHR_animation_pointer "
+                             "\"/materials/0/normalTexture/extensions/KHR_texture_transform/"
+                             "offset\") animates the transform of a texture slot without a "
+                             "texture (skipped)"),
+            1u);
+  EXPECT_EQ(count_containing(skipped.warnings, "KHR_texture_transform/texCoord, "), 1u);
+  EXPECT_EQ(count_containing(skipped.warnings, "nosuchTexture"), 1u);
+
+  // An offset of the wrong width or not finite, and a material the file lacks, are errors.
+  b.doc()["animations"][0]["channels"] = {pointer_channel(1, base + transform + "offset")};
+  b.write_embedded(path);
+  expect_error(path, "animation 0 channel 0");
+  b.doc()["animations"][0]["channels"] = {
+      pointer_channel(0, "/materials/4/emissiveTexture/extensions/KHR_texture_transform/offset")};
+  b.write_embedded(path);
+  expect_error(path, "targets material 4, but there are 1");
+}
+
 // glTF requires strictly increasing keyframe times, but exporters write repeated and unordered
 // ones: the channel is repaired with a warning naming it, not the whole scene refused.
 TEST_F(GltfLoaderTest, KeyframeTimesOutOfOrderAreSortedWithAWarning) {

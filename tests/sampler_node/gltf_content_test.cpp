@@ -1,9 +1,11 @@
 // The tracer on glTF content made elsewhere (issue 18), loaded through the loader as the
 // sampler loads it: a scene without lights renders non-black under the default lighting (the
 // Lambert law written out by hand for the headlight and sky), the headlight follows an
-// animated camera, emission scaled by KHR_materials_emissive_strength, and the default camera
-// shows a moving object moving across the image.
+// animated camera, emission scaled by KHR_materials_emissive_strength, the default camera
+// shows a moving object moving across the image, and an animated KHR_texture_transform moves a
+// texture over its surface.
 #include <afr/common/gltf_loader.h>
+#include <afr/common/image.h>
 #include <afr/sampler/tracer.h>
 
 #include <gtest/gtest.h>
@@ -200,6 +202,143 @@ TEST(GltfContentTracerTest, TheDefaultCameraShowsAMovingObjectMoving) {
   EXPECT_LT(start.x, 0.3 * kSize);
   EXPECT_GT(end.x, 0.7 * kSize);
   EXPECT_NEAR(start.y, end.y, 0.5);
+}
+
+// ---- Animated texture transforms ----
+
+// The unit quad in z = 0 (uvs (0, 0) to (1, 1) along x and y) under an unlit material whose base
+// color texture is `image` (written beside the file) read through `info`'s KHR_texture_transform,
+// and an animation whose channels `channels` drive it (samplers over keys at 0 s and 1 s).
+GltfContent textured_quad(const TempFolder& dir, const DecodedImage& image, const json& info,
+                          const json& material_extras, bool nearest) {
+  write_image8(image, dir / "texture.png");
+  GltfContent g;
+  g.doc()["images"] = json::array({{{"uri", "texture.png"}}});
+  g.doc()["samplers"] = json::array({{{"magFilter", nearest ? 9728 : 9729}}});
+  g.doc()["textures"] = json::array({{{"source", 0}, {"sampler", 0}}});
+  json material = {{"pbrMetallicRoughness", {{"baseColorTexture", info}}},
+                   {"extensions", {{"KHR_materials_unlit", json::object()}}}};
+  material.update(material_extras);
+  g.doc()["materials"] = json::array({material});
+  g.doc()["extensionsUsed"] = {"KHR_materials_unlit", "KHR_texture_transform",
+                               "KHR_animation_pointer"};
+  const int mesh = g.add_mesh({0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0}, {0, 1, 2, 0, 2, 3}, 0,
+                              {0, 0, 1, 0, 1, 1, 0, 1});
+  g.set_roots({g.add_node({{"mesh", mesh}})});
+  return g;
+}
+
+// Animates property `property` ("offset", "rotation", "scale") of the base color texture's
+// transform from `from` to `to` over 0 to 1 s (LINEAR).
+void animate_uv(GltfContent* g, const std::string& property, const std::vector<float>& from,
+                const std::vector<float>& to) {
+  std::vector<float> values = from;
+  values.insert(values.end(), to.begin(), to.end());
+  json& animations = g->doc()["animations"];
+  if (animations.is_null())
+    animations = {{{"channels", json::array()}, {"samplers", json::array()}}};
+  json& a = animations[0];
+  a["samplers"].push_back({{"input", g->add_floats({0.0f, 1.0f}, 1)},
+                           {"output", g->add_floats(values, int(from.size()))}});
+  const std::string pointer =
+      "/materials/0/pbrMetallicRoughness/baseColorTexture/extensions/"
+      "KHR_texture_transform/" +
+      property;
+  a["channels"].push_back(
+      {{"sampler", a["samplers"].size() - 1},
+       {"target",
+        {{"path", "pointer"},
+         {"extensions", {{"KHR_animation_pointer", {{"pointer", pointer}}}}}}}});
+}
+
+// Straight down the quad's normal onto (x, y), as a ray of cone `spread` per unit.
+ShadedSample trace_onto(const Tracer& tracer, float x, float y, float spread = 0.0f) {
+  TraceStats stats;
+  return tracer.trace(Ray{{x, y, 2.0f}, {0.0f, 0.0f, -1.0f}, spread, 0.0f}, &stats);
+}
+
+// An offset animated by a quarter of the texture moves a strip of four texels by one texel
+// (read by hand); back at 0 s it is where it was.
+TEST(GltfContentTracerTest, AnAnimatedTextureOffsetMovesTheTextureAcrossTheSurface) {
+  TempFolder dir;
+  const DecodedImage strip{4, 1, 3, {255, 0, 0, 0, 255, 0, 0, 0, 255, 255, 255, 255}};
+  const glm::vec3 texels[4] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 1}};
+  GltfContent g = textured_quad(dir, strip, {{"index", 0}}, json::object(), true);
+  animate_uv(&g, "offset", {0.0f, 0.0f}, {0.25f, 0.0f});
+  g.write(dir / "sliding.gltf");
+  Tracer tracer(load_gltf(dir / "sliding.gltf"));
+  for (const double t : {0.0, 1.0, 0.0}) {
+    tracer.set_time(t);
+    for (int k = 0; k < 4; ++k) {
+      const ShadedSample s = trace_onto(tracer, 0.125f + 0.25f * float(k), 0.5f);
+      ASSERT_TRUE(s.hit);
+      const glm::vec3 want = texels[(k + (t > 0.0 ? 1 : 0)) % 4];
+      expect_color_near(s.color, glm::dvec3(want), 1e-6);
+    }
+  }
+}
+
+// Offset, rotation and scale animated together give at each time the image of the same
+// transform written in the file (baked at load), thin rays and wide ones alike (the level of
+// detail follows the transformed coordinates).
+TEST(GltfContentTracerTest, AnAnimatedTextureTransformShowsWhatTheSameTransformInTheFileShows) {
+  TempFolder dir;
+  DecodedImage checker{8, 8, 3, {}};
+  for (int y = 0; y < 8; ++y) {
+    for (int x = 0; x < 8; ++x) {
+      checker.data.insert(checker.data.end(),
+                          {uint8_t(30 * x), uint8_t(30 * y), uint8_t((x + y) % 2 ? 240 : 20)});
+    }
+  }
+  GltfContent animated = textured_quad(dir, checker, {{"index", 0}}, json::object(), false);
+  animate_uv(&animated, "offset", {0.0f, 0.0f}, {0.4f, -0.2f});
+  animate_uv(&animated, "rotation", {0.0f}, {1.2f});
+  animate_uv(&animated, "scale", {1.0f, 1.0f}, {3.0f, 0.5f});
+  animated.write(dir / "animated.gltf");
+  Tracer tracer(load_gltf(dir / "animated.gltf"));
+  for (const float t : {0.0f, 0.3f, 1.0f}) {
+    SCOPED_TRACE("t = " + std::to_string(t));
+    const json transform = {{"offset", {0.4f * t, -0.2f * t}},
+                            {"rotation", 1.2f * t},
+                            {"scale", {1.0f + 2.0f * t, 1.0f - 0.5f * t}}};
+    GltfContent fixed = textured_quad(
+        dir, checker, {{"index", 0}, {"extensions", {{"KHR_texture_transform", transform}}}},
+        json::object(), false);
+    fixed.write(dir / "fixed.gltf");
+    const Tracer baked(load_gltf(dir / "fixed.gltf"));
+    tracer.set_time(t);
+    for (const float spread : {0.0f, 0.05f}) {
+      for (int i = 0; i < 25; ++i) {
+        const float x = 0.1f + 0.2f * float(i % 5), y = 0.1f + 0.2f * float(i / 5);
+        const ShadedSample want = trace_onto(baked, x, y, spread);
+        expect_color_near(trace_onto(tracer, x, y, spread).color, glm::dvec3(want.color), 1e-4);
+      }
+    }
+  }
+  // The transform does change the image (the comparison above could not pass by chance).
+  tracer.set_time(0.0);
+  const glm::vec3 before = trace_onto(tracer, 0.3f, 0.7f).color;
+  tracer.set_time(1.0);
+  EXPECT_GT(glm::length(trace_onto(tracer, 0.3f, 0.7f).color - before), 0.05f);
+}
+
+// alphaMode MASK tests the opacity through the animated transform too: the cut-out half of the
+// texture slides over the point, and rays pass there.
+TEST(GltfContentTracerTest, AnAnimatedTextureTransformMovesAMasksCutOut) {
+  TempFolder dir;
+  const DecodedImage half{2, 1, 4, {255, 0, 0, 255, 0, 0, 255, 0}};  // opaque red, clear blue
+  GltfContent g =
+      textured_quad(dir, half, {{"index", 0}}, {{"alphaMode", "MASK"}}, /*nearest=*/true);
+  animate_uv(&g, "offset", {0.0f, 0.0f}, {0.5f, 0.0f});
+  g.write(dir / "mask.gltf");
+  Tracer tracer(load_gltf(dir / "mask.gltf"));
+  EXPECT_TRUE(trace_onto(tracer, 0.25f, 0.5f).hit);
+  EXPECT_FALSE(trace_onto(tracer, 0.75f, 0.5f).hit);
+  tracer.set_time(1.0);
+  EXPECT_FALSE(trace_onto(tracer, 0.25f, 0.5f).hit);
+  const ShadedSample moved = trace_onto(tracer, 0.75f, 0.5f);
+  EXPECT_TRUE(moved.hit);
+  expect_color_near(moved.color, {1.0, 0.0, 0.0}, 1e-6);
 }
 
 }  // namespace

@@ -221,6 +221,11 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.value(m.transmission);
       h.value(m.ior);
     }
+    for (const Material::UvTransform& t : m.uv_transforms) {  // animated texture transforms
+      h.value(t.offset);
+      h.value(t.rotation);
+      h.value(t.scale);
+    }
   }
   h.value(uint64_t(scene.textures.size()));
   for (const Texture& t : scene.textures) {
@@ -303,6 +308,7 @@ uint64_t render_fingerprint(const Scene& scene) {
   for (const PropertyChannel& p : scene.property_channels) {
     h.value(p.property);
     h.value(p.index);
+    if (p.uv_set >= 0) h.value(p.uv_set);
     h.value(p.curve.interpolation);
     h.array(p.curve.times);
     h.array(p.curve.values);

@@ -81,20 +81,32 @@ enum class AnimatedProperty {
   kAlphaCutoff,        // /materials/N/alphaCutoff
   kNormalScale,        // /materials/N/normalTexture/scale
   kOcclusionStrength,  // /materials/N/occlusionTexture/strength
+  // /materials/N/TEXTURE/extensions/KHR_texture_transform/offset, TEXTURE a texture slot's
+  // path (pbrMetallicRoughness/baseColorTexture, extensions/KHR_materials_clearcoat/
+  // clearcoatTexture, ...): PropertyChannel::uv_set names the set it transforms.
+  kUvOffset,
+  kUvRotation,  //   .../rotation (radians)
+  kUvScale,     //   .../scale
 };
 
 std::string_view to_string(AnimatedProperty property);
-// Components of the property's value: 1 (a scalar), 3 (a color) or 4 (a base color factor).
+// Components of the property's value: 1 (a scalar), 2 (a texture transform's offset or scale),
+// 3 (a color) or 4 (a base color factor).
 int component_count(AnimatedProperty property);
 // True for the properties of lights, of cameras, of materials.
 bool is_light_property(AnimatedProperty property);
 bool is_camera_property(AnimatedProperty property);
 
+// True for the properties of a texture slot's KHR_texture_transform.
+bool is_uv_property(AnimatedProperty property);
+
 // One property channel: `curve` (path kTranslation: each component interpolated on its own;
-// node unused) drives `property` of light, camera or material `index` of the Scene.
+// node unused) drives `property` of light, camera or material `index` of the Scene; a texture
+// transform's, that of the material's texture coordinate set `uv_set` (Material::uv_transforms).
 struct PropertyChannel {
   AnimatedProperty property = AnimatedProperty::kLightIntensity;
   int index = -1;
+  int uv_set = -1;
   AnimationChannel curve;
 };
 

@@ -204,6 +204,22 @@ struct Material {
     bool operator==(const TextureSets&) const = default;
   };
   TextureSets uv_set;
+  // A KHR_texture_transform: texture coordinates (u, v) read as T(offset) R(rotation) S(scale)
+  // (u, v), the rotation turning (u, v) to (c u + s v, -s u + c v) (the Khronos sample viewer's
+  // order and sense; the loader's TextureTransformTest models agree).
+  struct UvTransform {
+    glm::dvec2 offset{0.0};
+    double rotation = 0.0;  // radians
+    glm::dvec2 scale{1.0};
+    glm::dmat3 matrix() const;  // column-major, acting on (u, v, 1)
+    bool operator==(const UvTransform&) const = default;
+  };
+  // Where KHR_animation_pointer animates a slot's texture transform, the transform of each set
+  // at this time, indexed like the sets (empty where none is animated). An animated slot reads
+  // a set of its own that holds its TEXCOORD_n untransformed, and the tracer applies the set's
+  // transform at each lookup; every other set is transformed at load and holds the identity
+  // here.
+  std::vector<UvTransform> uv_transforms;
   // glTF's alphaMode. kMask cuts the surface away where its alpha (base_color_factor's alpha x
   // the base-color texture's x COLOR_0's) is below alpha_cutoff, for every ray (camera, reflection,
   // shadow, occlusion). kBlend shows alpha of the surface's own light over 1 - alpha of what
