@@ -76,6 +76,8 @@ std::string_view to_string(AnimatedProperty property) {
       return "texture transform rotation";
     case AnimatedProperty::kUvScale:
       return "texture transform scale";
+    case AnimatedProperty::kNodeVisible:
+      return "node visibility";
   }
   return "?";
 }
@@ -97,6 +99,10 @@ int component_count(AnimatedProperty property) {
 
 bool is_light_property(AnimatedProperty property) {
   return property <= AnimatedProperty::kLightOuterCone;
+}
+
+bool is_node_property(AnimatedProperty property) {
+  return property == AnimatedProperty::kNodeVisible;
 }
 
 bool is_uv_property(AnimatedProperty property) {

@@ -290,6 +290,8 @@ std::optional<PointerTarget> pointer_target(std::string_view pointer) {
       {"/nodes/", "/rotation", Kind::kNode},
       {"/nodes/", "/scale", Kind::kNode},
       {"/nodes/", "/weights", Kind::kNode},
+      {"/nodes/", "/extensions/KHR_node_visibility/visible", Kind::kProperty,
+       AnimatedProperty::kNodeVisible},
       {"/meshes/", "/weights", Kind::kMeshWeights},
       {kLights, "/color", Kind::kProperty, AnimatedProperty::kLightColor},
       {kLights, "/intensity", Kind::kProperty, AnimatedProperty::kLightIntensity},
@@ -2793,6 +2795,11 @@ void Loader::load_nodes() {
 // meshes and lights, whatever theirs say (cameras stay: visibility does not affect them). The
 // value is the file's: KHR_animation_pointer does not animate it (read_animation_pointers).
 void Loader::hide_invisible_nodes() {
+  // Nodes whose visibility an animation drives keep what they carry (Node::visible).
+  std::set<size_t> animated;
+  for (const PointerChannel& p : pointer_channels_) {
+    if (p.target.property == AnimatedProperty::kNodeVisible) animated.insert(p.target.index);
+  }
   size_t hidden = 0;
   std::vector<int> stack;
   for (size_t i = 0; i < model_.nodes.size(); ++i) {
@@ -2805,6 +2812,10 @@ void Loader::hide_invisible_nodes() {
       fail(fmt::format("node {} KHR_node_visibility has an invalid visible (true or false)", i));
     }
     if (e.Get("visible").Get<bool>()) continue;
+    if (animated.count(i) != 0) {
+      scene_.nodes[i].visible = false;
+      continue;
+    }
     stack.push_back(int(i));
     while (!stack.empty()) {  // the node graph is a tree here (load_nodes checked)
       hidden_nodes_.insert(stack.back());
@@ -3231,12 +3242,14 @@ void Loader::add_property_channel(const tinygltf::Animation& animation, int samp
                                   AnimatedProperty property, size_t gltf_index,
                                   const std::string& what, int uv_set) {
   const bool light = is_light_property(property), camera = is_camera_property(property);
+  const bool node = is_node_property(property);
   const std::vector<int>* map = light ? &light_map_ : camera ? &camera_map_ : nullptr;
-  const size_t count = map ? map->size() : scene_.materials.size();
+  const size_t count = map ? map->size() : node ? model_.nodes.size() : scene_.materials.size();
   if (gltf_index >= count) {
     fail(fmt::format("{} targets {} {}, but there are {}", what,
                      light    ? "light"
                      : camera ? "camera"
+                     : node   ? "node"
                               : "material",
                      gltf_index, count));
   }

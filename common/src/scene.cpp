@@ -686,6 +686,19 @@ void Scene::finalize() {
     const Node& n = nodes[i];
     node_moves_[i] = transform_animated[i] || (n.parent != -1 && node_moves_[n.parent]);
   }
+  // Likewise a node's visibility varies when a channel drives it or its parent's.
+  std::vector<char> visibility_animated(nodes.size(), 0);
+  for (const PropertyChannel& pc : property_channels) {
+    if (is_node_property(pc.property)) visibility_animated[size_t(pc.index)] = 1;
+  }
+  visibility_varies_.assign(nodes.size(), 0);
+  visibility_used_ = false;
+  for (int i : order_) {
+    const Node& n = nodes[i];
+    visibility_varies_[i] =
+        visibility_animated[i] || (n.parent != -1 && visibility_varies_[n.parent]);
+    visibility_used_ = visibility_used_ || visibility_animated[i] || !n.visible;
+  }
 
   // Deformation: which nodes deform and move, where each node's morph weights and each skin's
   // joint matrices go in a SceneState.
@@ -753,8 +766,12 @@ void Scene::finalize_property_channels() {
   for (size_t c = 0; c < property_channels.size(); ++c) {
     const PropertyChannel& pc = property_channels[c];
     const bool light = is_light_property(pc.property), camera = is_camera_property(pc.property);
-    const size_t count = light ? lights.size() : camera ? cameras.size() : materials.size();
-    const char* kind = light ? "light" : camera ? "camera" : "material";
+    const bool node = is_node_property(pc.property);
+    const size_t count = light    ? lights.size()
+                         : camera ? cameras.size()
+                         : node   ? nodes.size()
+                                  : materials.size();
+    const char* kind = light ? "light" : camera ? "camera" : node ? "node" : "material";
     const std::string what = fmt::format("{}: property channel {} ({} of {} {})", source, c,
                                          to_string(pc.property), kind, pc.index);
     if (pc.index < 0 || size_t(pc.index) >= count) {
@@ -769,7 +786,7 @@ void Scene::finalize_property_channels() {
     duration_ = std::max(duration_, pc.curve.end_time());
     lights_animated_ |= light;
     cameras_animated_ |= camera;
-    if (!light && !camera) animated_materials_.push_back(pc.index);
+    if (!light && !camera && !node) animated_materials_.push_back(pc.index);
   }
   std::sort(animated_materials_.begin(), animated_materials_.end());
   animated_materials_.erase(std::unique(animated_materials_.begin(), animated_materials_.end()),
@@ -901,6 +918,18 @@ namespace {
 
 // A property's value as the renderer may use it: a cubic spline may overshoot its keys (the
 // loader checks each key against the same ranges).
+// A visibility channel's value at time t: each key's holds from its time to the next (the
+// first's before it), whatever the channel's interpolation, since a visibility does not blend;
+// visible where it is not 0.
+bool visible_key(const PropertyChannel& pc, double t) {
+  const AnimationChannel& c = pc.curve;
+  const size_t after =
+      size_t(std::upper_bound(c.times.begin(), c.times.end(), t) - c.times.begin());
+  const size_t key = after == 0 ? 0 : after - 1;
+  const bool cubic = c.interpolation == Interpolation::kCubicSpline;
+  return c.values[cubic ? 3 * key + 1 : key].x != 0.0;
+}
+
 void apply(AnimatedProperty property, const glm::dvec4& v, Light* light, CameraModel* camera,
            Material* material, int uv_set) {
   const float x = float(v.x);
@@ -965,6 +994,8 @@ void apply(AnimatedProperty property, const glm::dvec4& v, Light* light, CameraM
     case AnimatedProperty::kUvScale:
       material->uv_transforms[size_t(uv_set)].scale = glm::dvec2(v);
       break;
+    case AnimatedProperty::kNodeVisible:
+      break;  // evaluate_properties
   }
 }
 
@@ -974,7 +1005,22 @@ void Scene::evaluate_properties(double t, SceneState* state) const {
   if (lights_animated_) state->lights = lights;
   if (cameras_animated_) state->cameras = cameras;
   if (!animated_materials_.empty()) state->materials = materials;
+  state->hidden.clear();
+  if (visibility_used_) {
+    // Each node's own visibility, then its ancestors' hiding it.
+    state->hidden.resize(nodes.size());
+    for (size_t i = 0; i < nodes.size(); ++i) state->hidden[i] = !nodes[i].visible;
+    for (const PropertyChannel& pc : property_channels) {
+      if (is_node_property(pc.property))
+        state->hidden[size_t(pc.index)] = visible_key(pc, t) ? 0 : 1;
+    }
+    for (int i : order_) {
+      const int parent = nodes[size_t(i)].parent;
+      if (parent != -1 && state->hidden[size_t(parent)]) state->hidden[size_t(i)] = 1;
+    }
+  }
   for (const PropertyChannel& pc : property_channels) {
+    if (is_node_property(pc.property)) continue;
     const size_t i = size_t(pc.index);
     const bool light = is_light_property(pc.property), camera = is_camera_property(pc.property);
     apply(pc.property, pc.curve.evaluate(t), light ? &state->lights[i] : nullptr,

@@ -215,6 +215,7 @@ struct DeformingPrimitive {
   std::vector<glm::vec3> normals;
   std::vector<glm::vec4> tangents;  // where the primitive has them (Primitive::tangents)
   std::vector<glm::vec3> velocities;
+  bool enabled = true;  // false while its node is hidden (Scene::node_hidden)
   glm::vec4* tangents_or_null() { return tangents.empty() ? nullptr : tangents.data(); }
 };
 
@@ -766,9 +767,18 @@ void Tracer::Impl::build() {
   // The static, undeformed nodes that carry each mesh: a mesh whose copies beyond the first
   // would hold more than max_copied_vertices is instanced.
   std::vector<size_t> static_copies(scene_.meshes.size(), 0);
+  // A node whose visibility varies is placed as a moving one (its instance, or its deformed
+  // geometry, is left out while it is hidden: set_time); one hidden for good is left out here.
+  auto moves = [&](int n) { return scene_.node_moves(n) || scene_.node_visibility_varies(n); };
+  auto geometry_moves = [&](int n) {
+    return scene_.node_geometry_moves(n) || scene_.node_visibility_varies(n);
+  };
+  auto shown = [&](int n) {
+    return scene_.node_visibility_varies(n) || !scene_.node_hidden(at0, n);
+  };
   for (int n : scene_.scene_nodes()) {
     const Node& node = scene_.nodes[size_t(n)];
-    if (node.mesh >= 0 && !scene_.node_deforms(n) && !scene_.node_moves(n)) {
+    if (node.mesh >= 0 && !scene_.node_deforms(n) && !moves(n) && shown(n)) {
       ++static_copies[size_t(node.mesh)];
     }
   }
@@ -781,14 +791,15 @@ void Tracer::Impl::build() {
   }
   for (int n : scene_.scene_nodes()) {
     const Node& node = scene_.nodes[size_t(n)];
+    if (!shown(n)) continue;
     if (node.light >= 0 && size_t(node.light) < scene_.lights.size()) light_nodes_.push_back(n);
     if (node.mesh < 0) continue;
     const bool deformed = scene_.node_deforms(n);
-    if (deformed && scene_.node_geometry_moves(n)) {
+    if (deformed && geometry_moves(n)) {
       deforming_nodes.push_back(n);
       continue;
     }
-    if (!deformed && scene_.node_moves(n)) {
+    if (!deformed && moves(n)) {
       moving_nodes.push_back(n);
       continue;
     }
@@ -1024,6 +1035,15 @@ void Tracer::Impl::deform(double before, double after) {
   Blas& b = blas_[size_t(deforming_blas_)];
   for (size_t k = 0; k < deforming_.size(); ++k) {
     DeformingPrimitive& d = deforming_[k];
+    const bool show = !scene_.node_hidden(state_, d.node);
+    if (show != d.enabled) {
+      if (show)
+        rtcEnableGeometry(d.geom);
+      else
+        rtcDisableGeometry(d.geom);
+      d.enabled = show;
+    }
+    if (!show) continue;  // deformed again once shown
     const size_t count = d.normals.size();
     scene_.deform(d.node, d.primitive, state_minus_, positions_before_.data(), nullptr);
     scene_.deform(d.node, d.primitive, state_plus_, positions_after_.data(), nullptr);
@@ -1063,8 +1083,9 @@ void Tracer::Impl::set_time(double t) {
     const glm::dmat4& m = state_.world[size_t(inst.node)];
     const double det = glm::determinant(glm::dmat3(m));
     // A singular or broken transform (a scale of 0 hides an object) cannot be inverted for
-    // the ray: the instance is left out at this time.
-    const bool ok = std::isfinite(det) && std::abs(det) > 1e-30;
+    // the ray: the instance is left out at this time, as it is while its node is hidden.
+    const bool ok =
+        std::isfinite(det) && std::abs(det) > 1e-30 && !scene_.node_hidden(state_, inst.node);
     if (ok) {
       float xfm[12];
       to_float3x4(m, xfm);
@@ -1103,6 +1124,7 @@ void Tracer::Impl::set_time(double t) {
   lights_.clear();  // capacity stays: no allocation after the first call
   // A black light would cost a shadow ray per shading point for nothing.
   for (int n : light_nodes_) {
+    if (scene_.node_hidden(state_, n)) continue;
     const LightRecord r = shading::make_light_record(
         scene_.light_at(state_, size_t(scene_.nodes[size_t(n)].light)), state_.world[size_t(n)]);
     if (r.radiance != glm::vec3(0.0f)) lights_.push_back(r);

@@ -196,6 +196,16 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
       },
       [](Scene* s) { s->property_channels[0].curve.values[1].x = 3.0; });
   expect_seen(
+      "node visibility", [](Scene* s) { s->nodes[0].visible = false; },
+      [](Scene* s) {
+        PropertyChannel p;
+        p.property = AnimatedProperty::kNodeVisible;
+        p.index = 0;
+        p.curve.times = {0.0};
+        p.curve.values = {glm::dvec4(1.0)};
+        s->property_channels.push_back(p);
+      });
+  expect_seen(
       "animated texture transforms", [](Scene* s) { s->materials[0].uv_transforms.resize(1); },
       [](Scene* s) { s->materials[0].uv_transforms[0].rotation = 0.5; });
   expect_seen(

@@ -2582,13 +2582,68 @@ TEST_F(GltfLoaderTest, AnimationPointersToTextureTransformsAnimateTheirSlotsSets
   EXPECT_EQ(count_containing(skipped.warnings, "nosuchTexture"), 1u);
 
   // An offset of the wrong width or not finite, and a material the file lacks, are errors.
-  b.doc()["animations"][0]["channels"] = {pointer_channel(1, base + transform + "offset")};
+  // (json::array: a braced list of one json is that json itself under clang.)
+  b.doc()["animations"][0]["channels"] =
+      json::array({pointer_channel(1, base + transform + "offset")});
   b.write_embedded(path);
   expect_error(path, "animation 0 channel 0");
-  b.doc()["animations"][0]["channels"] = {
-      pointer_channel(0, "/materials/4/emissiveTexture/extensions/KHR_texture_transform/offset")};
+  b.doc()["animations"][0]["channels"] = json::array(
+      {pointer_channel(0, "/materials/4/emissiveTexture/extensions/KHR_texture_transform/offset")});
   b.write_embedded(path);
   expect_error(path, "targets material 4, but there are 1");
+}
+
+// KHR_animation_pointer drives a node's KHR_node_visibility: the node keeps its mesh though the
+// file hides it at rest (Node::visible false), its visibility and its child's vary, and each key
+// holds until the next (a visibility does not blend, whatever the interpolation). A node hidden
+// with no animation still loses its mesh.
+TEST_F(GltfLoaderTest, AnimationPointersToANodesVisibilityShowAndHideItAndItsChildren) {
+  GltfBuilder b;
+  add_quad(&b);
+  const json hidden = {{"KHR_node_visibility", {{"visible", false}}}};
+  b.doc()["nodes"][0]["extensions"] = hidden;
+  b.doc()["nodes"][0]["children"] = {1};
+  b.doc()["nodes"].push_back({{"mesh", 0}, {"translation", {0, 2, 0}}});  // node 1: its child
+  b.doc()["nodes"].push_back({{"mesh", 0}, {"extensions", hidden}});      // node 2: for good
+  b.doc()["scenes"][0]["nodes"] = {0, 2};
+  const int times = b.add_floats({0, 1, 2}, 1);
+  const int keys = b.add_floats({0, 1, 0}, 1);
+  b.doc()["animations"] = {
+      {{"channels",
+        json::array({pointer_channel(0, "/nodes/0/extensions/KHR_node_visibility/visible")})},
+       {"samplers", {{{"input", times}, {"output", keys}}}}}};  // LINEAR, the default
+  b.doc()["extensionsUsed"] = {"KHR_animation_pointer", "KHR_node_visibility"};
+  const fs::path path = dir_ / "blink.gltf";
+  b.write_embedded(path);
+  GltfLoadReport report;
+  const Scene scene = load_gltf(path, &report);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+  ASSERT_EQ(scene.property_channels.size(), 1u);
+  EXPECT_TRUE(scene.animated_materials().empty());
+  EXPECT_EQ(scene.nodes[0].mesh, 0);
+  EXPECT_FALSE(scene.nodes[0].visible);
+  EXPECT_TRUE(scene.nodes[1].visible);
+  EXPECT_EQ(scene.nodes[2].mesh, -1);  // hidden for good: dropped
+  EXPECT_TRUE(scene.node_visibility_varies(0));
+  EXPECT_TRUE(scene.node_visibility_varies(1));
+  EXPECT_FALSE(scene.node_visibility_varies(2));
+  for (const auto& [t, shown] : std::vector<std::pair<double, bool>>{
+           {0.0, false}, {0.9, false}, {1.0, true}, {1.5, true}, {2.0, false}, {5.0, false}}) {
+    const SceneState state = scene.evaluate(t);
+    EXPECT_EQ(scene.node_hidden(state, 0), !shown) << "t = " << t;
+    EXPECT_EQ(scene.node_hidden(state, 1), !shown) << "t = " << t;  // with its parent
+  }
+
+  // A pointer to a node the file lacks is an error naming it; a negative key, one naming it.
+  b.doc()["animations"][0]["channels"][0] =
+      pointer_channel(0, "/nodes/7/extensions/KHR_node_visibility/visible");
+  b.write_embedded(path);
+  expect_error(path, "targets node 7, but there are 3");
+  b.doc()["animations"][0]["channels"][0] =
+      pointer_channel(0, "/nodes/1/extensions/KHR_node_visibility/visible");
+  b.doc()["animations"][0]["samplers"][0]["output"] = b.add_floats({1, -1, 1}, 1);
+  b.write_embedded(path);
+  expect_error(path, "key 1 sets the node visibility to -1");
 }
 
 // glTF requires strictly increasing keyframe times, but exporters write repeated and unordered

@@ -2,8 +2,8 @@
 // sampler loads it: a scene without lights renders non-black under the default lighting (the
 // Lambert law written out by hand for the headlight and sky), the headlight follows an
 // animated camera, emission scaled by KHR_materials_emissive_strength, the default camera
-// shows a moving object moving across the image, and an animated KHR_texture_transform moves a
-// texture over its surface.
+// shows a moving object moving across the image, an animated KHR_texture_transform moves a
+// texture over its surface, and an animated KHR_node_visibility shows and hides nodes.
 #include <afr/common/gltf_loader.h>
 #include <afr/common/image.h>
 #include <afr/sampler/tracer.h>
@@ -14,6 +14,7 @@
 #include <numbers>
 #include <vector>
 
+#include "support/deforming_content.h"
 #include "support/gltf_content.h"
 
 namespace afr {
@@ -339,6 +340,69 @@ TEST(GltfContentTracerTest, AnAnimatedTextureTransformMovesAMasksCutOut) {
   const ShadedSample moved = trace_onto(tracer, 0.75f, 0.5f);
   EXPECT_TRUE(moved.hit);
   expect_color_near(moved.color, {1.0, 0.0, 0.0}, 1e-6);
+}
+
+// ---- Animated visibility ----
+
+// KHR_node_visibility driven by KHR_animation_pointer: the morphed quad (deformed geometry) shows
+// at 0 s and 2 s and hides at 1 s; a box, its child box and the child's point light hide at
+// 0 s and show from 1 s. While the light is hidden the quad gets none of its light.
+TEST(GltfContentTracerTest, AnAnimatedVisibilityShowsAndHidesNodesTheirChildrenAndLights) {
+  TempFolder dir;
+  GltfContent g = testing::MorphedQuad::make(Interpolation::kLinear);  // node 0, x 2 to 4
+  const int box = g.add_box(0.5f);
+  const int light = g.add_node({{"translation", {5.0, 1.0, 3.0}},
+                                {"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}});
+  const int child = g.add_node({{"mesh", box}, {"translation", {0.0, 3.0, 0.0}}});
+  const int parent =
+      g.add_node({{"mesh", box}, {"translation", {-2.0, 0.0, 0.0}}, {"children", {child, light}}});
+  g.set_roots({0, parent});
+  g.doc()["extensions"]["KHR_lights_punctual"]["lights"] = {{{"type", "point"}, {"intensity", 40}}};
+  g.doc()["extensionsUsed"] = {"KHR_lights_punctual", "KHR_node_visibility",
+                               "KHR_animation_pointer"};
+  json& a = g.doc()["animations"][0];
+  const int times = g.add_floats({0.0f, 1.0f, 2.0f}, 1);
+  const auto blink = [&](int node, std::vector<float> keys) {
+    a["samplers"].push_back(
+        {{"input", times}, {"output", g.add_floats(keys, 1)}, {"interpolation", "STEP"}});
+    a["channels"].push_back(
+        {{"sampler", a["samplers"].size() - 1},
+         {"target",
+          {{"path", "pointer"},
+           {"extensions",
+            {{"KHR_animation_pointer",
+              {{"pointer", "/nodes/" + std::to_string(node) +
+                               "/extensions/KHR_node_visibility/visible"}}}}}}}});
+  };
+  blink(0, {1, 0, 1});
+  blink(parent, {0, 1, 1});
+  g.write(dir / "blink.gltf");
+  Tracer tracer(load_gltf(dir / "blink.gltf"));
+
+  const auto onto = [&](float x, float y) {
+    TraceStats stats;
+    return tracer.trace(Ray{{x, y, 10.0f}, {0.0f, 0.0f, -1.0f}}, &stats);
+  };
+  struct When {
+    double t;
+    bool quad, boxes;
+  };
+  for (const When w : {When{0.0, true, false}, When{0.5, true, false}, When{1.0, false, true},
+                       When{2.0, true, true}, When{0.0, true, false}}) {
+    SCOPED_TRACE("t = " + std::to_string(w.t));
+    tracer.set_time(w.t);
+    const ShadedSample quad = onto(3.0f, 1.0f);
+    EXPECT_EQ(quad.hit, w.quad);
+    EXPECT_EQ(onto(-2.0f, 0.0f).hit, w.boxes);
+    EXPECT_EQ(onto(-2.0f, 3.0f).hit, w.boxes);
+    if (quad.hit) {  // lit only while the light's node shows
+      if (w.boxes) {
+        EXPECT_GT(quad.color.g, 0.05f);
+      } else {
+        EXPECT_LT(quad.color.g, 1e-6f);
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -282,6 +282,7 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.value(n.skin);
       h.array(n.weights);
     }
+    if (!n.visible) h.value(n.visible);
   }
   if (!scene.skins.empty()) {
     h.value(uint64_t(scene.skins.size()));

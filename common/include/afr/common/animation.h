@@ -87,6 +87,9 @@ enum class AnimatedProperty {
   kUvOffset,
   kUvRotation,  //   .../rotation (radians)
   kUvScale,     //   .../scale
+  // /nodes/N/extensions/KHR_node_visibility/visible: a key other than 0 shows node N and its
+  // descendants, 0 hides them (a step: the value holds from its key to the next).
+  kNodeVisible,
 };
 
 std::string_view to_string(AnimatedProperty property);
@@ -97,11 +100,13 @@ int component_count(AnimatedProperty property);
 bool is_light_property(AnimatedProperty property);
 bool is_camera_property(AnimatedProperty property);
 
+// True for a node's property (its visibility).
+bool is_node_property(AnimatedProperty property);
 // True for the properties of a texture slot's KHR_texture_transform.
 bool is_uv_property(AnimatedProperty property);
 
 // One property channel: `curve` (path kTranslation: each component interpolated on its own;
-// node unused) drives `property` of light, camera or material `index` of the Scene; a texture
+// node unused) drives `property` of node, light, camera or material `index` of the Scene; a texture
 // transform's, that of the material's texture coordinate set `uv_set` (Material::uv_transforms).
 struct PropertyChannel {
   AnimatedProperty property = AnimatedProperty::kLightIntensity;

@@ -348,6 +348,9 @@ struct Node {
   int light = -1;
   int skin = -1;               // index into Scene::skins; the mesh is then skinned
   std::vector<float> weights;  // morph weights instead of the mesh's; empty: the mesh's
+  // KHR_node_visibility: false hides the node's and its descendants' meshes and lights (not
+  // its camera), whatever their own. A property channel (kNodeVisible) may drive it.
+  bool visible = true;
 };
 
 // The world transforms of every node at one time, and what deforms meshes at that time.
@@ -364,6 +367,9 @@ struct SceneState {
   std::vector<Light> lights;
   std::vector<CameraModel> cameras;
   std::vector<Material> materials;
+  // Per node, whether it or an ancestor is hidden at this time (Node::visible); empty where
+  // every node is visible at all times (read it through Scene::node_hidden).
+  std::vector<uint8_t> hidden;
 };
 
 class Scene {
@@ -398,6 +404,13 @@ class Scene {
   // True when the world-space vertices of node i's mesh depend on time: the node moves (a
   // mesh that is not skinned), a joint of its skin moves, or a weights channel drives it.
   bool node_geometry_moves(int i) const { return node_geometry_moves_[i]; }
+  // True when node i's visibility depends on time: a property channel drives it or an
+  // ancestor's (Node::visible).
+  bool node_visibility_varies(int i) const { return visibility_varies_[i]; }
+  // Whether node i's mesh and light are hidden at the state's time.
+  bool node_hidden(const SceneState& state, int i) const {
+    return !state.hidden.empty() && state.hidden[size_t(i)];
+  }
   // True when any mesh of the displayed scene moves or deforms: samples then need a velocity.
   bool has_moving_geometry() const { return has_moving_geometry_; }
   // The node whose camera is active (the first camera node in scene order), or -1.
@@ -451,6 +464,8 @@ class Scene {
   void evaluate_properties(double t, SceneState* state) const;
 
   std::vector<char> node_moves_;
+  std::vector<char> visibility_varies_;
+  bool visibility_used_ = false;  // a node is hidden at some time: SceneState::hidden is kept
   std::vector<char> node_deforms_;
   std::vector<char> node_geometry_moves_;
   std::vector<int> order_;               // all nodes, parents before children
