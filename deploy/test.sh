@@ -11,6 +11,8 @@
 #            them)                                                        (build-asan/)
 #   tsan     clang, ThreadSanitizer: the tests of the concurrent parts (sample ingest and
 #            reconstruction, the sampler's worker threads, the channels)       (build-tsan/)
+# In both sanitizer builds the test code itself is compiled at -O0, the code under test at -O2
+# (tests/CMakeLists.txt): that takes minutes off the build and seconds onto the tests.
 # The sanitizer builds' test selection and options are the test presets (ctest --preset asan,
 # ctest --preset tsan); suppressions for libraries afr does not build are in cmake/sanitizers/.
 # Without a display server the tests run under xvfb-run, so the window test runs too.
