@@ -70,6 +70,30 @@ std::string_view to_string(AnimatedProperty property) {
       return "normal texture scale";
     case AnimatedProperty::kOcclusionStrength:
       return "occlusion strength";
+    case AnimatedProperty::kClearcoatFactor:
+      return "clearcoat factor";
+    case AnimatedProperty::kClearcoatRoughnessFactor:
+      return "clearcoat roughness factor";
+    case AnimatedProperty::kSheenColorFactor:
+      return "sheen color factor";
+    case AnimatedProperty::kSheenRoughnessFactor:
+      return "sheen roughness factor";
+    case AnimatedProperty::kSpecularFactor:
+      return "specular factor";
+    case AnimatedProperty::kSpecularColorFactor:
+      return "specular color factor";
+    case AnimatedProperty::kIridescenceFactor:
+      return "iridescence factor";
+    case AnimatedProperty::kIridescenceIor:
+      return "iridescence ior";
+    case AnimatedProperty::kIridescenceThicknessMinimum:
+      return "iridescence thickness minimum";
+    case AnimatedProperty::kIridescenceThicknessMaximum:
+      return "iridescence thickness maximum";
+    case AnimatedProperty::kAnisotropyStrength:
+      return "anisotropy strength";
+    case AnimatedProperty::kAnisotropyRotation:
+      return "anisotropy rotation";
     case AnimatedProperty::kUvOffset:
       return "texture transform offset";
     case AnimatedProperty::kUvRotation:
@@ -86,6 +110,8 @@ int component_count(AnimatedProperty property) {
   switch (property) {
     case AnimatedProperty::kLightColor:
     case AnimatedProperty::kEmissiveFactor:
+    case AnimatedProperty::kSheenColorFactor:
+    case AnimatedProperty::kSpecularColorFactor:
       return 3;
     case AnimatedProperty::kBaseColorFactor:
       return 4;

@@ -315,6 +315,30 @@ std::optional<PointerTarget> pointer_target(std::string_view pointer) {
       {"/materials/", "/normalTexture/scale", Kind::kProperty, AnimatedProperty::kNormalScale},
       {"/materials/", "/occlusionTexture/strength", Kind::kProperty,
        AnimatedProperty::kOcclusionStrength},
+      {"/materials/", "/extensions/KHR_materials_clearcoat/clearcoatFactor", Kind::kProperty,
+       AnimatedProperty::kClearcoatFactor},
+      {"/materials/", "/extensions/KHR_materials_clearcoat/clearcoatRoughnessFactor",
+       Kind::kProperty, AnimatedProperty::kClearcoatRoughnessFactor},
+      {"/materials/", "/extensions/KHR_materials_sheen/sheenColorFactor", Kind::kProperty,
+       AnimatedProperty::kSheenColorFactor},
+      {"/materials/", "/extensions/KHR_materials_sheen/sheenRoughnessFactor", Kind::kProperty,
+       AnimatedProperty::kSheenRoughnessFactor},
+      {"/materials/", "/extensions/KHR_materials_specular/specularFactor", Kind::kProperty,
+       AnimatedProperty::kSpecularFactor},
+      {"/materials/", "/extensions/KHR_materials_specular/specularColorFactor", Kind::kProperty,
+       AnimatedProperty::kSpecularColorFactor},
+      {"/materials/", "/extensions/KHR_materials_iridescence/iridescenceFactor", Kind::kProperty,
+       AnimatedProperty::kIridescenceFactor},
+      {"/materials/", "/extensions/KHR_materials_iridescence/iridescenceIor", Kind::kProperty,
+       AnimatedProperty::kIridescenceIor},
+      {"/materials/", "/extensions/KHR_materials_iridescence/iridescenceThicknessMinimum",
+       Kind::kProperty, AnimatedProperty::kIridescenceThicknessMinimum},
+      {"/materials/", "/extensions/KHR_materials_iridescence/iridescenceThicknessMaximum",
+       Kind::kProperty, AnimatedProperty::kIridescenceThicknessMaximum},
+      {"/materials/", "/extensions/KHR_materials_anisotropy/anisotropyStrength", Kind::kProperty,
+       AnimatedProperty::kAnisotropyStrength},
+      {"/materials/", "/extensions/KHR_materials_anisotropy/anisotropyRotation", Kind::kProperty,
+       AnimatedProperty::kAnisotropyRotation},
   };
   for (const Form& f : kForms) {
     if (pointer.size() <= f.prefix.size() + f.suffix.size() || !pointer.starts_with(f.prefix) ||
@@ -3297,8 +3321,19 @@ void Loader::add_property_channel(const tinygltf::Animation& animation, int samp
     case AnimatedProperty::kMetallicFactor:
     case AnimatedProperty::kRoughnessFactor:
     case AnimatedProperty::kOcclusionStrength:
-      hi = 1.0;
+    case AnimatedProperty::kClearcoatFactor:
+    case AnimatedProperty::kClearcoatRoughnessFactor:
+    case AnimatedProperty::kSheenColorFactor:
+    case AnimatedProperty::kSheenRoughnessFactor:
+    case AnimatedProperty::kSpecularFactor:
+    case AnimatedProperty::kIridescenceFactor:
+    case AnimatedProperty::kAnisotropyStrength:
+      hi = 1.0;  // the extensions' own ranges, as the loader reads them unanimated
       break;
+    case AnimatedProperty::kIridescenceIor:
+      lo = 1.0;
+      break;
+    case AnimatedProperty::kAnisotropyRotation:
     case AnimatedProperty::kNormalScale:
     case AnimatedProperty::kUvOffset:
     case AnimatedProperty::kUvRotation:
@@ -3322,7 +3357,8 @@ void Loader::add_property_channel(const tinygltf::Animation& animation, int samp
       }
       if ((open_lo ? x > lo : x >= lo) && x <= hi) continue;
       const std::string problem =
-          fmt::format("{}: key {} sets the {} to {}, outside {}{}, {}]", what, i / per_key,
+          // (The key is a float: 7 digits give it back.)
+          fmt::format("{}: key {} sets the {} to {:.7g}, outside {}{}, {}]", what, i / per_key,
                       to_string(property), x, open_lo ? "(" : "[", lo,
                       std::isinf(hi) ? std::string("inf") : fmt::format("{:.6g}", hi));
       // As the loader takes these factors when they are not animated: clamped where they are

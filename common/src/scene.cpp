@@ -985,6 +985,42 @@ void apply(AnimatedProperty property, const glm::dvec4& v, Light* light, CameraM
     case AnimatedProperty::kOcclusionStrength:
       material->occlusion_strength = std::clamp(x, 0.0f, 1.0f);
       break;
+    case AnimatedProperty::kClearcoatFactor:
+      material->clearcoat = std::clamp(x, 0.0f, 1.0f);
+      break;
+    case AnimatedProperty::kClearcoatRoughnessFactor:
+      material->clearcoat_roughness = std::clamp(x, 0.0f, 1.0f);
+      break;
+    case AnimatedProperty::kSheenColorFactor:
+      material->sheen_color = glm::clamp(glm::vec3(v), glm::vec3(0.0f), glm::vec3(1.0f));
+      break;
+    case AnimatedProperty::kSheenRoughnessFactor:
+      material->sheen_roughness = std::clamp(x, 0.0f, 1.0f);
+      break;
+    case AnimatedProperty::kSpecularFactor:
+      material->specular = std::clamp(x, 0.0f, 1.0f);
+      break;
+    case AnimatedProperty::kSpecularColorFactor:
+      material->specular_color = glm::max(glm::vec3(v), glm::vec3(0.0f));
+      break;
+    case AnimatedProperty::kIridescenceFactor:
+      material->iridescence = std::clamp(x, 0.0f, 1.0f);
+      break;
+    case AnimatedProperty::kIridescenceIor:
+      material->iridescence_ior = std::max(x, 1.0f);
+      break;
+    case AnimatedProperty::kIridescenceThicknessMinimum:
+      material->iridescence_thickness_min = std::max(x, 0.0f);
+      break;
+    case AnimatedProperty::kIridescenceThicknessMaximum:
+      material->iridescence_thickness_max = std::max(x, 0.0f);
+      break;
+    case AnimatedProperty::kAnisotropyStrength:
+      material->anisotropy = std::clamp(x, 0.0f, 1.0f);
+      break;
+    case AnimatedProperty::kAnisotropyRotation:
+      material->anisotropy_rotation = x;
+      break;
     case AnimatedProperty::kUvOffset:
       material->uv_transforms[size_t(uv_set)].offset = glm::dvec2(v);
       break;

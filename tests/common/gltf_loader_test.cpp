@@ -2646,6 +2646,49 @@ TEST_F(GltfLoaderTest, AnimationPointersToANodesVisibilityShowAndHideItAndItsChi
   expect_error(path, "key 1 sets the node visibility to -1");
 }
 
+// The material extensions' factors are animated within the ranges the loader reads them in:
+// a color's three components and a factor's one reach the material, a key outside the range is
+// an error naming the channel and the key.
+TEST_F(GltfLoaderTest, AnimationPointersToMaterialExtensionFactorsKeepTheirRanges) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  b.doc()["materials"] =
+      json::array({{{"extensions",
+                     {{"KHR_materials_sheen", {{"sheenColorFactor", {0, 0, 0}}}},
+                      {"KHR_materials_iridescence", {{"iridescenceFactor", 1}}}}}}});
+  const int times = b.add_floats({0, 2}, 1);
+  b.doc()["animations"] = {
+      {{"channels",
+        {pointer_channel(0, "/materials/0/extensions/KHR_materials_sheen/sheenColorFactor"),
+         pointer_channel(1, "/materials/0/extensions/KHR_materials_iridescence/iridescenceIor")}},
+       {"samplers",
+        {{{"input", times}, {"output", b.add_floats({0, 0, 0, 1, 0.5f, 0.25f}, 3)}},
+         {{"input", times}, {"output", b.add_floats({1.2f, 2.0f}, 1)}}}}}};
+  b.doc()["extensionsUsed"] = {"KHR_animation_pointer", "KHR_materials_sheen",
+                               "KHR_materials_iridescence"};
+  const fs::path path = dir_ / "factors.gltf";
+  b.write_embedded(path);
+  GltfLoadReport report;
+  const Scene scene = load_gltf(path, &report);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+  const SceneState at1 = scene.evaluate(1.0);
+  const Material& m = scene.material_at(at1, 0);
+  EXPECT_NEAR(m.sheen_color.x, 0.5f, 1e-6f);
+  EXPECT_NEAR(m.sheen_color.y, 0.25f, 1e-6f);
+  EXPECT_NEAR(m.sheen_color.z, 0.125f, 1e-6f);
+  EXPECT_NEAR(m.iridescence_ior, 1.6f, 1e-6f);
+
+  b.doc()["animations"][0]["samplers"][1]["output"] = b.add_floats({1.2f, 0.9f}, 1);
+  b.write_embedded(path);
+  expect_error(path, "key 1 sets the iridescence ior to 0.9");
+  b.doc()["animations"][0]["channels"][1] =
+      pointer_channel(1, "/materials/0/extensions/KHR_materials_clearcoat/clearcoatFactor");
+  b.doc()["animations"][0]["samplers"][1]["output"] = b.add_floats({0.5f, 1.5f}, 1);
+  b.write_embedded(path);
+  expect_error(path, "key 1 sets the clearcoat factor to 1.5, outside [0, 1]");
+}
+
 // glTF requires strictly increasing keyframe times, but exporters write repeated and unordered
 // ones: the channel is repaired with a warning naming it, not the whole scene refused.
 TEST_F(GltfLoaderTest, KeyframeTimesOutOfOrderAreSortedWithAWarning) {

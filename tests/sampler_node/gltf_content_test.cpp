@@ -342,6 +342,94 @@ TEST(GltfContentTracerTest, AnAnimatedTextureTransformMovesAMasksCutOut) {
   expect_color_near(moved.color, {1.0, 0.0, 0.0}, 1e-6);
 }
 
+// ---- Animated material extensions ----
+
+// The material extensions' factors that KHR_animation_pointer drives (clearcoat, sheen,
+// specular, iridescence, anisotropy) shade at each time as the same factors written in the
+// file do, and the image does change over the animation.
+TEST(GltfContentTracerTest, AnimatedMaterialExtensionFactorsShadeAsTheSameFactorsInTheFile) {
+  struct Factor {
+    std::string extension, property;
+    std::vector<float> from, to;
+  };
+  const std::vector<Factor> factors = {
+      {"KHR_materials_clearcoat", "clearcoatFactor", {0.0f}, {1.0f}},
+      {"KHR_materials_clearcoat", "clearcoatRoughnessFactor", {0.1f}, {0.6f}},
+      {"KHR_materials_sheen", "sheenColorFactor", {0.0f, 0.0f, 0.0f}, {0.9f, 0.5f, 0.2f}},
+      {"KHR_materials_sheen", "sheenRoughnessFactor", {0.2f}, {0.8f}},
+      {"KHR_materials_specular", "specularFactor", {1.0f}, {0.3f}},
+      {"KHR_materials_specular", "specularColorFactor", {1.0f, 1.0f, 1.0f}, {0.2f, 1.5f, 0.7f}},
+      {"KHR_materials_iridescence", "iridescenceFactor", {0.0f}, {1.0f}},
+      {"KHR_materials_iridescence", "iridescenceIor", {1.3f}, {1.8f}},
+      {"KHR_materials_iridescence", "iridescenceThicknessMinimum", {100.0f}, {300.0f}},
+      {"KHR_materials_iridescence", "iridescenceThicknessMaximum", {400.0f}, {700.0f}},
+      {"KHR_materials_anisotropy", "anisotropyStrength", {0.0f}, {0.8f}},
+      {"KHR_materials_anisotropy", "anisotropyRotation", {0.0f}, {1.0f}},
+  };
+  // The material with each factor at s in [0, 1] of the way from `from` to `to`.
+  const auto material = [&](float s) {
+    json m = {{"pbrMetallicRoughness",
+               {{"baseColorFactor", {0.6, 0.3, 0.2, 1.0}},
+                {"metallicFactor", 0.0},
+                {"roughnessFactor", 0.5}}}};
+    for (const Factor& f : factors) {
+      json value = json::array();
+      for (size_t k = 0; k < f.from.size(); ++k)
+        value.push_back(f.from[k] + s * (f.to[k] - f.from[k]));
+      m["extensions"][f.extension][f.property] = f.from.size() == 1 ? value[0] : value;
+    }
+    return m;
+  };
+  const json used = {"KHR_materials_clearcoat",  "KHR_materials_sheen",
+                     "KHR_materials_specular",   "KHR_materials_iridescence",
+                     "KHR_materials_anisotropy", "KHR_animation_pointer"};
+  TempFolder dir;
+  GltfContent animated = box(material(0.0f));
+  animated.doc()["extensionsUsed"] = used;
+  json a = {{"channels", json::array()}, {"samplers", json::array()}};
+  const int times = animated.add_floats({0.0f, 1.0f}, 1);
+  for (const Factor& f : factors) {
+    std::vector<float> keys = f.from;
+    keys.insert(keys.end(), f.to.begin(), f.to.end());
+    a["samplers"].push_back(
+        {{"input", times}, {"output", animated.add_floats(keys, int(f.from.size()))}});
+    const std::string pointer = "/materials/0/extensions/" + f.extension + "/" + f.property;
+    a["channels"].push_back(
+        {{"sampler", a["samplers"].size() - 1},
+         {"target",
+          {{"path", "pointer"},
+           {"extensions", {{"KHR_animation_pointer", {{"pointer", pointer}}}}}}}});
+  }
+  animated.doc()["animations"] = json::array({a});
+  animated.write(dir / "animated.gltf");
+  GltfLoadReport report;
+  Tracer tracer(load_gltf(dir / "animated.gltf", &report));
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+
+  const int kSize = 16;
+  std::vector<glm::vec3> first;
+  for (const float t : {0.0f, 0.4f, 1.0f}) {
+    SCOPED_TRACE("t = " + std::to_string(t));
+    GltfContent fixed = box(material(t));
+    fixed.doc()["extensionsUsed"] = used;
+    fixed.write(dir / "fixed.gltf");
+    const Tracer baked(load_gltf(dir / "fixed.gltf"));
+    tracer.set_time(t);
+    double change = 0.0;
+    for (int y = 0; y < kSize; ++y) {
+      for (int x = 0; x < kSize; ++x) {
+        const ShadedSample got = trace_pixel(tracer, x + 0.5, y + 0.5, kSize, kSize);
+        const ShadedSample want = trace_pixel(baked, x + 0.5, y + 0.5, kSize, kSize);
+        ASSERT_EQ(got.hit, want.hit);
+        expect_color_near(got.color, glm::dvec3(want.color), 1e-4);
+        if (t == 0.0f) first.push_back(got.color);
+        change += glm::length(got.color - first[size_t(y * kSize + x)]);
+      }
+    }
+    if (t == 1.0f) EXPECT_GT(change, 1.0);  // the animation shows
+  }
+}
+
 // ---- Animated visibility ----
 
 // KHR_node_visibility driven by KHR_animation_pointer: the morphed quad (deformed geometry) shows

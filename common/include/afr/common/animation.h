@@ -81,6 +81,19 @@ enum class AnimatedProperty {
   kAlphaCutoff,        // /materials/N/alphaCutoff
   kNormalScale,        // /materials/N/normalTexture/scale
   kOcclusionStrength,  // /materials/N/occlusionTexture/strength
+  // The material extensions' factors, /materials/N/extensions/EXTENSION/PROPERTY:
+  kClearcoatFactor,              //   KHR_materials_clearcoat/clearcoatFactor
+  kClearcoatRoughnessFactor,     //   .../clearcoatRoughnessFactor
+  kSheenColorFactor,             //   KHR_materials_sheen/sheenColorFactor
+  kSheenRoughnessFactor,         //   .../sheenRoughnessFactor
+  kSpecularFactor,               //   KHR_materials_specular/specularFactor
+  kSpecularColorFactor,          //   .../specularColorFactor
+  kIridescenceFactor,            //   KHR_materials_iridescence/iridescenceFactor
+  kIridescenceIor,               //   .../iridescenceIor
+  kIridescenceThicknessMinimum,  //   .../iridescenceThicknessMinimum (nanometres)
+  kIridescenceThicknessMaximum,  //   .../iridescenceThicknessMaximum
+  kAnisotropyStrength,           //   KHR_materials_anisotropy/anisotropyStrength
+  kAnisotropyRotation,           //   .../anisotropyRotation (radians)
   // /materials/N/TEXTURE/extensions/KHR_texture_transform/offset, TEXTURE a texture slot's
   // path (pbrMetallicRoughness/baseColorTexture, extensions/KHR_materials_clearcoat/
   // clearcoatTexture, ...): PropertyChannel::uv_set names the set it transforms.
