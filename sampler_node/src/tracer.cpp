@@ -54,6 +54,16 @@ float max_abs(const glm::vec3& v) {
   return std::max(std::abs(v.x), std::max(std::abs(v.y), std::abs(v.z)));
 }
 
+// Enables or disables Embree geometry g as `on` asks; *enabled: whether it is enabled now.
+void set_enabled(RTCGeometry g, bool on, bool* enabled) {
+  if (on == *enabled) return;
+  if (on)
+    rtcEnableGeometry(g);
+  else
+    rtcDisableGeometry(g);
+  *enabled = on;
+}
+
 // The texture coordinates one texture slot reads on a primitive: its set's per-vertex
 // coordinates (null: the primitive has none) and the set's index (for its animated transform,
 // ShadeMaterial::uv_in_set).
@@ -1036,13 +1046,7 @@ void Tracer::Impl::deform(double before, double after) {
   for (size_t k = 0; k < deforming_.size(); ++k) {
     DeformingPrimitive& d = deforming_[k];
     const bool show = !scene_.node_hidden(state_, d.node);
-    if (show != d.enabled) {
-      if (show)
-        rtcEnableGeometry(d.geom);
-      else
-        rtcDisableGeometry(d.geom);
-      d.enabled = show;
-    }
+    set_enabled(d.geom, show, &d.enabled);
     if (!show) continue;  // deformed again once shown
     const size_t count = d.normals.size();
     scene_.deform(d.node, d.primitive, state_minus_, positions_before_.data(), nullptr);
@@ -1100,13 +1104,7 @@ void Tracer::Impl::set_time(double t) {
       inst.inverse_world = glm::inverse(m);
       inst.velocity = glm::mat4(dm * inst.inverse_world);
     }
-    if (ok != inst.enabled) {
-      if (ok)
-        rtcEnableGeometry(inst.geom);
-      else
-        rtcDisableGeometry(inst.geom);
-      inst.enabled = ok;
-    }
+    set_enabled(inst.geom, ok, &inst.enabled);
     rtcCommitGeometry(inst.geom);
   }
   if (!deforming_.empty()) deform(before, after);
