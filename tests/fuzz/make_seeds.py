@@ -450,6 +450,57 @@ def gltf_seeds():
                                "KHR_materials_emissive_strength", "KHR_materials_unlit"]
     write("gltf", "pointer_visibility_dispersion.gltf", g.embedded())
 
+    # KHR_animation_pointer channels that reach further: a texture slot's KHR_texture_transform
+    # (offset, rotation, scale), a node's KHR_node_visibility (a parent with a child), the
+    # material extensions' factors, a light's colour and a camera's field of view; CUBICSPLINE
+    # and STEP samplers among them.
+    g = Gltf()
+    n = g.floats([0, 0, 1] * 4, "VEC3")
+    t = g.floats([0, 0, 1, 0, 1, 1, 0, 1], "VEC2")
+    g.quad(NORMAL=n, TEXCOORD_0=t)["material"] = 0
+    g.doc["images"] = [{"uri": "data:image/png;base64," + base64.b64encode(png(2, 1, [255, 0, 0, 0, 0, 255])).decode()}]
+    g.doc["textures"] = [{"source": 0}]
+    transformed = {"index": 0, "extensions": {"KHR_texture_transform": {"offset": [0, 0], "rotation": 0,
+                                                                         "scale": [1, 1]}}}
+    g.doc["materials"] = [{"pbrMetallicRoughness": {"baseColorTexture": transformed},
+                           "extensions": {"KHR_materials_clearcoat": {"clearcoatFactor": 0.5,
+                                                                      "clearcoatTexture": transformed},
+                                          "KHR_materials_sheen": {"sheenColorFactor": [1, 1, 1]},
+                                          "KHR_materials_iridescence": {"iridescenceFactor": 1}}}]
+    g.doc["cameras"] = [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}]
+    g.doc["extensions"] = {"KHR_lights_punctual": {"lights": [{"type": "point", "color": [1, 1, 1],
+                                                               "intensity": 5}]}}
+    g.doc["nodes"] = [{"mesh": 0, "children": [1]}, {"mesh": 0, "translation": [0, 0, 1]},
+                      {"camera": 0, "translation": [0, 0, 4]},
+                      {"extensions": {"KHR_lights_punctual": {"light": 0}}, "translation": [0, 1, 2]}]
+    g.doc["scenes"] = [{"nodes": [0, 2, 3]}]
+    times = g.floats([0, 1, 2], "SCALAR", min=[0], max=[2])
+    channel = lambda path, sampler: {"sampler": sampler, "target": {"path": "pointer", "extensions": {
+        "KHR_animation_pointer": {"pointer": path}}}}
+    g.doc["animations"] = [{"samplers": [
+        {"input": times, "output": g.floats([0, 0, 0.5, 0, 1, 0.25], "VEC2")},
+        {"input": times, "output": g.floats([0, 1, 0, 0, 1, 0, 0, 1, 0], "SCALAR"),
+         "interpolation": "CUBICSPLINE"},
+        {"input": times, "output": g.floats([1, 0, 1], "SCALAR"), "interpolation": "STEP"},
+        {"input": times, "output": g.floats([0.2, 0.9, 0.4], "SCALAR")},
+        {"input": times, "output": g.floats([1, 0, 0, 0, 1, 0, 0, 0, 1], "VEC3")},
+        {"input": times, "output": g.floats([1.2, 1.8, 1.3], "SCALAR")}],
+        "channels": [
+            channel("/materials/0/pbrMetallicRoughness/baseColorTexture/extensions/KHR_texture_transform/offset", 0),
+            channel("/materials/0/pbrMetallicRoughness/baseColorTexture/extensions/KHR_texture_transform/rotation", 1),
+            channel("/materials/0/extensions/KHR_materials_clearcoat/clearcoatTexture/extensions/"
+                    "KHR_texture_transform/scale", 0),
+            channel("/nodes/0/extensions/KHR_node_visibility/visible", 2),
+            channel("/materials/0/extensions/KHR_materials_clearcoat/clearcoatFactor", 3),
+            channel("/materials/0/extensions/KHR_materials_sheen/sheenColorFactor", 4),
+            channel("/materials/0/extensions/KHR_materials_iridescence/iridescenceIor", 5),
+            channel("/extensions/KHR_lights_punctual/lights/0/color", 4),
+            channel("/cameras/0/perspective/yfov", 3)]}]
+    g.doc["extensionsUsed"] = ["KHR_animation_pointer", "KHR_node_visibility", "KHR_texture_transform",
+                               "KHR_materials_clearcoat", "KHR_materials_sheen", "KHR_materials_iridescence",
+                               "KHR_lights_punctual"]
+    write("gltf", "pointer_texture_transform.gltf", g.embedded())
+
     # A .glb whose BIN chunk is not padded to 4 bytes (read as if padded, with a warning).
     g = Gltf()
     g.quad()
