@@ -15,6 +15,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <optional>
 
 int main(int argc, char** argv) {
   CLI::App app{"afr-render: zero-delay, antialiased reference images of a scene at exact times"};
@@ -32,6 +33,12 @@ int main(int argc, char** argv) {
   app.add_option("--camera", camera,
                  "the scene's camera to draw from: a camera's or its node's name, or an index "
                  "into the glTF's cameras (default: the first camera node of the scene)");
+  std::optional<int> ray_depth;
+  app.add_option("--ray-depth", ray_depth,
+                 "secondary rays in a row (mirror reflections, glass's reflections and "
+                 "refractions), as display_node --ray-depth sets them for the samplers "
+                 "(default: the file's extras.afr_ray_depth, else 3)")
+      ->check(CLI::Range(0, afr::kMaxRayDepth));
   app.add_option("-t,--time", time, "scene time in seconds (first frame's time with --frames)");
   app.add_option("-s,--size", size_text, "image size WxH")->capture_default_str();
   app.add_option("--spp", spp, "samples per pixel, a square S*S (stratified S x S)")
@@ -68,7 +75,7 @@ int main(int argc, char** argv) {
       throw afr::Error("--variant needs a scene file (the built-in scene has no variants)");
     }
     if (!camera.empty() && scene_path.empty()) throw afr::Error("--camera needs a scene file");
-    const afr::Scene scene = [&] {
+    afr::Scene scene = [&] {
       if (variant.empty() && camera.empty()) return afr::load_scene(scene_path);
       std::vector<uint8_t> bytes = afr::read_scene_file(scene_path);
       if (!variant.empty()) bytes = afr::select_material_variant(bytes, scene_path, variant);
@@ -77,6 +84,7 @@ int main(int argc, char** argv) {
       if (!camera.empty()) afr::check_chosen_camera(chosen, camera);
       return chosen;
     }();
+    if (ray_depth) scene.ray_depth = *ray_depth;
     if (!variant.empty()) spdlog::info("material variant \"{}\" chosen", variant);
     spdlog::info("scene {}: {} triangles, {} lights, {:.2f} s of animation", scene.source,
                  scene.triangle_count(), scene.lights.size(), scene.duration());

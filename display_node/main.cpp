@@ -26,6 +26,7 @@
 #include <atomic>
 #include <csignal>
 #include <filesystem>
+#include <optional>
 
 namespace {
 
@@ -85,6 +86,12 @@ int main(int argc, char** argv) {
   app.add_option("--camera", camera,
                  "the scene's camera to view from: a camera's or its node's name, or an index "
                  "into the glTF's cameras (default: the first camera node of the scene)");
+  std::optional<int> ray_depth;
+  app.add_option("--ray-depth", ray_depth,
+                 "secondary rays in a row the samplers follow (mirror reflections, glass's "
+                 "reflections and refractions), written into the scene they are served "
+                 "(default: the file's extras.afr_ray_depth, else 3)")
+      ->check(CLI::Range(0, afr::kMaxRayDepth));
   app.add_option("--bind", o.bind, "base endpoint tcp://HOST:PORT (uses PORT..PORT+2)")
       ->capture_default_str();
   app.add_option("-s,--size", size_text, "image size WxH (a wall's whole virtual display)")
@@ -233,7 +240,7 @@ int main(int argc, char** argv) {
     o.wall.margin =
         margin >= 0 ? margin : afr::auto_viewport_margin(afr::ReconstructorConfig{}.splat);
     if (follower && (wall_text != "1x1" || margin != -1 || !scene_path.empty() ||
-                     !variant.empty() || !camera.empty())) {
+                     !variant.empty() || !camera.empty() || ray_depth)) {
       throw afr::Error(
           "--follow: the wall's grid, margin and scene are the lead's; give only --cell");
     }
@@ -273,12 +280,12 @@ int main(int argc, char** argv) {
       }
       role = wall_follower.get();
     } else {
-      if (variant.empty() && camera.empty()) {
+      if (variant.empty() && camera.empty() && !ray_depth) {
         scene = std::make_unique<afr::Scene>(afr::load_scene(scene_path));
         o.scene = afr::service::read_scene_payload(scene_path);
       } else {
-        // The chosen variant's or camera's scene, as the samplers will load it.
-        o.scene = afr::service::read_scene_payload(scene_path, variant, camera);
+        // The chosen variant's, camera's or ray depth's scene, as the samplers will load it.
+        o.scene = afr::service::read_scene_payload(scene_path, variant, camera, ray_depth);
         scene = std::make_unique<afr::Scene>(afr::load_gltf_bytes(o.scene.bytes, scene_path));
         if (!camera.empty()) afr::check_chosen_camera(*scene, camera);
       }

@@ -3448,6 +3448,16 @@ void Loader::load_scene_roots() {
   if (in.extras.Has("afr_ambient")) {
     scene_.ambient = read_rgb_extra(in.extras, "afr_ambient", what);
   }
+  // A setting of the file's rendering, not of one scene: on the root object.
+  if (model_.extras.Has("afr_ray_depth")) {
+    const tinygltf::Value& v = model_.extras.Get("afr_ray_depth");
+    const double depth = v.IsNumber() ? v.GetNumberAsDouble() : -1.0;
+    if (!(depth >= 0.0 && depth <= kMaxRayDepth && depth == std::floor(depth))) {
+      fail(
+          fmt::format("extras \"afr_ray_depth\" is not a whole number from 0 to {}", kMaxRayDepth));
+    }
+    scene_.ray_depth = int(depth);
+  }
 }
 
 Scene Loader::load() { return load(read_file()); }

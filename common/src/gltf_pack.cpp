@@ -366,166 +366,182 @@ std::vector<uint8_t> read_scene_file(const std::filesystem::path& path) {
   return bytes;
 }
 
-std::vector<uint8_t> select_material_variant(std::span<const uint8_t> bytes,
-                                             const std::filesystem::path& path,
-                                             std::string_view variant) {
+// The .gltf or .glb `bytes` (at `path`) with its JSON changed by edit(doc, fail), as one file of
+// the same kind (a .glb keeps its binary chunk). `fail` throws afr::Error naming `path`.
+template <typename Edit>
+std::vector<uint8_t> edited_gltf(std::span<const uint8_t> bytes, const std::filesystem::path& path,
+                                 Edit edit) {
   const auto fail = [&](const std::string& problem) {
     throw Error(fmt::format("{}: {}", path.string(), problem));
   };
-  constexpr const char* kExtension = "KHR_materials_variants";
   std::span<const uint8_t> json_text = bytes, bin;
   const bool glb = is_glb(bytes);
   if (glb) split_glb(bytes, path, &json_text, &bin);
   Json doc = Json::parse(json_text.begin(), json_text.end(), nullptr, /*allow_exceptions=*/false);
   if (doc.is_discarded() || !doc.is_object()) fail("invalid glTF: not a JSON object");
-
-  // The variant's index among those the file offers.
-  std::vector<std::string> names;
-  if (doc.contains("extensions") && doc["extensions"].is_object() &&
-      doc["extensions"].contains(kExtension)) {
-    const Json& list = doc["extensions"][kExtension];
-    if (list.is_object() && list.contains("variants") && list["variants"].is_array()) {
-      for (const Json& v : list["variants"]) {
-        names.push_back(v.is_object() && v.contains("name") && v["name"].is_string()
-                            ? v["name"].get<std::string>()
-                            : std::string());
-      }
-    }
-  }
-  const auto found = std::find(names.begin(), names.end(), variant);
-  if (found == names.end()) {
-    if (names.empty()) fail(fmt::format("no material variant \"{}\": the file has none", variant));
-    std::vector<std::string> quoted;
-    for (const std::string& n : names) quoted.push_back(fmt::format("\"{}\"", n));
-    fail(fmt::format("no material variant \"{}\" (the file has {})", variant,
-                     fmt::join(quoted, ", ")));
-  }
-  const uint64_t index = uint64_t(found - names.begin());
-
-  // Each primitive's mapping for it, if any, becomes its material.
-  if (doc.contains("meshes") && doc["meshes"].is_array()) {
-    Json& meshes = doc["meshes"];
-    for (size_t m = 0; m < meshes.size(); ++m) {
-      if (!meshes[m].is_object() || !meshes[m].contains("primitives") ||
-          !meshes[m]["primitives"].is_array()) {
-        continue;  // the loader names what is wrong with the mesh
-      }
-      Json& primitives = meshes[m]["primitives"];
-      for (size_t p = 0; p < primitives.size(); ++p) {
-        Json& primitive = primitives[p];
-        if (!primitive.is_object() || !primitive.contains("extensions") ||
-            !primitive["extensions"].is_object() || !primitive["extensions"].contains(kExtension)) {
-          continue;
-        }
-        const std::string what = fmt::format("mesh {} primitive {} {}", m, p, kExtension);
-        const Json& e = primitive["extensions"][kExtension];
-        if (!e.is_object() || !e.contains("mappings") || !e["mappings"].is_array()) {
-          fail(what + " has no \"mappings\" array");
-        }
-        std::optional<uint64_t> chosen;
-        for (const Json& mapping : e["mappings"]) {
-          const bool good = mapping.is_object() && mapping.contains("material") &&
-                            count_of(mapping["material"]) && mapping.contains("variants") &&
-                            mapping["variants"].is_array();
-          if (!good) fail(what + " has a mapping without a material index and a variants array");
-          const Json& listed = mapping["variants"];
-          if (std::any_of(listed.begin(), listed.end(),
-                          [&](const Json& v) { return count_of(v) == index; })) {
-            chosen = count_of(mapping["material"]);
-          }
-        }
-        // Set once the mappings are read: adding "material" may move the primitive's members
-        // (an ordered JSON object is a vector), and `e` with them.
-        if (chosen) primitive["material"] = *chosen;
-        primitive["extensions"].erase(kExtension);
-        if (primitive["extensions"].empty()) primitive.erase("extensions");
-      }
-    }
-  }
-  doc["extensions"].erase(kExtension);
-  if (doc["extensions"].empty()) doc.erase("extensions");
-  for (const char* key : {"extensionsUsed", "extensionsRequired"}) {
-    if (!doc.contains(key) || !doc[key].is_array()) continue;
-    Json& list = doc[key];
-    list.erase(std::remove(list.begin(), list.end(), Json(kExtension)), list.end());
-    if (list.empty()) doc.erase(key);
-  }
+  edit(doc, fail);
   const std::string text = doc.dump();
   if (glb) return make_glb(text, bin);
   return std::vector<uint8_t>(text.begin(), text.end());
 }
 
+std::vector<uint8_t> select_material_variant(std::span<const uint8_t> bytes,
+                                             const std::filesystem::path& path,
+                                             std::string_view variant) {
+  return edited_gltf(bytes, path, [&](Json& doc, const auto& fail) {
+    constexpr const char* kExtension = "KHR_materials_variants";
+
+    // The variant's index among those the file offers.
+    std::vector<std::string> names;
+    if (doc.contains("extensions") && doc["extensions"].is_object() &&
+        doc["extensions"].contains(kExtension)) {
+      const Json& list = doc["extensions"][kExtension];
+      if (list.is_object() && list.contains("variants") && list["variants"].is_array()) {
+        for (const Json& v : list["variants"]) {
+          names.push_back(v.is_object() && v.contains("name") && v["name"].is_string()
+                              ? v["name"].get<std::string>()
+                              : std::string());
+        }
+      }
+    }
+    const auto found = std::find(names.begin(), names.end(), variant);
+    if (found == names.end()) {
+      if (names.empty())
+        fail(fmt::format("no material variant \"{}\": the file has none", variant));
+      std::vector<std::string> quoted;
+      for (const std::string& n : names) quoted.push_back(fmt::format("\"{}\"", n));
+      fail(fmt::format("no material variant \"{}\" (the file has {})", variant,
+                       fmt::join(quoted, ", ")));
+    }
+    const uint64_t index = uint64_t(found - names.begin());
+
+    // Each primitive's mapping for it, if any, becomes its material.
+    if (doc.contains("meshes") && doc["meshes"].is_array()) {
+      Json& meshes = doc["meshes"];
+      for (size_t m = 0; m < meshes.size(); ++m) {
+        if (!meshes[m].is_object() || !meshes[m].contains("primitives") ||
+            !meshes[m]["primitives"].is_array()) {
+          continue;  // the loader names what is wrong with the mesh
+        }
+        Json& primitives = meshes[m]["primitives"];
+        for (size_t p = 0; p < primitives.size(); ++p) {
+          Json& primitive = primitives[p];
+          if (!primitive.is_object() || !primitive.contains("extensions") ||
+              !primitive["extensions"].is_object() ||
+              !primitive["extensions"].contains(kExtension)) {
+            continue;
+          }
+          const std::string what = fmt::format("mesh {} primitive {} {}", m, p, kExtension);
+          const Json& e = primitive["extensions"][kExtension];
+          if (!e.is_object() || !e.contains("mappings") || !e["mappings"].is_array()) {
+            fail(what + " has no \"mappings\" array");
+          }
+          std::optional<uint64_t> chosen;
+          for (const Json& mapping : e["mappings"]) {
+            const bool good = mapping.is_object() && mapping.contains("material") &&
+                              count_of(mapping["material"]) && mapping.contains("variants") &&
+                              mapping["variants"].is_array();
+            if (!good) fail(what + " has a mapping without a material index and a variants array");
+            const Json& listed = mapping["variants"];
+            if (std::any_of(listed.begin(), listed.end(),
+                            [&](const Json& v) { return count_of(v) == index; })) {
+              chosen = count_of(mapping["material"]);
+            }
+          }
+          // Set once the mappings are read: adding "material" may move the primitive's members
+          // (an ordered JSON object is a vector), and `e` with them.
+          if (chosen) primitive["material"] = *chosen;
+          primitive["extensions"].erase(kExtension);
+          if (primitive["extensions"].empty()) primitive.erase("extensions");
+        }
+      }
+    }
+    doc["extensions"].erase(kExtension);
+    if (doc["extensions"].empty()) doc.erase("extensions");
+    for (const char* key : {"extensionsUsed", "extensionsRequired"}) {
+      if (!doc.contains(key) || !doc[key].is_array()) continue;
+      Json& list = doc[key];
+      list.erase(std::remove(list.begin(), list.end(), Json(kExtension)), list.end());
+      if (list.empty()) doc.erase(key);
+    }
+  });
+}
+
 std::vector<uint8_t> select_camera(std::span<const uint8_t> bytes,
                                    const std::filesystem::path& path, std::string_view camera) {
-  const auto fail = [&](const std::string& problem) {
-    throw Error(fmt::format("{}: {}", path.string(), problem));
-  };
-  std::span<const uint8_t> json_text = bytes, bin;
-  const bool glb = is_glb(bytes);
-  if (glb) split_glb(bytes, path, &json_text, &bin);
-  Json doc = Json::parse(json_text.begin(), json_text.end(), nullptr, /*allow_exceptions=*/false);
-  if (doc.is_discarded() || !doc.is_object()) fail("invalid glTF: not a JSON object");
-
-  const auto name_of = [](const Json& object) {
-    return object.is_object() && object.contains("name") && object["name"].is_string()
-               ? object["name"].get<std::string>()
-               : std::string();
-  };
-  const Json empty = Json::array();
-  const Json& nodes = doc.contains("nodes") && doc["nodes"].is_array() ? doc["nodes"] : empty;
-  const Json& cameras =
-      doc.contains("cameras") && doc["cameras"].is_array() ? doc["cameras"] : empty;
-  // The camera each node carries, if any.
-  const auto camera_of = [&](size_t n) -> std::optional<uint64_t> {
-    const Json& node = nodes[n];
-    if (!node.is_object() || !node.contains("camera")) return std::nullopt;
-    return count_of(node["camera"]);
-  };
-  const auto first_node_with = [&](uint64_t c) -> std::optional<size_t> {
-    for (size_t n = 0; n < nodes.size(); ++n) {
-      if (camera_of(n) == c) return n;
-    }
-    return std::nullopt;
-  };
-
-  std::optional<size_t> chosen;
-  for (size_t n = 0; n < nodes.size() && !chosen; ++n) {
-    if (camera_of(n) && name_of(nodes[n]) == camera) chosen = n;
-  }
-  std::optional<uint64_t> index;
-  for (size_t c = 0; c < cameras.size() && !chosen && !index; ++c) {
-    if (name_of(cameras[c]) == camera) index = c;
-  }
-  if (!chosen && !index && !camera.empty() &&
-      std::all_of(camera.begin(), camera.end(), [](char ch) { return ch >= '0' && ch <= '9'; }) &&
-      camera.size() < 10) {
-    const uint64_t i = std::stoull(std::string(camera));
-    if (i < cameras.size()) index = i;
-  }
-  if (!chosen && index) {
-    chosen = first_node_with(*index);
-    if (!chosen) fail(fmt::format("camera \"{}\" (cameras[{}]) is on no node", camera, *index));
-  }
-  if (!chosen) {
-    std::vector<std::string> listed;
-    for (size_t c = 0; c < cameras.size(); ++c) {
-      const std::string name = name_of(cameras[c]);
-      const std::optional<size_t> node = first_node_with(c);
-      std::string entry = name.empty() ? fmt::format("{}", c) : fmt::format("{} \"{}\"", c, name);
-      if (node && !name_of(nodes[*node]).empty()) {
-        entry += fmt::format(" on node \"{}\"", name_of(nodes[*node]));
+  return edited_gltf(bytes, path, [&](Json& doc, const auto& fail) {
+    const auto name_of = [](const Json& object) {
+      return object.is_object() && object.contains("name") && object["name"].is_string()
+                 ? object["name"].get<std::string>()
+                 : std::string();
+    };
+    const Json empty = Json::array();
+    const Json& nodes = doc.contains("nodes") && doc["nodes"].is_array() ? doc["nodes"] : empty;
+    const Json& cameras =
+        doc.contains("cameras") && doc["cameras"].is_array() ? doc["cameras"] : empty;
+    // The camera each node carries, if any.
+    const auto camera_of = [&](size_t n) -> std::optional<uint64_t> {
+      const Json& node = nodes[n];
+      if (!node.is_object() || !node.contains("camera")) return std::nullopt;
+      return count_of(node["camera"]);
+    };
+    const auto first_node_with = [&](uint64_t c) -> std::optional<size_t> {
+      for (size_t n = 0; n < nodes.size(); ++n) {
+        if (camera_of(n) == c) return n;
       }
-      listed.push_back(std::move(entry));
+      return std::nullopt;
+    };
+
+    std::optional<size_t> chosen;
+    for (size_t n = 0; n < nodes.size() && !chosen; ++n) {
+      if (camera_of(n) && name_of(nodes[n]) == camera) chosen = n;
     }
-    if (listed.empty()) fail(fmt::format("no camera \"{}\": the file has none", camera));
-    fail(fmt::format("no camera \"{}\" (the file's cameras: {})", camera, fmt::join(listed, ", ")));
-  }
-  for (size_t n = 0; n < nodes.size(); ++n) {
-    if (n != *chosen && doc["nodes"][n].is_object()) doc["nodes"][n].erase("camera");
-  }
-  const std::string text = doc.dump();
-  if (glb) return make_glb(text, bin);
-  return std::vector<uint8_t>(text.begin(), text.end());
+    std::optional<uint64_t> index;
+    for (size_t c = 0; c < cameras.size() && !chosen && !index; ++c) {
+      if (name_of(cameras[c]) == camera) index = c;
+    }
+    if (!chosen && !index && !camera.empty() &&
+        std::all_of(camera.begin(), camera.end(), [](char ch) { return ch >= '0' && ch <= '9'; }) &&
+        camera.size() < 10) {
+      const uint64_t i = std::stoull(std::string(camera));
+      if (i < cameras.size()) index = i;
+    }
+    if (!chosen && index) {
+      chosen = first_node_with(*index);
+      if (!chosen) fail(fmt::format("camera \"{}\" (cameras[{}]) is on no node", camera, *index));
+    }
+    if (!chosen) {
+      std::vector<std::string> listed;
+      for (size_t c = 0; c < cameras.size(); ++c) {
+        const std::string name = name_of(cameras[c]);
+        const std::optional<size_t> node = first_node_with(c);
+        std::string entry = name.empty() ? fmt::format("{}", c) : fmt::format("{} \"{}\"", c, name);
+        if (node && !name_of(nodes[*node]).empty()) {
+          entry += fmt::format(" on node \"{}\"", name_of(nodes[*node]));
+        }
+        listed.push_back(std::move(entry));
+      }
+      if (listed.empty()) fail(fmt::format("no camera \"{}\": the file has none", camera));
+      fail(fmt::format("no camera \"{}\" (the file's cameras: {})", camera,
+                       fmt::join(listed, ", ")));
+    }
+    for (size_t n = 0; n < nodes.size(); ++n) {
+      if (n != *chosen && doc["nodes"][n].is_object()) doc["nodes"][n].erase("camera");
+    }
+  });
+}
+
+std::vector<uint8_t> set_ray_depth(std::span<const uint8_t> bytes,
+                                   const std::filesystem::path& path, int depth) {
+  return edited_gltf(bytes, path, [&](Json& doc, const auto& fail) {
+    if (depth < 0 || depth > kMaxRayDepth) {
+      fail(fmt::format("a ray depth of {} is outside 0 to {}", depth, kMaxRayDepth));
+    }
+    if (doc.contains("extras") && !doc["extras"].is_object()) {
+      fail("the root's extras is not an object, so afr_ray_depth cannot be added to it");
+    }
+    doc["extras"]["afr_ray_depth"] = depth;
+  });
 }
 
 }  // namespace afr

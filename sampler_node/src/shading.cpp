@@ -138,6 +138,7 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
                                         glm::vec3(0.0f), glm::vec3(1.0f));
     m.ior = mat.ior;
     m.f0_dielectric = f0_ior;
+    m.is_volume = mat.thickness > 0.0f;
     if (mat.thickness > 0.0f && mat.attenuation_distance > 0.0f &&
         std::isfinite(mat.attenuation_distance)) {
       // A color of 0 absorbs everything over any distance: 1e-6 per attenuation distance.

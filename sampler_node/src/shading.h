@@ -129,10 +129,14 @@ struct ShadeMaterial {
   float transmission = 0.0f;
   float ior = 1.5f;
   float f0_dielectric = 0.04f;  // ((ior - 1) / (ior + 1))^2, 1 for ior 0
-  // KHR_materials_volume: light inside the glass keeps exp(-absorption x distance)
-  // (-ln(attenuation color) / attenuation distance); 0 for none or a thin wall. has_volume:
-  // it absorbs (shadow rays then measure the stretches inside: volume_transmittance).
+  // KHR_materials_volume: is_volume, the glass bounds a medium (thickness > 0) that rays enter
+  // and leave (tracer.cpp's Media: media nest, and an interface between two bends light by
+  // the ratio of their iors); a thin wall (thickness 0) is no medium. Light inside the medium
+  // keeps exp(-absorption x distance) (-ln(attenuation color) / attenuation distance); 0 for
+  // none or a thin wall. has_volume: it absorbs (shadow rays then measure the stretches
+  // inside: volume_transmittance).
   glm::vec3 absorption{0.0f};
+  bool is_volume = false;
   bool has_volume = false;
   // KHR_materials_dispersion in a volume: red refracts with ior - this, green with ior, blue
   // with ior + this, (ior - 1) / (2 V_d) as the extension's method spreads them; 0 for none.

@@ -8,11 +8,13 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstddef>
 #include <deque>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "shading.h"
@@ -212,6 +214,44 @@ struct Surface : SurfacePoint {
     if (!o.at_point || o.material != &*o.at_point) return;
     at_point = o.at_point;
     material = &*at_point;
+  }
+};
+
+// The media (KHR_materials_volume: glass with thickness > 0, ShadeMaterial::is_volume) a ray of
+// the camera's path travels in, innermost last. Media nest: the innermost replaces those around
+// it (a liquid in a glass), so a ray keeps the innermost one's absorption and an interface bends
+// light by the ratio of the iors on its two sides. Empty: air (ior 1). A ray that leaves a
+// medium it was not known to be in (a camera inside glass) was in it. Deeper nesting than
+// kMax forgets the outermost.
+struct Media {
+  static constexpr int kMax = 4;
+  std::array<const ShadeMaterial*, kMax> inside{};
+  int n = 0;
+
+  const ShadeMaterial* innermost() const { return n > 0 ? inside[size_t(n - 1)] : nullptr; }
+  bool contains(const ShadeMaterial* m) const {
+    return std::find(inside.begin(), inside.begin() + n, m) != inside.begin() + n;
+  }
+  // These media with m entered inside them.
+  Media entered(const ShadeMaterial* m) const {
+    Media r = *this;
+    if (r.n == kMax) {
+      std::copy(r.inside.begin() + 1, r.inside.end(), r.inside.begin());
+      --r.n;
+    }
+    r.inside[size_t(r.n++)] = m;
+    return r;
+  }
+  // These media with the innermost occurrence of m left (unchanged without one).
+  Media left(const ShadeMaterial* m) const {
+    Media r = *this;
+    for (int k = r.n - 1; k >= 0; --k) {
+      if (r.inside[size_t(k)] != m) continue;
+      std::copy(r.inside.begin() + k + 1, r.inside.begin() + r.n, r.inside.begin() + k);
+      --r.n;
+      break;
+    }
+    return r;
   }
 };
 
@@ -623,17 +663,18 @@ struct Tracer::Impl {
                         TraceStats* stats) const;
   void shade_local8(const Surface* s, const glm::vec3* wo, const glm::vec3* tex, const bool* hit,
                     int n, glm::vec3* out, TraceStats* stats) const;
+  // The camera's rays start in air; `media` is what a secondary ray travels in.
   glm::vec3 mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, TraceStats* stats, int depth = 0,
-                         glm::vec3 throughput = glm::vec3(1.0f)) const;
+                         glm::vec3 throughput = glm::vec3(1.0f), const Media& media = {}) const;
   // Out of line, so that the mirror chain of scenes without glass compiles as it did.
   [[gnu::noinline]] glm::vec3 pass_through(const glm::vec3& d, const Surface& s, int depth,
-                                           const glm::vec3& throughput, TraceStats* stats) const;
+                                           const glm::vec3& throughput, const Media& media,
+                                           TraceStats* stats) const;
   [[gnu::noinline]] glm::vec3 glass(const glm::vec3& d, const Surface& s, const glm::vec3& tex,
-                                    int depth, const glm::vec3& throughput,
+                                    int depth, const glm::vec3& throughput, const Media& media,
                                     TraceStats* stats) const;
   glm::vec3 secondary(const glm::vec3& origin, const glm::vec3& d, const Surface& from, int depth,
-                      const glm::vec3& throughput, TraceStats* stats,
-                      const glm::vec3& absorption = glm::vec3(0.0f)) const;
+                      const glm::vec3& throughput, const Media& media, TraceStats* stats) const;
   bool begin_sample(const Ray& ray, const HitRef& hit, ShadedSample* o, Surface* s,
                     TraceStats* stats) const;
   void sanitize(ShadedSample* o, TraceStats* stats) const;
@@ -644,6 +685,7 @@ struct Tracer::Impl {
 
 Tracer::Impl::Impl(const Scene& scene, const TracerOptions& options)
     : scene_(scene), options_(options) {
+  if (scene.ray_depth) options_.max_mirror_depth = *scene.ray_depth;
   glm::dvec3 lo, hi;
   scene_.bounds(scene_.evaluate(0.0), &lo, &hi);
   const glm::dvec3 m = glm::max(glm::abs(lo), glm::abs(hi));
@@ -1180,51 +1222,78 @@ glm::vec3 Tracer::Impl::filtered_shadow(const glm::vec3& o, const glm::vec3& d, 
   return ctx.transmittance[0] * volume_transmittance(ctx, 0, dir, r.tfar);
 }
 
-// KHR_materials_volume on a shadow ray's way: Embree reports the glass surfaces it crosses in
-// any order, so the crossings of absorbing glass are sorted by distance and each stretch inside
-// a volume, from a surface the ray enters by (or from the ray's origin, inside) to the next it
-// leaves by (or to the light, inside), keeps exp(-absorption x its length), as a refracted ray
-// inside keeps (secondary). The side is the triangle's own, as glass() tells it.
+// KHR_materials_volume on a shadow ray's way: Embree reports the surfaces of glass it crosses
+// in any order, so the crossings of volumes are sorted by distance and each stretch between two
+// keeps exp(-absorption x its length), the absorption that of the innermost medium the ray is in
+// there, as a refracted ray inside keeps (secondary, Media): media nest, and the innermost
+// replaces those around it. The side of each surface is the triangle's own, as glass() tells
+// it. A surface the ray leaves by, without having entered it on the way, holds the ray's origin
+// (or the light) inside: the media so left are those the ray starts in, the first left the
+// innermost.
 glm::vec3 Tracer::Impl::volume_transmittance(const ShadowContext& ctx, int lane, const glm::vec3& d,
                                              float tfar) const {
   struct Stop {
     float t;
     bool entering;
-    glm::vec3 absorption;
+    const ShadeMaterial* medium;
   };
-  std::array<Stop, ShadowContext::kMaxCrossed> stops;
+  constexpr size_t kMax = ShadowContext::kMaxCrossed;
+  std::array<Stop, kMax> stops;
   int n = 0;
   for (int k = 0; k < ctx.n_crossed[lane]; ++k) {
     const ShadowContext::Crossed& c = ctx.crossed[lane][k];
     const Instance& inst = instances_[c.inst];
     const GeomRecord& g = blas_[size_t(inst.blas)].geoms[c.geom];
-    if (!materials_[g.material].has_volume) continue;
+    const ShadeMaterial* medium = &materials_[g.material];
+    if (!medium->is_volume) continue;
     const uint32_t* tri = g.indices + 3 * size_t(c.prim);
     const glm::vec3& p0 = g.positions[tri[0]];
     glm::vec3 face = glm::cross(g.positions[tri[1]] - p0, g.positions[tri[2]] - p0);
     if (g.flip_winding) face = -face;
     if (inst.transformed) face = inst.normal_matrix * face;
-    stops[size_t(n++)] = {c.t, !(glm::dot(face, d) > 0.0f), materials_[g.material].absorption};
+    stops[size_t(n++)] = {c.t, !(glm::dot(face, d) > 0.0f), medium};
   }
   std::sort(stops.begin(), stops.begin() + n,
             [](const Stop& a, const Stop& b) { return a.t < b.t; });
-  glm::vec3 optical_depth(0.0f);  // absorption x length, summed over the stretches
-  float from = 0.0f;              // where the current stretch began
-  const Stop* inside = nullptr;   // the surface entered, if any
-  bool before_first = true;       // the origin may lie inside: the first stop then leaves
+  // The media the ray is in, innermost last (at most one per stop). The first pass finds those
+  // it starts in: each left without having been entered, innermost first.
+  std::array<const ShadeMaterial*, kMax> inside;
+  int depth = 0;
+  const auto leave = [&](const ShadeMaterial* m) {
+    for (int k = depth - 1; k >= 0; --k) {
+      if (inside[size_t(k)] != m) continue;
+      std::copy(inside.begin() + k + 1, inside.begin() + depth, inside.begin() + k);
+      --depth;
+      return true;
+    }
+    return false;
+  };
+  std::array<const ShadeMaterial*, kMax> start;
+  int n_start = 0;
   for (int k = 0; k < n; ++k) {
     const Stop& stop = stops[size_t(k)];
-    // A stretch ends at every stop inside a volume (one nested in another ends the outer one's
-    // there: the inner medium is what the ray crosses).
-    if (inside != nullptr) optical_depth += inside->absorption * (stop.t - from);
-    if (inside == nullptr && before_first && !stop.entering) {
-      optical_depth += stop.absorption * stop.t;
+    if (stop.entering) {
+      inside[size_t(depth++)] = stop.medium;
+    } else if (!leave(stop.medium)) {
+      start[size_t(n_start++)] = stop.medium;
     }
-    inside = stop.entering ? &stop : nullptr;
-    from = stop.t;
-    before_first = false;
   }
-  if (inside != nullptr) optical_depth += inside->absorption * (tfar - from);
+  depth = n_start;
+  std::reverse_copy(start.begin(), start.begin() + n_start, inside.begin());
+  glm::vec3 optical_depth(0.0f);  // absorption x length, summed over the stretches
+  float from = 0.0f;              // where the current stretch began
+  for (int k = 0; k <= n; ++k) {
+    const float to = k < n ? stops[size_t(k)].t : tfar;
+    if (depth > 0) optical_depth += inside[size_t(depth - 1)]->absorption * (to - from);
+    if (k == n) break;
+    const Stop& stop = stops[size_t(k)];
+    if (stop.entering) {
+      inside[size_t(depth++)] = stop.medium;
+    } else {
+      leave(stop.medium);
+    }
+    from = stop.t;
+  }
   return glm::exp(-optical_depth);
 }
 
@@ -1632,14 +1701,15 @@ static bool mirror_direction(const glm::vec3& d, const Surface& s, const glm::ve
 // The light reaching the viewer from surface s (seen along d, with texture color tex) by way
 // of mirror reflections and glass, up to the depth limit, times `throughput` (what the path
 // before s passes on). s's own local shading is not included. `depth` counts the secondary
-// rays already on the path.
+// rays already on the path; `media`, what the ray that hit s travels in (its reflections stay
+// there).
 glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, TraceStats* stats,
-                                     int depth, glm::vec3 throughput) const {
+                                     int depth, glm::vec3 throughput, const Media& media) const {
   glm::vec3 result(0.0f);
   for (;; ++depth) {
     const ShadeMaterial& m = *s.material;
     if (s.opacity < 1.0f) {  // blended: 1 - a of what lies behind, a of s's own reflections
-      if (depth < kMaxBlendDepth) result += pass_through(d, s, depth, throughput, stats);
+      if (depth < kMaxBlendDepth) result += pass_through(d, s, depth, throughput, media, stats);
       throughput *= s.opacity;
     }
     if (m.layered && !s.back_face) {
@@ -1650,7 +1720,8 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
         glm::vec3 r;
         if (mirror_direction(d, s, s.layers->coat_n, &r) &&
             w * std::max(throughput.r, std::max(throughput.g, throughput.b)) >= kMinThroughput) {
-          result += secondary(s.p + offset_at(s.p) * s.ng, r, s, depth + 1, throughput * w, stats);
+          result +=
+              secondary(s.p + offset_at(s.p) * s.ng, r, s, depth + 1, throughput * w, media, stats);
         }
         throughput *= 1.0f - w;
       }
@@ -1662,7 +1733,7 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
     if (!m.is_mirror || s.back_face || depth >= options_.max_mirror_depth) {
       // Glass (never is_mirror) branches; the test is here so that other surfaces pay nothing.
       if (m.is_glass && depth < options_.max_mirror_depth)
-        result += glass(d, s, tex, depth, throughput, stats);
+        result += glass(d, s, tex, depth, throughput, media, stats);
       break;
     }
     const float n_dot_v = -glm::dot(s.ns, d);
@@ -1679,6 +1750,8 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
       result += throughput * scene_.background;
       break;
     }
+    if (const ShadeMaterial* medium = media.innermost(); medium && medium->has_volume)
+      throughput *= glm::exp(-medium->absorption * hit.t);
     make_surface(hit, origin, r, s.cone, s.spread, &s);
     d = r;
     tex = texture_color(s);
@@ -1687,12 +1760,12 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
   return result;
 }
 
-// One secondary ray of glass, and what it brings back (local shading and further bounces) times
-// `throughput`; `depth` counts this ray. A ray inside a glass volume (KHR_materials_volume)
-// keeps exp(-absorption x the distance to what it hits).
+// One secondary ray, and what it brings back (local shading and further bounces) times
+// `throughput`; `depth` counts this ray. A ray in an absorbing medium (`media`'s innermost,
+// KHR_materials_volume) keeps exp(-absorption x the distance to what it hits).
 glm::vec3 Tracer::Impl::secondary(const glm::vec3& origin, const glm::vec3& d, const Surface& from,
-                                  int depth, const glm::vec3& throughput, TraceStats* stats,
-                                  const glm::vec3& absorption) const {
+                                  int depth, const glm::vec3& throughput, const Media& media,
+                                  TraceStats* stats) const {
   ++stats->reflection_rays;
   const HitRef hit = intersect(origin, d, 0.0f);
   if (hit.geom == RTC_INVALID_GEOMETRY_ID) return throughput * scene_.background;
@@ -1700,42 +1773,45 @@ glm::vec3 Tracer::Impl::secondary(const glm::vec3& origin, const glm::vec3& d, c
   make_surface(hit, origin, d, from.cone, from.spread, &s);
   const glm::vec3 tex = texture_color(s);
   glm::vec3 kept = throughput;
-  if (absorption != glm::vec3(0.0f)) kept *= glm::exp(-absorption * hit.t);
+  if (const ShadeMaterial* medium = media.innermost(); medium && medium->has_volume)
+    kept *= glm::exp(-medium->absorption * hit.t);
   return kept * own_share(s, shade_local(s, -d, tex, stats)) +
-         mirror_chain(d, s, tex, stats, depth, kept);
+         mirror_chain(d, s, tex, stats, depth, kept, media);
 }
 
 // What a blended surface s, hit along d, lets through from behind it: the ray goes on from its
 // far side, weighted 1 - s.opacity; `depth` counts the rays already on the path.
 glm::vec3 Tracer::Impl::pass_through(const glm::vec3& d, const Surface& s, int depth,
-                                     const glm::vec3& throughput, TraceStats* stats) const {
+                                     const glm::vec3& throughput, const Media& media,
+                                     TraceStats* stats) const {
   const glm::vec3 behind = throughput * (1.0f - s.opacity);
   if (std::max(behind.r, std::max(behind.g, behind.b)) < kMinThroughput) return glm::vec3(0.0f);
   const glm::vec3 ng = s.back_face ? -s.ng : s.ng;  // toward the side the ray arrives from
-  return secondary(s.p - offset_at(s.p) * ng, d, s, depth + 1, behind, stats);
+  return secondary(s.p - offset_at(s.p) * ng, d, s, depth + 1, behind, media, stats);
 }
 
 namespace {
 
-// Snell's refraction of d about n (on the side d arrives from, cos_i = -n.d) into a medium of
-// index ior entering it (1 / ior) or out of it (ior), with Schlick's Fresnel term of F0 f0 at
-// the cosine on the outer side; ior 0 or total internal reflection: t 0, F 1.
+// Snell's refraction of d about n (on the side d arrives from, cos_i = -n.d) across an
+// interface from index n_from to index n_to, with Schlick's Fresnel term of F0 f0 at the cosine
+// on the outer side (that of the lower index: the refracted one when the index falls); an index
+// of 0 or total internal reflection: t 0, F 1.
 struct Refraction {
   glm::vec3 t{0.0f};
   float F = 1.0f;
   float cos_outer = 1.0f;
 };
-Refraction refraction(const glm::vec3& d, const glm::vec3& n, float cos_i, bool entering, float ior,
+Refraction refraction(const glm::vec3& d, const glm::vec3& n, float cos_i, float n_from, float n_to,
                       float f0) {
   Refraction r;
   r.cos_outer = cos_i;
-  if (!(ior > 0.0f)) return r;
-  const float eta = entering ? 1.0f / ior : ior;  // n_from / n_to; outside is 1
+  if (!(n_from > 0.0f && n_to > 0.0f)) return r;
+  const float eta = n_from / n_to;
   const float sin2_t = eta * eta * (1.0f - cos_i * cos_i);
   if (!(sin2_t < 1.0f)) return r;
   const float cos_t = std::sqrt(1.0f - sin2_t);
   r.t = eta * d + (eta * cos_i - cos_t) * n;
-  if (!entering) r.cos_outer = cos_t;
+  if (eta > 1.0f) r.cos_outer = cos_t;
   r.F = shading::fresnel_schlick(glm::vec3(f0), r.cos_outer).x;
   return r;
 }
@@ -1743,6 +1819,12 @@ Refraction refraction(const glm::vec3& d, const glm::vec3& n, float cos_i, bool 
 // The ior of color channel c (0 red, 1 green, 2 blue) in dispersive glass, never below 1.
 float channel_ior(const ShadeMaterial& m, int c) {
   return std::max(m.ior + m.dispersion_spread * float(c - 1), 1.0f);
+}
+
+// The ior of a medium (1 for air) for color channel c (-1: all, green's where they differ).
+float medium_ior(const ShadeMaterial* medium, int c) {
+  if (medium == nullptr) return 1.0f;
+  return c >= 0 && medium->dispersion_spread > 0.0f ? channel_ior(*medium, c) : medium->ior;
 }
 
 // The one color channel a throughput carries, the other two exactly 0; -1 for none or several.
@@ -1759,7 +1841,8 @@ int single_channel(const glm::vec3& t) {
 // reflected ray weighted by Schlick's Fresnel and a refracted one (Snell) weighted by the rest
 // times transmission and base color; total internal reflection past the critical angle.
 glm::vec3 Tracer::Impl::glass(const glm::vec3& d, const Surface& s, const glm::vec3& tex, int depth,
-                              const glm::vec3& throughput, TraceStats* stats) const {
+                              const glm::vec3& throughput, const Media& media,
+                              TraceStats* stats) const {
   const ShadeMaterial& m = *s.material;
   // Entering or leaving: the side of the triangle's own geometric normal, before make_surface
   // turned it toward the viewer for a double-sided material.
@@ -1781,31 +1864,51 @@ glm::vec3 Tracer::Impl::glass(const glm::vec3& d, const Surface& s, const glm::v
   cos_i = glm::clamp(cos_i, 0.0f, 1.0f);
   const glm::vec3 base = m.base * tex;
 
+  // The media on either side (Media): a volume's surface leads into or out of its medium,
+  // within the media around it; a thin wall (no volume) is an interface with air on its outer
+  // side, and the rays on both its sides stay in the media around it.
+  const ShadeMaterial* self = &materials_[size_t(s.geom->material)];
+  Media before = media, after = media;
+  if (m.is_volume) {
+    if (entering) {
+      after = media.entered(self);
+    } else {
+      if (!media.contains(self)) before = media.entered(self);
+      after = before.left(self);
+    }
+  }
+  // The indices of refraction on the side the ray comes from and on the other, for color
+  // channel c (-1: all).
+  const auto sides = [&](int c) {
+    if (!m.is_volume) return entering ? std::pair(1.0f, m.ior) : std::pair(m.ior, 1.0f);
+    return std::pair(medium_ior(before.innermost(), c), medium_ior(after.innermost(), c));
+  };
+
   // KHR_materials_dispersion: each color channel refracts with its own ior. A ray that carries
-  // more than one channel splits into one refracted ray per channel (the reflected one stays
-  // one ray: its direction is the same for all); a ray that carries one channel only, as
-  // every ray inside dispersive glass does, takes that channel's ior.
-  int channel = -1;  // the one channel the ray carries, where the ior depends on it
+  // more than one channel into or out of dispersive glass splits into one refracted ray per
+  // channel (the reflected one stays one ray: its direction is the same for all); a ray that
+  // carries one channel only, as every ray inside dispersive glass does, takes that channel's
+  // ior.
+  int channel = -1;  // the one channel the ray carries, where an ior depends on it
   bool split = false;
-  float ior = m.ior;
-  if (m.dispersion_spread > 0.0f) {
+  if (sides(0) != sides(2)) {
     channel = single_channel(throughput);
     split = channel < 0;
-    if (!split) ior = channel_ior(m, channel);
   }
   Refraction per_channel[3];
   if (split) {
     for (int c = 0; c < 3; ++c) {
-      const float ior_c = channel_ior(m, c);
-      per_channel[c] = refraction(d, n, cos_i, entering, ior_c, shading::ior_to_f0(ior_c));
+      const auto [from_c, to_c] = sides(c);
+      per_channel[c] = refraction(d, n, cos_i, from_c, to_c, shading::ior_to_f0(to_c, from_c));
     }
   }
   // Green's refraction stands for all where they split (its cosine on the outer side weighs
   // the film and the metallic part).
-  const Refraction main = split
-                              ? per_channel[1]
-                              : refraction(d, n, cos_i, entering, ior,
-                                           channel < 0 ? m.f0_dielectric : shading::ior_to_f0(ior));
+  const Refraction main = [&] {
+    if (split) return per_channel[1];
+    const auto [n_from, n_to] = sides(channel);
+    return refraction(d, n, cos_i, n_from, n_to, shading::ior_to_f0(n_to, n_from));
+  }();
   const glm::vec3 F =
       split ? glm::vec3(per_channel[0].F, per_channel[1].F, per_channel[2].F) : glm::vec3(main.F);
   // An iridescent film (KHR_materials_iridescence) colors the Fresnel term, seen from the air;
@@ -1832,25 +1935,28 @@ glm::vec3 Tracer::Impl::glass(const glm::vec3& d, const Surface& s, const glm::v
     const float len2 = glm::dot(r, r);
     if (len2 > 0.0f && std::isfinite(len2))
       result += secondary(s.p + offset * ng, r * (1.0f / std::sqrt(len2)), s, depth + 1,
-                          r_throughput, stats, entering ? glm::vec3(0.0f) : m.absorption);
+                          r_throughput, before, stats);
   }
-  // One refracted ray (of the given ior) carrying t_throughput.
-  const auto refract_ray = [&](glm::vec3 t, float ior_t, const glm::vec3& t_throughput) {
+  // One refracted ray (across the indices of channel c) carrying t_throughput.
+  const auto refract_ray = [&](glm::vec3 t, int c, const glm::vec3& t_throughput) {
     if (std::max(t_throughput.r, std::max(t_throughput.g, t_throughput.b)) < kMinThroughput) return;
     // An interpolated normal can bend the ray back to the side it came from: use the true one.
-    if (glm::dot(t, ng) >= 0.0f) t = refraction(d, ng, -glm::dot(ng, d), entering, ior_t, 0.0f).t;
+    if (glm::dot(t, ng) >= 0.0f) {
+      const auto [from_c, to_c] = sides(c);
+      t = refraction(d, ng, -glm::dot(ng, d), from_c, to_c, 0.0f).t;
+    }
     const float len2 = glm::dot(t, t);
     if (len2 > 0.0f && std::isfinite(len2))
       result += secondary(s.p - offset * ng, t * (1.0f / std::sqrt(len2)), s, depth + 1,
-                          t_throughput, stats, entering ? m.absorption : glm::vec3(0.0f));
+                          t_throughput, after, stats);
   };
   if (!split) {
-    refract_ray(main.t, ior, throughput * transmit_w);
+    refract_ray(main.t, channel, throughput * transmit_w);
   } else {
     for (int c = 0; c < 3; ++c) {
       glm::vec3 one(0.0f);
       one[c] = throughput[c] * transmit_w[c];
-      refract_ray(per_channel[c].t, channel_ior(m, c), one);
+      refract_ray(per_channel[c].t, c, one);
     }
   }
   return result;

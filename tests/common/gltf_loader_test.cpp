@@ -2173,6 +2173,31 @@ TEST_F(GltfLoaderTest, CameraAndAllThreeLightTypesLoadWithExtras) {
   EXPECT_EQ(scene.ambient, glm::vec3(0.05f, 0.04f, 0.03f));
 }
 
+// The root's extras.afr_ray_depth is the scene's ray depth (Scene::ray_depth): a whole number
+// from 0 to kMaxRayDepth; anything else is an error naming the file and the extra.
+TEST_F(GltfLoaderTest, RayDepthExtraIsAWholeNumberInRange) {
+  const fs::path path = dir_ / "deep.gltf";
+  const auto write_with = [&](const json& depth) {
+    GltfBuilder b;
+    add_quad(&b);
+    b.doc()["extras"] = {{"afr_ray_depth", depth}};
+    b.write_embedded(path);
+  };
+  for (int depth : {0, 5, kMaxRayDepth}) {
+    write_with(depth);
+    EXPECT_EQ(load_gltf(path).ray_depth, std::optional<int>(depth));
+  }
+  write_with(4.0);  // a whole number written as a float
+  EXPECT_EQ(load_gltf(path).ray_depth, std::optional<int>(4));
+  write_with(nullptr);  // null, as JSON reads it: not given
+  EXPECT_EQ(load_gltf(path).ray_depth, std::nullopt);
+  for (const json& bad : {json(kMaxRayDepth + 1), json(-1), json(2.5), json("deep")}) {
+    SCOPED_TRACE(bad.dump());
+    write_with(bad);
+    expect_error(path, "extras \"afr_ray_depth\" is not a whole number from 0 to 10");
+  }
+}
+
 // ---- Unsupported features ----
 
 TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {

@@ -4,6 +4,7 @@
 #include <afr/common/gltf_loader.h>
 #include <afr/common/image.h>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <meshoptimizer.h>
 #include <unistd.h>
@@ -13,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -439,6 +441,50 @@ TEST_F(GltfPackTest, ChosenCameraIsTheScenesCamera) {
   write_text(gltf_, doc_.dump());
   EXPECT_EQ(error_of(read_bytes(gltf_), "Main"),
             gltf_.string() + ": no camera \"Main\": the file has none");
+}
+
+// set_ray_depth writes the root's extras.afr_ray_depth, which the loader reads as
+// Scene::ray_depth, in a .gltf and in a .glb (whose binary chunk stays as it was), beside other
+// extras and over an earlier depth; a depth out of range and root extras that are not an object
+// are errors naming the file.
+TEST_F(GltfPackTest, RayDepthIsWrittenWhereTheLoaderReadsIt) {
+  json doc = doc_;
+  doc["extras"] = {{"author", "someone"}, {"afr_ray_depth", 2}};
+  write_text(gltf_, doc.dump());
+  const std::vector<uint8_t> file = read_bytes(gltf_);
+  EXPECT_EQ(load_gltf_bytes(file, gltf_).ray_depth, std::optional<int>(2));
+  const std::vector<uint8_t> deeper = set_ray_depth(file, gltf_, 6);
+  const json written = json::parse(deeper.begin(), deeper.end());
+  EXPECT_EQ(written["extras"]["afr_ray_depth"], 6);
+  EXPECT_EQ(written["extras"]["author"], "someone");
+  EXPECT_EQ(load_gltf_bytes(deeper, gltf_).ray_depth, std::optional<int>(6));
+
+  write_text(gltf_, doc_.dump());
+  EXPECT_EQ(load_gltf_bytes(read_bytes(gltf_), gltf_).ray_depth, std::nullopt);
+  const PackedGltf packed = pack_gltf(read_bytes(gltf_), gltf_);
+  const std::vector<uint8_t> glb = set_ray_depth(packed.glb, gltf_, 0);
+  EXPECT_EQ(split(glb).bin, split(packed.glb).bin);
+  fs::create_directories(dir_ / "alone");
+  EXPECT_EQ(load_gltf_bytes(glb, dir_ / "alone" / "quad.glb").ray_depth, std::optional<int>(0));
+
+  const auto error_of = [&](std::span<const uint8_t> bytes, int depth) -> std::string {
+    try {
+      (void)set_ray_depth(bytes, gltf_, depth);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  EXPECT_EQ(error_of(file, kMaxRayDepth + 1),
+            fmt::format("{}: a ray depth of {} is outside 0 to {}", gltf_.string(),
+                        kMaxRayDepth + 1, kMaxRayDepth));
+  EXPECT_EQ(error_of(file, -1),
+            fmt::format("{}: a ray depth of -1 is outside 0 to {}", gltf_.string(), kMaxRayDepth));
+  doc["extras"] = "a note";
+  write_text(gltf_, doc.dump());
+  EXPECT_EQ(error_of(read_bytes(gltf_), 4),
+            gltf_.string() +
+                ": the root's extras is not an object, so afr_ray_depth cannot be added to it");
 }
 
 // EXT_meshopt_compression: the compressed data (an external .bin) is packed; the placeholder

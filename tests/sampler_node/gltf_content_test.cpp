@@ -426,7 +426,9 @@ TEST(GltfContentTracerTest, AnimatedMaterialExtensionFactorsShadeAsTheSameFactor
         change += glm::length(got.color - first[size_t(y * kSize + x)]);
       }
     }
-    if (t == 1.0f) EXPECT_GT(change, 1.0);  // the animation shows
+    if (t == 1.0f) {
+      EXPECT_GT(change, 1.0);  // the animation shows
+    }
   }
 }
 

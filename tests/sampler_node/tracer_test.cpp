@@ -1732,6 +1732,18 @@ TEST(TracerTest, MirrorDepthIsBounded) {
     tracer.trace(Ray{{0, 0, 0}, {0, 0, -1}}, &stats);
     EXPECT_EQ(stats.reflection_rays, uint64_t(depth));
   }
+  // A scene's own depth (the file's extras.afr_ray_depth) replaces the options'.
+  for (int depth : {0, 2, 7}) {
+    Scene deep = s;
+    deep.ray_depth = depth;
+    TracerOptions o;
+    o.max_mirror_depth = 4;
+    Tracer tracer(deep, o);
+    EXPECT_EQ(tracer.options().max_mirror_depth, depth);
+    TraceStats stats;
+    tracer.trace(Ray{{0, 0, 0}, {0, 0, -1}}, &stats);
+    EXPECT_EQ(stats.reflection_rays, uint64_t(depth));
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1860,6 +1872,57 @@ TEST(TracerTest, GlassVolumeAttenuatesByTheDistanceInside) {
   EXPECT_NEAR(filled.r, t * t, 1e-4);
   EXPECT_NEAR(filled.b, t * t, 1e-4);
   EXPECT_NEAR(filled.g, t * t * std::pow(0.25, inside / 2.0), 1e-4);
+}
+
+// Nested media (KHR_materials_volume): a slab of water (ior 1.33, 1 thick) inside a slab of glass
+// (ior 1.5, 2 thick: walls 0.5 thick above and below the water), both absorbing. A ray entering
+// the top at 40 degrees bends at each interface by the ratio of the iors on its two sides
+// (Snell: sin theta_0 = 1.5 sin theta_glass = 1.33 sin theta_water), so it lands below where the
+// closed form puts it; it keeps 1 - F at each of the four interfaces, F Schlick's of the two
+// iors at the cosine on the lower index's side, and the absorption of the medium it is in over
+// each stretch: the glass's in both walls, the water's (the innermost) in the water.
+TEST(TracerTest, NestedVolumesRefractByTheRatioOfTheirIorsAndAbsorbByTheInnermost) {
+  const double n_glass = 1.5, n_water = 1.33, wall = 0.5, water = 1.0;
+  const double theta = 40.0 * M_PI / 180.0;
+  const double theta_glass = std::asin(std::sin(theta) / n_glass);
+  const double theta_water = std::asin(std::sin(theta) / n_water);
+  const glm::vec3 d(float(std::sin(theta)), 0.0f, -float(std::cos(theta)));
+  const float top = float(wall + water / 2);
+  const glm::vec3 origin = glm::vec3(0.0f, 0.0f, top) - 2.0f * d;  // enters the top at x = 0
+  const double z_target = -3.0;
+  const double x_target = 2 * wall * std::tan(theta_glass) + water * std::tan(theta_water) +
+                          (-top - z_target) * std::tan(theta);
+  const glm::vec3 glass_color(0.5f, 0.8f, 1.0f), water_color(1.0f, 0.6f, 0.3f);  // per 2 units
+  Scene s;
+  const int glass = add_glass(&s, float(n_glass));
+  const int liquid = add_glass(&s, float(n_water));
+  for (const auto& [material, color] : {std::pair(glass, glass_color), {liquid, water_color}}) {
+    Material& m = s.materials[size_t(material)];
+    m.thickness = 1.0f;
+    m.attenuation_color = color;
+    m.attenuation_distance = 2.0f;
+  }
+  add_mesh_node(&s, box_mesh({50.0f, 50.0f, top}, glass));
+  add_mesh_node(&s, box_mesh({49.0f, 49.0f, float(water / 2)}, liquid));
+  const float w = 0.01f;
+  add_mesh_node(&s, quad_mesh({float(x_target) - w / 2, -w / 2, float(z_target)}, {w, 0, 0},
+                              {0, w, 0}, add_emitter(&s, {1, 1, 1})));
+  s.finalize();
+  TracerOptions o;
+  o.max_mirror_depth = 4;  // four refractions
+  Tracer tracer(s, o);
+  TraceStats stats;
+  const ShadedSample out = tracer.trace(Ray{origin, d}, &stats);
+  const double f_air = schlick(n_glass, std::cos(theta));
+  const double f0_water = std::pow((n_glass - n_water) / (n_glass + n_water), 2.0);
+  const double f_water = f0_water + (1.0 - f0_water) * std::pow(1.0 - std::cos(theta_water), 5.0);
+  const double fresnel = std::pow((1.0 - f_air) * (1.0 - f_water), 2.0);
+  for (int c = 0; c < 3; ++c) {
+    const double kept = std::pow(glass_color[c], 2 * wall / std::cos(theta_glass) / 2.0) *
+                        std::pow(water_color[c], water / std::cos(theta_water) / 2.0);
+    EXPECT_NEAR(out.color[c], fresnel * kept, 1e-4) << "channel " << c;
+  }
+  EXPECT_EQ(stats.sanitized, 0u);
 }
 
 // KHR_materials_dispersion: in a slab of glass 4 thick (a volume), each color channel refracts
@@ -2144,6 +2207,74 @@ TEST(TracerTest, ShadowRaysThroughAVolumeAreAbsorbedByTheDistanceInside) {
     const float cosine = to_lamp.y / std::sqrt(d2);
     expect_near3(to_inside.color, lit / d2 * cosine * glm::pow(color, glm::vec3(0.5f / distance)),
                  1e-3f, "to a light inside");
+  }
+}
+
+// Nested media on a shadow ray's way: a box of absorbing glass 1 high (y 1 to 2) holding a box
+// 0.5 high (y 1.25 to 1.75) of another medium, the sun straight down. Each stretch keeps the
+// absorption of the innermost medium there: the glass's over the 0.5 outside the inner box, the
+// inner one's over its own 0.5; an inner medium that absorbs nothing (clear water in tinted
+// glass) keeps all of its stretch. From a floor inside the inner box (at y 1.4), the ray starts
+// in both media and leaves the inner one first. Single rays and packets agree.
+TEST(TracerTest, ShadowRaysThroughNestedVolumesAreAbsorbedByTheInnermost) {
+  const glm::vec3 outer_color(0.5f, 0.25f, 1.0f), inner_color(1.0f, 0.5f, 0.2f);
+  const glm::vec3 floor_base(0.8f, 0.6f, 0.4f);
+  const glm::vec3 lit = floor_base / std::numbers::pi_v<float> * 3.0f;
+  // The glass's absorption keeps color^(length / 2) (attenuation distance 2).
+  const auto kept = [](glm::vec3 color, float length) {
+    return glm::pow(color, glm::vec3(length / 2.0f));
+  };
+  for (bool clear_inside : {false, true}) {
+    Scene s;
+    const int floor = add_material(&s, floor_base, 0.0f, 1.0f);
+    add_mesh_node(&s, quad_mesh({-5, 0, 5}, {10, 0, 0}, {0, 0, -10}, floor));
+    add_mesh_node(&s, quad_mesh({0.2f, 1.4f, 0.2f}, {0.4f, 0, 0}, {0, 0, -0.4f}, floor));
+    int media[2];
+    for (int k = 0; k < 2; ++k) {
+      media[k] = add_material(&s, glm::vec3(1.0f), 0.0f, 0.0f);
+      Material& g = s.materials[size_t(media[k])];
+      g.transmission = 1.0f;
+      g.thickness = 1.0f;
+      if (k == 0 || !clear_inside) {
+        g.attenuation_color = k == 0 ? outer_color : inner_color;
+        g.attenuation_distance = 2.0f;
+      }
+    }
+    add_mesh_node(&s, box_mesh({2.0f, 0.5f, 2.0f}, media[0]), glm::dvec3(0.0, 1.5, 0.0));
+    add_mesh_node(&s, box_mesh({1.0f, 0.25f, 1.0f}, media[1]), glm::dvec3(0.0, 1.5, 0.0));
+    Light sun;
+    sun.type = Light::Type::kDirectional;
+    sun.intensity = 3.0f;
+    add_light_node(&s, sun, {0, 5, 0}, pointing_down());
+    s.finalize();
+    const glm::vec3 inner = clear_inside ? glm::vec3(1.0f) : inner_color;
+    struct View {
+      Camera camera;
+      float floor_y;
+      glm::vec3 expected;
+      const char* what;
+    };
+    const View views[] = {
+        {Camera::look_at({4.5, 0.6, 0.0}, {0.0, 0.0, 0.0}, {0, 1, 0}, 1.2, 0.01), 0.0f,
+         lit * kept(outer_color, 0.5f) * kept(inner, 0.5f), "through both boxes"},
+        {Camera::look_at({0.0, 1.6, 0.0}, {1.0, 1.0, 0.0}, {0, 1, 0}, 1.2, 0.01), 1.4f,
+         lit * kept(inner, 0.35f) * kept(outer_color, 0.25f), "from inside the inner box"},
+    };
+    for (bool packet : {true, false}) {
+      TracerOptions o;
+      o.packet_crosshair = packet;
+      Tracer tracer(s, o);
+      for (const View& v : views) {
+        SCOPED_TRACE(::testing::Message() << v.what << (packet ? ", packets" : ", single rays")
+                                          << (clear_inside ? ", clear inner medium" : ""));
+        TraceStats stats;
+        std::array<ShadedSample, 5> cross;
+        tracer.trace_crosshair(v.camera, 32.0, 24.0, 64, 48, &cross, &stats);
+        ASSERT_NEAR(cross[0].position.y, v.floor_y, 1e-3f);
+        expect_near3(cross[0].color, v.expected, 1e-3f, v.what);
+        expect_same_sample(cross[0], tracer.trace(v.camera.ray(32.0, 24.0, 64, 48), &stats), 1e-4f);
+      }
+    }
   }
 }
 

@@ -32,13 +32,15 @@ using namespace afr::protocol;
 // Scene payload
 
 ScenePayload read_scene_payload(const std::string& path, const std::string& variant,
-                                const std::string& camera) {
+                                const std::string& camera, std::optional<int> ray_depth) {
   ScenePayload p;
   if (path.empty()) {
     if (!variant.empty()) {
       throw Error("a material variant needs a scene file (the built-in scene has none)");
     }
     if (!camera.empty()) throw Error("choosing a camera needs a scene file");
+    // The built-in scene travels as a name the samplers build it from, with nothing to set.
+    if (ray_depth) throw Error("a ray depth needs a scene file (the built-in scene's is 3)");
     p.name = "builtin";
     p.bytes.assign(kBuiltinSceneBytes.begin(), kBuiltinSceneBytes.end());
   } else {
@@ -64,6 +66,10 @@ ScenePayload read_scene_payload(const std::string& path, const std::string& vari
       spdlog::info("{}: material variant \"{}\" chosen", path, variant);
     }
     if (!camera.empty()) p.bytes = select_camera(p.bytes, path, camera);
+    if (ray_depth) {
+      p.bytes = set_ray_depth(p.bytes, path, *ray_depth);
+      spdlog::info("{}: ray depth {} (secondary rays in a row)", path, *ray_depth);
+    }
   }
   if (p.bytes.size() > kMaxSceneBytes) {
     throw Error(

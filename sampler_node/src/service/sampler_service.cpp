@@ -690,8 +690,9 @@ void SamplerService::Impl::finish_background_work(DisplayLink& control) {
   }
   scene = std::move(got.scene);
   scene_hash = loading_hash;
-  spdlog::info("scene {}: {} triangles, {:.2f} s of animation (loaded in {:.2f} s)",
-               welcome.scene_name, scene->triangle_count(), scene->duration(), seconds);
+  spdlog::info("scene {}: {} triangles, {:.2f} s of animation{} (loaded in {:.2f} s)",
+               welcome.scene_name, scene->triangle_count(), scene->duration(),
+               scene->ray_depth ? fmt::format(", ray depth {}", *scene->ray_depth) : "", seconds);
 }
 
 void SamplerService::Impl::on_region(const RegionAssignment& r) {

@@ -15,8 +15,9 @@ namespace afr {
 // The version of the pictures the tracer and this renderer make, part of every ideal cache key
 // (bench/eval/ideal_cache.h): raise it with any change that changes an ideal image, so that a
 // cache never serves images of an older renderer. 2: shadows through glass, texture filtering
-// by ray cones. 3: mip levels through a binomial low-pass instead of the 2 x 2 box.
-inline constexpr uint32_t kIdealRendererVersion = 3;
+// by ray cones. 3: mip levels through a binomial low-pass instead of the 2 x 2 box. 4: nested
+// media (KHR_materials_volume) refract by the ratio of their iors and absorb by the innermost.
+inline constexpr uint32_t kIdealRendererVersion = 4;
 
 struct IdealRenderOptions {
   int width = 256;

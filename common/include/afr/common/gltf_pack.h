@@ -59,6 +59,14 @@ std::vector<uint8_t> select_material_variant(std::span<const uint8_t> bytes,
 std::vector<uint8_t> select_camera(std::span<const uint8_t> bytes,
                                    const std::filesystem::path& path, std::string_view camera);
 
+// The .gltf or .glb `bytes` (at `path`, named in errors) with its tracers' ray depth set to
+// `depth` (Scene::ray_depth: the root's extras.afr_ray_depth, added or replaced), as one file of
+// the same kind, so that every node that loads it traces that deep. Throws afr::Error naming
+// `path` and the problem: not glTF, a depth outside 0 to kMaxRayDepth, or root extras that are
+// not a JSON object.
+std::vector<uint8_t> set_ray_depth(std::span<const uint8_t> bytes,
+                                   const std::filesystem::path& path, int depth);
+
 // Whether `bytes` start as a .glb does ("glTF").
 bool is_glb(std::span<const uint8_t> bytes);
 

@@ -353,6 +353,10 @@ struct Node {
   bool visible = true;
 };
 
+// The deepest Scene::ray_depth: a glass hit branches in two, so a sample may cast up to
+// 2 + 4 + ... + 2^depth secondary rays (fewer where the light a branch carries runs out).
+inline constexpr int kMaxRayDepth = 10;
+
 // The world transforms of every node at one time, and what deforms meshes at that time.
 struct SceneState {
   double time = 0.0;
@@ -387,6 +391,11 @@ class Scene {
   std::vector<PropertyChannel> property_channels;  // lights', cameras' and materials' properties
   glm::vec3 background{0.0f};                      // radiance of rays that hit nothing
   glm::vec3 ambient{0.0f};                         // ambient light, times Material::ambient
+  // Secondary rays in a row that the tracers follow (mirror reflections, glass's reflections
+  // and refractions; 0 to kMaxRayDepth): the file's extras.afr_ray_depth, which display_node
+  // --ray-depth writes into the scene it serves and afr-render --ray-depth sets. None: the
+  // tracer's own (TracerOptions::max_mirror_depth).
+  std::optional<int> ray_depth;
 
   // Checks every index and channel, fills Node::parent from children, and derives which
   // nodes move. Call once after building or loading, before any other method. Throws

@@ -25,7 +25,8 @@ namespace afr {
 
 struct TracerOptions {
   // Secondary rays in a row: mirror reflections of smooth metals and the reflected and refracted
-  // rays of glass share it (docs/scene-model.md, "Transmission and refraction").
+  // rays of glass share it (docs/scene-model.md, "Transmission and refraction"). A scene that
+  // gives its own (Scene::ray_depth) replaces it.
   int max_mirror_depth = 3;
   bool shadows = true;
   // Roughness at or below which a metallic material reflects as a mirror.

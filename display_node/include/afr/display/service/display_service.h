@@ -29,6 +29,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -48,10 +49,12 @@ struct ScenePayload {
 // Reads a scene file (empty path: the built-in scene). A glTF that refers to other files
 // (buffers, images) is packed with them into one .glb (afr/common/gltf_pack.h), since only this
 // one payload travels; `name` then ends in .glb. A `variant` (KHR_materials_variants) and a
-// `camera` are chosen in the payload (select_material_variant, select_camera), so that the
-// samplers load the scene as the display shows it. Throws afr::Error naming the file.
+// `camera` are chosen in the payload (select_material_variant, select_camera), and a
+// `ray_depth` is written into it (set_ray_depth), so that the samplers load the scene as the
+// display shows it. Throws afr::Error naming the file.
 ScenePayload read_scene_payload(const std::string& path, const std::string& variant = "",
-                                const std::string& camera = "");
+                                const std::string& camera = "",
+                                std::optional<int> ray_depth = std::nullopt);
 
 struct DisplayServiceOptions {
   std::string bind = "tcp://127.0.0.1:7100";  // base endpoint; ports P, P+1, P+2
