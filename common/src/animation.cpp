@@ -94,6 +94,18 @@ std::string_view to_string(AnimatedProperty property) {
       return "anisotropy strength";
     case AnimatedProperty::kAnisotropyRotation:
       return "anisotropy rotation";
+    case AnimatedProperty::kTransmissionFactor:
+      return "transmission factor";
+    case AnimatedProperty::kIor:
+      return "ior";
+    case AnimatedProperty::kThicknessFactor:
+      return "thickness factor";
+    case AnimatedProperty::kAttenuationDistance:
+      return "attenuation distance";
+    case AnimatedProperty::kAttenuationColor:
+      return "attenuation color";
+    case AnimatedProperty::kDispersion:
+      return "dispersion";
     case AnimatedProperty::kUvOffset:
       return "texture transform offset";
     case AnimatedProperty::kUvRotation:
@@ -112,6 +124,7 @@ int component_count(AnimatedProperty property) {
     case AnimatedProperty::kEmissiveFactor:
     case AnimatedProperty::kSheenColorFactor:
     case AnimatedProperty::kSpecularColorFactor:
+    case AnimatedProperty::kAttenuationColor:
       return 3;
     case AnimatedProperty::kBaseColorFactor:
       return 4;

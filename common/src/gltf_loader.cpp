@@ -339,6 +339,17 @@ std::optional<PointerTarget> pointer_target(std::string_view pointer) {
        AnimatedProperty::kAnisotropyStrength},
       {"/materials/", "/extensions/KHR_materials_anisotropy/anisotropyRotation", Kind::kProperty,
        AnimatedProperty::kAnisotropyRotation},
+      {"/materials/", "/extensions/KHR_materials_transmission/transmissionFactor", Kind::kProperty,
+       AnimatedProperty::kTransmissionFactor},
+      {"/materials/", "/extensions/KHR_materials_ior/ior", Kind::kProperty, AnimatedProperty::kIor},
+      {"/materials/", "/extensions/KHR_materials_volume/thicknessFactor", Kind::kProperty,
+       AnimatedProperty::kThicknessFactor},
+      {"/materials/", "/extensions/KHR_materials_volume/attenuationDistance", Kind::kProperty,
+       AnimatedProperty::kAttenuationDistance},
+      {"/materials/", "/extensions/KHR_materials_volume/attenuationColor", Kind::kProperty,
+       AnimatedProperty::kAttenuationColor},
+      {"/materials/", "/extensions/KHR_materials_dispersion/dispersion", Kind::kProperty,
+       AnimatedProperty::kDispersion},
   };
   for (const Form& f : kForms) {
     if (pointer.size() <= f.prefix.size() + f.suffix.size() || !pointer.starts_with(f.prefix) ||
@@ -3328,10 +3339,18 @@ void Loader::add_property_channel(const tinygltf::Animation& animation, int samp
     case AnimatedProperty::kSpecularFactor:
     case AnimatedProperty::kIridescenceFactor:
     case AnimatedProperty::kAnisotropyStrength:
+    case AnimatedProperty::kTransmissionFactor:
+    case AnimatedProperty::kAttenuationColor:
       hi = 1.0;  // the extensions' own ranges, as the loader reads them unanimated
       break;
     case AnimatedProperty::kIridescenceIor:
+    case AnimatedProperty::kIor:
+      // An animated ior stays a glass's (KHR_materials_ior's 0, "reflect all", would pass
+      // through (0, 1) between keys, which no material has).
       lo = 1.0;
+      break;
+    case AnimatedProperty::kAttenuationDistance:
+      open_lo = true;
       break;
     case AnimatedProperty::kAnisotropyRotation:
     case AnimatedProperty::kNormalScale:

@@ -1021,6 +1021,25 @@ void apply(AnimatedProperty property, const glm::dvec4& v, Light* light, CameraM
     case AnimatedProperty::kAnisotropyRotation:
       material->anisotropy_rotation = x;
       break;
+    case AnimatedProperty::kTransmissionFactor:
+      material->transmission = std::clamp(x, 0.0f, 1.0f);
+      break;
+    case AnimatedProperty::kIor:
+      material->ior = std::max(x, 1.0f);
+      break;
+    case AnimatedProperty::kThicknessFactor:
+      material->thickness = std::max(x, 0.0f);
+      break;
+    case AnimatedProperty::kAttenuationDistance:
+      // A cubic spline may overshoot below its keys (all > 0): a tiny distance absorbs all.
+      material->attenuation_distance = std::max(x, 1e-30f);
+      break;
+    case AnimatedProperty::kAttenuationColor:
+      material->attenuation_color = glm::clamp(glm::vec3(v), glm::vec3(0.0f), glm::vec3(1.0f));
+      break;
+    case AnimatedProperty::kDispersion:
+      material->dispersion = std::max(x, 0.0f);
+      break;
     case AnimatedProperty::kUvOffset:
       material->uv_transforms[size_t(uv_set)].offset = glm::dvec2(v);
       break;

@@ -544,6 +544,10 @@ struct Tracer::Impl {
     if (!m.uv_transforms.empty()) materials_[i].uv_transforms = uv_transforms_[i].data();
   }
   bool has_translucent_ = false;  // glass or blended geometry lets shadow rays through (crosses)
+  // Per material, whether an animation drives its transmission (KHR_animation_pointer): it may
+  // be glass at some times and not at others, so its geometry carries the glass filter, which
+  // asks the material of the time (set_filters).
+  std::vector<char> animated_transmission_;
   std::deque<GeometryFilter> filters_;  // the user data of masked and glass geometries
   std::vector<int> light_nodes_;        // scene nodes that carry a light
   std::vector<int> camera_lights_;      // lights on the camera (Light::on_camera)
@@ -737,8 +741,9 @@ void Tracer::Impl::set_filters(RTCGeometry g, uint32_t material, const Primitive
   const shading::ShadeMaterial& m = materials_[material];
   const float* vertex_alpha = tested_alpha(p, material);
   const bool masked = m.masked || vertex_alpha;
-  if (!m.is_glass && !masked) return;
-  has_translucent_ |= m.is_glass || (m.blended && masked);
+  const bool glass = m.is_glass || animated_transmission_[material];
+  if (!glass && !masked) return;
+  has_translucent_ |= glass || (m.blended && masked);
   GeometryFilter& f = filters_.emplace_back();
   f.material = &m;
   f.masked = masked;
@@ -746,11 +751,14 @@ void Tracer::Impl::set_filters(RTCGeometry g, uint32_t material, const Primitive
   f.uvs = uvs.base_color;
   f.color_alpha = vertex_alpha;
   f.indices = p.indices.data();
-  if (m.is_glass) {
+  if (glass) {
+    // (A material that is not glass now has no transmission texture yet: the scene's says.)
+    const bool transmission_texture =
+        material < scene_.materials.size() && scene_.materials[material].transmission_texture >= 0;
     f.transmission_uvs = uvs.transmission;
     f.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
-    f.textured_glass = (m.texture && f.uvs) || (m.transmission_texture && f.transmission_uvs) ||
-                       f.colors != nullptr;
+    f.textured_glass =
+        (m.texture && f.uvs) || (transmission_texture && f.transmission_uvs) || f.colors != nullptr;
   }
   rtcSetGeometryUserData(g, &f);
   rtcSetGeometryOccludedFilterFunction(g, &occlusion_filter);
@@ -797,6 +805,12 @@ void Tracer::Impl::build() {
   // is now.
   for (int i : scene_.animated_materials()) {
     if (materials_[size_t(i)].alpha_tested) materials_[size_t(i)].masked = true;
+  }
+  animated_transmission_.assign(materials_.size(), 0);
+  for (const PropertyChannel& c : scene_.property_channels) {
+    if (c.property == AnimatedProperty::kTransmissionFactor) {
+      animated_transmission_[size_t(c.index)] = 1;
+    }
   }
   auto material_of = [&](const Primitive& p) {
     return p.material >= 0 && size_t(p.material) < scene_.materials.size() ? uint32_t(p.material)

@@ -2283,8 +2283,9 @@ TEST_F(GltfLoaderTest, UnsupportedFeaturesWarnOnceEachAndTheSceneStillLoads) {
 
 // KHR_animation_pointer: channels whose pointer names a node's translation, rotation, scale or
 // morph weights animate it as a channel of that node and path would; a pointer to another
-// property (here a material's ior) warns once per kind and is skipped; a pointer to a node
-// the file lacks, or a channel without a pointer, fails naming the channel.
+// property (here a factor of KHR_materials_diffuse_transmission, which afr does not read) warns
+// once per kind and is skipped; a pointer to a node the file lacks, or a channel without a pointer,
+// fails naming the channel.
 TEST_F(GltfLoaderTest, AnimationPointersToANodesTransformAreAnimated) {
   GltfBuilder b;
   add_quad(&b);
@@ -2294,9 +2295,13 @@ TEST_F(GltfLoaderTest, AnimationPointersToANodesTransformAreAnimated) {
   const int colors = b.add_floats({1, 0, 0, 1, 0, 0, 1, 1}, 4);
   b.doc()["animations"] = {
       {{"channels",
-        {pointer_channel(1, "/materials/0/extensions/KHR_materials_ior/ior"),
+        {pointer_channel(1,
+                         "/materials/0/extensions/KHR_materials_diffuse_transmission/"
+                         "diffuseTransmissionFactor"),
          pointer_channel(0, "/nodes/0/translation"),
-         pointer_channel(1, "/materials/1/extensions/KHR_materials_ior/ior")}},
+         pointer_channel(1,
+                         "/materials/1/extensions/KHR_materials_diffuse_transmission/"
+                         "diffuseTransmissionFactor")}},
        {"samplers",
         {{{"input", times}, {"output", moves}}, {{"input", times}, {"output", colors}}}}}};
   b.doc()["extensionsUsed"] = {"KHR_animation_pointer"};
@@ -2309,10 +2314,10 @@ TEST_F(GltfLoaderTest, AnimationPointersToANodesTransformAreAnimated) {
   EXPECT_EQ(scene.channels[0].path, AnimatedPath::kTranslation);
   EXPECT_NEAR(scene.evaluate(1.0).world[0][3].x, 2.0, 1e-9);  // halfway to x = 4
   ASSERT_EQ(report.warnings.size(), 1u) << report.warnings.back();
-  EXPECT_NE(
-      report.warnings[0].find("KHR_animation_pointer animations of "
-                              "/materials/#/extensions/KHR_materials_ior/ior are not supported"),
-      std::string::npos)
+  EXPECT_NE(report.warnings[0].find("KHR_animation_pointer animations of "
+                                    "/materials/#/extensions/KHR_materials_diffuse_transmission/"
+                                    "diffuseTransmissionFactor are not supported"),
+            std::string::npos)
       << report.warnings[0];
   EXPECT_TRUE(scene.property_channels.empty());
 
@@ -2712,6 +2717,64 @@ TEST_F(GltfLoaderTest, AnimationPointersToMaterialExtensionFactorsKeepTheirRange
   b.doc()["animations"][0]["samplers"][1]["output"] = b.add_floats({0.5f, 1.5f}, 1);
   b.write_embedded(path);
   expect_error(path, "key 1 sets the clearcoat factor to 1.5, outside [0, 1]");
+}
+
+// Transmission, ior, volume and dispersion animate too (the tracer gives a material whose
+// transmission is animated the glass filter whatever it is at the start), each within its
+// range: an animated ior stays at or above 1 (KHR_materials_ior's 0 would pass through (0, 1)
+// between keys) and an attenuation distance above 0.
+TEST_F(GltfLoaderTest, AnimationPointersToTransmissionAndVolumeKeepTheirRanges) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  b.doc()["materials"] = json::array({json::object()});
+  const int times = b.add_floats({0, 2}, 1);
+  const std::string m = "/materials/0/extensions/";
+  b.doc()["animations"] = {
+      {{"channels",
+        {pointer_channel(0, m + "KHR_materials_transmission/transmissionFactor"),
+         pointer_channel(1, m + "KHR_materials_ior/ior"),
+         pointer_channel(2, m + "KHR_materials_volume/thicknessFactor"),
+         pointer_channel(3, m + "KHR_materials_volume/attenuationDistance"),
+         pointer_channel(4, m + "KHR_materials_volume/attenuationColor"),
+         pointer_channel(5, m + "KHR_materials_dispersion/dispersion")}},
+       {"samplers",
+        {{{"input", times}, {"output", b.add_floats({0, 1}, 1)}},
+         {{"input", times}, {"output", b.add_floats({1.5f, 1.1f}, 1)}},
+         {{"input", times}, {"output", b.add_floats({0, 2}, 1)}},
+         {{"input", times}, {"output", b.add_floats({4, 2}, 1)}},
+         {{"input", times}, {"output", b.add_floats({1, 1, 1, 0.5f, 0.25f, 0}, 3)}},
+         {{"input", times}, {"output", b.add_floats({0, 3}, 1)}}}}}};
+  b.doc()["extensionsUsed"] = {"KHR_animation_pointer"};
+  const fs::path path = dir_ / "volume.gltf";
+  b.write_embedded(path);
+  GltfLoadReport report;
+  const Scene scene = load_gltf(path, &report);
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+  EXPECT_EQ(scene.materials[0].transmission, 0.0f);  // the file's, where the animation starts
+  const Material& at1 = scene.material_at(scene.evaluate(1.0), 0);
+  EXPECT_NEAR(at1.transmission, 0.5f, 1e-6f);
+  EXPECT_NEAR(at1.ior, 1.3f, 1e-6f);
+  EXPECT_NEAR(at1.thickness, 1.0f, 1e-6f);
+  EXPECT_NEAR(at1.attenuation_distance, 3.0f, 1e-6f);
+  EXPECT_NEAR(at1.attenuation_color.y, 0.625f, 1e-6f);
+  EXPECT_NEAR(at1.dispersion, 1.5f, 1e-6f);
+
+  const auto refused = [&](int sampler, const std::vector<float>& keys, int width,
+                           const std::string& problem) {
+    json doc = b.doc();
+    b.doc()["animations"][0]["samplers"][sampler]["output"] = b.add_floats(keys, width);
+    b.write_embedded(path);
+    expect_error(path, problem);
+    b.doc() = doc;
+  };
+  refused(0, {0, 1.2f}, 1, "key 1 sets the transmission factor to 1.2, outside [0, 1]");
+  refused(1, {1.5f, 0}, 1, "key 1 sets the ior to 0, outside [1, inf]");
+  refused(2, {-1, 0}, 1, "key 0 sets the thickness factor to -1, outside [0, inf]");
+  refused(3, {4, 0}, 1, "key 1 sets the attenuation distance to 0, outside (0, inf]");
+  refused(4, {1, 1, 1, 0.5f, 1.5f, 0}, 3,
+          "key 1 sets the attenuation color to 1.5, outside [0, 1]");
+  refused(5, {0, -2}, 1, "key 1 sets the dispersion to -2, outside [0, inf]");
 }
 
 // glTF requires strictly increasing keyframe times, but exporters write repeated and unordered

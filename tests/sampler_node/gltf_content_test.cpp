@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <vector>
@@ -344,35 +345,24 @@ TEST(GltfContentTracerTest, AnAnimatedTextureTransformMovesAMasksCutOut) {
 
 // ---- Animated material extensions ----
 
-// The material extensions' factors that KHR_animation_pointer drives (clearcoat, sheen,
-// specular, iridescence, anisotropy) shade at each time as the same factors written in the
-// file do, and the image does change over the animation.
-TEST(GltfContentTracerTest, AnimatedMaterialExtensionFactorsShadeAsTheSameFactorsInTheFile) {
-  struct Factor {
-    std::string extension, property;
-    std::vector<float> from, to;
-  };
-  const std::vector<Factor> factors = {
-      {"KHR_materials_clearcoat", "clearcoatFactor", {0.0f}, {1.0f}},
-      {"KHR_materials_clearcoat", "clearcoatRoughnessFactor", {0.1f}, {0.6f}},
-      {"KHR_materials_sheen", "sheenColorFactor", {0.0f, 0.0f, 0.0f}, {0.9f, 0.5f, 0.2f}},
-      {"KHR_materials_sheen", "sheenRoughnessFactor", {0.2f}, {0.8f}},
-      {"KHR_materials_specular", "specularFactor", {1.0f}, {0.3f}},
-      {"KHR_materials_specular", "specularColorFactor", {1.0f, 1.0f, 1.0f}, {0.2f, 1.5f, 0.7f}},
-      {"KHR_materials_iridescence", "iridescenceFactor", {0.0f}, {1.0f}},
-      {"KHR_materials_iridescence", "iridescenceIor", {1.3f}, {1.8f}},
-      {"KHR_materials_iridescence", "iridescenceThicknessMinimum", {100.0f}, {300.0f}},
-      {"KHR_materials_iridescence", "iridescenceThicknessMaximum", {400.0f}, {700.0f}},
-      {"KHR_materials_anisotropy", "anisotropyStrength", {0.0f}, {0.8f}},
-      {"KHR_materials_anisotropy", "anisotropyRotation", {0.0f}, {1.0f}},
-  };
+// A material extension's factor that KHR_animation_pointer drives, from one value to another.
+struct AnimatedFactor {
+  std::string extension, property;
+  std::vector<float> from, to;
+};
+
+// Builds the scene `make_scene` makes around material 0 twice: once with `factors` animated
+// by KHR_animation_pointer over 1 s from their `from` to their `to` values (on `base`), and at
+// each of three times once more with the factors written in the file as they stand then. Each
+// time's image must match the file's, pixel for pixel, and the image must change over the
+// animation.
+void expect_animated_factors_shade_as_in_the_file(
+    const std::vector<AnimatedFactor>& factors, const json& base,
+    const std::function<GltfContent(const json&)>& make_scene) {
   // The material with each factor at s in [0, 1] of the way from `from` to `to`.
   const auto material = [&](float s) {
-    json m = {{"pbrMetallicRoughness",
-               {{"baseColorFactor", {0.6, 0.3, 0.2, 1.0}},
-                {"metallicFactor", 0.0},
-                {"roughnessFactor", 0.5}}}};
-    for (const Factor& f : factors) {
+    json m = base;
+    for (const AnimatedFactor& f : factors) {
       json value = json::array();
       for (size_t k = 0; k < f.from.size(); ++k)
         value.push_back(f.from[k] + s * (f.to[k] - f.from[k]));
@@ -380,15 +370,25 @@ TEST(GltfContentTracerTest, AnimatedMaterialExtensionFactorsShadeAsTheSameFactor
     }
     return m;
   };
-  const json used = {"KHR_materials_clearcoat",  "KHR_materials_sheen",
-                     "KHR_materials_specular",   "KHR_materials_iridescence",
-                     "KHR_materials_anisotropy", "KHR_animation_pointer"};
+  json used = {"KHR_animation_pointer"};
+  for (const AnimatedFactor& f : factors) {
+    if (std::find(used.begin(), used.end(), f.extension) == used.end()) used.push_back(f.extension);
+  }
+  const auto with_used = [&](GltfContent g) {
+    for (const json& e : used) {
+      if (!g.doc().contains("extensionsUsed") ||
+          std::find(g.doc()["extensionsUsed"].begin(), g.doc()["extensionsUsed"].end(), e) ==
+              g.doc()["extensionsUsed"].end()) {
+        g.doc()["extensionsUsed"].push_back(e);
+      }
+    }
+    return g;
+  };
   TempFolder dir;
-  GltfContent animated = box(material(0.0f));
-  animated.doc()["extensionsUsed"] = used;
+  GltfContent animated = with_used(make_scene(material(0.0f)));
   json a = {{"channels", json::array()}, {"samplers", json::array()}};
   const int times = animated.add_floats({0.0f, 1.0f}, 1);
-  for (const Factor& f : factors) {
+  for (const AnimatedFactor& f : factors) {
     std::vector<float> keys = f.from;
     keys.insert(keys.end(), f.to.begin(), f.to.end());
     a["samplers"].push_back(
@@ -410,9 +410,7 @@ TEST(GltfContentTracerTest, AnimatedMaterialExtensionFactorsShadeAsTheSameFactor
   std::vector<glm::vec3> first;
   for (const float t : {0.0f, 0.4f, 1.0f}) {
     SCOPED_TRACE("t = " + std::to_string(t));
-    GltfContent fixed = box(material(t));
-    fixed.doc()["extensionsUsed"] = used;
-    fixed.write(dir / "fixed.gltf");
+    with_used(make_scene(material(t))).write(dir / "fixed.gltf");
     const Tracer baked(load_gltf(dir / "fixed.gltf"));
     tracer.set_time(t);
     double change = 0.0;
@@ -430,6 +428,67 @@ TEST(GltfContentTracerTest, AnimatedMaterialExtensionFactorsShadeAsTheSameFactor
       EXPECT_GT(change, 1.0);  // the animation shows
     }
   }
+}
+
+// The material extensions' factors that KHR_animation_pointer drives (clearcoat, sheen,
+// specular, iridescence, anisotropy) shade at each time as the same factors written in the
+// file do, and the image does change over the animation.
+TEST(GltfContentTracerTest, AnimatedMaterialExtensionFactorsShadeAsTheSameFactorsInTheFile) {
+  expect_animated_factors_shade_as_in_the_file(
+      {
+          {"KHR_materials_clearcoat", "clearcoatFactor", {0.0f}, {1.0f}},
+          {"KHR_materials_clearcoat", "clearcoatRoughnessFactor", {0.1f}, {0.6f}},
+          {"KHR_materials_sheen", "sheenColorFactor", {0.0f, 0.0f, 0.0f}, {0.9f, 0.5f, 0.2f}},
+          {"KHR_materials_sheen", "sheenRoughnessFactor", {0.2f}, {0.8f}},
+          {"KHR_materials_specular", "specularFactor", {1.0f}, {0.3f}},
+          {"KHR_materials_specular", "specularColorFactor", {1.0f, 1.0f, 1.0f}, {0.2f, 1.5f, 0.7f}},
+          {"KHR_materials_iridescence", "iridescenceFactor", {0.0f}, {1.0f}},
+          {"KHR_materials_iridescence", "iridescenceIor", {1.3f}, {1.8f}},
+          {"KHR_materials_iridescence", "iridescenceThicknessMinimum", {100.0f}, {300.0f}},
+          {"KHR_materials_iridescence", "iridescenceThicknessMaximum", {400.0f}, {700.0f}},
+          {"KHR_materials_anisotropy", "anisotropyStrength", {0.0f}, {0.8f}},
+          {"KHR_materials_anisotropy", "anisotropyRotation", {0.0f}, {1.0f}},
+      },
+      {{"pbrMetallicRoughness",
+        {{"baseColorFactor", {0.6, 0.3, 0.2, 1.0}},
+         {"metallicFactor", 0.0},
+         {"roughnessFactor", 0.5}}}},
+      box);
+}
+
+// Transmission, ior, volume and dispersion driven by KHR_animation_pointer: a box that turns
+// from opaque (transmission 0) into absorbing, dispersive glass, in front of a lit wall it casts
+// its shadow on. At each time the camera's rays through it and the shadow rays to the wall see
+// what the same factors written in the file give: its geometry lets shadow rays through only
+// while it is glass, though it was not glass when the tracer was built.
+TEST(GltfContentTracerTest, AnimatedTransmissionIorAndVolumeShadeAsTheSameFactorsInTheFile) {
+  const auto glass_before_a_wall = [](const json& glass) {
+    GltfContent g;
+    g.doc()["materials"] = json::array({glass, kPurple});
+    const int wall =
+        g.add_mesh({-3, -3, -1.5f, 3, -3, -1.5f, 3, 3, -1.5f, -3, 3, -1.5f}, {0, 1, 2, 0, 2, 3}, 1);
+    g.doc()["extensions"]["KHR_lights_punctual"]["lights"] =
+        json::array({{{"type", "point"}, {"intensity", 20.0}}});
+    g.doc()["extensionsUsed"] = {"KHR_lights_punctual"};
+    g.set_roots({g.add_node({{"mesh", g.add_box(0.5f, 0)}}), g.add_node({{"mesh", wall}}),
+                 g.add_node({{"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}},
+                             {"translation", {1.2, 0.9, 2.5}}})});
+    return g;
+  };
+  expect_animated_factors_shade_as_in_the_file(
+      {
+          {"KHR_materials_transmission", "transmissionFactor", {0.0f}, {1.0f}},
+          {"KHR_materials_ior", "ior", {1.5f}, {1.2f}},
+          {"KHR_materials_volume", "thicknessFactor", {0.0f}, {1.0f}},
+          {"KHR_materials_volume", "attenuationDistance", {2.0f}, {0.5f}},
+          {"KHR_materials_volume", "attenuationColor", {1.0f, 1.0f, 1.0f}, {0.8f, 0.5f, 0.2f}},
+          {"KHR_materials_dispersion", "dispersion", {0.0f}, {1.0f}},
+      },
+      {{"pbrMetallicRoughness",
+        {{"baseColorFactor", {0.9, 0.9, 0.9, 1.0}},
+         {"metallicFactor", 0.0},
+         {"roughnessFactor", 0.2}}}},
+      glass_before_a_wall);
 }
 
 // ---- Animated visibility ----

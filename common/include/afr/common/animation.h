@@ -94,6 +94,12 @@ enum class AnimatedProperty {
   kIridescenceThicknessMaximum,  //   .../iridescenceThicknessMaximum
   kAnisotropyStrength,           //   KHR_materials_anisotropy/anisotropyStrength
   kAnisotropyRotation,           //   .../anisotropyRotation (radians)
+  kTransmissionFactor,           //   KHR_materials_transmission/transmissionFactor
+  kIor,                          //   KHR_materials_ior/ior
+  kThicknessFactor,              //   KHR_materials_volume/thicknessFactor
+  kAttenuationDistance,          //   .../attenuationDistance
+  kAttenuationColor,             //   .../attenuationColor
+  kDispersion,                   //   KHR_materials_dispersion/dispersion
   // /materials/N/TEXTURE/extensions/KHR_texture_transform/offset, TEXTURE a texture slot's
   // path (pbrMetallicRoughness/baseColorTexture, extensions/KHR_materials_clearcoat/
   // clearcoatTexture, ...): PropertyChannel::uv_set names the set it transforms.
