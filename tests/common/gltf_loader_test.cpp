@@ -2752,7 +2752,8 @@ TEST_F(GltfLoaderTest, AnimationPointersToTransmissionAndVolumeKeepTheirRanges) 
   const Scene scene = load_gltf(path, &report);
   EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
   EXPECT_EQ(scene.materials[0].transmission, 0.0f);  // the file's, where the animation starts
-  const Material& at1 = scene.material_at(scene.evaluate(1.0), 0);
+  const SceneState state = scene.evaluate(1.0);
+  const Material& at1 = scene.material_at(state, 0);
   EXPECT_NEAR(at1.transmission, 0.5f, 1e-6f);
   EXPECT_NEAR(at1.ior, 1.3f, 1e-6f);
   EXPECT_NEAR(at1.thickness, 1.0f, 1e-6f);
