@@ -50,6 +50,37 @@ TEST(FlyCameraTest, DraggingRightTurnsRightByTheAngleAndUpLooksUp) {
   EXPECT_EQ(fly.camera().eye, c.eye);
 }
 
+// + and - in the window: each step narrows or widens a perspective view's yfov by the zoom
+// step, within its bounds, and an orthographic view's height (ymag) likewise, with no bound but
+// a positive one; the position and direction stay.
+TEST(FlyCameraTest, ZoomNarrowsThePerspectiveFieldOrTheOrthographicHeight) {
+  const Camera start = Camera::look_at({0, 1, 5}, {0, 1, 0}, {0, 1, 0}, 0.8, 0.01);
+  FlyCamera fly(start, 1.0);
+  fly.zoom(2.0);
+  EXPECT_NEAR(fly.camera().yfov, 0.8 * FlyCamera::kZoomStep * FlyCamera::kZoomStep, 1e-12);
+  fly.zoom(-2.0);
+  EXPECT_NEAR(fly.camera().yfov, 0.8, 1e-12);
+  EXPECT_EQ(fly.camera().eye, start.eye);
+  EXPECT_NEAR(glm::length(fly.camera().forward - start.forward), 0.0, 1e-12);
+  fly.zoom(1e6);  // as far as it goes
+  EXPECT_NEAR(fly.camera().yfov, FlyCamera::kMinYfov, 1e-12);
+  fly.zoom(-1e6);
+  EXPECT_NEAR(fly.camera().yfov, FlyCamera::kMaxYfov, 1e-12);
+  fly.zoom(NAN);
+  EXPECT_NEAR(fly.camera().yfov, FlyCamera::kMaxYfov, 1e-12);
+
+  Camera ortho = start;
+  ortho.ymag = 2.0;
+  FlyCamera flat(ortho, 1.0);
+  flat.zoom(1.0);
+  EXPECT_NEAR(flat.camera().ymag, 2.0 * FlyCamera::kZoomStep, 1e-12);
+  EXPECT_EQ(flat.camera().yfov, ortho.yfov);
+  flat.zoom(-3.0);
+  EXPECT_NEAR(flat.camera().ymag, 2.0 / std::pow(FlyCamera::kZoomStep, 2.0), 1e-12);
+  flat.look(10.0, 0.0);  // turning keeps it orthographic and its height
+  EXPECT_NEAR(flat.camera().ymag, 2.0 / std::pow(FlyCamera::kZoomStep, 2.0), 1e-12);
+}
+
 TEST(FlyCameraTest, MovesAlongItsOwnAxesAtItsSpeed) {
   const Camera start = Camera::look_at({0, 1, 0}, {1, 1, 0}, {0, 1, 0}, 0.8, 0.01);
   FlyCamera fly(start, 2.0);

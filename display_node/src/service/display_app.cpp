@@ -426,6 +426,10 @@ void DisplayApp::State::read_input(const Camera& camera, double t, std::atomic<b
       save(fmt::format("screenshot_{:06d}", frame), t);
     } else if (key == GLFW_KEY_H) {
       input.hud = !input.hud;
+    } else if (fly && (key == GLFW_KEY_EQUAL || key == GLFW_KEY_KP_ADD)) {
+      fly->zoom(1.0);
+    } else if (fly && (key == GLFW_KEY_MINUS || key == GLFW_KEY_KP_SUBTRACT)) {
+      fly->zoom(-1.0);
     } else if (key == GLFW_KEY_Q || key == GLFW_KEY_ESCAPE) {
       stop.store(true);
     }

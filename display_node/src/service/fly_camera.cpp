@@ -43,6 +43,17 @@ void FlyCamera::move(const glm::dvec3& direction, double seconds) {
       (d.x * camera_.right + d.y * camera_.up + d.z * camera_.forward) * (speed_ * seconds);
 }
 
+void FlyCamera::zoom(double steps) {
+  if (!std::isfinite(steps)) return;
+  const double factor = std::pow(kZoomStep, std::clamp(steps, -100.0, 100.0));
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (camera_.ymag > 0.0) {
+    camera_.ymag = std::clamp(camera_.ymag * factor, 1e-9, 1e12);
+  } else {
+    camera_.yfov = std::clamp(camera_.yfov * factor, kMinYfov, kMaxYfov);
+  }
+}
+
 Camera FlyCamera::camera() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return camera_;

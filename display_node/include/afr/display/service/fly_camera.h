@@ -28,6 +28,13 @@ class FlyCamera {
   void look(double dx, double dy, double radians_per_pixel = 0.003);
   // Moves along the camera's own axes for `seconds`: (right, up, forward) each in -1..1.
   void move(const glm::dvec3& direction, double seconds);
+  // Zooms in by `steps` (out where negative), each step narrowing the view by kZoomStep: a
+  // perspective view's yfov (kept within kMinYfov..kMaxYfov), an orthographic view's height
+  // (ymag).
+  void zoom(double steps);
+  static constexpr double kZoomStep = 0.9;
+  static constexpr double kMinYfov = 0.01;  // radians
+  static constexpr double kMaxYfov = 3.0;
 
   Camera camera() const;
 
