@@ -34,11 +34,8 @@ int main(int argc, char** argv) {
                  "the scene's camera to draw from: a camera's or its node's name, or an index "
                  "into the glTF's cameras (default: the first camera node of the scene)");
   std::optional<int> ray_depth;
-  app.add_option("--ray-depth", ray_depth,
-                 "secondary rays in a row (mirror reflections, glass's reflections and "
-                 "refractions), as display_node --ray-depth sets them for the samplers "
-                 "(default: the file's extras.afr_ray_depth, else 3)")
-      ->check(CLI::Range(0, afr::kMaxRayDepth));
+  afr::add_ray_depth_option(app, &ray_depth,
+                            "as display_node --ray-depth sets them for the samplers");
   app.add_option("-t,--time", time, "scene time in seconds (first frame's time with --frames)");
   app.add_option("-s,--size", size_text, "image size WxH")->capture_default_str();
   app.add_option("--spp", spp, "samples per pixel, a square S*S (stratified S x S)")

@@ -87,11 +87,8 @@ int main(int argc, char** argv) {
                  "the scene's camera to view from: a camera's or its node's name, or an index "
                  "into the glTF's cameras (default: the first camera node of the scene)");
   std::optional<int> ray_depth;
-  app.add_option("--ray-depth", ray_depth,
-                 "secondary rays in a row the samplers follow (mirror reflections, glass's "
-                 "reflections and refractions), written into the scene they are served "
-                 "(default: the file's extras.afr_ray_depth, else 3)")
-      ->check(CLI::Range(0, afr::kMaxRayDepth));
+  afr::add_ray_depth_option(app, &ray_depth,
+                            "for the samplers: written into the scene they are served");
   app.add_option("--bind", o.bind, "base endpoint tcp://HOST:PORT (uses PORT..PORT+2)")
       ->capture_default_str();
   app.add_option("-s,--size", size_text, "image size WxH (a wall's whole virtual display)")

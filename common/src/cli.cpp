@@ -1,6 +1,7 @@
 #include <afr/common/cli.h>
 
 #include <afr/common/error.h>
+#include <afr/common/scene.h>
 
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>
@@ -53,6 +54,15 @@ void refuse_non_finite(CLI::App& app) {
   for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) {
     refuse_non_finite(*sub);
   }
+}
+
+void add_ray_depth_option(CLI::App& app, std::optional<int>* depth, std::string_view where) {
+  app.add_option("--ray-depth", *depth,
+                 fmt::format("secondary rays in a row (mirror reflections, glass's reflections "
+                             "and refractions), {} (default: the file's extras.afr_ray_depth, "
+                             "else 3)",
+                             where))
+      ->check(CLI::Range(0, kMaxRayDepth));
 }
 
 }  // namespace afr

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <CLI/CLI.hpp>
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -50,6 +51,36 @@ TEST(CliTest, FloatingOptionsRefuseNanAndInfinityByName) {
   // Text and whole-number options are left alone.
   EXPECT_EQ(parse({"--name", "nan"}), "");
   EXPECT_EQ(parse({"--start", "0.5,2", "--count", "3"}), "");
+}
+
+// --ray-depth takes a whole number from 0 to kMaxRayDepth, absent by default, and its help
+// says where the depth goes.
+TEST(CliTest, RayDepthOptionTakesAWholeNumberInRange) {
+  const auto parse_depth = [](std::vector<std::string> args, std::optional<int>* depth) {
+    CLI::App app{"test"};
+    add_ray_depth_option(app, depth, "into the scene");
+    std::vector<std::string> reversed(args.rbegin(), args.rend());
+    try {
+      app.parse(reversed);
+    } catch (const CLI::ParseError& e) {
+      return std::string(e.what());
+    }
+    EXPECT_NE(app.help().find("into the scene (default: the file's extras.afr_ray_depth"),
+              std::string::npos)
+        << app.help();
+    return std::string();
+  };
+  std::optional<int> depth;
+  EXPECT_EQ(parse_depth({}, &depth), "");
+  EXPECT_EQ(depth, std::nullopt);
+  EXPECT_EQ(parse_depth({"--ray-depth", "6"}, &depth), "");
+  EXPECT_EQ(depth, std::optional<int>(6));
+  for (const std::string bad : {"11", "-1", "2.5", "deep"}) {
+    std::optional<int> refused;
+    const std::string error = parse_depth({"--ray-depth", bad}, &refused);
+    EXPECT_NE(error.find("--ray-depth"), std::string::npos) << bad << ": " << error;
+    EXPECT_EQ(refused, std::nullopt) << bad;
+  }
 }
 
 TEST(CliTest, ImageSizesAreCheckedWithTheirReason) {

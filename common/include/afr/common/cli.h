@@ -4,6 +4,7 @@
 
 #include <afr/common/rect.h>
 
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -26,5 +27,9 @@ void refuse_non_finite(CLI::App& app);
 
 // That check, for an option of another type that takes numbers too (a word or a number).
 CLI::Validator finite_number();
+
+// --ray-depth N (0 to kMaxRayDepth, Scene::ray_depth) into *depth, its help saying `where` the
+// depth goes: the programs that set a scene's ray depth all describe it so.
+void add_ray_depth_option(CLI::App& app, std::optional<int>* depth, std::string_view where);
 
 }  // namespace afr
