@@ -119,7 +119,7 @@ class Packer {
     if (doc.is_discarded() || !doc.is_object()) fail("invalid glTF: not a JSON object");
 
     // Where each buffer starts in the binary chunk; a meshopt placeholder or fallback buffer
-    // (which holds no data a reader that decodes needs: gltf_loader.cpp) is not packed but kept
+    // (which holds no data a reader that decodes needs: gltf_accessors.cpp) is not packed but kept
     // as a buffer without a uri after the binary chunk's, its index in the packed file.
     std::vector<Place> base;
     Json placeholders = Json::array();

@@ -9,6 +9,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 namespace afr {
 
@@ -944,13 +945,13 @@ void apply(AnimatedProperty property, const glm::dvec4& v, Light* light, CameraM
       light->range = std::max(x, 1e-6f);  // 0 would mean no range at all
       break;
     case AnimatedProperty::kLightInnerCone:
-      light->inner_cone_angle = std::clamp(x, 0.0f, float(0.5 * kPi));
+      light->inner_cone_angle = std::clamp(x, 0.0f, float(0.5 * std::numbers::pi));
       break;
     case AnimatedProperty::kLightOuterCone:
-      light->outer_cone_angle = std::clamp(x, 0.0f, float(0.5 * kPi));
+      light->outer_cone_angle = std::clamp(x, 0.0f, float(0.5 * std::numbers::pi));
       break;
     case AnimatedProperty::kCameraYfov:
-      camera->yfov = std::clamp(v.x, 1e-6, kPi - 1e-6);
+      camera->yfov = std::clamp(v.x, 1e-6, std::numbers::pi - 1e-6);
       break;
     case AnimatedProperty::kCameraZnear:
       camera->znear = std::max(v.x, 1e-9);
