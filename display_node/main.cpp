@@ -122,7 +122,8 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   app.add_flag("--interactive", interactive,
                "steer the camera in the window: drag with the left mouse button to look, "
-               "arrow keys to move, Page Up/Down to rise and sink (record it with --record)");
+               "arrow keys to move, Page Up/Down to rise and sink, + and - to zoom (record it with "
+               "--record)");
   app.add_option("--screenshot-every", screenshot_every,
                  "write an image every K frames to --output (0 = only at exit)")
       ->check(CLI::Range(0, 1000000000));
