@@ -4,7 +4,6 @@
 
 #include <afr/common/builtin_scene.h>
 #include <afr/common/error.h>
-#include <afr/common/image.h>
 #include <afr/common/log.h>
 
 #include <fmt/format.h>
@@ -14,26 +13,16 @@
 #include <nlohmann/json.hpp>
 
 #include "gltf_meshopt_json.h"
-#include "image_formats.h"
 
 #include <algorithm>
 #include <array>
-#include <charconv>
-#include <cmath>
-#include <cstdio>
 #include <cstring>
 #include <fstream>
-#include <limits>
-#include <map>
-#include <memory>
-#include <numbers>
-#include <numeric>
 #include <optional>
 #include <set>
 #include <span>
 #include <string_view>
 #include <system_error>
-#include <tuple>
 
 namespace afr::gltf_detail {
 namespace {

@@ -6,7 +6,7 @@
 #include "image_formats.h"
 
 #include <algorithm>
-#include <limits>
+#include <cstring>
 
 namespace afr::gltf_detail {
 

@@ -2,8 +2,6 @@
 #include "gltf_loader_parts.h"
 
 #include <algorithm>
-#include <cstring>
-#include <limits>
 #include <numeric>
 
 namespace afr::gltf_detail {

@@ -3,7 +3,6 @@
 #include "gltf_loader_parts.h"
 
 #include <algorithm>
-#include <limits>
 #include <numbers>
 
 namespace afr::gltf_detail {
