@@ -30,7 +30,7 @@ namespace {
 // Extensions whose content afr reads (KHR_mesh_quantization only widens the component types
 // of attributes, which the accessor reader converts anyway). A file that requires any other
 // extension is refused; one that only uses another is loaded with a warning naming it.
-constexpr std::array<std::string_view, 24> kSupportedExtensions = {
+constexpr std::array<std::string_view, 25> kSupportedExtensions = {
     "CESIUM_RTC",  // drawn relative to its center (read_rtc_center)
     "EXT_mesh_gpu_instancing",
     "EXT_meshopt_compression",
@@ -40,6 +40,7 @@ constexpr std::array<std::string_view, 24> kSupportedExtensions = {
     "KHR_lights_punctual",
     "KHR_materials_anisotropy",
     "KHR_materials_clearcoat",
+    "KHR_materials_diffuse_transmission",
     "KHR_materials_dispersion",
     "KHR_materials_emissive_strength",
     "KHR_materials_ior",

@@ -156,6 +156,8 @@ class Loader {
                       Material* out);
   void read_volume(const tinygltf::Material& in, const std::string& what, Material* out);
   void read_dispersion(const tinygltf::Material& in, const std::string& what, Material* out);
+  void read_diffuse_transmission(const tinygltf::Material& in, const std::string& what,
+                                 Material* out);
   void read_sheen(size_t m, const tinygltf::Material& in, const std::string& what, Material* out);
   void read_anisotropy(size_t m, const tinygltf::Material& in, const std::string& what,
                        Material* out);

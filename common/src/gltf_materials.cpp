@@ -287,6 +287,26 @@ void Loader::read_dispersion(const tinygltf::Material& in, const std::string& wh
   }
 }
 
+// KHR_materials_diffuse_transmission: diffuseTransmissionFactor (0 to 1, default 0) and
+// diffuseTransmissionColorFactor (three numbers 0 to 1, default 1). The textures that multiply
+// them are not read: the factors hold everywhere, and one warning says so.
+void Loader::read_diffuse_transmission(const tinygltf::Material& in, const std::string& what,
+                                       Material* out) {
+  std::string where;
+  const tinygltf::Value* e =
+      material_extension(in, "KHR_materials_diffuse_transmission", what, &where);
+  if (e == nullptr) return;
+  read_number(*e, "diffuseTransmissionFactor", where, unit_interval, "a number 0 to 1",
+              &out->diffuse_transmission);
+  read_color(*e, "diffuseTransmissionColorFactor", where, unit_interval, "three numbers 0 to 1",
+             &out->diffuse_transmission_color);
+  for (const char* key : {"diffuseTransmissionTexture", "diffuseTransmissionColorTexture"}) {
+    if (!e->Has(key)) continue;
+    warn_once("diffuse transmission texture",
+              fmt::format("{}: its {} is not read (the factors hold everywhere)", where, key));
+  }
+}
+
 // KHR_materials_sheen: sheenColorFactor (three numbers 0 to 1, default 0) and
 // sheenRoughnessFactor (0 to 1, default 0), and the textures that multiply them (the roughness
 // texture's alpha channel).
@@ -435,6 +455,7 @@ void Loader::load_materials() {
     read_clearcoat(m, in, what, &out);
     read_volume(in, what, &out);
     read_dispersion(in, what, &out);
+    read_diffuse_transmission(in, what, &out);
     read_sheen(m, in, what, &out);
     read_anisotropy(m, in, what, &out);
     read_iridescence(m, in, what, &out);

@@ -27,6 +27,12 @@ void derive(ShadeMaterial* m, float metallic, float roughness) {
     specular_share = std::max(m->specular_f0.r, std::max(m->specular_f0.g, m->specular_f0.b));
     m->diffuse_weight *= 1.0f - specular_share;
   }
+  // KHR_materials_diffuse_transmission takes its share of the diffuse part (what neither metal
+  // nor glass has taken) from the diffuse reflection and passes it through the surface.
+  const float transmitted_share = m->diffuse_transmission * m->diffuse_weight;
+  m->diffuse_transmitted = transmitted_share * m->diffuse_transmission_color;
+  m->diffuse_transmits = !is_black(m->diffuse_transmitted);
+  m->diffuse_weight *= 1.0f - m->diffuse_transmission;
   // An anisotropic surface is a mirror only where its roughness along the anisotropy is too.
   const float r2 = roughness * roughness;
   const float stretched = m->anisotropy > 0.0f
@@ -37,13 +43,19 @@ void derive(ShadeMaterial* m, float metallic, float roughness) {
   // the rest of it takes ambient light; of glass, only its diffuse part.
   m->ambient = m->ambient_reflectance;
   if (m->is_mirror) m->ambient *= 1.0f - m->metallic;
-  if (m->is_glass) m->ambient *= m->diffuse_weight;
+  if (m->is_glass) {
+    m->ambient *= m->diffuse_weight;
+  } else if (transmitted_share > 0.0f && !m->specular_glossiness) {
+    m->ambient *= 1.0f - transmitted_share;  // the metal keeps reflecting
+  }
   // A metallic-roughness surface reflects ambient light by its base color, whatever its metal;
   // a specular-glossiness one by its diffuse, as its diffuse light, and its F0 (where the color
-  // of its metal lies).
+  // of its metal lies). A surface that transmits diffusely lets the (uniform) ambient light
+  // through from behind, by its transmission's color.
+  m->ambient_specular = m->diffuse_transmitted;
   if (m->specular_glossiness) {
-    m->ambient *= 1.0f - specular_share;
-    m->ambient_specular = m->specular_f0;
+    m->ambient *= (1.0f - specular_share) * (1.0f - m->diffuse_transmission);
+    m->ambient_specular += m->specular_f0;
   }
   m->has_emission = !is_black(m->emissive);
   m->has_ambient = !is_black(m->scene_ambient * (m->ambient + m->ambient_specular));
@@ -131,6 +143,9 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
   m.f0_ior = f0_ior;
   m.transmission = glm::clamp(mat.transmission, 0.0f, 1.0f);
   m.transmission_factor = m.transmission;
+  m.diffuse_transmission = glm::clamp(mat.diffuse_transmission, 0.0f, 1.0f);
+  m.diffuse_transmission_color =
+      glm::clamp(mat.diffuse_transmission_color, glm::vec3(0.0f), glm::vec3(1.0f));
   m.is_glass = m.transmission > 0.0f;
   if (m.is_glass) {
     m.transmission_texture = texture_at(mat.transmission_texture, scene);
@@ -217,7 +232,7 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
     // Only the base color (and alpha) is left: prepare_local shows it and stops there, and
     // nothing bounces off, passes through or varies the surface.
     m.unlit = true;
-    m.is_mirror = m.is_glass = m.varies = m.clearcoat_mirror = false;
+    m.is_mirror = m.is_glass = m.varies = m.clearcoat_mirror = m.diffuse_transmits = false;
     m.clearcoat = m.sheen_max = m.anisotropy = m.iridescence = 0.0f;
     m.layered = m.extended = m.needs_layers = false;
     m.normal_map = m.clearcoat_normal_map = nullptr;

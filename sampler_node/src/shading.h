@@ -51,7 +51,8 @@ struct ShadeMaterial {
   glm::vec3 base{1.0f};     // base color factor (rgb)
   glm::vec3 ambient{1.0f};  // reflectance of ambient light: ambient_reflectance, less below
   // Added to the ambient reflectance after the base-color texel multiplies it: a
-  // specular-glossiness material's F0 (its metal's color), 0 for others.
+  // specular-glossiness material's F0 (its metal's color), and diffuse_transmitted (the ambient
+  // light from behind a surface that transmits diffusely); 0 for others.
   glm::vec3 ambient_specular{0.0f};
   glm::vec3 emissive{0.0f};
   const Texture* texture = nullptr;  // base-color texture, or null
@@ -105,8 +106,18 @@ struct ShadeMaterial {
   glm::vec3 scene_ambient{0.0f};
   float mirror_roughness = 0.0f;  // TracerOptions::mirror_roughness
   float metallic = 1.0f;
-  // Weight of the base color in the diffuse lobe: (1 - metallic) (1 - transmission).
+  // Weight of the base color in the diffuse lobe: (1 - metallic) (1 - transmission)
+  // (1 - diffuse_transmission).
   float diffuse_weight = 0.0f;
+  // KHR_materials_diffuse_transmission: its factor and color (Material::diffuse_transmission),
+  // and what derive() makes of them: the Lambertian transmission's color, diffuse_transmission x
+  // diffuse_transmission_color x (1 - metallic) (1 - transmission), which light from the side
+  // away from the viewer brings through the surface (over pi, times |n.l|); diffuse_transmits:
+  // it is not black.
+  float diffuse_transmission = 0.0f;
+  glm::vec3 diffuse_transmission_color{1.0f};
+  glm::vec3 diffuse_transmitted{0.0f};
+  bool diffuse_transmits = false;
   float alpha = 1.0f;  // GGX alpha = roughness^2 for direct light (roughness clamped)
   // KHR_materials_anisotropy: its strength at this point (0: none), the factor it multiplies,
   // its rotation (cos, sin) and texture (direction in red and green, strength in blue; null:

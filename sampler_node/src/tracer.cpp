@@ -661,8 +661,8 @@ struct Tracer::Impl {
   bool prepare_local(const Surface& s, const glm::vec3& wo, const glm::vec3& tex, glm::vec3* c,
                      LocalTerms* terms) const;
   bool light_contribution(const LightRecord& light, const Surface& s, const LocalTerms& terms,
-                          const glm::vec3& wo, glm::vec3* contribution, glm::vec3* l,
-                          float* shadow_tfar) const;
+                          const glm::vec3& wo, glm::vec3* contribution, glm::vec3* origin,
+                          glm::vec3* l, float* shadow_tfar) const;
   glm::vec3 shade_local(const Surface& s, const glm::vec3& wo, const glm::vec3& tex,
                         TraceStats* stats) const;
   void shade_local8(const Surface* s, const glm::vec3* wo, const glm::vec3* tex, const bool* hit,
@@ -1565,7 +1565,8 @@ bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const gl
   } else if (m.has_ambient) {
     *c += scene_.ambient * (m.ambient * tex + m.ambient_specular);
   }
-  if (lights_.empty() || s.back_face || !(m.has_diffuse || m.has_specular || m.layered)) {
+  if (lights_.empty() || s.back_face ||
+      !(m.has_diffuse || m.has_specular || m.layered || m.diffuse_transmits)) {
     return false;
   }
   terms->beneath_sheen = beneath_sheen;
@@ -1579,26 +1580,36 @@ bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const gl
 }
 
 // The light one light sends toward the viewer if nothing blocks it; false when it sends none.
-// `l` and `shadow_tfar` describe the shadow ray from terms.origin.
+// `origin`, `l` and `shadow_tfar` describe the shadow ray.
 bool Tracer::Impl::light_contribution(const LightRecord& light, const Surface& s,
                                       const LocalTerms& terms, const glm::vec3& wo,
-                                      glm::vec3* contribution, glm::vec3* l,
+                                      glm::vec3* contribution, glm::vec3* origin, glm::vec3* l,
                                       float* shadow_tfar) const {
   glm::vec3 incident;
   float distance;
   if (!shading::light_incidence(light, s.p, l, &distance, &incident)) return false;
-  // The light must be on the side the surface faces, for both normals.
-  if (glm::dot(*l, s.ng) <= 0.0f) return false;
+  const ShadeMaterial& m = *s.material;
+  *shadow_tfar = distance - 2.0f * terms.offset;
+  // The light must be on the side the surface faces, for both normals; or, where the surface
+  // transmits diffusely (KHR_materials_diffuse_transmission), on the other side for both, its
+  // light coming through as a Lambertian transmission, the shadow ray leaving from that side.
+  if (glm::dot(*l, s.ng) <= 0.0f) {
+    if (!m.diffuse_transmits) return false;
+    const float n_dot_l = -glm::dot(s.ns, *l);
+    if (n_dot_l <= 0.0f) return false;
+    *contribution = incident * m.diffuse_transmitted * (n_dot_l / shading::kPi);
+    *origin = s.p - terms.offset * s.ng;
+    return true;
+  }
   const float n_dot_l = glm::dot(s.ns, *l);
   if (n_dot_l <= 0.0f) return false;
-  const ShadeMaterial& m = *s.material;
   *contribution =
       incident * (m.extended ? shading::extended_brdf_cos(
                                    m, terms.diffuse, terms.f0, s.ns, wo, *l, terms.n_dot_v, n_dot_l,
                                    m.needs_layers ? &*s.layers : nullptr, terms.beneath_sheen)
                              : shading::brdf_cos(m, terms.diffuse, terms.f0, s.ns, wo, *l,
                                                  terms.n_dot_v, n_dot_l));
-  *shadow_tfar = distance - 2.0f * terms.offset;
+  *origin = terms.origin;
   return true;
 }
 
@@ -1610,12 +1621,12 @@ glm::vec3 Tracer::Impl::shade_local(const Surface& s, const glm::vec3& wo, const
   LocalTerms terms;
   if (!prepare_local(s, wo, tex, &c, &terms)) return c;
   for (const LightRecord& light : lights_) {
-    glm::vec3 contribution, l;
+    glm::vec3 contribution, origin, l;
     float tfar;
-    if (!light_contribution(light, s, terms, wo, &contribution, &l, &tfar)) continue;
+    if (!light_contribution(light, s, terms, wo, &contribution, &origin, &l, &tfar)) continue;
     if (options_.shadows) {
       ++stats->shadow_rays;
-      contribution *= shadow_transmittance(terms.origin, l, tfar);
+      contribution *= shadow_transmittance(origin, l, tfar);
     }
     c += contribution;
   }
@@ -1642,9 +1653,10 @@ void Tracer::Impl::shade_local8(const Surface* s, const glm::vec3* wo, const glm
     glm::vec3 contribution[8];
     bool any_ray = false;
     for (int k = 0; k < n; ++k) {
-      glm::vec3 l;
+      glm::vec3 origin, l;
       float tfar;
-      if (!lit[k] || !light_contribution(light, s[k], terms[k], wo[k], &contribution[k], &l, &tfar))
+      if (!lit[k] ||
+          !light_contribution(light, s[k], terms[k], wo[k], &contribution[k], &origin, &l, &tfar))
         continue;
       if (!options_.shadows) {
         out[k] += contribution[k];
@@ -1652,7 +1664,7 @@ void Tracer::Impl::shade_local8(const Surface* s, const glm::vec3* wo, const glm
       }
       valid[k] = -1;
       any_ray = true;
-      set_lane(&rays, k, terms[k].origin, l, tfar);
+      set_lane(&rays, k, origin, l, tfar);
       ++stats->shadow_rays;
     }
     if (!any_ray) continue;

@@ -433,6 +433,61 @@ TEST_F(GltfLoaderTest, DispersionIsRead) {
                "material 0 KHR_materials_dispersion has an invalid dispersion");
 }
 
+// KHR_materials_diffuse_transmission: its factors are read (defaults 0 and white), also where
+// a file requires it; its textures are not read, which one warning says; a factor out of range
+// fails naming the material and the factor.
+TEST_F(GltfLoaderTest, DiffuseTransmissionIsRead) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  b.doc()["extensionsUsed"] = {"KHR_materials_diffuse_transmission"};
+  b.doc()["extensionsRequired"] = {"KHR_materials_diffuse_transmission"};
+  const json leaf = {{"KHR_materials_diffuse_transmission",
+                      {{"diffuseTransmissionFactor", 0.25},
+                       {"diffuseTransmissionColorFactor", {1.0, 0.9, 0.85}}}}};
+  b.doc()["materials"] =
+      json::array({{{"extensions", leaf}},
+                   {{"extensions", {{"KHR_materials_diffuse_transmission", json::object()}}}}});
+  b.write_embedded(dir_ / "leaf.gltf");
+  GltfLoadReport report;
+  Scene scene = load_gltf(dir_ / "leaf.gltf", &report);
+  ASSERT_EQ(scene.materials.size(), 2u);
+  EXPECT_EQ(scene.materials[0].diffuse_transmission, 0.25f);
+  EXPECT_EQ(scene.materials[0].diffuse_transmission_color, glm::vec3(1.0f, 0.9f, 0.85f));
+  EXPECT_EQ(scene.materials[1].diffuse_transmission, 0.0f);
+  EXPECT_EQ(scene.materials[1].diffuse_transmission_color, glm::vec3(1.0f));
+  EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
+
+  json textured = leaf;
+  textured["KHR_materials_diffuse_transmission"]["diffuseTransmissionTexture"] = {{"index", 0}};
+  textured["KHR_materials_diffuse_transmission"]["diffuseTransmissionColorTexture"] = {
+      {"index", 0}};
+  b.doc()["materials"][1] = {{"extensions", textured}};
+  b.write_embedded(dir_ / "textured.gltf");
+  report = {};
+  scene = load_gltf(dir_ / "textured.gltf", &report);
+  EXPECT_EQ(scene.materials[1].diffuse_transmission, 0.25f);
+  ASSERT_EQ(report.warnings.size(), 1u);
+  EXPECT_NE(report.warnings[0].find("material 1 KHR_materials_diffuse_transmission: its "
+                                    "diffuseTransmissionTexture is not read"),
+            std::string::npos)
+      << report.warnings[0];
+
+  b.doc()["materials"][0]["extensions"]["KHR_materials_diffuse_transmission"]
+         ["diffuseTransmissionFactor"] = 1.5;
+  b.write_embedded(dir_ / "above_one.gltf");
+  expect_error(dir_ / "above_one.gltf",
+               "material 0 KHR_materials_diffuse_transmission has an "
+               "invalid diffuseTransmissionFactor");
+  b.doc()["materials"][0] = {{"extensions", leaf}};
+  b.doc()["materials"][0]["extensions"]["KHR_materials_diffuse_transmission"]
+         ["diffuseTransmissionColorFactor"] = {1.0, -0.5, 1.0};
+  b.write_embedded(dir_ / "negative_color.gltf");
+  expect_error(dir_ / "negative_color.gltf",
+               "material 0 KHR_materials_diffuse_transmission has "
+               "an invalid diffuseTransmissionColorFactor");
+}
+
 // KHR_materials_specular: its factors are read (defaults 1), also where a file requires it; a
 // factor out of range fails naming the material.
 TEST_F(GltfLoaderTest, SpecularExtensionFactorsAreRead) {

@@ -306,19 +306,19 @@ TEST(GltfUserContentTest, AnUnsupportedRequiredExtensionIsAnErrorNamingIt) {
 TEST(GltfUserContentTest, AnUnsupportedUsedExtensionIsOneWarningNamingIt) {
   TempFolder dir;
   GltfContent g = unlit_box();
-  g.doc()["extensionsUsed"] = {"KHR_materials_diffuse_transmission",
+  g.doc()["extensionsUsed"] = {"ADOBE_materials_thin_transparency",
                                "KHR_materials_emissive_strength"};
   g.doc()["extensionsRequired"] = {"KHR_materials_emissive_strength"};
   g.doc()["materials"][0]["extensions"] = {
-      {"KHR_materials_diffuse_transmission", {{"diffuseTransmissionFactor", 0.5}}},
+      {"ADOBE_materials_thin_transparency", {{"transmissionFactor", 0.5}}},
       {"KHR_materials_emissive_strength", {{"emissiveStrength", 2.0}}}};
-  g.write(dir / "diffuse_transmission.gltf");
+  g.write(dir / "thin_transparency.gltf");
   LogCapture log;
   GltfLoadReport report;
-  load_gltf(dir / "diffuse_transmission.gltf", &report);
+  load_gltf(dir / "thin_transparency.gltf", &report);
   ASSERT_EQ(report.warnings.size(), 1u);
-  EXPECT_NE(report.warnings[0].find("KHR_materials_diffuse_transmission"), std::string::npos);
-  EXPECT_EQ(log.lines_with("KHR_materials_diffuse_transmission").size(), 1u);
+  EXPECT_NE(report.warnings[0].find("ADOBE_materials_thin_transparency"), std::string::npos);
+  EXPECT_EQ(log.lines_with("ADOBE_materials_thin_transparency").size(), 1u);
   EXPECT_EQ(log.count_level("warning"), 1u);
 }
 

@@ -232,6 +232,13 @@ struct Material {
   // through (refracted, tinted by the base color) instead of reflecting diffusely; 0 = opaque.
   float transmission = 0.0f;
   int transmission_texture = -1;  // linear data: its red channel multiplies `transmission`
+  // KHR_materials_diffuse_transmission: the share of the diffuse part (of the non-metallic,
+  // non-transmitting part) that passes through the thin surface instead of reflecting: light
+  // from the side the viewer does not see comes through as a Lambertian transmission of color
+  // diffuse_transmission_color (not the base color), and the diffuse reflection keeps
+  // 1 - diffuse_transmission. 0: none. Its textures are not read (one warning).
+  float diffuse_transmission = 0.0f;
+  glm::vec3 diffuse_transmission_color{1.0f};
   // KHR_materials_ior: the index of refraction inside the surface (outside is 1). Either >= 1,
   // or 0, which the extension defines as a Fresnel term of 1 (all reflection).
   float ior = 1.5f;
