@@ -106,6 +106,10 @@ std::string_view to_string(AnimatedProperty property) {
       return "attenuation color";
     case AnimatedProperty::kDispersion:
       return "dispersion";
+    case AnimatedProperty::kDiffuseTransmissionFactor:
+      return "diffuse transmission factor";
+    case AnimatedProperty::kDiffuseTransmissionColor:
+      return "diffuse transmission color";
     case AnimatedProperty::kUvOffset:
       return "texture transform offset";
     case AnimatedProperty::kUvRotation:
@@ -125,6 +129,7 @@ int component_count(AnimatedProperty property) {
     case AnimatedProperty::kSheenColorFactor:
     case AnimatedProperty::kSpecularColorFactor:
     case AnimatedProperty::kAttenuationColor:
+    case AnimatedProperty::kDiffuseTransmissionColor:
       return 3;
     case AnimatedProperty::kBaseColorFactor:
       return 4;

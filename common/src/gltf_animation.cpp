@@ -32,6 +32,8 @@ constexpr std::string_view kTextureSlots[] = {
     "extensions/KHR_materials_anisotropy/anisotropyTexture",
     "extensions/KHR_materials_iridescence/iridescenceTexture",
     "extensions/KHR_materials_iridescence/iridescenceThicknessTexture",
+    "extensions/KHR_materials_diffuse_transmission/diffuseTransmissionTexture",
+    "extensions/KHR_materials_diffuse_transmission/diffuseTransmissionColorTexture",
     "extensions/KHR_materials_pbrSpecularGlossiness/diffuseTexture",
     "extensions/KHR_materials_pbrSpecularGlossiness/specularGlossinessTexture",
 };
@@ -155,6 +157,11 @@ std::optional<PointerTarget> pointer_target(std::string_view pointer) {
        AnimatedProperty::kAttenuationColor},
       {"/materials/", "/extensions/KHR_materials_dispersion/dispersion", Kind::kProperty,
        AnimatedProperty::kDispersion},
+      {"/materials/", "/extensions/KHR_materials_diffuse_transmission/diffuseTransmissionFactor",
+       Kind::kProperty, AnimatedProperty::kDiffuseTransmissionFactor},
+      {"/materials/",
+       "/extensions/KHR_materials_diffuse_transmission/diffuseTransmissionColorFactor",
+       Kind::kProperty, AnimatedProperty::kDiffuseTransmissionColor},
   };
   for (const Form& f : kForms) {
     if (pointer.size() <= f.prefix.size() + f.suffix.size() || !pointer.starts_with(f.prefix) ||
@@ -508,6 +515,8 @@ void Loader::add_property_channel(const tinygltf::Animation& animation, int samp
     case AnimatedProperty::kAnisotropyStrength:
     case AnimatedProperty::kTransmissionFactor:
     case AnimatedProperty::kAttenuationColor:
+    case AnimatedProperty::kDiffuseTransmissionFactor:
+    case AnimatedProperty::kDiffuseTransmissionColor:
       hi = 1.0;  // the extensions' own ranges, as the loader reads them unanimated
       break;
     case AnimatedProperty::kIridescenceIor:

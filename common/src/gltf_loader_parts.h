@@ -156,7 +156,7 @@ class Loader {
                       Material* out);
   void read_volume(const tinygltf::Material& in, const std::string& what, Material* out);
   void read_dispersion(const tinygltf::Material& in, const std::string& what, Material* out);
-  void read_diffuse_transmission(const tinygltf::Material& in, const std::string& what,
+  void read_diffuse_transmission(size_t m, const tinygltf::Material& in, const std::string& what,
                                  Material* out);
   void read_sheen(size_t m, const tinygltf::Material& in, const std::string& what, Material* out);
   void read_anisotropy(size_t m, const tinygltf::Material& in, const std::string& what,
@@ -167,7 +167,8 @@ class Loader {
       const tinygltf::ExtensionMap& extensions, const std::string& what, int* tex_coord);
   // How a texture slot reads its image: as sRGB-encoded color, as linear data, or as linear
   // data taken from the image's alpha channel (KHR_materials_specular's specularTexture,
-  // KHR_materials_sheen's sheenRoughnessTexture, the glossiness of
+  // KHR_materials_sheen's sheenRoughnessTexture, KHR_materials_diffuse_transmission's
+  // diffuseTransmissionTexture, the glossiness of
   // KHR_materials_pbrSpecularGlossiness), which the Texture then holds in its red, green and
   // blue.
   enum class ImageData : uint8_t { kColor, kLinear, kAlpha };
@@ -245,7 +246,7 @@ class Loader {
   // KHR_materials_pbrSpecularGlossiness diffuse, specular color and glossiness; emissive,
   // occlusion, normal, then the other extensions' slots: transmission, specular, specular color,
   // clearcoat, clearcoat roughness, clearcoat normal, sheen color, sheen roughness, anisotropy,
-  // iridescence, iridescence thickness);
+  // iridescence, iridescence thickness, diffuse transmission, diffuse transmission color);
   // empty for a material without textures, whose primitives read TEXCOORD_0 as they are.
   std::vector<std::vector<UvSource>> uv_sources_;
   size_t morph_displacements_ = 0;  // read so far, at most kMaxMorphDisplacements

@@ -288,10 +288,10 @@ void Loader::read_dispersion(const tinygltf::Material& in, const std::string& wh
 }
 
 // KHR_materials_diffuse_transmission: diffuseTransmissionFactor (0 to 1, default 0) and
-// diffuseTransmissionColorFactor (three numbers 0 to 1, default 1). The textures that multiply
-// them are not read: the factors hold everywhere, and one warning says so.
-void Loader::read_diffuse_transmission(const tinygltf::Material& in, const std::string& what,
-                                       Material* out) {
+// diffuseTransmissionColorFactor (three numbers 0 to 1, default 1), and the textures that
+// multiply them (the factor's texture's alpha channel; the color's, sRGB).
+void Loader::read_diffuse_transmission(size_t m, const tinygltf::Material& in,
+                                       const std::string& what, Material* out) {
   std::string where;
   const tinygltf::Value* e =
       material_extension(in, "KHR_materials_diffuse_transmission", what, &where);
@@ -300,11 +300,12 @@ void Loader::read_diffuse_transmission(const tinygltf::Material& in, const std::
               &out->diffuse_transmission);
   read_color(*e, "diffuseTransmissionColorFactor", where, unit_interval, "three numbers 0 to 1",
              &out->diffuse_transmission_color);
-  for (const char* key : {"diffuseTransmissionTexture", "diffuseTransmissionColorTexture"}) {
-    if (!e->Has(key)) continue;
-    warn_once("diffuse transmission texture",
-              fmt::format("{}: its {} is not read (the factors hold everywhere)", where, key));
-  }
+  out->diffuse_transmission_texture =
+      read_extension_texture(m, *e, "diffuseTransmissionTexture", where, ImageData::kAlpha,
+                             &out->uv_set.diffuse_transmission);
+  out->diffuse_transmission_color_texture =
+      read_extension_texture(m, *e, "diffuseTransmissionColorTexture", where, ImageData::kColor,
+                             &out->uv_set.diffuse_transmission_color);
 }
 
 // KHR_materials_sheen: sheenColorFactor (three numbers 0 to 1, default 0) and
@@ -455,10 +456,10 @@ void Loader::load_materials() {
     read_clearcoat(m, in, what, &out);
     read_volume(in, what, &out);
     read_dispersion(in, what, &out);
-    read_diffuse_transmission(in, what, &out);
     read_sheen(m, in, what, &out);
     read_anisotropy(m, in, what, &out);
     read_iridescence(m, in, what, &out);
+    read_diffuse_transmission(m, in, what, &out);
     if (in.extras.Has("afr_ambient")) out.ambient = read_rgb_extra(in.extras, "afr_ambient", what);
     const std::vector<UvSource>& sources = uv_sources_[m];
     if (std::any_of(sources.begin(), sources.end(), [](const UvSource& u) { return u.animated; })) {

@@ -451,7 +451,8 @@ void Scene::finalize() {
           mat.specular_color_texture, mat.clearcoat_texture, mat.clearcoat_roughness_texture,
           mat.clearcoat_normal_texture, mat.sheen_color_texture, mat.sheen_roughness_texture,
           mat.anisotropy_texture, mat.glossiness_texture, mat.iridescence_texture,
-          mat.iridescence_thickness_texture}) {
+          mat.iridescence_thickness_texture, mat.diffuse_transmission_texture,
+          mat.diffuse_transmission_color_texture}) {
       if (t != -1 && !in_range(t, textures.size())) {
         throw err(fmt::format("material {} ('{}') names texture {} of {}", m, mat.name, t,
                               textures.size()));
@@ -1040,6 +1041,13 @@ void apply(AnimatedProperty property, const glm::dvec4& v, Light* light, CameraM
       break;
     case AnimatedProperty::kDispersion:
       material->dispersion = std::max(x, 0.0f);
+      break;
+    case AnimatedProperty::kDiffuseTransmissionFactor:
+      material->diffuse_transmission = std::clamp(x, 0.0f, 1.0f);
+      break;
+    case AnimatedProperty::kDiffuseTransmissionColor:
+      material->diffuse_transmission_color =
+          glm::clamp(glm::vec3(v), glm::vec3(0.0f), glm::vec3(1.0f));
       break;
     case AnimatedProperty::kUvOffset:
       material->uv_transforms[size_t(uv_set)].offset = glm::dvec2(v);

@@ -221,11 +221,18 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
   if (m.specular_glossiness && mat.roughness < 1.0f) {
     m.glossiness_texture = texture_at(mat.glossiness_texture, scene);
   }
+  // A factor of 0, or a black color, the textures multiply to nothing.
+  if (m.diffuse_transmission > 0.0f && !is_black(m.diffuse_transmission_color)) {
+    m.diffuse_transmission_texture = texture_at(mat.diffuse_transmission_texture, scene);
+    m.diffuse_transmission_color_texture =
+        texture_at(mat.diffuse_transmission_color_texture, scene);
+  }
   m.varies = m.anisotropy_texture || m.metallic_roughness || m.emissive_texture || m.occlusion ||
              m.transmission_texture || m.specular_texture || m.specular_color_texture ||
              m.clearcoat_texture || m.clearcoat_roughness_texture || m.sheen_color_texture ||
              m.sheen_roughness_texture || m.glossiness_texture || m.iridescence_texture ||
-             m.iridescence_thickness_texture;
+             m.iridescence_thickness_texture || m.diffuse_transmission_texture ||
+             m.diffuse_transmission_color_texture;
   m.needs_layers = m.clearcoat > 0.0f || m.anisotropy_factor > 0.0f;
   derive(&m, m.metallic_factor, m.roughness_factor);
   if (mat.unlit) {
@@ -263,6 +270,11 @@ void vary(ShadeMaterial* m, const Texels& t) {
     m->iridescence_thickness =
         m->iridescence_thickness_min +
         (m->iridescence_thickness_max - m->iridescence_thickness_min) * t.iridescence_thickness.g;
+  }
+  // m is the point's own copy, its diffuse transmission still the factors.
+  if (m->diffuse_transmission_texture) m->diffuse_transmission *= t.diffuse_transmission.r;
+  if (m->diffuse_transmission_color_texture) {
+    m->diffuse_transmission_color *= t.diffuse_transmission_color;
   }
   const float roughness = m->specular_glossiness
                               ? 1.0f - (1.0f - m->roughness_factor) * t.glossiness.r

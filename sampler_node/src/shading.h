@@ -77,6 +77,9 @@ struct ShadeMaterial {
   // KHR_materials_iridescence's weight (red) and film thickness (green).
   const Texture* iridescence_texture = nullptr;
   const Texture* iridescence_thickness_texture = nullptr;
+  // KHR_materials_diffuse_transmission's strength (the image's alpha, held in red) and color.
+  const Texture* diffuse_transmission_texture = nullptr;
+  const Texture* diffuse_transmission_color_texture = nullptr;
   bool varies = false;  // one of the textures above is set
   // The normal texture (tangent space, linear data; null: none) and its scale: it bends the
   // shading normal (Tracer::Impl::make_surface), not the material.
@@ -232,6 +235,8 @@ struct Texels {
   glm::vec3 glossiness{1.0f};           // red (the image's alpha) x the glossiness (1 - roughness)
   glm::vec3 iridescence{1.0f};          // red x the iridescence factor
   glm::vec3 iridescence_thickness{1.0f};  // green: the thickness from its minimum to its maximum
+  glm::vec3 diffuse_transmission{1.0f};   // red (the image's alpha) x the diffuse transmission
+  glm::vec3 diffuse_transmission_color{1.0f};  // x the diffuse transmission's color
 };
 
 // The material at one point of a surface whose material varies: `m` (as make_shade_material

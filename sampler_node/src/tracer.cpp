@@ -100,6 +100,8 @@ struct SlotUvs {
   SlotCoords glossiness;
   SlotCoords iridescence;
   SlotCoords iridescence_thickness;
+  SlotCoords diffuse_transmission;
+  SlotCoords diffuse_transmission_color;
 };
 
 // Set k of p's texture coordinates (null where p has none).
@@ -611,7 +613,9 @@ struct Tracer::Impl {
                    uv_data(p, sets.anisotropy),
                    uv_data(p, sets.glossiness),
                    uv_data(p, sets.iridescence),
-                   uv_data(p, sets.iridescence_thickness)};
+                   uv_data(p, sets.iridescence_thickness),
+                   uv_data(p, sets.diffuse_transmission),
+                   uv_data(p, sets.diffuse_transmission_color)};
   }
   // p's COLOR_0 alpha where its material (an index into materials_) tests alpha, else null.
   const float* tested_alpha(const Primitive& p, uint32_t material) const {
@@ -1494,6 +1498,9 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
     read(m.glossiness_texture, g.uvs.glossiness, &t.glossiness);
     read(m.iridescence_texture, g.uvs.iridescence, &t.iridescence);
     read(m.iridescence_thickness_texture, g.uvs.iridescence_thickness, &t.iridescence_thickness);
+    read(m.diffuse_transmission_texture, g.uvs.diffuse_transmission, &t.diffuse_transmission);
+    read(m.diffuse_transmission_color_texture, g.uvs.diffuse_transmission_color,
+         &t.diffuse_transmission_color);
     if (any) {
       ShadeMaterial& here = s->at_point.emplace(m);
       shading::vary(&here, t);

@@ -75,7 +75,7 @@ TEST_F(GltfLoaderTest, AnimationChannelsLoadWithTheirInterpolationAndValues) {
 
 // KHR_animation_pointer: channels whose pointer names a node's translation, rotation, scale or
 // morph weights animate it as a channel of that node and path would; a pointer to another
-// property (here a factor of KHR_materials_diffuse_transmission, which afr does not read) warns
+// property (here a factor of ADOBE_materials_thin_transparency, which afr does not read) warns
 // once per kind and is skipped; a pointer to a node the file lacks, or a channel without a pointer,
 // fails naming the channel.
 TEST_F(GltfLoaderTest, AnimationPointersToANodesTransformAreAnimated) {
@@ -88,12 +88,12 @@ TEST_F(GltfLoaderTest, AnimationPointersToANodesTransformAreAnimated) {
   b.doc()["animations"] = {
       {{"channels",
         {pointer_channel(1,
-                         "/materials/0/extensions/KHR_materials_diffuse_transmission/"
-                         "diffuseTransmissionFactor"),
+                         "/materials/0/extensions/ADOBE_materials_thin_transparency/"
+                         "transmissionFactor"),
          pointer_channel(0, "/nodes/0/translation"),
          pointer_channel(1,
-                         "/materials/1/extensions/KHR_materials_diffuse_transmission/"
-                         "diffuseTransmissionFactor")}},
+                         "/materials/1/extensions/ADOBE_materials_thin_transparency/"
+                         "transmissionFactor")}},
        {"samplers",
         {{{"input", times}, {"output", moves}}, {{"input", times}, {"output", colors}}}}}};
   b.doc()["extensionsUsed"] = {"KHR_animation_pointer"};
@@ -107,8 +107,8 @@ TEST_F(GltfLoaderTest, AnimationPointersToANodesTransformAreAnimated) {
   EXPECT_NEAR(scene.evaluate(1.0).world[0][3].x, 2.0, 1e-9);  // halfway to x = 4
   ASSERT_EQ(report.warnings.size(), 1u) << report.warnings.back();
   EXPECT_NE(report.warnings[0].find("KHR_animation_pointer animations of "
-                                    "/materials/#/extensions/KHR_materials_diffuse_transmission/"
-                                    "diffuseTransmissionFactor are not supported"),
+                                    "/materials/#/extensions/ADOBE_materials_thin_transparency/"
+                                    "transmissionFactor are not supported"),
             std::string::npos)
       << report.warnings[0];
   EXPECT_TRUE(scene.property_channels.empty());
@@ -511,10 +511,10 @@ TEST_F(GltfLoaderTest, AnimationPointersToMaterialExtensionFactorsKeepTheirRange
   expect_error(path, "key 1 sets the clearcoat factor to 1.5, outside [0, 1]");
 }
 
-// Transmission, ior, volume and dispersion animate too (the tracer gives a material whose
-// transmission is animated the glass filter whatever it is at the start), each within its
-// range: an animated ior stays at or above 1 (KHR_materials_ior's 0 would pass through (0, 1)
-// between keys) and an attenuation distance above 0.
+// Transmission, ior, volume, dispersion and diffuse transmission animate too (the tracer gives a
+// material whose transmission is animated the glass filter whatever it is at the start), each
+// within its range: an animated ior stays at or above 1 (KHR_materials_ior's 0 would pass through
+// (0, 1) between keys) and an attenuation distance above 0.
 TEST_F(GltfLoaderTest, AnimationPointersToTransmissionAndVolumeKeepTheirRanges) {
   GltfBuilder b;
   add_quad(&b);
@@ -529,14 +529,19 @@ TEST_F(GltfLoaderTest, AnimationPointersToTransmissionAndVolumeKeepTheirRanges) 
          pointer_channel(2, m + "KHR_materials_volume/thicknessFactor"),
          pointer_channel(3, m + "KHR_materials_volume/attenuationDistance"),
          pointer_channel(4, m + "KHR_materials_volume/attenuationColor"),
-         pointer_channel(5, m + "KHR_materials_dispersion/dispersion")}},
+         pointer_channel(5, m + "KHR_materials_dispersion/dispersion"),
+         pointer_channel(6, m + "KHR_materials_diffuse_transmission/diffuseTransmissionFactor"),
+         pointer_channel(7,
+                         m + "KHR_materials_diffuse_transmission/diffuseTransmissionColorFactor")}},
        {"samplers",
         {{{"input", times}, {"output", b.add_floats({0, 1}, 1)}},
          {{"input", times}, {"output", b.add_floats({1.5f, 1.1f}, 1)}},
          {{"input", times}, {"output", b.add_floats({0, 2}, 1)}},
          {{"input", times}, {"output", b.add_floats({4, 2}, 1)}},
          {{"input", times}, {"output", b.add_floats({1, 1, 1, 0.5f, 0.25f, 0}, 3)}},
-         {{"input", times}, {"output", b.add_floats({0, 3}, 1)}}}}}};
+         {{"input", times}, {"output", b.add_floats({0, 3}, 1)}},
+         {{"input", times}, {"output", b.add_floats({0, 0.5f}, 1)}},
+         {{"input", times}, {"output", b.add_floats({1, 1, 1, 0, 0.5f, 1}, 3)}}}}}};
   b.doc()["extensionsUsed"] = {"KHR_animation_pointer"};
   const fs::path path = dir_ / "volume.gltf";
   b.write_embedded(path);
@@ -552,6 +557,9 @@ TEST_F(GltfLoaderTest, AnimationPointersToTransmissionAndVolumeKeepTheirRanges) 
   EXPECT_NEAR(at1.attenuation_distance, 3.0f, 1e-6f);
   EXPECT_NEAR(at1.attenuation_color.y, 0.625f, 1e-6f);
   EXPECT_NEAR(at1.dispersion, 1.5f, 1e-6f);
+  EXPECT_NEAR(at1.diffuse_transmission, 0.25f, 1e-6f);
+  EXPECT_NEAR(at1.diffuse_transmission_color.x, 0.5f, 1e-6f);
+  EXPECT_NEAR(at1.diffuse_transmission_color.y, 0.75f, 1e-6f);
 
   const auto refused = [&](int sampler, const std::vector<float>& keys, int width,
                            const std::string& problem) {
@@ -568,6 +576,9 @@ TEST_F(GltfLoaderTest, AnimationPointersToTransmissionAndVolumeKeepTheirRanges) 
   refused(4, {1, 1, 1, 0.5f, 1.5f, 0}, 3,
           "key 1 sets the attenuation color to 1.5, outside [0, 1]");
   refused(5, {0, -2}, 1, "key 1 sets the dispersion to -2, outside [0, inf]");
+  refused(6, {0, 2}, 1, "key 1 sets the diffuse transmission factor to 2, outside [0, 1]");
+  refused(7, {1, 1, 1, 0, -1, 0}, 3,
+          "key 1 sets the diffuse transmission color to -1, outside [0, 1]");
 }
 
 // glTF requires strictly increasing keyframe times, but exporters write repeated and unordered

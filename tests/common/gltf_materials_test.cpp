@@ -433,18 +433,28 @@ TEST_F(GltfLoaderTest, DispersionIsRead) {
                "material 0 KHR_materials_dispersion has an invalid dispersion");
 }
 
-// KHR_materials_diffuse_transmission: its factors are read (defaults 0 and white), also where
-// a file requires it; its textures are not read, which one warning says; a factor out of range
-// fails naming the material and the factor.
+// KHR_materials_diffuse_transmission: its factors (defaults 0 and white) and textures are read,
+// also where a file requires it: the factor's texture from the image's alpha, the color's as
+// sRGB, each through its own texture coordinate set; a factor out of range fails naming the
+// material and the factor.
 TEST_F(GltfLoaderTest, DiffuseTransmissionIsRead) {
+  // One RGBA texel: color 128, 64, 32, alpha 51.
+  write_image8(DecodedImage{1, 1, 4, {128, 64, 32, 51}}, dir_ / "rgba.png");
   GltfBuilder b;
   add_quad(&b);
-  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  json& primitive = b.doc()["meshes"][0]["primitives"][0];
+  primitive["material"] = 0;
+  primitive["attributes"]["TEXCOORD_0"] = b.add_floats({0, 0, 1, 0, 1, 1, 0, 1}, 2);
+  primitive["attributes"]["TEXCOORD_1"] = b.add_floats({0, 0, 2, 0, 2, 2, 0, 2}, 2);
+  b.doc()["images"] = json::array({{{"uri", "rgba.png"}}});
+  b.doc()["textures"] = json::array({{{"source", 0}}});
   b.doc()["extensionsUsed"] = {"KHR_materials_diffuse_transmission"};
   b.doc()["extensionsRequired"] = {"KHR_materials_diffuse_transmission"};
   const json leaf = {{"KHR_materials_diffuse_transmission",
                       {{"diffuseTransmissionFactor", 0.25},
-                       {"diffuseTransmissionColorFactor", {1.0, 0.9, 0.85}}}}};
+                       {"diffuseTransmissionColorFactor", {1.0, 0.9, 0.85}},
+                       {"diffuseTransmissionTexture", {{"index", 0}}},
+                       {"diffuseTransmissionColorTexture", {{"index", 0}, {"texCoord", 1}}}}}};
   b.doc()["materials"] =
       json::array({{{"extensions", leaf}},
                    {{"extensions", {{"KHR_materials_diffuse_transmission", json::object()}}}}});
@@ -452,26 +462,21 @@ TEST_F(GltfLoaderTest, DiffuseTransmissionIsRead) {
   GltfLoadReport report;
   Scene scene = load_gltf(dir_ / "leaf.gltf", &report);
   ASSERT_EQ(scene.materials.size(), 2u);
-  EXPECT_EQ(scene.materials[0].diffuse_transmission, 0.25f);
-  EXPECT_EQ(scene.materials[0].diffuse_transmission_color, glm::vec3(1.0f, 0.9f, 0.85f));
+  const Material& m = scene.materials[0];
+  EXPECT_EQ(m.diffuse_transmission, 0.25f);
+  EXPECT_EQ(m.diffuse_transmission_color, glm::vec3(1.0f, 0.9f, 0.85f));
+  ASSERT_EQ(scene.textures.size(), 2u);
+  ASSERT_GE(m.diffuse_transmission_texture, 0);
+  ASSERT_GE(m.diffuse_transmission_color_texture, 0);
+  const Texture& strength = scene.textures[size_t(m.diffuse_transmission_texture)];
+  const Texture& color = scene.textures[size_t(m.diffuse_transmission_color_texture)];
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(strength.texel(0)[c], 51 / 255.0, 1e-6);
+  EXPECT_NEAR(color.texel(0).r, reference_srgb_to_linear(128 / 255.0), 1e-6);
+  EXPECT_EQ(m.uv_set, (Material::TextureSets{.diffuse_transmission_color = 1}));
   EXPECT_EQ(scene.materials[1].diffuse_transmission, 0.0f);
   EXPECT_EQ(scene.materials[1].diffuse_transmission_color, glm::vec3(1.0f));
+  EXPECT_EQ(scene.materials[1].diffuse_transmission_texture, -1);
   EXPECT_TRUE(report.warnings.empty()) << report.warnings.front();
-
-  json textured = leaf;
-  textured["KHR_materials_diffuse_transmission"]["diffuseTransmissionTexture"] = {{"index", 0}};
-  textured["KHR_materials_diffuse_transmission"]["diffuseTransmissionColorTexture"] = {
-      {"index", 0}};
-  b.doc()["materials"][1] = {{"extensions", textured}};
-  b.write_embedded(dir_ / "textured.gltf");
-  report = {};
-  scene = load_gltf(dir_ / "textured.gltf", &report);
-  EXPECT_EQ(scene.materials[1].diffuse_transmission, 0.25f);
-  ASSERT_EQ(report.warnings.size(), 1u);
-  EXPECT_NE(report.warnings[0].find("material 1 KHR_materials_diffuse_transmission: its "
-                                    "diffuseTransmissionTexture is not read"),
-            std::string::npos)
-      << report.warnings[0];
 
   b.doc()["materials"][0]["extensions"]["KHR_materials_diffuse_transmission"]
          ["diffuseTransmissionFactor"] = 1.5;
@@ -486,6 +491,12 @@ TEST_F(GltfLoaderTest, DiffuseTransmissionIsRead) {
   expect_error(dir_ / "negative_color.gltf",
                "material 0 KHR_materials_diffuse_transmission has "
                "an invalid diffuseTransmissionColorFactor");
+  b.doc()["materials"][0] = {{"extensions", leaf}};
+  b.doc()["materials"][0]["extensions"]["KHR_materials_diffuse_transmission"]
+         ["diffuseTransmissionTexture"] = {{"index", 4}};
+  b.write_embedded(dir_ / "bad_texture.gltf");
+  expect_error(dir_ / "bad_texture.gltf",
+               "material 0 diffuseTransmissionTexture refers to texture 4, but there are 1");
 }
 
 // KHR_materials_specular: its factors are read (defaults 1), also where a file requires it; a

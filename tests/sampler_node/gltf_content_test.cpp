@@ -491,6 +491,38 @@ TEST(GltfContentTracerTest, AnimatedTransmissionIorAndVolumeShadeAsTheSameFactor
       glass_before_a_wall);
 }
 
+// KHR_materials_diffuse_transmission driven by KHR_animation_pointer: a screen between the
+// camera and a light behind it lets more and more of the light through, tinted by the animated
+// color, shading at each time as the same factors written in the file do.
+TEST(GltfContentTracerTest, AnimatedDiffuseTransmissionShadesAsTheSameFactorsInTheFile) {
+  const auto screen_before_a_light = [](const json& screen) {
+    GltfContent g;
+    g.doc()["materials"] = json::array({screen});
+    const int wall =
+        g.add_mesh({-3, -3, -1.5f, 3, -3, -1.5f, 3, 3, -1.5f, -3, 3, -1.5f}, {0, 1, 2, 0, 2, 3}, 0);
+    g.doc()["extensions"]["KHR_lights_punctual"]["lights"] =
+        json::array({{{"type", "point"}, {"intensity", 20.0}}});
+    g.doc()["extensionsUsed"] = {"KHR_lights_punctual"};
+    g.set_roots({g.add_node({{"mesh", wall}}),
+                 g.add_node({{"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}},
+                             {"translation", {0.4, 0.3, -3.0}}})});
+    return g;
+  };
+  expect_animated_factors_shade_as_in_the_file(
+      {
+          {"KHR_materials_diffuse_transmission", "diffuseTransmissionFactor", {0.0f}, {1.0f}},
+          {"KHR_materials_diffuse_transmission",
+           "diffuseTransmissionColorFactor",
+           {1.0f, 1.0f, 1.0f},
+           {0.9f, 0.5f, 0.2f}},
+      },
+      {{"pbrMetallicRoughness",
+        {{"baseColorFactor", {0.6, 0.3, 0.2, 1.0}},
+         {"metallicFactor", 0.0},
+         {"roughnessFactor", 0.5}}}},
+      screen_before_a_light);
+}
+
 // ---- Animated visibility ----
 
 // KHR_node_visibility driven by KHR_animation_pointer: the morphed quad (deformed geometry) shows

@@ -393,69 +393,6 @@ TEST(TracerTest, SpecularFactorsSetTheDielectricHighlight) {
   expect_near3(highlight(true, 0.0f, glm::vec3(1.0f)), glm::vec3(0.0f), 0.0f, "none");
 }
 
-// KHR_materials_diffuse_transmission: a Lambertian square at z = -2 facing the camera at the
-// origin, under an ambient term, lit by a sun either from behind the camera or from behind the
-// square (shining toward the camera). Light from behind comes through as
-// diffuse_transmission x its color x (1 - metallic) / pi (not the base color), and the diffuse
-// reflection keeps 1 - diffuse_transmission; the ambient light reaches both ways. A blocker
-// behind the square shadows what comes through (the shadow ray leaves from the back), and the
-// packets' shading (trace_crosshair) agrees with single rays.
-TEST(TracerTest, DiffuseTransmissionLetsLightThroughFromBehind) {
-  const glm::vec3 base(0.8f, 0.6f, 0.4f), ambient(0.1f), color(1.0f, 0.5f, 0.25f);
-  const float intensity = 3.0f, pi = std::numbers::pi_v<float>;
-  struct Lit {
-    glm::vec3 single, packet;
-  };
-  auto shade = [&](float dt, float metallic, bool from_behind, bool blocked) {
-    Scene s;
-    s.ambient = ambient;
-    const int mat = add_material(&s, base, metallic, 1.0f);
-    s.materials[size_t(mat)].diffuse_transmission = dt;
-    s.materials[size_t(mat)].diffuse_transmission_color = color;
-    add_mesh_node(&s, quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat));
-    if (blocked) {
-      const int dark = add_material(&s, glm::vec3(0.0f), 0.0f, 1.0f);
-      add_mesh_node(&s, quad_mesh({-1, -1, -3}, {2, 0, 0}, {0, 2, 0}, dark));
-    }
-    Light sun;
-    sun.type = Light::Type::kDirectional;  // along -Z, or turned to +Z
-    sun.intensity = intensity;
-    add_light_node(&s, sun, glm::dvec3(0.0),
-                   from_behind ? glm::angleAxis(M_PI, glm::dvec3(0.0, 1.0, 0.0))
-                               : glm::dquat(1.0, 0.0, 0.0, 0.0));
-    s.finalize();
-    Tracer tracer(s);
-    TraceStats stats;
-    const Camera cam =
-        Camera::look_at({0.0, 0.0, 0.0}, {0.0, 0.0, -2.0}, {0.0, 1.0, 0.0}, 0.9, 0.01);
-    std::array<ShadedSample, 5> cross;
-    tracer.trace_crosshair(cam, 8.0, 8.0, 16, 16, &cross, &stats);
-    const ShadedSample single = tracer.trace(cam.ray(8.0, 8.0, 16, 16), &stats);
-    EXPECT_TRUE(single.hit);
-    return Lit{single.color, cross[0].color};
-  };
-  auto expect = [](const Lit& got, glm::vec3 want, const char* what) {
-    expect_near3(got.single, want, 1e-5f, what);
-    expect_near3(got.packet, want, 1e-5f, what);
-  };
-  const float dt = 0.75f;
-  const glm::vec3 ambient_seen = ambient * (base * (1.0f - dt) + dt * color);
-  // Without the extension the square is dark from behind: ambient only.
-  expect(shade(0.0f, 0.0f, true, false), ambient * base, "opaque, lit from behind");
-  expect(shade(dt, 0.0f, true, false), ambient_seen + dt * color * intensity / pi,
-         "transmits, lit from behind");
-  expect(shade(dt, 0.0f, false, false), ambient_seen + (1.0f - dt) * base * intensity / pi,
-         "transmits, lit from the front");
-  expect(shade(dt, 0.0f, true, true), ambient_seen, "transmits, shadowed behind");
-  // A half-metallic surface transmits from its dielectric half only; its metal keeps reflecting
-  // the ambient light.
-  const float metallic = 0.5f;
-  const float share = dt * (1.0f - metallic);
-  expect(shade(dt, metallic, true, false),
-         ambient * (base * (1.0f - share) + share * color) + share * color * intensity / pi,
-         "half metal, lit from behind");
-}
-
 TEST(TracerTest, MirroredNodeKeepsItsFrontFace) {
   // glTF: under a transform with negative determinant, clockwise triangles face front. A
   // single-sided square facing +Z, mirrored in x, still faces +Z and is lit from there.
@@ -1394,6 +1331,82 @@ TEST(TracerTest, ExtensionTexturesMultiplyTheirFactors) {
                1e-6f, "no coat on the left");
   expect_near3(tracer.trace(Ray{{0.5f, 0.0f, 0.0f}, {0, 0, -1}}, &stats).color, glm::vec3(coat),
                1e-5f, "a full coat on the right");
+}
+
+// KHR_materials_diffuse_transmission: a Lambertian square at z = -2 facing the camera at the
+// origin, under an ambient term, lit by a sun either from behind the camera or from behind the
+// square (shining toward the camera). Light from behind comes through as
+// diffuse_transmission x its color x (1 - metallic) / pi (not the base color), and the diffuse
+// reflection keeps 1 - diffuse_transmission; the ambient light reaches both ways. A blocker
+// behind the square shadows what comes through (the shadow ray leaves from the back), the
+// extension's textures multiply its factors, and the packets' shading (trace_crosshair) agrees
+// with single rays.
+TEST(TracerTest, DiffuseTransmissionLetsLightThroughFromBehind) {
+  const glm::vec3 base(0.8f, 0.6f, 0.4f), ambient(0.1f), color(1.0f, 0.5f, 0.25f);
+  const float intensity = 3.0f, pi = std::numbers::pi_v<float>;
+  struct Lit {
+    glm::vec3 single, packet;
+  };
+  auto shade = [&](float dt, float metallic, bool from_behind, bool blocked,
+                   bool textured = false) {
+    Scene s;
+    s.ambient = ambient;
+    const int mat = add_material(&s, base, metallic, 1.0f);
+    Material& m = s.materials[size_t(mat)];
+    m.diffuse_transmission = dt;
+    m.diffuse_transmission_color = color;
+    if (textured) {  // factors 1 and white, the texels dt and the color
+      m.diffuse_transmission = 1.0f;
+      m.diffuse_transmission_color = glm::vec3(1.0f);
+      m.diffuse_transmission_texture = add_texel(&s, glm::vec3(dt, 0.0f, 0.0f));
+      m.diffuse_transmission_color_texture = add_texel(&s, color);
+    }
+    add_mesh_node(&s, quad_mesh({-1, -1, -2}, {2, 0, 0}, {0, 2, 0}, mat));
+    if (blocked) {
+      const int dark = add_material(&s, glm::vec3(0.0f), 0.0f, 1.0f);
+      add_mesh_node(&s, quad_mesh({-1, -1, -3}, {2, 0, 0}, {0, 2, 0}, dark));
+    }
+    Light sun;
+    sun.type = Light::Type::kDirectional;  // along -Z, or turned to +Z
+    sun.intensity = intensity;
+    add_light_node(&s, sun, glm::dvec3(0.0),
+                   from_behind ? glm::angleAxis(M_PI, glm::dvec3(0.0, 1.0, 0.0))
+                               : glm::dquat(1.0, 0.0, 0.0, 0.0));
+    s.finalize();
+    Tracer tracer(s);
+    TraceStats stats;
+    const Camera cam =
+        Camera::look_at({0.0, 0.0, 0.0}, {0.0, 0.0, -2.0}, {0.0, 1.0, 0.0}, 0.9, 0.01);
+    std::array<ShadedSample, 5> cross;
+    tracer.trace_crosshair(cam, 8.0, 8.0, 16, 16, &cross, &stats);
+    const ShadedSample single = tracer.trace(cam.ray(8.0, 8.0, 16, 16), &stats);
+    EXPECT_TRUE(single.hit);
+    return Lit{single.color, cross[0].color};
+  };
+  auto expect = [](const Lit& got, glm::vec3 want, const char* what) {
+    expect_near3(got.single, want, 1e-5f, what);
+    expect_near3(got.packet, want, 1e-5f, what);
+  };
+  const float dt = 0.75f;
+  const glm::vec3 ambient_seen = ambient * (base * (1.0f - dt) + dt * color);
+  // Without the extension the square is dark from behind: ambient only.
+  expect(shade(0.0f, 0.0f, true, false), ambient * base, "opaque, lit from behind");
+  expect(shade(dt, 0.0f, true, false), ambient_seen + dt * color * intensity / pi,
+         "transmits, lit from behind");
+  expect(shade(dt, 0.0f, false, false), ambient_seen + (1.0f - dt) * base * intensity / pi,
+         "transmits, lit from the front");
+  expect(shade(dt, 0.0f, true, true), ambient_seen, "transmits, shadowed behind");
+  expect(shade(dt, 0.0f, true, false, true), ambient_seen + dt * color * intensity / pi,
+         "textured, lit from behind");
+  expect(shade(dt, 0.0f, false, false, true), ambient_seen + (1.0f - dt) * base * intensity / pi,
+         "textured, lit from the front");
+  // A half-metallic surface transmits from its dielectric half only; its metal keeps reflecting
+  // the ambient light.
+  const float metallic = 0.5f;
+  const float share = dt * (1.0f - metallic);
+  expect(shade(dt, metallic, true, false),
+         ambient * (base * (1.0f - share) + share * color) + share * color * intensity / pi,
+         "half metal, lit from behind");
 }
 
 // KHR_materials_pbrSpecularGlossiness, on a square lit and seen straight on (Fresnel = F0):

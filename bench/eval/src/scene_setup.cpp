@@ -205,6 +205,14 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.value(m.anisotropy_texture);
       h.value(m.uv_set.anisotropy);
     }
+    if (m.diffuse_transmission > 0.0f) {
+      h.value(m.diffuse_transmission);
+      h.value(m.diffuse_transmission_color);
+      h.value(m.diffuse_transmission_texture);
+      h.value(m.diffuse_transmission_color_texture);
+      h.value(m.uv_set.diffuse_transmission);
+      h.value(m.uv_set.diffuse_transmission_color);
+    }
     if (m.thickness > 0.0f) {
       h.value(m.thickness);
       h.value(m.attenuation_color);

@@ -100,6 +100,8 @@ enum class AnimatedProperty {
   kAttenuationDistance,          //   .../attenuationDistance
   kAttenuationColor,             //   .../attenuationColor
   kDispersion,                   //   KHR_materials_dispersion/dispersion
+  kDiffuseTransmissionFactor,    //   KHR_materials_diffuse_transmission/diffuseTransmissionFactor
+  kDiffuseTransmissionColor,     //   .../diffuseTransmissionColorFactor
   // /materials/N/TEXTURE/extensions/KHR_texture_transform/offset, TEXTURE a texture slot's
   // path (pbrMetallicRoughness/baseColorTexture, extensions/KHR_materials_clearcoat/
   // clearcoatTexture, ...): PropertyChannel::uv_set names the set it transforms.

@@ -201,6 +201,8 @@ struct Material {
     uint8_t glossiness = 0;
     uint8_t iridescence = 0;
     uint8_t iridescence_thickness = 0;
+    uint8_t diffuse_transmission = 0;
+    uint8_t diffuse_transmission_color = 0;
     bool operator==(const TextureSets&) const = default;
   };
   TextureSets uv_set;
@@ -236,9 +238,13 @@ struct Material {
   // non-transmitting part) that passes through the thin surface instead of reflecting: light
   // from the side the viewer does not see comes through as a Lambertian transmission of color
   // diffuse_transmission_color (not the base color), and the diffuse reflection keeps
-  // 1 - diffuse_transmission. 0: none. Its textures are not read (one warning).
+  // 1 - diffuse_transmission. 0: none. diffuse_transmission_texture's alpha channel (decoded as
+  // data, held in red) multiplies the factor, diffuse_transmission_color_texture's color (sRGB)
+  // the color; -1: none.
   float diffuse_transmission = 0.0f;
   glm::vec3 diffuse_transmission_color{1.0f};
+  int diffuse_transmission_texture = -1;
+  int diffuse_transmission_color_texture = -1;
   // KHR_materials_ior: the index of refraction inside the surface (outside is 1). Either >= 1,
   // or 0, which the extension defines as a Fresnel term of 1 (all reflection).
   float ior = 1.5f;
