@@ -433,21 +433,26 @@ TEST_F(GltfLoaderTest, DispersionIsRead) {
                "material 0 KHR_materials_dispersion has an invalid dispersion");
 }
 
+// The unit quad (add_quad) with material 0, TEXCOORD_0 running 0 to 1 and TEXCOORD_1 0 to 2
+// across it, and texture 0: one RGBA texel (color 128, 64, 32, alpha 51) in `dir`/rgba.png.
+void add_rgba_textured_quad(GltfBuilder* b, const fs::path& dir) {
+  write_image8(DecodedImage{1, 1, 4, {128, 64, 32, 51}}, dir / "rgba.png");
+  add_quad(b);
+  json& primitive = b->doc()["meshes"][0]["primitives"][0];
+  primitive["material"] = 0;
+  primitive["attributes"]["TEXCOORD_0"] = b->add_floats({0, 0, 1, 0, 1, 1, 0, 1}, 2);
+  primitive["attributes"]["TEXCOORD_1"] = b->add_floats({0, 0, 2, 0, 2, 2, 0, 2}, 2);
+  b->doc()["images"] = json::array({{{"uri", "rgba.png"}}});
+  b->doc()["textures"] = json::array({{{"source", 0}}});
+}
+
 // KHR_materials_diffuse_transmission: its factors (defaults 0 and white) and textures are read,
 // also where a file requires it: the factor's texture from the image's alpha, the color's as
 // sRGB, each through its own texture coordinate set; a factor out of range fails naming the
 // material and the factor.
 TEST_F(GltfLoaderTest, DiffuseTransmissionIsRead) {
-  // One RGBA texel: color 128, 64, 32, alpha 51.
-  write_image8(DecodedImage{1, 1, 4, {128, 64, 32, 51}}, dir_ / "rgba.png");
   GltfBuilder b;
-  add_quad(&b);
-  json& primitive = b.doc()["meshes"][0]["primitives"][0];
-  primitive["material"] = 0;
-  primitive["attributes"]["TEXCOORD_0"] = b.add_floats({0, 0, 1, 0, 1, 1, 0, 1}, 2);
-  primitive["attributes"]["TEXCOORD_1"] = b.add_floats({0, 0, 2, 0, 2, 2, 0, 2}, 2);
-  b.doc()["images"] = json::array({{{"uri", "rgba.png"}}});
-  b.doc()["textures"] = json::array({{{"source", 0}}});
+  add_rgba_textured_quad(&b, dir_);
   b.doc()["extensionsUsed"] = {"KHR_materials_diffuse_transmission"};
   b.doc()["extensionsRequired"] = {"KHR_materials_diffuse_transmission"};
   const json leaf = {{"KHR_materials_diffuse_transmission",
@@ -538,16 +543,8 @@ TEST_F(GltfLoaderTest, SpecularExtensionFactorsAreRead) {
 // image's alpha (held in red, green and blue as data), its color texture sRGB; the clearcoat
 // normal keeps its scale. A slot that is not a textureInfo fails naming it.
 TEST_F(GltfLoaderTest, MaterialExtensionTexturesAreRead) {
-  // One RGBA texel: color 128, 64, 32, alpha 51.
-  write_image8(DecodedImage{1, 1, 4, {128, 64, 32, 51}}, dir_ / "rgba.png");
   GltfBuilder b;
-  add_quad(&b);
-  json& primitive = b.doc()["meshes"][0]["primitives"][0];
-  primitive["material"] = 0;
-  primitive["attributes"]["TEXCOORD_0"] = b.add_floats({0, 0, 1, 0, 1, 1, 0, 1}, 2);
-  primitive["attributes"]["TEXCOORD_1"] = b.add_floats({0, 0, 2, 0, 2, 2, 0, 2}, 2);
-  b.doc()["images"] = json::array({{{"uri", "rgba.png"}}});
-  b.doc()["textures"] = json::array({{{"source", 0}}});
+  add_rgba_textured_quad(&b, dir_);
   b.doc()["extensionsUsed"] = {"KHR_materials_transmission", "KHR_materials_specular",
                                "KHR_materials_clearcoat", "KHR_texture_transform"};
   const json scaled = {{"KHR_texture_transform", {{"scale", {2.0, 2.0}}}}};
@@ -618,14 +615,8 @@ TEST_F(GltfLoaderTest, MaterialExtensionTexturesAreRead) {
 // KHR_materials_sheen: its factors (defaults 0) and textures are read, the roughness texture
 // from the image's alpha; a factor out of range fails naming the material.
 TEST_F(GltfLoaderTest, SheenIsRead) {
-  write_image8(DecodedImage{1, 1, 4, {128, 64, 32, 51}}, dir_ / "rgba.png");
   GltfBuilder b;
-  add_quad(&b);
-  json& primitive = b.doc()["meshes"][0]["primitives"][0];
-  primitive["material"] = 0;
-  primitive["attributes"]["TEXCOORD_0"] = b.add_floats({0, 0, 1, 0, 1, 1, 0, 1}, 2);
-  b.doc()["images"] = json::array({{{"uri", "rgba.png"}}});
-  b.doc()["textures"] = json::array({{{"source", 0}}});
+  add_rgba_textured_quad(&b, dir_);
   b.doc()["extensionsUsed"] = {"KHR_materials_sheen"};
   b.doc()["extensionsRequired"] = {"KHR_materials_sheen"};
   b.doc()["materials"] = json::array({{{"extensions",
