@@ -46,7 +46,8 @@ void derive(ShadeMaterial* m, float metallic, float roughness) {
   if (m->is_glass) {
     m->ambient *= m->diffuse_weight;
   } else if (transmitted_share > 0.0f && !m->specular_glossiness) {
-    m->ambient *= 1.0f - transmitted_share;  // the metal keeps reflecting
+    // The metal keeps reflecting (a mirror's already left to its reflection ray).
+    m->ambient *= m->is_mirror ? 1.0f - m->diffuse_transmission : 1.0f - transmitted_share;
   }
   // A metallic-roughness surface reflects ambient light by its base color, whatever its metal;
   // a specular-glossiness one by its diffuse, as its diffuse light, and its F0 (where the color

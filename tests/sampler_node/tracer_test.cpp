@@ -1337,21 +1337,21 @@ TEST(TracerTest, ExtensionTexturesMultiplyTheirFactors) {
 // origin, under an ambient term, lit by a sun either from behind the camera or from behind the
 // square (shining toward the camera). Light from behind comes through as
 // diffuse_transmission x its color x (1 - metallic) / pi (not the base color), and the diffuse
-// reflection keeps 1 - diffuse_transmission; the ambient light reaches both ways. A blocker
-// behind the square shadows what comes through (the shadow ray leaves from the back), the
-// extension's textures multiply its factors, and the packets' shading (trace_crosshair) agrees
-// with single rays.
+// reflection keeps 1 - diffuse_transmission (also beside a mirror's metal); the ambient light
+// reaches both ways. A blocker behind the square shadows what comes through (the shadow ray
+// leaves from the back), the extension's textures multiply its factors, and the packets'
+// shading (trace_crosshair) agrees with single rays.
 TEST(TracerTest, DiffuseTransmissionLetsLightThroughFromBehind) {
   const glm::vec3 base(0.8f, 0.6f, 0.4f), ambient(0.1f), color(1.0f, 0.5f, 0.25f);
   const float intensity = 3.0f, pi = std::numbers::pi_v<float>;
   struct Lit {
     glm::vec3 single, packet;
   };
-  auto shade = [&](float dt, float metallic, bool from_behind, bool blocked,
-                   bool textured = false) {
+  auto shade = [&](float dt, float metallic, bool from_behind, bool blocked, bool textured = false,
+                   float roughness = 1.0f) {
     Scene s;
     s.ambient = ambient;
-    const int mat = add_material(&s, base, metallic, 1.0f);
+    const int mat = add_material(&s, base, metallic, roughness);
     Material& m = s.materials[size_t(mat)];
     m.diffuse_transmission = dt;
     m.diffuse_transmission_color = color;
@@ -1407,6 +1407,12 @@ TEST(TracerTest, DiffuseTransmissionLetsLightThroughFromBehind) {
   expect(shade(dt, metallic, true, false),
          ambient * (base * (1.0f - share) + share * color) + share * color * intensity / pi,
          "half metal, lit from behind");
+  // A polished one is a mirror: its metal reflects only through its reflection ray (here into
+  // the black background), and its dielectric half splits as a rough one's does.
+  expect(shade(dt, metallic, true, false, false, 0.0f),
+         ambient * ((1.0f - metallic) * (1.0f - dt) * base + share * color) +
+             share * color * intensity / pi,
+         "half-metal mirror, lit from behind");
 }
 
 // KHR_materials_pbrSpecularGlossiness, on a square lit and seen straight on (Fresnel = F0):
