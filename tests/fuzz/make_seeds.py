@@ -501,6 +501,37 @@ def gltf_seeds():
                                "KHR_lights_punctual"]
     write("gltf", "pointer_texture_transform.gltf", g.embedded())
 
+    # KHR_materials_diffuse_transmission: a double-sided quad lit from behind, its strength and
+    # color textures (one through KHR_texture_transform on TEXCOORD_1), both factors and the
+    # strength texture's transform driven by KHR_animation_pointer.
+    g = Gltf()
+    n = g.floats([0, 0, 1] * 4, "VEC3")
+    t = g.floats([0, 0, 1, 0, 1, 1, 0, 1], "VEC2")
+    g.quad(NORMAL=n, TEXCOORD_0=t, TEXCOORD_1=t)["material"] = 0
+    g.doc["images"] = [{"uri": "data:image/png;base64," + base64.b64encode(png(2, 1, [255, 128, 0, 0, 64, 255])).decode()}]
+    g.doc["textures"] = [{"source": 0}]
+    moved = {"index": 0, "texCoord": 1, "extensions": {"KHR_texture_transform": {"rotation": 0.5}}}
+    g.doc["materials"] = [{"doubleSided": True, "pbrMetallicRoughness": {"metallicFactor": 0},
+                          "extensions": {"KHR_materials_diffuse_transmission": {
+        "diffuseTransmissionFactor": 0.5, "diffuseTransmissionTexture": moved,
+        "diffuseTransmissionColorFactor": [1, 0.8, 0.6], "diffuseTransmissionColorTexture": {"index": 0}}}}]
+    g.doc["extensions"] = {"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 8}]}}
+    g.doc["nodes"] = [{"mesh": 0}, {"extensions": {"KHR_lights_punctual": {"light": 0}}, "translation": [0, 0, -2]}]
+    g.doc["scenes"] = [{"nodes": [0, 1]}]
+    times = g.floats([0, 1], "SCALAR", min=[0], max=[1])
+    channel = lambda path, sampler: {"sampler": sampler, "target": {"path": "pointer", "extensions": {
+        "KHR_animation_pointer": {"pointer": path}}}}
+    dt = "/materials/0/extensions/KHR_materials_diffuse_transmission/"
+    g.doc["animations"] = [{"samplers": [
+        {"input": times, "output": g.floats([0, 1], "SCALAR")},
+        {"input": times, "output": g.floats([1, 1, 1, 0.2, 0.4, 0.9], "VEC3")}],
+        "channels": [channel(dt + "diffuseTransmissionFactor", 0),
+                     channel(dt + "diffuseTransmissionColorFactor", 1),
+                     channel(dt + "diffuseTransmissionTexture/extensions/KHR_texture_transform/rotation", 0)]}]
+    g.doc["extensionsUsed"] = ["KHR_animation_pointer", "KHR_materials_diffuse_transmission",
+                               "KHR_texture_transform", "KHR_lights_punctual"]
+    write("gltf", "diffuse_transmission.gltf", g.embedded())
+
     # A .glb whose BIN chunk is not padded to 4 bytes (read as if padded, with a warning).
     g = Gltf()
     g.quad()
