@@ -175,6 +175,22 @@ TEST(IdealCacheTest, SceneHashSeesContentNotNames) {
       "volume", [](Scene* s) { s->materials[0].thickness = 1.0f; },
       [](Scene* s) { s->materials[0].attenuation_distance = 2.0f; });
   expect_seen(
+      "dispersion",
+      [](Scene* s) {
+        s->materials[0].thickness = 1.0f;
+        s->materials[0].dispersion = 1.0f;
+      },
+      [](Scene* s) { s->materials[0].dispersion = 2.0f; });
+  expect_seen(
+      "diffuse transmission", [](Scene* s) { s->materials[0].diffuse_transmission = 0.5f; },
+      [](Scene* s) { s->materials[0].diffuse_transmission_color = glm::vec3(0.5f); });
+  expect_seen(
+      "diffuse transmission texture",
+      [](Scene* s) { s->materials[0].diffuse_transmission_texture = 0; },
+      [](Scene* s) { s->materials[0].diffuse_transmission_color_texture = 0; });
+  expect_seen(
+      "ray depth", [](Scene* s) { s->ray_depth = 6; }, [](Scene* s) { s->ray_depth = 0; });
+  expect_seen(
       "samplers", [](Scene* s) { s->textures[0].wrap_s = Texture::Wrap::kClampToEdge; },
       [](Scene* s) { s->textures[0].nearest = true; });
   expect_seen(

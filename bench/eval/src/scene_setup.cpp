@@ -205,7 +205,8 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.value(m.anisotropy_texture);
       h.value(m.uv_set.anisotropy);
     }
-    if (m.diffuse_transmission > 0.0f) {
+    if (m.diffuse_transmission > 0.0f || m.diffuse_transmission_texture >= 0 ||
+        m.diffuse_transmission_color_texture >= 0) {
       h.value(m.diffuse_transmission);
       h.value(m.diffuse_transmission_color);
       h.value(m.diffuse_transmission_texture);
@@ -217,6 +218,7 @@ uint64_t render_fingerprint(const Scene& scene) {
       h.value(m.thickness);
       h.value(m.attenuation_color);
       h.value(m.attenuation_distance);
+      if (m.dispersion > 0.0f) h.value(m.dispersion);
     }
     if (m.alpha_mode != Material::AlphaMode::kOpaque) {
       h.value(m.alpha_mode);
@@ -324,6 +326,8 @@ uint64_t render_fingerprint(const Scene& scene) {
   }
   h.value(scene.background);
   h.value(scene.ambient);
+  // The file's ray depth (extras.afr_ray_depth), which replaces the tracer's own.
+  if (scene.ray_depth) h.value(*scene.ray_depth);
   return h.digest();
 }
 
