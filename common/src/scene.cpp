@@ -310,6 +310,7 @@ void generate_tangents(Primitive* p, int uv_set) {
     const float w = glm::dot(glm::cross(normal, t), along_v[v]) > 0.0f ? -1.0f : 1.0f;
     p->tangents[v] = glm::vec4(t, w);
   }
+  p->tangent_set = uv_set;
 }
 
 // ---------------------------------------------------------------------------------------------

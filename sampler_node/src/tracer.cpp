@@ -128,6 +128,7 @@ struct GeomRecord {
   // TANGENT in the positions' space (w: the bitangent's sign); null: the triangle's own frame
   // (no TANGENT).
   const glm::vec4* tangents = nullptr;
+  int tangent_set = -1;  // the set the tangents were generated from; -1: the file's (Primitive)
   const glm::vec3* velocities = nullptr;  // world velocity per vertex: deforming geometry only
   const uint32_t* indices = nullptr;
   uint32_t material = 0;  // index into Impl::materials_
@@ -587,6 +588,7 @@ struct Tracer::Impl {
     GeomRecord r;
     r.uvs = slot_uvs(p);
     r.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
+    r.tangent_set = p.tangent_set;
     r.color_alpha = tested_alpha(p, material);
     r.indices = p.indices.data();
     r.material = material;
@@ -1324,19 +1326,39 @@ bool Tracer::Impl::blocked(const glm::vec3& o, const glm::vec3& d, float tnear, 
   return r.tfar < 0.0f;  // Embree sets tfar to -inf on a hit
 }
 
-// The tangent frame (t, bt) at barycentrics (w, u, v) of triangle `tri`, whose shading normal
-// is n (unit), for a texture read through coordinates `uvs` (null: none). The frame is the
-// file's where the primitive has TANGENT (GeomRecord::tangents): t interpolated and made
-// orthogonal to n, and b = n x t times the tangent's w. Otherwise it is the triangle's own:
-// t = dp/du made orthogonal to n, and b = n x t, turned to point against dp/dv as glTF's flipped
-// v expects (so a mirrored mapping gets a mirrored b, as MikkTSpace's sign gives). `turned`: n is
-// the back of a double-sided surface, whose b stays the front's as in the triangle's own frame.
-// False where there is no usable frame (no coordinates or uv area, degenerate).
-static bool tangent_frame(const GeomRecord& g, const Instance& inst, const uint32_t* tri,
-                          const glm::vec3& bary, const glm::vec3& n, bool turned,
-                          const glm::vec2* uvs, glm::vec3* t_out, glm::vec3* bt_out) {
+// The tangent frame (t, bt) at barycentrics (w, u, v) of triangle `tri` of material m, whose
+// shading normal is n (unit), for a texture read through coordinates `uvs` (none: no
+// coordinates). The frame is the primitive's where it has tangents (GeomRecord::tangents): t
+// interpolated and made orthogonal to n, and b = n x t times the tangent's w. Otherwise it is
+// the triangle's own: t = dp/du made orthogonal to n, and b = n x t, turned to point against
+// dp/dv as glTF's flipped v expects (so a mirrored mapping gets a mirrored b, as MikkTSpace's
+// sign gives). `turned`: n is the back of a double-sided surface, whose b stays the front's as
+// in the triangle's own frame. False where there is no usable frame (no coordinates or uv area,
+// degenerate).
+//
+// A frame that follows texture coordinates follows them through their animated
+// KHR_texture_transform (ShadeMaterial::uv_in_set), as the frame of the same transform written
+// in the file follows the coordinates it transforms at load: the triangle's own frame is taken
+// from the transformed corners, and generated tangents (GeomRecord::tangent_set) are turned
+// with their set's transform: with (u', v') = L (u, v) + offset, dp/du' = dp/du du/du' +
+// dp/dv dv/du', the columns of L's inverse mixing the frame's dp/du (t) and dp/dv (-b). The
+// file's own TANGENT does not follow a transform.
+static bool tangent_frame(const GeomRecord& g, const Instance& inst,
+                          const shading::ShadeMaterial& m, const uint32_t* tri,
+                          const glm::vec3& bary, const glm::vec3& n, bool turned, SlotCoords uvs,
+                          glm::vec3* t_out, glm::vec3* bt_out) {
   glm::vec3& t = *t_out;
   glm::vec3& bt = *bt_out;
+  // t = `along_u` made orthogonal to n, bt = n x t pointing against `along_v`.
+  const auto orthogonal_frame = [&](const glm::vec3& along_u, const glm::vec3& along_v) {
+    t = along_u - n * glm::dot(n, along_u);
+    const float t_len2 = glm::dot(t, t);
+    if (!(t_len2 > 1e-30f) || !std::isfinite(t_len2)) return false;
+    t *= 1.0f / std::sqrt(t_len2);
+    bt = glm::cross(n, t);
+    if (glm::dot(bt, along_v) > 0.0f) bt = -bt;
+    return true;
+  };
   if (g.tangents) {
     const glm::vec4& t0 = g.tangents[tri[0]];
     t = bary.x * glm::vec3(t0) + bary.y * glm::vec3(g.tangents[tri[1]]) +
@@ -1352,38 +1374,44 @@ static bool tangent_frame(const GeomRecord& g, const Instance& inst, const uint3
     if (!(t_len2 > 1e-30f) || !std::isfinite(t_len2)) return false;
     t *= 1.0f / std::sqrt(t_len2);
     bt = glm::cross(n, t) * sign;
-  } else {
-    if (!uvs) return false;
-    const glm::vec2 d1 = uvs[tri[1]] - uvs[tri[0]], d2 = uvs[tri[2]] - uvs[tri[0]];
-    const glm::vec3 e1 = g.positions[tri[1]] - g.positions[tri[0]];
-    const glm::vec3 e2 = g.positions[tri[2]] - g.positions[tri[0]];
-    const float det = d1.x * d2.y - d2.x * d1.y;
-    if (!(std::abs(det) > 1e-20f)) return false;
-    t = (e1 * d2.y - e2 * d1.y) / det;            // dp/du
-    glm::vec3 b = (e2 * d1.x - e1 * d2.x) / det;  // dp/dv
-    if (inst.transformed) {
-      const glm::mat3 linear(inst.world);
-      t = linear * t;
-      b = linear * b;
+    if (g.tangent_set >= 0 && m.uv_transforms) {
+      const glm::mat2& linear = m.uv_transforms[g.tangent_set].linear;
+      if (linear != glm::mat2(1.0f)) {
+        const glm::mat2 inverse = glm::inverse(linear);
+        const glm::vec3 along_v = -bt;
+        return orthogonal_frame(t * inverse[0][0] + along_v * inverse[0][1],
+                                t * inverse[1][0] + along_v * inverse[1][1]);
+      }
     }
-    t -= n * glm::dot(n, t);
-    const float t_len2 = glm::dot(t, t);
-    if (!(t_len2 > 1e-30f) || !std::isfinite(t_len2)) return false;
-    t *= 1.0f / std::sqrt(t_len2);
-    bt = glm::cross(n, t);
-    if (glm::dot(bt, b) > 0.0f) bt = -bt;
+    return true;
   }
-  return true;
+  if (!uvs) return false;
+  const glm::vec2 uv0 = m.uv_in_set(uvs.set, uvs.uvs[tri[0]]);
+  const glm::vec2 d1 = m.uv_in_set(uvs.set, uvs.uvs[tri[1]]) - uv0;
+  const glm::vec2 d2 = m.uv_in_set(uvs.set, uvs.uvs[tri[2]]) - uv0;
+  const glm::vec3 e1 = g.positions[tri[1]] - g.positions[tri[0]];
+  const glm::vec3 e2 = g.positions[tri[2]] - g.positions[tri[0]];
+  const float det = d1.x * d2.y - d2.x * d1.y;
+  if (!(std::abs(det) > 1e-20f)) return false;
+  glm::vec3 along_u = (e1 * d2.y - e2 * d1.y) / det;  // dp/du
+  glm::vec3 along_v = (e2 * d1.x - e1 * d2.x) / det;  // dp/dv
+  if (inst.transformed) {
+    const glm::mat3 linear(inst.world);
+    along_u = linear * along_u;
+    along_v = linear * along_v;
+  }
+  return orthogonal_frame(along_u, along_v);
 }
 
 // The shading normal that a normal texture's texel asks for at barycentrics `bary` of triangle
-// `tri`, whose shading normal is n (unit), the texture read through coordinates `uvs`, in the
-// tangent frame above (n stays where there is none).
-static glm::vec3 mapped_normal(const GeomRecord& g, const Instance& inst, const uint32_t* tri,
+// `tri` of material m, whose shading normal is n (unit), the texture read through coordinates
+// `uvs`, in the tangent frame above (n stays where there is none).
+static glm::vec3 mapped_normal(const GeomRecord& g, const Instance& inst,
+                               const shading::ShadeMaterial& m, const uint32_t* tri,
                                const glm::vec3& bary, const glm::vec3& n, bool turned,
-                               const glm::vec2* uvs, const glm::vec3& texel, float scale) {
+                               SlotCoords uvs, const glm::vec3& texel, float scale) {
   glm::vec3 t, bt;
-  if (!tangent_frame(g, inst, tri, bary, n, turned, uvs, &t, &bt)) return n;
+  if (!tangent_frame(g, inst, m, tri, bary, n, turned, uvs, &t, &bt)) return n;
   const glm::vec3 local = texel * 2.0f - 1.0f;
   const glm::vec3 mapped = t * (local.x * scale) + bt * (local.y * scale) + n * local.z;
   const float len2 = glm::dot(mapped, mapped);
@@ -1471,7 +1499,7 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   s->lod = 0.0f;
   if (m.texture && g.uvs.base_color) place(*m.texture, g.uvs.base_color, &s->uv, &s->lod);
   if (m.normal_map && g.uvs.normal) {
-    s->ns = mapped_normal(g, inst, tri, s->barycentric, s->ns, turned, g.uvs.normal.uvs,
+    s->ns = mapped_normal(g, inst, m, tri, s->barycentric, s->ns, turned, g.uvs.normal,
                           texel(m.normal_map, g.uvs.normal), m.normal_scale);
   }
   // A material that varies over the surface, decided here from its textures (those whose slot
@@ -1514,14 +1542,14 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
   layers.coat_n = ns;
   if (m.clearcoat_normal_map && g.uvs.clearcoat_normal) {
     layers.coat_n = mapped_normal(
-        g, inst, tri, s->barycentric, ns, turned, g.uvs.clearcoat_normal.uvs,
+        g, inst, m, tri, s->barycentric, ns, turned, g.uvs.clearcoat_normal,
         texel(m.clearcoat_normal_map, g.uvs.clearcoat_normal), m.clearcoat_normal_scale);
   }
   // KHR_materials_anisotropy's direction: the texture's red and green (else the tangent) in the
   // tangent frame of its coordinates, turned by its rotation; none without a frame (isotropic).
   if (m.anisotropy_factor > 0.0f) {
     glm::vec3 tangent, bitangent;
-    if (tangent_frame(g, inst, tri, s->barycentric, s->ns, turned, g.uvs.anisotropy.uvs, &tangent,
+    if (tangent_frame(g, inst, m, tri, s->barycentric, s->ns, turned, g.uvs.anisotropy, &tangent,
                       &bitangent)) {
       const glm::vec2 texel_direction =
           m.anisotropy_texture && g.uvs.anisotropy

@@ -230,10 +230,12 @@ GltfContent textured_quad(const TempFolder& dir, const DecodedImage& image, cons
   return g;
 }
 
-// Animates property `property` ("offset", "rotation", "scale") of the base color texture's
-// transform from `from` to `to` over 0 to 1 s (LINEAR).
+// Animates property `property` ("offset", "rotation", "scale") of the transform of material 0's
+// texture `slot` (its JSON pointer below the material) from `from` to `to` over 0 to 1 s
+// (LINEAR).
 void animate_uv(GltfContent* g, const std::string& property, const std::vector<float>& from,
-                const std::vector<float>& to) {
+                const std::vector<float>& to,
+                const std::string& slot = "pbrMetallicRoughness/baseColorTexture") {
   std::vector<float> values = from;
   values.insert(values.end(), to.begin(), to.end());
   json& animations = g->doc()["animations"];
@@ -243,9 +245,7 @@ void animate_uv(GltfContent* g, const std::string& property, const std::vector<f
   a["samplers"].push_back({{"input", g->add_floats({0.0f, 1.0f}, 1)},
                            {"output", g->add_floats(values, int(from.size()))}});
   const std::string pointer =
-      "/materials/0/pbrMetallicRoughness/baseColorTexture/extensions/"
-      "KHR_texture_transform/" +
-      property;
+      "/materials/0/" + slot + "/extensions/KHR_texture_transform/" + property;
   a["channels"].push_back(
       {{"sampler", a["samplers"].size() - 1},
        {"target",
@@ -341,6 +341,68 @@ TEST(GltfContentTracerTest, AnAnimatedTextureTransformMovesAMasksCutOut) {
   const ShadedSample moved = trace_onto(tracer, 0.75f, 0.5f);
   EXPECT_TRUE(moved.hit);
   expect_color_near(moved.color, {1.0, 0.0, 0.0}, 1e-6);
+}
+
+// A normal texture's tangent frame follows its coordinates through an animated transform as
+// through the same transform in the file: the quad's tangents are generated from the normal
+// texture's coordinates, so turning and stretching them turns the tilt its one texel asks for
+// (which a uniform texture's texel alone would not show). With TANGENT in the file, neither
+// frame follows the transform.
+TEST(GltfContentTracerTest, AnAnimatedNormalTextureTransformTurnsItsTangentFrame) {
+  TempFolder dir;
+  write_image8(DecodedImage{1, 1, 3, {230, 90, 170}}, dir / "normal.png");  // tilted
+  const auto quad = [&](const json& transform, bool file_tangents) {
+    GltfContent g;
+    g.doc()["images"] = json::array({{{"uri", "normal.png"}}});
+    g.doc()["textures"] = json::array({{{"source", 0}}});
+    json normal = {{"index", 0}};
+    if (!transform.is_null()) normal["extensions"]["KHR_texture_transform"] = transform;
+    g.doc()["materials"] = json::array(
+        {{{"normalTexture", normal},
+          {"pbrMetallicRoughness", {{"metallicFactor", 0.0}, {"roughnessFactor", 1.0}}}}});
+    g.doc()["extensionsUsed"] = {"KHR_texture_transform", "KHR_animation_pointer"};
+    const int mesh = g.add_mesh({0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0}, {0, 1, 2, 0, 2, 3}, 0,
+                                {0, 0, 1, 0, 1, 1, 0, 1});
+    if (file_tangents) {
+      g.doc()["meshes"][size_t(mesh)]["primitives"][0]["attributes"]["TANGENT"] =
+          g.add_floats({1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1}, 4);
+    }
+    g.set_roots({g.add_node({{"mesh", mesh}})});
+    return g;
+  };
+  for (const bool file_tangents : {false, true}) {
+    SCOPED_TRACE(file_tangents ? "TANGENT in the file" : "tangents generated");
+    GltfContent animated = quad(nullptr, file_tangents);
+    animate_uv(&animated, "offset", {0.0f, 0.0f}, {0.3f, 0.1f}, "normalTexture");
+    animate_uv(&animated, "rotation", {0.0f}, {2.0f}, "normalTexture");
+    animate_uv(&animated, "scale", {1.0f, 1.0f}, {2.0f, -0.5f}, "normalTexture");
+    animated.write(dir / "animated.gltf");
+    Tracer tracer(load_gltf(dir / "animated.gltf"));
+    for (const float t : {0.0f, 0.4f, 1.0f}) {
+      SCOPED_TRACE("t = " + std::to_string(t));
+      const json transform = {{"offset", {0.3f * t, 0.1f * t}},
+                              {"rotation", 2.0f * t},
+                              {"scale", {1.0f + t, 1.0f - 1.5f * t}}};
+      quad(transform, file_tangents).write(dir / "fixed.gltf");
+      const Tracer baked(load_gltf(dir / "fixed.gltf"));
+      tracer.set_time(t);
+      for (const glm::vec2 at : {glm::vec2(0.2f, 0.3f), glm::vec2(0.7f, 0.6f)}) {
+        const ShadedSample want = trace_onto(baked, at.x, at.y);
+        ASSERT_TRUE(want.hit);
+        expect_color_near(trace_onto(tracer, at.x, at.y).color, glm::dvec3(want.color), 1e-4);
+      }
+    }
+    // The generated frame turns with the transform, so the shading changes; the file's stays.
+    tracer.set_time(0.0);
+    const glm::vec3 before = trace_onto(tracer, 0.5f, 0.5f).color;
+    tracer.set_time(1.0);
+    const float change = glm::length(trace_onto(tracer, 0.5f, 0.5f).color - before);
+    if (file_tangents) {
+      EXPECT_LT(change, 1e-5f);
+    } else {
+      EXPECT_GT(change, 0.05f);
+    }
+  }
 }
 
 // ---- Animated material extensions ----

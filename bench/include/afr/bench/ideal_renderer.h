@@ -17,8 +17,9 @@ namespace afr {
 // cache never serves images of an older renderer. 2: shadows through glass, texture filtering
 // by ray cones. 3: mip levels through a binomial low-pass instead of the 2 x 2 box. 4: nested
 // media (KHR_materials_volume) refract by the ratio of their iors and absorb by the innermost.
-// 5: KHR_materials_diffuse_transmission.
-inline constexpr uint32_t kIdealRendererVersion = 5;
+// 5: KHR_materials_diffuse_transmission. 6: generated tangent frames turn with an animated
+// KHR_texture_transform.
+inline constexpr uint32_t kIdealRendererVersion = 6;
 
 struct IdealRenderOptions {
   int width = 256;

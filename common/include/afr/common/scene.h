@@ -54,6 +54,10 @@ struct Primitive {
   // the file has none (generate_tangents); empty otherwise (each triangle's own frame is used
   // then, as for a scene made in code).
   std::vector<glm::vec4> tangents;
+  // The texture coordinate set generate_tangents derived `tangents` from; -1 where they are the
+  // file's TANGENT (or there are none). A generated frame follows its set's coordinates, so the
+  // tracer turns it with that set's animated KHR_texture_transform (Material::uv_transforms).
+  int tangent_set = -1;
   std::vector<uint32_t> indices;  // 3 per triangle
   int material = -1;              // index into Scene::materials; -1 = default material
   // JOINTS_0 and WEIGHTS_0 of a skinned mesh, one entry per vertex (else empty): four slots of
