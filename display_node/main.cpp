@@ -6,6 +6,7 @@
 //   display_node --wall 2x2 --headless                        (lead of a wall: cell 0,0)
 //   display_node --follow tcp://LEAD:7100 --cell 1,0 --bind tcp://127.0.0.1:7110 --headless
 //                                                             (a follower; docs/wall.md)
+#include <afr/common/builtin_scene.h>
 #include <afr/common/camera_path.h>
 #include <afr/common/cli.h>
 #include <afr/common/error.h>
@@ -284,7 +285,9 @@ int main(int argc, char** argv) {
       } else {
         // The chosen variant's, camera's or ray depth's scene, as the samplers will load it.
         o.scene = afr::service::read_scene_payload(scene_path, variant, camera, ray_depth);
-        scene = std::make_unique<afr::Scene>(afr::load_gltf_bytes(o.scene.bytes, scene_path));
+        scene = std::make_unique<afr::Scene>(scene_path.empty()
+                                                 ? afr::builtin_scene_from_payload(o.scene.bytes)
+                                                 : afr::load_gltf_bytes(o.scene.bytes, scene_path));
         if (!camera.empty()) afr::check_chosen_camera(*scene, camera);
       }
       if (g_stop.load()) return 0;  // a signal while the scene loaded

@@ -1,11 +1,15 @@
 #include <afr/common/builtin_scene.h>
 
+#include <afr/common/error.h>
 #include <afr/common/image.h>
 
+#include <fmt/format.h>
 #include <glm/gtx/quaternion.hpp>
 
+#include <charconv>
 #include <cmath>
 #include <numbers>
+#include <string_view>
 
 namespace afr {
 
@@ -253,6 +257,62 @@ Scene make_builtin_scene() {
 
   s.finalize();
   return s;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The payload that stands for the scene
+
+namespace {
+
+constexpr std::string_view kPayloadFirstLine = "afr builtin scene v1\n";
+constexpr std::string_view kRayDepthKey = "ray depth ";
+
+std::string_view as_text(std::span<const uint8_t> bytes) {
+  return {reinterpret_cast<const char*>(bytes.data()), bytes.size()};
+}
+
+}  // namespace
+
+std::string builtin_scene_payload(std::optional<int> ray_depth) {
+  std::string text(kPayloadFirstLine);
+  if (ray_depth) text += fmt::format("{}{}\n", kRayDepthKey, *ray_depth);
+  return text;
+}
+
+bool is_builtin_scene_payload(std::span<const uint8_t> bytes) {
+  return as_text(bytes).starts_with(kPayloadFirstLine);
+}
+
+Scene builtin_scene_from_payload(std::span<const uint8_t> bytes) {
+  const std::string_view text = as_text(bytes);
+  if (!text.starts_with(kPayloadFirstLine)) {
+    throw Error("the built-in scene's payload does not start with \"afr builtin scene v1\"");
+  }
+  std::string_view rest = text.substr(kPayloadFirstLine.size());
+  std::optional<int> ray_depth;
+  if (!rest.empty()) {
+    // One more line, "ray depth N"; nothing else may follow.
+    int depth = -1;
+    const char* end = rest.data() + rest.size();
+    const auto [digits_end, ec] =
+        rest.starts_with(kRayDepthKey)
+            ? std::from_chars(rest.data() + kRayDepthKey.size(), end, depth)
+            : std::from_chars_result{rest.data(), std::errc::invalid_argument};
+    if (ec != std::errc() || digits_end + 1 != end || *digits_end != '\n') {
+      throw Error(
+          fmt::format("the built-in scene's payload has {} bytes after its first line that are "
+                      "not the one line \"ray depth N\" (N from 0 to {})",
+                      rest.size(), kMaxRayDepth));
+    }
+    if (depth < 0 || depth > kMaxRayDepth) {
+      throw Error(fmt::format("the built-in scene's payload asks for ray depth {} (0 to {})", depth,
+                              kMaxRayDepth));
+    }
+    ray_depth = depth;
+  }
+  Scene scene = make_builtin_scene();
+  scene.ray_depth = ray_depth;
+  return scene;
 }
 
 }  // namespace afr

@@ -1,6 +1,12 @@
 #include <afr/common/builtin_scene.h>
 
+#include <afr/common/error.h>
+
 #include <gtest/gtest.h>
+
+#include <optional>
+#include <string>
+#include <vector>
 
 namespace afr {
 namespace {
@@ -46,6 +52,47 @@ TEST(BuiltinSceneTest, CameraMovesAndKeepsTheRoomInView) {
     EXPECT_NEAR(xy.x, 50.0, 5.0) << "t=" << t;
     EXPECT_NEAR(xy.y, 50.0, 5.0) << "t=" << t;
   }
+}
+
+// The payload that stands for the scene on the wire: its first line alone, or with the ray
+// depth; anything else after the first line, or a depth out of range, is refused by name.
+TEST(BuiltinScenePayloadTest, CarriesTheRayDepthAndRefusesAnythingElse) {
+  const auto bytes = [](const std::string& text) {
+    return std::vector<uint8_t>(text.begin(), text.end());
+  };
+  EXPECT_EQ(builtin_scene_payload(), "afr builtin scene v1\n");
+  EXPECT_EQ(builtin_scene_payload(7), "afr builtin scene v1\nray depth 7\n");
+  for (const std::optional<int> depth :
+       {std::optional<int>(), std::optional<int>(0), std::optional<int>(kMaxRayDepth)}) {
+    const std::vector<uint8_t> payload = bytes(builtin_scene_payload(depth));
+    EXPECT_TRUE(is_builtin_scene_payload(payload));
+    EXPECT_EQ(builtin_scene_from_payload(payload).ray_depth, depth);
+  }
+  EXPECT_FALSE(is_builtin_scene_payload(bytes("afr builtin scene v2\n")));
+  EXPECT_FALSE(is_builtin_scene_payload(bytes("{\"asset\": {\"version\": \"2.0\"}}")));
+  EXPECT_FALSE(is_builtin_scene_payload({}));
+  const auto refusal = [&](const std::string& text) {
+    try {
+      builtin_scene_from_payload(bytes(text));
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  const std::string binary("afr builtin scene v1\n\0\xff", 23);
+  for (const std::string& text : std::vector<std::string>{
+           "afr builtin scene v1\nray depth 3", "afr builtin scene v1\nray depth 3\n\n",
+           "afr builtin scene v1\nray depth three\n", "afr builtin scene v1\nray depth \n",
+           "afr builtin scene v1\nray depth 99999999999999999999\n",
+           "afr builtin scene v1\nfog 1\n", binary}) {
+    SCOPED_TRACE(text);
+    EXPECT_NE(refusal(text).find("after its first line"), std::string::npos) << refusal(text);
+  }
+  EXPECT_NE(refusal("afr builtin scene v1\nray depth 11\n").find("ray depth 11 (0 to 10)"),
+            std::string::npos);
+  EXPECT_NE(refusal("afr builtin scene v1\nray depth -1\n").find("ray depth -1 (0 to 10)"),
+            std::string::npos);
+  EXPECT_NE(refusal("not it").find("does not start with"), std::string::npos);
 }
 
 }  // namespace

@@ -178,7 +178,7 @@ TEST_F(ServiceTest, ChosenCameraIsServedToTheSamplers) {
 
 // `--ray-depth N` writes the depth into the scene the samplers are served
 // (GltfPackTest.RayDepthIsWrittenWhereTheLoaderReadsIt), so each traces that many secondary
-// rays in a row; the built-in scene, served by name, has no file to write it into.
+// rays in a row.
 TEST_F(ServiceTest, RayDepthIsServedToTheSamplers) {
   auto d =
       display({kStaticScene, "--ray-depth", "6", "--size", "64x64", "--fps", "20"}, "display.log");
@@ -187,10 +187,19 @@ TEST_F(ServiceTest, RayDepthIsServedToTheSamplers) {
   EXPECT_NE(d->log().find("ray depth 6 (secondary rays in a row)"), std::string::npos) << d->log();
   EXPECT_NE(s->log().find(", ray depth 6 (loaded in"), std::string::npos) << s->log();
   EXPECT_EQ(s->log().find(" error "), std::string::npos) << s->log();
-  auto builtin = display({"--ray-depth", "6", "--seconds", "1"}, "builtin.log");
-  EXPECT_NE(builtin->wait(10.0), 0);
-  EXPECT_NE(builtin->log().find("a ray depth needs a scene file"), std::string::npos)
-      << builtin->log();
+}
+
+// The built-in scene, which travels as a short text rather than a file, carries the ray depth in
+// that text (BuiltinScenePayloadTest).
+TEST_F(ServiceTest, TheBuiltInScenesRayDepthIsServedToo) {
+  auto d = display({"--ray-depth", "1", "--size", "64x64", "--fps", "20"}, "display.log");
+  auto s = sampler({"--max-samples-per-second", "50000"}, "s1.log");
+  ASSERT_TRUE(wait_one_sampling(10.0)) << d->log() << s->log();
+  EXPECT_NE(d->log().find("built-in scene: ray depth 1 (secondary rays in a row)"),
+            std::string::npos)
+      << d->log();
+  EXPECT_NE(s->log().find(", ray depth 1 (loaded in"), std::string::npos) << s->log();
+  EXPECT_EQ(s->log().find(" error "), std::string::npos) << s->log();
 }
 
 // A sampler that cannot serve the session (here one that says so, as a sampler does whose

@@ -1,3 +1,4 @@
+#include <afr/common/builtin_scene.h>
 #include <afr/display/service/display_service.h>
 #include <afr/protocol/scene_hash.h>
 #include <afr/sampler/service/scene_cache.h>
@@ -11,8 +12,18 @@
 namespace afr::service {
 namespace {
 
-TEST(SceneCacheTest, BuiltinPayloadTextsOfBothNodesAgree) {
-  EXPECT_EQ(kBuiltinScenePayload, kBuiltinSceneBytes);
+// The display serves the built-in scene as builtin_scene_payload's text; the sampler's cache
+// keeps it by hash and builds the scene from it, ray depth and all.
+TEST(SceneCacheTest, TheDisplaysBuiltinPayloadLoadsAsTheBuiltinSceneWithItsRayDepth) {
+  for (const std::optional<int> depth : {std::optional<int>(), std::optional<int>(2)}) {
+    const ScenePayload served = read_scene_payload("", "", "", depth);
+    EXPECT_EQ(served.name, "builtin");
+    const Scene scene = load_scene_payload(served.bytes, served.name);
+    EXPECT_EQ(scene.triangle_count(), make_builtin_scene().triangle_count());
+    EXPECT_EQ(scene.ray_depth, depth);
+  }
+  // Two depths are two scenes to the cache.
+  EXPECT_NE(read_scene_payload("", "", "", 2).hash, read_scene_payload("", "", "", 3).hash);
 }
 
 TEST(SceneCacheTest, ChunksInAnyOrderReassembleTheScene) {
@@ -48,13 +59,16 @@ TEST(SceneCacheTest, StoredSceneIsFoundByHashAndACorruptOneIsNot) {
       std::filesystem::temp_directory_path() / ("afr-cache-test-" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   SceneCache cache(dir);
-  const std::vector<uint8_t> bytes(kBuiltinScenePayload.begin(), kBuiltinScenePayload.end());
+  const std::string text = builtin_scene_payload(4);
+  const std::vector<uint8_t> bytes(text.begin(), text.end());
   const protocol::SceneHash hash = protocol::scene_hash(bytes);
   EXPECT_FALSE(cache.find(hash));
   const std::filesystem::path file = cache.store(hash, "builtin", bytes);
   ASSERT_TRUE(cache.find(hash));
   EXPECT_EQ(*cache.find(hash), file);
+  EXPECT_EQ(file.extension(), ".builtin");
   EXPECT_GT(load_scene_payload(file).triangle_count(), 0u);
+  EXPECT_EQ(load_scene_payload(file).ray_depth, 4);
   std::ofstream(file, std::ios::app) << "x";  // corrupt: the hash no longer matches
   EXPECT_FALSE(cache.find(hash));
   std::filesystem::remove_all(dir);

@@ -2,6 +2,7 @@
 
 #include <afr/common/log.h>
 
+#include <afr/common/builtin_scene.h>
 #include <afr/common/camera_path.h>
 
 #include <afr/common/error.h>
@@ -39,10 +40,12 @@ ScenePayload read_scene_payload(const std::string& path, const std::string& vari
       throw Error("a material variant needs a scene file (the built-in scene has none)");
     }
     if (!camera.empty()) throw Error("choosing a camera needs a scene file");
-    // The built-in scene travels as a name the samplers build it from, with nothing to set.
-    if (ray_depth) throw Error("a ray depth needs a scene file (the built-in scene's is 3)");
+    // The built-in scene travels as a short text the samplers build it from, with the ray depth.
     p.name = "builtin";
-    p.bytes.assign(kBuiltinSceneBytes.begin(), kBuiltinSceneBytes.end());
+    const std::string text = builtin_scene_payload(ray_depth);
+    p.bytes.assign(text.begin(), text.end());
+    if (ray_depth)
+      spdlog::info("built-in scene: ray depth {} (secondary rays in a row)", *ray_depth);
   } else {
     p.bytes = read_scene_file(path);
     p.name = std::filesystem::path(path).filename().string();

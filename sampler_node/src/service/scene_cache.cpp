@@ -86,8 +86,7 @@ std::filesystem::path SceneCache::store(const protocol::SceneHash& hash,
                                         const std::vector<uint8_t>& bytes) const {
   std::string ext = std::filesystem::path(std::string(scene_name)).extension().string();
   const bool glb = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
-  const std::string_view text(reinterpret_cast<const char*>(bytes.data()), bytes.size());
-  if (text == kBuiltinScenePayload) {
+  if (is_builtin_scene_payload(bytes)) {
     ext = ".builtin";
   } else if (ext != ".glb" && ext != ".gltf") {
     ext = glb ? ".glb" : ".gltf";
@@ -108,20 +107,22 @@ std::filesystem::path SceneCache::store(const protocol::SceneHash& hash,
 
 Scene load_scene_payload(const std::filesystem::path& file) {
   if (file.extension() == ".builtin") {
-    const std::vector<uint8_t> bytes = read_file(file);
-    if (std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()) !=
-        kBuiltinScenePayload) {
-      throw Error(fmt::format("{}: not the built-in scene's payload", file.string()));
+    try {
+      return builtin_scene_from_payload(read_file(file));
+    } catch (const Error& e) {
+      throw Error(fmt::format("{}: {}", file.string(), e.what()));
     }
-    return make_builtin_scene();
   }
   return load_gltf(file);
 }
 
 Scene load_scene_payload(std::span<const uint8_t> bytes, const std::string& name) {
-  if (std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()) ==
-      kBuiltinScenePayload) {
-    return make_builtin_scene();
+  if (is_builtin_scene_payload(bytes)) {
+    try {
+      return builtin_scene_from_payload(bytes);
+    } catch (const Error& e) {
+      throw Error(fmt::format("{}: {}", name, e.what()));
+    }
   }
   return load_gltf_bytes(bytes, name);
 }

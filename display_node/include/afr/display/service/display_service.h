@@ -36,22 +36,19 @@
 
 namespace afr::service {
 
-// The built-in scene's payload: the same text as sampler_node's kBuiltinScenePayload
-// (scene_cache.h; a test checks that they agree).
-inline constexpr std::string_view kBuiltinSceneBytes = "afr builtin scene v1\n";
-
 // The scene as the display serves it: the file's bytes and their hash.
 struct ScenePayload {
   std::string name;  // file name (without folders), or "builtin"
   std::vector<uint8_t> bytes;
   protocol::SceneHash hash{};
 };
-// Reads a scene file (empty path: the built-in scene). A glTF that refers to other files
-// (buffers, images) is packed with them into one .glb (afr/common/gltf_pack.h), since only this
-// one payload travels; `name` then ends in .glb. A `variant` (KHR_materials_variants) and a
-// `camera` are chosen in the payload (select_material_variant, select_camera), and a
-// `ray_depth` is written into it (set_ray_depth), so that the samplers load the scene as the
-// display shows it. Throws afr::Error naming the file.
+// Reads a scene file (empty path: the built-in scene, as builtin_scene_payload). A glTF that refers
+// to other files (buffers, images) is packed with them into one .glb (afr/common/gltf_pack.h),
+// since only this one payload travels; `name` then ends in .glb. A `variant`
+// (KHR_materials_variants) and a `camera` are chosen in the payload (select_material_variant,
+// select_camera), and a `ray_depth` is written into it (set_ray_depth; the built-in scene's payload
+// carries it), so that the samplers load the scene as the display shows it. Throws afr::Error
+// naming the file.
 ScenePayload read_scene_payload(const std::string& path, const std::string& variant = "",
                                 const std::string& camera = "",
                                 std::optional<int> ray_depth = std::nullopt);

@@ -3,7 +3,8 @@
 // reconnecting sampler (or a restarted one) does not fetch the same scene twice.
 //
 // The scene payload is the scene file's bytes (a .glb, or a .gltf with embedded buffers); the
-// built-in scene travels as the short text kBuiltinScenePayload (docs/service.md, "Scenes").
+// built-in scene travels as a short text (builtin_scene_payload, afr/common/builtin_scene.h;
+// docs/service.md, "Scenes").
 #pragma once
 
 #include <afr/common/scene.h>
@@ -18,9 +19,6 @@
 #include <vector>
 
 namespace afr::service {
-
-// The bytes that stand for the built-in scene (display_node sends the same text).
-inline constexpr std::string_view kBuiltinScenePayload = "afr builtin scene v1\n";
 
 // Collects the chunks of one scene. Chunks may come in any order and more than once.
 class SceneAssembler {
@@ -65,7 +63,8 @@ class SceneCache {
   std::filesystem::path dir_;
 };
 
-// The scene of a payload file: the built-in scene for kBuiltinScenePayload, else the glTF.
+// The scene of a payload file: the built-in scene for its payload (with its ray depth), else
+// the glTF.
 // Throws afr::Error naming the file and the problem.
 Scene load_scene_payload(const std::filesystem::path& file);
 // The same for payload bytes held in memory; `name` stands for the file in errors.
