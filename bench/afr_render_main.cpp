@@ -37,7 +37,10 @@ int main(int argc, char** argv) {
   afr::add_ray_depth_option(app, &ray_depth,
                             "as display_node --ray-depth sets them for the samplers");
   app.add_option("-t,--time", time, "scene time in seconds (first frame's time with --frames)");
-  app.add_option("-s,--size", size_text, "image size WxH")->capture_default_str();
+  app.add_option("-s,--size", size_text,
+                 "image size WxH; without it the scene camera's aspect ratio, where the file "
+                 "gives one, at as many pixels")
+      ->capture_default_str();
   app.add_option("--spp", spp, "samples per pixel, a square S*S (stratified S x S)")
       ->capture_default_str()
       ->check(CLI::Range(1, 4096));
@@ -59,7 +62,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   try {
     afr::init_logging(log_level);
-    const afr::ImageExtent size = afr::parse_image_size(size_text);
+    afr::ImageExtent size = afr::parse_image_size(size_text);
     const int strata = int(std::lround(std::sqrt(double(spp))));
     if (strata * strata != spp) {
       throw afr::Error(fmt::format("--spp {} is not a square (use 1, 4, 9, 16, 25, ...)", spp));
@@ -112,6 +115,13 @@ int main(int argc, char** argv) {
       return 0;
     }
 
+    // Without --size, the camera's aspect ratio at the default size's pixel count (as
+    // display_node sizes its image).
+    if (app.count("--size") == 0 && scene.camera_aspect_ratio() > 0.0) {
+      size = afr::image_size_for_aspect(size, scene.camera_aspect_ratio());
+      spdlog::info("image {}x{}: the camera's aspect ratio {:.3f} (--size sets another)",
+                   size.width, size.height, scene.camera_aspect_ratio());
+    }
     afr::IdealRenderOptions options;
     options.width = size.width;
     options.height = size.height;

@@ -92,7 +92,10 @@ int main(int argc, char** argv) {
                             "for the samplers: written into the scene they are served");
   app.add_option("--bind", o.bind, "base endpoint tcp://HOST:PORT (uses PORT..PORT+2)")
       ->capture_default_str();
-  app.add_option("-s,--size", size_text, "image size WxH (a wall's whole virtual display)")
+  app.add_option("-s,--size", size_text,
+                 "image size WxH (a wall's whole virtual display); without it a single display "
+                 "takes the scene camera's aspect ratio, where the file gives one, at as many "
+                 "pixels")
       ->capture_default_str();
   app.add_flag("--headless", headless, "no window: reconstruct at --fps and write images");
   app.add_option("--gpu", gpu, "EGL device for a headless GL backend (-1: hardware first)")
@@ -291,6 +294,13 @@ int main(int argc, char** argv) {
         if (!camera.empty()) afr::check_chosen_camera(*scene, camera);
       }
       if (g_stop.load()) return 0;  // a signal while the scene loaded
+      // Without --size, a single display takes its camera's aspect ratio (glTF's aspectRatio,
+      // or an orthographic camera's xmag / ymag) at the default size's pixel count.
+      if (app.count("--size") == 0 && !o.wall.is_wall() && scene->camera_aspect_ratio() > 0.0) {
+        o.image = afr::image_size_for_aspect(o.image, scene->camera_aspect_ratio());
+        spdlog::info("image {}x{}: the camera's aspect ratio {:.3f} (--size sets another)",
+                     o.image.width, o.image.height, scene->camera_aspect_ratio());
+      }
       if (!replay.empty()) {
         path = std::make_unique<afr::CameraPath>(afr::read_camera_path(replay));
         spdlog::warn(

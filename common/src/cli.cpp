@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
@@ -31,6 +32,16 @@ ImageExtent parse_image_size(std::string_view text) {
   parse(text.substr(0, x), &size.width);
   parse(text.substr(x + 1), &size.height);
   return size;
+}
+
+ImageExtent image_size_for_aspect(ImageExtent pixels, double aspect) {
+  if (!(aspect > 0.0) || !std::isfinite(aspect)) return pixels;
+  aspect = std::clamp(aspect, 1.0 / 16.0, 16.0);
+  const double area = double(pixels.width) * double(pixels.height);
+  const auto side = [](double v) {
+    return int32_t(std::clamp(std::lround(v), 1L, long(kMaxImageDimension)));
+  };
+  return {side(std::sqrt(area * aspect)), side(std::sqrt(area / aspect))};
 }
 
 CLI::Validator finite_number() {

@@ -28,10 +28,21 @@ void Loader::load_cameras() {
       }
       camera.yfov = yfov;
       camera.znear = znear;
+      // aspectRatio is optional (tinygltf reads an absent one as 0); one given must be > 0.
+      const double aspect = in.perspective.aspectRatio;
+      if (aspect > 0.0 && std::isfinite(aspect)) {
+        camera.aspect_ratio = aspect;
+      } else if (aspect != 0.0) {
+        warn_once("aspect ratio " + what,
+                  fmt::format("{} has an aspectRatio of {}, not a finite number > 0: it is not "
+                              "used",
+                              what, aspect));
+      }
     } else if (in.type == "orthographic") {
       // The view is 2 ymag high; its width follows from the image's aspect ratio, as a
-      // perspective camera's does (aspectRatio), so xmag is not used. zfar is not either: a
-      // ray tracer needs no far plane.
+      // perspective camera's does, so xmag gives only the aspect ratio the image is sized by
+      // where no size is given (CameraModel::aspect_ratio). zfar is not used: a ray tracer
+      // needs no far plane.
       const double ymag = in.orthographic.ymag;
       const double znear = in.orthographic.znear;
       if (!std::isfinite(ymag) || ymag == 0.0) {
@@ -51,6 +62,8 @@ void Loader::load_cameras() {
                   fmt::format("{} has a negative ymag ({}): its magnitude is used", what, ymag));
       }
       camera.ymag = std::abs(ymag);
+      const double xmag = std::abs(in.orthographic.xmag);
+      if (xmag > 0.0 && std::isfinite(xmag)) camera.aspect_ratio = xmag / camera.ymag;
       // The near plane at 0 (glTF allows it here) is kept just in front of the eye's plane.
       camera.znear = std::max(znear, 1e-9);
     } else {

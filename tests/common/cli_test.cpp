@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <CLI/CLI.hpp>
 
+#include <cmath>
 #include <optional>
 #include <string>
 #include <vector>
@@ -88,6 +89,24 @@ TEST(CliTest, ImageSizesAreCheckedWithTheirReason) {
   EXPECT_THROW(parse_image_size("256"), Error);
   EXPECT_THROW(parse_image_size("0x5"), Error);
   EXPECT_THROW(parse_image_size("40000x5"), Error);
+}
+
+// A camera's aspect ratio at a size's pixel count, each side rounded.
+TEST(CliTest, ImageSizeForAnAspectRatioKeepsThePixelCount) {
+  const auto size = [](ImageExtent pixels, double aspect) {
+    const ImageExtent e = image_size_for_aspect(pixels, aspect);
+    return std::to_string(e.width) + "x" + std::to_string(e.height);
+  };
+  EXPECT_EQ(size({256, 256}, 16.0 / 9.0), "341x192");
+  EXPECT_EQ(size({256, 256}, 2.0), "362x181");
+  EXPECT_EQ(size({256, 256}, 0.5), "181x362");
+  EXPECT_EQ(size({320, 240}, 1.0), "277x277");
+  // None, or one that is not a number > 0: the size as it is; extremes within [1/16, 16].
+  EXPECT_EQ(size({256, 256}, 0.0), "256x256");
+  EXPECT_EQ(size({256, 256}, -1.0), "256x256");
+  EXPECT_EQ(size({256, 256}, std::nan("")), "256x256");
+  EXPECT_EQ(size({256, 256}, 1e9), "1024x64");
+  EXPECT_EQ(size({1, 1}, 1e-9), "1x4");
 }
 
 }  // namespace

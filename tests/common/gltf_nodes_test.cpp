@@ -278,8 +278,10 @@ TEST_F(GltfLoaderTest, CameraAndAllThreeLightTypesLoadWithExtras) {
   EXPECT_EQ(scene.cameras[0].name, "eye");
   EXPECT_DOUBLE_EQ(scene.cameras[0].yfov, 0.6);
   EXPECT_DOUBLE_EQ(scene.cameras[0].znear, 0.05);
+  EXPECT_DOUBLE_EQ(scene.cameras[0].aspect_ratio, 1.5);
   EXPECT_EQ(scene.nodes[1].camera, 0);
   EXPECT_EQ(scene.camera_node(), 1);
+  EXPECT_DOUBLE_EQ(scene.camera_aspect_ratio(), 1.5);
   const Camera camera = scene.camera_at(scene.evaluate(0.0));
   EXPECT_NEAR(glm::length(camera.eye - glm::dvec3(0, 1, 5)), 0.0, 1e-12);
   EXPECT_DOUBLE_EQ(camera.yfov, 0.6);
@@ -310,6 +312,38 @@ TEST_F(GltfLoaderTest, CameraAndAllThreeLightTypesLoadWithExtras) {
 
   EXPECT_EQ(scene.background, glm::vec3(0.1f, 0.2f, 0.3f));
   EXPECT_EQ(scene.ambient, glm::vec3(0.05f, 0.04f, 0.03f));
+}
+
+// A camera's aspect ratio as the file gives it (CameraModel::aspect_ratio): a perspective
+// camera's aspectRatio, where it has one that glTF allows, and an orthographic camera's
+// xmag / ymag (magnitudes); the active camera's is the scene's.
+TEST_F(GltfLoaderTest, CamerasKeepTheAspectRatioTheFileGives) {
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["cameras"] = json::array(
+      {{{"type", "perspective"}, {"perspective", {{"yfov", 0.6}, {"znear", 0.05}}}},
+       {{"type", "perspective"},
+        {"perspective", {{"yfov", 0.6}, {"znear", 0.05}, {"aspectRatio", -2.0}}}},
+       {{"type", "orthographic"},
+        {"orthographic", {{"xmag", -3.0}, {"ymag", 1.5}, {"znear", 0.0}, {"zfar", 10.0}}}},
+       {{"type", "perspective"},
+        {"perspective", {{"yfov", 0.6}, {"znear", 0.05}, {"aspectRatio", 1.7778}}}}});
+  b.doc()["nodes"] = json::array({{{"mesh", 0}}});
+  for (int c = 0; c < 4; ++c) b.doc()["nodes"].push_back({{"camera", c}});
+  b.doc()["scenes"] = json::array({{{"nodes", {0, 3, 1, 2, 4}}}});
+  const fs::path path = dir_ / "cameras.gltf";
+  b.write_embedded(path);
+  GltfLoadReport report;
+  const Scene scene = load_gltf(path, &report);
+  ASSERT_EQ(scene.cameras.size(), 4u);
+  EXPECT_EQ(scene.cameras[0].aspect_ratio, 0.0);  // none given
+  EXPECT_EQ(scene.cameras[1].aspect_ratio, 0.0);  // not > 0: not used, with a warning
+  EXPECT_DOUBLE_EQ(scene.cameras[2].aspect_ratio, 2.0);
+  EXPECT_DOUBLE_EQ(scene.cameras[3].aspect_ratio, 1.7778);
+  ASSERT_EQ(report.warnings.size(), 1u);
+  EXPECT_NE(report.warnings[0].find("aspectRatio of -2"), std::string::npos) << report.warnings[0];
+  EXPECT_EQ(scene.camera_node(), 3);  // the first camera node in scene order: the orthographic
+  EXPECT_DOUBLE_EQ(scene.camera_aspect_ratio(), 2.0);
 }
 
 // glTF requires a scene's nodes to be distinct roots; UniGLTF lists a child whose parent is

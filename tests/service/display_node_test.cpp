@@ -202,6 +202,37 @@ TEST_F(ServiceTest, TheBuiltInScenesRayDepthIsServedToo) {
   EXPECT_EQ(s->log().find(" error "), std::string::npos) << s->log();
 }
 
+// Without --size, a display takes its scene camera's aspect ratio (here aspectRatio 2) at the
+// default size's pixel count; with --size it keeps the size it is given.
+TEST_F(ServiceTest, WithoutASizeTheImageTakesTheCamerasAspectRatio) {
+  std::ifstream in(kStaticScene);
+  nlohmann::json doc = nlohmann::json::parse(in);
+  ASSERT_FALSE(doc["cameras"].empty());
+  doc["cameras"][0]["perspective"]["aspectRatio"] = 2.0;
+  std::ofstream(path("wide.gltf")) << doc.dump(1);
+  for (const bool sized : {false, true}) {
+    SCOPED_TRACE(sized ? "--size 64x64" : "no --size");
+    std::vector<std::string> args = {path("wide.gltf"), "--fps", "20"};
+    if (sized) args.insert(args.end(), {"--size", "64x64"});
+    auto d = display(args, sized ? "sized.log" : "display.log");
+    nlohmann::json stats;
+    ASSERT_TRUE(wait_until(
+        [&] {
+          stats = get_stats(metrics_port());
+          return !stats.is_null();
+        },
+        5.0))
+        << d->log();
+    EXPECT_EQ(stats["display"]["width"], sized ? 64 : 362) << d->log();
+    EXPECT_EQ(stats["display"]["height"], sized ? 64 : 181) << d->log();
+    EXPECT_EQ(d->log().find("image 362x181: the camera's aspect ratio 2.000") != std::string::npos,
+              !sized)
+        << d->log();
+    d->signal(SIGTERM);
+    EXPECT_EQ(d->wait(10.0), 0) << d->log();
+  }
+}
+
 // A sampler that cannot serve the session (here one that says so, as a sampler does whose
 // scene does not load: SamplerThatCannotLoadTheSceneTellsTheDisplayWhyAndLeaves) is logged by
 // id and name with its reason, and is no member any more.

@@ -20,6 +20,11 @@ namespace afr {
 inline constexpr int kMaxImageDimension = 32768;
 ImageExtent parse_image_size(std::string_view text);
 
+// The image size of `pixels`' pixel count whose width over height is `aspect` (a camera's
+// CameraModel::aspect_ratio; taken within [1/16, 16]), each side rounded, at least 1: how a
+// program sizes its image by the scene's camera where no size is given.
+ImageExtent image_size_for_aspect(ImageExtent pixels, double aspect);
+
 // Gives every floating-point option of `app` and of its subcommands a check that refuses NaN
 // and infinities, naming the option and the value (CLI::Range lets NaN through: every
 // comparison with it is false). Call once the options are added, before parsing.

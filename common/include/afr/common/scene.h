@@ -350,6 +350,10 @@ struct CameraModel {
   double yfov = 0.8;  // radians, full vertical field of view
   double znear = 0.01;
   double ymag = 0.0;  // > 0: orthographic, the view's half height (Camera::ymag); yfov unused
+  // The view's width over its height as the file gives it (a perspective camera's aspectRatio,
+  // an orthographic one's xmag / ymag); 0: none. The image's own aspect ratio decides the view;
+  // programs size their image by this one where no size is given (image_size_for_aspect).
+  double aspect_ratio = 0.0;
 };
 
 struct Node {
@@ -441,6 +445,12 @@ class Scene {
   bool has_moving_geometry() const { return has_moving_geometry_; }
   // The node whose camera is active (the first camera node in scene order), or -1.
   int camera_node() const { return camera_node_; }
+  // The active camera's CameraModel::aspect_ratio; 0 without a camera or without one given.
+  double camera_aspect_ratio() const {
+    if (camera_node_ < 0) return 0.0;
+    const int c = nodes[size_t(camera_node_)].camera;
+    return c >= 0 && size_t(c) < cameras.size() ? cameras[size_t(c)].aspect_ratio : 0.0;
+  }
   // The nodes reachable from `roots`, parents before children: what is rendered.
   const std::vector<int>& scene_nodes() const { return scene_nodes_; }
 
