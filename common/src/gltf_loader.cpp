@@ -58,11 +58,13 @@ constexpr std::array<std::string_view, 25> kSupportedExtensions = {
     "KHR_texture_transform"};
 
 // The default lighting of a scene without lights (what glTF viewers do): a directional
-// headlight that moves with the scene's camera and a uniform sky term. The headlight comes from
+// headlight that moves with the scene's camera and a uniform sky. The headlight comes from
 // above and to the right of the view (about 31 degrees off its axis), so faces turned toward
 // the camera differ in shade and shadows fall visibly; a white Lambertian surface facing it
 // reflects about 0.8 (intensity / pi, the BRDF's convention), and the sky adds 0.2 times the
-// base color everywhere, so that no surface the camera sees is black.
+// base color everywhere, so that no surface the camera sees is black. The sky is also what a
+// ray that leaves the scene sees (the background), so that a mirror or glass shows the light
+// that lights the rest.
 constexpr double kHeadlightIntensity = 2.5;
 constexpr std::array<double, 3> kHeadlightFrom = {0.35, 0.5, 1.0};  // in the camera's frame
 constexpr float kSkyRadiance = 0.2f;
@@ -686,6 +688,7 @@ void Loader::load_scene_roots() {
   }
   if (in.extras.Has("afr_background")) {
     scene_.background = read_rgb_extra(in.extras, "afr_background", what);
+    background_given_ = true;
   }
   if (in.extras.Has("afr_ambient")) {
     scene_.ambient = read_rgb_extra(in.extras, "afr_ambient", what);
@@ -741,9 +744,12 @@ Scene Loader::load(std::span<const uint8_t> bytes) {
 // A scene that brings no light of its own (no KHR_lights_punctual light in the displayed
 // scene and no afr_ambient) gets the default lighting of glTF viewers, so that content made
 // for them does not render black: a directional headlight that moves with the active camera
-// (Light::on_camera) and a sky term as the scene's ambient light. Both are ordinary scene
-// content that the tracer shades like any light and ambient; Scene::nodes stay the file's.
-// Emission and the background are left as they are.
+// (Light::on_camera) and a uniform sky: the scene's ambient light, and its background unless
+// the file gives one (afr_background). A black background under a sky that lights everything
+// else would leave polished metal black and glass showing black: the sky is what their
+// reflection and refraction rays find. All of it is ordinary scene content that the tracer
+// shades like any light, ambient and background; Scene::nodes stay the file's. Emission is
+// left as it is.
 void Loader::add_default_lighting() {
   for (int n : scene_.scene_nodes()) {
     if (scene_.nodes[size_t(n)].light >= 0) return;
@@ -761,14 +767,16 @@ void Loader::add_default_lighting() {
   headlight.camera_rotation = glm::quatLookAt(-from, glm::dvec3(0.0, 1.0, 0.0));
   scene_.lights.push_back(std::move(headlight));
   scene_.ambient = glm::vec3(kSkyRadiance);
+  if (!background_given_) scene_.background = glm::vec3(kSkyRadiance);
 
   const std::string camera = scene_.camera_node() != -1
                                  ? fmt::format("camera node {}", scene_.camera_node())
                                  : std::string("the default camera");
   spdlog::info(
       "{}: the scene has no lights (no KHR_lights_punctual light, no afr_ambient): added the "
-      "default lighting, a headlight on {} (intensity {}) and a sky term of {}",
-      path_.string(), camera, kHeadlightIntensity, kSkyRadiance);
+      "default lighting, a headlight on {} (intensity {}) and a sky of {} (the ambient light{})",
+      path_.string(), camera, kHeadlightIntensity, kSkyRadiance,
+      background_given_ ? "" : " and the background");
 }
 
 }  // namespace afr::gltf_detail

@@ -273,6 +273,7 @@ class Loader {
   };
   std::vector<PointerChannel> pointer_channels_;
   bool nodeless_channels_are_pointers_ = false;
+  bool background_given_ = false;  // the scene's extras give afr_background
   // Per animation, the index in the file of each channel tinygltf kept, where it dropped some
   // (read_animation_pointers), so that messages name the file's channel; empty otherwise.
   std::vector<std::vector<size_t>> kept_channels_;

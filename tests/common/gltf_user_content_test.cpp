@@ -71,7 +71,10 @@ TEST(GltfUserContentTest, SceneWithoutLightsGetsAHeadlightAndSkyAndSaysSoOnce) {
   EXPECT_GT(scene.ambient.g, 0.0f);
   EXPECT_EQ(scene.ambient.r, scene.ambient.g);
   EXPECT_EQ(scene.ambient.b, scene.ambient.g);
-  EXPECT_EQ(scene.background, glm::vec3(0.0f));  // the background stays as the file has it
+  // The sky is the background too (what mirrors reflect and glass shows), as the line says.
+  EXPECT_EQ(scene.background, scene.ambient);
+  EXPECT_NE(lines[0].find("a sky of 0.2 (the ambient light and the background)"), std::string::npos)
+      << lines[0];
 
   // A headlight: on the camera, no node of its own, shining roughly where the camera looks
   // and from above the view, in the camera's frame whichever camera that is.
@@ -101,7 +104,7 @@ TEST(GltfUserContentTest, AFileCameraKeepsTheHeadlightOnIt) {
   EXPECT_NE(lines[0].find("camera node 1"), std::string::npos) << lines[0];
 }
 
-TEST(GltfUserContentTest, ScenesThatBringLightOrAmbientGetNoDefault) {
+TEST(GltfUserContentTest, ScenesThatBringLightOrAmbientGetNoDefaultAndABackgroundStays) {
   TempFolder dir;
   GltfContent lit = unlit_box();
   lit.doc()["extensionsUsed"] = {"KHR_lights_punctual"};
@@ -114,6 +117,22 @@ TEST(GltfUserContentTest, ScenesThatBringLightOrAmbientGetNoDefault) {
   GltfContent ambient = unlit_box();
   ambient.doc()["scenes"][0]["extras"]["afr_ambient"] = {0.1, 0.1, 0.1};
   ambient.write(dir / "ambient.gltf");
+
+  GltfContent backdrop = unlit_box();
+  backdrop.doc()["scenes"][0]["extras"]["afr_background"] = {0.0, 0.0, 0.5};
+  backdrop.write(dir / "backdrop.gltf");
+
+  {
+    // A file's background stays: the default lighting then adds only the headlight and the
+    // ambient sky.
+    LogCapture log;
+    const Scene with_backdrop = load_gltf(dir / "backdrop.gltf");
+    EXPECT_EQ(with_backdrop.background, glm::vec3(0.0f, 0.0f, 0.5f));
+    EXPECT_EQ(with_backdrop.ambient, glm::vec3(0.2f));
+    const std::vector<std::string> lines = log.lines_with("default lighting");
+    ASSERT_EQ(lines.size(), 1u);
+    EXPECT_NE(lines[0].find("a sky of 0.2 (the ambient light)"), std::string::npos) << lines[0];
+  }
 
   LogCapture log;
   const Scene with_lamp = load_gltf(dir / "lit.gltf");

@@ -98,6 +98,44 @@ TEST(GltfContentTracerTest, ASceneWithoutLightsRendersUnderTheDefaultLighting) {
   EXPECT_GT(hits, kSize * kSize / 10);
 }
 
+// Under the default lighting the sky is the background too, so a polished metal reflects it as
+// a rough one reflects the ambient sky: the box's +Z face as a mirror (roughness 0) shows
+// F0 x the sky of the reflection ray leaving the scene, plus the headlight's highlight, which
+// is the same with a file's black background (afr_background), where the reflection finds
+// black.
+TEST(GltfContentTracerTest, AMirrorReflectsTheDefaultSky) {
+  TempFolder dir;
+  const json mirror = {{"pbrMetallicRoughness",
+                        {{"baseColorFactor", {0.9, 0.6, 0.3, 1.0}},
+                         {"metallicFactor", 1.0},
+                         {"roughnessFactor", 0.0}}}};
+  box(mirror).write(dir / "sky.gltf");
+  GltfContent black = box(mirror);
+  black.doc()["scenes"][0]["extras"]["afr_background"] = {0.0, 0.0, 0.0};
+  black.write(dir / "black.gltf");
+  const Scene sky_scene = load_gltf(dir / "sky.gltf");
+  const Scene black_scene = load_gltf(dir / "black.gltf");
+  ASSERT_EQ(sky_scene.background, glm::vec3(float(kSky)));
+  Tracer sky(sky_scene), dark(black_scene);
+  const int kSize = 48;
+  glm::dvec2 face;
+  ASSERT_TRUE(sky.camera().project({0.1, 0.15, 0.5}, kSize, kSize, &face, nullptr));
+  const ShadedSample with_sky = trace_pixel(sky, face.x, face.y, kSize, kSize);
+  const ShadedSample without = trace_pixel(dark, face.x, face.y, kSize, kSize);
+  ASSERT_TRUE(with_sky.hit && without.hit);
+  // The reflection ray leaves the box (nothing else is there): Schlick's Fresnel of the metal's
+  // color at that angle, times the sky.
+  const glm::dvec3 d = glm::normalize(glm::dvec3(with_sky.position) - sky.camera().eye);
+  const double cos_v = -d.z;  // the face's normal is +Z
+  for (int c = 0; c < 3; ++c) {
+    const double f0 = mirror["pbrMetallicRoughness"]["baseColorFactor"][c].get<double>();
+    const double fresnel = f0 + (1.0 - f0) * std::pow(1.0 - cos_v, 5.0);
+    EXPECT_NEAR(with_sky.color[c] - without.color[c], fresnel * kSky, 2e-3) << "channel " << c;
+  }
+  // A ray that misses shows the sky as the background.
+  EXPECT_EQ(trace_pixel(sky, 0.5, 0.5, kSize, kSize).color, glm::vec3(float(kSky)));
+}
+
 TEST(GltfContentTracerTest, TheHeadlightFollowsAnAnimatedCamera) {
   // A rig node turns a quarter about +Y in 1 s and carries the camera 4 units out: at 0 s the
   // camera looks at the box's +Z face, at 1 s at its +X face. A light fixed in the world would
