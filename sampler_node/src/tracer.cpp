@@ -1349,30 +1349,32 @@ static bool tangent_frame(const GeomRecord& g, const Instance& inst,
                           glm::vec3* t_out, glm::vec3* bt_out) {
   glm::vec3& t = *t_out;
   glm::vec3& bt = *bt_out;
-  // t = `along_u` made orthogonal to n, bt = n x t pointing against `along_v`.
-  const auto orthogonal_frame = [&](const glm::vec3& along_u, const glm::vec3& along_v) {
+  // t = `along_u` made orthogonal to n and unit; false where nothing of it is left.
+  const auto orthogonal_t = [&](const glm::vec3& along_u) {
     t = along_u - n * glm::dot(n, along_u);
     const float t_len2 = glm::dot(t, t);
     if (!(t_len2 > 1e-30f) || !std::isfinite(t_len2)) return false;
     t *= 1.0f / std::sqrt(t_len2);
+    return true;
+  };
+  // That t, and bt = n x t pointing against `along_v`.
+  const auto orthogonal_frame = [&](const glm::vec3& along_u, const glm::vec3& along_v) {
+    if (!orthogonal_t(along_u)) return false;
     bt = glm::cross(n, t);
     if (glm::dot(bt, along_v) > 0.0f) bt = -bt;
     return true;
   };
   if (g.tangents) {
     const glm::vec4& t0 = g.tangents[tri[0]];
-    t = bary.x * glm::vec3(t0) + bary.y * glm::vec3(g.tangents[tri[1]]) +
-        bary.z * glm::vec3(g.tangents[tri[2]]);
+    glm::vec3 tangent = bary.x * glm::vec3(t0) + bary.y * glm::vec3(g.tangents[tri[1]]) +
+                        bary.z * glm::vec3(g.tangents[tri[2]]);
     float sign = t0.w * (turned ? -1.0f : 1.0f);
     if (inst.transformed) {
       const glm::mat3 linear(inst.world);
-      t = linear * t;
+      tangent = linear * tangent;
       if (glm::determinant(linear) < 0.0f) sign = -sign;
     }
-    t -= n * glm::dot(n, t);
-    const float t_len2 = glm::dot(t, t);
-    if (!(t_len2 > 1e-30f) || !std::isfinite(t_len2)) return false;
-    t *= 1.0f / std::sqrt(t_len2);
+    if (!orthogonal_t(tangent)) return false;
     bt = glm::cross(n, t) * sign;
     if (g.tangent_set >= 0 && m.uv_transforms) {
       const glm::mat2& linear = m.uv_transforms[g.tangent_set].linear;
