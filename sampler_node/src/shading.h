@@ -1,7 +1,7 @@
 // The shading model of afr's tracer, private to afr_sampler: material and light records
 // prepared once from a Scene (so the hot path branches on flags instead of re-deriving them),
 // and the local reflection model (emission, ambient, Lambert + GGX from punctual lights, the
-// Fresnel weight of mirror reflection and of glass). Ray casting itself is in tracer.cpp.
+// Fresnel weight of mirror reflection and of glass). Ray casting itself is in tracer*.cpp.
 //
 // Conventions (those of the glTF 2.0 specification and the Khronos sample viewer):
 // - a punctual light of intensity I and color c gives irradiance c I / d^2 (inverse-square; a
@@ -139,12 +139,12 @@ struct ShadeMaterial {
   float iridescence_thickness = 400.0f;
   float iridescence_thickness_min = 100.0f;
   float iridescence_thickness_max = 400.0f;
-  // Glass (KHR_materials_transmission, KHR_materials_ior): what tracer.cpp's glass() needs.
+  // Glass (KHR_materials_transmission, KHR_materials_ior): what tracer_glass.cpp's glass() needs.
   float transmission = 0.0f;
   float ior = 1.5f;
   float f0_dielectric = 0.04f;  // ((ior - 1) / (ior + 1))^2, 1 for ior 0
   // KHR_materials_volume: is_volume, the glass bounds a medium (thickness > 0) that rays enter
-  // and leave (tracer.cpp's Media: media nest, and an interface between two bends light by
+  // and leave (tracer_parts.h's Media: media nest, and an interface between two bends light by
   // the ratio of their iors); a thin wall (thickness 0) is no medium. Light inside the medium
   // keeps exp(-absorption x distance) (-ln(attenuation color) / attenuation distance); 0 for
   // none or a thin wall. has_volume: it absorbs (shadow rays then measure the stretches
@@ -184,7 +184,7 @@ struct ShadeMaterial {
   // (opacity_factor x the opacity texture's alpha x COLOR_0's alpha) can be below
   // opacity_cutoff somewhere, so its geometry needs the tracer's filters. MASK cuts the surface
   // away there; BLEND (`blended`, cutoff 1) shows the opacity's share of the surface's light over
-  // the rest of what lies behind it (tracer.cpp, "alphaMode BLEND").
+  // the rest of what lies behind it (tracer_shadows.cpp, "alphaMode BLEND").
   bool masked = false;
   bool blended = false;
   // alphaMode MASK or BLEND: a primitive's COLOR_0 alpha (Primitive::color_alpha) can cut the
@@ -202,7 +202,7 @@ struct ShadeMaterial {
   bool is_glass = false;      // transmission > 0: reflects and refracts (Whitted), any roughness
   // What a shadow ray keeps of the light crossing this surface: transmission x (1 - metallic) x
   // base color factor (glass only; 0 for every other surface, which blocks), where no texture
-  // or vertex color varies it (tracer.cpp's GeometryFilter::glass_transmittance then).
+  // or vertex color varies it (tracer_parts.h's GeometryFilter::glass_transmittance then).
   glm::vec3 shadow_transmittance{0.0f};
   // Where an animation drives texture transforms (Material::uv_transforms), each texture
   // coordinate set's transform at this time, indexed like the sets (the tracer owns them);

@@ -26,7 +26,7 @@ using testing::MorphedQuad;
 using testing::SkinnedStrip;
 using testing::TempFolder;
 
-// The step of the tracer's difference quotient (tracer.cpp, kVelocityDt), and of the test's.
+// The step of the tracer's difference quotient (tracer_build.cpp, kVelocityDt), and of the test's.
 constexpr double kH = 1e-3;
 
 const json kLambert = {{"pbrMetallicRoughness",
