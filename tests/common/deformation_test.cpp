@@ -7,6 +7,8 @@
 #include <afr/common/gltf_loader.h>
 #include <afr/common/image.h>
 
+#include "support/png.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -415,7 +417,7 @@ TEST(DeformationTest, AFileCannotAskForAnEndlessDeformation) {
 // tangents nor their displacements are kept, and nothing warns.
 TEST(DeformationTest, TangentsDeformWithTheirPrimitive) {
   TempFolder dir;
-  write_image8(DecodedImage{1, 1, 3, {128, 128, 255}}, dir / "flat.png");
+  testing::write_png(DecodedImage{1, 1, 3, {128, 128, 255}}, dir / "flat.png");
   GltfContent g;
   g.doc()["images"] = json::array({{{"uri", "flat.png"}}});
   g.doc()["textures"] = json::array({{{"source", 0}}});

@@ -1,5 +1,6 @@
 // The glTF loader's tests of animations: channels and KHR_animation_pointer.
 #include "gltf_loader_test.h"
+#include "support/png.h"
 
 namespace afr {
 namespace {
@@ -309,7 +310,7 @@ TEST_F(GltfLoaderTest, AnimationPointersToLightsCamerasAndMaterialsAreAnimated) 
 // file's transform, then the animated one at each time, in a core slot and an extension's.
 TEST_F(GltfLoaderTest, AnimationPointersToTextureTransformsAnimateTheirSlotsSets) {
   const DecodedImage gray{1, 1, 3, {128, 128, 128}};
-  write_image8(gray, dir_ / "gray.png");
+  testing::write_png(gray, dir_ / "gray.png");
   GltfBuilder b;
   add_quad(&b);
   json& primitive = b.doc()["meshes"][0]["primitives"][0];

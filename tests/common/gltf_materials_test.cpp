@@ -1,5 +1,6 @@
 // The glTF loader's tests of materials, their extensions and their textures.
 #include "gltf_loader_test.h"
+#include "support/png.h"
 
 namespace afr {
 namespace {
@@ -10,7 +11,7 @@ TEST_F(GltfLoaderTest, MaterialsAndEmbeddedPngTexturesDecodeToLinearTexels) {
   // A 2 x 2 texture, row 0 at the top.
   const DecodedImage png{2, 2, 3, {255, 0, 0, 0, 128, 255, 10, 20, 30, 255, 255, 255}};
   const fs::path png_path = dir_ / "texture.png";
-  write_image8(png, png_path);
+  testing::write_png(png, png_path);
   const std::vector<uint8_t> png_bytes = read_bytes(png_path);
 
   auto build = [&](GltfBuilder* b) {
@@ -99,8 +100,8 @@ TEST_F(GltfLoaderTest, MaterialsAndEmbeddedPngTexturesDecodeToLinearTexels) {
 TEST_F(GltfLoaderTest, MaterialTextureSlotsDecodeColorFromSrgbAndDataAsItIs) {
   const DecodedImage color{1, 1, 3, {128, 64, 255}}, orm{1, 1, 3, {200, 128, 51}};
   const fs::path color_path = dir_ / "color.png", orm_path = dir_ / "orm.png";
-  write_image8(color, color_path);
-  write_image8(orm, orm_path);
+  testing::write_png(color, color_path);
+  testing::write_png(orm, orm_path);
   GltfBuilder b;
   add_quad(&b);
   b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
@@ -162,7 +163,7 @@ TEST_F(GltfLoaderTest, MaterialTextureSlotsDecodeColorFromSrgbAndDataAsItIs) {
 // warning naming the slot), and keeps the others.
 TEST_F(GltfLoaderTest, EachTextureSlotReadsItsOwnTextureCoordinateSet) {
   const DecodedImage gray{1, 1, 3, {128, 128, 128}};
-  write_image8(gray, dir_ / "gray.png");
+  testing::write_png(gray, dir_ / "gray.png");
   GltfBuilder b;
   const int positions = add_quad(&b);
   json& primitives = b.doc()["meshes"][0]["primitives"];
@@ -231,7 +232,7 @@ TEST_F(GltfLoaderTest, EachTextureSlotReadsItsOwnTextureCoordinateSet) {
 // image through two samplers is two textures of the same texels; an invalid mode fails naming
 // the sampler.
 TEST_F(GltfLoaderTest, SamplersSetWrapModesAndNearestMagnification) {
-  write_image8(DecodedImage{2, 1, 3, {0, 0, 0, 255, 255, 255}}, dir_ / "bw.png");
+  testing::write_png(DecodedImage{2, 1, 3, {0, 0, 0, 255, 255, 255}}, dir_ / "bw.png");
   GltfBuilder b;
   add_quad(&b);
   b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
@@ -276,7 +277,7 @@ TEST_F(GltfLoaderTest, SamplersSetWrapModesAndNearestMagnification) {
 // viewers without it), also where the file requires the extension; a texture with only the
 // extension needs no fallback; a bad index fails naming the texture.
 TEST_F(GltfLoaderTest, WebpTexturesAreReadThroughExtTextureWebp) {
-  write_image8(DecodedImage{1, 1, 3, {128, 128, 128}}, dir_ / "gray.png");
+  testing::write_png(DecodedImage{1, 1, 3, {128, 128, 128}}, dir_ / "gray.png");
   const DecodedImage colors{2, 1, 3, {255, 0, 0, 0, 0, 255}};
   GltfBuilder b;
   add_quad(&b);
@@ -436,7 +437,7 @@ TEST_F(GltfLoaderTest, DispersionIsRead) {
 // The unit quad (add_quad) with material 0, TEXCOORD_0 running 0 to 1 and TEXCOORD_1 0 to 2
 // across it, and texture 0: one RGBA texel (color 128, 64, 32, alpha 51) in `dir`/rgba.png.
 void add_rgba_textured_quad(GltfBuilder* b, const fs::path& dir) {
-  write_image8(DecodedImage{1, 1, 4, {128, 64, 32, 51}}, dir / "rgba.png");
+  testing::write_png(DecodedImage{1, 1, 4, {128, 64, 32, 51}}, dir / "rgba.png");
   add_quad(b);
   json& primitive = b->doc()["meshes"][0]["primitives"][0];
   primitive["material"] = 0;
@@ -652,7 +653,7 @@ TEST_F(GltfLoaderTest, SheenIsRead) {
 // KHR_materials_anisotropy: its strength (default 0), rotation (default 0) and texture (data)
 // are read; a strength out of range or a rotation that is not a number fails naming them.
 TEST_F(GltfLoaderTest, AnisotropyIsRead) {
-  write_image8(DecodedImage{1, 1, 3, {255, 128, 64}}, dir_ / "direction.png");
+  testing::write_png(DecodedImage{1, 1, 3, {255, 128, 64}}, dir_ / "direction.png");
   GltfBuilder b;
   add_quad(&b);
   json& primitive = b.doc()["meshes"][0]["primitives"][0];
@@ -700,8 +701,8 @@ TEST_F(GltfLoaderTest, AnisotropyIsRead) {
 // the texture's alpha the glossiness (data), 1 - glossinessFactor the roughness, metallic 0.
 // Factors out of range fail naming them.
 TEST_F(GltfLoaderTest, SpecularGlossinessMaterialsAreRead) {
-  write_image8(DecodedImage{1, 1, 4, {128, 64, 32, 51}}, dir_ / "specgloss.png");
-  write_image8(DecodedImage{1, 1, 3, {10, 20, 30}}, dir_ / "fallback.png");
+  testing::write_png(DecodedImage{1, 1, 4, {128, 64, 32, 51}}, dir_ / "specgloss.png");
+  testing::write_png(DecodedImage{1, 1, 3, {10, 20, 30}}, dir_ / "fallback.png");
   GltfBuilder b;
   add_quad(&b);
   json& primitive = b.doc()["meshes"][0]["primitives"][0];
@@ -814,7 +815,7 @@ TEST_F(GltfLoaderTest, MaterialVariantsLoadWithTheDefaultMaterials) {
 // KHR_materials_iridescence: its factor, ior, thickness range and textures (data) are read,
 // with the extension's defaults; an ior below 1 or a negative thickness fails naming them.
 TEST_F(GltfLoaderTest, IridescenceIsRead) {
-  write_image8(DecodedImage{1, 1, 3, {255, 128, 64}}, dir_ / "film.png");
+  testing::write_png(DecodedImage{1, 1, 3, {255, 128, 64}}, dir_ / "film.png");
   GltfBuilder b;
   add_quad(&b);
   json& primitive = b.doc()["meshes"][0]["primitives"][0];
@@ -890,8 +891,8 @@ TEST_F(GltfLoaderTest, UnlitMaterialsAreRead) {
 TEST_F(GltfLoaderTest, MaskedMaterialsKeepTheirCutoffAndTheirTexturesAlpha) {
   const DecodedImage leaf{2, 1, 4, {10, 200, 30, 0, 10, 200, 30, 255}};
   const DecodedImage solid{1, 1, 4, {50, 50, 50, 255}};
-  write_image8(leaf, dir_ / "leaf.png");
-  write_image8(solid, dir_ / "solid.png");
+  testing::write_png(leaf, dir_ / "leaf.png");
+  testing::write_png(solid, dir_ / "solid.png");
   GltfBuilder b;
   add_quad(&b);
   b.doc()["meshes"][0]["primitives"][0]["material"] = 0;

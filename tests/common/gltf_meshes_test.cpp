@@ -1,5 +1,6 @@
 // The glTF loader's tests of meshes: primitives, vertex colors, tangents, indices.
 #include "gltf_loader_test.h"
+#include "support/png.h"
 
 namespace afr {
 namespace {
@@ -209,7 +210,7 @@ TEST_F(GltfLoaderTest, TrianglesBeyondTheLastWholeOneAreLeftOutWithAWarning) {
 // TANGENT is read where the material has a normal texture (w taken by its sign) and not
 // otherwise (nor generated); a count other than the positions' fails naming the primitive.
 TEST_F(GltfLoaderTest, TangentsAreReadForNormalMappedMaterialsOnly) {
-  write_image8(DecodedImage{1, 1, 3, {128, 128, 255}}, dir_ / "normal.png");
+  testing::write_png(DecodedImage{1, 1, 3, {128, 128, 255}}, dir_ / "normal.png");
   GltfBuilder b;
   add_quad(&b);
   json& primitive = b.doc()["meshes"][0]["primitives"][0];
@@ -245,7 +246,7 @@ TEST_F(GltfLoaderTest, TangentsAreReadForNormalMappedMaterialsOnly) {
 // w = 1, mirrored ones -x and w = -1; where the two triangles map u differently, the vertices
 // they share blend both directions. Anisotropy asks for them too; a plain material does not.
 TEST_F(GltfLoaderTest, TangentsAreGeneratedWhereTheFileHasNone) {
-  write_image8(DecodedImage{1, 1, 3, {128, 128, 255}}, dir_ / "normal.png");
+  testing::write_png(DecodedImage{1, 1, 3, {128, 128, 255}}, dir_ / "normal.png");
   const auto tangents_of = [&](std::vector<float> uvs, const json& material) {
     GltfBuilder b;
     add_quad(&b);

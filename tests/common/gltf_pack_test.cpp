@@ -4,6 +4,8 @@
 #include <afr/common/gltf_loader.h>
 #include <afr/common/image.h>
 
+#include "support/png.h"
+
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <meshoptimizer.h>
@@ -111,7 +113,7 @@ class GltfPackTest : public ::testing::Test {
     append(&index_bytes, indices);
 
     DecodedImage checker{2, 2, 3, {255, 0, 0, 0, 255, 0, 0, 0, 255, 255, 255, 255}};
-    write_image8(checker, dir_ / "scene" / "textures" / "checker.png");
+    testing::write_png(checker, dir_ / "scene" / "textures" / "checker.png");
 
     doc_ = {
         {"asset", {{"version", "2.0"}}},

@@ -7,6 +7,8 @@
 #include <afr/common/gltf_loader.h>
 #include <afr/common/image.h>
 
+#include "support/png.h"
+
 #include <gtest/gtest.h>
 #include <spdlog/spdlog.h>
 
@@ -440,10 +442,10 @@ TEST(GltfUserContentTest, BadTransmissionOrIorFailsNamingTheMaterialAndValue) {
   expect_failure({{"KHR_materials_ior", {{"ior", "water"}}}}, "ior");
 }
 
-// The bytes of a 1x1 PNG, written through afr's image I/O.
+// The bytes of a 1x1 PNG.
 std::vector<uint8_t> tiny_png(const TempFolder& dir) {
   const std::filesystem::path path = dir / "tiny.png";
-  write_image8(DecodedImage{1, 1, 3, {200, 100, 50}}, path);
+  testing::write_png(DecodedImage{1, 1, 3, {200, 100, 50}}, path);
   std::ifstream in(path, std::ios::binary);
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }

@@ -6,7 +6,9 @@
 // texture over its surface, and an animated KHR_node_visibility shows and hides nodes.
 #include <afr/common/gltf_loader.h>
 #include <afr/common/image.h>
+
 #include <afr/sampler/tracer.h>
+#include "support/png.h"
 
 #include <gtest/gtest.h>
 
@@ -251,7 +253,7 @@ TEST(GltfContentTracerTest, TheDefaultCameraShowsAMovingObjectMoving) {
 // and an animation whose channels `channels` drive it (samplers over keys at 0 s and 1 s).
 GltfContent textured_quad(const TempFolder& dir, const DecodedImage& image, const json& info,
                           const json& material_extras, bool nearest) {
-  write_image8(image, dir / "texture.png");
+  testing::write_png(image, dir / "texture.png");
   GltfContent g;
   g.doc()["images"] = json::array({{{"uri", "texture.png"}}});
   g.doc()["samplers"] = json::array({{{"magFilter", nearest ? 9728 : 9729}}});
@@ -388,7 +390,7 @@ TEST(GltfContentTracerTest, AnAnimatedTextureTransformMovesAMasksCutOut) {
 // frame follows the transform.
 TEST(GltfContentTracerTest, AnAnimatedNormalTextureTransformTurnsItsTangentFrame) {
   TempFolder dir;
-  write_image8(DecodedImage{1, 1, 3, {230, 90, 170}}, dir / "normal.png");  // tilted
+  testing::write_png(DecodedImage{1, 1, 3, {230, 90, 170}}, dir / "normal.png");  // tilted
   const auto quad = [&](const json& transform, bool file_tangents) {
     GltfContent g;
     g.doc()["images"] = json::array({{{"uri", "normal.png"}}});
