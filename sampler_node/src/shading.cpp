@@ -150,8 +150,7 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
   m.is_glass = m.transmission > 0.0f;
   if (m.is_glass) {
     m.transmission_texture = texture_at(mat.transmission_texture, scene);
-    m.shadow_transmittance = glm::clamp(m.transmission * (1.0f - m.metallic_factor) * m.base,
-                                        glm::vec3(0.0f), glm::vec3(1.0f));
+    m.shadow_transmittance = m.transmission * (1.0f - m.metallic_factor) * m.base;
     m.ior = mat.ior;
     m.f0_dielectric = f0_ior;
     m.is_volume = mat.thickness > 0.0f;
@@ -236,6 +235,11 @@ ShadeMaterial make_shade_material(const Material* material, const Scene& scene,
              m.diffuse_transmission_color_texture;
   m.needs_layers = m.clearcoat > 0.0f || m.anisotropy_factor > 0.0f;
   derive(&m, m.metallic_factor, m.roughness_factor);
+  // A shadow ray crossing a surface that transmits diffusely keeps what it lets through, as if
+  // the light went on straight (filter shadows): the light beyond a lamp's paper shade is the
+  // lamp's dimmed by the shade, where it would be the shade's glow, scattered over the shade.
+  m.shadow_transmittance =
+      glm::clamp(m.shadow_transmittance + m.diffuse_transmitted, glm::vec3(0.0f), glm::vec3(1.0f));
   if (mat.unlit) {
     // Only the base color (and alpha) is left: prepare_local shows it and stops there, and
     // nothing bounces off, passes through or varies the surface.

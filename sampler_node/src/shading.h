@@ -200,10 +200,14 @@ struct ShadeMaterial {
   bool is_mirror = false;     // metallic > 0 and roughness <= TracerOptions::mirror_roughness,
                               // and not glass
   bool is_glass = false;      // transmission > 0: reflects and refracts (Whitted), any roughness
-  // What a shadow ray keeps of the light crossing this surface: transmission x (1 - metallic) x
-  // base color factor (glass only; 0 for every other surface, which blocks), where no texture
-  // or vertex color varies it (tracer_parts.h's GeometryFilter::glass_transmittance then).
+  // What a shadow ray keeps of the light crossing this surface (a filter shadow,
+  // tracer_shadows.cpp): glass's transmission x (1 - metallic) x base color factor, plus what
+  // KHR_materials_diffuse_transmission passes through (diffuse_transmitted); 0 for every other
+  // surface, which blocks. Where textures or vertex colors vary it, tracer_parts.h's
+  // GeometryFilter::through takes their values at the hit.
   glm::vec3 shadow_transmittance{0.0f};
+  // Shadow rays pass through it, dimmed by shadow_transmittance.
+  bool lets_shadow_rays_through() const { return is_glass || diffuse_transmits; }
   // Where an animation drives texture transforms (Material::uv_transforms), each texture
   // coordinate set's transform at this time, indexed like the sets (the tracer owns them);
   // null where none is animated.

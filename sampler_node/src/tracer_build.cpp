@@ -98,9 +98,9 @@ void Tracer::Impl::set_filters(RTCGeometry g, uint32_t material, const Primitive
   const shading::ShadeMaterial& m = materials_[material];
   const float* vertex_alpha = tested_alpha(p, material);
   const bool masked = m.masked || vertex_alpha;
-  const bool glass = m.is_glass || animated_transmission_[material];
-  if (!glass && !masked) return;
-  has_translucent_ |= glass || (m.blended && masked);
+  const bool through = m.lets_shadow_rays_through() || animated_through_[material];
+  if (!through && !masked) return;
+  has_translucent_ |= through || (m.blended && masked);
   GeometryFilter& f = filters_.emplace_back();
   f.material = &m;
   f.masked = masked;
@@ -108,14 +108,20 @@ void Tracer::Impl::set_filters(RTCGeometry g, uint32_t material, const Primitive
   f.uvs = uvs.base_color;
   f.color_alpha = vertex_alpha;
   f.indices = p.indices.data();
-  if (glass) {
-    // (A material that is not glass now has no transmission texture yet: the scene's says.)
-    const bool transmission_texture =
-        material < scene_.materials.size() && scene_.materials[material].transmission_texture >= 0;
+  if (through) {
+    // (A material that does not let light through now has no transmission textures yet: the
+    // scene's says.)
+    const Material* own =
+        material < scene_.materials.size() ? &scene_.materials[material] : nullptr;
     f.transmission_uvs = uvs.transmission;
+    f.diffuse_transmission_uvs = uvs.diffuse_transmission;
+    f.diffuse_transmission_color_uvs = uvs.diffuse_transmission_color;
     f.colors = p.colors.size() == p.positions.size() ? p.colors.data() : nullptr;
-    f.textured_glass =
-        (m.texture && f.uvs) || (transmission_texture && f.transmission_uvs) || f.colors != nullptr;
+    f.textured_through =
+        (m.texture && f.uvs) || f.colors != nullptr ||
+        (own && own->transmission_texture >= 0 && f.transmission_uvs) ||
+        (own && own->diffuse_transmission_texture >= 0 && f.diffuse_transmission_uvs) ||
+        (own && own->diffuse_transmission_color_texture >= 0 && f.diffuse_transmission_color_uvs);
   }
   rtcSetGeometryUserData(g, &f);
   rtcSetGeometryOccludedFilterFunction(g, &occlusion_filter);
@@ -163,10 +169,12 @@ void Tracer::Impl::build() {
   for (int i : scene_.animated_materials()) {
     if (materials_[size_t(i)].alpha_tested) materials_[size_t(i)].masked = true;
   }
-  animated_transmission_.assign(materials_.size(), 0);
+  animated_through_.assign(materials_.size(), 0);
   for (const PropertyChannel& c : scene_.property_channels) {
-    if (c.property == AnimatedProperty::kTransmissionFactor) {
-      animated_transmission_[size_t(c.index)] = 1;
+    if (c.property == AnimatedProperty::kTransmissionFactor ||
+        c.property == AnimatedProperty::kDiffuseTransmissionFactor ||
+        c.property == AnimatedProperty::kDiffuseTransmissionColor) {
+      animated_through_[size_t(c.index)] = 1;
     }
   }
   auto material_of = [&](const Primitive& p) {

@@ -343,32 +343,63 @@ struct GeometryFilter {
   SlotCoords uvs;       // the base color's (none: the factor alone decides)
   const float* color_alpha = nullptr;  // COLOR_0's alpha per vertex, or null
   const uint32_t* indices = nullptr;
-  // Glass whose shadow transmittance varies over it (a base-color or transmission texture with
-  // coordinates, or COLOR_0), with what places a hit in its textures and colors.
-  bool textured_glass = false;
+  // Glass or a diffuse transmitter whose shadow transmittance varies over it (a base-color,
+  // transmission or diffuse-transmission texture with coordinates, or COLOR_0), with what places
+  // a hit in its textures and colors.
+  bool textured_through = false;
   SlotCoords transmission_uvs;
+  SlotCoords diffuse_transmission_uvs;
+  SlotCoords diffuse_transmission_color_uvs;
   const glm::vec3* colors = nullptr;  // COLOR_0 per vertex, or null
 
-  // What a shadow ray keeps of the light crossing the glass at the hit: the material's
-  // shadow_transmittance, or with textures and colors their values there multiplied in.
-  glm::vec3 glass_transmittance(const RTCFilterFunctionNArguments* args, unsigned i) const {
+  // What a shadow ray keeps of the light crossing the surface at the hit: the material's
+  // shadow_transmittance, or with textures and colors their values there (level 0) multiplied
+  // in: glass's transmission x (1 - metallic) x base color, and the diffuse transmission's
+  // strength x its color x what metal and glass leave of the diffuse part (the factors'
+  // metallic and specular: ShadeMaterial's diffuse_transmitted).
+  glm::vec3 through(const RTCFilterFunctionNArguments* args, unsigned i) const {
     const shading::ShadeMaterial& m = *material;
-    if (!textured_glass) return m.shadow_transmittance;
+    if (!textured_through) return m.shadow_transmittance;
     const uint32_t* tri = indices + 3 * size_t(RTCHitN_primID(args->hit, args->N, i));
     const float u = RTCHitN_u(args->hit, args->N, i), v = RTCHitN_v(args->hit, args->N, i);
     const float w = 1.0f - u - v;
     const auto at = [&](const auto* values) {
       return w * values[tri[0]] + u * values[tri[1]] + v * values[tri[2]];
     };
-    glm::vec3 base = m.base;
-    if (m.texture && uvs) base *= m.texture->sample(uvs.at(m, tri, u, v), 0.0f);
-    if (colors) base *= at(colors);
     float transmission = m.transmission_factor;
     if (m.transmission_texture && transmission_uvs) {
       transmission *= m.transmission_texture->sample(transmission_uvs.at(m, tri, u, v), 0.0f).r;
     }
-    return glm::clamp(glm::clamp(transmission, 0.0f, 1.0f) * (1.0f - m.metallic_factor) * base,
-                      glm::vec3(0.0f), glm::vec3(1.0f));
+    transmission = glm::clamp(transmission, 0.0f, 1.0f);
+    glm::vec3 kept(0.0f);
+    if (m.is_glass) {
+      glm::vec3 base = m.base;
+      if (m.texture && uvs) base *= m.texture->sample(uvs.at(m, tri, u, v), 0.0f);
+      if (colors) base *= at(colors);
+      kept = transmission * (1.0f - m.metallic_factor) * base;
+    }
+    // (Gated by the factor: the transmission's texture may leave a diffuse part where the
+    // factor leaves none.)
+    if (m.diffuse_transmission > 0.0f) {
+      float strength = m.diffuse_transmission;
+      if (m.diffuse_transmission_texture && diffuse_transmission_uvs) {
+        strength *=
+            m.diffuse_transmission_texture->sample(diffuse_transmission_uvs.at(m, tri, u, v), 0.0f)
+                .r;  // the image's alpha, held in red
+      }
+      glm::vec3 color = m.diffuse_transmission_color;
+      if (m.diffuse_transmission_color_texture && diffuse_transmission_color_uvs) {
+        color *= m.diffuse_transmission_color_texture->sample(
+            diffuse_transmission_color_uvs.at(m, tri, u, v), 0.0f);
+      }
+      const float specular_share =
+          m.specular_glossiness
+              ? std::max(m.specular_f0.r, std::max(m.specular_f0.g, m.specular_f0.b))
+              : 0.0f;
+      kept += strength * color * (1.0f - m.metallic_factor) * (1.0f - transmission) *
+              (1.0f - specular_share);
+    }
+    return glm::clamp(kept, glm::vec3(0.0f), glm::vec3(1.0f));
   }
 
   float opacity(const RTCFilterFunctionNArguments* args, unsigned i) const {
@@ -383,8 +414,8 @@ struct GeometryFilter {
   }
 };
 
-// The occlusion filter of a masked, blended or glass geometry, and the intersection filter of a
-// masked one (tracer_shadows.cpp).
+// The occlusion filter of a masked, blended, glass or diffusely transmitting geometry, and the
+// intersection filter of a masked one (tracer_shadows.cpp).
 void occlusion_filter(const RTCFilterFunctionNArguments* args);
 void mask_filter(const RTCFilterFunctionNArguments* args);
 
@@ -414,11 +445,12 @@ struct Tracer::Impl {
     for (const Material::UvTransform& t : m.uv_transforms) uv_transforms_[i].emplace_back(t);
     if (!m.uv_transforms.empty()) materials_[i].uv_transforms = uv_transforms_[i].data();
   }
-  bool has_translucent_ = false;  // glass or blended geometry lets shadow rays through (crosses)
-  // Per material, whether an animation drives its transmission (KHR_animation_pointer): it may
-  // be glass at some times and not at others, so its geometry carries the glass filter, which
-  // asks the material of the time (set_filters).
-  std::vector<char> animated_transmission_;
+  // Glass, diffusely transmitting or blended geometry lets shadow rays through (crosses).
+  bool has_translucent_ = false;
+  // Per material, whether an animation drives its transmission or diffuse transmission
+  // (KHR_animation_pointer): it may let shadow rays through at some times and not at others, so
+  // its geometry carries the filter, which asks the material of the time (set_filters).
+  std::vector<char> animated_through_;
   std::deque<GeometryFilter> filters_;  // the user data of masked and glass geometries
   std::vector<int> light_nodes_;        // scene nodes that carry a light
   std::vector<int> camera_lights_;      // lights on the camera (Light::on_camera)

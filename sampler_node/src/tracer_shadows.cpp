@@ -1,16 +1,23 @@
-// Shadow rays and what lets them through: glass, cut-away and blended surfaces (Tracer::Impl,
-// tracer_parts.h).
+// Shadow rays and what lets them through: glass, diffusely transmitting, cut-away and blended
+// surfaces (Tracer::Impl, tracer_parts.h).
 //
-// ---- Shadows through glass and blended surfaces ----
+// ---- Shadows through glass, diffuse transmitters and blended surfaces ----
 //
 // A shadow ray passes through glass, dimmed by each glass surface it crosses
 // (ShadeMaterial::shadow_transmittance): a Whitted-style filter shadow, as BART's scenes
 // expect of their light behind a glass ceiling: transmission x (1 - metallic) x base color,
 // where the transmission and the base color are, as for the camera's rays, the factors times
-// the textures (level 0) and COLOR_0 at the point (GeometryFilter::glass_transmittance). The
-// shadow ray is not refracted, and Fresnel does not dim it. It passes a blended surface (alphaMode
+// the textures (level 0) and COLOR_0 at the point (GeometryFilter::through). The shadow ray is
+// not refracted, and Fresnel does not dim it. A surface that transmits diffusely
+// (KHR_materials_diffuse_transmission: leaves, paper, a lamp's shade) lets it through the same
+// way, dimmed by what it transmits: its strength x color x the diffuse part metal and glass
+// leave (ShadeMaterial::diffuse_transmitted), textures included. That light would leave such a
+// surface scattered over its hemisphere; going on straight, it keeps the energy the surface
+// passes on (the room around a shaded lamp gets the lamp's light times the shade's
+// transmission, as from the glowing shade far off) but not its spread (the shade casts no
+// soft glow of its own). It passes a blended surface (alphaMode
 // BLEND) dimmed by its opacity a at the point: 1 - a goes through, and the rest as through that
-// surface's glass, if it is glass. Embree reports each such surface on the ray's way to
+// surface, if it lets light through. Embree reports each such surface on the ray's way to
 // occlusion_filter (crosses), which multiplies it into the ray's transmittance and lets the ray go
 // on, in whatever order (products commute); any other surface ends the ray. The high-quality BVH's
 // spatial splits can report one triangle twice, so each ray remembers the ones it has counted.
@@ -88,11 +95,13 @@ void occlusion_filter(const RTCFilterFunctionNArguments* args) {
     if (args->valid[i] != -1) continue;
     if (m.blended && f->masked) {
       const float a = f->opacity(args, i);
-      const glm::vec3 glass = m.is_glass ? f->glass_transmittance(args, i) : glm::vec3(0.0f);
-      if (!(a > 0.0f) || crosses(args, i, (1.0f - a) + a * glass, false)) args->valid[i] = 0;
+      const glm::vec3 through =
+          m.lets_shadow_rays_through() ? f->through(args, i) : glm::vec3(0.0f);
+      if (!(a > 0.0f) || crosses(args, i, (1.0f - a) + a * through, false)) args->valid[i] = 0;
     } else if (f->masked && !f->opaque_at(args, i)) {
       args->valid[i] = 0;
-    } else if (m.is_glass && crosses(args, i, f->glass_transmittance(args, i), m.has_volume)) {
+    } else if (m.lets_shadow_rays_through() &&
+               crosses(args, i, f->through(args, i), m.has_volume)) {
       args->valid[i] = 0;
     }
   }

@@ -595,17 +595,24 @@ TEST(GltfContentTracerTest, AnimatedTransmissionIorAndVolumeShadeAsTheSameFactor
 
 // KHR_materials_diffuse_transmission driven by KHR_animation_pointer: a screen between the
 // camera and a light behind it lets more and more of the light through, tinted by the animated
-// color, shading at each time as the same factors written in the file do.
+// color, shading at each time as the same factors written in the file do; so does a floor on
+// the camera's side, which the light reaches through the screen (its shadow rays pass the
+// screen dimmed by what it transmits, although the screen transmits nothing at the start).
 TEST(GltfContentTracerTest, AnimatedDiffuseTransmissionShadesAsTheSameFactorsInTheFile) {
   const auto screen_before_a_light = [](const json& screen) {
     GltfContent g;
-    g.doc()["materials"] = json::array({screen});
+    const json floor_material = {
+        {"pbrMetallicRoughness",
+         {{"baseColorFactor", {0.8, 0.8, 0.8, 1.0}}, {"metallicFactor", 0.0}}}};
+    g.doc()["materials"] = json::array({screen, floor_material});
     const int wall =
         g.add_mesh({-3, -3, -1.5f, 3, -3, -1.5f, 3, 3, -1.5f, -3, 3, -1.5f}, {0, 1, 2, 0, 2, 3}, 0);
+    const int floor =
+        g.add_mesh({-3, -2, 1.5f, 3, -2, 1.5f, 3, -2, -1.4f, -3, -2, -1.4f}, {0, 1, 2, 0, 2, 3}, 1);
     g.doc()["extensions"]["KHR_lights_punctual"]["lights"] =
         json::array({{{"type", "point"}, {"intensity", 20.0}}});
     g.doc()["extensionsUsed"] = {"KHR_lights_punctual"};
-    g.set_roots({g.add_node({{"mesh", wall}}),
+    g.set_roots({g.add_node({{"mesh", wall}}), g.add_node({{"mesh", floor}}),
                  g.add_node({{"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}},
                              {"translation", {0.4, 0.3, -3.0}}})});
     return g;

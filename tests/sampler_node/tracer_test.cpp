@@ -2143,9 +2143,11 @@ TEST(TracerTest, TransmissionTextureMultipliesTheFactor) {
 // glass between y = 1 and y = 2. A shadow ray crosses the box's bottom and top, each keeping
 // transmission x base color, so the floor below gets the sun times base^2 (a clear box: all of
 // it; an opaque box: none; a glass of transmission 0.5, tinted: (0.5 base)^2 per channel, the
-// same where textures give the transmission and the tint), beside the box the whole sun. The
-// crosshair's 8-wide shadow packets agree with single rays, and the sampler's occlusion rays still
-// stop at glass (it is a visible surface).
+// same where textures give the transmission and the tint), beside the box the whole sun. A box
+// that transmits diffusely (KHR_materials_diffuse_transmission) lets it through the same way,
+// each surface keeping strength x color x what glass leaves of the diffuse part, and a box of
+// both adds the two. The crosshair's 8-wide shadow packets agree with single rays, and the
+// sampler's occlusion rays still stop at the box (it is a visible surface).
 TEST(TracerTest, ShadowRaysPassThroughGlassDimmedByEachSurface) {
   const glm::vec3 floor_base(0.8f, 0.6f, 0.4f);
   const float intensity = 3.0f;
@@ -2153,16 +2155,27 @@ TEST(TracerTest, ShadowRaysPassThroughGlassDimmedByEachSurface) {
     const char* name;
     float transmission;
     glm::vec3 base;
+    float diffuse;  // diffuse transmission's strength, and its color
+    glm::vec3 diffuse_color;
     glm::vec3 kept;  // what the two surfaces keep of the sun
-    bool textures;   // the transmission and base color as textures, their factors 1
+    bool textures;   // the factors above as textures, the factors 1 (white)
   };
+  const glm::vec3 tint(1.0f, 0.5f, 0.25f), gray(0.5f);
   const Case cases[] = {
-      {"clear", 1.0f, glm::vec3(1.0f), glm::vec3(1.0f), false},
-      {"tinted", 0.5f, glm::vec3(1.0f, 0.5f, 0.25f), glm::vec3(0.25f, 0.0625f, 0.015625f),
+      {"clear", 1.0f, glm::vec3(1.0f), 0.0f, gray, glm::vec3(1.0f), false},
+      {"tinted", 0.5f, tint, 0.0f, gray, glm::vec3(0.25f, 0.0625f, 0.015625f),
        false},  // (0.5 base)^2
-      {"tinted by textures", 0.5f, glm::vec3(1.0f, 0.5f, 0.25f),
+      {"tinted by textures", 0.5f, tint, 0.0f, gray, glm::vec3(0.25f, 0.0625f, 0.015625f), true},
+      {"opaque", 0.0f, glm::vec3(1.0f), 0.0f, gray, glm::vec3(0.0f), false},
+      // (0.5 color)^2
+      {"diffuse transmission", 0.0f, gray, 0.5f, tint, glm::vec3(0.25f, 0.0625f, 0.015625f), false},
+      {"diffuse transmission by textures", 0.0f, gray, 0.5f, tint,
        glm::vec3(0.25f, 0.0625f, 0.015625f), true},
-      {"opaque", 0.0f, glm::vec3(1.0f), glm::vec3(0.0f), false},
+      // (0.5 base + 0.5 x gray x (1 - 0.5))^2 = (0.625, 0.375, 0.25)^2
+      {"glass and diffuse transmission", 0.5f, tint, 0.5f, gray,
+       glm::vec3(0.390625f, 0.140625f, 0.0625f), false},
+      {"glass and diffuse transmission by textures", 0.5f, tint, 0.5f, gray,
+       glm::vec3(0.390625f, 0.140625f, 0.0625f), true},
   };
   for (const Case& c : cases) {
     for (bool packet : {true, false}) {
@@ -2171,11 +2184,18 @@ TEST(TracerTest, ShadowRaysPassThroughGlassDimmedByEachSurface) {
       const int floor = add_material(&s, floor_base, 0.0f, 1.0f);
       add_mesh_node(&s, quad_mesh({-5, 0, 5}, {10, 0, 0}, {0, 0, -10}, floor));
       const int glass = add_material(&s, c.textures ? glm::vec3(1.0f) : c.base, 0.0f, 0.0f);
-      s.materials[size_t(glass)].transmission = c.textures ? 1.0f : c.transmission;
+      Material& m = s.materials[size_t(glass)];
+      m.transmission = c.textures ? 1.0f : c.transmission;
+      m.diffuse_transmission = c.textures && c.diffuse > 0.0f ? 1.0f : c.diffuse;
+      m.diffuse_transmission_color = c.textures ? glm::vec3(1.0f) : c.diffuse_color;
       if (c.textures) {
-        s.materials[size_t(glass)].base_color_texture = add_texel(&s, c.base);
-        s.materials[size_t(glass)].transmission_texture =
-            add_texel(&s, glm::vec3(c.transmission, 0.0f, 0.0f));  // red
+        m.base_color_texture = add_texel(&s, c.base);
+        m.transmission_texture = add_texel(&s, glm::vec3(c.transmission, 0.0f, 0.0f));  // red
+        if (c.diffuse > 0.0f) {
+          // (The loader holds the strength image's alpha in red.)
+          m.diffuse_transmission_texture = add_texel(&s, glm::vec3(c.diffuse, 0.0f, 0.0f));
+          m.diffuse_transmission_color_texture = add_texel(&s, c.diffuse_color);
+        }
       }
       s.materials[size_t(glass)].ior = 1.5f;
       add_mesh_node(&s, box_mesh({2.0f, 0.5f, 2.0f}, glass), glm::dvec3(0.0, 1.5, 0.0));
