@@ -1,7 +1,7 @@
 // The tracer (afr/sampler/tracer.h): a hit's surface (textures, normals, tangent frames), its
 // local shading under the lights, the paths through mirrors and blended surfaces, and the
-// public Tracer. Tracer::Impl and the parts it shares with the other tracer_*.cpp files are in
-// tracer_parts.h.
+// public Tracer. Tracer::Impl (TracerImpl) and the parts it shares with the other tracer_*.cpp
+// files are in tracer_parts.h.
 #include <afr/sampler/tracer.h>
 
 #include <afr/common/check.h>
@@ -34,6 +34,9 @@ TraceStats& TraceStats::operator+=(const TraceStats& o) {
   return *this;
 }
 
+}  // namespace afr
+
+namespace afr::tracer_detail {
 namespace {
 
 // ---- Texture filtering (ray cones) ----
@@ -63,7 +66,7 @@ float texture_lod(const Texture& texture, glm::vec2 t0, glm::vec2 t1, glm::vec2 
 // ---------------------------------------------------------------------------------------------
 // Queries
 
-HitRef Tracer::Impl::intersect(const glm::vec3& o, const glm::vec3& d, float tnear) const {
+HitRef TracerImpl::intersect(const glm::vec3& o, const glm::vec3& d, float tnear) const {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRayHit rh;
@@ -176,8 +179,8 @@ static glm::vec3 mapped_normal(const GeomRecord& g, const Instance& inst,
   return mapped * (1.0f / std::sqrt(len2));
 }
 
-void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm::vec3& d,
-                                float cone, float spread, Surface* s) const {
+void TracerImpl::make_surface(const HitRef& hit, const glm::vec3& o, const glm::vec3& d, float cone,
+                              float spread, Surface* s) const {
   AFR_DCHECK(hit.inst < instances_.size());
   const Instance& inst = instances_[hit.inst];
   AFR_DCHECK(hit.geom < blas_[size_t(inst.blas)].geoms.size());
@@ -326,8 +329,8 @@ void Tracer::Impl::make_surface(const HitRef& hit, const glm::vec3& o, const glm
 }
 
 // Emission and ambient light, and whether the surface takes direct light (then `terms` is set).
-bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const glm::vec3& tex,
-                                 glm::vec3* c, LocalTerms* terms) const {
+bool TracerImpl::prepare_local(const Surface& s, const glm::vec3& wo, const glm::vec3& tex,
+                               glm::vec3* c, LocalTerms* terms) const {
   const ShadeMaterial& m = *s.material;
   *c = glm::vec3(0.0f);
   if (m.unlit) {
@@ -373,10 +376,10 @@ bool Tracer::Impl::prepare_local(const Surface& s, const glm::vec3& wo, const gl
 
 // The light one light sends toward the viewer if nothing blocks it; false when it sends none.
 // `origin`, `l` and `shadow_tfar` describe the shadow ray.
-bool Tracer::Impl::light_contribution(const LightRecord& light, const Surface& s,
-                                      const LocalTerms& terms, const glm::vec3& wo,
-                                      glm::vec3* contribution, glm::vec3* origin, glm::vec3* l,
-                                      float* shadow_tfar) const {
+bool TracerImpl::light_contribution(const LightRecord& light, const Surface& s,
+                                    const LocalTerms& terms, const glm::vec3& wo,
+                                    glm::vec3* contribution, glm::vec3* origin, glm::vec3* l,
+                                    float* shadow_tfar) const {
   glm::vec3 incident;
   float distance;
   if (!shading::light_incidence(light, s.p, l, &distance, &incident)) return false;
@@ -407,8 +410,8 @@ bool Tracer::Impl::light_contribution(const LightRecord& light, const Surface& s
 
 // Emission, ambient and direct light at a surface seen from direction wo (unit, toward the
 // viewer). `tex` is texture_color(s).
-glm::vec3 Tracer::Impl::shade_local(const Surface& s, const glm::vec3& wo, const glm::vec3& tex,
-                                    TraceStats* stats) const {
+glm::vec3 TracerImpl::shade_local(const Surface& s, const glm::vec3& wo, const glm::vec3& tex,
+                                  TraceStats* stats) const {
   glm::vec3 c;
   LocalTerms terms;
   if (!prepare_local(s, wo, tex, &c, &terms)) return c;
@@ -427,8 +430,8 @@ glm::vec3 Tracer::Impl::shade_local(const Surface& s, const glm::vec3& wo, const
 
 // shade_local for up to 8 surfaces at once (lanes where `hit` is false are skipped): the shadow
 // rays toward one light go out as one rtcOccluded8.
-void Tracer::Impl::shade_local8(const Surface* s, const glm::vec3* wo, const glm::vec3* tex,
-                                const bool* hit, int n, glm::vec3* out, TraceStats* stats) const {
+void TracerImpl::shade_local8(const Surface* s, const glm::vec3* wo, const glm::vec3* tex,
+                              const bool* hit, int n, glm::vec3* out, TraceStats* stats) const {
   LocalTerms terms[8];
   bool lit[8] = {};
   bool any_lit = false;
@@ -485,7 +488,7 @@ void Tracer::Impl::shade_local8(const Surface* s, const glm::vec3* wo, const glm
   }
 }
 
-glm::vec3 Tracer::Impl::texture_color(const Surface& s) const {
+glm::vec3 TracerImpl::texture_color(const Surface& s) const {
   glm::vec3 c = s.material->texture && s.geom->uvs.base_color
                     ? s.material->texture->sample(s.uv, s.lod)
                     : glm::vec3(1.0f);
@@ -521,8 +524,8 @@ static bool mirror_direction(const glm::vec3& d, const Surface& s, const glm::ve
 // before s passes on). s's own local shading is not included. `depth` counts the secondary
 // rays already on the path; `media`, what the ray that hit s travels in (its reflections stay
 // there).
-glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, TraceStats* stats,
-                                     int depth, glm::vec3 throughput, const Media& media) const {
+glm::vec3 TracerImpl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, TraceStats* stats,
+                                   int depth, glm::vec3 throughput, const Media& media) const {
   glm::vec3 result(0.0f);
   for (;; ++depth) {
     const ShadeMaterial& m = *s.material;
@@ -581,9 +584,9 @@ glm::vec3 Tracer::Impl::mirror_chain(glm::vec3 d, Surface s, glm::vec3 tex, Trac
 // One secondary ray, and what it brings back (local shading and further bounces) times
 // `throughput`; `depth` counts this ray. A ray in an absorbing medium (`media`'s innermost,
 // KHR_materials_volume) keeps exp(-absorption x the distance to what it hits).
-glm::vec3 Tracer::Impl::secondary(const glm::vec3& origin, const glm::vec3& d, const Surface& from,
-                                  int depth, const glm::vec3& throughput, const Media& media,
-                                  TraceStats* stats) const {
+glm::vec3 TracerImpl::secondary(const glm::vec3& origin, const glm::vec3& d, const Surface& from,
+                                int depth, const glm::vec3& throughput, const Media& media,
+                                TraceStats* stats) const {
   ++stats->reflection_rays;
   const HitRef hit = intersect(origin, d, 0.0f);
   if (hit.geom == RTC_INVALID_GEOMETRY_ID) return throughput * scene_.background;
@@ -599,9 +602,9 @@ glm::vec3 Tracer::Impl::secondary(const glm::vec3& origin, const glm::vec3& d, c
 
 // What a blended surface s, hit along d, lets through from behind it: the ray goes on from its
 // far side, weighted 1 - s.opacity; `depth` counts the rays already on the path.
-glm::vec3 Tracer::Impl::pass_through(const glm::vec3& d, const Surface& s, int depth,
-                                     const glm::vec3& throughput, const Media& media,
-                                     TraceStats* stats) const {
+glm::vec3 TracerImpl::pass_through(const glm::vec3& d, const Surface& s, int depth,
+                                   const glm::vec3& throughput, const Media& media,
+                                   TraceStats* stats) const {
   const glm::vec3 behind = throughput * (1.0f - s.opacity);
   if (std::max(behind.r, std::max(behind.g, behind.b)) < kMinThroughput) return glm::vec3(0.0f);
   const glm::vec3 ng = s.back_face ? -s.ng : s.ng;  // toward the side the ray arrives from
@@ -610,8 +613,8 @@ glm::vec3 Tracer::Impl::pass_through(const glm::vec3& d, const Surface& s, int d
 
 // Fills everything of a primary sample but its color, and the surface it hit. Returns false on
 // a miss (then the color is the background).
-bool Tracer::Impl::begin_sample(const Ray& ray, const HitRef& hit, ShadedSample* o, Surface* s,
-                                TraceStats* stats) const {
+bool TracerImpl::begin_sample(const Ray& ray, const HitRef& hit, ShadedSample* o, Surface* s,
+                              TraceStats* stats) const {
   ++stats->primary_rays;
   if (hit.geom == RTC_INVALID_GEOMETRY_ID) {
     o->color = scene_.background;
@@ -638,7 +641,7 @@ bool Tracer::Impl::begin_sample(const Ray& ray, const HitRef& hit, ShadedSample*
 }
 
 // No NaN or Inf leaves the tracer.
-void Tracer::Impl::sanitize(ShadedSample* o, TraceStats* stats) const {
+void TracerImpl::sanitize(ShadedSample* o, TraceStats* stats) const {
   if (!finite(o->color)) {
     o->color = glm::vec3(0.0f);
     ++stats->sanitized;
@@ -656,8 +659,8 @@ void Tracer::Impl::sanitize(ShadedSample* o, TraceStats* stats) const {
   }
 }
 
-void Tracer::Impl::finish(const Ray& ray, const HitRef& hit, ShadedSample* out,
-                          TraceStats* stats) const {
+void TracerImpl::finish(const Ray& ray, const HitRef& hit, ShadedSample* out,
+                        TraceStats* stats) const {
   Surface s;
   if (begin_sample(ray, hit, out, &s, stats)) {
     const glm::vec3 tex = texture_color(s);
@@ -666,6 +669,10 @@ void Tracer::Impl::finish(const Ray& ray, const HitRef& hit, ShadedSample* out,
   }
   sanitize(out, stats);
 }
+
+}  // namespace afr::tracer_detail
+
+namespace afr {
 
 // =============================================================================================
 // Tracer
@@ -688,6 +695,7 @@ size_t Tracer::copied_vertices() const {
 }
 
 bool Tracer::rigid_transform(uint32_t node, glm::dmat4* world, glm::dmat4* inverse) const {
+  using namespace tracer_detail;  // the parts (tracer_parts.h), in this function only
   const Impl& m = *impl_;
   if (node >= m.moving_instance_of_node_.size()) return false;
   const int i = m.moving_instance_of_node_[node];
@@ -700,6 +708,7 @@ bool Tracer::rigid_transform(uint32_t node, glm::dmat4* world, glm::dmat4* inver
 }
 
 ShadedSample Tracer::trace(const Ray& ray, TraceStats* stats) const {
+  using namespace tracer_detail;  // the parts (tracer_parts.h), in this function only
   ShadedSample s;
   // Embree's behaviour on rays with NaN or Inf is undefined: they miss.
   const HitRef hit = finite(ray.origin) && finite(ray.direction)
@@ -711,6 +720,7 @@ ShadedSample Tracer::trace(const Ray& ray, TraceStats* stats) const {
 
 void Tracer::trace_crosshair(const Camera& camera, double x, double y, int width, int height,
                              std::array<ShadedSample, 5>* out, TraceStats* stats) const {
+  using namespace tracer_detail;  // the parts (tracer_parts.h), in this function only
   static constexpr double kDx[5] = {0.0, -1.0, 1.0, 0.0, 0.0};
   static constexpr double kDy[5] = {0.0, 0.0, 0.0, -1.0, 1.0};
   Ray rays[5];
@@ -766,6 +776,7 @@ void Tracer::trace_crosshair(const Camera& camera, double x, double y, int width
 }
 
 bool Tracer::occluded(const glm::vec3& from, const glm::vec3& to, TraceStats* stats) const {
+  using namespace tracer_detail;  // the parts (tracer_parts.h), in this function only
   ++stats->occlusion_rays;
   const glm::vec3 d = to - from;
   const float len = glm::length(d);

@@ -1,4 +1,4 @@
-// Building the tracer's Embree scenes (Tracer::Impl, tracer_parts.h) and setting them to a
+// Building the tracer's Embree scenes (TracerImpl, tracer_parts.h) and setting them to a
 // time: the geometry's records and filters, the instances' transforms and velocities, the
 // deforming meshes' vertices, and the lights.
 #include <afr/common/check.h>
@@ -16,7 +16,7 @@
 
 #include "tracer_parts.h"
 
-namespace afr {
+namespace afr::tracer_detail {
 namespace {
 
 // Half-width of the central difference that gives instance velocities.
@@ -44,7 +44,7 @@ void to_float3x4(const glm::dmat4& m, float out[12]) {
 
 }  // namespace
 
-Tracer::Impl::Impl(const Scene& scene, const TracerOptions& options)
+TracerImpl::TracerImpl(const Scene& scene, const TracerOptions& options)
     : scene_(scene), options_(options) {
   if (scene.ray_depth) options_.max_mirror_depth = *scene.ray_depth;
   glm::dvec3 lo, hi;
@@ -73,7 +73,7 @@ Tracer::Impl::Impl(const Scene& scene, const TracerOptions& options)
   }
 }
 
-void Tracer::Impl::release() {
+void TracerImpl::release() {
   for (Instance& inst : instances_)
     if (inst.geom) rtcReleaseGeometry(inst.geom);
   instances_.clear();
@@ -86,14 +86,14 @@ void Tracer::Impl::release() {
   device_ = nullptr;
 }
 
-void Tracer::Impl::check_device(const char* what) const {
+void TracerImpl::check_device(const char* what) const {
   const RTCError e = rtcGetDeviceError(device_);
   if (e != RTC_ERROR_NONE)
     throw Error(std::string("embree: ") + what + " failed (error " + std::to_string(int(e)) +
                 ") for scene " + scene_.source);
 }
 
-void Tracer::Impl::set_filters(RTCGeometry g, uint32_t material, const Primitive& p) {
+void TracerImpl::set_filters(RTCGeometry g, uint32_t material, const Primitive& p) {
   AFR_DCHECK(material < materials_.size());
   const shading::ShadeMaterial& m = materials_[material];
   const float* vertex_alpha = tested_alpha(p, material);
@@ -128,9 +128,9 @@ void Tracer::Impl::set_filters(RTCGeometry g, uint32_t material, const Primitive
   if (masked) rtcSetGeometryIntersectFilterFunction(g, &mask_filter);
 }
 
-RTCGeometry Tracer::Impl::new_triangle_geometry(uint32_t material, const Primitive& p,
-                                                const glm::vec3* positions, size_t vertex_count,
-                                                const uint32_t* indices, size_t triangle_count) {
+RTCGeometry TracerImpl::new_triangle_geometry(uint32_t material, const Primitive& p,
+                                              const glm::vec3* positions, size_t vertex_count,
+                                              const uint32_t* indices, size_t triangle_count) {
   RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
   // Embree's own buffers carry the padding its SIMD loads need.
   auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
@@ -155,7 +155,7 @@ RTCGeometry Tracer::Impl::new_triangle_geometry(uint32_t material, const Primiti
 // node carries or that static nodes share beyond TracerOptions::max_copied_vertices, and a top
 // level of instances.
 
-void Tracer::Impl::build() {
+void TracerImpl::build() {
   const uint32_t default_material = uint32_t(scene_.materials.size());
   materials_.reserve(scene_.materials.size() + 1);
   for (const Material& m : scene_.materials)
@@ -387,7 +387,7 @@ void Tracer::Impl::build() {
 // LOW) with a BVH per primitive that set_time refits (geometry quality REFIT) instead of
 // rebuilding, since only vertex positions change. The BVH is built once over the positions at
 // time 0, so that its topology fits the shape.
-void Tracer::Impl::build_deforming(const std::vector<int>& nodes, uint32_t default_material) {
+void TracerImpl::build_deforming(const std::vector<int>& nodes, uint32_t default_material) {
   size_t max_vertices = 0;
   for (int n : nodes) {
     const std::vector<Primitive>& primitives =
@@ -461,7 +461,7 @@ void Tracer::Impl::build_deforming(const std::vector<int>& nodes, uint32_t defau
 
 // Deforming geometry at the current time (state_), with per-vertex velocities by the
 // difference quotient of the positions at `before` and `after` (state_minus_, state_plus_).
-void Tracer::Impl::deform(double before, double after) {
+void TracerImpl::deform(double before, double after) {
   const float inverse_dt = float(1.0 / (after - before));
   Blas& b = blas_[size_t(deforming_blas_)];
   for (size_t k = 0; k < deforming_.size(); ++k) {
@@ -485,7 +485,7 @@ void Tracer::Impl::deform(double before, double after) {
   rtcCommitGeometry(instances_[size_t(deforming_instance_)].geom);
 }
 
-void Tracer::Impl::set_time(double t) {
+void TracerImpl::set_time(double t) {
   scene_.evaluate(t, &state_);
   const bool moving = !deforming_.empty() || std::any_of(instances_.begin(), instances_.end(),
                                                          [](const Instance& i) { return i.moves; });
@@ -553,7 +553,7 @@ void Tracer::Impl::set_time(double t) {
 }
 
 // The lights that ride on the camera (Light::on_camera) go after the nodes' lights.
-void Tracer::Impl::place_camera_lights(const Camera& camera) {
+void TracerImpl::place_camera_lights(const Camera& camera) {
   lights_.resize(node_light_count_);
   if (camera_lights_.empty()) return;
   // The camera's frame as a node transform: x right, y up, z back, at the eye.
@@ -567,4 +567,4 @@ void Tracer::Impl::place_camera_lights(const Camera& camera) {
   }
 }
 
-}  // namespace afr
+}  // namespace afr::tracer_detail

@@ -1,11 +1,11 @@
-// Glass (Tracer::Impl::glass, tracer_parts.h): Whitted-style reflection and refraction at a
+// Glass (TracerImpl::glass, tracer_parts.h): Whitted-style reflection and refraction at a
 // transmissive surface, the media a refracted ray travels in, and dispersion.
 #include <algorithm>
 #include <cmath>
 
 #include "tracer_parts.h"
 
-namespace afr {
+namespace afr::tracer_detail {
 
 namespace {
 
@@ -57,9 +57,9 @@ int single_channel(const glm::vec3& t) {
 // Whitted glass at s, hit along d (docs/scene-model.md, "Transmission and refraction"): a
 // reflected ray weighted by Schlick's Fresnel and a refracted one (Snell) weighted by the rest
 // times transmission and base color; total internal reflection past the critical angle.
-glm::vec3 Tracer::Impl::glass(const glm::vec3& d, const Surface& s, const glm::vec3& tex, int depth,
-                              const glm::vec3& throughput, const Media& media,
-                              TraceStats* stats) const {
+glm::vec3 TracerImpl::glass(const glm::vec3& d, const Surface& s, const glm::vec3& tex, int depth,
+                            const glm::vec3& throughput, const Media& media,
+                            TraceStats* stats) const {
   const ShadeMaterial& m = *s.material;
   // Entering or leaving: the side of the triangle's own geometric normal, before make_surface
   // turned it toward the viewer for a double-sided material.
@@ -179,4 +179,4 @@ glm::vec3 Tracer::Impl::glass(const glm::vec3& d, const Surface& s, const glm::v
   return result;
 }
 
-}  // namespace afr
+}  // namespace afr::tracer_detail

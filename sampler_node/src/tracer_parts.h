@@ -3,7 +3,8 @@
 // whose work the files divide: tracer.cpp (surfaces, shading, the paths of mirror and blended
 // surfaces, the public Tracer), tracer_build.cpp (the Embree scenes and setting them to a time),
 // tracer_shadows.cpp (shadow rays through glass and cut-away or blended surfaces) and
-// tracer_glass.cpp (refraction). Private to afr_sampler: only those files include it.
+// tracer_glass.cpp (refraction), all in namespace afr::tracer_detail. Private to afr_sampler:
+// only those files include it.
 #pragma once
 
 #include <afr/sampler/tracer.h>
@@ -419,16 +420,11 @@ struct GeometryFilter {
 void occlusion_filter(const RTCFilterFunctionNArguments* args);
 void mask_filter(const RTCFilterFunctionNArguments* args);
 
-}  // namespace afr::tracer_detail
+// =============================================================================================
+// Tracer::Impl: the tracer's state, and the work its files share out. It is declared here, in
+// tracer_detail, where its parts have their short names; Tracer::Impl (below) only names it.
 
-namespace afr {
-
-// The tracer's files (and only they, which include this header) use the parts by their names.
-using namespace tracer_detail;
-
-// Impl
-
-struct Tracer::Impl {
+struct TracerImpl {
   Scene scene_;
   TracerOptions options_;
   RTCDevice device_ = nullptr;
@@ -473,8 +469,8 @@ struct Tracer::Impl {
   // micrometres, so that shadow rays started beyond every blocker.
   float offset_floor_ = 1.0f;
 
-  Impl(const Scene& scene, const TracerOptions& options);
-  ~Impl() { release(); }
+  TracerImpl(const Scene& scene, const TracerOptions& options);
+  ~TracerImpl() { release(); }
   void release();
 
   void check_device(const char* what) const;
@@ -591,6 +587,14 @@ struct Tracer::Impl {
   // The offset that keeps a ray leaving the surface at p from hitting that surface again.
   float offset_at(const glm::vec3& p) const { return kRayOffset * (offset_floor_ + max_abs(p)); }
   void finish(const Ray& ray, const HitRef& hit, ShadedSample* out, TraceStats* stats) const;
+};
+
+}  // namespace afr::tracer_detail
+
+namespace afr {
+
+struct Tracer::Impl : tracer_detail::TracerImpl {
+  using TracerImpl::TracerImpl;
 };
 
 }  // namespace afr

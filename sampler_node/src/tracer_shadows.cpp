@@ -1,5 +1,5 @@
 // Shadow rays and what lets them through: glass, diffusely transmitting, cut-away and blended
-// surfaces (Tracer::Impl, tracer_parts.h).
+// surfaces (TracerImpl, tracer_parts.h).
 //
 // ---- Shadows through glass, diffuse transmitters and blended surfaces ----
 //
@@ -49,7 +49,7 @@
 
 #include "tracer_parts.h"
 
-namespace afr {
+namespace afr::tracer_detail {
 namespace {
 
 constexpr float kShadowCutoff = 1e-3f;  // a ray dimmer than this is blocked
@@ -85,8 +85,6 @@ bool crosses(const RTCFilterFunctionNArguments* args, unsigned i, const glm::vec
 
 }  // namespace
 
-namespace tracer_detail {
-
 // point, and shadow rays through glass and blended surfaces.
 void occlusion_filter(const RTCFilterFunctionNArguments* args) {
   const auto* f = static_cast<const GeometryFilter*>(args->geometryUserPtr);
@@ -114,9 +112,7 @@ void mask_filter(const RTCFilterFunctionNArguments* args) {
     if (args->valid[i] == -1 && !f->opaque_at(args, i)) args->valid[i] = 0;
   }
 }
-}  // namespace tracer_detail
-
-glm::vec3 Tracer::Impl::filtered_shadow(const glm::vec3& o, const glm::vec3& d, float tfar) const {
+glm::vec3 TracerImpl::filtered_shadow(const glm::vec3& o, const glm::vec3& d, float tfar) const {
   ShadowContext ctx;
   RTCRay r;
   init_ray(&r, o, d, 0.0f, tfar);
@@ -137,8 +133,8 @@ glm::vec3 Tracer::Impl::filtered_shadow(const glm::vec3& o, const glm::vec3& d, 
 // it. A surface the ray leaves by, without having entered it on the way, holds the ray's origin
 // (or the light) inside: the media so left are those the ray starts in, the first left the
 // innermost.
-glm::vec3 Tracer::Impl::volume_transmittance(const ShadowContext& ctx, int lane, const glm::vec3& d,
-                                             float tfar) const {
+glm::vec3 TracerImpl::volume_transmittance(const ShadowContext& ctx, int lane, const glm::vec3& d,
+                                           float tfar) const {
   struct Stop {
     float t;
     bool entering;
@@ -204,7 +200,7 @@ glm::vec3 Tracer::Impl::volume_transmittance(const ShadowContext& ctx, int lane,
   return glm::exp(-optical_depth);
 }
 
-bool Tracer::Impl::blocked(const glm::vec3& o, const glm::vec3& d, float tnear, float tfar) const {
+bool TracerImpl::blocked(const glm::vec3& o, const glm::vec3& d, float tnear, float tfar) const {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRay r;
@@ -213,4 +209,4 @@ bool Tracer::Impl::blocked(const glm::vec3& o, const glm::vec3& d, float tnear, 
   return r.tfar < 0.0f;  // Embree sets tfar to -inf on a hit
 }
 
-}  // namespace afr
+}  // namespace afr::tracer_detail
