@@ -22,11 +22,8 @@ void derive(ShadeMaterial* m, float metallic, float roughness) {
   m->alpha = r * r;
   m->alpha_t = m->alpha + (1.0f - m->alpha) * m->anisotropy * m->anisotropy;
   m->diffuse_weight = (1.0f - m->metallic) * (1.0f - m->transmission);
-  float specular_share = 0.0f;  // of a specular-glossiness material's diffuse light
-  if (m->specular_glossiness) {
-    specular_share = std::max(m->specular_f0.r, std::max(m->specular_f0.g, m->specular_f0.b));
-    m->diffuse_weight *= 1.0f - specular_share;
-  }
+  const float specular_share = m->specular_share();
+  m->diffuse_weight *= 1.0f - specular_share;
   // KHR_materials_diffuse_transmission takes its share of the diffuse part (what neither metal
   // nor glass has taken) from the diffuse reflection and passes it through the surface.
   const float transmitted_share = m->diffuse_transmission * m->diffuse_weight;

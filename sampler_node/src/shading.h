@@ -22,6 +22,7 @@
 #include <afr/common/math.h>
 #include <afr/common/scene.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -208,6 +209,11 @@ struct ShadeMaterial {
   glm::vec3 shadow_transmittance{0.0f};
   // Shadow rays pass through it, dimmed by shadow_transmittance.
   bool lets_shadow_rays_through() const { return is_glass || diffuse_transmits; }
+  // The share of a specular-glossiness material's diffuse light its F0 takes (0 for any other).
+  float specular_share() const {
+    return specular_glossiness ? std::max(specular_f0.r, std::max(specular_f0.g, specular_f0.b))
+                               : 0.0f;
+  }
   // Where an animation drives texture transforms (Material::uv_transforms), each texture
   // coordinate set's transform at this time, indexed like the sets (the tracer owns them);
   // null where none is animated.

@@ -393,12 +393,9 @@ struct GeometryFilter {
         color *= m.diffuse_transmission_color_texture->sample(
             diffuse_transmission_color_uvs.at(m, tri, u, v), 0.0f);
       }
-      const float specular_share =
-          m.specular_glossiness
-              ? std::max(m.specular_f0.r, std::max(m.specular_f0.g, m.specular_f0.b))
-              : 0.0f;
+      // The diffuse part metal, glass and a specular-glossiness F0 leave, as derive() takes it.
       kept += strength * color * (1.0f - m.metallic_factor) * (1.0f - transmission) *
-              (1.0f - specular_share);
+              (1.0f - m.specular_share());
     }
     return glm::clamp(kept, glm::vec3(0.0f), glm::vec3(1.0f));
   }
