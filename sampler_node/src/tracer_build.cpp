@@ -177,6 +177,19 @@ void TracerImpl::build() {
       animated_through_[size_t(c.index)] = 1;
     }
   }
+  // A material is a volume where its thickness is above 0, or may become one where an animation
+  // drives its thickness or transmission.
+  std::vector<char> volume(scene_.materials.size(), 0);
+  for (size_t i = 0; i < scene_.materials.size(); ++i) {
+    volume[i] = materials_[i].is_volume || scene_.materials[i].thickness > 0.0f;
+  }
+  for (const PropertyChannel& c : scene_.property_channels) {
+    if (c.property == AnimatedProperty::kThicknessFactor ||
+        c.property == AnimatedProperty::kTransmissionFactor) {
+      volume[size_t(c.index)] = 1;
+    }
+  }
+  several_volumes_ = std::count(volume.begin(), volume.end(), 1) >= 2;
   auto material_of = [&](const Primitive& p) {
     return p.material >= 0 && size_t(p.material) < scene_.materials.size() ? uint32_t(p.material)
                                                                            : default_material;

@@ -54,6 +54,34 @@ int single_channel(const glm::vec3& t) {
 
 }  // namespace
 
+// Two volumes whose surfaces coincide (a liquid filling a glass to its wall, modelled on the same
+// surface): the ray crosses both at the one point, but meets only the surface Embree reports, and
+// the refracted ray starts beyond the other. Around the hit (within the ray offset on either
+// side) a probe collects the glass surfaces there, as a shadow ray does (crosses, through the
+// occlusion filter every glass geometry has); each surface of another volume changes the media
+// on the far side as its own hit would: entered, or left. The interface then bends light by the
+// ratio of the two media's iors, and the ray goes on in the right medium. (What that surface's
+// own transmission and base color would take from the ray is not taken.)
+void TracerImpl::cross_coincident_surfaces(const Surface& s, const glm::vec3& d,
+                                           Media* after) const {
+  const float reach = offset_at(s.p);
+  ShadowContext ctx;
+  RTCRay r;
+  init_ray(&r, s.p - reach * d, d, 0.0f, 2.0f * reach);
+  r.id = kShadowRayId;
+  rtcOccluded1(top_, &ctx.embree, &r);
+  const ShadeMaterial* self = &materials_[size_t(s.geom->material)];
+  for (int k = 0; k < ctx.n_crossed[0]; ++k) {
+    const ShadowContext::Crossed& c = ctx.crossed[0][k];
+    const Instance& inst = instances_[c.inst];
+    const GeomRecord& g = blas_[size_t(inst.blas)].geoms[c.geom];
+    const ShadeMaterial* medium = &materials_[g.material];
+    if (medium == self || !medium->is_volume) continue;  // s itself, or no medium
+    const uint32_t* tri = g.indices + 3 * size_t(c.prim);
+    *after = leaves_through(g, inst, tri, d) ? after->left(medium) : after->entered(medium);
+  }
+}
+
 // Whitted glass at s, hit along d (docs/scene-model.md, "Transmission and refraction"): a
 // reflected ray weighted by Schlick's Fresnel and a refracted one (Snell) weighted by the rest
 // times transmission and base color; total internal reflection past the critical angle.
@@ -63,12 +91,7 @@ glm::vec3 TracerImpl::glass(const glm::vec3& d, const Surface& s, const glm::vec
   const ShadeMaterial& m = *s.material;
   // Entering or leaving: the side of the triangle's own geometric normal, before make_surface
   // turned it toward the viewer for a double-sided material.
-  const uint32_t* tri = s.triangle;
-  const glm::vec3& p0 = s.geom->positions[tri[0]];
-  glm::vec3 face = glm::cross(s.geom->positions[tri[1]] - p0, s.geom->positions[tri[2]] - p0);
-  if (s.geom->flip_winding) face = -face;
-  if (s.instance->transformed) face = s.instance->normal_matrix * face;
-  const bool entering = !(glm::dot(face, d) > 0.0f);
+  const bool entering = !leaves_through(*s.geom, *s.instance, s.triangle, d);
 
   // Normals on the side the ray arrives from (a single-sided back face keeps its own).
   const glm::vec3 ng = s.back_face ? -s.ng : s.ng;
@@ -93,6 +116,7 @@ glm::vec3 TracerImpl::glass(const glm::vec3& d, const Surface& s, const glm::vec
       if (!media.contains(self)) before = media.entered(self);
       after = before.left(self);
     }
+    if (several_volumes_) cross_coincident_surfaces(s, d, &after);
   }
   // The indices of refraction on the side the ray comes from and on the other, for color
   // channel c (-1: all).

@@ -144,6 +144,19 @@ struct Instance {
   glm::dmat4 world{1.0}, inverse_world{1.0};
 };
 
+// Whether a ray along d leaves through triangle `tri` of g, placed by instance `inst`: whether it
+// meets the triangle's own front (glTF's winding, turned where the node mirrors) from behind. A
+// volume's surfaces face out of it, so this tells leaving from entering, whichever side of a
+// double-sided surface make_surface turned toward the viewer.
+inline bool leaves_through(const GeomRecord& g, const Instance& inst, const uint32_t* tri,
+                           const glm::vec3& d) {
+  const glm::vec3& p0 = g.positions[tri[0]];
+  glm::vec3 face = glm::cross(g.positions[tri[1]] - p0, g.positions[tri[2]] - p0);
+  if (g.flip_winding) face = -face;
+  if (inst.transformed) face = inst.normal_matrix * face;
+  return glm::dot(face, d) > 0.0f;
+}
+
 // What one Embree ray query returned, whether from a single ray or a packet lane.
 struct HitRef {
   float t = 0.0f;
@@ -458,6 +471,9 @@ struct TracerImpl {
   std::vector<DeformingPrimitive> deforming_;
   int deforming_blas_ = -1;
   int deforming_instance_ = -1;
+  // Whether two or more materials are volumes (KHR_materials_volume), at some time: only then
+  // can two media's surfaces coincide (cross_coincident_surfaces).
+  bool several_volumes_ = false;
   std::vector<glm::vec3> positions_before_, positions_after_;
   SceneState state_, state_minus_, state_plus_;
   Camera camera_;
@@ -576,6 +592,9 @@ struct TracerImpl {
   [[gnu::noinline]] glm::vec3 glass(const glm::vec3& d, const Surface& s, const glm::vec3& tex,
                                     int depth, const glm::vec3& throughput, const Media& media,
                                     TraceStats* stats) const;
+  // The media on the far side of volume surface s, hit along d, changed by the other volumes'
+  // surfaces that coincide with it there (tracer_glass.cpp).
+  void cross_coincident_surfaces(const Surface& s, const glm::vec3& d, Media* after) const;
   glm::vec3 secondary(const glm::vec3& origin, const glm::vec3& d, const Surface& from, int depth,
                       const glm::vec3& throughput, const Media& media, TraceStats* stats) const;
   bool begin_sample(const Ray& ray, const HitRef& hit, ShadedSample* o, Surface* s,

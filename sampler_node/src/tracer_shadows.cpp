@@ -150,11 +150,7 @@ glm::vec3 TracerImpl::volume_transmittance(const ShadowContext& ctx, int lane, c
     const ShadeMaterial* medium = &materials_[g.material];
     if (!medium->is_volume) continue;
     const uint32_t* tri = g.indices + 3 * size_t(c.prim);
-    const glm::vec3& p0 = g.positions[tri[0]];
-    glm::vec3 face = glm::cross(g.positions[tri[1]] - p0, g.positions[tri[2]] - p0);
-    if (g.flip_winding) face = -face;
-    if (inst.transformed) face = inst.normal_matrix * face;
-    stops[size_t(n++)] = {c.t, !(glm::dot(face, d) > 0.0f), medium};
+    stops[size_t(n++)] = {c.t, !leaves_through(g, inst, tri, d), medium};
   }
   std::sort(stops.begin(), stops.begin() + n,
             [](const Stop& a, const Stop& b) { return a.t < b.t; });

@@ -163,6 +163,70 @@ TEST(TracerTest, NestedVolumesRefractByTheRatioOfTheirIorsAndAbsorbByTheInnermos
   EXPECT_EQ(stats.sanitized, 0u);
 }
 
+// Two volumes whose surfaces coincide: a glass slab 1 thick on a water slab 1 thick, the glass's
+// bottom face and the water's top face one plane, as a liquid modelled to fill its glass to the
+// wall. A ray entering the glass's top at 40 degrees crosses into the water by the ratio of their
+// iors (the glass-to-water Fresnel term), absorbs in each by its own color, leaves the water's
+// bottom parallel to where it came from and lands where Snell's law at the three interfaces puts
+// it, whichever slab the scene lists first (so whichever of the coincident faces Embree reports).
+TEST(TracerTest, CoincidentVolumeSurfacesRefractAndAbsorbAsOneInterface) {
+  const double n_glass = 1.5, n_water = 1.33;
+  const double theta = 40.0 * M_PI / 180.0;
+  const double theta_glass = std::asin(std::sin(theta) / n_glass);
+  const double theta_water = std::asin(std::sin(theta) / n_water);
+  const glm::vec3 d(float(std::sin(theta)), 0.0f, -float(std::cos(theta)));
+  const glm::vec3 origin = glm::vec3(0.0f, 0.0f, 1.0f) - 2.0f * d;  // enters the top at x = 0
+  const double z_target = -3.0;
+  const double x_target =
+      std::tan(theta_glass) + std::tan(theta_water) + (-1.0 - z_target) * std::tan(theta);
+  const glm::vec3 glass_color(0.5f, 0.8f, 1.0f), water_color(1.0f, 0.6f, 0.3f);  // per 2 units
+  for (const bool water_first : {false, true}) {
+    SCOPED_TRACE(water_first ? "water listed first" : "glass listed first");
+    Scene s;
+    const int glass = add_glass(&s, float(n_glass));
+    const int liquid = add_glass(&s, float(n_water));
+    for (const auto& [material, color] : {std::pair(glass, glass_color), {liquid, water_color}}) {
+      Material& m = s.materials[size_t(material)];
+      m.thickness = 1.0f;
+      m.attenuation_color = color;
+      m.attenuation_distance = 2.0f;
+    }
+    const auto glass_slab = [&] {
+      add_mesh_node(&s, box_mesh({50.0f, 50.0f, 0.5f}, glass), glm::dvec3(0.0, 0.0, 0.5));
+    };
+    const auto water_slab = [&] {
+      add_mesh_node(&s, box_mesh({49.0f, 49.0f, 0.5f}, liquid), glm::dvec3(0.0, 0.0, -0.5));
+    };
+    if (water_first) {
+      water_slab();
+      glass_slab();
+    } else {
+      glass_slab();
+      water_slab();
+    }
+    const float w = 0.01f;
+    add_mesh_node(&s, quad_mesh({float(x_target) - w / 2, -w / 2, float(z_target)}, {w, 0, 0},
+                                {0, w, 0}, add_emitter(&s, {1, 1, 1})));
+    s.finalize();
+    TracerOptions o;
+    o.max_mirror_depth = 4;
+    Tracer tracer(s, o);
+    TraceStats stats;
+    const ShadedSample out = tracer.trace(Ray{origin, d}, &stats);
+    const double f_air = schlick(n_glass, std::cos(theta));
+    const double f0_water = std::pow((n_glass - n_water) / (n_glass + n_water), 2.0);
+    const double f_water = f0_water + (1.0 - f0_water) * std::pow(1.0 - std::cos(theta_water), 5.0);
+    const double f_out = schlick(n_water, std::cos(theta));
+    const double fresnel = (1.0 - f_air) * (1.0 - f_water) * (1.0 - f_out);
+    for (int c = 0; c < 3; ++c) {
+      const double kept = std::pow(glass_color[c], 1.0 / std::cos(theta_glass) / 2.0) *
+                          std::pow(water_color[c], 1.0 / std::cos(theta_water) / 2.0);
+      EXPECT_NEAR(out.color[c], fresnel * kept, 1e-4) << "channel " << c;
+    }
+    EXPECT_EQ(stats.sanitized, 0u);
+  }
+}
+
 // KHR_materials_dispersion: in a slab of glass 4 thick (a volume), each color channel refracts
 // with its own ior, 1.5 -/+ (1.5 - 1) / (2 V_d) for red and blue, and so leaves displaced by its
 // own h (tan theta - tan theta_c). A tiny white emitter where one channel lands lights that

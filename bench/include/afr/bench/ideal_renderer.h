@@ -18,8 +18,9 @@ namespace afr {
 // by ray cones. 3: mip levels through a binomial low-pass instead of the 2 x 2 box. 4: nested
 // media (KHR_materials_volume) refract by the ratio of their iors and absorb by the innermost.
 // 5: KHR_materials_diffuse_transmission. 6: generated tangent frames turn with an animated
-// KHR_texture_transform. 7: shadow rays pass diffusely transmitting surfaces.
-inline constexpr uint32_t kIdealRendererVersion = 7;
+// KHR_texture_transform. 7: shadow rays pass diffusely transmitting surfaces. 8: coinciding
+// surfaces of two volumes cross from one medium into the other.
+inline constexpr uint32_t kIdealRendererVersion = 8;
 
 struct IdealRenderOptions {
   int width = 256;
