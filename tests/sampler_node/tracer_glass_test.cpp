@@ -32,10 +32,27 @@ int add_emitter(Scene* s, glm::vec3 emission) {
   return m;
 }
 
-// Schlick's Fresnel reflectance of a dielectric of index `ior` at cosine c (outer side).
-double schlick(double ior, double c) {
-  const double f0 = (ior - 1.0) * (ior - 1.0) / ((ior + 1.0) * (ior + 1.0));
+// Schlick's Fresnel reflectance of an interface between indices `ior` and `outer` (air: 1) at
+// cosine c on the side of the lower index.
+double schlick(double ior, double c, double outer = 1.0) {
+  const double f0 = (ior - outer) * (ior - outer) / ((ior + outer) * (ior + outer));
   return f0 + (1.0 - f0) * std::pow(1.0 - c, 5.0);
+}
+
+// A tiny square emitter (0.01 wide) of the given radiance centred at (x, 0, z), facing +Z: where
+// a test's closed form puts a ray.
+void add_target(Scene* s, double x, double z, glm::vec3 radiance = glm::vec3(1.0f)) {
+  const float w = 0.01f;
+  add_mesh_node(s, quad_mesh({float(x) - w / 2, -w / 2, float(z)}, {w, 0, 0}, {0, w, 0},
+                             add_emitter(s, radiance)));
+}
+
+// Makes glass `material` of s a volume (thickness 1) that keeps `color` per 2 units travelled.
+void make_absorbing_volume(Scene* s, int material, glm::vec3 color) {
+  Material& m = s->materials[size_t(material)];
+  m.thickness = 1.0f;
+  m.attenuation_color = color;
+  m.attenuation_distance = 2.0f;
 }
 
 // A slab of glass (ior 1.5, 1 thick, between z = 0.5 and z = -0.5) and, at depth z_target, a
@@ -55,11 +72,8 @@ TEST(TracerTest, RayThroughAGlassSlabLeavesParallelAndDisplaced) {
     ASSERT_GT(x_straight - x_refracted, 0.3);  // the two targets are far apart
     Scene s;
     add_mesh_node(&s, box_mesh({50.0f, 50.0f, 0.5f}, add_glass(&s, float(ior))));
-    const float w = 0.01f;
-    add_mesh_node(&s, quad_mesh({float(x_refracted) - w / 2, -w / 2, float(z_target)}, {w, 0, 0},
-                                {0, w, 0}, add_emitter(&s, {1, 0, 0})));
-    add_mesh_node(&s, quad_mesh({float(x_straight) - w / 2, -w / 2, float(z_target)}, {w, 0, 0},
-                                {0, w, 0}, add_emitter(&s, {0, 1, 0})));
+    add_target(&s, x_refracted, z_target, {1, 0, 0});
+    add_target(&s, x_straight, z_target, {0, 1, 0});
     s.finalize();
     Tracer tracer(s);
     TraceStats stats;
@@ -93,9 +107,7 @@ TEST(TracerTest, GlassVolumeAttenuatesByTheDistanceInside) {
     s.materials[size_t(glass)].attenuation_color = {1.0f, 0.25f, 1.0f};
     s.materials[size_t(glass)].attenuation_distance = 2.0f;
     add_mesh_node(&s, box_mesh({50.0f, 50.0f, 0.5f}, glass));
-    const float w = 0.01f;
-    add_mesh_node(&s, quad_mesh({float(x_refracted) - w / 2, -w / 2, float(z_target)}, {w, 0, 0},
-                                {0, w, 0}, add_emitter(&s, {1, 1, 1})));
+    add_target(&s, x_refracted, z_target);
     s.finalize();
     Tracer tracer(s);
     TraceStats stats;
@@ -134,17 +146,11 @@ TEST(TracerTest, NestedVolumesRefractByTheRatioOfTheirIorsAndAbsorbByTheInnermos
   Scene s;
   const int glass = add_glass(&s, float(n_glass));
   const int liquid = add_glass(&s, float(n_water));
-  for (const auto& [material, color] : {std::pair(glass, glass_color), {liquid, water_color}}) {
-    Material& m = s.materials[size_t(material)];
-    m.thickness = 1.0f;
-    m.attenuation_color = color;
-    m.attenuation_distance = 2.0f;
-  }
+  make_absorbing_volume(&s, glass, glass_color);
+  make_absorbing_volume(&s, liquid, water_color);
   add_mesh_node(&s, box_mesh({50.0f, 50.0f, top}, glass));
   add_mesh_node(&s, box_mesh({49.0f, 49.0f, float(water / 2)}, liquid));
-  const float w = 0.01f;
-  add_mesh_node(&s, quad_mesh({float(x_target) - w / 2, -w / 2, float(z_target)}, {w, 0, 0},
-                              {0, w, 0}, add_emitter(&s, {1, 1, 1})));
+  add_target(&s, x_target, z_target);
   s.finalize();
   TracerOptions o;
   o.max_mirror_depth = 4;  // four refractions
@@ -152,8 +158,7 @@ TEST(TracerTest, NestedVolumesRefractByTheRatioOfTheirIorsAndAbsorbByTheInnermos
   TraceStats stats;
   const ShadedSample out = tracer.trace(Ray{origin, d}, &stats);
   const double f_air = schlick(n_glass, std::cos(theta));
-  const double f0_water = std::pow((n_glass - n_water) / (n_glass + n_water), 2.0);
-  const double f_water = f0_water + (1.0 - f0_water) * std::pow(1.0 - std::cos(theta_water), 5.0);
+  const double f_water = schlick(n_glass, std::cos(theta_water), n_water);
   const double fresnel = std::pow((1.0 - f_air) * (1.0 - f_water), 2.0);
   for (int c = 0; c < 3; ++c) {
     const double kept = std::pow(glass_color[c], 2 * wall / std::cos(theta_glass) / 2.0) *
@@ -185,12 +190,8 @@ TEST(TracerTest, CoincidentVolumeSurfacesRefractAndAbsorbAsOneInterface) {
     Scene s;
     const int glass = add_glass(&s, float(n_glass));
     const int liquid = add_glass(&s, float(n_water));
-    for (const auto& [material, color] : {std::pair(glass, glass_color), {liquid, water_color}}) {
-      Material& m = s.materials[size_t(material)];
-      m.thickness = 1.0f;
-      m.attenuation_color = color;
-      m.attenuation_distance = 2.0f;
-    }
+    make_absorbing_volume(&s, glass, glass_color);
+    make_absorbing_volume(&s, liquid, water_color);
     const auto glass_slab = [&] {
       add_mesh_node(&s, box_mesh({50.0f, 50.0f, 0.5f}, glass), glm::dvec3(0.0, 0.0, 0.5));
     };
@@ -204,9 +205,7 @@ TEST(TracerTest, CoincidentVolumeSurfacesRefractAndAbsorbAsOneInterface) {
       glass_slab();
       water_slab();
     }
-    const float w = 0.01f;
-    add_mesh_node(&s, quad_mesh({float(x_target) - w / 2, -w / 2, float(z_target)}, {w, 0, 0},
-                                {0, w, 0}, add_emitter(&s, {1, 1, 1})));
+    add_target(&s, x_target, z_target);
     s.finalize();
     TracerOptions o;
     o.max_mirror_depth = 4;
@@ -214,8 +213,7 @@ TEST(TracerTest, CoincidentVolumeSurfacesRefractAndAbsorbAsOneInterface) {
     TraceStats stats;
     const ShadedSample out = tracer.trace(Ray{origin, d}, &stats);
     const double f_air = schlick(n_glass, std::cos(theta));
-    const double f0_water = std::pow((n_glass - n_water) / (n_glass + n_water), 2.0);
-    const double f_water = f0_water + (1.0 - f0_water) * std::pow(1.0 - std::cos(theta_water), 5.0);
+    const double f_water = schlick(n_glass, std::cos(theta_water), n_water);
     const double f_out = schlick(n_water, std::cos(theta));
     const double fresnel = (1.0 - f_air) * (1.0 - f_water) * (1.0 - f_out);
     for (int c = 0; c < 3; ++c) {
@@ -248,9 +246,7 @@ TEST(TracerTest, DispersionRefractsEachColorChannelWithItsOwnIor) {
     s.materials[size_t(glass)].thickness = thickness;
     s.materials[size_t(glass)].dispersion = disp;
     add_mesh_node(&s, box_mesh({50.0f, 50.0f, float(h / 2)}, glass));
-    const float w = 0.01f;
-    add_mesh_node(&s, quad_mesh({float(x_target) - w / 2, -w / 2, float(z_target)}, {w, 0, 0},
-                                {0, w, 0}, add_emitter(&s, {1, 1, 1})));
+    add_target(&s, x_target, z_target);
     s.finalize();
     Tracer tracer(s);
     TraceStats stats;
