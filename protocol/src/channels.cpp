@@ -160,7 +160,25 @@ void apply_security(zmq::socket_t& s, const Security& security, const Context& c
   set_string(s, ZMQ_CURVE_SECRETKEY, security.own.secret_key);
 }
 
+// Whether a TCP endpoint needs libzmq's IPv6 option: an IPv6 address in brackets
+// ("tcp://[::1]:7100", either side of a connect's "SRC;HOST"), or a wildcard bind, which then
+// listens on IPv6 and IPv4 both (libzmq falls back to IPv4 where the kernel has no IPv6).
+// Without the option libzmq refuses IPv6 addresses ("No such device"). IPv4 addresses and host
+// names keep IPv4 sockets: with the option an IPv4 address becomes an IPv4-mapped IPv6 one
+// ("[::ffff:127.0.0.1]") in the socket's endpoint and its peers' addresses, and a name that
+// also resolves to IPv6 is tried there only.
+bool wants_ipv6(const std::string& endpoint) {
+  if (!starts_with(endpoint, "tcp://")) return false;
+  const std::string host = endpoint.substr(6);
+  return host.find('[') != std::string::npos || starts_with(host, "*:");
+}
+
+void enable_ipv6_for(zmq::socket_t& s, const std::string& endpoint) {
+  if (wants_ipv6(endpoint)) set_int(s, ZMQ_IPV6, 1);
+}
+
 void bind(zmq::socket_t& s, const std::string& endpoint) {
+  enable_ipv6_for(s, endpoint);
   try {
     s.bind(endpoint);
   } catch (const zmq::error_t& e) {
@@ -169,6 +187,7 @@ void bind(zmq::socket_t& s, const std::string& endpoint) {
 }
 
 void connect(zmq::socket_t& s, const std::string& endpoint) {
+  enable_ipv6_for(s, endpoint);
   try {
     s.connect(endpoint);
   } catch (const zmq::error_t& e) {

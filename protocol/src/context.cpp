@@ -99,6 +99,10 @@ void ZapHandler::handle_request() {
   if (frames.size() >= 6 && frame_text(frames[0]) == "1.0") {
     d.domain = frame_text(frames[2]);
     d.address = frame_text(frames[3]);
+    // An IPv4 peer of a dual-stack (wildcard) socket comes as "::ffff:a.b.c.d".
+    if (d.address.rfind("::ffff:", 0) == 0 && d.address.find('.') != std::string::npos) {
+      d.address.erase(0, 7);
+    }
     d.mechanism = frame_text(frames[5]);
     if (d.mechanism == "CURVE" && frames.size() == 7 && frames[6].size() == 32) {
       std::array<char, 41> z85{};

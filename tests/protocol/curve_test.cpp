@@ -67,6 +67,23 @@ TEST_F(CurveTest, AllowedKeyConnectsAndIsIdentified) {
   EXPECT_EQ(std::get<Welcome>(**back), welcome);
 }
 
+// A wildcard bind listens on IPv6 and IPv4 both (docs/service.md); an IPv4 peer is still
+// reported by its IPv4 address, not as the IPv4-mapped IPv6 one ("::ffff:127.0.0.1").
+TEST_F(CurveTest, AnIpv4PeerOfAWildcardBindIsReportedByItsIpv4Address) {
+  ControlServer everywhere(context_, "tcp://*:*", Security::server(display_));
+  const std::string port = everywhere.endpoint().substr(everywhere.endpoint().rfind(':') + 1);
+  Context sampler_context;
+  ControlClient stranger(sampler_context, "tcp://127.0.0.1:" + port,
+                         Security::client(stranger_, display_.public_key));
+  Pcg32 rng(3);
+  ASSERT_TRUE(stranger.send(random_join(rng)).ok());
+  EXPECT_FALSE(everywhere.receive(1000).has_value());
+  const std::vector<ZapDecision> d = decisions();
+  ASSERT_FALSE(d.empty());
+  EXPECT_FALSE(d[0].accepted);
+  EXPECT_EQ(d[0].address, "127.0.0.1");
+}
+
 TEST_F(CurveTest, UnknownKeyIsRefusedAndReported) {
   ControlServer server(context_, "tcp://127.0.0.1:*", Security::server(display_));
   Context sampler_context;

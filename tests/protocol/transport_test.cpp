@@ -58,6 +58,19 @@ int free_port() {
 
 std::string tcp(int port) { return "tcp://127.0.0.1:" + std::to_string(port); }
 
+// Whether this machine can bind a TCP socket on the IPv6 loopback (a container may have no
+// IPv6 at all).
+bool has_ipv6_loopback() {
+  const int fd = socket(AF_INET6, SOCK_STREAM, 0);
+  if (fd < 0) return false;
+  sockaddr_in6 a{};
+  a.sin6_family = AF_INET6;
+  a.sin6_addr = in6addr_loopback;
+  const bool ok = bind(fd, reinterpret_cast<const sockaddr*>(&a), sizeof a) == 0;
+  close(fd);
+  return ok;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Endpoints
 
@@ -402,6 +415,51 @@ TEST(TransportTest, ControlServerRejectsMessagesMeantForSamplers) {
   ASSERT_FALSE(in->message.ok());
   EXPECT_NE(in->message.error().find("welcome: not allowed"), std::string::npos);
   EXPECT_FALSE(in->peer.empty());
+}
+
+// ---------------------------------------------------------------------------------------------
+// IPv6
+
+// Every channel takes IPv6 endpoints as docs/service.md says: the samples and the control
+// channel bound on the IPv6 loopback, reached by address, and a wildcard bind reached over
+// IPv6 and IPv4 both; an IPv4 bind keeps its IPv4 endpoint.
+TEST(TransportTest, ChannelsBindAndConnectOverIpv6) {
+  if (!has_ipv6_loopback()) GTEST_SKIP() << "no IPv6 loopback on this machine";
+  struct Case {
+    const char* bind;
+    const char* connect_host;
+  };
+  for (const Case& c : {Case{"tcp://[::1]:*", "[::1]"}, Case{"tcp://*:*", "[::1]"},
+                        Case{"tcp://*:*", "127.0.0.1"}}) {
+    Context context;
+    SampleReceiver receiver(context, c.bind);
+    const int port = port_of(receiver.endpoint());
+    SampleSender sender(context,
+                        "tcp://" + std::string(c.connect_host) + ":" + std::to_string(port));
+    Pcg32 rng(21);
+    const SampleBatch batch = random_batch(rng, kFieldPosition, 64);
+    ASSERT_TRUE(eventually([&] {
+      return sender.send(batch).ok() && sender.counters().batches_sent > 0;
+    })) << c.bind
+        << " from " << c.connect_host;
+    ASSERT_EQ(receiver.receive(2000), SampleReceiver::Got::kBatch) << c.bind;
+    EXPECT_EQ(receiver.batch().samples.size(), 64u);
+  }
+  {
+    Context context;
+    SampleReceiver receiver(context, "tcp://127.0.0.1:*");
+    EXPECT_EQ(receiver.endpoint().rfind("tcp://127.0.0.1:", 0), 0u) << receiver.endpoint();
+  }
+  Context context;
+  ControlServer server(context, "tcp://[::1]:*");
+  EXPECT_EQ(server.endpoint().rfind("tcp://[::1]:", 0), 0u) << server.endpoint();
+  ControlClient client(context, server.endpoint());
+  Pcg32 rng(22);
+  const Join join = random_join(rng);
+  ASSERT_TRUE(client.send(join).ok());
+  std::optional<ControlServer::Incoming> in = server.receive(2000);
+  ASSERT_TRUE(in.has_value() && in->message.ok());
+  EXPECT_EQ(std::get<Join>(*in->message), join);
 }
 
 // ---------------------------------------------------------------------------------------------

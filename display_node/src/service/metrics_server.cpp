@@ -15,6 +15,14 @@ namespace afr::service {
 
 namespace {
 constexpr size_t kServerThreads = 96;
+
+// HOST:PORT as a URL writes it: an IPv6 address in brackets.
+std::string url_authority(const std::string& host, int port) {
+  if (host.find(':') != std::string::npos && host.front() != '[') {
+    return fmt::format("[{}]:{}", host, port);
+  }
+  return fmt::format("{}:{}", host, port);
+}
 }  // namespace
 
 struct MetricsServer::Impl {
@@ -71,7 +79,8 @@ MetricsServer::MetricsServer(const ServiceMetrics& metrics, const std::string& a
   impl_->server.set_keep_alive_timeout(2);
   impl_->server.new_task_queue = [] { return new httplib::ThreadPool(kServerThreads); };
   if (!impl_->server.bind_to_port(address.c_str(), port)) {
-    throw Error(fmt::format("cannot serve metrics on {}:{} (port in use?)", address, port));
+    throw Error(
+        fmt::format("cannot serve metrics on {} (port in use?)", url_authority(address, port)));
   }
 }
 
@@ -102,7 +111,8 @@ void MetricsServer::on_snapshot(std::function<std::string(double delay)> handler
 void MetricsServer::start() {
   if (impl_->thread.joinable()) return;
   impl_->thread = std::thread([this] { impl_->server.listen_after_bind(); });
-  spdlog::info("metrics on http://{}:{}/metrics and /stats", impl_->address, impl_->port);
+  spdlog::info("metrics on http://{}/metrics and /stats",
+               url_authority(impl_->address, impl_->port));
 }
 
 void MetricsServer::stop() {
