@@ -162,7 +162,8 @@ void apply_security(zmq::socket_t& s, const Security& security, const Context& c
 
 // Whether a TCP endpoint needs libzmq's IPv6 option: an IPv6 address in brackets
 // ("tcp://[::1]:7100", either side of a connect's "SRC;HOST"), or a wildcard bind, which then
-// listens on IPv6 and IPv4 both (libzmq falls back to IPv4 where the kernel has no IPv6).
+// listens on IPv6 and IPv4 both (IPv4 alone where the kernel has no IPv6: libzmq falls back by
+// itself where IPv6 sockets cannot be made, bind() below where "::" cannot be bound).
 // Without the option libzmq refuses IPv6 addresses ("No such device"). IPv4 addresses and host
 // names keep IPv4 sockets: with the option an IPv4 address becomes an IPv4-mapped IPv6 one
 // ("[::ffff:127.0.0.1]") in the socket's endpoint and its peers' addresses, and a name that
@@ -182,6 +183,14 @@ void bind(zmq::socket_t& s, const std::string& endpoint) {
   try {
     s.bind(endpoint);
   } catch (const zmq::error_t& e) {
+    if (starts_with(endpoint, "tcp://*:")) {
+      set_int(s, ZMQ_IPV6, 0);
+      try {
+        s.bind(endpoint);
+        return;
+      } catch (const zmq::error_t&) {
+      }
+    }
     throw Error("cannot bind " + endpoint + ": " + e.what());
   }
 }
