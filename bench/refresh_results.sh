@@ -51,6 +51,9 @@ add tracer-deforming tracer-deforming.md "Tracer and sampler on deforming meshes
 add tracer-forest tracer-forest.md "Shared static meshes: copies or instances" \
   "A forest of 16 to 4096 copies of one 2,145-vertex mesh, held by the tracer as world-space copies and as instances of the mesh's one BVH: build time, vertices copied, set_time and random-ray samples/s on one thread (TracerOptions::max_copied_vertices; docs/benchmarks.md, \"Tracer\")." \
   '"$BUILD"/bench/afr-bench-tracer --no-builtin --forest 16 --forest 64 --forest 256 --forest 4096 --samples 100000 --repeats 5'
+add pool-memory pool-memory.md "A sampler's memory and start-up against its threads" \
+  "Peak resident memory of a sampler_node and its seconds from the scene loaded to sampling, with 1, 2 and 4 threads, on a static scene of 2 million triangles (docs/sampler.md, \"Threads\")." \
+  'python3 bench/pool_memory.py --build "$BUILD" --repeats 3 --threads 1,2,4'
 add ideal-render ideal-render.md "Ideal renderer" \
   "Wall time and rays per second of the ideal renderer for one 256x256 frame of the kitchen at 16 spp (docs/benchmarks.md, \"Ideal renderer\")." \
   'need_kitchen && "$BUILD"/bench/afr-render out/kitchen/kitchen.gltf --time 6 --size 256x256 --spp 16 -o out/kitchen_t6.png'

@@ -75,7 +75,9 @@ SamplerPool::SamplerPool(const Scene& scene, const SamplerConfig& config,
     SamplerConfig c = config_;
     c.region = regions_[t];
     c.seed = config_.seed + uint64_t(t) * 0x9e3779b97f4a7c15ULL;
-    w->tracer = std::make_unique<Tracer>(scene_);
+    // One build of the scene's BVHs; the other threads' tracers share it (Tracer::ShareGeometry).
+    w->tracer = t == 0 ? std::make_unique<Tracer>(scene_)
+                       : std::make_unique<Tracer>(*workers_[0]->tracer, Tracer::ShareGeometry{});
     w->clock = std::make_unique<SharedClock>(clock_);
     w->sampler = std::make_unique<Sampler>(scene_, *w->tracer, *w->clock, c, sink_);
     workers_.push_back(std::move(w));

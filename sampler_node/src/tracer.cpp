@@ -67,13 +67,12 @@ float texture_lod(const Texture& texture, glm::vec2 t0, glm::vec2 t1, glm::vec2 
 // Queries
 
 HitRef TracerImpl::intersect(const glm::vec3& o, const glm::vec3& d, float tnear) const {
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
+  QueryContext ctx(materials_.data());
   RTCRayHit rh;
   init_ray(&rh.ray, o, d, tnear, INFINITY);
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-  rtcIntersect1(top_, &ctx, &rh);
+  rtcIntersect1(top_, &ctx.embree, &rh);
   HitRef h;
   h.t = rh.ray.tfar;
   h.u = rh.hit.u;
@@ -464,18 +463,17 @@ void TracerImpl::shade_local8(const Surface* s, const glm::vec3* wo, const glm::
     }
     if (!any_ray) continue;
     if (!has_translucent_) {  // scenes without glass or blending skip the filter's context
-      RTCIntersectContext ctx;
-      rtcInitIntersectContext(&ctx);
-      rtcOccluded8(valid, top_, &ctx, &rays);
+      QueryContext ctx(materials_.data());
+      rtcOccluded8(valid, top_, &ctx.embree, &rays);
       for (int k = 0; k < n; ++k)
         if (valid[k] && rays.tfar[k] >= 0.0f) out[k] += contribution[k];
       continue;
     }
     for (int k = 0; k < 8; ++k) rays.id[k] = kShadowRayId + unsigned(k);
-    ShadowContext ctx;
+    ShadowContext ctx(materials_.data());
     float tfar[8];
     std::copy_n(rays.tfar, 8, tfar);
-    rtcOccluded8(valid, top_, &ctx.embree, &rays);
+    rtcOccluded8(valid, top_, &ctx.query.embree, &rays);
     for (int k = 0; k < n; ++k) {
       if (!valid[k] || rays.tfar[k] < 0.0f) continue;
       glm::vec3 kept = ctx.transmittance[k];
@@ -680,6 +678,9 @@ namespace afr {
 Tracer::Tracer(const Scene& scene, const TracerOptions& options)
     : impl_(std::make_unique<Impl>(scene, options)) {}
 
+Tracer::Tracer(const Tracer& other, ShareGeometry)
+    : impl_(std::make_unique<Impl>(other.impl_->shared_)) {}
+
 Tracer::~Tracer() = default;
 
 void Tracer::set_time(double t) { impl_->set_time(t); }
@@ -690,7 +691,7 @@ const TracerOptions& Tracer::options() const { return impl_->options_; }
 
 size_t Tracer::copied_vertices() const {
   size_t n = 0;
-  for (const std::vector<glm::vec3>& p : impl_->static_positions_) n += p.size();
+  for (const std::vector<glm::vec3>& p : impl_->shared_->static_positions) n += p.size();
   return n;
 }
 
@@ -743,9 +744,8 @@ void Tracer::trace_crosshair(const Camera& camera, double x, double y, int width
     rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
   }
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
-  rtcIntersect8(valid, impl_->top_, &ctx, &rh);
+  QueryContext ctx(impl_->materials_.data());
+  rtcIntersect8(valid, impl_->top_, &ctx.embree, &rh);
   Surface surfaces[5];
   glm::vec3 wo[5], tex[5], local[5];
   bool hit[5];

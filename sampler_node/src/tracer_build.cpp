@@ -45,13 +45,16 @@ void to_float3x4(const glm::dmat4& m, float out[12]) {
 }  // namespace
 
 TracerImpl::TracerImpl(const Scene& scene, const TracerOptions& options)
-    : scene_(scene), options_(options) {
-  if (scene.ray_depth) options_.max_mirror_depth = *scene.ray_depth;
+    : shared_(std::make_shared<TracerShared>(scene, options)),
+      scene_(shared_->scene),
+      options_(options) {
+  if (scene_.ray_depth) options_.max_mirror_depth = *scene_.ray_depth;
+  shared_->options = options_;
   glm::dvec3 lo, hi;
   scene_.bounds(scene_.evaluate(0.0), &lo, &hi);
   const glm::dvec3 m = glm::max(glm::abs(lo), glm::abs(hi));
   const double extent = std::max(m.x, std::max(m.y, m.z));
-  offset_floor_ = float(std::clamp(extent, 1e-30, 1.0));
+  offset_floor_ = shared_->offset_floor = float(std::clamp(extent, 1e-30, 1.0));
   if (options_.embree_threads < 0) {
     throw Error(fmt::format("tracer: {} Embree threads (0 for Embree's default, or more)",
                             options_.embree_threads));
@@ -59,7 +62,7 @@ TracerImpl::TracerImpl(const Scene& scene, const TracerOptions& options)
   const std::string config = options_.embree_threads > 0
                                  ? fmt::format("verbose=0,threads={}", options_.embree_threads)
                                  : std::string("verbose=0");
-  device_ = rtcNewDevice(config.c_str());
+  device_ = shared_->device = rtcNewDevice(config.c_str());
   if (!device_)
     throw Error("embree: cannot create a device (error " +
                 std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
@@ -73,17 +76,46 @@ TracerImpl::TracerImpl(const Scene& scene, const TracerOptions& options)
   }
 }
 
+TracerImpl::TracerImpl(std::shared_ptr<TracerShared> shared)
+    : shared_(std::move(shared)),
+      scene_(shared_->scene),
+      options_(shared_->options),
+      device_(shared_->device),
+      blas_(shared_->blas),
+      instances_(shared_->instances),
+      has_translucent_(shared_->has_translucent),
+      animated_through_(shared_->animated_through),
+      light_nodes_(shared_->light_nodes),
+      camera_lights_(shared_->camera_lights),
+      several_volumes_(shared_->several_volumes),
+      offset_floor_(shared_->offset_floor) {
+  try {
+    make_materials();
+    build_own();
+    set_time(0.0);
+  } catch (...) {
+    release();
+    throw;
+  }
+}
+
+TracerShared::~TracerShared() {
+  for (Blas& b : blas)
+    if (b.scene) rtcReleaseScene(b.scene);
+  if (device) rtcReleaseDevice(device);
+}
+
+// This tracer's Embree objects; the shared ones go with the last tracer that holds them.
 void TracerImpl::release() {
   for (Instance& inst : instances_)
     if (inst.geom) rtcReleaseGeometry(inst.geom);
   instances_.clear();
   if (top_) rtcReleaseScene(top_);
   top_ = nullptr;
-  for (Blas& b : blas_)
-    if (b.scene) rtcReleaseScene(b.scene);
+  if (deforming_blas_ >= 0 && blas_[size_t(deforming_blas_)].scene) {
+    rtcReleaseScene(blas_[size_t(deforming_blas_)].scene);
+  }
   blas_.clear();
-  if (device_) rtcReleaseDevice(device_);
-  device_ = nullptr;
 }
 
 void TracerImpl::check_device(const char* what) const {
@@ -93,7 +125,8 @@ void TracerImpl::check_device(const char* what) const {
                 ") for scene " + scene_.source);
 }
 
-void TracerImpl::set_filters(RTCGeometry g, uint32_t material, const Primitive& p) {
+void TracerImpl::set_filters(RTCGeometry g, uint32_t material, const Primitive& p,
+                             std::deque<GeometryFilter>* filters) {
   AFR_DCHECK(material < materials_.size());
   const shading::ShadeMaterial& m = materials_[material];
   const float* vertex_alpha = tested_alpha(p, material);
@@ -101,8 +134,8 @@ void TracerImpl::set_filters(RTCGeometry g, uint32_t material, const Primitive& 
   const bool through = m.lets_shadow_rays_through() || animated_through_[material];
   if (!through && !masked) return;
   has_translucent_ |= through || (m.blended && masked);
-  GeometryFilter& f = filters_.emplace_back();
-  f.material = &m;
+  GeometryFilter& f = filters->emplace_back();
+  f.material = material;
   f.masked = masked;
   const SlotUvs uvs = slot_uvs(p);
   f.uvs = uvs.base_color;
@@ -144,7 +177,7 @@ RTCGeometry TracerImpl::new_triangle_geometry(uint32_t material, const Primitive
   }
   std::copy_n(&positions[0].x, 3 * vertex_count, v);
   std::copy_n(indices, 3 * triangle_count, i);
-  set_filters(g, material, p);
+  set_filters(g, material, p, &shared_->filters);
   rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_HIGH);
   rtcCommitGeometry(g);
   return g;
@@ -155,8 +188,7 @@ RTCGeometry TracerImpl::new_triangle_geometry(uint32_t material, const Primitive
 // node carries or that static nodes share beyond TracerOptions::max_copied_vertices, and a top
 // level of instances.
 
-void TracerImpl::build() {
-  const uint32_t default_material = uint32_t(scene_.materials.size());
+void TracerImpl::make_materials() {
   materials_.reserve(scene_.materials.size() + 1);
   for (const Material& m : scene_.materials)
     materials_.push_back(shading::make_shade_material(&m, scene_, options_.mirror_roughness));
@@ -169,6 +201,11 @@ void TracerImpl::build() {
   for (int i : scene_.animated_materials()) {
     if (materials_[size_t(i)].alpha_tested) materials_[size_t(i)].masked = true;
   }
+}
+
+void TracerImpl::build() {
+  const uint32_t default_material = uint32_t(scene_.materials.size());
+  make_materials();
   animated_through_.assign(materials_.size(), 0);
   for (const PropertyChannel& c : scene_.property_channels) {
     if (c.property == AnimatedProperty::kTransmissionFactor ||
@@ -197,9 +234,6 @@ void TracerImpl::build() {
   auto usable = [](const Primitive& p) { return p.triangle_count() > 0 && !p.positions.empty(); };
 
   const SceneState at0 = scene_.evaluate(0.0);
-  top_ = rtcNewScene(device_);
-  rtcSetSceneBuildQuality(top_, RTC_BUILD_QUALITY_LOW);
-  rtcSetSceneFlags(top_, RTC_SCENE_FLAG_DYNAMIC);
 
   // The static BLAS, pre-transformed to world space.
   Blas statics;
@@ -290,13 +324,14 @@ void TracerImpl::build() {
                                             p.indices.data(), p.triangle_count());
       rtcAttachGeometryByID(statics.scene, g, unsigned(statics.geoms.size()));
       rtcReleaseGeometry(g);
-      static_positions_.push_back(std::move(positions));
-      static_normals_.push_back(std::move(normals));
-      static_tangents_.push_back(std::move(tangents));
+      TracerShared& sh = *shared_;
+      sh.static_positions.push_back(std::move(positions));
+      sh.static_normals.push_back(std::move(normals));
+      sh.static_tangents.push_back(std::move(tangents));
       GeomRecord r = record_of(p, material_of(p));
-      r.positions = static_positions_.back().data();
-      r.normals = static_normals_.back().empty() ? nullptr : static_normals_.back().data();
-      r.tangents = static_tangents_.back().empty() ? nullptr : static_tangents_.back().data();
+      r.positions = sh.static_positions.back().data();
+      r.normals = sh.static_normals.back().empty() ? nullptr : sh.static_normals.back().data();
+      r.tangents = sh.static_tangents.back().empty() ? nullptr : sh.static_tangents.back().data();
       r.node = n;
       r.flip_winding = flips_winding(n, at0);
       statics.geoms.push_back(r);
@@ -306,7 +341,7 @@ void TracerImpl::build() {
     rtcSetSceneBuildQuality(statics.scene, RTC_BUILD_QUALITY_HIGH);
     rtcCommitScene(statics.scene);
     check_device("building the static BVH");
-    blas_.push_back(std::move(statics));
+    shared_->blas.push_back(std::move(statics));
     Instance inst;
     inst.blas = 0;
     instances_.push_back(inst);
@@ -340,8 +375,8 @@ void TracerImpl::build() {
     rtcSetSceneBuildQuality(b.scene, RTC_BUILD_QUALITY_HIGH);
     rtcCommitScene(b.scene);
     check_device("building a mesh BVH");
-    mesh_blas[size_t(mesh)] = int(blas_.size());
-    blas_.push_back(std::move(b));
+    mesh_blas[size_t(mesh)] = int(shared_->blas.size());
+    shared_->blas.push_back(std::move(b));
     return true;
   };
   for (int n : moving_nodes) {
@@ -372,13 +407,30 @@ void TracerImpl::build() {
     inst.area_scale = float(std::abs(det));
     instances_.push_back(inst);
   }
-  build_deforming(deforming_nodes, default_material);
-
   for (size_t l = 0; l < scene_.lights.size(); ++l) {
     if (scene_.lights[l].on_camera) camera_lights_.push_back(int(l));
   }
+
+  // What tracers sharing this one's geometry take as it is (TracerImpl(shared)).
+  TracerShared& sh = *shared_;
+  blas_ = sh.blas;
+  sh.instances = instances_;
+  sh.deforming_nodes = std::move(deforming_nodes);
+  sh.light_nodes = light_nodes_;
+  sh.camera_lights = camera_lights_;
+  sh.animated_through = animated_through_;
+  sh.has_translucent = has_translucent_;
+  sh.several_volumes = several_volumes_;
+  build_own();
+}
+
+void TracerImpl::build_own() {
+  build_deforming(shared_->deforming_nodes);
   lights_.reserve(light_nodes_.size() + camera_lights_.size());
 
+  top_ = rtcNewScene(device_);
+  rtcSetSceneBuildQuality(top_, RTC_BUILD_QUALITY_LOW);
+  rtcSetSceneFlags(top_, RTC_SCENE_FLAG_DYNAMIC);
   moving_instance_of_node_.assign(scene_.nodes.size(), -1);
   for (size_t i = 0; i < instances_.size(); ++i) {
     Instance& inst = instances_[i];
@@ -400,7 +452,8 @@ void TracerImpl::build() {
 // LOW) with a BVH per primitive that set_time refits (geometry quality REFIT) instead of
 // rebuilding, since only vertex positions change. The BVH is built once over the positions at
 // time 0, so that its topology fits the shape.
-void TracerImpl::build_deforming(const std::vector<int>& nodes, uint32_t default_material) {
+void TracerImpl::build_deforming(const std::vector<int>& nodes) {
+  const uint32_t default_material = uint32_t(scene_.materials.size());
   size_t max_vertices = 0;
   for (int n : nodes) {
     const std::vector<Primitive>& primitives =
@@ -447,7 +500,7 @@ void TracerImpl::build_deforming(const std::vector<int>& nodes, uint32_t default
     const uint32_t material = p.material >= 0 && size_t(p.material) < scene_.materials.size()
                                   ? uint32_t(p.material)
                                   : default_material;
-    set_filters(g, material, p);
+    set_filters(g, material, p, &filters_);
     rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
     rtcCommitGeometry(g);
     rtcAttachGeometryByID(b.scene, g, unsigned(b.geoms.size()));

@@ -65,11 +65,11 @@ int single_channel(const glm::vec3& t) {
 void TracerImpl::cross_coincident_surfaces(const Surface& s, const glm::vec3& d,
                                            Media* after) const {
   const float reach = offset_at(s.p);
-  ShadowContext ctx;
+  ShadowContext ctx(materials_.data());
   RTCRay r;
   init_ray(&r, s.p - reach * d, d, 0.0f, 2.0f * reach);
   r.id = kShadowRayId;
-  rtcOccluded1(top_, &ctx.embree, &r);
+  rtcOccluded1(top_, &ctx.query.embree, &r);
   const ShadeMaterial* self = &materials_[size_t(s.geom->material)];
   for (int k = 0; k < ctx.n_crossed[0]; ++k) {
     const ShadowContext::Crossed& c = ctx.crossed[0][k];

@@ -17,6 +17,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -308,12 +309,22 @@ inline void set_lane(RTCRay8* r, int k, const glm::vec3& o, const glm::vec3& d, 
   r->flags[k] = 0;
 }
 
+// What every ray query of a tracer hands Embree: the context, and the tracer's materials at its
+// time, which the filters read. Geometry is shared by tracers at different times (TracerShared),
+// so its filters cannot hold a material of their own.
+struct QueryContext {
+  RTCIntersectContext embree;  // first: Embree hands the filters this address
+  const ShadeMaterial* materials = nullptr;
+  explicit QueryContext(const ShadeMaterial* m) : materials(m) { rtcInitIntersectContext(&embree); }
+};
+static_assert(offsetof(QueryContext, embree) == 0);
+
 // Shadow rays (tracer_shadows.cpp) carry this id (plus their lane) and a ShadowContext, in
 // which the occlusion filter gathers what the surfaces they cross let through.
 constexpr unsigned kShadowRayId = 0x5ad0u;
 
 struct ShadowContext {
-  RTCIntersectContext embree;  // first: Embree hands the filter this address
+  QueryContext query;  // first: Embree hands the filters this address
   static constexpr int kLanes = 8;
   static constexpr int kMaxCrossed = 16;  // more glass surfaces than this: blocked
   struct Crossed {
@@ -325,15 +336,14 @@ struct ShadowContext {
   int n_crossed[kLanes];
   uint32_t volume_lanes = 0;  // bit k: lane k crossed glass that absorbs (volume_transmittance)
 
-  ShadowContext() {
-    rtcInitIntersectContext(&embree);
+  explicit ShadowContext(const ShadeMaterial* materials) : query(materials) {
     for (int k = 0; k < kLanes; ++k) {
       transmittance[k] = glm::vec3(1.0f);
       n_crossed[k] = 0;
     }
   }
 };
-static_assert(offsetof(ShadowContext, embree) == 0);
+static_assert(offsetof(ShadowContext, query) == 0);
 
 // The opacity of a masked or blended material at barycentrics (u, v) of triangle `tri`: the base
 // color factor's alpha x the texture's alpha (level 0, bilinear: a mip level would average a
@@ -349,10 +359,11 @@ inline float opacity_at(const shading::ShadeMaterial& m, SlotCoords uvs, const f
   return opacity;
 }
 
-// What the filters of one Embree geometry read (its user data): its material, and, for a
-// masked material, the texture coordinates and triangles that place a hit in its texture.
+// What the filters of one Embree geometry read (its user data): its material (an index into the
+// querying tracer's materials, QueryContext), and, for a masked material, the texture
+// coordinates and triangles that place a hit in its texture.
 struct GeometryFilter {
-  const shading::ShadeMaterial* material = nullptr;
+  uint32_t material = 0;
   bool masked = false;  // the material's `masked`, or a vertex alpha (color_alpha) it tests
   SlotCoords uvs;       // the base color's (none: the factor alone decides)
   const float* color_alpha = nullptr;  // COLOR_0's alpha per vertex, or null
@@ -371,8 +382,8 @@ struct GeometryFilter {
   // in: glass's transmission x (1 - metallic) x base color, and the diffuse transmission's
   // strength x its color x what metal and glass leave of the diffuse part (the factors'
   // metallic and specular: ShadeMaterial's diffuse_transmitted).
-  glm::vec3 through(const RTCFilterFunctionNArguments* args, unsigned i) const {
-    const shading::ShadeMaterial& m = *material;
+  glm::vec3 through(const ShadeMaterial& m, const RTCFilterFunctionNArguments* args,
+                    unsigned i) const {
     if (!textured_through) return m.shadow_transmittance;
     const uint32_t* tri = indices + 3 * size_t(RTCHitN_primID(args->hit, args->N, i));
     const float u = RTCHitN_u(args->hit, args->N, i), v = RTCHitN_v(args->hit, args->N, i);
@@ -413,15 +424,16 @@ struct GeometryFilter {
     return glm::clamp(kept, glm::vec3(0.0f), glm::vec3(1.0f));
   }
 
-  float opacity(const RTCFilterFunctionNArguments* args, unsigned i) const {
+  float opacity(const ShadeMaterial& m, const RTCFilterFunctionNArguments* args, unsigned i) const {
     const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
-    return opacity_at(*material, uvs, color_alpha, indices + 3 * size_t(prim),
+    return opacity_at(m, uvs, color_alpha, indices + 3 * size_t(prim),
                       RTCHitN_u(args->hit, args->N, i), RTCHitN_v(args->hit, args->N, i));
   }
   // alphaMode MASK: whether the hit is kept; BLEND: whether anything of it shows.
-  bool opaque_at(const RTCFilterFunctionNArguments* args, unsigned i) const {
-    const float a = opacity(args, i);
-    return material->blended ? a > 0.0f : a >= material->opacity_cutoff;
+  bool opaque_at(const ShadeMaterial& m, const RTCFilterFunctionNArguments* args,
+                 unsigned i) const {
+    const float a = opacity(m, args, i);
+    return m.blended ? a > 0.0f : a >= m.opacity_cutoff;
   }
 };
 
@@ -431,14 +443,49 @@ void occlusion_filter(const RTCFilterFunctionNArguments* args);
 void mask_filter(const RTCFilterFunctionNArguments* args);
 
 // =============================================================================================
+// What no time changes, built once by the first tracer of a scene and shared by the tracers
+// made from it (Tracer's sharing constructor: the threads of a sampler pool): the scene's copy,
+// the Embree device, the BVHs of the static geometry and of the meshes that moving nodes carry
+// or static nodes share, with their records and filters, and the instances' templates. Each
+// tracer adds what a time changes: its top level, its moving instances' transforms, its
+// deforming geometry, its materials and lights. Read-only once built; released with the last
+// tracer that holds it.
+struct TracerShared {
+  explicit TracerShared(const Scene& s, const TracerOptions& o) : scene(s), options(o) {}
+  ~TracerShared();
+  TracerShared(const TracerShared&) = delete;
+  TracerShared& operator=(const TracerShared&) = delete;
+
+  Scene scene;
+  TracerOptions options;  // with the scene's ray depth in place
+  RTCDevice device = nullptr;
+  std::vector<Blas> blas;              // every BLAS but the deforming one; owns their scenes
+  std::vector<Instance> instances;     // their instances (geom null: each tracer makes its own)
+  std::deque<GeometryFilter> filters;  // the user data of those BLASes' filtered geometries
+  // Static geometry transformed to world space (the static BLAS's GeomRecords point into these).
+  std::vector<std::vector<glm::vec3>> static_positions;
+  std::vector<std::vector<glm::vec3>> static_normals;
+  std::vector<std::vector<glm::vec4>> static_tangents;  // world space, where a primitive has them
+  std::vector<int> deforming_nodes;                     // each tracer deforms these in its own BLAS
+  std::vector<int> light_nodes;                         // scene nodes that carry a light
+  std::vector<int> camera_lights;                       // lights on the camera (Light::on_camera)
+  std::vector<char> animated_through;                   // TracerImpl::animated_through_
+  bool has_translucent = false;  // of the geometry above (TracerImpl::has_translucent_)
+  bool several_volumes = false;
+  float offset_floor = 1.0f;
+};
+
+// =============================================================================================
 // Tracer::Impl: the tracer's state, and the work its files share out. It is declared here, in
 // tracer_detail, where its parts have their short names; Tracer::Impl (below) only names it.
 
 struct TracerImpl {
-  Scene scene_;
+  std::shared_ptr<TracerShared> shared_;
+  const Scene& scene_;  // shared_->scene
   TracerOptions options_;
-  RTCDevice device_ = nullptr;
+  RTCDevice device_ = nullptr;  // shared_->device
   RTCScene top_ = nullptr;
+  // The shared BLASes (TracerShared::blas), then this tracer's deforming one (deforming_blas_).
   std::vector<Blas> blas_;
   std::vector<Instance> instances_;
   std::vector<int> moving_instance_of_node_;  // per scene node: its moving instance or -1
@@ -457,15 +504,12 @@ struct TracerImpl {
   // (KHR_animation_pointer): it may let shadow rays through at some times and not at others, so
   // its geometry carries the filter, which asks the material of the time (set_filters).
   std::vector<char> animated_through_;
-  std::deque<GeometryFilter> filters_;  // the user data of masked and glass geometries
-  std::vector<int> light_nodes_;        // scene nodes that carry a light
-  std::vector<int> camera_lights_;      // lights on the camera (Light::on_camera)
-  std::vector<LightRecord> lights_;     // placed at the current time: nodes', then camera's
-  size_t node_light_count_ = 0;         // how many of lights_ come from nodes
-  // Static geometry transformed to world space (GeomRecord points into these).
-  std::vector<std::vector<glm::vec3>> static_positions_;
-  std::vector<std::vector<glm::vec3>> static_normals_;
-  std::vector<std::vector<glm::vec4>> static_tangents_;  // world space, where a primitive has them
+  // The user data of the deforming geometries' filters (the shared ones': TracerShared).
+  std::deque<GeometryFilter> filters_;
+  std::vector<int> light_nodes_;     // scene nodes that carry a light
+  std::vector<int> camera_lights_;   // lights on the camera (Light::on_camera)
+  std::vector<LightRecord> lights_;  // placed at the current time: nodes', then camera's
+  size_t node_light_count_ = 0;      // how many of lights_ come from nodes
   // Deforming geometry, in one BLAS (deforming_blas_, -1 when there is none) refitted at every
   // set_time; positions at the two times of the velocity's difference quotient.
   std::vector<DeformingPrimitive> deforming_;
@@ -482,14 +526,18 @@ struct TracerImpl {
   // micrometres, so that shadow rays started beyond every blocker.
   float offset_floor_ = 1.0f;
 
+  // Builds everything: the shared part, then this tracer's.
   TracerImpl(const Scene& scene, const TracerOptions& options);
+  // Shares what `shared` holds, and builds only this tracer's part.
+  explicit TracerImpl(std::shared_ptr<TracerShared> shared);
   ~TracerImpl() { release(); }
   void release();
 
   void check_device(const char* what) const;
   // Sets the filters of geometry g of primitive p (glTF's alphaMode MASK, glass) where its
-  // material needs them.
-  void set_filters(RTCGeometry g, uint32_t material, const Primitive& p);
+  // material needs them, their user data kept in `filters`.
+  void set_filters(RTCGeometry g, uint32_t material, const Primitive& p,
+                   std::deque<GeometryFilter>* filters);
   // A GeomRecord with what comes straight from primitive p and its material (an index into
   // materials_): texture coordinates, colors, tested vertex alpha, indices. The caller sets the
   // positions and what follows from them.
@@ -534,11 +582,17 @@ struct TracerImpl {
                ? p.color_alpha.data()
                : nullptr;
   }
+  // A static geometry of the shared part (its filters in TracerShared::filters).
   RTCGeometry new_triangle_geometry(uint32_t material, const Primitive& p,
                                     const glm::vec3* positions, size_t vertex_count,
                                     const uint32_t* indices, size_t triangle_count);
+  // The materials at time 0 (materials_, uv_transforms_).
+  void make_materials();
+  // The shared part (shared_), then this tracer's.
   void build();
-  void build_deforming(const std::vector<int>& nodes, uint32_t default_material);
+  // This tracer's part: the deforming BLAS, the top level with an instance of each BLAS.
+  void build_own();
+  void build_deforming(const std::vector<int>& nodes);
   void deform(double before, double after);
   void set_time(double t);
   // Whether world-space triangles of node n's mesh take clockwise faces as front faces: its

@@ -88,18 +88,19 @@ bool crosses(const RTCFilterFunctionNArguments* args, unsigned i, const glm::vec
 // point, and shadow rays through glass and blended surfaces.
 void occlusion_filter(const RTCFilterFunctionNArguments* args) {
   const auto* f = static_cast<const GeometryFilter*>(args->geometryUserPtr);
-  const shading::ShadeMaterial& m = *f->material;
+  const ShadeMaterial& m =
+      reinterpret_cast<const QueryContext*>(args->context)->materials[f->material];
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] != -1) continue;
     if (m.blended && f->masked) {
-      const float a = f->opacity(args, i);
+      const float a = f->opacity(m, args, i);
       const glm::vec3 through =
-          m.lets_shadow_rays_through() ? f->through(args, i) : glm::vec3(0.0f);
+          m.lets_shadow_rays_through() ? f->through(m, args, i) : glm::vec3(0.0f);
       if (!(a > 0.0f) || crosses(args, i, (1.0f - a) + a * through, false)) args->valid[i] = 0;
-    } else if (f->masked && !f->opaque_at(args, i)) {
+    } else if (f->masked && !f->opaque_at(m, args, i)) {
       args->valid[i] = 0;
     } else if (m.lets_shadow_rays_through() &&
-               crosses(args, i, f->through(args, i), m.has_volume)) {
+               crosses(args, i, f->through(m, args, i), m.has_volume)) {
       args->valid[i] = 0;
     }
   }
@@ -108,16 +109,18 @@ void occlusion_filter(const RTCFilterFunctionNArguments* args) {
 // The intersection filter of a masked geometry: a ray goes on through a cut-away point.
 void mask_filter(const RTCFilterFunctionNArguments* args) {
   const auto* f = static_cast<const GeometryFilter*>(args->geometryUserPtr);
+  const ShadeMaterial& m =
+      reinterpret_cast<const QueryContext*>(args->context)->materials[f->material];
   for (unsigned i = 0; i < args->N; ++i) {
-    if (args->valid[i] == -1 && !f->opaque_at(args, i)) args->valid[i] = 0;
+    if (args->valid[i] == -1 && !f->opaque_at(m, args, i)) args->valid[i] = 0;
   }
 }
 glm::vec3 TracerImpl::filtered_shadow(const glm::vec3& o, const glm::vec3& d, float tfar) const {
-  ShadowContext ctx;
+  ShadowContext ctx(materials_.data());
   RTCRay r;
   init_ray(&r, o, d, 0.0f, tfar);
   r.id = kShadowRayId;
-  rtcOccluded1(top_, &ctx.embree, &r);
+  rtcOccluded1(top_, &ctx.query.embree, &r);
   if (r.tfar < 0.0f) return glm::vec3(0.0f);
   if ((ctx.volume_lanes & 1u) == 0) return ctx.transmittance[0];
   // A ray that passed keeps its direction and tfar (the filters' rejected hits restore it).
@@ -197,11 +200,10 @@ glm::vec3 TracerImpl::volume_transmittance(const ShadowContext& ctx, int lane, c
 }
 
 bool TracerImpl::blocked(const glm::vec3& o, const glm::vec3& d, float tnear, float tfar) const {
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
+  QueryContext ctx(materials_.data());
   RTCRay r;
   init_ray(&r, o, d, tnear, tfar);
-  rtcOccluded1(top_, &ctx, &r);
+  rtcOccluded1(top_, &ctx.embree, &r);
   return r.tfar < 0.0f;  // Embree sets tfar to -inf on a hit
 }
 

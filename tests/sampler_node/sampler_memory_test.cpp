@@ -2,6 +2,7 @@
 // byte this program allocates (operator new is replaced here, which is why these tests are a
 // binary of their own), not by what the sampler says it holds.
 #include <afr/sampler/sampler.h>
+#include <afr/sampler/sampler_pool.h>
 
 #include <gtest/gtest.h>
 #include <malloc.h>
@@ -164,6 +165,56 @@ TEST(SamplerMemoryTest, HeapPerRegionPixelFollowsThePixelsThatHoldCrosshairs) {
         "in 64\n",
         b, full, sparse);
   }
+}
+
+// The threads of a sampler pool share one copy of the scene and of its static geometry in world
+// space (Tracer::ShareGeometry), so a pool of 4 threads takes little more heap than a pool of
+// 1: a scene of a 2-million-vertex static mesh (its positions, normals and indices, with the
+// tracer's world-space copy, about 90 MB) in a small image, the pools built but not started.
+// (Embree's BVHs, allocated outside operator new, are shared the same way; bench/pool_memory.py
+// measures a sampler process's resident memory.)
+TEST(SamplerMemoryTest, PoolThreadsShareTheScenesGeometry) {
+  Scene scene = testing::edge_scene();
+  Primitive grid;
+  const int n = 1000;
+  for (int j = 0; j <= n; ++j) {
+    for (int i = 0; i <= n; ++i)
+      grid.positions.emplace_back(float(i) / n - 0.5f, float(j) / n - 0.5f, -3.0f);
+  }
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const uint32_t a = uint32_t(j * (n + 1) + i), b = a + 1, c = a + uint32_t(n + 1), d = c + 1;
+      grid.indices.insert(grid.indices.end(), {a, b, c, b, d, c});
+    }
+  }
+  grid.material = 0;
+  Mesh mesh;
+  mesh.primitives.push_back(std::move(grid));
+  scene.meshes.push_back(std::move(mesh));
+  Node node;
+  node.mesh = int(scene.meshes.size()) - 1;
+  scene.nodes.push_back(node);
+  scene.roots.push_back(int(scene.nodes.size()) - 1);
+  scene.finalize();
+  VirtualClock clock(1e5);
+  DiscardingSink sink;
+  SamplerConfig config;
+  config.image.width = 64;
+  config.image.height = 64;
+  config.region = PixelRect{0, 0, 64, 64};
+  config.seed = 7;
+  auto heap_of_pool = [&](int threads) {
+    SamplerPoolOptions options;
+    options.threads = threads;
+    const int64_t before = g_live.load();
+    SamplerPool pool(scene, config, options, clock, sink);
+    return g_live.load() - before;
+  };
+  const int64_t one = heap_of_pool(1), four = heap_of_pool(4);
+  std::printf("pool heap: %.1f MB with 1 thread, %.1f MB with 4\n", double(one) / 1e6,
+              double(four) / 1e6);
+  EXPECT_GT(one, int64_t(48) << 20);  // the scene's copy and the world-space vertices
+  EXPECT_LT(double(four), 1.2 * double(one));
 }
 
 }  // namespace

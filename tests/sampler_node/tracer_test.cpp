@@ -207,6 +207,114 @@ TEST(TracerTest, AnimatedLightAndMaterialPropertiesShadeAtEachTime) {
   expect_near3(tracer.trace(ray_to(eye, p), &stats).color, at0, 1e-5f, "back at 0 s");
 }
 
+// A scene with every kind of geometry a tracer builds: static (a floor), rigidly moving (a box),
+// morphing (a square whose morph weight lifts it) and filtered whose filters read animated
+// materials (a masked square whose alpha cutoff rises past its opacity, a pane whose
+// transmission rises so that it lets the light's shadow rays through).
+Scene scene_of_every_geometry() {
+  Scene s;
+  s.ambient = glm::vec3(0.1f);
+  s.background = glm::vec3(0.3f, 0.4f, 0.5f);
+  const int grey = add_material(&s, glm::vec3(0.5f), 0.0f, 0.5f);
+  add_mesh_node(&s, quad_mesh({-10, -1, 10}, {20, 0, 0}, {0, 0, -20}, grey));
+  add_moving_box(&s, grey);
+  const int masked = add_material(&s, {1, 0, 0}, 0.0f, 1.0f);
+  s.materials[size_t(masked)].alpha_mode = Material::AlphaMode::kMask;
+  s.materials[size_t(masked)].base_color_factor.a = 0.5f;
+  add_mesh_node(&s, quad_mesh({-3, -1, -3}, {1.5f, 0, 0}, {0, 2, 0}, masked));
+  const int pane = add_material(&s, {0.2f, 0.9f, 0.2f}, 0.0f, 0.0f);
+  add_mesh_node(&s, quad_mesh({0.5f, 2, -1}, {2, 0, 0}, {0, 0, -2}, pane));  // under the light
+  Mesh morphing = quad_mesh({-3, -0.5f, 0}, {1.5f, 0, 0}, {0, 0, -1.5f}, grey);
+  MorphTarget lift;
+  lift.positions.assign(morphing.primitives[0].positions.size(), glm::vec3(0, 1, 0));
+  morphing.primitives[0].targets = {lift};
+  morphing.weights = {0.0f};
+  const int morph = add_mesh_node(&s, morphing);
+  AnimationChannel weight;
+  weight.node = morph;
+  weight.path = AnimatedPath::kWeights;
+  weight.times = {0.0, 2.0};
+  weight.weights = {0.0, 1.0};
+  weight.weight_count = 1;
+  s.channels.push_back(weight);
+  auto rising = [](AnimatedProperty property, int index, double from, double to) {
+    PropertyChannel c;
+    c.property = property;
+    c.index = index;
+    c.curve.times = {0.0, 2.0};
+    c.curve.values = {{from, 0, 0, 0}, {to, 0, 0, 0}};
+    return c;
+  };
+  s.property_channels = {rising(AnimatedProperty::kAlphaCutoff, masked, 0.25, 0.75),
+                         rising(AnimatedProperty::kTransmissionFactor, pane, 0.0, 1.0)};
+  add_light_node(&s, Light{}, glm::dvec3(1.5, 4.0, -2.0));
+  s.finalize();
+  return s;
+}
+
+// A tracer that shares another's geometry (Tracer::ShareGeometry: a sampler pool's threads)
+// traces as a tracer built alone does at its own time, while the one it shares with is at
+// another: camera rays, crosshairs (packets) and occlusion rays over the scene above, at 0.3 s
+// and 1.7 s, where the cut-away square, the pane's shadow, the lifted square and the box differ;
+// and it goes on doing so after the tracer it shared with is gone.
+TEST(TracerTest, ATracerSharingGeometryTracesAsOneBuiltAloneAtItsOwnTime) {
+  const Scene s = scene_of_every_geometry();
+  auto first = std::make_unique<Tracer>(s);
+  Tracer second(*first, Tracer::ShareGeometry{});
+  EXPECT_EQ(second.copied_vertices(), first->copied_vertices());
+  first->set_time(0.3);
+  second.set_time(1.7);
+  Tracer alone_early(s), alone_late(s);
+  alone_early.set_time(0.3);
+  alone_late.set_time(1.7);
+
+  const glm::vec3 eye(0.0f, 3.0f, 6.0f);
+  std::vector<Ray> rays;
+  for (int j = 0; j < 24; ++j) {
+    for (int i = 0; i < 24; ++i) {
+      rays.push_back(ray_to(eye, {-6.0f + 0.5f * float(i), -1.0f, 2.0f - 0.5f * float(j)}));
+    }
+  }
+  rays.push_back(ray_to(eye, {-2.25f, 0.0f, -3.0f}));  // the masked square, kept and then cut
+  TraceStats stats;
+  int differing = 0;  // rays whose color differs between the two times
+  auto expect_same_everywhere = [&](const Tracer& shared, const Tracer& alone, const char* what) {
+    SCOPED_TRACE(what);
+    for (const Ray& r : rays)
+      expect_same_sample(shared.trace(r, &stats), alone.trace(r, &stats), 1e-5f);
+    const Camera& camera = alone.camera();
+    for (double y = 4.5; y < 64.0; y += 9.0) {
+      for (double x = 4.5; x < 64.0; x += 9.0) {
+        std::array<ShadedSample, 5> a, b;
+        shared.trace_crosshair(camera, x, y, 64, 64, &a, &stats);
+        alone.trace_crosshair(camera, x, y, 64, 64, &b, &stats);
+        for (size_t k = 0; k < 5; ++k) expect_same_sample(a[k], b[k], 1e-5f);
+      }
+    }
+    for (const Ray& r : rays) {
+      const glm::vec3 to = r.origin + 12.0f * r.direction;
+      EXPECT_EQ(shared.occluded(r.origin, to, &stats), alone.occluded(r.origin, to, &stats));
+    }
+  };
+  expect_same_everywhere(*first, alone_early, "the first tracer at 0.3 s");
+  expect_same_everywhere(second, alone_late, "the sharing tracer at 1.7 s");
+  for (const Ray& r : rays) {
+    const glm::vec3 a = alone_early.trace(r, &stats).color, b = alone_late.trace(r, &stats).color;
+    differing += glm::length(a - b) > 0.02f;
+  }
+  EXPECT_GT(differing, 20) << "the two times must differ for the comparison to mean anything";
+  const ShadedSample kept = alone_early.trace(rays.back(), &stats);
+  const ShadedSample cut = alone_late.trace(rays.back(), &stats);
+  EXPECT_GT(kept.color.r, 2.0f * kept.color.g);  // the red square
+  EXPECT_LT(cut.color.r, 2.0f * cut.color.g);    // cut away: the grey floor behind
+
+  first.reset();
+  second.set_time(0.9);
+  Tracer alone(s);
+  alone.set_time(0.9);
+  expect_same_everywhere(second, alone, "the sharing tracer alone at 0.9 s");
+}
+
 TEST(TracerTest, SpotLightConeAndDirectionalLight) {
   const glm::vec3 eye(0.0f, 1.0f, 3.0f);
   TraceStats stats;

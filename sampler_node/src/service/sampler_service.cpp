@@ -767,7 +767,11 @@ void SamplerService::Impl::update_pool() {
                       building_region.x1, building_region.y0, building_region.y1, e.what());
       return;
     }
-    if (joined && region && region->region == building_region) {
+    // A pool built for a region that has been recut meanwhile (its sampler starved while the
+    // BVHs of a large scene were built, say) is kept and handed over to the new region below,
+    // as a running pool is, rather than built again; a new image or scene needs a new pool.
+    if (joined && region && region->image == building_image && scene_hash == building_scene &&
+        region->region.area() >= int64_t(built->regions().size())) {
       pool = std::move(built);
       pool_region = building_region;
       pool_image = building_image;

@@ -1,6 +1,8 @@
 // Runs several samplers on worker threads for live use: the owned region is cut into one
 // sub-region per thread (split_region, the same mechanism the service uses across nodes) and
-// each thread runs its own Sampler with its own Tracer on a shared wall clock.
+// each thread runs its own Sampler with its own Tracer on a shared wall clock. The first
+// thread's tracer builds the scene's BVHs; the others share what no time changes
+// (Tracer::ShareGeometry), so a pool's memory and build time do not grow with its threads.
 //
 // Order of calls: construct, start(), then stop() (or destroy); set_region() at any time in
 // between, from the thread that calls the others. The sink is called from the worker threads,

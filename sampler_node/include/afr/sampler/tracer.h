@@ -8,7 +8,8 @@
 // (I / pi without falloff); ambient = Scene::ambient x (Material::ambient or base color) x
 // texture. The details are in sampler_node/src/shading.h.
 //
-// Order of calls: construct (the tracer keeps its own copy of the scene and starts at time 0),
+// Order of calls: construct (the tracer keeps its own copy of the scene, or shares another
+// tracer's, and starts at time 0),
 // optionally set_time(t) and then set_view(camera), then any number of
 // trace/trace_crosshair/occluded calls from any number of threads (each thread with its own
 // TraceStats), then set_time again. set_time and set_view must not overlap with tracing.
@@ -78,6 +79,14 @@ class Tracer {
  public:
   // Builds the BVH of a finalized scene. Throws afr::Error if Embree fails.
   Tracer(const Scene& scene, const TracerOptions& options = {});
+  // A tracer of `other`'s scene and options that shares with it what no time changes: the copy
+  // of the scene, the BVHs of the static geometry and of the meshes that moving nodes carry, and
+  // their world-space vertices. It builds only its own top level and deforming meshes, and
+  // moves to its own times as any tracer does. So the tracers of a sampler pool's threads cost
+  // one scene's memory and one build, not one per thread (docs/sampler.md, "Threads"). `other`
+  // must not be in set_time meanwhile; it may be destroyed first.
+  struct ShareGeometry {};
+  Tracer(const Tracer& other, ShareGeometry);
   ~Tracer();
   Tracer(const Tracer&) = delete;
   Tracer& operator=(const Tracer&) = delete;
