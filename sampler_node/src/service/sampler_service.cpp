@@ -289,6 +289,8 @@ struct SamplerService::Impl {
   // endpoint; they live as long as the session or until the wall drops their node.
   std::map<std::string, std::unique_ptr<SampleSender>> wall_senders;
   uint64_t wall_epoch = 0;
+  // The layout in force: the display sends it again with every answer to a repeated join.
+  std::optional<WallLayout> wall;
 
   // Scene and pool.
   std::unique_ptr<Scene> scene;
@@ -486,6 +488,7 @@ SessionEnd SamplerService::Impl::run_session(const std::atomic<bool>& stop) {
   sink.detach();  // before the senders it routes to go away
   wall_senders.clear();
   wall_epoch = 0;
+  wall.reset();
   joined = false;
   return end;
 }
@@ -713,7 +716,7 @@ void SamplerService::Impl::on_region(const RegionAssignment& r) {
 // A display wall's layout: one sample route per display node, to the part of the image it
 // needs (docs/wall.md). The lead display's own node has no endpoint: the session's sender.
 void SamplerService::Impl::on_wall(const WallLayout& w, SampleSender& sender) {
-  if (!joined || w.epoch < wall_epoch) return;
+  if (!joined || w.epoch < wall_epoch || w == wall) return;
   if (w.image != welcome.image) {
     if (const uint64_t n = log.due("wall layout of another image")) {
       spdlog::warn("wall layout {}x{} does not match the display's image {}x{} ({} such): ignored",
@@ -722,6 +725,7 @@ void SamplerService::Impl::on_wall(const WallLayout& w, SampleSender& sender) {
     return;
   }
   wall_epoch = w.epoch;
+  wall = w;
   std::vector<SampleRoute> routes;
   std::map<std::string, std::unique_ptr<SampleSender>> kept;
   for (const WallNode& n : w.nodes) {
