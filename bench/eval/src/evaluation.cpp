@@ -183,10 +183,11 @@ std::vector<RunResult> run_all(const Scene& scene, Tracer& tracer,
   if (progress) {
     progress->set_task(fmt::format("{}: {} runs, {} at a time", animation, runs.size(), jobs));
   }
-  // A tracer per worker: a tracer holds the scene at one time (Tracer::set_time).
+  // A tracer per worker: a tracer holds the scene at one time (Tracer::set_time). They share
+  // the first's build of the scene.
   std::vector<std::unique_ptr<Tracer>> tracers;
   for (int w = 1; w < std::min<int>(jobs, int(runs.size())); ++w) {
-    tracers.push_back(std::make_unique<Tracer>(scene, tracer.options()));
+    tracers.push_back(std::make_unique<Tracer>(tracer, Tracer::ShareGeometry{}));
   }
   std::vector<std::thread> workers;
   for (auto& t : tracers) workers.emplace_back(work, t.get());
