@@ -76,7 +76,10 @@ SamplerPool::SamplerPool(const Scene& scene, const SamplerConfig& config,
     c.region = regions_[t];
     c.seed = config_.seed + uint64_t(t) * 0x9e3779b97f4a7c15ULL;
     // One build of the scene's BVHs; the other threads' tracers share it (Tracer::ShareGeometry).
-    w->tracer = t == 0 ? std::make_unique<Tracer>(scene_)
+    // The pool's scene outlives it (the samplers read it too), so the tracer holds it, not a
+    // copy of it.
+    w->tracer = t == 0 ? std::make_unique<Tracer>(
+                             std::shared_ptr<const Scene>(std::shared_ptr<void>(), &scene_))
                        : std::make_unique<Tracer>(*workers_[0]->tracer, Tracer::ShareGeometry{});
     w->clock = std::make_unique<SharedClock>(clock_);
     w->sampler = std::make_unique<Sampler>(scene_, *w->tracer, *w->clock, c, sink_);

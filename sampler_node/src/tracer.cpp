@@ -676,7 +676,10 @@ namespace afr {
 // Tracer
 
 Tracer::Tracer(const Scene& scene, const TracerOptions& options)
-    : impl_(std::make_unique<Impl>(scene, options)) {}
+    : impl_(std::make_unique<Impl>(std::make_shared<const Scene>(scene), options)) {}
+
+Tracer::Tracer(std::shared_ptr<const Scene> scene, const TracerOptions& options)
+    : impl_(std::make_unique<Impl>(std::move(scene), options)) {}
 
 Tracer::Tracer(const Tracer& other, ShareGeometry)
     : impl_(std::make_unique<Impl>(other.impl_->shared_)) {}

@@ -44,8 +44,8 @@ void to_float3x4(const glm::dmat4& m, float out[12]) {
 
 }  // namespace
 
-TracerImpl::TracerImpl(const Scene& scene, const TracerOptions& options)
-    : shared_(std::make_shared<TracerShared>(scene, options)),
+TracerImpl::TracerImpl(std::shared_ptr<const Scene> scene, const TracerOptions& options)
+    : shared_(std::make_shared<TracerShared>(std::move(scene), options)),
       scene_(shared_->scene),
       options_(options) {
   if (scene_.ray_depth) options_.max_mirror_depth = *scene_.ray_depth;

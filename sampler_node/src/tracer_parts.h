@@ -451,12 +451,14 @@ void mask_filter(const RTCFilterFunctionNArguments* args);
 // deforming geometry, its materials and lights. Read-only once built; released with the last
 // tracer that holds it.
 struct TracerShared {
-  explicit TracerShared(const Scene& s, const TracerOptions& o) : scene(s), options(o) {}
+  TracerShared(std::shared_ptr<const Scene> s, const TracerOptions& o)
+      : scene_owner(std::move(s)), scene(*scene_owner), options(o) {}
   ~TracerShared();
   TracerShared(const TracerShared&) = delete;
   TracerShared& operator=(const TracerShared&) = delete;
 
-  Scene scene;
+  std::shared_ptr<const Scene> scene_owner;  // null owner: the caller keeps the scene alive
+  const Scene& scene;
   TracerOptions options;  // with the scene's ray depth in place
   RTCDevice device = nullptr;
   std::vector<Blas> blas;              // every BLAS but the deforming one; owns their scenes
@@ -527,7 +529,7 @@ struct TracerImpl {
   float offset_floor_ = 1.0f;
 
   // Builds everything: the shared part, then this tracer's.
-  TracerImpl(const Scene& scene, const TracerOptions& options);
+  TracerImpl(std::shared_ptr<const Scene> scene, const TracerOptions& options);
   // Shares what `shared` holds, and builds only this tracer's part.
   explicit TracerImpl(std::shared_ptr<TracerShared> shared);
   ~TracerImpl() { release(); }

@@ -256,10 +256,11 @@ Scene scene_of_every_geometry() {
 // traces as a tracer built alone does at its own time, while the one it shares with is at
 // another: camera rays, crosshairs (packets) and occlusion rays over the scene above, at 0.3 s
 // and 1.7 s, where the cut-away square, the pane's shadow, the lifted square and the box differ;
-// and it goes on doing so after the tracer it shared with is gone.
+// and it goes on doing so after the tracer it shared with, the scene's holder, is gone.
 TEST(TracerTest, ATracerSharingGeometryTracesAsOneBuiltAloneAtItsOwnTime) {
   const Scene s = scene_of_every_geometry();
-  auto first = std::make_unique<Tracer>(s);
+  // The first tracer holds a scene of its own (no copy), which goes with the last tracer.
+  auto first = std::make_unique<Tracer>(std::make_shared<const Scene>(s));
   Tracer second(*first, Tracer::ShareGeometry{});
   EXPECT_EQ(second.copied_vertices(), first->copied_vertices());
   first->set_time(0.3);

@@ -8,8 +8,8 @@
 // (I / pi without falloff); ambient = Scene::ambient x (Material::ambient or base color) x
 // texture. The details are in sampler_node/src/shading.h.
 //
-// Order of calls: construct (the tracer keeps its own copy of the scene, or shares another
-// tracer's, and starts at time 0),
+// Order of calls: construct (the tracer keeps its own copy of the scene, or holds the one it is
+// given, or shares another tracer's, and starts at time 0),
 // optionally set_time(t) and then set_view(camera), then any number of
 // trace/trace_crosshair/occluded calls from any number of threads (each thread with its own
 // TraceStats), then set_time again. set_time and set_view must not overlap with tracing.
@@ -77,8 +77,14 @@ struct ShadedSample {
 
 class Tracer {
  public:
-  // Builds the BVH of a finalized scene. Throws afr::Error if Embree fails.
+  // Builds the BVH of a finalized scene, of which it keeps a copy. Throws afr::Error if Embree
+  // fails.
   Tracer(const Scene& scene, const TracerOptions& options = {});
+  // The same without the copy: the tracer holds `scene` (a pointer that owns nothing, from
+  // shared_ptr's aliasing constructor, leaves its lifetime to the caller), which must not change
+  // while the tracer or one sharing its geometry lives. For large scenes whose caller keeps them
+  // anyway (a sampler pool: its textures and meshes, once, not twice).
+  explicit Tracer(std::shared_ptr<const Scene> scene, const TracerOptions& options = {});
   // A tracer of `other`'s scene and options that shares with it what no time changes: the copy
   // of the scene, the BVHs of the static geometry and of the meshes that moving nodes carry, and
   // their world-space vertices. It builds only its own top level and deforming meshes, and
