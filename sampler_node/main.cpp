@@ -70,6 +70,12 @@ int main(int argc, char** argv) {
                  "folder with sampler.key and display.pub (instead of --key and --server-key)");
   app.add_option("--name", o.name, "name shown in the display's logs (default: host:pid)");
   app.add_option("--cache", cache_dir, "folder for received scenes (default: ~/.cache/afr/scenes)");
+  double cache_mb = double(afr::service::SceneCache::kDefaultMaxBytes) / (1 << 20);
+  app.add_option("--cache-max-mb", cache_mb,
+                 "MiB of scenes the cache folder keeps; beyond, the least recently used go (the "
+                 "scene being served always stays)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1e9));
   app.add_option("--display-timeout", o.display_timeout,
                  "seconds of silence from the display before reconnecting")
       ->capture_default_str()
@@ -116,6 +122,7 @@ int main(int argc, char** argv) {
     if (o.name.empty()) o.name = fmt::format("{}:{}", host_name(), ::getpid());
     o.cache_dir = cache_dir.empty() ? afr::service::default_scene_cache_dir()
                                     : std::filesystem::path(cache_dir);
+    o.cache_max_bytes = uint64_t(cache_mb * (1 << 20));
     o.config.validate();
     // Flags given on the command line win over the preset the display names.
     const auto given = [&](const char* flag) { return app.count(flag) > 0; };

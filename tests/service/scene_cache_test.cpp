@@ -5,6 +5,10 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
+#include <chrono>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -72,6 +76,56 @@ TEST(SceneCacheTest, StoredSceneIsFoundByHashAndACorruptOneIsNot) {
   std::ofstream(file, std::ios::app) << "x";  // corrupt: the hash no longer matches
   EXPECT_FALSE(cache.find(hash));
   std::filesystem::remove_all(dir);
+}
+
+// The cache keeps at most its bound: storing a scene removes the least recently used others
+// (a scene found counts as used) until the rest fit; the scene just stored stays even when it
+// alone is larger; a write that never finished goes once it is an hour old, a recent one and
+// files that are no cached scene stay.
+TEST(SceneCacheTest, StoringKeepsTheCacheWithinItsBoundByDroppingTheLeastRecentlyUsed) {
+  namespace fs = std::filesystem;
+  const fs::path dir =
+      fs::temp_directory_path() / ("afr-cache-bound-test-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  auto scene_of = [](int k, size_t size) {
+    std::vector<uint8_t> bytes(size, uint8_t(k));
+    std::memcpy(bytes.data(), "glTF", 4);
+    return bytes;
+  };
+  // Four scenes of 1000 bytes in a cache of 2500: at most two fit.
+  SceneCache cache(dir, 2500);
+  std::vector<protocol::SceneHash> hashes;
+  std::vector<fs::path> files;
+  const auto old = fs::file_time_type::clock::now() - std::chrono::hours(3);
+  for (int k = 0; k < 2; ++k) {
+    const std::vector<uint8_t> bytes = scene_of(k, 1000);
+    hashes.push_back(protocol::scene_hash(bytes));
+    files.push_back(cache.store(hashes.back(), "s.glb", bytes));
+    // Stored k hours apart (the first the oldest), without waiting for the clock.
+    fs::last_write_time(files.back(), old + std::chrono::hours(k));
+  }
+  const fs::path stale = dir / "unfinished.glb.123.part", fresh = dir / "writing.glb.456.part";
+  const fs::path other = dir / "notes.txt";
+  for (const fs::path& p : {stale, fresh, other}) std::ofstream(p) << "x";
+  fs::last_write_time(stale, old);
+  ASSERT_TRUE(cache.find(hashes[0]));  // the older one, used now: the newer one is now the least
+  const std::vector<uint8_t> third = scene_of(2, 1000);
+  const fs::path third_file = cache.store(protocol::scene_hash(third), "s.glb", third);
+  EXPECT_TRUE(fs::exists(files[0]));
+  EXPECT_FALSE(fs::exists(files[1]));
+  EXPECT_TRUE(fs::exists(third_file));
+  EXPECT_FALSE(fs::exists(stale));
+  EXPECT_TRUE(fs::exists(fresh));
+  EXPECT_TRUE(fs::exists(other));
+  // A scene larger than the whole bound stays, alone.
+  const std::vector<uint8_t> big = scene_of(3, 4000);
+  const fs::path big_file = cache.store(protocol::scene_hash(big), "s.glb", big);
+  EXPECT_TRUE(fs::exists(big_file));
+  EXPECT_FALSE(fs::exists(files[0]));
+  EXPECT_FALSE(fs::exists(third_file));
+  ASSERT_TRUE(cache.find(protocol::scene_hash(big)));
+  fs::remove_all(dir);
 }
 
 }  // namespace

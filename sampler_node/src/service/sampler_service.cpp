@@ -246,7 +246,8 @@ protocol::ChannelOptions sample_channel(const SamplerServiceOptions& options) {
 // ---------------------------------------------------------------------------------------------
 
 struct SamplerService::Impl {
-  explicit Impl(SamplerServiceOptions o) : options(std::move(o)), cache(options.cache_dir) {}
+  explicit Impl(SamplerServiceOptions o)
+      : options(std::move(o)), cache(options.cache_dir, options.cache_max_bytes) {}
 
   // What a display (or whoever holds its address) can repeat at will: a line per cause a
   // second. The control thread's only.

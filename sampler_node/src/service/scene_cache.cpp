@@ -6,9 +6,11 @@
 #include <afr/protocol/scene_hash.h>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
@@ -65,6 +67,18 @@ bool is_payload_file(const std::filesystem::path& p, const std::string& hex) {
   return p.stem().string() == hex;
 }
 
+// A cached scene of any hash: <hex hash>.glb, .gltf or .builtin.
+bool is_cached_scene(const std::filesystem::path& p) {
+  const std::string ext = p.extension().string(), stem = p.stem().string();
+  return (ext == ".glb" || ext == ".gltf" || ext == ".builtin") &&
+         stem.size() == protocol::to_hex(protocol::SceneHash{}).size() &&
+         std::all_of(stem.begin(), stem.end(),
+                     [](char c) { return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'); });
+}
+
+// A write that never finished (its sampler died): <file>.<pid>.part, left for an hour.
+constexpr auto kStalePart = std::chrono::hours(1);
+
 }  // namespace
 
 std::optional<std::filesystem::path> SceneCache::find(const protocol::SceneHash& hash) const {
@@ -74,7 +88,12 @@ std::optional<std::filesystem::path> SceneCache::find(const protocol::SceneHash&
   for (const auto& entry : std::filesystem::directory_iterator(dir_, ec)) {
     if (!entry.is_regular_file() || !is_payload_file(entry.path(), hex)) continue;
     try {
-      if (protocol::scene_hash(read_file(entry.path())) == hash) return entry.path();
+      if (protocol::scene_hash(read_file(entry.path())) == hash) {
+        // Used now: the last to go (evict).
+        std::filesystem::last_write_time(entry.path(),
+                                         std::filesystem::file_time_type::clock::now(), ec);
+        return entry.path();
+      }
     } catch (const Error&) {
     }
   }
@@ -102,7 +121,58 @@ std::filesystem::path SceneCache::store(const protocol::SceneHash& hash,
   }
   std::filesystem::rename(tmp, file, ec);  // atomic: another sampler may read the same cache
   if (ec) throw Error(fmt::format("{}: cannot rename into place: {}", file.string(), ec.message()));
+  evict(file);
   return file;
+}
+
+void SceneCache::evict(const std::filesystem::path& keep) const {
+  namespace fs = std::filesystem;
+  struct Cached {
+    fs::path path;
+    uint64_t bytes;
+    fs::file_time_type used;
+  };
+  std::vector<Cached> scenes;
+  uint64_t total = 0;
+  std::error_code ec;
+  const fs::file_time_type now = fs::file_time_type::clock::now();
+  for (const auto& entry : fs::directory_iterator(dir_, ec)) {
+    std::error_code e;
+    if (!entry.is_regular_file(e)) continue;
+    const fs::path& p = entry.path();
+    const fs::file_time_type used = fs::last_write_time(p, e);
+    if (e) continue;  // gone meanwhile (another sampler's eviction)
+    if (p.extension() == ".part") {
+      if (now - used > kStalePart) fs::remove(p, e);
+      continue;
+    }
+    if (!is_cached_scene(p) || p == keep) continue;
+    const uint64_t bytes = entry.file_size(e);
+    if (e) continue;
+    scenes.push_back({p, bytes, used});
+    total += bytes;
+  }
+  const uint64_t kept = fs::file_size(keep, ec);
+  total += ec ? 0 : kept;
+  std::sort(scenes.begin(), scenes.end(),
+            [](const Cached& a, const Cached& b) { return a.used < b.used; });
+  int removed = 0;
+  uint64_t freed = 0;
+  for (const Cached& c : scenes) {
+    if (total <= max_bytes_) break;
+    std::error_code e;
+    if (fs::remove(c.path, e)) {
+      ++removed;
+      freed += c.bytes;
+    }
+    total -= c.bytes;
+  }
+  if (removed > 0) {
+    spdlog::info(
+        "scene cache {}: removed the {} least recently used scene(s) ({:.1f} MB) to stay "
+        "within {:.0f} MB",
+        dir_.string(), removed, double(freed) / 1e6, double(max_bytes_) / 1e6);
+  }
 }
 
 Scene load_scene_payload(const std::filesystem::path& file) {

@@ -12,6 +12,7 @@
 
 #include <afr/protocol/channels.h>
 #include <afr/sampler/sampler_config.h>
+#include <afr/sampler/service/scene_cache.h>
 
 #include <atomic>
 #include <cstdint>
@@ -45,7 +46,8 @@ struct SamplerServiceOptions {
   PresetOverrides overrides;            // flags given explicitly: applied after the preset
   std::string name;                     // for the display's logs; default: host name + pid
   std::filesystem::path cache_dir;      // received scenes
-  protocol::Security security;          // CurveZMQ client keys, or none
+  uint64_t cache_max_bytes = SceneCache::kDefaultMaxBytes;  // beyond: least recently used go
+  protocol::Security security;                              // CurveZMQ client keys, or none
   // The sample channel's kernel send buffer, bytes (0: ChannelOptions::samples()'s): what a
   // saturated link holds of this sampler's samples beyond ZeroMQ's queue.
   int send_buffer = 0;

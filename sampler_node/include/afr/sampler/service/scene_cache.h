@@ -47,20 +47,33 @@ class SceneAssembler {
   std::vector<char> have_;  // by chunk index
 };
 
-// Scenes on disk, one file per hash: DIR/<hex hash><extension>.
+// Scenes on disk, one file per hash: DIR/<hex hash><extension>. The folder holds at most
+// max_bytes of scenes: storing one removes the least recently used others (stored or found
+// longest ago; the files' modification times) until the rest fit, so that a host whose samplers
+// serve one display after another, each with its scenes, does not fill its disk. The scene just
+// stored stays, whatever its size. Several samplers may share the folder.
 class SceneCache {
  public:
-  explicit SceneCache(std::filesystem::path dir) : dir_(std::move(dir)) {}
-  // The file of a cached scene whose bytes still match the hash, or nothing.
+  static constexpr uint64_t kDefaultMaxBytes = uint64_t(4) << 30;
+
+  explicit SceneCache(std::filesystem::path dir, uint64_t max_bytes = kDefaultMaxBytes)
+      : dir_(std::move(dir)), max_bytes_(max_bytes) {}
+  // The file of a cached scene whose bytes still match the hash, or nothing. A file found
+  // counts as used now.
   std::optional<std::filesystem::path> find(const protocol::SceneHash& hash) const;
-  // Writes the bytes (already checked against their hash) and returns the file. Throws
-  // afr::Error naming the file when it cannot be written.
+  // Writes the bytes (already checked against their hash), removes the least recently used
+  // other scenes beyond max_bytes (and leftovers of writes that never finished), and returns
+  // the file. Throws afr::Error naming the file when it cannot be written.
   std::filesystem::path store(const protocol::SceneHash& hash, std::string_view scene_name,
                               const std::vector<uint8_t>& bytes) const;
   const std::filesystem::path& dir() const { return dir_; }
+  uint64_t max_bytes() const { return max_bytes_; }
 
  private:
+  void evict(const std::filesystem::path& keep) const;
+
   std::filesystem::path dir_;
+  uint64_t max_bytes_;
 };
 
 // The scene of a payload file: the built-in scene for its payload (with its ray depth), else
