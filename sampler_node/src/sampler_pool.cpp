@@ -75,12 +75,16 @@ SamplerPool::SamplerPool(const Scene& scene, const SamplerConfig& config,
     SamplerConfig c = config_;
     c.region = regions_[t];
     c.seed = config_.seed + uint64_t(t) * 0x9e3779b97f4a7c15ULL;
-    // One build of the scene's BVHs; the other threads' tracers share it (Tracer::ShareGeometry).
-    // The pool's scene outlives it (the samplers read it too), so the tracer holds it, not a
-    // copy of it.
-    w->tracer = t == 0 ? std::make_unique<Tracer>(
-                             std::shared_ptr<const Scene>(std::shared_ptr<void>(), &scene_))
-                       : std::make_unique<Tracer>(*workers_[0]->tracer, Tracer::ShareGeometry{});
+    // One build of the scene's BVHs (or the caller's, options.geometry); the other threads'
+    // tracers share it (Tracer::ShareGeometry). The pool's scene outlives it (the samplers read
+    // it too), so the tracer holds it, not a copy of it.
+    if (t > 0 || options.geometry) {
+      const Tracer& from = t > 0 ? *workers_[0]->tracer : *options.geometry;
+      w->tracer = std::make_unique<Tracer>(from, Tracer::ShareGeometry{});
+    } else {
+      w->tracer =
+          std::make_unique<Tracer>(std::shared_ptr<const Scene>(std::shared_ptr<void>(), &scene_));
+    }
     w->clock = std::make_unique<SharedClock>(clock_);
     w->sampler = std::make_unique<Sampler>(scene_, *w->tracer, *w->clock, c, sink_);
     workers_.push_back(std::move(w));

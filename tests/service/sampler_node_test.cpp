@@ -36,10 +36,15 @@ TEST_F(ServiceTest, SamplersAreBackWithinTwoSecondsOfADisplayRestart) {
   EXPECT_LT(took, scaled(2.0)) << d2->log() << s1->log() << s2->log();
   EXPECT_NE(get_stats(metrics_port())["display"]["session"], session);
   // The scene was loaded once, before the restart: sent by the display, or found in the cache
-  // the other sampler filled. After the restart the sampler kept it (same hash).
+  // the other sampler filled. After the restart the sampler kept it (same hash), and its BVHs:
+  // the new session's pool shares them.
   for (const auto* s : {s1.get(), s2.get()}) {
+    // A pool in each session.
+    EXPECT_TRUE(wait_until([&] { return count_of(s->log(), "sampling region") >= 2; }, 5.0))
+        << s->log();
     const std::string log = s->log();
     EXPECT_EQ(count_of(log, "scene received") + count_of(log, "found in the cache"), 1u) << log;
+    EXPECT_EQ(count_of(log, "BVHs built"), 1u) << log;
   }
 }
 

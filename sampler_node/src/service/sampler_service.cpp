@@ -300,7 +300,14 @@ struct SamplerService::Impl {
   PixelRect pool_region;
   ImageExtent pool_image;  // what the pool was built for, besides the session's scene
   SceneHash pool_scene{};
-  std::future<std::unique_ptr<SamplerPool>> building;  // a pool being constructed
+  // The scene's BVHs, built with the first pool and shared by every pool of the scene
+  // (SamplerPoolOptions::geometry); it holds `scene` (no copy), so it goes before the scene.
+  std::shared_ptr<const Tracer> geometry;
+  struct BuiltPool {
+    std::unique_ptr<SamplerPool> pool;
+    std::shared_ptr<const Tracer> geometry;  // the one it shares
+  };
+  std::future<BuiltPool> building;  // a pool being constructed
   PixelRect building_region;
   ImageExtent building_image;
   SceneHash building_scene{};
@@ -311,7 +318,7 @@ struct SamplerService::Impl {
   std::future<SceneLoad> loading;
   SceneHash loading_hash{};
   double loading_since = 0.0;
-  std::vector<std::future<std::unique_ptr<SamplerPool>>> abandoned_pools;
+  std::vector<std::future<BuiltPool>> abandoned_pools;
   std::vector<std::future<SceneLoad>> abandoned_scenes;
   // Why this sampler cannot serve the session (the scene does not load, the pool cannot be
   // built): told to the display in a leave, then run() returns 3.
@@ -692,6 +699,7 @@ void SamplerService::Impl::finish_background_work(DisplayLink& control) {
     std::lock_guard<std::mutex> lock(counters_mutex);
     ++counters.scene_cache_hits;
   }
+  geometry.reset();  // built on the scene it replaces (no pool shares it any more)
   scene = std::move(got.scene);
   scene_hash = loading_hash;
   spdlog::info("scene {}: {} triangles, {:.2f} s of animation{} (loaded in {:.2f} s)",
@@ -759,13 +767,16 @@ void SamplerService::Impl::on_wall(const WallLayout& w, SampleSender& sender) {
 }
 
 // Starts, replaces or keeps the pool so that it runs on the current region. Pools are built on
-// a helper thread (a Tracer per worker thread builds its BVH), so heartbeats go on meanwhile.
+// a helper thread (the first of a scene builds its BVHs, `geometry`, which later pools of the
+// scene share), so heartbeats go on meanwhile.
 void SamplerService::Impl::update_pool() {
   if (building.valid()) {
     if (building.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return;
     std::unique_ptr<SamplerPool> built;
     try {
-      built = building.get();
+      BuiltPool b = building.get();
+      built = std::move(b.pool);
+      if (scene_hash == building_scene) geometry = std::move(b.geometry);
     } catch (const std::exception& e) {
       failure =
           fmt::format("cannot start sampling region [{}, {}) x [{}, {}): {}", building_region.x0,
@@ -834,8 +845,15 @@ void SamplerService::Impl::update_pool() {
   building_image = region->image;
   building_scene = scene_hash;
   const Scene* s = scene.get();
-  building = std::async(std::launch::async, [this, s, config, po] {
-    return std::make_unique<SamplerPool>(*s, config, po, clock, sink);
+  building = std::async(std::launch::async, [this, s, config, po, g = geometry,
+                                             name = welcome.scene_name]() mutable {
+    if (!g) {
+      const double start = steady_seconds();
+      g = std::make_shared<const Tracer>(std::shared_ptr<const Scene>(std::shared_ptr<void>(), s));
+      spdlog::info("scene {}: BVHs built in {:.2f} s", name, steady_seconds() - start);
+    }
+    po.geometry = g.get();
+    return BuiltPool{std::make_unique<SamplerPool>(*s, config, po, clock, sink), std::move(g)};
   });
 }
 

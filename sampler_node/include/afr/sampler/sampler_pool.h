@@ -34,6 +34,10 @@ struct SamplerPoolOptions {
   // not always preempt a niced one at once), but the samplers trace fewer and older samples,
   // and the live error was higher for it (docs/service.md, "What each node does").
   bool worker_idle = false;
+  // A tracer of the pool's scene whose build the pool's tracers share (Tracer::ShareGeometry),
+  // kept by the caller from pool to pool (a sampler node's new session or region on the same
+  // scene starts without building the scene again); null: the pool builds it.
+  const Tracer* geometry = nullptr;
 };
 
 class SamplerPool {
