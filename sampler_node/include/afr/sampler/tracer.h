@@ -85,12 +85,13 @@ class Tracer {
   // while the tracer or one sharing its geometry lives. For large scenes whose caller keeps them
   // anyway (a sampler pool: its textures and meshes, once, not twice).
   explicit Tracer(std::shared_ptr<const Scene> scene, const TracerOptions& options = {});
-  // A tracer of `other`'s scene and options that shares with it what no time changes: the copy
-  // of the scene, the BVHs of the static geometry and of the meshes that moving nodes carry, and
-  // their world-space vertices. It builds only its own top level and deforming meshes, and
-  // moves to its own times as any tracer does. So the tracers of a sampler pool's threads cost
-  // one scene's memory and one build, not one per thread (docs/sampler.md, "Threads"). `other`
-  // must not be in set_time meanwhile; it may be destroyed first.
+  // A tracer of `other`'s scene and options that shares with it what no time changes: the scene
+  // (the copy `other` keeps, or the one it holds), the BVHs of the static geometry and of the
+  // meshes that moving nodes carry, and their world-space vertices. It builds only its own top
+  // level and deforming meshes, and moves to its own times as any tracer does. So the tracers of a
+  // sampler pool's threads cost one scene's memory and one build, not one per thread
+  // (docs/sampler.md, "Threads"). `other` must not be in set_time meanwhile; it may be destroyed
+  // first.
   struct ShareGeometry {};
   Tracer(const Tracer& other, ShareGeometry);
   ~Tracer();
