@@ -282,15 +282,22 @@ int main(int argc, char** argv) {
       }
       role = wall_follower.get();
     } else {
+      // The display reconstructs and never shades: its scene (cameras, animation, bounds) needs
+      // no textures; each image is still checked (GltfLoadOptions::textures).
+      afr::GltfLoadOptions no_textures;
+      no_textures.textures = false;
       if (variant.empty() && camera.empty() && !ray_depth) {
-        scene = std::make_unique<afr::Scene>(afr::load_scene(scene_path));
+        scene = std::make_unique<afr::Scene>(
+            scene_path.empty() ? afr::make_builtin_scene()
+                               : afr::load_gltf(scene_path, nullptr, no_textures));
         o.scene = afr::service::read_scene_payload(scene_path);
       } else {
         // The chosen variant's, camera's or ray depth's scene, as the samplers will load it.
         o.scene = afr::service::read_scene_payload(scene_path, variant, camera, ray_depth);
-        scene = std::make_unique<afr::Scene>(scene_path.empty()
-                                                 ? afr::builtin_scene_from_payload(o.scene.bytes)
-                                                 : afr::load_gltf_bytes(o.scene.bytes, scene_path));
+        scene = std::make_unique<afr::Scene>(
+            scene_path.empty()
+                ? afr::builtin_scene_from_payload(o.scene.bytes)
+                : afr::load_gltf_bytes(o.scene.bytes, scene_path, nullptr, no_textures));
         if (!camera.empty()) afr::check_chosen_camera(*scene, camera);
       }
       if (g_stop.load()) return 0;  // a signal while the scene loaded

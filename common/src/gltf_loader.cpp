@@ -786,13 +786,14 @@ namespace afr {
 using gltf_detail::Loader;
 namespace fs = std::filesystem;
 
-Scene load_gltf(const std::filesystem::path& path, GltfLoadReport* report) {
-  return Loader(path, report).load();
+Scene load_gltf(const std::filesystem::path& path, GltfLoadReport* report,
+                const GltfLoadOptions& options) {
+  return Loader(path, report, options).load();
 }
 
 Scene load_gltf_bytes(std::span<const uint8_t> bytes, const std::filesystem::path& path,
-                      GltfLoadReport* report) {
-  return Loader(path, report).load(bytes);
+                      GltfLoadReport* report, const GltfLoadOptions& options) {
+  return Loader(path, report, options).load(bytes);
 }
 
 void check_chosen_camera(const Scene& scene, std::string_view camera) {

@@ -81,7 +81,8 @@ struct PointerTarget {
 // (fail); what afr reads differently from the file is one warning per kind (warn_once).
 class Loader {
  public:
-  Loader(const fs::path& path, GltfLoadReport* report) : path_(path), report_(report) {}
+  Loader(const fs::path& path, GltfLoadReport* report, const GltfLoadOptions& options = {})
+      : path_(path), report_(report), options_(options) {}
 
   // Loads the file at path_, or `bytes` as if they were its contents.
   Scene load();
@@ -216,6 +217,7 @@ class Loader {
 
   fs::path path_;
   GltfLoadReport* report_;
+  GltfLoadOptions options_;
   std::set<std::string> warned_;
   FileAccess access_;
   tinygltf::Model model_;

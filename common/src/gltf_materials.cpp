@@ -713,6 +713,14 @@ int Loader::texture_for_image(int image_index, ImageData data, const TextureSamp
     return -1;
   }
   const DecodedImage decoded = decode_image(bytes, name);
+  if (!options_.textures) {  // checked, not kept (GltfLoadOptions::textures)
+    Texture white;
+    white.name = image.name.empty() ? image.uri : image.name;
+    white.width = white.height = 1;
+    white.codes = {0xffffffffu};
+    sampling.apply(&white);
+    return textures_[key] = add_texture(std::move(white));
+  }
 
   // The image's 8-bit values are kept as they are (Texture::codes), decoded at each lookup:
   // sRGB-encoded color, or data (metallic-roughness, occlusion, normal) as it is.

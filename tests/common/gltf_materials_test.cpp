@@ -956,6 +956,48 @@ TEST_F(GltfLoaderTest, UndecodableTextureFailsNamingTheImage) {
                          ": no such file: " + (dir_ / "textures" / "absent.png").string());
 }
 
+// Loaded without textures (GltfLoadOptions::textures, a display node's scene), a material's
+// texture is one white texel in place of the 64 x 32 image, every other part of the scene as
+// with textures; broken image data is still the same error.
+TEST_F(GltfLoaderTest, WithoutTexturesEachImageIsCheckedAndKeptAsOneTexel) {
+  DecodedImage image{64, 32, 3, std::vector<uint8_t>(64 * 32 * 3, 77)};
+  testing::write_png(image, dir_ / "big.png");
+  GltfBuilder b;
+  add_quad(&b);
+  b.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  b.doc()["materials"] =
+      json::array({{{"pbrMetallicRoughness",
+                     {{"baseColorTexture", {{"index", 0}}}, {"metallicFactor", 0.5}}}}});
+  b.doc()["textures"] = json::array({{{"source", 0}}});
+  b.doc()["images"] = json::array({{{"uri", "big.png"}}});
+  const fs::path path = dir_ / "textured.gltf";
+  b.write_embedded(path);
+  GltfLoadOptions no_textures;
+  no_textures.textures = false;
+  const Scene with = load_gltf(path), without = load_gltf(path, nullptr, no_textures);
+  ASSERT_EQ(with.textures.size(), 1u);
+  ASSERT_EQ(without.textures.size(), 1u);
+  EXPECT_EQ(with.textures[0].width, 64);
+  EXPECT_EQ(without.textures[0].width, 1);
+  EXPECT_EQ(without.textures[0].height, 1);
+  EXPECT_EQ(without.textures[0].texel_count(), 1u);
+  ASSERT_EQ(without.materials.size(), 1u);
+  EXPECT_EQ(without.materials[0].base_color_texture, with.materials[0].base_color_texture);
+  EXPECT_EQ(without.materials[0].metallic, with.materials[0].metallic);
+  EXPECT_EQ(without.triangle_count(), with.triangle_count());
+  EXPECT_EQ(without.nodes.size(), with.nodes.size());
+
+  const std::vector<uint8_t> not_png = {0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A, 1, 2, 3};
+  b.doc()["images"] = json::array({{{"uri", "data:image/png;base64," + testing::base64(not_png)}}});
+  b.write_embedded(path);
+  try {
+    load_gltf(path, nullptr, no_textures);
+    ADD_FAILURE() << "broken image data loaded";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("image 0"), std::string::npos) << e.what();
+  }
+}
+
 // An image of a format afr does not decode (KTX2, which files for KHR_texture_basisu viewers
 // name without the extension) leaves its textures out with one warning, as a texture without
 // a source does.

@@ -22,11 +22,21 @@ struct GltfLoadReport {
   std::vector<std::string> warnings;  // one per unsupported feature, already logged
 };
 
-Scene load_gltf(const std::filesystem::path& path, GltfLoadReport* report = nullptr);
+// What a scene is loaded for.
+struct GltfLoadOptions {
+  // The materials' texture images, decoded and kept: what shading reads. Without them each
+  // image is still decoded, one at a time, so that broken image data is the same error, but its
+  // texture keeps one white texel: for a display node, which reconstructs, never shades, and
+  // would otherwise hold every texture of the scene (4 bytes a texel and mip levels) for nothing.
+  bool textures = true;
+};
+
+Scene load_gltf(const std::filesystem::path& path, GltfLoadReport* report = nullptr,
+                const GltfLoadOptions& options = {});
 // The same for the bytes of a .gltf or .glb held in memory, with every check of a file: `path`
 // names it in errors, and its folder is where external buffers and images are looked for.
 Scene load_gltf_bytes(std::span<const uint8_t> bytes, const std::filesystem::path& path,
-                      GltfLoadReport* report = nullptr);
+                      GltfLoadReport* report = nullptr, const GltfLoadOptions& options = {});
 
 // After select_camera (gltf_pack.h): logs which node views from the chosen `camera`, or throws
 // afr::Error naming the scene's file when that node is not in the displayed scene (which then
