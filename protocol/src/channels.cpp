@@ -166,8 +166,8 @@ void apply_security(zmq::socket_t& s, const Security& security, const Context& c
 // itself where IPv6 sockets cannot be made, bind() below where "::" cannot be bound).
 // Without the option libzmq refuses IPv6 addresses ("No such device"). IPv4 addresses and host
 // names keep IPv4 sockets: with the option an IPv4 address becomes an IPv4-mapped IPv6 one
-// ("[::ffff:127.0.0.1]") in the socket's endpoint and its peers' addresses, and a name that
-// also resolves to IPv6 is tried there only.
+// ("[::ffff:127.0.0.1]") in the socket's endpoint and its peers' addresses, and a name would
+// be resolved for IPv6 where it has always been resolved as IPv4.
 bool wants_ipv6(const std::string& endpoint) {
   if (!starts_with(endpoint, "tcp://")) return false;
   const std::string host = endpoint.substr(6);
