@@ -14,6 +14,7 @@
 #include <atomic>
 #include <chrono>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 namespace afr::service {
@@ -105,11 +106,14 @@ TilingSnapshot tiling(uint32_t id, uint64_t token) {
 // The ingest thread of a display with the given gate, on a sample channel bound at `endpoint`.
 class Ingest {
  public:
-  Ingest(Context& context, const std::string& endpoint, const Security& security, MemberGate& gate)
-      : receiver_(context, endpoint, security) {
+  // `wall`: the ingest of a wall's node (its coverage inbox and key), else of a single display.
+  Ingest(Context& context, const std::string& endpoint, const Security& security, MemberGate& gate,
+         std::optional<WallPeers> wall = std::nullopt)
+      : receiver_(context, endpoint, security), wall_(std::move(wall)) {
     receiver_.set_image_bounds({64, 64});
-    thread_ =
-        std::thread([this, &gate] { run_ingest(receiver_, sink_, metrics_, &gate, running_); });
+    thread_ = std::thread([this, &gate] {
+      run_ingest(receiver_, sink_, metrics_, &gate, running_, {}, wall_ ? &*wall_ : nullptr);
+    });
   }
   ~Ingest() {
     running_ = false;
@@ -121,6 +125,7 @@ class Ingest {
 
  private:
   SampleReceiver receiver_;
+  std::optional<WallPeers> wall_;
   CountingSink sink_;
   ServiceMetrics metrics_;
   std::atomic<bool> running_{true};
@@ -201,6 +206,76 @@ TEST(DisplayIngestTest, WithCurveABatchFromAnotherAllowedKeyIsDroppedEvenWithThe
       20.0));
   EXPECT_EQ(ingest.sink().total_samples(), 1000u);
   EXPECT_EQ(ingest.metrics().display().spoofed_samples, 800u);
+}
+
+protocol::WallCoverage coverage(uint32_t node) {
+  protocol::WallCoverage c;
+  c.node_id = node;
+  c.time = 1.0;
+  c.rect = PixelRect{0, 0, 4, 4};
+  c.cells.assign(2 * 16, 1.0f);
+  return c;
+}
+
+// A wall's strays (sampler id 0) and coverage name no member and carry no token: with CurveZMQ
+// what speaks for a node of the wall is the display's key pair, which every node holds. A
+// sampler whose own key is allowed cannot pass batches off as strays (stored outside any
+// member's accounting) nor push coverage into a node's image; the wall's key can, and the
+// sampler's own batches still arrive. A display that is no wall takes neither from anyone:
+// strays are from no member there.
+TEST(DisplayIngestTest, WithCurveOnlyTheWallsKeySendsStraysAndCoverage) {
+  ASSERT_TRUE(protocol::curve_available());
+  const protocol::CurveKeyPair display = protocol::generate_curve_keypair();
+  const protocol::CurveKeyPair one = protocol::generate_curve_keypair();
+  Context context;
+  context.allow_curve_clients({display.public_key, one.public_key});
+  MemberGate gate;
+  const uint64_t token = 42;
+  gate.admit(1, token, one.public_key);
+  WallCoverageInbox inbox;
+  Ingest node(context, "tcp://127.0.0.1:*", Security::server(display), gate,
+              WallPeers{&inbox, display.public_key});
+  Ingest single(context, "tcp://127.0.0.1:*", Security::server(display), gate);
+  Context peer_context;
+  for (Ingest* ingest : {&node, &single}) {
+    SampleSender peer(peer_context, ingest->endpoint(),
+                      Security::client(display, display.public_key));
+    SampleSender sampler(peer_context, ingest->endpoint(),
+                         Security::client(one, display.public_key));
+    for (uint64_t k = 0; k < 20; ++k) {
+      send_all(peer, batch(protocol::kWallPeerSamplerId, 0, k, 30));
+      send_all(sampler, batch(protocol::kWallPeerSamplerId, 0, k, 40));
+      send_all(sampler, batch(1, token, k, 50));
+    }
+    ASSERT_TRUE(peer.send(coverage(2), {64, 64}).ok());
+    ASSERT_TRUE(sampler.send(coverage(3), {64, 64}).ok());
+    ASSERT_TRUE(peer.flush(10000) && sampler.flush(10000));
+  }
+  ASSERT_TRUE(afr::testing::wait_until(
+      [&] {
+        const DisplayMetrics d = node.metrics().display();
+        return node.sink().samples(1) == 1000 && d.spoofed_batches == 20 &&
+               d.rejected_samples_channel == 1 && d.wall_exchange.strays_in == 600 &&
+               d.wall_exchange.coverage_in == 1;
+      },
+      20.0))
+      << node.metrics().display().spoofed_batches;
+  ASSERT_TRUE(afr::testing::wait_until(
+      [&] {
+        const DisplayMetrics d = single.metrics().display();
+        return single.sink().samples(1) == 1000 && d.unknown_sampler_batches == 40 &&
+               d.rejected_samples_channel == 2;
+      },
+      20.0))
+      << single.metrics().display().unknown_sampler_batches;
+  EXPECT_EQ(node.sink().samples(protocol::kWallPeerSamplerId), 600u);  // the wall's own strays only
+  EXPECT_EQ(node.metrics().display().spoofed_samples, 20u * 40u);
+  std::vector<protocol::WallCoverage> got;
+  inbox.take(&got);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].node_id, 2u);
+  EXPECT_EQ(single.sink().samples(protocol::kWallPeerSamplerId), 0u);
+  EXPECT_EQ(single.metrics().display().wall_exchange.strays_in, 0u);
 }
 
 }  // namespace

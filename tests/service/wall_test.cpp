@@ -8,6 +8,7 @@
 #include <afr/common/image.h>
 #include <afr/common/rect.h>
 #include <afr/protocol/channels.h>
+#include <afr/protocol/keys.h>
 #include <afr/sampler/tracer.h>
 
 #include <fmt/format.h>
@@ -52,7 +53,8 @@ class WallTest : public ProcessTest {
     return std::make_unique<Process>(argv, path("lead.log"));
   }
   // A follower for cell (column, row) on a base port of its own (metrics on port + 3).
-  std::unique_ptr<Process> follower(int column, int row, int port) {
+  std::unique_ptr<Process> follower(int column, int row, int port,
+                                    std::vector<std::string> extra = {}) {
     const std::string name = "cell-" + std::to_string(column) + "-" + std::to_string(row);
     std::vector<std::string> argv = {kDisplay,
                                      "--headless",
@@ -72,13 +74,20 @@ class WallTest : public ProcessTest {
                                      "1",
                                      "--fps",
                                      "20"};
+    argv.insert(argv.end(), extra.begin(), extra.end());
     return std::make_unique<Process>(argv, path(name + ".log"));
   }
-  std::unique_ptr<Process> sampler(const std::string& log, int rate = 40000) {
-    return std::make_unique<Process>(
-        std::vector<std::string>{kSampler, "--display", endpoint(port_), "--cache", path("cache"),
-                                 "--max-samples-per-second", std::to_string(rate)},
-        path(log));
+  std::unique_ptr<Process> sampler(const std::string& log, int rate = 40000,
+                                   std::vector<std::string> extra = {}) {
+    std::vector<std::string> argv = {kSampler,
+                                     "--display",
+                                     endpoint(port_),
+                                     "--cache",
+                                     path("cache"),
+                                     "--max-samples-per-second",
+                                     std::to_string(rate)};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    return std::make_unique<Process>(argv, path(log));
   }
   // Samples a node has received from all samplers (its /stats), -1 when it does not answer.
   static int64_t received(int metrics_port) {
@@ -416,6 +425,76 @@ TEST_F(WallTest, AFollowerDropsBatchesThatAreNotFromTheLeadsMembers) {
   const int64_t before = received(port + 3);
   std::this_thread::sleep_for(std::chrono::milliseconds(600));
   EXPECT_GT(received(port + 3), before);
+}
+
+// A wall whose nodes use CurveZMQ on loopback: the lead and a follower, holding the display's
+// key pair, reach each other's sample channels and exchange coverage and strays; a sampler
+// with its own allowed key streams to both. That sampler's key cannot send strays (sampler id
+// 0, which name no member) to a node: they are dropped and counted as spoofed, and the node
+// stores none of them, while the real exchange goes on.
+TEST_F(WallTest, WithCurveTheNodesExchangeAndASamplersKeyCannotSendStrays) {
+  Process keygen({kDisplay, "keygen", path("keys"), "--samplers", "1"}, path("keygen.log"));
+  ASSERT_EQ(keygen.wait(10.0), 0) << keygen.log();
+  const std::vector<std::string> keys = {"--keys", path("keys")};
+  auto l = lead({"--wall", "2x1", "--keys", path("keys")}, "128x64");
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(port_ + 3) == 1; }, 5.0)) << l->log();
+  const int port = free_base_port();
+  ASSERT_NE(port, 0);
+  auto f = follower(1, 0, port, keys);
+  ASSERT_TRUE(wait_until([&] { return wall_nodes(port_ + 3) == 2; }, 5.0)) << l->log();
+  auto s = sampler("s1.log", 40000,
+                   {"--key", path("keys/sampler-1.key"), "--server-key", path("keys/display.pub")});
+  const auto exchange = [](int metrics_port) {
+    const nlohmann::json st = get_stats(metrics_port);
+    if (st.is_null() || st.is_discarded()) return nlohmann::json();
+    return st["display"]["wall"]["exchange"];
+  };
+  const auto coverage_in = [&](int metrics_port) {
+    const nlohmann::json x = exchange(metrics_port);
+    return x.is_null() ? uint64_t(0) : x["coverage_in"].get<uint64_t>();
+  };
+  ASSERT_TRUE(wait_until(
+      [&] {
+        return received(port_ + 3) > 0 && received(port + 3) > 0 && coverage_in(port_ + 3) > 0 &&
+               coverage_in(port + 3) > 0;
+      },
+      scaled(10.0)))
+      << l->log() << f->log() << s->log();
+
+  protocol::Context context;
+  const protocol::CurveKeyPair sampler_key =
+      protocol::load_curve_keypair(path("keys/sampler-1.key"));
+  const std::string display_key = protocol::load_curve_keypair(path("keys/display.key")).public_key;
+  protocol::SampleSender hostile(context, protocol::service_endpoints(endpoint(port)).samples,
+                                 protocol::Security::client(sampler_key, display_key));
+  for (uint64_t k = 0; k < 30; ++k) {
+    SampleBatch b;
+    b.sampler_id = protocol::kWallPeerSamplerId;
+    b.sequence = k;
+    b.samples.resize(32);
+    for (Sample& x : b.samples) {
+      x.time = 1.0;
+      x.x = 100.5f;  // in the follower's cell
+      x.y = 30.5f;
+      x.color = glm::vec3(1e4f);
+    }
+    const protocol::Status sent = hostile.send(b, {128, 64});
+    ASSERT_TRUE(sent.ok()) << sent.message();
+    ASSERT_TRUE(hostile.flush(5000));
+  }
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const nlohmann::json st = get_stats(port + 3);
+        return !st.is_null() && !st.is_discarded() &&
+               st["display"]["spoofed_batches"].get<int>() == 30;
+      },
+      scaled(10.0)))
+      << get_stats(port + 3).dump() << f->log();
+  EXPECT_NE(f->log().find("from a key that is not the wall's"), std::string::npos) << f->log();
+  // The exchange between the nodes goes on.
+  const uint64_t before = coverage_in(port + 3);
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  EXPECT_GT(coverage_in(port + 3), before);
 }
 
 }  // namespace

@@ -371,9 +371,21 @@ std::string short_key(std::string_view key) {
 void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metrics,
                 MemberGate* gate, const std::atomic<bool>& running,
                 const std::function<void(const TilingSnapshot&)>& on_tiling,
-                WallCoverageInbox* coverage) {
+                const WallPeers* wall) {
   uint64_t rejected = 0;
   LogLimiter log;
+  // On a wall's node: whether a stray or a coverage message comes from a node of the wall; logs
+  // (rate-limited) when not.
+  const auto from_wall_node = [&](const char* what, uint32_t id) {
+    if (wall->key.empty() || receiver.peer_key() == wall->key) return true;
+    if (const uint64_t n = log.due("wall message from no node")) {
+      spdlog::warn(
+          "sample channel: dropped {} wall message(s) from a key that is not the wall's (the last "
+          "a {} naming node {}, key {}): not stored",
+          n, what, id, short_key(receiver.peer_key()));
+    }
+    return false;
+  };
   // Whether a batch or snapshot comes from the member it names; logs (rate-limited) when not.
   const auto from_member = [&](const char* what, uint32_t id, uint64_t token, uint64_t samples) {
     const MemberGate::Verdict v =
@@ -405,9 +417,13 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
       case SampleReceiver::Got::kBatch: {
         const SampleBatch& b = receiver.batch();
         const size_t bytes = batch_message_bytes(b.fields, b.samples.size());
-        if (b.sampler_id == kWallPeerSamplerId && (gate == nullptr || coverage != nullptr)) {
-          metrics.on_wall_strays_in(b.samples.size(), bytes);
-          sink.on_batch(std::move(receiver.batch()));
+        if (b.sampler_id == kWallPeerSamplerId && wall != nullptr) {
+          if (from_wall_node("stray batch", b.sampler_id)) {
+            metrics.on_wall_strays_in(b.samples.size(), bytes);
+            sink.on_batch(std::move(receiver.batch()));
+          } else {
+            metrics.on_spoofed_batch(b.samples.size());
+          }
           break;
         }
         const MemberGate::Verdict v = from_member("batch", b.sampler_id, b.token, b.samples.size());
@@ -421,7 +437,7 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
       }
       case SampleReceiver::Got::kCoverage: {
         WallCoverage& c = receiver.coverage();
-        if (coverage == nullptr) {
+        if (wall == nullptr) {
           metrics.on_rejected_sample_message();
           if (const uint64_t n = log.due("coverage outside a wall")) {
             spdlog::warn(
@@ -431,9 +447,13 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
           }
           break;
         }
+        if (!from_wall_node("wall_coverage", c.node_id)) {
+          metrics.on_rejected_sample_message();
+          break;
+        }
         metrics.on_wall_coverage_in(uint64_t(c.rect.area()),
                                     wall_coverage_message_bytes(c.cells.size() / 2));
-        coverage->put(std::move(c));
+        wall->coverage->put(std::move(c));
         break;
       }
       case SampleReceiver::Got::kTiling: {
@@ -463,6 +483,8 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
 }
 
 void DisplayService::ingest_loop() {
+  // Only a wall's lead takes coverage and strays from peers; a single display refuses them.
+  const WallPeers wall{&wall_coverage_, options_.keys.public_key};
   run_ingest(
       *samples_, sink_, metrics_, &gate_, running_,
       [this](const TilingSnapshot& t) {
@@ -477,8 +499,7 @@ void DisplayService::ingest_loop() {
         std::lock_guard<std::mutex> lock(errors_mutex_);
         tile_errors_[t.sampler_id] = std::move(tiles);
       },
-      // Only a wall's lead takes coverage from peers; a single display refuses it.
-      options_.wall.is_wall() ? &wall_coverage_ : nullptr);
+      options_.wall.is_wall() ? &wall : nullptr);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -62,8 +62,10 @@ void WallFollower::start() {
   spdlog::info("wall follower {}: cell {},{} of the lead {}, samples at {}", options_.name,
                options_.column, options_.row, options_.lead, options_.advertise);
   control_thread_ = std::thread([this] { control_loop(); });
-  ingest_thread_ = std::thread(
-      [this] { run_ingest(*samples_, sink_, metrics_, &gate_, running_, {}, &wall_coverage_); });
+  ingest_thread_ = std::thread([this] {
+    const WallPeers wall{&wall_coverage_, options_.keys.public_key};
+    run_ingest(*samples_, sink_, metrics_, &gate_, running_, {}, &wall);
+  });
   if (http_) http_->start();
 }
 

@@ -87,19 +87,29 @@ std::function<Camera(double)> view_camera_function(const Scene& scene, const Cam
 void configure_security(const std::string& keys_dir, std::string key_file, std::string allow_file,
                         bool insecure, DisplayServiceOptions* o);
 
+// What a display wall's node takes from the wall's other nodes (docs/wall.md, "Seams"): their
+// coverage, into `coverage`, and their strays (batches with sampler_id kWallPeerSamplerId).
+// With CurveZMQ every node of a wall holds the display's key pair, so only a connection
+// authenticated with `key`, that pair's public key, speaks for a node; a sampler's key cannot.
+// `key` empty: no CurveZMQ, and nothing tells a node from any other peer.
+struct WallPeers {
+  WallCoverageInbox* coverage = nullptr;
+  std::string key;
+};
+
 // Reads the sample channel into `sink` until `running` turns false (waking every 50 ms to
 // check), counting in `metrics`. The ingest thread of a display or of a wall's follower.
 // `gate` says whether a batch or snapshot comes from the member it names (member_gate.h): those
 // that do not are dropped before the sink, counted, and logged at most once a second per cause.
-// Without a gate (a wall's follower, which does not know the lead's members) every id counts as
-// a member. on_tiling, when set, sees every accepted snapshot before the sink does. A display
-// wall's peers send strays (batches with sampler_id kWallPeerSamplerId: to the sink, counted
-// apart; from no member when a display with a gate is no wall) and coverage (into `coverage`;
-// rejected as unexpected when it is null).
+// Without a gate every id counts as a member. on_tiling, when set, sees every accepted snapshot
+// before the sink does. `wall`, set on a node of a display wall, admits the wall's strays (to
+// the sink, counted apart) and coverage from the connections it names; from any other peer they
+// are dropped and counted (a stray as a spoofed batch). A display that is no wall (`wall` null)
+// drops strays as from no member (through `gate`) and rejects coverage.
 void run_ingest(protocol::SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metrics,
                 MemberGate* gate, const std::atomic<bool>& running,
                 const std::function<void(const TilingSnapshot&)>& on_tiling = {},
-                WallCoverageInbox* coverage = nullptr);
+                const WallPeers* wall = nullptr);
 
 class DisplayService final : public DisplayRole {
  public:
