@@ -13,9 +13,11 @@
 
 #include <atomic>
 #include <chrono>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <vector>
 
 namespace afr::service {
 namespace {
@@ -237,11 +239,13 @@ TEST(DisplayIngestTest, WithCurveOnlyTheWallsKeySendsStraysAndCoverage) {
               WallPeers{&inbox, display.public_key});
   Ingest single(context, "tcp://127.0.0.1:*", Security::server(display), gate);
   Context peer_context;
+  // The senders live to the end: a sender's socket closed early could drop what it still holds.
+  std::vector<std::unique_ptr<SampleSender>> senders;
   for (Ingest* ingest : {&node, &single}) {
-    SampleSender peer(peer_context, ingest->endpoint(),
-                      Security::client(display, display.public_key));
-    SampleSender sampler(peer_context, ingest->endpoint(),
-                         Security::client(one, display.public_key));
+    SampleSender& peer = *senders.emplace_back(std::make_unique<SampleSender>(
+        peer_context, ingest->endpoint(), Security::client(display, display.public_key)));
+    SampleSender& sampler = *senders.emplace_back(std::make_unique<SampleSender>(
+        peer_context, ingest->endpoint(), Security::client(one, display.public_key)));
     for (uint64_t k = 0; k < 20; ++k) {
       send_all(peer, batch(protocol::kWallPeerSamplerId, 0, k, 30));
       send_all(sampler, batch(protocol::kWallPeerSamplerId, 0, k, 40));
@@ -259,7 +263,10 @@ TEST(DisplayIngestTest, WithCurveOnlyTheWallsKeySendsStraysAndCoverage) {
                d.wall_exchange.coverage_in == 1;
       },
       20.0))
-      << node.metrics().display().spoofed_batches;
+      << node.metrics().display().spoofed_batches << " spoofed, "
+      << node.metrics().display().wall_exchange.strays_in << " strays in, "
+      << node.sink().samples(protocol::kWallPeerSamplerId) << " stored, "
+      << node.metrics().display().rejected_samples_channel << " rejected";
   ASSERT_TRUE(afr::testing::wait_until(
       [&] {
         const DisplayMetrics d = single.metrics().display();

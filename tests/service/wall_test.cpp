@@ -431,12 +431,12 @@ TEST_F(WallTest, AFollowerDropsBatchesThatAreNotFromTheLeadsMembers) {
 // key pair, reach each other's sample channels and exchange coverage and strays; a sampler
 // with its own allowed key streams to both. That sampler's key cannot send strays (sampler id
 // 0, which name no member) to a node: they are dropped and counted as spoofed, and the node
-// stores none of them, while the real exchange goes on.
-TEST_F(WallTest, WithCurveTheNodesExchangeAndASamplersKeyCannotSendStrays) {
+// stores none of them; nor can it join the wall as a node. The real exchange goes on.
+TEST_F(WallTest, WithCurveTheNodesExchangeAndASamplersKeyCannotSendStraysNorJoinAsANode) {
   Process keygen({kDisplay, "keygen", path("keys"), "--samplers", "1"}, path("keygen.log"));
   ASSERT_EQ(keygen.wait(10.0), 0) << keygen.log();
   const std::vector<std::string> keys = {"--keys", path("keys")};
-  auto l = lead({"--wall", "2x1", "--keys", path("keys")}, "128x64");
+  auto l = lead({"--wall", "2x2", "--keys", path("keys")}, "128x64");
   ASSERT_TRUE(wait_until([&] { return wall_nodes(port_ + 3) == 1; }, 5.0)) << l->log();
   const int port = free_base_port();
   ASSERT_NE(port, 0);
@@ -491,6 +491,32 @@ TEST_F(WallTest, WithCurveTheNodesExchangeAndASamplersKeyCannotSendStrays) {
       scaled(10.0)))
       << get_stats(port + 3).dump() << f->log();
   EXPECT_NE(f->log().find("from a key that is not the wall's"), std::string::npos) << f->log();
+
+  // Nor can that key join the wall as a display node, even for a free cell: it would get the
+  // members' list and keep the cell from its node.
+  protocol::ControlClient intruder(context, protocol::service_endpoints(endpoint(port_)).control,
+                                   protocol::Security::client(sampler_key, display_key));
+  protocol::DisplayJoin join;
+  join.column = 1;
+  join.row = 1;
+  join.samples_endpoint = "tcp://127.0.0.1:9";
+  join.name = "intruder";
+  ASSERT_TRUE(intruder.send(join).ok());
+  std::string refusal;
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const auto m = intruder.receive(50);
+        if (m && m->ok()) {
+          if (const auto* leave = std::get_if<protocol::Leave>(&m->value())) refusal = leave->text;
+        }
+        return !refusal.empty();
+      },
+      scaled(5.0)))
+      << l->log();
+  EXPECT_NE(refusal.find("is not the display's"), std::string::npos) << refusal;
+  EXPECT_NE(l->log().find("display intruder refused"), std::string::npos) << l->log();
+  EXPECT_EQ(wall_nodes(port_ + 3), 2);
+
   // The exchange between the nodes goes on.
   const uint64_t before = coverage_in(port + 3);
   std::this_thread::sleep_for(std::chrono::milliseconds(600));

@@ -101,8 +101,8 @@ class DisplayService::Control {
   // Messages.
   void receive_pending(double wait);
   void on_message(const ControlServer::Incoming& in, double t);
-  bool on_wall_message(const std::string& peer, const Message& msg, double t);
-  std::string admit_display(const std::string& peer, const DisplayJoin& j, double t);
+  bool on_wall_message(const ControlServer::Incoming& in, const Message& msg, double t);
+  std::string admit_display(const ControlServer::Incoming& in, const DisplayJoin& j, double t);
   void on_join(const ControlServer::Incoming& in, const Join& j, double t);
   void on_member_message(Member& m, const std::string& peer, const Message& msg, double t);
   // Timed work of a pass.
@@ -564,7 +564,7 @@ void DisplayService::Control::on_message(const ControlServer::Incoming& in, doub
     return;
   }
   const Message& msg = in.message.value();
-  if (on_wall_message(in.peer, msg, t)) return;  // a follower display of the wall
+  if (on_wall_message(in, msg, t)) return;  // a follower display of the wall
   if (const auto* j = std::get_if<Join>(&msg)) {
     on_join(in, *j, t);
   } else if (Member* m = coordinator_.find_peer(in.peer)) {
@@ -581,10 +581,11 @@ void DisplayService::Control::on_message(const ControlServer::Incoming& in, doub
 }
 
 // Messages of a wall follower (or a follower's join). Returns whether it was one.
-bool DisplayService::Control::on_wall_message(const std::string& peer, const Message& msg,
+bool DisplayService::Control::on_wall_message(const ControlServer::Incoming& in, const Message& msg,
                                               double t) {
+  const std::string& peer = in.peer;
   if (const auto* j = std::get_if<DisplayJoin>(&msg)) {
-    if (std::string refusal = admit_display(peer, *j, t); !refusal.empty()) {
+    if (std::string refusal = admit_display(in, *j, t); !refusal.empty()) {
       if (const uint64_t n = log_.due(LogLimiter::cause_of(refusal))) {
         spdlog::warn("display {} refused ({} like this): {}", j->name, n, refusal);
       }
@@ -604,10 +605,19 @@ bool DisplayService::Control::on_wall_message(const std::string& peer, const Mes
 }
 
 // A follower display asks for a cell. Returns the refusal, or "" when admitted.
-std::string DisplayService::Control::admit_display(const std::string& peer, const DisplayJoin& j,
-                                                   double t) {
+std::string DisplayService::Control::admit_display(const ControlServer::Incoming& in,
+                                                   const DisplayJoin& j, double t) {
+  const std::string& peer = in.peer;
   const WallGrid& wall = options_.wall;
   if (!wall.is_wall()) return "this display is not a wall: start it with --wall COLUMNSxROWS";
+  // With CurveZMQ a wall's nodes hold the display's key pair (docs/wall.md): a node is what
+  // connects with it. Any other allowed key is a sampler's, and a sampler that took a cell
+  // would get the members' list and keep the cell from its node.
+  if (!options_.keys.public_key.empty() && in.public_key != options_.keys.public_key) {
+    return fmt::format(
+        "key {} is not the display's: a wall's display nodes join with the display's key pair",
+        in.public_key);
+  }
   if (j.column >= wall.columns || j.row >= wall.rows) {
     return fmt::format("cell {},{} is outside the {}x{} wall", j.column, j.row, wall.columns,
                        wall.rows);
