@@ -21,7 +21,7 @@ int main(int argc, char** argv) {
   CLI::App app{"afr-render: zero-delay, antialiased reference images of a scene at exact times"};
   std::string scene_path, size_text = "256x256", output = "render.png", log_level = "info";
   double time = 0.0, fps = 60.0;
-  int spp = 16, frames = 1, threads = 0;
+  int spp = 16, frames = 1, threads = 0, light_samples = 0;
   uint64_t seed = 1;
   std::vector<std::string> compare;
   std::string variant, camera;
@@ -52,6 +52,11 @@ int main(int argc, char** argv) {
   app.add_option("-j,--threads", threads, "worker threads (0 = all cores)")
       ->check(CLI::Range(0, 1024));
   app.add_option("--seed", seed, "seed of the sample jitter");
+  app.add_option("--light-samples", light_samples,
+                 "shadow rays of a surface's direct light (TracerOptions::light_samples): 0 = one "
+                 "toward every light; K = K toward picked lights (--compare's ideal keeps 0)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, afr::kMaxLightSamples));
   app.add_option("--log", log_level, "log level")->capture_default_str();
   app.add_flag("--loop", loop,
                "times wrap over the scene's animation, as the service's nodes wrap display time");
@@ -88,7 +93,9 @@ int main(int argc, char** argv) {
     if (!variant.empty()) spdlog::info("material variant \"{}\" chosen", variant);
     spdlog::info("scene {}: {} triangles, {} lights, {:.2f} s of animation", scene.source,
                  scene.triangle_count(), scene.lights.size(), scene.duration());
-    afr::Tracer tracer(scene);
+    afr::TracerOptions tracer_options;
+    if (compare.empty()) tracer_options.light_samples = light_samples;
+    afr::Tracer tracer(scene, tracer_options);
     // --loop: display time to scene time, as the service's nodes map it.
     const auto scene_time = [&](double t) {
       const double d = scene.duration();

@@ -54,6 +54,8 @@ def run_service(args, out):
         cmd += ["--scene", args.scene]
     if args.display_args:
         cmd += ["--display-args", args.display_args]
+    if getattr(args, "sampler_args", ""):
+        cmd += ["--sampler-args", args.sampler_args]
     if getattr(args, "worker_priority", ""):
         cmd += ["--worker-priority", args.worker_priority]
     done = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
@@ -163,6 +165,8 @@ def main():
     add_service_arguments(p, 7700)
     p.add_argument("--display-args", default="",
                    help="more display_node options, e.g. '--recut-interval 10'")
+    p.add_argument("--sampler-args", default="",
+                   help="more sampler_node options, e.g. '--light-samples 2'")
     p.add_argument("--worker-priority", default="nice",
                    help="the samplers' tracing threads (run-local.sh): idle, nice or normal")
     p.add_argument("--eval", action="store_true", help="afr-eval at the measured rate beside")
@@ -194,6 +198,7 @@ def main():
             f" --warmup {args.warmup:g} --every {args.every} --size {args.size}"
             + (f" --scene {os.path.relpath(args.scene, ROOT)}" if args.scene else "")
             + (f" --display-args '{args.display_args}'" if args.display_args else "")
+            + (f" --sampler-args '{args.sampler_args}'" if args.sampler_args else "")
             + (f" --worker-priority {args.worker_priority}"
                if args.worker_priority != "nice" else "")
             + (" --eval" if args.eval else "")

@@ -20,6 +20,7 @@ usage() {
   echo "         --fps F (the display's refresh; default 60 where the samplers' threads leave it a"
   echo "         core of its own, else 30)"
   echo "         --display-args \"ARGS\" (more display_node options, e.g. \"--recut-interval 10\")"
+  echo "         --sampler-args \"ARGS\" (more sampler_node options, e.g. \"--light-samples 2\")"
   echo "         --worker-priority idle|nice|normal (the samplers' tracing threads; default nice)"
   exit "${1:-0}"
 }
@@ -29,7 +30,7 @@ case "$1" in -h|--help) usage 0 ;; esac
 n=$1; shift
 [[ "$n" =~ ^[0-9]+$ ]] && [ "$n" -ge 1 ] && [ "$n" -le 64 ] || { echo "run-local: N must be 1..64, got '$n'" >&2; exit 1; }
 seconds=20 size=256x256 scene="" threads=1 port=7100 metrics_port=9100 preset=balanced
-window=0 output=out build=build bundle="" every=0 fps="" backend=auto gpu=-1 display_args="" worker_priority=nice
+window=0 output=out build=build bundle="" every=0 fps="" backend=auto gpu=-1 display_args="" sampler_args="" worker_priority=nice
 while [ $# -gt 0 ]; do
   case "$1" in
     --seconds) seconds=$2; shift 2 ;;
@@ -48,6 +49,7 @@ while [ $# -gt 0 ]; do
     --backend) backend=$2; shift 2 ;;
     --gpu) gpu=$2; shift 2 ;;
     --display-args) display_args=$2; shift 2 ;;
+    --sampler-args) sampler_args=$2; shift 2 ;;
     --worker-priority) worker_priority=$2; shift 2 ;;
     -h|--help) usage 0 ;;
     *) echo "run-local: unknown option '$1'" >&2; usage 1 ;;
@@ -106,7 +108,7 @@ for i in $(seq 1 "$n"); do
   # cores, while each sampler's control thread (its heartbeats) keeps the normal priority.
   # shellcheck disable=SC2086
   "${sampler_program[@]}" --display "tcp://127.0.0.1:$port" --threads "$threads" $worker_flags \
-    --name "local-$i" --cache "$output/scene-cache" >"$output/logs/sampler-$i.log" 2>&1 &
+    --name "local-$i" --cache "$output/scene-cache" $sampler_args >"$output/logs/sampler-$i.log" 2>&1 &
   start_node sampler "sampler $i" "$output/logs/sampler-$i.log"
 done
 if ! watch_nodes run-local; then

@@ -11,6 +11,7 @@
 #include <afr/sampler/sampler_flags.h>
 #include <afr/sampler/service/sampler_service.h>
 #include <afr/sampler/service/scene_cache.h>
+#include <afr/sampler/tracer.h>
 
 #include <fmt/format.h>
 #include <unistd.h>
@@ -47,6 +48,13 @@ int main(int argc, char** argv) {
                  "cap on samples per second over all threads (0 = none)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1e12));
+  app.add_option("--light-samples", o.light_samples,
+                 "shadow rays of a surface's direct light: 0 = one toward every light (exact); "
+                 "K = K toward lights picked by what each sends, where more than K reach it "
+                 "(faster on scenes of many lights, noisier where some are blocked; "
+                 "docs/sampler.md, \"Many lights\")")
+      ->capture_default_str()
+      ->check(CLI::Range(0, afr::kMaxLightSamples));
   app.add_flag("--worker-idle", o.worker_idle,
                "run the sampling threads only when no other thread wants the core (Linux "
                "SCHED_IDLE), not the node's control thread: a display on the same cores never "

@@ -592,10 +592,11 @@ bool Sampler::project_point(const glm::dvec3& p, glm::dvec2* xy) const {
 // Tracing and output
 
 void Sampler::trace_crosshair(double x, double y, std::array<ShadedSample, 5>* out) {
-  const uint64_t sanitized = trace_stats_.sanitized;
+  const uint64_t sanitized = trace_stats_.sanitized, shadow_rays = trace_stats_.shadow_rays;
   tracer_.trace_crosshair(camera_, x, y, config_.image.width, config_.image.height, out,
                           &trace_stats_);
   counters_.sanitized += trace_stats_.sanitized - sanitized;
+  counters_.shadow_rays += trace_stats_.shadow_rays - shadow_rays;
   clock_.primary_rays_traced(5);
   static constexpr double kOffsets[5][2] = {{0, 0}, {-1, 0}, {1, 0}, {0, -1}, {0, 1}};
   for (int k = 0; k < 5; ++k) {
@@ -605,10 +606,11 @@ void Sampler::trace_crosshair(double x, double y, std::array<ShadedSample, 5>* o
 }
 
 ShadedSample Sampler::trace_one(double x, double y) {
-  const uint64_t sanitized = trace_stats_.sanitized;
+  const uint64_t sanitized = trace_stats_.sanitized, shadow_rays = trace_stats_.shadow_rays;
   ShadedSample s =
       tracer_.trace(camera_.ray(x, y, config_.image.width, config_.image.height), &trace_stats_);
   counters_.sanitized += trace_stats_.sanitized - sanitized;
+  counters_.shadow_rays += trace_stats_.shadow_rays - shadow_rays;
   clock_.primary_rays_traced(1);
   place_miss(x, y, &s);
   emit(x, y, s);

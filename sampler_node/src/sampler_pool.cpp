@@ -82,8 +82,8 @@ SamplerPool::SamplerPool(const Scene& scene, const SamplerConfig& config,
       const Tracer& from = t > 0 ? *workers_[0]->tracer : *options.geometry;
       w->tracer = std::make_unique<Tracer>(from, Tracer::ShareGeometry{});
     } else {
-      w->tracer =
-          std::make_unique<Tracer>(std::shared_ptr<const Scene>(std::shared_ptr<void>(), &scene_));
+      w->tracer = std::make_unique<Tracer>(
+          std::shared_ptr<const Scene>(std::shared_ptr<void>(), &scene_), options.tracer);
     }
     w->clock = std::make_unique<SharedClock>(clock_);
     w->sampler = std::make_unique<Sampler>(scene_, *w->tracer, *w->clock, c, sink_);
@@ -233,6 +233,7 @@ SamplerCounters SamplerPool::counters() const {
     sum.splits += c.splits;
     sum.merges += c.merges;
     sum.sanitized += c.sanitized;
+    sum.shadow_rays += c.shadow_rays;
     sum.snapshots += c.snapshots;
     sum.batches += c.batches;
   }

@@ -6,6 +6,7 @@
 
 #include <afr/common/check.h>
 #include <afr/common/error.h>
+#include <afr/common/math.h>
 
 #include <embree3/rtcore.h>
 #include <fmt/format.h>
@@ -13,9 +14,11 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstddef>
 #include <deque>
+#include <limits>
 #include <optional>
 #include <string>
 #include <utility>
@@ -407,6 +410,82 @@ bool TracerImpl::light_contribution(const LightRecord& light, const Surface& s,
   return true;
 }
 
+// A number in [0, 1) from a surface point and the direction it is seen from: the one random
+// number of a surface's light picks. Samples at other points or instants get other numbers;
+// the same point seen the same way gets the same one, so a sample is a function of its ray
+// (the crosshair's packets and trace() agree) and reproducible.
+static float pick_number(const glm::vec3& p, const glm::vec3& wo) {
+  uint32_t h = 0x9e3779b9u;
+  for (const float x : {p.x, p.y, p.z, wo.x, wo.y, wo.z}) {
+    h ^= std::bit_cast<uint32_t>(x);
+    // MurmurHash3's finaliser: every input bit reaches every output bit.
+    h ^= h >> 16;
+    h *= 0x85ebca6bu;
+    h ^= h >> 13;
+    h *= 0xc2b2ae35u;
+    h ^= h >> 16;
+  }
+  return float(h >> 8) * 0x1p-24f;
+}
+
+// Light picking (docs/sampler.md, "Many lights"). Each light that reaches s is weighted by the
+// luminance of the irradiance it would bring unshadowed (what the surface does with it left
+// out: a cheap estimate, its light's direction and distance only); K = light_samples picks are
+// K evenly spaced points, offset by one number u, along the running sum of the weights
+// (systematic sampling), and each pick's light is scaled by (sum of weights) / (its weight x
+// K). So each light's expected share is its own light: the estimate is unbiased, exact wherever
+// none of the lights is blocked on a matte surface under lights of one color, and a light of
+// at least 1/K of the weight is always picked. Where at most K lights reach s, each is cast
+// once, as without picking.
+int TracerImpl::pick_lights(const Surface& s, const LocalTerms& terms, const glm::vec3& wo,
+                            ShadowJob* picks) const {
+  thread_local std::vector<uint32_t> reaching;
+  thread_local std::vector<float> weights;
+  reaching.clear();
+  weights.clear();
+  const bool transmits = s.material->diffuse_transmits;
+  float sum = 0.0f;
+  for (size_t i = 0; i < lights_.size(); ++i) {
+    glm::vec3 l, incident;
+    float distance;
+    if (!shading::light_incidence(lights_[i], s.p, &l, &distance, &incident)) continue;
+    // The sides light_contribution lets light through: the one the surface faces, or through a
+    // diffuse transmitter from the other.
+    const bool front = glm::dot(l, s.ng) > 0.0f;
+    if (!front && !transmits) continue;
+    const float n_dot_l = front ? glm::dot(s.ns, l) : -glm::dot(s.ns, l);
+    const float weight = luminance(incident) * n_dot_l;
+    if (!(weight > 0.0f && weight < std::numeric_limits<float>::infinity())) continue;
+    sum += weight;
+    reaching.push_back(uint32_t(i));
+    weights.push_back(weight);
+  }
+  const size_t k = size_t(options_.light_samples);
+  int n = 0;
+  const auto cast = [&](size_t i, float scale) {
+    ShadowJob& job = picks[n];
+    if (!light_contribution(lights_[reaching[i]], s, terms, wo, &job.contribution, &job.origin,
+                            &job.l, &job.tfar)) {
+      return;
+    }
+    job.contribution *= scale;
+    ++n;
+  };
+  if (reaching.size() <= k) {
+    for (size_t i = 0; i < reaching.size(); ++i) cast(i, 1.0f);
+    return n;
+  }
+  const float u = pick_number(s.p, wo);
+  size_t i = 0;
+  float below = 0.0f;  // the sum of the weights before light i
+  for (size_t j = 0; j < k; ++j) {
+    const float at = (float(j) + u) / float(k) * sum;
+    while (i + 1 < reaching.size() && below + weights[i] <= at) below += weights[i++];
+    cast(i, sum / (weights[i] * float(k)));
+  }
+  return n;
+}
+
 // Emission, ambient and direct light at a surface seen from direction wo (unit, toward the
 // viewer). `tex` is texture_color(s).
 glm::vec3 TracerImpl::shade_local(const Surface& s, const glm::vec3& wo, const glm::vec3& tex,
@@ -414,15 +493,24 @@ glm::vec3 TracerImpl::shade_local(const Surface& s, const glm::vec3& wo, const g
   glm::vec3 c;
   LocalTerms terms;
   if (!prepare_local(s, wo, tex, &c, &terms)) return c;
-  for (const LightRecord& light : lights_) {
-    glm::vec3 contribution, origin, l;
-    float tfar;
-    if (!light_contribution(light, s, terms, wo, &contribution, &origin, &l, &tfar)) continue;
+  const auto cast = [&](const ShadowJob& job) {
+    glm::vec3 contribution = job.contribution;
     if (options_.shadows) {
       ++stats->shadow_rays;
-      contribution *= shadow_transmittance(origin, l, tfar);
+      contribution *= shadow_transmittance(job.origin, job.l, job.tfar);
     }
     c += contribution;
+  };
+  if (picks_lights()) {
+    ShadowJob picks[kMaxLightSamples];
+    const int n = pick_lights(s, terms, wo, picks);
+    for (int j = 0; j < n; ++j) cast(picks[j]);
+    return c;
+  }
+  for (const LightRecord& light : lights_) {
+    ShadowJob job;
+    if (light_contribution(light, s, terms, wo, &job.contribution, &job.origin, &job.l, &job.tfar))
+      cast(job);
   }
   return c;
 }
@@ -440,25 +528,42 @@ void TracerImpl::shade_local8(const Surface* s, const glm::vec3* wo, const glm::
     any_lit |= lit[k];
   }
   if (!any_lit) return;
-  for (const LightRecord& light : lights_) {
+  // Round r casts each lit lane's r-th shadow ray: toward light r, or toward its r-th pick.
+  const bool picking = picks_lights();
+  ShadowJob picks[8][kMaxLightSamples];
+  int picked[8] = {};
+  size_t rounds = lights_.size();
+  if (picking) {
+    rounds = 0;
+    for (int k = 0; k < n; ++k) {
+      if (lit[k]) picked[k] = pick_lights(s[k], terms[k], wo[k], picks[k]);
+      rounds = std::max(rounds, size_t(picked[k]));
+    }
+  }
+  for (size_t r = 0; r < rounds; ++r) {
     alignas(32) int valid[8] = {0, 0, 0, 0, 0, 0, 0, 0};
     RTCRay8 rays;
     for (int k = 0; k < 8; ++k) set_lane(&rays, k, glm::vec3(0.0f), glm::vec3(0, 0, 1), 0.0f);
     glm::vec3 contribution[8];
     bool any_ray = false;
     for (int k = 0; k < n; ++k) {
-      glm::vec3 origin, l;
-      float tfar;
-      if (!lit[k] ||
-          !light_contribution(light, s[k], terms[k], wo[k], &contribution[k], &origin, &l, &tfar))
+      ShadowJob job;
+      if (picking) {
+        if (int(r) >= picked[k]) continue;
+        job = picks[k][r];
+      } else if (!lit[k] ||
+                 !light_contribution(lights_[r], s[k], terms[k], wo[k], &job.contribution,
+                                     &job.origin, &job.l, &job.tfar)) {
         continue;
+      }
+      contribution[k] = job.contribution;
       if (!options_.shadows) {
         out[k] += contribution[k];
         continue;
       }
       valid[k] = -1;
       any_ray = true;
-      set_lane(&rays, k, origin, l, tfar);
+      set_lane(&rays, k, job.origin, job.l, job.tfar);
       ++stats->shadow_rays;
     }
     if (!any_ray) continue;

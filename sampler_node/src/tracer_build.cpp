@@ -55,6 +55,10 @@ TracerImpl::TracerImpl(std::shared_ptr<const Scene> scene, const TracerOptions& 
   const glm::dvec3 m = glm::max(glm::abs(lo), glm::abs(hi));
   const double extent = std::max(m.x, std::max(m.y, m.z));
   offset_floor_ = shared_->offset_floor = float(std::clamp(extent, 1e-30, 1.0));
+  if (options_.light_samples < 0 || options_.light_samples > kMaxLightSamples) {
+    throw Error(fmt::format("tracer: {} light samples (0 for every light, or 1 to {})",
+                            options_.light_samples, kMaxLightSamples));
+  }
   if (options_.embree_threads < 0) {
     throw Error(fmt::format("tracer: {} Embree threads (0 for Embree's default, or more)",
                             options_.embree_threads));

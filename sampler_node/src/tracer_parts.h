@@ -276,6 +276,15 @@ struct LocalTerms {
   float beneath_sheen = 1.0f;  // shading::sheen_scaling at n.v (1 without sheen)
 };
 
+// One shadow ray toward one light, and the light it brings if nothing blocks it. Left
+// uninitialised by default: the tracer keeps arrays of them on the stack and fills what it uses.
+struct ShadowJob {
+  glm::vec3 contribution;
+  glm::vec3 origin;
+  glm::vec3 l;  // unit, toward the light
+  float tfar;
+};
+
 inline void init_ray(RTCRay* r, const glm::vec3& o, const glm::vec3& d, float tnear, float tfar) {
   r->org_x = o.x;
   r->org_y = o.y;
@@ -634,6 +643,15 @@ struct TracerImpl {
   bool light_contribution(const LightRecord& light, const Surface& s, const LocalTerms& terms,
                           const glm::vec3& wo, glm::vec3* contribution, glm::vec3* origin,
                           glm::vec3* l, float* shadow_tfar) const;
+  // Whether surfaces pick among the lights (TracerOptions::light_samples) rather than cast a
+  // shadow ray toward each.
+  bool picks_lights() const {
+    return options_.light_samples > 0 && lights_.size() > size_t(options_.light_samples);
+  }
+  // The shadow rays of surface s when it picks among the lights: writes at most
+  // options_.light_samples of them to `picks` and returns how many.
+  int pick_lights(const Surface& s, const LocalTerms& terms, const glm::vec3& wo,
+                  ShadowJob* picks) const;
   glm::vec3 shade_local(const Surface& s, const glm::vec3& wo, const glm::vec3& tex,
                         TraceStats* stats) const;
   void shade_local8(const Surface* s, const glm::vec3* wo, const glm::vec3* tex, const bool* hit,

@@ -127,6 +127,41 @@ TEST(SamplerPoolTest, RateCapHoldsSamplesBack) {
   EXPECT_LE(double(pool.counters().samples), fill + 20000.0 * seconds + 2 * 16);
 }
 
+// The pool's tracers pick among the lights as its options say (TracerOptions::light_samples):
+// a grey wall under six point lights, each sample one shadow ray with 1, six without.
+TEST(SamplerPoolTest, TracersPickAmongTheLightsAsTheOptionsSay) {
+  Scene scene = testing::camera_scene();
+  testing::add_quad(&scene, glm::vec3(0.0f), {-10, -10}, {10, 10}, -2.0f);
+  scene.materials.back().base_color_factor = glm::vec4(0.5f, 0.5f, 0.5f, 1.0f);
+  for (int i = 0; i < 6; ++i) {
+    scene.lights.push_back(Light{});
+    Node n;
+    n.light = i;
+    n.translation = glm::dvec3(-1.0 + 0.4 * i, 0.5, -0.5);
+    scene.nodes.push_back(n);
+  }
+  scene.finalize();
+  for (int k : {0, 1}) {
+    SCOPED_TRACE(k);
+    WallClock clock;
+    LockedSink sink;
+    SamplerConfig config;
+    config.image.width = 32;
+    config.image.height = 32;
+    SamplerPoolOptions options;
+    options.tracer.light_samples = k;
+    SamplerPool pool(scene, config, options, clock, sink);
+    pool.start();
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    pool.stop();
+    const SamplerCounters c = pool.counters();
+    ASSERT_GT(c.samples, 100u);
+    // Per sample emitted: a few per cent of the traced rays are not emitted as samples.
+    const double per_sample = double(c.shadow_rays) / double(c.samples);
+    EXPECT_NEAR(per_sample, k == 0 ? 6.0 : 1.0, k == 0 ? 0.3 : 0.05);
+  }
+}
+
 TEST(SamplerPoolTest, BadOptionsAreClearErrors) {
   const Scene scene = testing::edge_scene();
   WallClock clock;

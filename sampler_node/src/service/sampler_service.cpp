@@ -845,16 +845,18 @@ void SamplerService::Impl::update_pool() {
   building_image = region->image;
   building_scene = scene_hash;
   const Scene* s = scene.get();
-  building = std::async(std::launch::async, [this, s, config, po, g = geometry,
-                                             name = welcome.scene_name]() mutable {
-    if (!g) {
-      const double start = steady_seconds();
-      g = std::make_shared<const Tracer>(std::shared_ptr<const Scene>(std::shared_ptr<void>(), s));
-      spdlog::info("scene {}: BVHs built in {:.2f} s", name, steady_seconds() - start);
-    }
-    po.geometry = g.get();
-    return BuiltPool{std::make_unique<SamplerPool>(*s, config, po, clock, sink), std::move(g)};
-  });
+  po.tracer.light_samples = options.light_samples;
+  building = std::async(
+      std::launch::async, [this, s, config, po, g = geometry, name = welcome.scene_name]() mutable {
+        if (!g) {
+          const double start = steady_seconds();
+          g = std::make_shared<const Tracer>(
+              std::shared_ptr<const Scene>(std::shared_ptr<void>(), s), po.tracer);
+          spdlog::info("scene {}: BVHs built in {:.2f} s", name, steady_seconds() - start);
+        }
+        po.geometry = g.get();
+        return BuiltPool{std::make_unique<SamplerPool>(*s, config, po, clock, sink), std::move(g)};
+      });
 }
 
 void SamplerService::Impl::stop_pool() {

@@ -33,7 +33,8 @@ struct SamplerCounters {
   uint64_t occlusion_hits = 0;
   uint64_t splits = 0;
   uint64_t merges = 0;
-  uint64_t sanitized = 0;  // non-finite shading values replaced by the tracer
+  uint64_t sanitized = 0;    // non-finite shading values replaced by the tracer
+  uint64_t shadow_rays = 0;  // the tracer's, for the samples (TraceStats::shadow_rays)
   uint64_t snapshots = 0;
   uint64_t batches = 0;
 };

@@ -38,6 +38,8 @@ struct SamplerPoolOptions {
   // kept by the caller from pool to pool (a sampler node's new session or region on the same
   // scene starts without building the scene again); null: the pool builds it.
   const Tracer* geometry = nullptr;
+  // The options of the tracers the pool builds; with `geometry`, that tracer's apply.
+  TracerOptions tracer;
 };
 
 class SamplerPool {

@@ -51,7 +51,15 @@ struct TracerOptions {
   // fast as copies at 16 copies of a 2,145-vertex mesh and faster at 256 (afr-bench-tracer
   // --forest, docs/benchmarks.md), so copying stops early.
   size_t max_copied_vertices = size_t(1) << 16;
+  // Shadow rays of a surface's direct light: 0 casts one toward every light that reaches it
+  // (exact); K >= 1, where more than K lights reach a surface, casts K toward lights picked with
+  // probabilities proportional to what each would send there unshadowed, weighted by the
+  // inverse: an unbiased estimate whose noise is only where some of the lights are blocked
+  // (docs/sampler.md, "Many lights"). At most kMaxLightSamples.
+  int light_samples = 0;
 };
+
+inline constexpr int kMaxLightSamples = 32;
 
 // Counters of one tracing thread; add them up across threads.
 struct TraceStats {

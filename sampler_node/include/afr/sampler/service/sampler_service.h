@@ -41,6 +41,7 @@ struct SamplerServiceOptions {
   double max_samples_per_second = 0.0;  // over all threads; 0 = no cap
   int worker_nice = 0;                  // SamplerPoolOptions::worker_nice
   bool worker_idle = false;             // SamplerPoolOptions::worker_idle
+  int light_samples = 0;                // TracerOptions::light_samples
   std::string preset;                   // empty: the preset the display names in its welcome
   SamplerConfig config;                 // knobs from flags; size and region come from the display
   PresetOverrides overrides;            // flags given explicitly: applied after the preset
