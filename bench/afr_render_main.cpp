@@ -146,7 +146,7 @@ int main(int argc, char** argv) {
       const uint64_t rays =
           stats.trace.primary_rays + stats.trace.shadow_rays + stats.trace.reflection_rays;
       spdlog::info(
-          "{} t={:.4f}s {}x{} {} spp: {:.2f} s, {:.2f} M rays/s{}", path, options.time, size.width,
+          "{} t={:.4f}s {}x{} {} spp: {:.3f} s, {:.2f} M rays/s{}", path, options.time, size.width,
           size.height, spp, stats.seconds, rays / stats.seconds * 1e-6,
           stats.trace.sanitized ? fmt::format(", {} values sanitised", stats.trace.sanitized) : "");
     }

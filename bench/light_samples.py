@@ -2,16 +2,18 @@
 """Light picking's trade (TracerOptions::light_samples, docs/sampler.md "Many lights"): speed
 against error on a scene of many lights, in the tracer alone and in the running service.
 
-Writes bench/many_lights_scene.py's scene (N lights), then
-  - renders it with afr-render at 1 spp for each light-sample count K (0: every light),
-    alternating the counts over the repeats, and scores each image against the ideal renderer
-    (16 spp, every light): the time of the render and its RMS error (0-255 sRGB);
-  - runs the service (bench/live.py: 2 samplers and a headless display) with each K given in
-    --live, alternating: the live RMS error of its images against the ideal and its samples/s.
+Writes bench/many_lights_scene.py's scene for each light count, then
+  - renders it with afr-render for each pair of light-sample count K (0: every light) and
+    samples per pixel given, alternating over the repeats, and scores each image against the
+    ideal renderer (16 spp, every light): the time of the render and its RMS error (0-255
+    sRGB), so that renders of equal time can be compared;
+  - runs the service (bench/live.py: 2 samplers and a headless display) on the scene of the most
+    lights with each K given in --live, alternating: the live RMS error of its images against
+    the ideal and its samples/s.
 Medians over the repeats, with the range.
 
-  python3 bench/light_samples.py                          64 lights, K = 0 1 2 4 8, live 0 and 2
-  python3 bench/light_samples.py --lights 16 --repeats 5 --write bench/results/light-samples.md
+  python3 bench/light_samples.py                  64 and 256 lights; live: every light and 8
+  python3 bench/light_samples.py --lights 16 --renders 0:1,2:1 --live '' --repeats 5
 """
 import argparse
 import os
@@ -40,52 +42,67 @@ def spread(values, fmt):
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--build", default=os.path.join(ROOT, "build"))
-    p.add_argument("--lights", type=int, default=64)
-    p.add_argument("--counts", default="0,1,2,4,8", help="light-sample counts for afr-render")
-    p.add_argument("--live", default="0,2", help="light-sample counts for the service ('' none)")
+    p.add_argument("--lights", default="64,256", help="light counts of the scenes")
+    p.add_argument("--renders", default="0:1,0:4,1:1,2:1,4:1,8:1,8:4,16:4",
+                   help="afr-render's light samples:spp pairs")
+    p.add_argument("--live", default="0,8",
+                   help="light-sample counts for the service, on the scene of the most lights "
+                        "('' for none)")
     p.add_argument("--size", default="320x240")
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--threads", type=int, default=2, help="afr-render's threads")
     p.add_argument("--seconds", type=float, default=14.0, help="each live run")
     p.add_argument("--write", default="", help="also write the report to this file")
     args = p.parse_args()
-    counts = [int(k) for k in args.counts.split(",") if k]
+    light_counts = [int(n) for n in args.lights.split(",") if n]
+    renders = [tuple(int(x) for x in pair.split(":")) for pair in args.renders.split(",") if pair]
     live_counts = [int(k) for k in args.live.split(",") if k]
     render = os.path.join(os.path.abspath(args.build), "bench", "afr-render")
 
+    lines = [f"# Light picking: {args.lights} lights, {args.size}", "",
+             f"Command: `python3 bench/light_samples.py --lights {args.lights} --renders "
+             f"{args.renders} --live '{args.live}' --size {args.size} --repeats {args.repeats} "
+             f"--threads {args.threads} --seconds {args.seconds:g}`", "",
+             f"afr-render on {args.threads} threads, each image against the ideal (16 spp, every "
+             "light); median [min, max] of the repeats, the renders alternating.", ""]
     with tempfile.TemporaryDirectory() as tmp:
-        scene = os.path.join(tmp, f"lights{args.lights}.gltf")
-        run([sys.executable, os.path.join(ROOT, "bench", "many_lights_scene.py"), scene,
-             "--lights", str(args.lights)])
-        seconds = {k: [] for k in counts}
-        errors = {k: [] for k in counts}
-        for r in range(args.repeats):
-            for k in counts:
-                image = os.path.join(tmp, f"k{k}-{r}.png")
-                log = run([render, scene, "-s", args.size, "--spp", "1", "-j", str(args.threads),
-                           "--light-samples", str(k), "--seed", str(r + 1), "-o", image])
-                seconds[k].append(float(re.search(r"spp: ([0-9.]+) s,", log).group(1)))
-                out = run([render, scene, "--compare", image, "--log", "warn"])
-                errors[k].append(float(re.search(r"rms=([0-9.]+)", out).group(1)))
-        base = statistics.median(seconds[counts[0]])
-        lines = [f"# Light picking: {args.lights} lights, {args.size}", "",
-                 f"Command: `python3 bench/light_samples.py --lights {args.lights} --counts "
-                 f"{args.counts} --live '{args.live}' --size {args.size} --repeats "
-                 f"{args.repeats} --threads {args.threads} --seconds {args.seconds:g}`", "",
-                 f"afr-render at 1 spp on {args.threads} threads, each image against the ideal "
-                 "(16 spp, every light); median [min, max] of the repeats, the counts alternating.",
-                 "",
-                 f"| light samples | render s | time / K = {counts[0]} | RMS error (0-255) |",
-                 "|---|---|---|---|"]
-        for k in counts:
-            lines.append(f"| {k if k else 'every light'} | {spread(seconds[k], '{:.3f}')} | "
-                         f"{statistics.median(seconds[k]) / base:.2f} | "
-                         f"{spread(errors[k], '{:.2f}')} |")
+        for n in light_counts:
+            scene = os.path.join(tmp, f"lights{n}.gltf")
+            run([sys.executable, os.path.join(ROOT, "bench", "many_lights_scene.py"), scene,
+                 "--lights", str(n)])
+            seconds = {r: [] for r in renders}
+            images = {r: [] for r in renders}
+            for rep in range(args.repeats):
+                for k, spp in renders:
+                    image = os.path.join(tmp, f"n{n}-k{k}-s{spp}-{rep}.png")
+                    log = run([render, scene, "-s", args.size, "--spp", str(spp), "-j",
+                               str(args.threads), "--light-samples", str(k), "--seed",
+                               str(rep + 1), "-o", image])
+                    seconds[(k, spp)].append(float(re.search(r"spp: ([0-9.]+) s,", log).group(1)))
+                    images[(k, spp)].append(image)
+            # One ideal image for all (afr-render --compare renders it once per size).
+            every = [image for r in renders for image in images[r]]
+            out = run([render, scene, "--compare"] + every + ["--log", "warn", "-j",
+                                                              str(args.threads)])
+            rms = dict(re.findall(r"^(\S+) t=\S+ scene_time=\S+ rms=([0-9.]+)$", out, re.M))
+            base = max(statistics.median(seconds[renders[0]]), 1e-3)
+            lines += [f"**{n} lights**", "",
+                      f"| light samples | spp | render s | time / first row | RMS error (0-255) |",
+                      "|---|---|---|---|---|"]
+            for r in renders:
+                errors = [float(rms[image]) for image in images[r]]
+                lines.append(f"| {r[0] if r[0] else 'every light'} | {r[1]} | "
+                             f"{spread(seconds[r], '{:.3f}')} | "
+                             f"{statistics.median(seconds[r]) / base:.2f} | "
+                             f"{spread(errors, '{:.2f}')} |")
+            lines.append("")
 
         if live_counts:
+            n = max(light_counts)
+            scene = os.path.join(tmp, f"lights{n}.gltf")
             live = {k: [] for k in live_counts}
             rate = {k: [] for k in live_counts}
-            for r in range(args.repeats):
+            for rep in range(args.repeats):
                 for k in live_counts:
                     out = run([sys.executable, os.path.join(ROOT, "bench", "live.py"),
                                "--build", args.build, "--scene", scene, "--size", "256x192",
@@ -95,17 +112,18 @@ def main():
                     cells = [c.strip() for c in row.strip("|").split("|")]
                     live[k].append(float(cells[1]))
                     rate[k].append(float(cells[4].rstrip("K")) * 1e3)
-            lines += ["", "The service (bench/live.py: 2 samplers of 1 thread, a headless display "
-                      f"at 256x192, {args.seconds:g} s a run): the mean RMS error of its images "
-                      "after the warm-up against the ideal, and the samples/s the display took.",
-                      "", "| light samples | live RMS error | samples/s |", "|---|---|---|"]
+            lines += [f"The service on the scene of {n} lights (bench/live.py: 2 samplers of 1 "
+                      f"thread, a headless display at 256x192, {args.seconds:g} s a run): the "
+                      "mean RMS error of its images after the warm-up against the ideal, and the "
+                      "samples/s the display took.", "",
+                      "| light samples | live RMS error | samples/s |", "|---|---|---|"]
             for k in live_counts:
                 lines.append(f"| {k if k else 'every light'} | {spread(live[k], '{:.2f}')} | "
                              f"{spread([x / 1e3 for x in rate[k]], '{:.0f}K')} |")
-        print("\n".join(lines))
-        if args.write:
-            with open(args.write, "w") as f:
-                f.write("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    if args.write:
+        with open(args.write, "w") as f:
+            f.write("\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":
