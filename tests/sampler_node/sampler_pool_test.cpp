@@ -156,9 +156,11 @@ TEST(SamplerPoolTest, TracersPickAmongTheLightsAsTheOptionsSay) {
     pool.stop();
     const SamplerCounters c = pool.counters();
     ASSERT_GT(c.samples, 100u);
-    // Per sample emitted: a few per cent of the traced rays are not emitted as samples.
+    // Per sample emitted, within 10 %: a few per cent of the rays traced are not emitted (a
+    // crosshair's arms beyond the image's border).
     const double per_sample = double(c.shadow_rays) / double(c.samples);
-    EXPECT_NEAR(per_sample, k == 0 ? 6.0 : 1.0, k == 0 ? 0.3 : 0.05);
+    const double expected = k == 0 ? 6.0 : 1.0;
+    EXPECT_NEAR(per_sample, expected, 0.1 * expected);
   }
 }
 

@@ -580,20 +580,8 @@ TEST(TracerTest, CrosshairEqualsFiveSingleRays) {
     tracer.set_time(0.7);
     const Camera cam =
         Camera::look_at({0.0, 1.0, 3.0}, {0.0, -0.5, -5.0}, {0.0, 1.0, 0.0}, 0.9, 0.01);
-    const int w = 64, h = 48;
-    const double dx[5] = {0, -1, 1, 0, 0}, dy[5] = {0, 0, 0, -1, 1};
     TraceStats stats;
-    for (int j = 1; j < h - 1; j += 3) {
-      for (int i = 1; i < w - 1; i += 3) {
-        const double x = i + 0.37, y = j + 0.61;
-        std::array<ShadedSample, 5> cross;
-        tracer.trace_crosshair(cam, x, y, w, h, &cross, &stats);
-        for (int k = 0; k < 5; ++k) {
-          const ShadedSample single = tracer.trace(cam.ray(x + dx[k], y + dy[k], w, h), &stats);
-          expect_same_sample(cross[size_t(k)], single, 1e-4f);
-        }
-      }
-    }
+    expect_crosshairs_equal_single_rays(tracer, cam, 64, 48, 3, &stats);
     EXPECT_EQ(stats.primary_rays % 10, 0u);
   }
 }

@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <functional>
 #include <string>
@@ -177,6 +178,24 @@ inline void expect_same_sample(const ShadedSample& a, const ShadedSample& b, flo
   expect_near3(a.color, b.color, tol, "color");
   expect_near3(a.position, b.position, tol, "position");
   expect_near3(a.velocity, b.velocity, tol, "velocity");
+}
+
+// Traces a crosshair every `step` pixels of a w x h image (away from its border) and expects
+// each of its five samples to equal the single ray's of the same pixel position.
+inline void expect_crosshairs_equal_single_rays(const Tracer& tracer, const Camera& cam, int w,
+                                                int h, int step, TraceStats* stats) {
+  const double dx[5] = {0, -1, 1, 0, 0}, dy[5] = {0, 0, 0, -1, 1};
+  for (int j = 1; j < h - 1; j += step) {
+    for (int i = 1; i < w - 1; i += step) {
+      const double x = i + 0.37, y = j + 0.61;
+      std::array<ShadedSample, 5> cross;
+      tracer.trace_crosshair(cam, x, y, w, h, &cross, stats);
+      for (int k = 0; k < 5; ++k) {
+        const ShadedSample single = tracer.trace(cam.ray(x + dx[k], y + dy[k], w, h), stats);
+        expect_same_sample(cross[size_t(k)], single, 1e-4f);
+      }
+    }
+  }
 }
 
 inline int add_glass(Scene* s, float ior, bool double_sided = false) {

@@ -107,6 +107,25 @@ class WallTest : public ProcessTest {
     *f = follower(1, 0, *port);
     ASSERT_TRUE(wait_until([&] { return wall_nodes(port_ + 3) == 2; }, 5.0)) << (*l)->log();
   }
+  // Sends a hostile peer's batch of 32 bright samples inside the follower cell (1,0) of a 128 x
+  // 64 wall, naming `sampler_id` with `token`, and waits until it has left.
+  static void send_batch(protocol::SampleSender& sender, uint32_t sampler_id, uint64_t token,
+                         uint64_t sequence) {
+    SampleBatch b;
+    b.sampler_id = sampler_id;
+    b.token = token;
+    b.sequence = sequence;
+    b.samples.resize(32);
+    for (Sample& x : b.samples) {
+      x.time = 1.0;
+      x.x = 100.5f;
+      x.y = 30.5f;
+      x.color = glm::vec3(1e4f);
+    }
+    const protocol::Status sent = sender.send(b, {128, 64});
+    ASSERT_TRUE(sent.ok()) << sent.message();
+    ASSERT_TRUE(sender.flush(5000));
+  }
   static int wall_nodes(int metrics_port) {
     const nlohmann::json s = get_stats(metrics_port);
     if (s.is_null() || s.is_discarded()) return -1;
@@ -394,20 +413,8 @@ TEST_F(WallTest, AFollowerDropsBatchesThatAreNotFromTheLeadsMembers) {
   protocol::Context context;
   protocol::SampleSender hostile(context, protocol::service_endpoints(endpoint(port)).samples);
   for (uint64_t k = 0; k < 100; ++k) {
-    SampleBatch b;
-    b.sampler_id = k % 2 ? real_id : 4242;
-    b.token = 0x0123456789abcdefull + k;
-    b.sequence = 0x7000000000000000ull + k;
-    b.samples.resize(32);
-    for (Sample& x : b.samples) {
-      x.time = 1.0;
-      x.x = 100.5f;  // in the follower's cell
-      x.y = 30.5f;
-      x.color = glm::vec3(1e4f);
-    }
-    const protocol::Status sent = hostile.send(b, {128, 64});
-    ASSERT_TRUE(sent.ok()) << sent.message();
-    ASSERT_TRUE(hostile.flush(5000));
+    ASSERT_NO_FATAL_FAILURE(send_batch(hostile, k % 2 ? real_id : 4242, 0x0123456789abcdefull + k,
+                                       0x7000000000000000ull + k));
   }
   ASSERT_TRUE(wait_until(
       [&] {
@@ -468,19 +475,7 @@ TEST_F(WallTest, WithCurveTheNodesExchangeAndASamplersKeyCannotSendStraysNorJoin
   protocol::SampleSender hostile(context, protocol::service_endpoints(endpoint(port)).samples,
                                  protocol::Security::client(sampler_key, display_key));
   for (uint64_t k = 0; k < 30; ++k) {
-    SampleBatch b;
-    b.sampler_id = protocol::kWallPeerSamplerId;
-    b.sequence = k;
-    b.samples.resize(32);
-    for (Sample& x : b.samples) {
-      x.time = 1.0;
-      x.x = 100.5f;  // in the follower's cell
-      x.y = 30.5f;
-      x.color = glm::vec3(1e4f);
-    }
-    const protocol::Status sent = hostile.send(b, {128, 64});
-    ASSERT_TRUE(sent.ok()) << sent.message();
-    ASSERT_TRUE(hostile.flush(5000));
+    ASSERT_NO_FATAL_FAILURE(send_batch(hostile, protocol::kWallPeerSamplerId, 0, k));
   }
   ASSERT_TRUE(wait_until(
       [&] {
