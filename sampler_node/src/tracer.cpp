@@ -530,13 +530,15 @@ void TracerImpl::shade_local8(const Surface* s, const glm::vec3* wo, const glm::
   if (!any_lit) return;
   // Round r casts each lit lane's r-th shadow ray: toward light r, or toward its r-th pick.
   const bool picking = picks_lights();
-  ShadowJob picks[8][kMaxLightSamples];
+  // The lanes' picks, per thread: 10 KB that the packets of scenes that do not pick need not
+  // carry in their stack frame.
+  thread_local std::array<std::array<ShadowJob, kMaxLightSamples>, 8> picks;
   int picked[8] = {};
   size_t rounds = lights_.size();
   if (picking) {
     rounds = 0;
     for (int k = 0; k < n; ++k) {
-      if (lit[k]) picked[k] = pick_lights(s[k], terms[k], wo[k], picks[k]);
+      if (lit[k]) picked[k] = pick_lights(s[k], terms[k], wo[k], picks[size_t(k)].data());
       rounds = std::max(rounds, size_t(picked[k]));
     }
   }
@@ -550,7 +552,7 @@ void TracerImpl::shade_local8(const Surface* s, const glm::vec3* wo, const glm::
       ShadowJob job;
       if (picking) {
         if (int(r) >= picked[k]) continue;
-        job = picks[k][r];
+        job = picks[size_t(k)][r];
       } else if (!lit[k] ||
                  !light_contribution(lights_[r], s[k], terms[k], wo[k], &job.contribution,
                                      &job.origin, &job.l, &job.tfar)) {
