@@ -8,8 +8,8 @@ Writes bench/many_lights_scene.py's scene for each light count, then
     ideal renderer (16 spp, every light): the time of the render and its RMS error (0-255
     sRGB), so that renders of equal time can be compared;
   - runs the service (bench/live.py: 2 samplers and a headless display) on the scene of the most
-    lights with each K given in --live, alternating: the live RMS error of its images against
-    the ideal and its samples/s.
+    lights, with a still view and with a moving one (--views), with each K given in --live,
+    alternating: the live RMS error of its images against the ideal and its samples/s.
 Medians over the repeats, with the range.
 
   python3 bench/light_samples.py                  64 and 256 lights; live: every light and 8
@@ -48,6 +48,8 @@ def main():
     p.add_argument("--live", default="0,8",
                    help="light-sample counts for the service, on the scene of the most lights "
                         "('' for none)")
+    p.add_argument("--views", default="still,moving",
+                   help="the service's views: still, and a camera sliding to the side and back")
     p.add_argument("--size", default="320x240")
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--threads", type=int, default=2, help="afr-render's threads")
@@ -61,7 +63,8 @@ def main():
 
     lines = [f"# Light picking: {args.lights} lights, {args.size}", "",
              f"Command: `python3 bench/light_samples.py --lights {args.lights} --renders "
-             f"{args.renders} --live '{args.live}' --size {args.size} --repeats {args.repeats} "
+             f"{args.renders} --live '{args.live}' --views {args.views} --size {args.size} "
+             f"--repeats {args.repeats} "
              f"--threads {args.threads} --seconds {args.seconds:g}`", "",
              f"afr-render on {args.threads} threads, each image against the ideal (16 spp, every "
              "light); median [min, max] of the repeats, the renders alternating.", ""]
@@ -99,27 +102,32 @@ def main():
 
         if live_counts:
             n = max(light_counts)
-            scene = os.path.join(tmp, f"lights{n}.gltf")
-            live = {k: [] for k in live_counts}
-            rate = {k: [] for k in live_counts}
-            for rep in range(args.repeats):
-                for k in live_counts:
-                    out = run([sys.executable, os.path.join(ROOT, "bench", "live.py"),
-                               "--build", args.build, "--scene", scene, "--size", "256x192",
-                               "--seconds", str(args.seconds), "--every", "60",
-                               "--sampler-args", f"--light-samples {k}"])
-                    row = next(line for line in out.splitlines() if re.match(r"\| \d+ \| ", line))
-                    cells = [c.strip() for c in row.strip("|").split("|")]
-                    live[k].append(float(cells[1]))
-                    rate[k].append(float(cells[4].rstrip("K")) * 1e3)
             lines += [f"The service on the scene of {n} lights (bench/live.py: 2 samplers of 1 "
                       f"thread, a headless display at 256x192, {args.seconds:g} s a run): the "
                       "mean RMS error of its images after the warm-up against the ideal, and the "
                       "samples/s the display took.", "",
-                      "| light samples | live RMS error | samples/s |", "|---|---|---|"]
-            for k in live_counts:
-                lines.append(f"| {k if k else 'every light'} | {spread(live[k], '{:.2f}')} | "
-                             f"{spread([x / 1e3 for x in rate[k]], '{:.0f}K')} |")
+                      "| view | light samples | live RMS error | samples/s |", "|---|---|---|---|"]
+            for view in [v for v in args.views.split(",") if v]:
+                scene = os.path.join(tmp, f"lights{n}-{view}.gltf")
+                run([sys.executable, os.path.join(ROOT, "bench", "many_lights_scene.py"), scene,
+                     "--lights", str(n)] + (["--moving"] if view == "moving" else []))
+                live = {k: [] for k in live_counts}
+                rate = {k: [] for k in live_counts}
+                for rep in range(args.repeats):
+                    for k in live_counts:
+                        out = run([sys.executable, os.path.join(ROOT, "bench", "live.py"),
+                                   "--build", args.build, "--scene", scene, "--size", "256x192",
+                                   "--seconds", str(args.seconds), "--every", "60",
+                                   "--sampler-args", f"--light-samples {k}"])
+                        row = next(line for line in out.splitlines()
+                                   if re.match(r"\| \d+ \| ", line))
+                        cells = [c.strip() for c in row.strip("|").split("|")]
+                        live[k].append(float(cells[1]))
+                        rate[k].append(float(cells[4].rstrip("K")) * 1e3)
+                for k in live_counts:
+                    lines.append(f"| {view} | {k if k else 'every light'} | "
+                                 f"{spread(live[k], '{:.2f}')} | "
+                                 f"{spread([x / 1e3 for x in rate[k]], '{:.0f}K')} |")
     print("\n".join(lines))
     if args.write:
         with open(args.write, "w") as f:

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Writes a glTF lit by many point lights: a floor with a 5 x 5 grid of boxes under N lights
 (KHR_lights_punctual, no range) on a grid 2.5 above it, warm and cool in turn, of unequal
-intensities that add up to the same light for every N. For the tracer's light picking
+intensities that add up to the same light for every N (with --moving, the camera slides to
+the side and back over 8 s). For the tracer's light picking
 (TracerOptions::light_samples, docs/sampler.md "Many lights"): every light reaches most of the
 floor, and the boxes block some of them from each point near them.
 
@@ -19,7 +20,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from animated_pointers_scene import Buffer, box  # noqa: E402
 
 
-def scene(n):
+def scene(n, moving=False):
     b = Buffer()
     cube_p, cube_i = box(0.5)
     cube = b.add(cube_p, "VEC3", bounds=True)
@@ -42,7 +43,7 @@ def scene(n):
                        "intensity": 60.0 * weights[i] / sum(weights)})
         nodes.append({"extensions": {"KHR_lights_punctual": {"light": i}},
                       "translation": [x, 2.5, z]})
-    return {
+    doc = {
         "asset": {"version": "2.0", "generator": "afr bench/many_lights_scene.py"},
         "extensionsUsed": ["KHR_lights_punctual"],
         "buffers": [{"byteLength": len(b.data), "uri": "data:application/octet-stream;base64," +
@@ -61,14 +62,28 @@ def scene(n):
         "scenes": [{"nodes": list(range(len(nodes)))}],
         "scene": 0,
     }
+    if moving:
+        # The camera slides 4 to the side and back in 8 s, looking ahead all the while.
+        times = b.add([0.0, 4.0, 8.0], "SCALAR", bounds=True)
+        places = b.add([-2, 3, 9, 2, 3, 9, -2, 3, 9], "VEC3")
+        doc["animations"] = [{"samplers": [{"input": times, "output": places}],
+                              "channels": [{"sampler": 0,
+                                            "target": {"node": 1, "path": "translation"}}]}]
+        doc["buffers"][0] = {"byteLength": len(b.data),
+                             "uri": "data:application/octet-stream;base64," +
+                             base64.b64encode(b.data).decode()}
+        doc["bufferViews"], doc["accessors"] = b.views, b.accessors
+    return doc
 
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", help="the .gltf to write")
     parser.add_argument("--lights", type=int, default=64, help="how many point lights (>= 1)")
+    parser.add_argument("--moving", action="store_true",
+                        help="the camera slides to the side and back over 8 s")
     args = parser.parse_args()
     if args.lights < 1:
         sys.exit("many_lights_scene.py: --lights must be at least 1")
     with open(args.out, "w") as out:
-        json.dump(scene(args.lights), out)
+        json.dump(scene(args.lights, args.moving), out)
