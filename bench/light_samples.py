@@ -13,6 +13,8 @@ Writes bench/many_lights_scene.py's scene for each light count, then
 Medians over the repeats, with the range.
 
   python3 bench/light_samples.py                  64 and 256 lights; live: every light and 8
+                                                  picks, each with the preset's store (4 samples
+                                                  a pixel) and one of 10
   python3 bench/light_samples.py --lights 16 --renders 0:1,2:1 --live '' --repeats 5
 """
 import argparse
@@ -45,9 +47,10 @@ def main():
     p.add_argument("--lights", default="64,256", help="light counts of the scenes")
     p.add_argument("--renders", default="0:1,0:4,1:1,2:1,4:1,8:1,8:4,16:4",
                    help="afr-render's light samples:spp pairs")
-    p.add_argument("--live", default="0,8",
-                   help="light-sample counts for the service, on the scene of the most lights "
-                        "('' for none)")
+    p.add_argument("--live", default="0,8,0/10,8/10",
+                   help="the service's light-sample counts, on the scene of the most lights, "
+                        "each as K or K/S, S the samples a pixel the display's store keeps "
+                        "(--capacity S x W x H; the balanced preset's 4 without /S) ('' for none)")
     p.add_argument("--views", default="still,moving",
                    help="the service's views: still, and a camera sliding to the side and back")
     p.add_argument("--size", default="320x240")
@@ -58,7 +61,8 @@ def main():
     args = p.parse_args()
     light_counts = [int(n) for n in args.lights.split(",") if n]
     renders = [tuple(int(x) for x in pair.split(":")) for pair in args.renders.split(",") if pair]
-    live_counts = [int(k) for k in args.live.split(",") if k]
+    live_counts = [tuple(float(x) for x in (k.split("/") + [""])[:2] if x) for k in
+                   args.live.split(",") if k]
     render = os.path.join(os.path.abspath(args.build), "bench", "afr-render")
 
     lines = [f"# Light picking: {args.lights} lights, {args.size}", "",
@@ -69,7 +73,7 @@ def main():
              f"afr-render on {args.threads} threads, each image against the ideal (16 spp, every "
              "light); median [min, max] of the repeats, the renders alternating.", ""]
     with tempfile.TemporaryDirectory() as tmp:
-        for n in light_counts:
+        for n in light_counts if renders else []:
             scene = os.path.join(tmp, f"lights{n}.gltf")
             run([sys.executable, os.path.join(ROOT, "bench", "many_lights_scene.py"), scene,
                  "--lights", str(n)])
@@ -106,7 +110,8 @@ def main():
                       f"thread, a headless display at 256x192, {args.seconds:g} s a run): the "
                       "mean RMS error of its images after the warm-up against the ideal, and the "
                       "samples/s the display took.", "",
-                      "| view | light samples | live RMS error | samples/s |", "|---|---|---|---|"]
+                      "| view | light samples | store, samples a pixel | live RMS error | samples/s |",
+                      "|---|---|---|---|---|"]
             for view in [v for v in args.views.split(",") if v]:
                 scene = os.path.join(tmp, f"lights{n}-{view}.gltf")
                 run([sys.executable, os.path.join(ROOT, "bench", "many_lights_scene.py"), scene,
@@ -115,17 +120,20 @@ def main():
                 rate = {k: [] for k in live_counts}
                 for rep in range(args.repeats):
                     for k in live_counts:
+                        store = ([f"--display-args=--capacity {round(k[1] * 256 * 192)}"]
+                                 if len(k) > 1 else [])
                         out = run([sys.executable, os.path.join(ROOT, "bench", "live.py"),
                                    "--build", args.build, "--scene", scene, "--size", "256x192",
                                    "--seconds", str(args.seconds), "--every", "60",
-                                   "--sampler-args", f"--light-samples {k}"])
+                                   f"--sampler-args=--light-samples {int(k[0])}"] + store)
                         row = next(line for line in out.splitlines()
                                    if re.match(r"\| \d+ \| ", line))
                         cells = [c.strip() for c in row.strip("|").split("|")]
                         live[k].append(float(cells[1]))
                         rate[k].append(float(cells[4].rstrip("K")) * 1e3)
                 for k in live_counts:
-                    lines.append(f"| {view} | {k if k else 'every light'} | "
+                    lines.append(f"| {view} | {int(k[0]) if k[0] else 'every light'} | "
+                                 f"{k[1] if len(k) > 1 else 4:g} | "
                                  f"{spread(live[k], '{:.2f}')} | "
                                  f"{spread([x / 1e3 for x in rate[k]], '{:.0f}K')} |")
     print("\n".join(lines))

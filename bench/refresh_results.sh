@@ -55,7 +55,7 @@ add pool-memory pool-memory.md "A sampler's memory and start-up against its thre
   "Peak resident memory of a sampler_node and its seconds from the scene loaded to sampling, with 1, 2 and 4 threads, on a static scene of 2 million triangles (docs/sampler.md, \"Threads\")." \
   'python3 bench/pool_memory.py --build "$BUILD" --repeats 3 --threads 1,2,4'
 add light-samples light-samples.md "Light picking" \
-  "Time and error of afr-render against the light samples per surface on scenes of 64 and 256 lights, and the running service's error and rate with and without picking, with a still and a moving view (docs/sampler.md, \"Many lights\")." \
+  "Time and error of afr-render against the light samples per surface on scenes of 64 and 256 lights, and the running service's error and rate with and without picking, with a still and a moving view, with the preset's store and one 2.5 times as deep (docs/sampler.md, \"Many lights\")." \
   'python3 bench/light_samples.py --build "$BUILD" --repeats 3'
 add ideal-render ideal-render.md "Ideal renderer" \
   "Wall time and rays per second of the ideal renderer for one 256x256 frame of the kitchen at 16 spp (docs/benchmarks.md, \"Ideal renderer\")." \
