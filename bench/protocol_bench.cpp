@@ -96,8 +96,10 @@ void BM_DecodeTiling(benchmark::State& state) {
   TilingSnapshot t;
   t.region = PixelRect{0, 0, 1920, 1080};
   t.tiles.resize(size_t(state.range(0)));
-  for (TileInfo& tile : t.tiles) {
-    const int32_t x = int32_t(rng.next_below(1900)), y = int32_t(rng.next_below(1060));
+  for (size_t i = 0; i < t.tiles.size(); ++i) {
+    // 20 x 20 tiles side by side, row by row, as a tiling's (tiles do not overlap).
+    TileInfo& tile = t.tiles[i];
+    const int32_t x = int32_t(i % 96) * 20, y = int32_t(i / 96 % 54) * 20;
     tile.rect = PixelRect{x, y, x + 20, y + 20};
     tile.v = rng.next_float();
     tile.rate = 100.0f;

@@ -323,6 +323,18 @@ Status check_tile(size_t i, const TileInfo& t, const PixelRect& region) {
   return {};
 }
 
+// A tiling cuts its region into tiles that do not overlap, so together they cover at most the
+// region's pixels. (Overlapping copies of one tile would multiply its error in the display's
+// recuts.)
+Status check_tiles_fit(const std::vector<TileInfo>& tiles, const PixelRect& region) {
+  int64_t covered = 0;
+  for (const TileInfo& t : tiles) covered += t.rect.area();
+  if (covered <= region.area()) return {};
+  return field_error(kSnapshot, "tiles",
+                     "cover " + std::to_string(covered) + " pixels, more than the region's " +
+                         std::to_string(region.area()) + ": tiles overlap");
+}
+
 }  // namespace
 
 Status validate(const TilingSnapshot& m, const ImageExtent& bounds) {
@@ -339,7 +351,7 @@ Status validate(const TilingSnapshot& m, const ImageExtent& bounds) {
   for (size_t i = 0; i < m.tiles.size(); ++i) {
     if (Status s = check_tile(i, m.tiles[i], m.region); !s) return s;
   }
-  return {};
+  return check_tiles_fit(m.tiles, m.region);
 }
 
 Status encode(const TilingSnapshot& m, std::vector<uint8_t>* out, const ImageExtent& bounds) {
@@ -416,7 +428,7 @@ Status decode(Bytes message, TilingSnapshot* out, const ImageExtent& bounds) {
     t.rate = wire::load_f32(p + 32);
     if (Status s = check_tile(i, t, out->region); !s) return s;
   }
-  return {};
+  return check_tiles_fit(out->tiles, out->region);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -154,7 +154,9 @@ TEST(CodecRejectTest, TileCountsBeyondTheLimitTheRegionOrTheBytesAreRejected) {
   Pcg32 rng(6);
   TilingSnapshot t = random_tiling(rng, 3);
   t.region = PixelRect{0, 0, 4, 4};
-  for (TileInfo& tile : t.tiles) tile.rect = PixelRect{0, 0, 2, 2};
+  t.tiles[0].rect = PixelRect{0, 0, 2, 2};
+  t.tiles[1].rect = PixelRect{2, 0, 4, 2};
+  t.tiles[2].rect = PixelRect{0, 2, 2, 4};
   const std::vector<uint8_t> good = encoded(t);
   for (uint32_t count : {4u, 2u, 17u, kMaxTilesPerSnapshot + 1, 0xffffffffu}) {
     std::vector<uint8_t> b = good;
@@ -433,6 +435,24 @@ TEST(CodecRejectTest, SizesAndRectanglesOutsideTheImageAreRejected) {
   b = encoded(t);
   EXPECT_NE(error_of(b, ImageExtent{t.region.x1 - 1, 32768}).find("tiling_snapshot.region"),
             std::string::npos);
+
+  // Tiles that overlap: copies of one tile (each would count its error again in the recuts),
+  // decoded and encoded alike.
+  TilingSnapshot copies = random_tiling(rng, 1);
+  copies.tiles.push_back(copies.tiles[0]);
+  std::vector<uint8_t> refused = {1, 2, 3};
+  const Status s = encode(copies, &refused);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("tiling_snapshot.tiles: cover"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("tiles overlap"), std::string::npos) << s.message();
+  EXPECT_TRUE(refused.empty());
+  // One tile's bytes repeated, with the tile count and the header's length to agree.
+  b = encoded(random_tiling(rng, 1));  // its one tile is the whole region
+  const std::vector<uint8_t> tile(b.end() - kTileBytes, b.end());
+  b.insert(b.end(), tile.begin(), tile.end());
+  put_u32(b, 20, 2);
+  fix_length(b);
+  EXPECT_REJECTED(b, "tiles overlap");
 }
 
 // ---------------------------------------------------------------------------------------------

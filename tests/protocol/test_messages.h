@@ -147,9 +147,27 @@ inline TilingSnapshot random_tiling(Pcg32& rng, size_t n) {
   const int32_t w = 64 + int32_t(rng.next_below(4000)), h = 64 + int32_t(rng.next_below(4000));
   m.region = random_rect_in(rng, PixelRect{0, 0, w, h});
   while (m.region.area() < int64_t(n)) m.region = random_rect_in(rng, PixelRect{0, 0, w, h});
+  // n tiles that do not overlap, as a tiling's: the largest piece of the region cut across its
+  // longer side at a random place, until there are n pieces.
+  std::vector<PixelRect> pieces;
+  if (n > 0) pieces.push_back(m.region);
+  while (pieces.size() < n) {
+    const auto largest = std::max_element(
+        pieces.begin(), pieces.end(),
+        [](const PixelRect& a, const PixelRect& b) { return a.area() < b.area(); });
+    PixelRect a = *largest, b = *largest;
+    if (a.width() >= a.height()) {
+      a.x1 = b.x0 = a.x0 + 1 + int32_t(rng.next_below(uint32_t(a.width() - 1)));
+    } else {
+      a.y1 = b.y0 = a.y0 + 1 + int32_t(rng.next_below(uint32_t(a.height() - 1)));
+    }
+    *largest = a;
+    pieces.push_back(b);
+  }
   m.tiles.resize(n);
-  for (TileInfo& t : m.tiles) {
-    t.rect = random_rect_in(rng, m.region);
+  for (size_t i = 0; i < n; ++i) {
+    TileInfo& t = m.tiles[i];
+    t.rect = pieces[i];
     t.G_x = rng.next_float() * 2 - 1;
     t.G_y = rng.next_float() * 2 - 1;
     t.G_t = rng.next_float() * 10 - 5;
