@@ -99,7 +99,10 @@ void Loader::load_lights() {
       continue;
     }
     if (!in.color.empty()) {
-      if (in.color.size() != 3 || !is_finite(in.color)) fail(what + " has an invalid color");
+      if (in.color.size() != 3 || !is_finite(in.color) ||
+          std::any_of(in.color.begin(), in.color.end(), [](double c) { return c < 0.0; })) {
+        fail(what + " has an invalid color (three finite numbers, none below 0)");
+      }
       light.color = glm::vec3(float(in.color[0]), float(in.color[1]), float(in.color[2]));
     }
     if (!std::isfinite(in.intensity) || in.intensity < 0.0) {
@@ -110,6 +113,13 @@ void Loader::load_lights() {
     }
     light.intensity = float(in.intensity);
     light.range = float(in.range);
+    // The tracer's radiance is color x intensity in float: beyond its range it would be
+    // infinite, and every sample it lights NaN.
+    const glm::vec3 radiance = light.color * light.intensity;
+    if (!std::isfinite(radiance.x) || !std::isfinite(radiance.y) || !std::isfinite(radiance.z)) {
+      fail(fmt::format("{} has an intensity {} that, times its color, is beyond a float's range",
+                       what, in.intensity));
+    }
     if (light.type == Light::Type::kSpot) {
       const double inner = in.spot.innerConeAngle;
       const double outer = in.spot.outerConeAngle;

@@ -491,7 +491,7 @@ LightRecord make_light_record(const Light& light, const glm::dmat4& world) {
   const double len = glm::length(back);
   r.direction = len > 0.0 ? glm::vec3(-back / len) : glm::vec3(0.0f, 0.0f, -1.0f);
   r.range = light.range > 0.0f ? light.range : 0.0f;
-  r.inv_range4 = r.range > 0.0f ? 1.0f / (r.range * r.range * r.range * r.range) : 0.0f;
+  r.inv_range = r.range > 0.0f ? 1.0f / r.range : 0.0f;
   r.inverse_square = light.inverse_square_falloff;
   if (light.type == Light::Type::kSpot) {
     const float cos_outer = std::cos(light.outer_cone_angle);

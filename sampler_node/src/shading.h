@@ -261,7 +261,7 @@ struct LightRecord {
   glm::vec3 radiance{1.0f};   // color x intensity
   glm::vec3 position{0.0f};   // world (point, spot)
   glm::vec3 direction{0.0f};  // world, unit: where the light shines (its node's -Z)
-  float inv_range4 = 0.0f;    // 1 / range^4, 0 for an infinite range
+  float inv_range = 0.0f;     // 1 / range, 0 for an infinite range
   float range = 0.0f;         // 0 = infinite
   float spot_scale = 0.0f;    // KHR_lights_punctual cone: clamp(cos * scale + offset, 0, 1)^2
   float spot_offset = 0.0f;
@@ -290,9 +290,11 @@ inline bool light_incidence(const LightRecord& light, const glm::vec3& p, glm::v
   float scale = light.inverse_square ? 1.0f / d2 : 1.0f;
   if (light.range > 0.0f) {
     if (dist >= light.range) return false;
-    // KHR_lights_punctual's recommended smooth window: clamp(1 - (d / range)^4, 0, 1)^2.
-    const float w = glm::clamp(1.0f - d2 * d2 * light.inv_range4, 0.0f, 1.0f);
-    scale *= w * w;
+    // KHR_lights_punctual's recommended window, clamp(1 - (d / range)^4, 0, 1) (the Khronos
+    // sample viewer's too), with d / range taken first: d^4 or range^4 alone overflows a float
+    // for a light some 4e9 units away.
+    const float x = dist * light.inv_range;
+    scale *= glm::clamp(1.0f - (x * x) * (x * x), 0.0f, 1.0f);
   }
   if (light.type == Light::Type::kSpot) {
     const float cd = -glm::dot(*to_light, light.direction);

@@ -314,6 +314,36 @@ TEST_F(GltfLoaderTest, CameraAndAllThreeLightTypesLoadWithExtras) {
   EXPECT_EQ(scene.ambient, glm::vec3(0.05f, 0.04f, 0.03f));
 }
 
+// Lights whose color has a component below 0 (the extension's minimum), or whose intensity
+// times its color is beyond a float (the tracer's radiance would be infinite and every sample
+// it lights NaN), are refused by name.
+TEST_F(GltfLoaderTest, LightsOfNegativeColorOrOfAnIntensityBeyondAFloatAreRefused) {
+  const auto lit = [&](const json& light, const std::string& name) {
+    GltfBuilder b;
+    add_quad(&b);
+    b.doc()["extensionsUsed"] = {"KHR_lights_punctual"};
+    b.doc()["extensions"]["KHR_lights_punctual"]["lights"] = json::array({light});
+    b.doc()["nodes"] =
+        json::array({{{"mesh", 0}}, {{"extensions", {{"KHR_lights_punctual", {{"light", 0}}}}}}});
+    b.doc()["scenes"] = json::array({{{"nodes", {0, 1}}}});
+    const fs::path path = dir_ / name;
+    b.write_embedded(path);
+    return path;
+  };
+  expect_error(lit({{"type", "point"}, {"color", {1.0, -0.5, 1.0}}}, "negative.gltf"),
+               "has an invalid color (three finite numbers, none below 0)");
+  expect_error(lit({{"type", "point"}, {"intensity", 1e39}}, "huge.gltf"),
+               "has an intensity 1e+39 that, times its color, is beyond a float's range");
+  expect_error(lit({{"type", "spot"},
+                    {"spot", json::object()},
+                    {"intensity", 3e38},
+                    {"color", {2.0, 1.0, 1.0}}},
+                   "huge_times_color.gltf"),
+               "beyond a float's range");
+  // The largest that fits loads.
+  EXPECT_NO_THROW(load_gltf(lit({{"type", "directional"}, {"intensity", 3e38}}, "large.gltf")));
+}
+
 // A camera's aspect ratio as the file gives it (CameraModel::aspect_ratio): a perspective
 // camera's aspectRatio, where it has one that glTF allows, and an orthographic camera's
 // xmag / ymag (magnitudes); the active camera's is the scene's.

@@ -161,6 +161,37 @@ TEST(TracerTest, LightWithoutFalloffAndLightRange) {
   ShadowScene b{short_range};
   expect_near3(Tracer(b.s).trace(ray_to(eye, p), &stats).color,
                lambert_reference(b, p, false, true), 1e-6f, "beyond range");
+
+  // Within range, KHR_lights_punctual's window 1 - (d / range)^4 dims the light.
+  Light within;
+  within.range = 6.0f;
+  ShadowScene c{within};
+  const glm::vec3 ambient = lambert_reference(c, p, false, true);
+  const float window = 1.0f - std::pow(std::sqrt(20.0f) / 6.0f, 4.0f);
+  expect_near3(Tracer(c.s).trace(ray_to(eye, p), &stats).color,
+               ambient + window * (lambert_reference(c, p, true, true) - ambient), 1e-5f,
+               "within range");
+}
+
+// A light far away with a range beyond it (a sun in a scene of planetary scale): its window
+// is computed without overflowing a float, where d^4 and range^4 would.
+TEST(TracerTest, TheRangeWindowOfAFarLightStaysFinite) {
+  Scene s;
+  s.ambient = glm::vec3(0.0f);
+  const int floor = add_material(&s, glm::vec3(0.5f), 0.0f, 1.0f);
+  add_mesh_node(&s, quad_mesh({-5, 0, 5}, {10, 0, 0}, {0, 0, -10}, floor));
+  Light sun;
+  sun.intensity = 2.5e19f;  // 1 lux at 5e9
+  sun.range = 1e10f;
+  add_light_node(&s, sun, glm::dvec3(0.0, 5e9, 0.0), glm::dquat(1.0, 0.0, 0.0, 0.0));
+  s.finalize();
+  TraceStats stats;
+  const ShadedSample hit = Tracer(s).trace(ray_to({0.0f, 1.0f, 3.0f}, {0.0f, 0.0f, 0.0f}), &stats);
+  ASSERT_TRUE(hit.hit);
+  // Lambert 0.5 / pi, irradiance 1 at the window's 1 - 0.5^4.
+  expect_near3(hit.color, glm::vec3(0.5f / std::numbers::pi_v<float> * 0.9375f), 1e-4f,
+               "far light");
+  EXPECT_EQ(stats.sanitized, 0u);
 }
 
 // KHR_animation_pointer's properties reach the shading at each time: the light's intensity
