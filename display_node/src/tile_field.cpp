@@ -76,6 +76,11 @@ void TileField::set_tiling(const TilingSnapshot& snapshot) {
   ++version_;
 }
 
+void TileField::forget(uint32_t sampler_id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (latest_.erase(sampler_id) > 0) ++version_;
+}
+
 TileFieldStats TileField::stats() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return stats_;

@@ -130,6 +130,21 @@ TEST(TileFieldTest, SamplersShareTheImageAndTheNewestWinsWhereRegionsOverlap) {
   EXPECT_EQ(field.at(7, 3).sampler_id, 2u);
 }
 
+TEST(TileFieldTest, AForgottenSamplersTilesNoLongerShapeTheField) {
+  TileField field(8, 4);
+  field.set_tiling(snapshot(1, 5.0, {0, 0, 5, 4}, {tile(0, 0, 5, 4, 0.1f)}));
+  field.set_tiling(snapshot(2, 4.0, {3, 0, 8, 4}, {tile(3, 0, 8, 4, 0.2f)}));
+  field.update(8, 4);
+  EXPECT_EQ(field.at(4, 0).sampler_id, 1u);
+  field.forget(1);
+  EXPECT_TRUE(field.update(8, 4));
+  EXPECT_EQ(field.tiles().size(), 2u);  // the "no tile" entry and sampler 2's
+  EXPECT_EQ(field.at(4, 0).sampler_id, 2u);
+  EXPECT_FLOAT_EQ(field.at(0, 0).G_x, 0.0f);  // no tile there any more
+  field.forget(7);                            // none held: nothing changes
+  EXPECT_FALSE(field.update(8, 4));
+}
+
 TEST(TileFieldTest, TilesAreClippedToTheirRegionAndBadValuesZeroed) {
   TileField field(6, 6);
   const float nan = std::numeric_limits<float>::quiet_NaN();

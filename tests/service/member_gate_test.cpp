@@ -58,6 +58,20 @@ class CountingSink final : public SampleSink {
   void on_tiling(TilingSnapshot&& t) override {
     std::lock_guard<std::mutex> lock(mutex_);
     ++tilings_[t.sampler_id];
+    last_tiling_[t.sampler_id] = std::move(t);
+  }
+  void on_sampler_gone(uint32_t id) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    gone_.push_back(id);
+  }
+  std::optional<TilingSnapshot> last_tiling(uint32_t id) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto it = last_tiling_.find(id);
+    return it == last_tiling_.end() ? std::nullopt : std::optional<TilingSnapshot>(it->second);
+  }
+  std::vector<uint32_t> gone() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return gone_;
   }
   uint64_t samples(uint32_t id) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -77,6 +91,8 @@ class CountingSink final : public SampleSink {
  private:
   std::mutex mutex_;
   std::map<uint32_t, uint64_t> samples_, tilings_;
+  std::map<uint32_t, TilingSnapshot> last_tiling_;
+  std::vector<uint32_t> gone_;
 };
 
 SampleBatch batch(uint32_t id, uint64_t token, uint64_t sequence, size_t n) {
@@ -178,6 +194,48 @@ TEST(DisplayIngestTest, SpoofedAndNonMemberBatchesAreDroppedAndCountedAndNoRealS
   ASSERT_EQ(ss.size(), 1u);
   EXPECT_EQ(ss[0].samples, 5000u);
   EXPECT_EQ(ss[0].sequence_gaps, 0u);  // the spoofed sequences did not touch the member's
+}
+
+// A member describes its own region only: a snapshot that claims the whole image reaches the
+// sink cut to the region the coordinator gave the member (where the gate knows one). And a
+// member that is gone is forgotten by the sink, while the members that stay are not.
+TEST(DisplayIngestTest, AMembersTilingIsCutToItsRegionAndForgottenOnceItIsGone) {
+  Context context;
+  MemberGate gate;
+  gate.admit(1, 111, "");
+  gate.admit(2, 222, "");
+  gate.set_region(1, PixelRect{0, 0, 32, 64});
+  Ingest ingest(context, "tcp://127.0.0.1:*", Security::none(), gate);
+  Context peer_context;
+  SampleSender one(peer_context, ingest.endpoint());
+  SampleSender two(peer_context, ingest.endpoint());
+  TilingSnapshot whole = tiling(1, 111);  // region: the whole 64 x 64 image
+  whole.tiles.clear();
+  for (const PixelRect& r :
+       {PixelRect{0, 0, 16, 64}, PixelRect{16, 0, 48, 64}, PixelRect{48, 0, 64, 64}}) {
+    TileInfo tile;
+    tile.rect = r;
+    tile.v = 1.0f;
+    whole.tiles.push_back(tile);
+  }
+  ASSERT_TRUE(one.send(whole, {64, 64}).ok());
+  ASSERT_TRUE(two.send(tiling(2, 222), {64, 64}).ok());
+  ASSERT_TRUE(one.flush(10000) && two.flush(10000));
+  ASSERT_TRUE(afr::testing::wait_until(
+      [&] { return ingest.sink().tilings(1) == 1 && ingest.sink().tilings(2) == 1; }, 20.0));
+  const TilingSnapshot cut = *ingest.sink().last_tiling(1);
+  EXPECT_EQ(cut.region, (PixelRect{0, 0, 32, 64}));
+  ASSERT_EQ(cut.tiles.size(), 2u);  // the third lay outside the region
+  EXPECT_EQ(cut.tiles[0].rect, (PixelRect{0, 0, 16, 64}));
+  EXPECT_EQ(cut.tiles[1].rect, (PixelRect{16, 0, 32, 64}));
+  // Member 2 has no region in the gate (a wall's follower is not told them): as it came.
+  EXPECT_EQ(ingest.sink().last_tiling(2)->region, (PixelRect{0, 0, 64, 64}));
+
+  EXPECT_TRUE(ingest.sink().gone().empty());
+  gate.revoke(1);
+  ASSERT_TRUE(afr::testing::wait_until([&] { return !ingest.sink().gone().empty(); }, 20.0));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // a few more checks
+  EXPECT_EQ(ingest.sink().gone(), std::vector<uint32_t>{1});
 }
 
 // With CurveZMQ the batch is bound to its connection's authenticated key as well: another

@@ -105,6 +105,34 @@ TEST(ServiceMetricsTest, DepartedSamplersAreForgottenAfterTheGrace) {
   EXPECT_EQ(m.samplers().size(), 2u);
 }
 
+// Samplers that join and leave in a loop leave at most kMaxDeparted departed entries behind
+// (the longest gone and, among those gone as long, the first to join go first); the members
+// keep theirs.
+TEST(ServiceMetricsTest, DepartedSamplersBeyondTheBoundGoOldestFirst) {
+  ServiceMetrics m;
+  m.on_member("stays", 1, "", 1);
+  m.on_member("early", 2, "", 1);
+  m.on_member_gone(2, false);
+  m.end_period(2.0);  // sampler 2 is now the longest gone
+  const uint32_t churned = 1000;
+  for (uint32_t id = 3; id < 3 + churned; ++id) {
+    m.on_member("churn", id, "", 1);
+    m.on_member_gone(id, false);
+  }
+  const std::vector<SamplerMetrics> ss = m.samplers();
+  ASSERT_EQ(ss.size(), 1u + ServiceMetrics::kMaxDeparted);
+  EXPECT_EQ(m.display().members, 1u);
+  EXPECT_EQ(m.display().joins, 2u + churned);
+  std::vector<uint32_t> ids;
+  for (const SamplerMetrics& s : ss) ids.push_back(s.id);
+  EXPECT_TRUE(std::find(ids.begin(), ids.end(), 1u) != ids.end());  // the member
+  EXPECT_TRUE(std::find(ids.begin(), ids.end(), 2u) == ids.end());  // the longest gone
+  // The newest departed remain.
+  for (uint32_t id = 3 + churned - uint32_t(ServiceMetrics::kMaxDeparted); id < 3 + churned; ++id) {
+    EXPECT_TRUE(std::find(ids.begin(), ids.end(), id) != ids.end()) << id;
+  }
+}
+
 TEST(ServiceMetricsTest, LatencyIsFrameTimeMinusSampleTime) {
   ServiceMetrics m;
   SampleBatch b;

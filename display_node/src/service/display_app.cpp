@@ -47,6 +47,11 @@ void SwitchSink::on_tiling(TilingSnapshot&& snapshot) {
   if (target_) target_->on_tiling(std::move(snapshot));
 }
 
+void SwitchSink::on_sampler_gone(uint32_t sampler_id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (target_) target_->on_sampler_gone(sampler_id);
+}
+
 ReconstructorConfig display_reconstructor_config(const Preset& preset, ReconstructionMode mode,
                                                  int width, int height, PixelRect cell, int margin,
                                                  size_t capacity) {

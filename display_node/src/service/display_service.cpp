@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <iterator>
@@ -22,6 +23,7 @@
 #include <map>
 #include <optional>
 #include <random>
+#include <set>
 #include <string_view>
 #include <utility>
 
@@ -135,6 +137,9 @@ class DisplayService::Control {
   std::map<std::string, Transfer> transfers_;   // by peer
   std::map<std::string, double> told_unknown_;  // peers told to join again, when
   LogLimiter log_;  // what peers can repeat at will: a line per cause a second
+  // Samplers' joins, leaves, losses and regions: a line each, up to 32 a second (a peer that
+  // joins and leaves in a loop must not flood the log), the rest summed up once a second.
+  LogBudget membership_log_;
   // The members' ids, tokens and keys go to the wall's followers on every change, so that they
   // drop batches that are not from the member they name (member_list).
   bool members_changed_ = false;
@@ -366,6 +371,18 @@ std::string short_key(std::string_view key) {
   return key.empty() ? std::string("none") : std::string(key.substr(0, 8)) + "...";
 }
 
+// A member's snapshot cut to the region the coordinator gave it: a member describes its own
+// pixels only, whatever region its message claims (one that names the whole image would
+// otherwise shape the filter and weigh in the recuts over the others' regions). A snapshot of
+// the region before a recut keeps the part still its own.
+void keep_to_region(const PixelRect& mine, TilingSnapshot* t) {
+  t->region = intersect(t->region, mine);
+  std::erase_if(t->tiles, [&](TileInfo& tile) {
+    tile.rect = intersect(tile.rect, t->region);
+    return tile.rect.empty();
+  });
+}
+
 }  // namespace
 
 void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metrics,
@@ -374,6 +391,11 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
                 const WallPeers* wall) {
   uint64_t rejected = 0;
   LogLimiter log;
+  // The members whose tilings the sink holds, checked against the gate every 0.1 s: the sink
+  // forgets the tiling of one that is no longer a member, so that what it keeps is bounded by
+  // the members, not by every sampler that ever joined.
+  std::set<uint32_t> tiled;
+  auto next_check = std::chrono::steady_clock::now();
   // On a wall's node: whether a stray or a coverage message comes from a node of the wall; logs
   // (rate-limited) when not.
   const auto from_wall_node = [&](const char* what, uint32_t id) {
@@ -411,6 +433,17 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
     log.flush([](const std::string& cause, uint64_t n) {
       spdlog::warn("sample channel: {} more like this since its last line: {}", n, cause);
     });
+    if (gate != nullptr && std::chrono::steady_clock::now() >= next_check) {
+      next_check = std::chrono::steady_clock::now() + std::chrono::milliseconds(100);
+      for (auto it = tiled.begin(); it != tiled.end();) {
+        if (gate->has(*it)) {
+          ++it;
+        } else {
+          sink.on_sampler_gone(*it);
+          it = tiled.erase(it);
+        }
+      }
+    }
     switch (receiver.receive(50)) {
       case SampleReceiver::Got::kNothing:
         break;
@@ -457,7 +490,7 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
         break;
       }
       case SampleReceiver::Got::kTiling: {
-        const TilingSnapshot& t = receiver.tiling();
+        TilingSnapshot& t = receiver.tiling();
         const MemberGate::Verdict v = from_member("tiling snapshot", t.sampler_id, t.token, 0);
         if (v == MemberGate::Verdict::kSpoofed) {
           metrics.on_spoofed_tiling();
@@ -466,6 +499,12 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
         metrics.on_tiling(t.sampler_id, snapshot_message_bytes(t.tiles.size()),
                           v == MemberGate::Verdict::kMember);
         if (v != MemberGate::Verdict::kMember) break;
+        if (gate != nullptr) {
+          if (const std::optional<PixelRect> mine = gate->region(t.sampler_id)) {
+            keep_to_region(*mine, &t);
+          }
+          tiled.insert(t.sampler_id);
+        }
         if (on_tiling) on_tiling(t);
         sink.on_tiling(std::move(receiver.tiling()));
         break;
@@ -514,6 +553,12 @@ void DisplayService::Control::run() {
     const double t = service_.now();
     send_scene_chunks();
     expire_silent(t);
+    membership_log_.flush([](uint64_t n) {
+      spdlog::warn(
+          "{} more sampler joins, leaves and regions in the last second than the log shows "
+          "(/stats counts joins, leaves and deaths)",
+          n);
+    });
     if (wall_changed_) {
       wall_changed_ = false;
       publish_layout();
@@ -686,8 +731,10 @@ void DisplayService::Control::on_join(const ControlServer::Incoming& in, const J
   if (is_new) {
     service_.gate_.admit(m.id, m.token, m.public_key);
     members_changed_ = true;
-    spdlog::info("sampler {} joined: {} ({} thread(s) claimed{})", m.id, j.name, j.threads,
-                 in.public_key.empty() ? "" : ", key " + in.public_key);
+    if (membership_log_.take()) {
+      spdlog::info("sampler {} joined: {} ({} thread(s) claimed{})", m.id, j.name, j.threads,
+                   in.public_key.empty() ? "" : ", key " + in.public_key);
+    }
     service_.metrics_.on_member(j.name, m.id, in.public_key, j.threads);
   }
   welcome(m.peer, m.id, m.token);
@@ -716,7 +763,8 @@ void DisplayService::Control::on_member_message(Member& m, const std::string& pe
     // Shown in /stats and /metrics; the share follows what the display measures instead.
     service_.metrics_.on_reported(m.id, *s);
   } else if (const auto* l = std::get_if<Leave>(&msg)) {
-    if (l->reason == LeaveReason::kError) {
+    if (!membership_log_.take()) {
+    } else if (l->reason == LeaveReason::kError) {
       // The sampler cannot serve this session (its scene did not load, say): it said why.
       spdlog::error("sampler {} ({}) failed and left: {}", m.id, m.name, l->text);
     } else {
@@ -776,11 +824,13 @@ void DisplayService::Control::expire_silent(double t) {
   // Peers told to join again are remembered for the rate limit only: a bounded while.
   std::erase_if(told_unknown_, [&](const auto& e) { return t - e.second > 10.0; });
   for (const Member& dead : coordinator_.expire(t)) {
-    spdlog::warn(
-        "sampler {} ({}) lost: no word for {:.2f} s (suspected after {:.2f} s: its messages "
-        "came every {:.3f} s, deviation {:.3f} s); its region goes to the others",
-        dead.id, dead.name, dead.liveness.silence(t), dead.liveness.suspect_after(),
-        dead.liveness.mean(), dead.liveness.deviation());
+    if (membership_log_.take()) {
+      spdlog::warn(
+          "sampler {} ({}) lost: no word for {:.2f} s (suspected after {:.2f} s: its messages "
+          "came every {:.3f} s, deviation {:.3f} s); its region goes to the others",
+          dead.id, dead.name, dead.liveness.silence(t), dead.liveness.suspect_after(),
+          dead.liveness.mean(), dead.liveness.deviation());
+    }
     service_.metrics_.on_member_gone(dead.id, true);
     service_.gate_.revoke(dead.id);
     members_changed_ = true;
@@ -904,7 +954,9 @@ void DisplayService::Control::send_regions() {
     send(m.peer, RegionAssignment{id, coordinator_.epoch(), options_.image.width,
                                   options_.image.height, m.region});
     service_.metrics_.on_region(id, m.region, coordinator_.epoch(), coordinator_.recuts());
+    service_.gate_.set_region(id, m.region);
     regions.emplace_back(id, m.region);
+    if (!membership_log_.take()) continue;
     spdlog::info(
         "region epoch {}: sampler {} ({}) gets [{}, {}) x [{}, {}) ({:.0f}%)", coordinator_.epoch(),
         id, m.name, m.region.x0, m.region.x1, m.region.y0, m.region.y1,

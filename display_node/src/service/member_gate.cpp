@@ -28,6 +28,22 @@ void MemberGate::replace(const std::vector<Member>& members) {
   members_.swap(next);
 }
 
+void MemberGate::set_region(uint32_t id, const PixelRect& region) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (const auto it = members_.find(id); it != members_.end()) it->second.region = region;
+}
+
+bool MemberGate::has(uint32_t id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return members_.count(id) > 0;
+}
+
+std::optional<PixelRect> MemberGate::region(uint32_t id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = members_.find(id);
+  return it == members_.end() ? std::nullopt : it->second.region;
+}
+
 size_t MemberGate::size() {
   std::lock_guard<std::mutex> lock(mutex_);
   return members_.size();

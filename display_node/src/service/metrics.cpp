@@ -115,6 +115,16 @@ void ServiceMetrics::on_member_gone(uint32_t id, bool dead) {
     it->second.region = PixelRect{};
   }
   ++(dead ? display_.deaths : display_.leaves);
+  // Beyond kMaxDeparted departed samplers, the longest gone first, and of those gone as long
+  // the first to join (ids are handed out in order).
+  std::vector<std::pair<int, uint32_t>> departed;
+  for (const auto& [i, s] : samplers_) {
+    if (!s.member) departed.emplace_back(-s.periods_gone, i);
+  }
+  if (departed.size() > kMaxDeparted) {
+    std::sort(departed.begin(), departed.end());
+    for (size_t k = 0; k < departed.size() - kMaxDeparted; ++k) samplers_.erase(departed[k].second);
+  }
   display_.members = 0;
   for (const auto& [i, s] : samplers_) display_.members += s.member;
 }

@@ -12,6 +12,12 @@ void OverlaySink::on_tiling(TilingSnapshot&& snapshot) {
   tilings_[snapshot.sampler_id] = std::move(snapshot);
 }
 
+void OverlaySink::on_sampler_gone(uint32_t sampler_id) {
+  reconstructor_.on_sampler_gone(sampler_id);
+  std::lock_guard<std::mutex> lock(mutex_);
+  tilings_.erase(sampler_id);
+}
+
 std::map<uint32_t, TilingSnapshot> OverlaySink::tilings() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return tilings_;

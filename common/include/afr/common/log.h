@@ -68,4 +68,53 @@ class LogLimiter {
   std::map<std::string, Cause, std::less<>> causes_;
 };
 
+// Log lines for events each worth a line of its own (a sampler joined, left, got a region)
+// that a peer can still repeat at will, joining and leaving in a loop: up to `lines` lines per
+// interval, the events beyond them counted, and their sum logged once the interval is over.
+//
+//   if (budget.take()) spdlog::info("sampler {} joined: {}", id, name);
+//   budget.flush([](uint64_t n) { spdlog::warn("{} membership events not logged", n); });
+//
+// Not thread-safe: one budget per thread.
+class LogBudget {
+ public:
+  explicit LogBudget(size_t lines = 32,
+                     std::chrono::steady_clock::duration interval = std::chrono::seconds(1))
+      : lines_(lines), interval_(interval) {}
+
+  // Whether the event at `now` gets its line; false: it is counted for flush().
+  bool take(std::chrono::steady_clock::time_point now = std::chrono::steady_clock::now()) {
+    roll(now);
+    if (used_ < lines_) {
+      ++used_;
+      return true;
+    }
+    ++held_;
+    return false;
+  }
+
+  // Once the interval of events held back is over: calls f(count) and clears it.
+  template <typename F>
+  void flush(F&& f, std::chrono::steady_clock::time_point now = std::chrono::steady_clock::now()) {
+    if (held_ > 0 && now - start_ >= interval_) {
+      f(held_);
+      held_ = 0;
+    }
+    roll(now);
+  }
+
+ private:
+  void roll(std::chrono::steady_clock::time_point now) {
+    if (now - start_ < interval_) return;
+    start_ = now;
+    used_ = 0;
+  }
+
+  size_t lines_;
+  std::chrono::steady_clock::duration interval_;
+  std::chrono::steady_clock::time_point start_{};
+  size_t used_ = 0;
+  uint64_t held_ = 0;
+};
+
 }  // namespace afr

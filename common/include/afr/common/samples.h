@@ -65,6 +65,10 @@ class SampleSink {
   virtual ~SampleSink() = default;
   virtual void on_batch(SampleBatch&& batch) = 0;
   virtual void on_tiling(TilingSnapshot&& snapshot) = 0;
+  // The sampler is no longer a member of the display (it left, was declared dead, or a wall's
+  // lead dropped it): forget what is kept of it besides its samples (its tiling). Ingest
+  // thread.
+  virtual void on_sampler_gone(uint32_t /*sampler_id*/) {}
 };
 
 }  // namespace afr

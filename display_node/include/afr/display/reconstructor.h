@@ -146,6 +146,7 @@ class Reconstructor : public SampleSink {
   void set_tiling(const TilingSnapshot& snapshot) { field_.set_tiling(snapshot); }
   void on_batch(SampleBatch&& batch) override { store_.append(batch); }
   void on_tiling(TilingSnapshot&& snapshot) override { field_.set_tiling(snapshot); }
+  void on_sampler_gone(uint32_t sampler_id) override { field_.forget(sampler_id); }
 
   // ---- The reconstructing thread.
   // Reconstructs the image seen by `camera` at display time `time` into *out (resized to

@@ -76,6 +76,9 @@ class TileField {
   // Keeps `snapshot` as its sampler's latest (unless an newer one is held). Tiles are clipped
   // to the snapshot's region and the image; bad values are zeroed and counted.
   void set_tiling(const TilingSnapshot& snapshot);
+  // Drops sampler `sampler_id`'s snapshot (a sampler that left): its tiles no longer shape the
+  // filter, and the field holds snapshots of present samplers only.
+  void forget(uint32_t sampler_id);
   TileFieldStats stats() const;
 
   // ---- The reconstructing thread only.

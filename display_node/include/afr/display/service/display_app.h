@@ -29,6 +29,7 @@ class SwitchSink final : public SampleSink {
   void set(SampleSink* target);
   void on_batch(SampleBatch&& batch) override;
   void on_tiling(TilingSnapshot&& snapshot) override;
+  void on_sampler_gone(uint32_t sampler_id) override;
 
  private:
   std::mutex mutex_;

@@ -9,9 +9,12 @@
 // ingest thread checks every message. One mutex, held for a map lookup.
 #pragma once
 
+#include <afr/common/samples.h>
+
 #include <cstdint>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -30,6 +33,9 @@ class MemberGate {
   // Control thread. `public_key` empty: the member joined without CurveZMQ.
   void admit(uint32_t id, uint64_t token, const std::string& public_key);
   void revoke(uint32_t id);
+  // The region the coordinator gave member `id` (a wall's lead and a single display; a
+  // follower is not told the regions).
+  void set_region(uint32_t id, const PixelRect& region);
   // A wall follower: the lead's members, all at once (member_list). Members that stay keep
   // their accepted counts.
   struct Member {
@@ -43,6 +49,9 @@ class MemberGate {
   // key `key` (empty: none) that member's? A member's accepted samples are counted for
   // take_accepted() (pass 0 for a tiling snapshot).
   Verdict check(uint32_t id, uint64_t token, std::string_view key, uint64_t samples);
+  // Ingest thread: whether `id` is a member; its region, where set_region gave one.
+  bool has(uint32_t id);
+  std::optional<PixelRect> region(uint32_t id);
   // Control thread: samples accepted per member since the last call (members with none left
   // out).
   std::vector<std::pair<uint32_t, uint64_t>> take_accepted();
@@ -52,6 +61,7 @@ class MemberGate {
     uint64_t token = 0;
     std::string public_key;
     uint64_t accepted = 0;  // samples since the last take_accepted()
+    std::optional<PixelRect> region;
   };
   std::mutex mutex_;
   std::map<uint32_t, Entry> members_;

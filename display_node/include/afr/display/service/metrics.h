@@ -28,7 +28,7 @@ struct SamplerMetrics {
   std::string name;
   std::string public_key;
   // Currently a member. A sampler that left or died is kept for kDepartedPeriods stats periods
-  // (its last figures), then forgotten.
+  // (its last figures), then forgotten; of more than kMaxDeparted, the oldest go at once.
   bool member = false;
   int periods_gone = 0;
   PixelRect region;
@@ -139,6 +139,9 @@ class ServiceMetrics {
  public:
   // Stats periods a departed sampler's figures stay (a minute at the default 2 s period).
   static constexpr int kDepartedPeriods = 30;
+  // Departed samplers kept at most: samplers joining and leaving in a loop cannot grow the
+  // figures (and /metrics) beyond the members and these.
+  static constexpr size_t kMaxDeparted = 64;
 
   // Ingest thread. `member`: whether the message comes from the member batch.sampler_id names;
   // per-sampler figures are kept for members only, the others are counted as dropped from a

@@ -23,6 +23,7 @@ class OverlaySink final : public SampleSink {
   explicit OverlaySink(Reconstructor& reconstructor) : reconstructor_(reconstructor) {}
   void on_batch(SampleBatch&& batch) override { reconstructor_.add_batch(batch); }
   void on_tiling(TilingSnapshot&& snapshot) override;
+  void on_sampler_gone(uint32_t sampler_id) override;
   std::map<uint32_t, TilingSnapshot> tilings() const;
 
  private:
