@@ -69,25 +69,31 @@ TEST(LogLimiterTest, CauseOfBlanksNumbersAndIsShort) {
   EXPECT_EQ(LogLimiter::cause_of(std::string(500, 'x')).size(), 80u);
 }
 
-TEST(LogBudgetTest, LinesUpToTheBudgetThenTheRestCountedAndSummedAfterTheInterval) {
+TEST(LogBudgetTest, LinesUpToTheBudgetThenTheRestSummedInALineASecond) {
   LogBudget budget(3, std::chrono::seconds(1));
   const Clock::time_point t0 = Clock::now();
   std::vector<uint64_t> flushed;
   const auto flush = [&](Clock::time_point now) {
     budget.flush([&](uint64_t n) { flushed.push_back(n); }, now);
   };
+  flush(t0);  // nothing held back: no line
+  EXPECT_TRUE(flushed.empty());
   // Three events of the second get their lines, the next five do not.
   for (int i = 0; i < 3; ++i) EXPECT_TRUE(budget.take(t0 + milliseconds(i)));
   for (int i = 3; i < 8; ++i) EXPECT_FALSE(budget.take(t0 + milliseconds(i * 100)));
-  // Not summed up before the second is over.
-  flush(t0 + milliseconds(900));
-  EXPECT_TRUE(flushed.empty());
-  flush(t0 + milliseconds(1000));
+  // The first sum comes at once; the next no sooner than a second later.
+  flush(t0 + milliseconds(750));
   EXPECT_EQ(flushed, std::vector<uint64_t>{5});
-  // The next second has its own lines; nothing held back, nothing to sum up.
-  EXPECT_TRUE(budget.take(t0 + milliseconds(1100)));
-  flush(t0 + milliseconds(2500));
+  EXPECT_FALSE(budget.take(t0 + milliseconds(800)));
+  flush(t0 + milliseconds(1000));
   EXPECT_EQ(flushed.size(), 1u);
+  // The next second has its own lines.
+  EXPECT_TRUE(budget.take(t0 + milliseconds(1100)));
+  EXPECT_TRUE(budget.take(t0 + milliseconds(1200)));
+  flush(t0 + milliseconds(1750));
+  EXPECT_EQ(flushed, (std::vector<uint64_t>{5, 1}));
+  flush(t0 + milliseconds(3000));  // nothing held back since
+  EXPECT_EQ(flushed.size(), 2u);
 }
 
 }  // namespace

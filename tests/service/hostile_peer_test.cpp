@@ -343,5 +343,66 @@ TEST_F(ServiceTest, ControlFloodAndJoinsBeyondTheLimitCostALineASecondAndNoMembe
   EXPECT_EQ(log.find(" lost: "), std::string::npos) << log;
 }
 
+// A peer that joins and leaves in a loop (a member's leave needs no reply to wait for) makes
+// each join a member and each leave a departure: the display's log takes at most 32 of these
+// lines a second plus a line summing up the rest, /stats keeps the members and at most 64
+// departed samplers, and the real sampler keeps streaming.
+TEST_F(ServiceTest, JoiningAndLeavingInALoopCostsBoundedLogLinesAndFigures) {
+  auto d = display({"--size", "64x64", "--fps", "20"}, "display.log");
+  auto s1 = sampler({"--max-samples-per-second", "30000", "--name", "real-1"}, "s1.log");
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const std::vector<MemberView> ms = member_views(get_stats(metrics_port()));
+        return ms.size() == 1 && ms[0].samples > 0;
+      },
+      10.0))
+      << d->log();
+  const auto started = std::chrono::steady_clock::now();
+  constexpr int kCycles = 3000;
+  {
+    Join join;
+    join.name = "churn";
+    std::vector<uint8_t> join_bytes, leave_bytes;
+    ASSERT_TRUE(encode(Message(join), &join_bytes).ok());
+    ASSERT_TRUE(encode(Message(Leave{0, LeaveReason::kShutdown, "again"}), &leave_bytes).ok());
+    zmq::context_t ctx;
+    zmq::socket_t dealer(ctx, zmq::socket_type::dealer);
+    dealer.set(zmq::sockopt::linger, 5000);
+    dealer.set(zmq::sockopt::sndhwm, 0);
+    dealer.connect("tcp://127.0.0.1:" + std::to_string(port_));
+    for (int i = 0; i < kCycles; ++i) {
+      dealer.send(zmq::buffer(join_bytes), zmq::send_flags::none);
+      dealer.send(zmq::buffer(leave_bytes), zmq::send_flags::none);
+    }
+    ASSERT_TRUE(wait_until(
+        [&] {
+          const nlohmann::json st = get_stats(metrics_port());
+          return !st.is_null() && st["display"]["leaves"].get<int>() >= kCycles;
+        },
+        60.0))
+        << d->log();
+  }
+  const double seconds = seconds_since(started);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // the last summing-up line
+  const std::string log = d->log();
+  const size_t lines =
+      count_of(log, " joined: ") + count_of(log, ") left: ") + count_of(log, "region epoch");
+  std::printf("%d joins and leaves in %.2f s: %zu membership lines\n", kCycles, seconds, lines);
+  EXPECT_LE(double(lines), 32.0 * (seconds + 3.0)) << log.substr(0, 4000);
+  EXPECT_NE(log.find("more sampler joins, leaves and regions than the log shows"),
+            std::string::npos);
+  const nlohmann::json st = get_stats(metrics_port());
+  EXPECT_LE(st["samplers"].size(), 1u + 64u);
+  EXPECT_GE(st["display"]["joins"].get<int>(), kCycles + 1);
+  // The real sampler: still the one member, still streaming.
+  const std::vector<MemberView> before = member_views(st);
+  std::this_thread::sleep_for(std::chrono::milliseconds(800));
+  const std::vector<MemberView> after = member_views(get_stats(metrics_port()));
+  ASSERT_EQ(before.size(), 1u);
+  ASSERT_EQ(after.size(), 1u);
+  EXPECT_GT(after[0].samples, before[0].samples);
+  EXPECT_GT(after[0].area, 0);
+}
+
 }  // namespace
 }  // namespace afr::testing

@@ -555,8 +555,8 @@ void DisplayService::Control::run() {
     expire_silent(t);
     membership_log_.flush([](uint64_t n) {
       spdlog::warn(
-          "{} more sampler joins, leaves and regions in the last second than the log shows "
-          "(/stats counts joins, leaves and deaths)",
+          "{} more sampler joins, leaves and regions than the log shows since its last such "
+          "line (/stats counts joins, leaves and deaths)",
           n);
     });
     if (wall_changed_) {

@@ -70,7 +70,8 @@ class LogLimiter {
 
 // Log lines for events each worth a line of its own (a sampler joined, left, got a region)
 // that a peer can still repeat at will, joining and leaving in a loop: up to `lines` lines per
-// interval, the events beyond them counted, and their sum logged once the interval is over.
+// interval, the events beyond them counted, and their sum logged in at most one line per
+// interval.
 //
 //   if (budget.take()) spdlog::info("sampler {} joined: {}", id, name);
 //   budget.flush([](uint64_t n) { spdlog::warn("{} membership events not logged", n); });
@@ -93,14 +94,15 @@ class LogBudget {
     return false;
   }
 
-  // Once the interval of events held back is over: calls f(count) and clears it.
+  // Calls f(count) with the events held back since its last call, unless that was less than an
+  // interval ago (the first call with any held back calls it at once); clears the count.
   template <typename F>
   void flush(F&& f, std::chrono::steady_clock::time_point now = std::chrono::steady_clock::now()) {
-    if (held_ > 0 && now - start_ >= interval_) {
-      f(held_);
-      held_ = 0;
-    }
-    roll(now);
+    if (held_ == 0 || (flushed_ && now - last_flush_ < interval_)) return;
+    f(held_);
+    held_ = 0;
+    flushed_ = true;
+    last_flush_ = now;
   }
 
  private:
@@ -115,6 +117,8 @@ class LogBudget {
   std::chrono::steady_clock::time_point start_{};
   size_t used_ = 0;
   uint64_t held_ = 0;
+  bool flushed_ = false;
+  std::chrono::steady_clock::time_point last_flush_{};
 };
 
 }  // namespace afr
