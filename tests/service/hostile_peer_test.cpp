@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 #include <zmq.hpp>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cstdio>
@@ -98,6 +99,42 @@ std::vector<MemberView> member_views(const nlohmann::json& st) {
   return out;
 }
 
+// Whether /stats on `port` lists n members, each with samples, within 10 s.
+bool members_streaming(int port, size_t n) {
+  return wait_until(
+      [&] {
+        const std::vector<MemberView> ms = member_views(get_stats(port));
+        return ms.size() == n &&
+               std::all_of(ms.begin(), ms.end(), [](const MemberView& m) { return m.samples > 0; });
+      },
+      10.0);
+}
+
+// The n members keep streaming over their regions: 0.8 s on, each has more samples, an area
+// and no sequence gaps.
+void expect_members_keep_streaming(int port, size_t n) {
+  const std::vector<MemberView> before = member_views(get_stats(port));
+  std::this_thread::sleep_for(std::chrono::milliseconds(800));
+  const std::vector<MemberView> after = member_views(get_stats(port));
+  ASSERT_EQ(before.size(), n);
+  ASSERT_EQ(after.size(), n);
+  for (size_t i = 0; i < n; ++i) {
+    EXPECT_GT(after[i].samples, before[i].samples) << after[i].name;
+    EXPECT_GT(after[i].area, 0) << after[i].name;
+    EXPECT_EQ(after[i].gaps, 0u) << after[i].name;
+  }
+}
+
+// A raw control connection to the display at `port` that queues what it is given without bound
+// (a flood) and delivers it before it closes.
+zmq::socket_t raw_control(zmq::context_t& context, int port) {
+  zmq::socket_t dealer(context, zmq::socket_type::dealer);
+  dealer.set(zmq::sockopt::linger, 5000);
+  dealer.set(zmq::sockopt::sndhwm, 0);
+  dealer.connect("tcp://127.0.0.1:" + std::to_string(port));
+  return dealer;
+}
+
 // The greedy join of issue 19 (4096 threads, 1e300 samples/s in its stats, id 0xFFFFFFFE asked
 // for, no sample ever) joins beside a real sampler, and a second real sampler joins after it.
 // The display assigns the ids (distinct, none at the top of the range), nobody is evicted,
@@ -106,13 +143,7 @@ std::vector<MemberView> member_views(const nlohmann::json& st) {
 TEST_F(ServiceTest, GreedyJoinGetsNoRegionAndLaterSamplersGetDistinctIds) {
   auto d = display({"--size", "64x64", "--fps", "20"}, "display.log");
   auto s1 = sampler({"--max-samples-per-second", "30000", "--name", "real-1"}, "s1.log");
-  ASSERT_TRUE(wait_until(
-      [&] {
-        const std::vector<MemberView> ms = member_views(get_stats(metrics_port()));
-        return ms.size() == 1 && ms[0].samples > 0;
-      },
-      10.0))
-      << d->log();
+  ASSERT_TRUE(members_streaming(metrics_port(), 1)) << d->log();
   Join greedy;
   greedy.sampler_id = 0xFFFFFFFEu;
   greedy.threads = kMaxThreads;
@@ -173,13 +204,7 @@ TEST_F(ServiceTest, GreedyJoinGetsNoRegionAndLaterSamplersGetDistinctIds) {
 TEST_F(ServiceTest, SpoofedAndNonMemberBatchesAreDroppedAndCounted) {
   auto d = display({"--size", "64x64", "--fps", "20"}, "display.log");
   auto s = sampler({"--max-samples-per-second", "50000"}, "s1.log");
-  ASSERT_TRUE(wait_until(
-      [&] {
-        const std::vector<MemberView> ms = member_views(get_stats(metrics_port()));
-        return ms.size() == 1 && ms[0].samples > 0;
-      },
-      10.0))
-      << d->log();
+  ASSERT_TRUE(members_streaming(metrics_port(), 1)) << d->log();
   const uint32_t real_id = member_views(get_stats(metrics_port()))[0].id;
   // Kept until the display has counted everything: closing a sender drops what ZeroMQ has not
   // yet written (ZMQ_LINGER 0 on the sample channel).
@@ -245,13 +270,7 @@ TEST_F(ServiceTest, ControlFloodAndJoinsBeyondTheLimitCostALineASecondAndNoMembe
   auto d = display({"--size", "64x64", "--fps", "20", "--max-samplers", "2"}, "display.log");
   auto s1 = sampler({"--max-samples-per-second", "30000", "--name", "real-1"}, "s1.log");
   auto s2 = sampler({"--max-samples-per-second", "30000", "--name", "real-2"}, "s2.log");
-  ASSERT_TRUE(wait_until(
-      [&] {
-        const std::vector<MemberView> ms = member_views(get_stats(metrics_port()));
-        return ms.size() == 2 && ms[0].samples > 0 && ms[1].samples > 0;
-      },
-      10.0))
-      << d->log();
+  ASSERT_TRUE(members_streaming(metrics_port(), 2)) << d->log();
 
   {
     Context context;
@@ -280,10 +299,7 @@ TEST_F(ServiceTest, ControlFloodAndJoinsBeyondTheLimitCostALineASecondAndNoMembe
   constexpr int kFlood = 20000;
   {
     zmq::context_t ctx;
-    zmq::socket_t dealer(ctx, zmq::socket_type::dealer);
-    dealer.set(zmq::sockopt::linger, 5000);
-    dealer.set(zmq::sockopt::sndhwm, 0);
-    dealer.connect("tcp://127.0.0.1:" + std::to_string(port_));
+    zmq::socket_t dealer = raw_control(ctx, port_);
     const std::string short_junk = "xy", wrong_magic(64, 'J');
     for (int i = 0; i < kFlood; ++i) {
       const std::string& junk = i % 2 ? short_junk : wrong_magic;
@@ -330,16 +346,7 @@ TEST_F(ServiceTest, ControlFloodAndJoinsBeyondTheLimitCostALineASecondAndNoMembe
   EXPECT_NE(log.find("sampler join(s) refused"), std::string::npos) << log;
 
   // The real samplers: still the two members, still streaming, nobody lost.
-  const std::vector<MemberView> before = member_views(get_stats(metrics_port()));
-  std::this_thread::sleep_for(std::chrono::milliseconds(800));
-  const std::vector<MemberView> after = member_views(get_stats(metrics_port()));
-  ASSERT_EQ(before.size(), 2u);
-  ASSERT_EQ(after.size(), 2u);
-  for (size_t i = 0; i < 2; ++i) {
-    EXPECT_GT(after[i].samples, before[i].samples) << after[i].name;
-    EXPECT_GT(after[i].area, 0) << after[i].name;
-    EXPECT_EQ(after[i].gaps, 0u) << after[i].name;
-  }
+  expect_members_keep_streaming(metrics_port(), 2);
   EXPECT_EQ(log.find(" lost: "), std::string::npos) << log;
 }
 
@@ -350,13 +357,7 @@ TEST_F(ServiceTest, ControlFloodAndJoinsBeyondTheLimitCostALineASecondAndNoMembe
 TEST_F(ServiceTest, JoiningAndLeavingInALoopCostsBoundedLogLinesAndFigures) {
   auto d = display({"--size", "64x64", "--fps", "20"}, "display.log");
   auto s1 = sampler({"--max-samples-per-second", "30000", "--name", "real-1"}, "s1.log");
-  ASSERT_TRUE(wait_until(
-      [&] {
-        const std::vector<MemberView> ms = member_views(get_stats(metrics_port()));
-        return ms.size() == 1 && ms[0].samples > 0;
-      },
-      10.0))
-      << d->log();
+  ASSERT_TRUE(members_streaming(metrics_port(), 1)) << d->log();
   const auto started = std::chrono::steady_clock::now();
   constexpr int kCycles = 3000;
   {
@@ -366,10 +367,7 @@ TEST_F(ServiceTest, JoiningAndLeavingInALoopCostsBoundedLogLinesAndFigures) {
     ASSERT_TRUE(encode(Message(join), &join_bytes).ok());
     ASSERT_TRUE(encode(Message(Leave{0, LeaveReason::kShutdown, "again"}), &leave_bytes).ok());
     zmq::context_t ctx;
-    zmq::socket_t dealer(ctx, zmq::socket_type::dealer);
-    dealer.set(zmq::sockopt::linger, 5000);
-    dealer.set(zmq::sockopt::sndhwm, 0);
-    dealer.connect("tcp://127.0.0.1:" + std::to_string(port_));
+    zmq::socket_t dealer = raw_control(ctx, port_);
     for (int i = 0; i < kCycles; ++i) {
       dealer.send(zmq::buffer(join_bytes), zmq::send_flags::none);
       dealer.send(zmq::buffer(leave_bytes), zmq::send_flags::none);
@@ -395,13 +393,7 @@ TEST_F(ServiceTest, JoiningAndLeavingInALoopCostsBoundedLogLinesAndFigures) {
   EXPECT_LE(st["samplers"].size(), 1u + 64u);
   EXPECT_GE(st["display"]["joins"].get<int>(), kCycles + 1);
   // The real sampler: still the one member, still streaming.
-  const std::vector<MemberView> before = member_views(st);
-  std::this_thread::sleep_for(std::chrono::milliseconds(800));
-  const std::vector<MemberView> after = member_views(get_stats(metrics_port()));
-  ASSERT_EQ(before.size(), 1u);
-  ASSERT_EQ(after.size(), 1u);
-  EXPECT_GT(after[0].samples, before[0].samples);
-  EXPECT_GT(after[0].area, 0);
+  expect_members_keep_streaming(metrics_port(), 1);
 }
 
 }  // namespace

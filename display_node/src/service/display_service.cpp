@@ -951,10 +951,11 @@ void DisplayService::Control::send_regions() {
         before, after);
   }
   for (const auto& [id, m] : coordinator_.members()) {
+    // The gate first: the member's snapshots of its new region must not meet the old one.
+    service_.gate_.set_region(id, m.region);
     send(m.peer, RegionAssignment{id, coordinator_.epoch(), options_.image.width,
                                   options_.image.height, m.region});
     service_.metrics_.on_region(id, m.region, coordinator_.epoch(), coordinator_.recuts());
-    service_.gate_.set_region(id, m.region);
     regions.emplace_back(id, m.region);
     if (!membership_log_.take()) continue;
     spdlog::info(
