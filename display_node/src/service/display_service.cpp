@@ -763,12 +763,13 @@ void DisplayService::Control::on_member_message(Member& m, const std::string& pe
     // Shown in /stats and /metrics; the share follows what the display measures instead.
     service_.metrics_.on_reported(m.id, *s);
   } else if (const auto* l = std::get_if<Leave>(&msg)) {
-    if (!membership_log_.take()) {
-    } else if (l->reason == LeaveReason::kError) {
-      // The sampler cannot serve this session (its scene did not load, say): it said why.
-      spdlog::error("sampler {} ({}) failed and left: {}", m.id, m.name, l->text);
-    } else {
-      spdlog::info("sampler {} ({}) left: {}", m.id, m.name, l->text);
+    if (membership_log_.take()) {
+      if (l->reason == LeaveReason::kError) {
+        // The sampler cannot serve this session (its scene did not load, say): it said why.
+        spdlog::error("sampler {} ({}) failed and left: {}", m.id, m.name, l->text);
+      } else {
+        spdlog::info("sampler {} ({}) left: {}", m.id, m.name, l->text);
+      }
     }
     service_.metrics_.on_member_gone(m.id, false);
     service_.gate_.revoke(m.id);
