@@ -150,9 +150,15 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.1, 600.0));
   app.add_option("--recut-interval", o.coordinator.recut_interval,
                  "seconds at least between recuts of the samplers' regions that follow their "
-                 "throughput and error (joins, leaves and deaths recut at once)")
+                 "throughput and error (leaves and deaths recut at once, joins after "
+                 "--join-interval)")
       ->capture_default_str()
       ->check(CLI::Range(0.1, 3600.0));
+  app.add_option("--join-interval", o.coordinator.join_interval,
+                 "seconds at least between recuts that joins make: a join waits for its region "
+                 "until then, and the joins meanwhile are cut in together")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 60.0));
   app.add_option("--max-samplers", o.coordinator.max_members,
                  "samplers admitted at once; a join beyond them is refused with the reason")
       ->capture_default_str()

@@ -6,6 +6,7 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <string>
 
 namespace afr::service {
 namespace {
@@ -128,6 +129,76 @@ TEST(CoordinatorTest, SilentMemberExpiresAndItsRegionGoesToTheOthers) {
   EXPECT_EQ(dead[0].id, 2u);
   EXPECT_TRUE(c.maybe_recut(0.8));
   EXPECT_EQ(c.members().at(1).region, (PixelRect{0, 0, 64, 64}));
+}
+
+// Samplers started together join within a moment of each other: the first gets the image at
+// once, the others wait out join_interval and come in with one cut (not a handover each). A
+// member waiting for its region has nothing to deliver and does not starve meanwhile.
+TEST(CoordinatorTest, JoinsWithinAnIntervalAreCutInTogether) {
+  Coordinator c(64, 64);  // join_interval 1 s
+  join(&c, "a", 0.0);
+  ASSERT_TRUE(c.maybe_recut(0.0));
+  EXPECT_EQ(c.members().at(1).region, (PixelRect{0, 0, 64, 64}));
+  join(&c, "b", 0.1);
+  join(&c, "c", 0.3);
+  // (Until 1.5 s: from its cut a member that delivers nothing starves after 0.75 s.)
+  const std::vector<double> cuts = run(&c, 0.0, 1.5, {{1, 100000.0}});
+  ASSERT_EQ(cuts.size(), 1u);
+  EXPECT_NEAR(cuts[0], 1.0, 1e-9);
+  EXPECT_TRUE(partitions(c));
+  for (uint32_t id : {2u, 3u}) {
+    EXPECT_FALSE(c.members().at(id).region.empty());
+    EXPECT_FALSE(c.members().at(id).starved) << "starved while it waited for a region";
+  }
+}
+
+// A peer that joins and leaves before its cut leaves no region to cover and costs the members
+// no recut, even where their shares drifted meanwhile (that waits for the drift rule).
+TEST(CoordinatorTest, APeerThatLeavesBeforeItsCutCostsNoRecut) {
+  Coordinator c(128, 128);
+  join_two(&c);
+  run(&c, 0.0, 3.0, {{1, 300000.0}, {2, 100000.0}});  // rates now say 3:1, regions 1:1
+  const uint64_t epoch = c.epoch();
+  const PixelRect a = c.members().at(1).region;
+  for (int k = 0; k < 100; ++k) {  // 3 s to 8 s: before the drift rule may look (10 s)
+    const double t = 3.0 + k * 0.05;
+    EXPECT_TRUE(c.remove(join(&c, "x" + std::to_string(k), t).id));
+    c.heard(1, t);
+    c.heard(2, t);
+    c.add_samples(1, 15000, t);
+    c.add_samples(2, 5000, t);
+    EXPECT_FALSE(c.maybe_recut(t)) << "at " << t;
+  }
+  EXPECT_EQ(c.epoch(), epoch);
+  EXPECT_EQ(c.members().at(1).region, a);
+}
+
+// A peer that waits for its region each time before it leaves and joins again buys a cut for its
+// join and one for its leave: at most two recuts a join_interval, however fast it loops.
+TEST(CoordinatorTest, APeerThatJoinsAndLeavesInALoopRecutsAtMostTwiceAJoinInterval) {
+  Coordinator c(128, 128);
+  join_two(&c);
+  run(&c, 0.0, 3.0, {{1, 100000.0}, {2, 100000.0}});
+  const uint64_t before = c.recuts();
+  uint32_t churn = 0;
+  int k = 0;
+  constexpr double kFrom = 3.0, kSeconds = 20.0;
+  for (double t = kFrom; t < kFrom + kSeconds; t += 0.01) {
+    if (churn == 0 || !c.members().at(churn).region.empty()) {
+      // The moment it has a region it leaves, and joins again in the same pass (a leave's cut
+      // must not cut in the next join).
+      if (churn != 0) c.remove(churn);
+      churn = join(&c, "x" + std::to_string(k++), t).id;
+    }
+    c.heard(1, t);
+    c.heard(2, t);
+    c.add_samples(1, 1000, t);
+    c.add_samples(2, 1000, t);
+    c.maybe_recut(t);
+    EXPECT_TRUE(partitions(c)) << "at " << t;
+  }
+  EXPECT_GE(k, 10);  // it did get regions, about once a second
+  EXPECT_LE(c.recuts() - before, uint64_t(2.0 * (kSeconds / 1.0 + 1.0)));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -325,7 +396,8 @@ TEST(CoordinatorTest, NewMemberStartsWithTheMeanMeasuredRate) {
 // first return recuts immediately, with the provisional share.
 TEST(CoordinatorTest, StarvedMemberThatStartsDeliveringGetsAShareBack) {
   Coordinator c(256, 256);
-  join_two(&c);
+  join(&c, "a", 0.0);
+  join(&c, "b", 0.0);
   join(&c, "slow", 0.0);
   ASSERT_TRUE(c.maybe_recut(0.0));
   const std::vector<double> starved = run(&c, 0.0, 1.0, {{1, 100000.0}, {2, 100000.0}});

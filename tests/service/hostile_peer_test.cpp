@@ -139,7 +139,8 @@ zmq::socket_t raw_control(zmq::context_t& context, int port) {
 // for, no sample ever) joins beside a real sampler, and a second real sampler joins after it.
 // The display assigns the ids (distinct, none at the top of the range), nobody is evicted,
 // membership stays as it is, and the liar's region shrinks to a strip about starve_seconds
-// after it joined while the real samplers share the image.
+// after it got one (a join waits for its cut up to --join-interval) while the real samplers
+// share the image.
 TEST_F(ServiceTest, GreedyJoinGetsNoRegionAndLaterSamplersGetDistinctIds) {
   auto d = display({"--size", "64x64", "--fps", "20"}, "display.log");
   auto s1 = sampler({"--max-samples-per-second", "30000", "--name", "real-1"}, "s1.log");
@@ -160,8 +161,12 @@ TEST_F(ServiceTest, GreedyJoinGetsNoRegionAndLaterSamplersGetDistinctIds) {
         const std::vector<MemberView> ms = member_views(get_stats(metrics_port()));
         if (ms.size() != 3) return false;
         int64_t real = 0, lied = 0;
-        for (const MemberView& m : ms) (m.id == liar_id ? lied : real) += m.area;
-        return lied * 50 <= 64 * 64 && real + lied == 64 * 64;
+        bool starved = false;
+        for (const MemberView& m : ms) {
+          (m.id == liar_id ? lied : real) += m.area;
+          if (m.id == liar_id) starved = m.starved;
+        }
+        return starved && lied * 50 <= 64 * 64 && real + lied == 64 * 64;
       },
       15.0);
   ASSERT_TRUE(settled) << d->log();
@@ -354,11 +359,12 @@ TEST_F(ServiceTest, ControlFloodAndJoinsBeyondTheLimitCostALineASecondAndNoMembe
 // each join a member and each leave a departure: the display's log takes at most 32 of these
 // lines a second plus a line summing up the rest, /stats keeps the members and at most 64
 // departed samplers, and the real sampler keeps streaming.
-TEST_F(ServiceTest, JoiningAndLeavingInALoopCostsBoundedLogLinesAndFigures) {
+TEST_F(ServiceTest, JoiningAndLeavingInALoopCostsBoundedRecutsLogLinesAndFigures) {
   auto d = display({"--size", "64x64", "--fps", "20"}, "display.log");
   auto s1 = sampler({"--max-samples-per-second", "30000", "--name", "real-1"}, "s1.log");
   ASSERT_TRUE(members_streaming(metrics_port(), 1)) << d->log();
   const auto started = std::chrono::steady_clock::now();
+  const int recuts_before = get_stats(metrics_port())["display"]["recuts"].get<int>();
   constexpr int kCycles = 3000;
   {
     Join join;
@@ -380,7 +386,37 @@ TEST_F(ServiceTest, JoiningAndLeavingInALoopCostsBoundedLogLinesAndFigures) {
         60.0))
         << d->log();
   }
+  // Then a peer that waits for its region each time before it leaves, for 4 s.
+  int regions_got = 0;
+  {
+    Context context;
+    ControlClient client(context, endpoint());
+    Join join;
+    join.name = "patient churn";
+    const auto phase = std::chrono::steady_clock::now();
+    while (seconds_since(phase) < 4.0) {
+      ASSERT_TRUE(client.send(join).ok());
+      std::optional<RegionAssignment> region;
+      std::optional<Welcome> welcome;
+      auto beat = std::chrono::steady_clock::now();
+      const auto asked = std::chrono::steady_clock::now();
+      while (!region && seconds_since(asked) < 10.0) {
+        if (auto m = client.receive(10); m && m->ok()) {
+          if (const auto* r = std::get_if<RegionAssignment>(&m->value())) region = *r;
+          if (const auto* w = std::get_if<Welcome>(&m->value())) welcome = *w;
+        }
+        if (welcome && seconds_since(beat) > 0.1) {  // a member heartbeats while it waits
+          beat = std::chrono::steady_clock::now();
+          ASSERT_TRUE(client.send(Heartbeat{welcome->sampler_id, welcome->session, 0, 0.0}).ok());
+        }
+      }
+      ASSERT_TRUE(region.has_value()) << d->log();
+      ++regions_got;
+      ASSERT_TRUE(client.send(Leave{region->sampler_id, LeaveReason::kShutdown, "again"}).ok());
+    }
+  }
   const double seconds = seconds_since(started);
+  std::printf("the patient peer got %d regions\n", regions_got);
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // the last summing-up line
   const std::string log = d->log();
   const size_t lines =
@@ -391,7 +427,13 @@ TEST_F(ServiceTest, JoiningAndLeavingInALoopCostsBoundedLogLinesAndFigures) {
             std::string::npos);
   const nlohmann::json st = get_stats(metrics_port());
   EXPECT_LE(st["samplers"].size(), 1u + 64u);
-  EXPECT_GE(st["display"]["joins"].get<int>(), kCycles + 1);
+  EXPECT_GE(st["display"]["joins"].get<int>(), kCycles + 1 + regions_got);
+  // Joins are cut in at most once a second (--join-interval) and a peer that left before its
+  // cut leaves nothing to recut: the real sampler's region moved at most twice a second (the
+  // patient peer's join and leave).
+  const int recuts = st["display"]["recuts"].get<int>() - recuts_before;
+  std::printf("%d recuts\n", recuts);
+  EXPECT_LE(double(recuts), 2.0 * (seconds + 3.0));
   // The real sampler: still the one member, still streaming.
   expect_members_keep_streaming(metrics_port(), 1);
 }

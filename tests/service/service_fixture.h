@@ -38,8 +38,20 @@ class ServiceTest : public ProcessTest {
     argv.insert(argv.end(), extra.begin(), extra.end());
     return std::make_unique<Process>(argv, path(log));
   }
+  // Until n samplers are members and each has its region (a join waits for its cut up to the
+  // display's --join-interval).
   bool wait_members(int n, double timeout) {
-    return wait_until([&] { return members(get_stats(metrics_port())) == n; }, timeout);
+    return wait_until(
+        [&] {
+          const nlohmann::json st = get_stats(metrics_port());
+          if (members(st) != n) return false;
+          for (const auto& m : st["samplers"]) {
+            const auto r = m["region"].get<std::array<int, 4>>();
+            if (m["member"].get<bool>() && !(r[2] > r[0] && r[3] > r[1])) return false;
+          }
+          return true;
+        },
+        timeout);
   }
   // Until one sampler is a member and the display has taken samples from it.
   bool wait_one_sampling(double timeout) {

@@ -34,7 +34,6 @@ Member& Coordinator::join(const std::string& peer, const std::string& name,
   m.last_sample_at = now;
   m.liveness = FailureDetector(options_.heartbeat_interval, options_.liveness);
   m.liveness.reset(now);
-  dirty_ = true;
   *is_new = true;
   const uint32_t id = m.id;
   auto placed = members_.emplace(id, std::move(m));
@@ -78,8 +77,10 @@ void Coordinator::add_samples(uint32_t id, uint64_t samples, double now) {
 }
 
 bool Coordinator::remove(uint32_t id) {
-  if (!members_.erase(id)) return false;
-  dirty_ = true;
+  auto it = members_.find(id);
+  if (it == members_.end()) return false;
+  if (!it->second.region.empty()) dirty_ = true;
+  members_.erase(it);
   return true;
 }
 
@@ -88,8 +89,8 @@ std::vector<Member> Coordinator::expire(double now) {
   for (auto it = members_.begin(); it != members_.end();) {
     if (it->second.liveness.suspect(now)) {
       dead.push_back(it->second);
+      if (!it->second.region.empty()) dirty_ = true;
       it = members_.erase(it);
-      dirty_ = true;
     } else {
       ++it;
     }
@@ -97,13 +98,14 @@ std::vector<Member> Coordinator::expire(double now) {
   return dead;
 }
 
-// When a member's silence started to count: its last batch, or its join when it never delivered;
+// When a member's silence started to count: its last batch, or its first region when it never
+// delivered;
 // for one that delivered, not before its pool has had settle_seconds on its current region; and
 // never before this display's last own stall ended.
 double Coordinator::quiet_from(const Member& m) const {
   const double from = m.delivered
                           ? std::max(m.last_sample_at, m.region_since + options_.settle_seconds)
-                          : m.joined_at;
+                          : m.assigned_at_;
   return std::max(from, watching_since_);
 }
 
@@ -169,7 +171,8 @@ std::vector<std::pair<uint32_t, bool>> Coordinator::measure(double now) {
     return m.delivered && now - m.last_sample_at <= options_.max_measure_gap;
   };
   for (auto& [id, m] : members_) {
-    if (m.starved || now - quiet_from(m) < patience(m)) continue;
+    // A member still waiting for its region has nothing to deliver yet.
+    if (m.starved || m.region.empty() || now - quiet_from(m) < patience(m)) continue;
     const uint32_t self = id;
     const bool others = std::any_of(members_.begin(), members_.end(), [&](const auto& e) {
       return e.first != self && flowing(e.second);
@@ -235,10 +238,23 @@ double Coordinator::fraction(const PixelRect& r) const {
   return double(r.area()) / (double(width_) * double(height_));
 }
 
-std::vector<PixelRect> Coordinator::parts() const {
-  const std::vector<double> s = shares();
+std::vector<PixelRect> Coordinator::parts(bool with_waiting) const {
+  const std::vector<double> all = shares();
+  std::vector<double> s;
+  size_t i = 0;
+  for (const auto& [id, m] : members_) {
+    if (with_waiting || !m.region.empty()) s.push_back(all[i]);
+    ++i;
+  }
+  if (s.empty()) return std::vector<PixelRect>(members_.size());
   const PixelRect image{0, 0, width_, height_};
-  return error_ ? split_region(image, s, *error_) : split_region(image, s);
+  const std::vector<PixelRect> cut =
+      error_ ? split_region(image, s, *error_) : split_region(image, s);
+  if (s.size() == all.size()) return cut;
+  std::vector<PixelRect> out;  // a waiting member keeps its empty region
+  size_t k = 0;
+  for (const auto& [id, m] : members_) out.push_back(m.region.empty() ? PixelRect{} : cut[k++]);
+  return out;
 }
 
 bool Coordinator::same_regions(const std::vector<PixelRect>& parts) const {
@@ -252,6 +268,10 @@ bool Coordinator::same_regions(const std::vector<PixelRect>& parts) const {
 void Coordinator::cut(double now, const std::vector<PixelRect>& parts) {
   size_t i = 0;
   for (auto& [id, m] : members_) {
+    if (m.region.empty()) {
+      m.assigned_at_ = now;
+      last_join_cut_ = now;
+    }
     if (!(m.region == parts[i])) m.region_since = now;
     m.region = parts[i++];
   }
@@ -268,9 +288,16 @@ bool Coordinator::maybe_recut(double now) {
     dirty_ = false;
     return false;
   }
-  if (dirty_) {
-    // A change that moves no region (a member on a strip starving again) sends nothing.
-    const std::vector<PixelRect> next = parts();
+  // Joins are cut in once their interval is up, when their peers are still members (a peer that
+  // left before its cut leaves nothing to do, not even a cut on shares that drifted meanwhile).
+  const bool joins_due = now - last_join_cut_ >= options_.join_interval &&
+                         std::any_of(members_.begin(), members_.end(),
+                                     [](const auto& e) { return e.second.region.empty(); });
+  if (dirty_ || joins_due) {
+    // A cut for anything else leaves the joins waiting (else a peer's leave would cut in its
+    // next join at once). A change that moves no region (a member on a strip starving again)
+    // sends nothing.
+    const std::vector<PixelRect> next = parts(joins_due);
     if (same_regions(next)) {
       dirty_ = false;
       return false;
@@ -283,8 +310,9 @@ bool Coordinator::maybe_recut(double now) {
   // filled): its rate and its tiles' error say little until it settles. Recutting on them would
   // chase the handover (measured: regions
   // swinging between 17% and 73% every second).
+  // Nor while a join waits for its region (it comes with the next join cut).
   for (const auto& [id, m] : members_) {
-    if (now - m.region_since < options_.settle_seconds) return false;
+    if (m.region.empty() || now - m.region_since < options_.settle_seconds) return false;
   }
   // The gain a recut would bring: the image's error is covered when the most loaded member
   // is done, so what counts is the largest ratio of a member's part to its share of the
@@ -300,7 +328,7 @@ bool Coordinator::maybe_recut(double now) {
   // A member slower than a strip's worth keeps its strip: when the cut would give the regions
   // they have, there is nothing to send (and nothing to look at again for an interval). Nor
   // when the cut would not lower the worst load by min_gain: error it cannot share out.
-  const std::vector<PixelRect> next = parts();
+  const std::vector<PixelRect> next = parts(joins_due);
   const double after = worst_load(next, s);
   if (same_regions(next) || !(after * (1.0 + options_.min_gain) < before)) {
     last_cut_ = now;

@@ -739,7 +739,7 @@ void DisplayService::Control::on_join(const ControlServer::Incoming& in, const J
   }
   welcome(m.peer, m.id, m.token);
   send_layout(m.peer);
-  if (!is_new) {  // a repeated join: the region it may have missed
+  if (!is_new && !m.region.empty()) {  // a repeated join: the region it may have missed
     send(m.peer, RegionAssignment{m.id, coordinator_.epoch(), options_.image.width,
                                   options_.image.height, m.region});
   }

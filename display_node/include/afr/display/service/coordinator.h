@@ -5,8 +5,9 @@
 // measured it: the samples it accepted from that member per second (add_samples), never what a
 // join or a stats message claims (docs/service.md, "Shares"). The error is what the samplers'
 // tiling snapshots say, set with set_error(); before any, the area. The cut is redone at once
-// when a sampler joins, leaves, dies, stops delivering (starves) or first delivers after
-// starving, and at most once per recut_interval when a member's part of the error grows beyond
+// when a member leaves, dies, stops delivering (starves) or first delivers after starving; when
+// samplers join, at most once per join_interval (the joins meanwhile wait and are cut in
+// together); and at most once per recut_interval when a member's part of the error grows beyond
 // its throughput share by more than the hysteresis. Plain logic, no I/O: the display service
 // feeds it and sends what it decides.
 //
@@ -54,6 +55,13 @@ struct CoordinatorOptions {
   // with recuts at most once a second and 21.0 (17.7-24.3) at most once in 10 s
   // (docs/benchmarks.md, "Live accuracy").
   double recut_interval = 10.0;
+  // Seconds at least between recuts that joins make. A join waits for its region until then;
+  // the joins meanwhile come in with one cut, and a peer that leaves before its cut costs no
+  // cut at all (a member that never had a region leaves none to cover). Without it, a peer that
+  // joined and left in a loop recut every member twice a round trip, each recut a handover for
+  // every sampler whose region moved. Samplers started together still join within one
+  // interval's wait.
+  double join_interval = 1.0;
   // Samplers admitted at once (display_node --max-samplers). A join beyond it is refused with
   // the reason: membership is state a peer could otherwise grow without end, and each member
   // costs a region, a heartbeat and per-sampler metrics.
@@ -109,7 +117,7 @@ struct Member {
   int threads = 1;         // as its join claimed: for logs only, never for its share
   double joined_at = 0.0;  // coordinator time (seconds)
   FailureDetector liveness{0.2};  // its messages' arrivals, in coordinator time
-  PixelRect region;
+  PixelRect region;               // empty until its first cut (a join waits up to join_interval)
   double region_since = 0.0;
   // Measured by the display.
   uint64_t samples = 0;           // accepted since it joined
@@ -126,6 +134,7 @@ struct Member {
   double weight_ = 0.0;           // 1 - exp(-measured_seconds / time constant): its bias
   double longest_gap_ = 0.0;      // between deliveries (the silence that counted), fading
   double came_back_at_ = -1e300;  // its last return from starving that recut at once
+  double assigned_at_ = 0.0;      // its first cut, when it got a region
 };
 
 class Coordinator {
@@ -146,7 +155,8 @@ class Coordinator {
   void add_samples(uint32_t id, uint64_t samples, double now);
   // The image's error as the samplers' tilings last said it (an empty density: unknown).
   void set_error(MassDensity density);
-  // A leave. Returns whether it was a member.
+  // A leave. Returns whether it was a member. A member that never had a region leaves nothing
+  // to cover: no cut follows for it.
   bool remove(uint32_t id);
   // Removes and returns the members whose silence the failure detector suspects.
   std::vector<Member> expire(double now);
@@ -175,8 +185,9 @@ class Coordinator {
 
  private:
   std::vector<double> shares() const;
-  // The regions a cut by shares() gives, in the order of members_.
-  std::vector<PixelRect> parts() const;
+  // The regions a cut by shares() gives, in the order of members_; members waiting for their
+  // first region are cut in with_waiting, else they keep their empty one.
+  std::vector<PixelRect> parts(bool with_waiting) const;
   bool same_regions(const std::vector<PixelRect>& parts) const;
   // The largest ratio of a member's part of the error under `parts` (in the order of
   // members_) to its share `s` of the throughput; starved members do not count, a member
@@ -193,8 +204,9 @@ class Coordinator {
   std::map<uint32_t, Member> members_;  // by id: the order of the cut
   std::optional<MassDensity> error_;
   uint32_t next_id_ = 1;
-  bool dirty_ = false;
+  bool dirty_ = false;  // a cut is due at once
   double last_cut_ = -1e9;
+  double last_join_cut_ = -1e300;  // the last cut that gave a member its first region
   double last_measure_ = 0.0;
   bool measured_once_ = false;
   double watching_since_ = 0.0;  // the end of the display's last own stall
