@@ -745,10 +745,16 @@ bool TracerImpl::begin_sample(const Ray& ray, const HitRef& hit, ShadedSample* o
   return true;
 }
 
-// No NaN or Inf leaves the tracer.
+// No NaN or Inf leaves the tracer. Radiance that overflowed to +Inf (many lights each within a
+// float) is as bright as a sample can be: it is clamped like finite radiance beyond the range.
+// A NaN says nothing about the radiance: the sample is black.
 void TracerImpl::sanitize(ShadedSample* o, TraceStats* stats) const {
   if (!finite(o->color)) {
-    o->color = glm::vec3(0.0f);
+    const bool nan = std::isnan(o->color.r) || std::isnan(o->color.g) || std::isnan(o->color.b);
+    for (int c = 0; c < 3; ++c) {
+      if (std::isinf(o->color[c])) o->color[c] = o->color[c] > 0.0f ? kMaxRadiance : 0.0f;
+    }
+    if (nan) o->color = glm::vec3(0.0f);
     ++stats->sanitized;
   }
   // Finite but huge radiance would overflow the sampler's float gradients and variances; the

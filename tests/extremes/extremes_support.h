@@ -56,9 +56,16 @@ inline ::testing::AssertionResult snapshot_is_sane(const TilingSnapshot& snap) {
 
 // Every tile's incremental statistics equal the brute-force ones (relative tolerance `rel`,
 // with an absolute floor of 1e-9 luminance units, far below any step of a display, for values
-// near zero), and the variance is never negative.
+// near zero), and the variance is never negative. `luminance_scale` is the brightest sample's
+// luminance where it is far above 1: a variance cannot be resolved finer than the rounding of
+// its square (a tile of samples all at 65504 has variance 0, which a sum of squares of about
+// 4e9 in doubles gives as 1e-9), nor a gradient finer than the rounding of it.
 inline ::testing::AssertionResult stats_match_buffer(const Sampler& s, double now,
-                                                     double rel = 1e-6) {
+                                                     double rel = 1e-6,
+                                                     double luminance_scale = 1.0) {
+  const double m = std::max(1.0, luminance_scale);
+  const double v_floor = 1e-9 + 64.0 * std::numeric_limits<double>::epsilon() * m * m;
+  const double g_floor = 1e-9 + 64.0 * std::numeric_limits<double>::epsilon() * m;
   for (int t : s.tiling().tiles()) {
     const TileStats inc = s.tile_stats(t);
     const TileStats ref = testing::brute_force_stats(s, t, now);
@@ -72,10 +79,10 @@ inline ::testing::AssertionResult stats_match_buffer(const Sampler& s, double no
     const struct {
       const char* name;
       double a, b, floor;
-    } pairs[] = {{"v", inc.v, ref.v, 1e-9},
-                 {"G_x", inc.G_x, ref.G_x, 1e-9},
-                 {"G_y", inc.G_y, ref.G_y, 1e-9},
-                 {"G_t", inc.G_t, ref.G_t, 1e-9},
+    } pairs[] = {{"v", inc.v, ref.v, v_floor},
+                 {"G_x", inc.G_x, ref.G_x, g_floor},
+                 {"G_y", inc.G_y, ref.G_y, g_floor},
+                 {"G_t", inc.G_t, ref.G_t, g_floor},
                  {"age", inc.mean_age, ref.mean_age, 8.0 * time_ulp},
                  {"occluded", inc.occluded, ref.occluded, 1e-9}};
     for (const auto& p : pairs) {

@@ -505,6 +505,10 @@ TEST(TracerTest, NonFiniteShadingIsSanitizedAndCounted) {
   EXPECT_TRUE(r.hit);
   EXPECT_TRUE(finite(r.color));
   EXPECT_EQ(stats.sanitized, 1u);
+  // Radiance that overflowed is as bright as a sample can be, not black; the other channels
+  // keep what they had.
+  EXPECT_EQ(r.color.r, 65504.0f);
+  EXPECT_LT(r.color.g, 1.0f);
 
   // NaN in a material is not taken for black: it is replaced and counted too.
   s.materials[size_t(mat)].emissive = glm::vec3(std::numeric_limits<float>::quiet_NaN());
