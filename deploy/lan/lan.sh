@@ -13,12 +13,14 @@
 # (per packet sent by each host), --threads T, --cap SAMPLES_PER_S, --send-buffer BYTES
 # (sampler_node's), --size WxH, --scene FILE,
 # --curve (CurveZMQ with generated keys, else --insecure), --build DIR, --output DIR,
-# --wall CxR (follower display hosts for the other cells), --check (exit 1 unless every sampler
-# and wall node joined and every image was written).
+# --wall CxR (follower display hosts for the other cells), --ipv6 (an IPv6-only LAN, fd77::/64:
+# the display binds its address, samplers and followers reach it by a name that every host's
+# /etc/hosts gives that address alone), --check (exit 1 unless every sampler and wall node
+# joined and every image was written).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 samplers=3 seconds=10 rate="" drop="" threads=1 cap=0 send_buffer=0 size=128x96 scene="" curve=0
-build="$root/build" output="$root/out/lan" check=0 port=7100 wall=1x1
+build="$root/build" output="$root/out/lan" check=0 port=7100 wall=1x1 ipv6=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --samplers) samplers=$2; shift 2 ;;
@@ -35,7 +37,8 @@ while [ $# -gt 0 ]; do
     --output) output=$2; shift 2 ;;
     --check) check=1; shift ;;
     --wall) wall=$2; shift 2 ;;
-    -h|--help) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --ipv6) ipv6=1; shift ;;
+    -h|--help) sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "lan.sh: unknown option '$1'" >&2; exit 1 ;;
   esac
 done
@@ -68,11 +71,19 @@ teardown() {
 }
 trap teardown EXIT INT TERM
 
-netns_rate=$rate netns_drop=$drop
+netns_rate=$rate netns_drop=$drop netns_ipv6=""
+[ "$ipv6" = 1 ] && netns_ipv6=1
 netns_up "$p" "$sw" "${hosts[@]}"
+# Host K's address, and how the others reach the display: by address on IPv4, by name on IPv6.
+host_addr() { if [ "$ipv6" = 1 ]; then echo "[fd77::$1]"; else echo "10.77.0.$1"; fi; }
+display_host=$(host_addr 1)
+if [ "$ipv6" = 1 ]; then
+  display_host=afr-display
+  for h in "${hosts[@]}"; do netns_hosts "$h" "127.0.0.1 localhost" "::1 localhost" "fd77::1 afr-display"; done
+fi
 
 mkdir -p "$output/logs"
-display_ip=10.77.0.1
+display_addr=$(host_addr 1)
 security=(--insecure)
 sampler_security=()
 if [ "$curve" = 1 ]; then
@@ -80,7 +91,7 @@ if [ "$curve" = 1 ]; then
   security=(--keys "$output/keys")
 fi
 # shellcheck disable=SC2086
-ip netns exec "${p}d" "$display_bin" $scene --headless --bind "tcp://$display_ip:$port" \
+ip netns exec "${p}d" "$display_bin" $scene --headless --bind "tcp://$display_addr:$port" \
   --size "$size" --seconds "$seconds" --output "$output" --metrics-port 9100 --wall "$wall" \
   --backend cpu "${security[@]}" >"$output/logs/display.log" 2>&1 &
 display_pid=$!
@@ -91,8 +102,8 @@ for r in $(seq 0 $((rows - 1))); do
   for c in $(seq 0 $((cols - 1))); do
     [ "$c" = 0 ] && [ "$r" = 0 ] && continue
     k=$((k + 1))
-    ip=10.77.0.$((samplers + 1 + k))
-    ip netns exec "${p}w$k" "$display_bin" --headless --follow "tcp://$display_ip:$port" \
+    ip=$(host_addr $((samplers + 1 + k)))
+    ip netns exec "${p}w$k" "$display_bin" --headless --follow "tcp://$display_host:$port" \
       --cell "$c,$r" --bind "tcp://$ip:$port" --seconds "$(awk -v s="$seconds" 'BEGIN { print s - 0.5 }')" \
       --output "$output/cell-$c-$r" --backend cpu "${security[@]}" \
       >"$output/logs/cell-$c-$r.log" 2>&1 &
@@ -102,12 +113,12 @@ for r in $(seq 0 $((rows - 1))); do
 done
 for i in $(seq 1 "$samplers"); do
   [ "$curve" = 1 ] && sampler_security=(--key "$output/keys/sampler-$i.key" --server-key "$output/keys/display.pub")
-  ip netns exec "${p}s$i" "$sampler_bin" --display "tcp://$display_ip:$port" --threads "$threads" \
+  ip netns exec "${p}s$i" "$sampler_bin" --display "tcp://$display_host:$port" --threads "$threads" \
     --max-samples-per-second "$cap" --send-buffer "$send_buffer" --name "host-$i" --cache "$output/cache-$i" \
     "${sampler_security[@]}" >"$output/logs/sampler-$i.log" 2>&1 &
   pids+=("$!")
 done
-echo "lan.sh: display 10.77.0.1, samplers 10.77.0.2..$((samplers + 1))${rate:+, links $rate}${drop:+, ${drop}% drops}; ${seconds} s"
+echo "lan.sh: display $display_addr (tcp://$display_host:$port), samplers $(host_addr 2)..$(host_addr $((samplers + 1)))${rate:+, links $rate}${drop:+, ${drop}% drops}; ${seconds} s"
 sleep "$(awk -v s="$seconds" 'BEGIN { print (s > 1.5 ? s - 1.0 : s / 2) }')"
 ip netns exec "${p}d" curl -s "http://127.0.0.1:9100/stats" >"$output/stats.json" 2>/dev/null || true
 status=0

@@ -6,6 +6,9 @@
 #include "zmq_state.h"
 #include "zmq_util.h"
 
+#include <arpa/inet.h>
+#include <netdb.h>
+#include <sys/socket.h>
 #include <zmq.h>
 
 #include <charconv>
@@ -70,6 +73,36 @@ bool is_local_endpoint(const std::string& endpoint) {
   if (const size_t semi = host.find(';'); semi != std::string::npos) host = host.substr(semi + 1);
   if (const size_t colon = host.rfind(':'); colon != std::string::npos) host.resize(colon);
   return starts_with(host, "127.") || host == "localhost" || host == "[::1]" || host == "::1";
+}
+
+HostFamilies resolve_host_families(const std::string& host) {
+  HostFamilies f;
+  addrinfo hints{};
+  hints.ai_family = AF_UNSPEC;
+  hints.ai_socktype = SOCK_STREAM;
+  addrinfo* found = nullptr;
+  if (getaddrinfo(host.c_str(), nullptr, &hints, &found) != 0) return f;
+  for (const addrinfo* a = found; a; a = a->ai_next) {
+    f.ipv4 |= a->ai_family == AF_INET;
+    f.ipv6 |= a->ai_family == AF_INET6;
+  }
+  freeaddrinfo(found);
+  return f;
+}
+
+bool wants_ipv6(const std::string& endpoint, bool connect, const HostResolver& resolve) {
+  if (!starts_with(endpoint, "tcp://")) return false;
+  std::string host = endpoint.substr(6);
+  if (host.find('[') != std::string::npos) return true;
+  if (!connect) return starts_with(host, "*:");
+  if (const size_t semi = host.find(';'); semi != std::string::npos) host = host.substr(semi + 1);
+  if (const size_t colon = host.rfind(':'); colon != std::string::npos) host.resize(colon);
+  in_addr v4{};
+  if (host.empty() || inet_pton(AF_INET, host.c_str(), &v4) == 1) return false;
+  // A name. One that does not resolve (yet) keeps IPv4: libzmq resolves it again on every
+  // reconnect, as it always has.
+  const HostFamilies f = resolve(host);
+  return f.ipv6 && !f.ipv4;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -160,26 +193,14 @@ void apply_security(zmq::socket_t& s, const Security& security, const Context& c
   set_string(s, ZMQ_CURVE_SECRETKEY, security.own.secret_key);
 }
 
-// Whether a TCP endpoint needs libzmq's IPv6 option: an IPv6 address in brackets
-// ("tcp://[::1]:7100", either side of a connect's "SRC;HOST"), or a wildcard bind, which then
-// listens on IPv6 and IPv4 both (IPv4 alone where the kernel has no IPv6: libzmq falls back by
-// itself where IPv6 sockets cannot be made, bind() below where "::" cannot be bound).
-// Without the option libzmq refuses IPv6 addresses ("No such device"). IPv4 addresses and host
-// names keep IPv4 sockets: with the option an IPv4 address becomes an IPv4-mapped IPv6 one
-// ("[::ffff:127.0.0.1]") in the socket's endpoint and its peers' addresses, and a name would
-// be resolved for IPv6 where it has always been resolved as IPv4.
-bool wants_ipv6(const std::string& endpoint) {
-  if (!starts_with(endpoint, "tcp://")) return false;
-  const std::string host = endpoint.substr(6);
-  return host.find('[') != std::string::npos || starts_with(host, "*:");
-}
-
-void enable_ipv6_for(zmq::socket_t& s, const std::string& endpoint) {
-  if (wants_ipv6(endpoint)) set_int(s, ZMQ_IPV6, 1);
+void enable_ipv6_for(zmq::socket_t& s, const std::string& endpoint, bool connect) {
+  // With the option an IPv4 address becomes an IPv4-mapped IPv6 one ("[::ffff:127.0.0.1]") in
+  // the socket's endpoint and its peers' addresses: only where IPv6 is needed.
+  if (wants_ipv6(endpoint, connect)) set_int(s, ZMQ_IPV6, 1);
 }
 
 void bind(zmq::socket_t& s, const std::string& endpoint) {
-  enable_ipv6_for(s, endpoint);
+  enable_ipv6_for(s, endpoint, false);
   try {
     s.bind(endpoint);
   } catch (const zmq::error_t& e) {
@@ -196,7 +217,7 @@ void bind(zmq::socket_t& s, const std::string& endpoint) {
 }
 
 void connect(zmq::socket_t& s, const std::string& endpoint) {
-  enable_ipv6_for(s, endpoint);
+  enable_ipv6_for(s, endpoint, true);
   try {
     s.connect(endpoint);
   } catch (const zmq::error_t& e) {

@@ -462,6 +462,40 @@ TEST(TransportTest, ChannelsBindAndConnectOverIpv6) {
   EXPECT_EQ(std::get<Join>(*in->message), join);
 }
 
+// Which sockets get libzmq's IPv6 option: IPv6 addresses and wildcard binds, and connects to a
+// name that has IPv6 addresses only (a display on an IPv6-only network, named in DNS or
+// /etc/hosts). A name with both families, or none yet, keeps IPv4 as before, and an address
+// is never looked up. (deploy/lan/lan.sh --ipv6, the service_netns_ipv6 test, runs the service
+// across namespaces that have IPv6 alone, reached by such a name.)
+TEST(TransportTest, IpvSixIsAskedForWhereTheEndpointNeedsIt) {
+  std::vector<std::string> asked;
+  const HostResolver resolve = [&](const std::string& host) {
+    asked.push_back(host);
+    if (host == "v6only.example") return HostFamilies{false, true};
+    if (host == "both.example") return HostFamilies{true, true};
+    if (host == "v4only.example") return HostFamilies{true, false};
+    return HostFamilies{};
+  };
+  for (const char* e : {"tcp://[::1]:5", "tcp://[fd77::1]:7100", "tcp://v6only.example:7100",
+                        "tcp://10.0.0.2;v6only.example:7100", "tcp://[fd77::2];[fd77::1]:9"}) {
+    EXPECT_TRUE(wants_ipv6(e, /*connect=*/true, resolve)) << e;
+  }
+  for (const char* e : {"tcp://127.0.0.1:5", "tcp://both.example:7100", "tcp://v4only.example:1",
+                        "tcp://unknown.example:1", "inproc://x", "ipc:///tmp/x"}) {
+    EXPECT_FALSE(wants_ipv6(e, /*connect=*/true, resolve)) << e;
+  }
+  EXPECT_TRUE(wants_ipv6("tcp://*:7100", /*connect=*/false, resolve));
+  EXPECT_TRUE(wants_ipv6("tcp://[::]:7100", /*connect=*/false, resolve));
+  EXPECT_FALSE(wants_ipv6("tcp://0.0.0.0:7100", /*connect=*/false, resolve));
+  EXPECT_FALSE(wants_ipv6("tcp://eth0:7100", /*connect=*/false, resolve));  // an interface
+  // Only connects to names were looked up, each once.
+  EXPECT_EQ(asked, (std::vector<std::string>{"v6only.example", "v6only.example", "both.example",
+                                             "v4only.example", "unknown.example"}));
+  // The real resolver: this machine's own names.
+  EXPECT_TRUE(resolve_host_families("localhost").ipv4);
+  EXPECT_FALSE(resolve_host_families("127.0.0.1").ipv6);
+}
+
 // ---------------------------------------------------------------------------------------------
 // LINGER, MAXMSGSIZE, EINTR
 

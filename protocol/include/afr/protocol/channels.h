@@ -31,6 +31,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -60,6 +61,21 @@ ServiceEndpoints service_endpoints(const std::string& base);
 // True for endpoints no other machine can reach: tcp on 127.0.0.0/8, localhost or [::1],
 // inproc and ipc. The display requires CurveZMQ on every other address unless told otherwise.
 bool is_local_endpoint(const std::string& endpoint);
+
+// The address families a host name has (getaddrinfo, any family): what a connect to it needs.
+struct HostFamilies {
+  bool ipv4 = false;
+  bool ipv6 = false;
+};
+using HostResolver = std::function<HostFamilies(const std::string& host)>;
+HostFamilies resolve_host_families(const std::string& host);
+// Whether a socket that binds or connects `endpoint` needs libzmq's IPv6 option: an IPv6
+// address in brackets ("tcp://[::1]:7100", either side of a connect's "SRC;HOST"); a wildcard
+// bind ("tcp://*:7100", which then listens on IPv6 and IPv4 both); and a connect to a host
+// name that has IPv6 addresses only (`resolve` says: libzmq without the option resolves a name
+// for IPv4 alone, with it for IPv6, so a name with both families keeps IPv4, as before).
+bool wants_ipv6(const std::string& endpoint, bool connect,
+                const HostResolver& resolve = resolve_host_families);
 
 // CurveZMQ settings of one socket; the default (no keys) is an unencrypted socket.
 struct Security {
