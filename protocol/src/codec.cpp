@@ -468,13 +468,14 @@ Status decode(Bytes message, SnapshotRequest* out) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// MemberList: u64 epoch, u32 count, then per member: u32 sampler_id, u64 token, string public_key
+// MemberList: u64 epoch, u32 count, then per member: u32 sampler_id, u64 token, string
+// public_key, i32 x0, y0, x1, y1 (the region)
 
 Status encode(const MemberList& m, std::vector<uint8_t>* out) {
   out->clear();
   if (Status s = validate(m); !s) return s;
   size_t bytes = 12;
-  for (const MemberEntry& e : m.members) bytes += 12 + wire::string_bytes(e.public_key);
+  for (const MemberEntry& e : m.members) bytes += 28 + wire::string_bytes(e.public_key);
   Writer w = wire::begin_message(MessageType::kMemberList, bytes, out);
   w.u64(m.epoch);
   w.u32(uint32_t(m.members.size()));
@@ -482,6 +483,10 @@ Status encode(const MemberList& m, std::vector<uint8_t>* out) {
     w.u32(e.sampler_id);
     w.u64(e.token);
     w.string(e.public_key);
+    w.i32(e.region.x0);
+    w.i32(e.region.y0);
+    w.i32(e.region.x1);
+    w.i32(e.region.y1);
   }
   AFR_CHECK(w.done());
   return {};
@@ -491,20 +496,22 @@ Status decode(Bytes message, MemberList* out) {
   return decode_with(message, MessageType::kMemberList, out, [&](Reader& r) {
     uint32_t count = 0;
     if (!(r.u64(&out->epoch, "epoch") && r.u32(&count, "count"))) return;
-    // Each member takes at least 14 bytes: a count the bytes cannot hold is refused before any
+    // Each member takes at least 30 bytes: a count the bytes cannot hold is refused before any
     // allocation.
     if (count > kMaxMembers) {
       r.fail("count", std::to_string(count) + " is outside 0.." + std::to_string(kMaxMembers));
       return;
     }
-    if (r.remaining() < size_t(count) * 14) {
+    if (r.remaining() < size_t(count) * 30) {
       r.fail("count", std::to_string(count) + " members do not fit in the message");
       return;
     }
     out->members.resize(count);
     for (MemberEntry& e : out->members) {
       if (!(r.u32(&e.sampler_id, "sampler_id") && r.u64(&e.token, "token") &&
-            r.string(&e.public_key, "public_key", kMaxNameBytes))) {
+            r.string(&e.public_key, "public_key", kMaxNameBytes) &&
+            r.i32(&e.region.x0, "region.x0") && r.i32(&e.region.y0, "region.y0") &&
+            r.i32(&e.region.x1, "region.x1") && r.i32(&e.region.y1, "region.y1"))) {
         return;
       }
     }

@@ -198,6 +198,14 @@ Status validate(const MemberList& m) {
     if (Status s = check_text("member_list", (at + ".public_key").c_str(), e.public_key); !s) {
       return s;
     }
+    // A member waiting for its first region has none: all zero.
+    if (!(e.region == PixelRect{})) {
+      if (Status s = check_rect("member_list", (at + ".region").c_str(), e.region, kMaxImageSize,
+                                kMaxImageSize);
+          !s) {
+        return s;
+      }
+    }
     ids.push_back(e.sampler_id);
   }
   std::sort(ids.begin(), ids.end());

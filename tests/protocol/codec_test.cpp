@@ -74,7 +74,8 @@ TEST(CodecTest, ControlMessagesRoundTripExactly) {
 TEST(CodecTest, LargestMemberListFitsTheControlChannelLimitAndBadListsAreRefused) {
   MemberList m;
   for (uint32_t i = 0; i < kMaxMembers; ++i) {
-    m.members.push_back(MemberEntry{i + 1, uint64_t(i) * 977, std::string(40, 'k')});
+    m.members.push_back(MemberEntry{i + 1, uint64_t(i) * 977, std::string(40, 'k'),
+                                    PixelRect{0, 0, kMaxImageSize, kMaxImageSize}});
   }
   std::vector<uint8_t> bytes;
   ASSERT_TRUE(encode(m, &bytes).ok());
@@ -84,14 +85,33 @@ TEST(CodecTest, LargestMemberListFitsTheControlChannelLimitAndBadListsAreRefused
   EXPECT_EQ(back, m);
   // One more, a repeated id, an id 0, a key that is no CurveZMQ key: refused by name.
   MemberList bad = m;
-  bad.members.push_back(MemberEntry{kMaxMembers + 1, 1, ""});
+  bad.members.push_back(MemberEntry{kMaxMembers + 1, 1, "", PixelRect{}});
   EXPECT_NE(encode(bad, &bytes).message().find("member_list.count"), std::string::npos);
-  bad = MemberList{1, {{3, 1, ""}, {3, 2, ""}}};
+  bad = MemberList{1, {{3, 1, "", PixelRect{}}, {3, 2, "", PixelRect{}}}};
   EXPECT_NE(encode(bad, &bytes).message().find("3 appears twice"), std::string::npos);
-  bad = MemberList{1, {{0, 1, ""}}};
+  bad = MemberList{1, {{0, 1, "", PixelRect{}}}};
   EXPECT_NE(encode(bad, &bytes).message().find("sampler_id: 0 is not an id"), std::string::npos);
-  bad = MemberList{1, {{5, 1, "short"}}};
+  bad = MemberList{1, {{5, 1, "short", PixelRect{}}}};
   EXPECT_NE(encode(bad, &bytes).message().find("a Z85 CurveZMQ key has 40"), std::string::npos);
+  // A region: none yet (all zero), or a non-empty rectangle inside the largest image.
+  bad = MemberList{1, {{5, 1, "", PixelRect{0, 0, 0, 9}}}};
+  EXPECT_NE(encode(bad, &bytes).message().find("members[0].region"), std::string::npos);
+  bad = MemberList{1, {{5, 1, "", PixelRect{-1, 0, 8, 8}}}};
+  EXPECT_NE(encode(bad, &bytes).message().find("members[0].region"), std::string::npos);
+  bad = MemberList{1, {{5, 1, "", PixelRect{0, 0, kMaxImageSize + 1, 8}}}};
+  EXPECT_NE(encode(bad, &bytes).message().find("is not inside"), std::string::npos);
+  EXPECT_TRUE(encode(MemberList{1, {{5, 1, "", PixelRect{}}}}, &bytes).ok());
+  // The decoder refuses what the encoder would not write: a region out of range patched in.
+  ASSERT_TRUE(encode(MemberList{1, {{5, 1, "", PixelRect{0, 0, 8, 8}}}}, &bytes).ok());
+  const size_t x1 = bytes.size() - 8;  // i32 x1, y1 last
+  bytes[x1] = 0xff;
+  bytes[x1 + 1] = 0xff;
+  bytes[x1 + 2] = 0xff;
+  bytes[x1 + 3] = 0x7f;
+  MemberList decoded;
+  const Status s = decode(bytes, &decoded);
+  EXPECT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("members[0].region"), std::string::npos) << s.message();
 }
 
 TEST(CodecTest, LargestWallLayoutFitsTheControlChannelLimit) {
@@ -166,11 +186,11 @@ TEST(CodecTest, JoinBytesAreTheDocumentedLayout) {
   std::vector<uint8_t> bytes;
   ASSERT_TRUE(encode(join, &bytes).ok());
   const std::vector<uint8_t> expected = {'A',  'F',  'R',  'P',   // magic
-                                         5,    0,                 // version
+                                         6,    0,                 // version
                                          1,    0,                 // type: join
                                          16,   0,    0,    0,     // payload bytes
                                          0x04, 0x03, 0x02, 0x01,  // sampler_id
-                                         5,    0,                 // protocol_version
+                                         6,    0,                 // protocol_version
                                          8,    0,                 // threads
                                          5,    0,    0,    0,     // capabilities
                                          2,    0,    'a',  'b'};  // name
@@ -482,7 +502,7 @@ TEST(CodecTest, WallCoverageBytesAreTheDocumentedLayout) {
   std::vector<uint8_t> bytes;
   ASSERT_TRUE(encode(m, &bytes).ok());
   const std::vector<uint8_t> expected = {
-      'A',  'F',  'R',  'P',  5,    0,    14,   0,    40, 0, 0, 0,  // header: version 5, type 14
+      'A',  'F',  'R',  'P',  6,    0,    14,   0,    40, 0, 0, 0,  // header: version 6, type 14
       0x04, 0x03, 0x02, 0x01,                                       // node_id
       0,    0,    0,    0,    0,    0,    0x00, 0x40,               // time: 2.0
       3,    0,    4,    0,    5,    0,    5,    0,                  // rect x0, y0, x1, y1

@@ -9,7 +9,9 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 
 namespace afr::protocol::fuzz {
@@ -51,6 +53,24 @@ TEST(FuzzDecodeTest, SeedsAreAccepted) {
     std::ofstream out(std::string(dir) + name, std::ios::binary);
     out.write(reinterpret_cast<const char*>(seeds[i].data()), std::streamsize(seeds[i].size()));
   }
+}
+
+// The fuzzer's protocol findings (tests/fuzz/regressions/protocol) replay the path they broke
+// only while they speak this protocol's version: any other is refused at the header. A version
+// bump rewrites their version field (bytes 4-5; the layouts they exercise did not change), and
+// this test says when one was missed.
+TEST(FuzzDecodeTest, RegressionInputsSpeakTheCurrentVersion) {
+  size_t n = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(AFR_PROTOCOL_REGRESSIONS)) {
+    std::ifstream in(entry.path(), std::ios::binary);
+    const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                                     std::istreambuf_iterator<char>());
+    const Result<Header> h = peek_header(bytes);
+    ASSERT_TRUE(h.ok()) << entry.path() << ": " << h.status().message();
+    EXPECT_EQ(h->version, kProtocolVersion) << entry.path();
+    ++n;
+  }
+  EXPECT_GE(n, 1u);
 }
 
 TEST(FuzzDecodeTest, TruncationsAreRejected) {

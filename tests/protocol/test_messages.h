@@ -208,6 +208,11 @@ inline MemberList random_member_list(Pcg32& rng) {
     e.sampler_id = 1 + i * 7 + rng.next_below(7);
     e.token = random_u64(rng);
     if (rng.next_below(2)) e.public_key = std::string(40, char('A' + rng.next_below(26)));
+    if (rng.next_below(4)) {  // else none yet
+      const int32_t x0 = int32_t(rng.next_below(1000)), y0 = int32_t(rng.next_below(1000));
+      e.region = PixelRect{x0, y0, x0 + 1 + int32_t(rng.next_below(2000)),
+                           y0 + 1 + int32_t(rng.next_below(2000))};
+    }
     m.members.push_back(e);
   }
   return m;

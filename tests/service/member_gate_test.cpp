@@ -48,6 +48,25 @@ TEST(MemberGateTest, OnlyTheNamedMembersTokenAndKeyPass) {
   EXPECT_EQ(gate.check(1, 111, "", 10), MemberGate::Verdict::kNonMember);
 }
 
+// Regions: none (empty) from a member's admission until the coordinator gives it one; a wall
+// follower takes them with the lead's member list, where members that stay keep their counts.
+TEST(MemberGateTest, AMembersRegionIsEmptyUntilGivenAndAFollowerTakesThemFromTheList) {
+  MemberGate gate;
+  gate.admit(1, 111, "");
+  EXPECT_EQ(gate.region(1), PixelRect{});
+  EXPECT_EQ(gate.region(2), std::nullopt);  // no member
+  gate.set_region(1, PixelRect{0, 0, 32, 64});
+  EXPECT_EQ(gate.region(1), (PixelRect{0, 0, 32, 64}));
+  EXPECT_EQ(gate.check(1, 111, "", 7), MemberGate::Verdict::kMember);
+  gate.replace({{1, 111, "", PixelRect{0, 0, 16, 64}}, {2, 222, "", PixelRect{16, 0, 64, 64}}});
+  EXPECT_EQ(gate.region(1), (PixelRect{0, 0, 16, 64}));
+  EXPECT_EQ(gate.region(2), (PixelRect{16, 0, 64, 64}));
+  EXPECT_EQ(gate.take_accepted(), (std::vector<std::pair<uint32_t, uint64_t>>{{1, 7}}));
+  gate.replace({{2, 222, "", PixelRect{}}});  // 1 left; 2 listed while it waits for a region
+  EXPECT_EQ(gate.region(1), std::nullopt);
+  EXPECT_EQ(gate.region(2), PixelRect{});
+}
+
 // Counts what reaches the store, by sampler id.
 class CountingSink final : public SampleSink {
  public:
@@ -197,8 +216,9 @@ TEST(DisplayIngestTest, SpoofedAndNonMemberBatchesAreDroppedAndCountedAndNoRealS
 }
 
 // A member describes its own region only: a snapshot that claims the whole image reaches the
-// sink cut to the region the coordinator gave the member (where the gate knows one). And a
-// member that is gone is forgotten by the sink, while the members that stay are not.
+// sink cut to the region the coordinator gave the member, and with nothing in it while the
+// member has no region yet. And a member that is gone is forgotten by the sink, while the
+// members that stay are not.
 TEST(DisplayIngestTest, AMembersTilingIsCutToItsRegionAndForgottenOnceItIsGone) {
   Context context;
   MemberGate gate;
@@ -228,8 +248,9 @@ TEST(DisplayIngestTest, AMembersTilingIsCutToItsRegionAndForgottenOnceItIsGone) 
   ASSERT_EQ(cut.tiles.size(), 2u);  // the third lay outside the region
   EXPECT_EQ(cut.tiles[0].rect, (PixelRect{0, 0, 16, 64}));
   EXPECT_EQ(cut.tiles[1].rect, (PixelRect{16, 0, 32, 64}));
-  // Member 2 has no region in the gate (a wall's follower is not told them): as it came.
-  EXPECT_EQ(ingest.sink().last_tiling(2)->region, (PixelRect{0, 0, 64, 64}));
+  // Member 2 has no region yet (its join waits for its cut): nothing of its snapshot is kept.
+  EXPECT_TRUE(ingest.sink().last_tiling(2)->region.empty());
+  EXPECT_TRUE(ingest.sink().last_tiling(2)->tiles.empty());
 
   EXPECT_TRUE(ingest.sink().gone().empty());
   gate.revoke(1);

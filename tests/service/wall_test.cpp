@@ -15,8 +15,10 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <utility>
 
 namespace afr::testing {
@@ -432,6 +434,72 @@ TEST_F(WallTest, AFollowerDropsBatchesThatAreNotFromTheLeadsMembers) {
   const int64_t before = received(port + 3);
   std::this_thread::sleep_for(std::chrono::milliseconds(600));
   EXPECT_GT(received(port + 3), before);
+}
+
+// A member describes only its own pixels at a follower too (the lead's member_list carries the
+// regions): a member that sends the follower a tiling snapshot naming the whole 128 x 64 image,
+// its tiles over every pixel, has kept of it only what lies in a region the lead gave it
+// (/stats tiled_pixels). Before, a follower took it as it came: 8192 pixels, shaping the filter
+// over the other members' regions.
+TEST_F(WallTest, AFollowerCutsAMembersSnapshotToItsRegion) {
+  int port = 0;
+  std::unique_ptr<Process> l, f;
+  ASSERT_NO_FATAL_FAILURE(two_by_one_wall(&l, &f, &port));
+  auto s = sampler("s1.log");  // a real member beside it: the raw member's region is a share
+  ASSERT_TRUE(wait_until([&] { return received(port + 3) > 0; }, scaled(8.0)))
+      << l->log() << f->log() << s->log();
+
+  protocol::Context context;
+  protocol::ControlClient control(context, endpoint(port_));
+  protocol::SampleSender to_follower(context, protocol::service_endpoints(endpoint(port)).samples);
+  protocol::Join join;
+  join.name = "raw member";
+  ASSERT_TRUE(control.send(join).ok());
+  std::optional<protocol::Welcome> welcome;
+  int64_t largest_region = 0;
+  int64_t kept = 0;
+  auto beat = std::chrono::steady_clock::now(), sent = beat;
+  const auto started = beat;
+  while (kept == 0 && seconds_since(started) < scaled(10.0)) {
+    if (auto m = control.receive(10); m && m->ok()) {
+      if (const auto* w = std::get_if<protocol::Welcome>(&m->value())) welcome = *w;
+      if (const auto* r = std::get_if<protocol::RegionAssignment>(&m->value())) {
+        largest_region = std::max(largest_region, r->region.area());
+      }
+    }
+    if (!welcome) continue;
+    if (seconds_since(beat) > 0.1) {  // a member heartbeats
+      beat = std::chrono::steady_clock::now();
+      ASSERT_TRUE(
+          control.send(protocol::Heartbeat{welcome->sampler_id, welcome->session, 0, 0.0}).ok());
+    }
+    if (largest_region == 0 || seconds_since(sent) < 0.1) continue;
+    sent = std::chrono::steady_clock::now();
+    TilingSnapshot whole;
+    whole.sampler_id = welcome->sampler_id;
+    whole.token = welcome->token;
+    whole.time = 1.0;
+    whole.region = PixelRect{0, 0, 128, 64};
+    for (const PixelRect& r : {PixelRect{0, 0, 64, 64}, PixelRect{64, 0, 128, 64}}) {
+      TileInfo tile;
+      tile.rect = r;
+      tile.v = 1.0f;
+      tile.E = 1.0f;
+      whole.tiles.push_back(tile);
+    }
+    ASSERT_TRUE(to_follower.send(whole, {128, 64}).ok());
+    const nlohmann::json st = get_stats(port + 3);
+    if (st.is_null() || st.is_discarded()) continue;
+    for (const auto& m : st["samplers"]) {
+      if (m["id"].get<uint32_t>() == welcome->sampler_id) kept = m["tiled_pixels"].get<int64_t>();
+    }
+  }
+  ASSERT_TRUE(welcome.has_value()) << l->log();
+  ASSERT_GT(kept, 0) << f->log();
+  std::printf("the follower kept %lld of the 8192 pixels; the member's largest region %lld\n",
+              static_cast<long long>(kept), static_cast<long long>(largest_region));
+  EXPECT_LE(kept, largest_region);
+  EXPECT_LT(kept, 128 * 64);
 }
 
 // A wall whose nodes use CurveZMQ on loopback: the lead and a follower, holding the display's

@@ -374,7 +374,9 @@ std::string short_key(std::string_view key) {
 // A member's snapshot cut to the region the coordinator gave it: a member describes its own
 // pixels only, whatever region its message claims (one that names the whole image would
 // otherwise shape the filter and weigh in the recuts over the others' regions). A snapshot of
-// the region before a recut keeps the part still its own.
+// the region before a recut keeps the part still its own; one from a member that has no region
+// yet (its join waits for its cut) keeps nothing. A wall's followers cut by the regions of the
+// lead's member list.
 void keep_to_region(const PixelRect& mine, TilingSnapshot* t) {
   t->region = intersect(t->region, mine);
   std::erase_if(t->tiles, [&](TileInfo& tile) {
@@ -504,6 +506,9 @@ void run_ingest(SampleReceiver& receiver, SampleSink& sink, ServiceMetrics& metr
             keep_to_region(*mine, &t);
           }
           tiled.insert(t.sampler_id);
+          int64_t pixels = 0;
+          for (const TileInfo& tile : t.tiles) pixels += tile.rect.area();
+          metrics.set_tiled_pixels(t.sampler_id, pixels);
         }
         if (on_tiling) on_tiling(t);
         sink.on_tiling(std::move(receiver.tiling()));
@@ -854,13 +859,13 @@ void DisplayService::Control::expire_silent(double t) {
   }
 }
 
-// The members, for the followers' gates (docs/wall.md, "Identity on a wall").
+// The members and their regions, for the followers' gates (docs/wall.md, "Identity on a wall").
 void DisplayService::Control::publish_members() {
   if (wall_nodes_.empty()) return;
   MemberList list;
   list.epoch = ++members_epoch_;
   for (const auto& [id, m] : coordinator_.members()) {
-    list.members.push_back(MemberEntry{id, m.token, m.public_key});
+    list.members.push_back(MemberEntry{id, m.token, m.public_key, m.region});
   }
   for (const auto& [peer, node] : wall_nodes_) send(peer, list);
 }
@@ -964,8 +969,11 @@ void DisplayService::Control::send_regions() {
         id, m.name, m.region.x0, m.region.x1, m.region.y0, m.region.y1,
         100.0 * double(m.region.area()) / (double(options_.image.width) * options_.image.height));
   }
-  std::lock_guard<std::mutex> lock(service_.regions_mutex_);
-  service_.regions_ = std::move(regions);
+  {
+    std::lock_guard<std::mutex> lock(service_.regions_mutex_);
+    service_.regions_ = std::move(regions);
+  }
+  publish_members();  // the followers cut the members' snapshots by the new regions
 }
 
 void DisplayService::Control::send_heartbeats(double t) {

@@ -8,6 +8,7 @@ void MemberGate::admit(uint32_t id, uint64_t token, const std::string& public_ke
   e.token = token;
   e.public_key = public_key;
   e.accepted = 0;
+  e.region = PixelRect{};
 }
 
 void MemberGate::revoke(uint32_t id) {
@@ -22,6 +23,7 @@ void MemberGate::replace(const std::vector<Member>& members) {
     Entry e;
     e.token = m.token;
     e.public_key = m.public_key;
+    e.region = m.region;
     if (const auto it = members_.find(m.id); it != members_.end()) e.accepted = it->second.accepted;
     next[m.id] = std::move(e);
   }
@@ -41,7 +43,8 @@ bool MemberGate::has(uint32_t id) {
 std::optional<PixelRect> MemberGate::region(uint32_t id) {
   std::lock_guard<std::mutex> lock(mutex_);
   const auto it = members_.find(id);
-  return it == members_.end() ? std::nullopt : it->second.region;
+  if (it == members_.end()) return std::nullopt;
+  return it->second.region;
 }
 
 size_t MemberGate::size() {

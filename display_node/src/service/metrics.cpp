@@ -76,6 +76,12 @@ void ServiceMetrics::on_tiling(uint32_t sampler_id, size_t bytes, bool member) {
   m.period_bytes += bytes;
 }
 
+void ServiceMetrics::set_tiled_pixels(uint32_t sampler_id, int64_t pixels) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = samplers_.find(sampler_id);
+  if (it != samplers_.end()) it->second.tiled_pixels = pixels;
+}
+
 void ServiceMetrics::on_spoofed_batch(uint64_t samples) {
   std::lock_guard<std::mutex> lock(mutex_);
   ++display_.spoofed_batches;

@@ -326,6 +326,7 @@ std::string stats_json(const ServiceMetrics& metrics) {
          {"batch_bytes", s.batch_bytes},
          {"batches", s.batches},
          {"tilings", s.tilings},
+         {"tiled_pixels", s.tiled_pixels},
          {"sequence_gaps", s.sequence_gaps},
          {"samples_per_second", s.samples_per_second},
          {"bytes_per_second", s.bytes_per_second},

@@ -227,12 +227,13 @@ void WallFollower::control_loop() {
             }
           }
         } else if (const auto* ml = std::get_if<MemberList>(&msg)) {
-          // The lead's members: only their batches, with their tokens (and keys), are stored.
+          // The lead's members: only their batches, with their tokens (and keys), are stored, and
+          // their tiling snapshots cut to their regions.
           if (ml->epoch > members_epoch) {
             members_epoch = ml->epoch;
             std::vector<MemberGate::Member> members;
             for (const MemberEntry& e : ml->members) {
-              members.push_back({e.sampler_id, e.token, e.public_key});
+              members.push_back({e.sampler_id, e.token, e.public_key, e.region});
             }
             gate_.replace(members);
           }

@@ -22,8 +22,9 @@ namespace afr::protocol {
 // still reads the header of any version, so it can say why). Version 2 added the display wall
 // (DisplayJoin, WallLayout), version 3 wall coverage, version 4 the member token (Welcome::token,
 // carried by every sample batch and tiling snapshot), version 5 orthographic views
-// (View::camera.ymag).
-inline constexpr uint16_t kProtocolVersion = 5;
+// (View::camera.ymag), version 6 the members' regions in the member list
+// (MemberEntry::region).
+inline constexpr uint16_t kProtocolVersion = 6;
 
 inline constexpr int32_t kMaxImageSize = 32768;          // pixels a side (DESIGN.md, "Samples")
 inline constexpr uint32_t kMaxSamplesPerBatch = 65536;   // the sampler's batch_size limit
@@ -292,14 +293,16 @@ struct SnapshotRequest {
   bool operator==(const SnapshotRequest&) const = default;
 };
 
-// lead display -> follower display, on the control channel, on every change of membership: the
-// samplers that are members, with the token of their welcome and the CurveZMQ key they joined
-// with, so that a follower drops batches that do not come from the member they name, as the
-// lead does (docs/wall.md, "Identity on a wall").
+// lead display -> follower display, on the control channel, on every change of membership or
+// of the regions: the samplers that are members, with the token of their welcome, the CurveZMQ
+// key they joined with and the region the lead gave them, so that a follower drops batches that
+// do not come from the member they name and cuts a member's tiling snapshots to its region, as
+// the lead does (docs/wall.md, "Identity on a wall").
 struct MemberEntry {
   uint32_t sampler_id = 0;  // >= 1, distinct
   uint64_t token = 0;
   std::string public_key;  // Z85 (40 characters), empty without CurveZMQ
+  PixelRect region;        // all zero while it waits for its first region, else non-empty
   bool operator==(const MemberEntry&) const = default;
 };
 struct MemberList {

@@ -33,15 +33,16 @@ class MemberGate {
   // Control thread. `public_key` empty: the member joined without CurveZMQ.
   void admit(uint32_t id, uint64_t token, const std::string& public_key);
   void revoke(uint32_t id);
-  // The region the coordinator gave member `id` (a wall's lead and a single display; a
-  // follower is not told the regions).
+  // The region the coordinator gave member `id` (a wall's lead and a single display). A member
+  // has none (an empty one) from its admission until then.
   void set_region(uint32_t id, const PixelRect& region);
-  // A wall follower: the lead's members, all at once (member_list). Members that stay keep
-  // their accepted counts.
+  // A wall follower: the lead's members with their regions, all at once (member_list). Members
+  // that stay keep their accepted counts.
   struct Member {
     uint32_t id = 0;
     uint64_t token = 0;
     std::string public_key;
+    PixelRect region;
   };
   void replace(const std::vector<Member>& members);
   size_t size();
@@ -49,7 +50,8 @@ class MemberGate {
   // key `key` (empty: none) that member's? A member's accepted samples are counted for
   // take_accepted() (pass 0 for a tiling snapshot).
   Verdict check(uint32_t id, uint64_t token, std::string_view key, uint64_t samples);
-  // Ingest thread: whether `id` is a member; its region, where set_region gave one.
+  // Ingest thread: whether `id` is a member; its region (empty before it has one), or nothing
+  // when it is no member.
   bool has(uint32_t id);
   std::optional<PixelRect> region(uint32_t id);
   // Control thread: samples accepted per member since the last call (members with none left
@@ -61,7 +63,7 @@ class MemberGate {
     uint64_t token = 0;
     std::string public_key;
     uint64_t accepted = 0;  // samples since the last take_accepted()
-    std::optional<PixelRect> region;
+    PixelRect region;       // empty until it has one
   };
   std::mutex mutex_;
   std::map<uint32_t, Entry> members_;

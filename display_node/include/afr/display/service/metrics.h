@@ -39,6 +39,8 @@ struct SamplerMetrics {
   uint64_t batch_bytes = 0;  // batches only: bytes per sample = batch_bytes / samples
   uint64_t batches = 0;
   uint64_t tilings = 0;
+  // The pixels its last tiling snapshot describes, as kept: cut to its region.
+  int64_t tiled_pixels = 0;
   uint64_t sequence_gaps = 0;  // batches missing between consecutive sequence numbers
   uint64_t last_sequence = 0;
   bool have_sequence = false;
@@ -148,6 +150,8 @@ class ServiceMetrics {
   // non-member.
   void on_batch(const SampleBatch& batch, size_t bytes, bool member);
   void on_tiling(uint32_t sampler_id, size_t bytes, bool member);
+  // A member's tiling snapshot as kept (cut to its region): the pixels its tiles cover.
+  void set_tiled_pixels(uint32_t sampler_id, int64_t pixels);
   // Ingest thread: a batch or snapshot that named a member without its token or key (dropped).
   void on_spoofed_batch(uint64_t samples);
   void on_spoofed_tiling();
