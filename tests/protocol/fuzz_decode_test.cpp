@@ -58,7 +58,7 @@ TEST(FuzzDecodeTest, SeedsAreAccepted) {
 // The fuzzer's protocol findings (tests/fuzz/regressions/protocol) replay the path they broke
 // only while they speak this protocol's version: any other is refused at the header. A version
 // bump rewrites their version field (bytes 4-5; the layouts they exercise did not change), and
-// this test says when one was missed.
+// this test says when one was missed; the fuzzer's dictionary must name the version too.
 TEST(FuzzDecodeTest, RegressionInputsSpeakTheCurrentVersion) {
   size_t n = 0;
   for (const auto& entry : std::filesystem::directory_iterator(AFR_PROTOCOL_REGRESSIONS)) {
@@ -71,6 +71,11 @@ TEST(FuzzDecodeTest, RegressionInputsSpeakTheCurrentVersion) {
     ++n;
   }
   EXPECT_GE(n, 1u);
+  std::ifstream dict(AFR_PROTOCOL_DICT);
+  const std::string text((std::istreambuf_iterator<char>(dict)), std::istreambuf_iterator<char>());
+  const std::string entry =
+      fmt::format("\"AFRP\\x{:02x}\\x{:02x}\"", kProtocolVersion & 0xff, kProtocolVersion >> 8);
+  EXPECT_NE(text.find(entry), std::string::npos) << entry << " is not in " << AFR_PROTOCOL_DICT;
 }
 
 TEST(FuzzDecodeTest, TruncationsAreRejected) {
