@@ -7,7 +7,8 @@ display restart. Runs display_node and sampler_node as built (use a Release buil
   kill -9 of a wall node     seconds from the kill to the lead's "lost" log line (2 x 1 wall)
   SIGSTOP of a sampler       for 0.2 ... 1.2 s, then SIGCONT: in how many trials it was dropped
   display restart            seconds from the new display's bind (its "display session" line)
-                             to the second sampler's join
+                             to the second sampler's join, and to its region (a join waits for
+                             its cut up to the display's --join-interval)
 
 Each figure is the median (and range) over --trials runs. With --load N, N busy processes run
 beside the nodes throughout (a loaded machine). With --write, the table also goes to
@@ -138,19 +139,43 @@ def trial_stop_sampler(nodes, port, seconds):
     return 1.0 if log_time(dlog, "lost: no word for") is not None else 0.0
 
 
-def trial_restart(nodes, port):
+def second_joined(log):
+    """The id of the second sampler that joined the display whose log this is."""
+    return re.findall(r"sampler (\d+) joined: ", open(log, errors="replace").read())[1]
+
+
+def restart(nodes, port):
+    """A display with two samplers, killed and started again: the new display's log, once both
+    samplers have joined it and each has a region (None when they did not within 10 s)."""
     d, dlog = nodes.display("display1", port)
     nodes.sampler("s1", port)
     nodes.sampler("s2", port)
     if not wait_for(dlog, " joined: ", 10, nth=2):
         return None
-    time.sleep(1.0)
+    time.sleep(1.5)
     d.kill()
     d.wait()
     _, d2log = nodes.display("display2", port)
     if not wait_for(d2log, " joined: ", 10, nth=2):
         return None
+    second = second_joined(d2log)
+    if not wait_for(d2log, f"sampler {second} (", 10):  # its region line
+        return None
+    return d2log
+
+
+def trial_restart_join(nodes, port):
+    d2log = restart(nodes, port)
+    if d2log is None:
+        return None
     return log_time(d2log, " joined: ", 2) - log_time(d2log, "display session")
+
+
+def trial_restart_region(nodes, port):
+    d2log = restart(nodes, port)
+    if d2log is None:
+        return None
+    return log_time(d2log, f"sampler {second_joined(d2log)} (") - log_time(d2log, "display session")
 
 
 def main():
@@ -198,7 +223,8 @@ def main():
         for s in (0.2, 0.4, 0.6, 0.8, 1.2):
             run(f"sampler stopped {s:.1f} s (SIGSTOP/SIGCONT)", trial_stop_sampler, s,
                 kind="count")
-        run("display restart: bind to both samplers back", trial_restart)
+        run("display restart: bind to both samplers joined", trial_restart_join)
+        run("display restart: bind to both samplers with a region", trial_restart_region)
     finally:
         for b in burners:
             b.kill()

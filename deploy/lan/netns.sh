@@ -19,6 +19,7 @@
 # towards it, so both directions of every link are limited; netns_drop (percent, steps of 0.1;
 # empty: none) makes nft drop that share of the packets each host sends, at random.
 netns_rate="" netns_burst=256kb netns_latency=20ms netns_drop="" netns_ipv6=""
+netns_made_etc=""  # whether netns_hosts made /etc/netns (netns_down removes it then only)
 
 netns_require() {
   if [ "$(id -u)" -ne 0 ]; then echo "$1: needs root (network namespaces): skipped"; exit 77; fi
@@ -73,6 +74,10 @@ netns_stop() {
 netns_hosts() {
   local h=$1
   shift
+  if [ ! -d /etc/netns ]; then
+    mkdir /etc/netns
+    netns_made_etc=1
+  fi
   mkdir -p "/etc/netns/$h"
   printf '%s\n' "$@" >"/etc/netns/$h/hosts"
 }
@@ -83,5 +88,5 @@ netns_down() {
     ip netns del "$h" 2>/dev/null || true
     rm -rf "/etc/netns/${h:?}"
   done
-  rmdir /etc/netns 2>/dev/null || true
+  if [ -n "$netns_made_etc" ]; then rmdir /etc/netns 2>/dev/null || true; fi
 }

@@ -37,6 +37,14 @@ bool partitions(const Coordinator& c) {
   return true;
 }
 
+// Options whose joins are cut in without waiting for others (join_gather 0), to see the other
+// rules alone; CoordinatorTest.SamplersThatJoinTogetherComeInWithOneCut looks at the gathering.
+CoordinatorOptions ungathered() {
+  CoordinatorOptions o;
+  o.join_gather = 0.0;
+  return o;
+}
+
 Member& join(Coordinator* c, const std::string& peer, double now, int threads = 1) {
   bool is_new = false;
   return c->join(peer, peer, "", threads, 1000 + uint64_t(peer[0]), now, &is_new);
@@ -72,7 +80,7 @@ std::vector<double> run(Coordinator* c, double from, double to,
 // Membership and ids
 
 TEST(CoordinatorTest, JoinsGetIdsAndTheRegionsPartitionTheImage) {
-  Coordinator c(100, 60);
+  Coordinator c(100, 60, ungathered());
   bool is_new = false;
   EXPECT_EQ(c.join("a", "a", "", 1, 11, 0.0, &is_new).id, 1u);
   EXPECT_TRUE(is_new);
@@ -88,7 +96,7 @@ TEST(CoordinatorTest, JoinsGetIdsAndTheRegionsPartitionTheImage) {
 }
 
 TEST(CoordinatorTest, IdsAreAssignedByTheDisplayAndALiveOneIsNeverGivenAgain) {
-  Coordinator c(10, 10);
+  Coordinator c(10, 10, ungathered());
   join(&c, "a", 0.0);
   join(&c, "b", 0.0);
   join(&c, "c", 0.0);
@@ -102,6 +110,7 @@ TEST(CoordinatorTest, IdsAreAssignedByTheDisplayAndALiveOneIsNeverGivenAgain) {
 // ids near the top of the range now wrap to 1, stay distinct, and no join removes a member.
 TEST(CoordinatorTest, IdsWrapPastTheTopWithoutEvictingAnyone) {
   CoordinatorOptions o;
+  o.join_gather = 0.0;
   o.first_id = 0xFFFFFFFEu;
   Coordinator c(64, 64, o);
   std::set<uint32_t> ids;
@@ -120,7 +129,7 @@ TEST(CoordinatorTest, SilentMemberExpiresAndItsRegionGoesToTheOthers) {
   // Heartbeats every 0.2 s expected, none heard yet from sampler 2: suspected once its
   // silence passes what the first guess (0.2 s apart, spread 0.1 s) makes unlikely, about
   // 0.76 s; sampler 1, heard at 0.4 s, is not.
-  Coordinator c(64, 64);
+  Coordinator c(64, 64, ungathered());
   join_two(&c);
   c.heard(1, 0.4);
   EXPECT_TRUE(c.expire(0.7).empty());
@@ -135,7 +144,7 @@ TEST(CoordinatorTest, SilentMemberExpiresAndItsRegionGoesToTheOthers) {
 // once, the others wait out join_interval and come in with one cut (not a handover each). A
 // member waiting for its region has nothing to deliver and does not starve meanwhile.
 TEST(CoordinatorTest, JoinsWithinAnIntervalAreCutInTogether) {
-  Coordinator c(64, 64);  // join_interval 1 s
+  Coordinator c(64, 64, ungathered());  // join_interval 1 s
   join(&c, "a", 0.0);
   ASSERT_TRUE(c.maybe_recut(0.0));
   EXPECT_EQ(c.members().at(1).region, (PixelRect{0, 0, 64, 64}));
@@ -152,10 +161,66 @@ TEST(CoordinatorTest, JoinsWithinAnIntervalAreCutInTogether) {
   }
 }
 
+// Samplers started together (or back after a display restart) join within moments of each
+// other: with the default options the first join waits join_gather (0.2 s) for the others, and
+// all come in with one cut, before any sampler has started on a region it would hand over.
+TEST(CoordinatorTest, SamplersThatJoinTogetherComeInWithOneCut) {
+  Coordinator c(64, 64);
+  join(&c, "a", 0.0);
+  EXPECT_FALSE(c.maybe_recut(0.0));
+  join(&c, "b", 0.05);
+  join(&c, "c", 0.12);
+  for (double t : {0.05, 0.1, 0.15}) EXPECT_FALSE(c.maybe_recut(t)) << t;
+  EXPECT_TRUE(c.maybe_recut(0.2));
+  EXPECT_EQ(c.recuts(), 1u);
+  EXPECT_TRUE(partitions(c));
+  for (uint32_t id : {1u, 2u, 3u}) EXPECT_FALSE(c.members().at(id).region.empty()) << id;
+}
+
+// A cut for a leave leaves a waiting join waiting, and does not put its cut off: the join made
+// at 0.2 s still comes in at 4 s, the interval after the last join cut (0 s). And a member that
+// waits is not measured (it has nothing to deliver): its share at its cut is the provisional
+// one, however long it waited.
+TEST(CoordinatorTest, ACutForALeaveNeitherCutsInNorPutsOffAWaitingJoin) {
+  CoordinatorOptions o;
+  o.join_gather = 0.0;
+  o.join_interval = 4.0;  // longer than settle_seconds + measure_seconds after the join
+  Coordinator c(128, 128, o);
+  join(&c, "a", 0.0);
+  join(&c, "b", 0.0);
+  join(&c, "c", 0.0);
+  ASSERT_TRUE(c.maybe_recut(0.0));
+  join(&c, "d", 0.2);
+  std::vector<double> cuts = run(&c, 0.0, 0.5, {{1, 100000.0}, {2, 100000.0}, {3, 100000.0}});
+  EXPECT_TRUE(cuts.empty());
+  ASSERT_TRUE(c.remove(3));  // a leave: cut at once, "d" still waiting
+  EXPECT_TRUE(c.maybe_recut(0.5));
+  EXPECT_TRUE(c.members().at(4).region.empty());
+  EXPECT_TRUE(partitions(c));
+  cuts = run(&c, 0.5, 4.5, {{1, 100000.0}, {2, 100000.0}});
+  ASSERT_FALSE(cuts.empty());
+  EXPECT_NEAR(cuts[0], 4.0, 1e-9);
+  EXPECT_FALSE(c.members().at(4).region.empty());
+  EXPECT_NEAR(area_share(c, 4), 1.0 / 3.0, 0.05);  // provisional, not measured at 0 meanwhile
+}
+
+// When no member has a region (the last one left while a join waited), the join is cut in at
+// once: the image is never left without a sampler for an interval.
+TEST(CoordinatorTest, AJoinIsCutInAtOnceWhenNoMemberHasARegion) {
+  Coordinator c(64, 64, ungathered());
+  join(&c, "a", 0.0);
+  ASSERT_TRUE(c.maybe_recut(0.0));
+  join(&c, "b", 0.3);
+  EXPECT_FALSE(c.maybe_recut(0.3));  // waits: a samples the image
+  ASSERT_TRUE(c.remove(1));
+  EXPECT_TRUE(c.maybe_recut(0.4));
+  EXPECT_EQ(c.members().at(2).region, (PixelRect{0, 0, 64, 64}));
+}
+
 // A peer that joins and leaves before its cut leaves no region to cover and costs the members
 // no recut, even where their shares drifted meanwhile (that waits for the drift rule).
 TEST(CoordinatorTest, APeerThatLeavesBeforeItsCutCostsNoRecut) {
-  Coordinator c(128, 128);
+  Coordinator c(128, 128, ungathered());
   join_two(&c);
   run(&c, 0.0, 3.0, {{1, 300000.0}, {2, 100000.0}});  // rates now say 3:1, regions 1:1
   const uint64_t epoch = c.epoch();
@@ -176,7 +241,7 @@ TEST(CoordinatorTest, APeerThatLeavesBeforeItsCutCostsNoRecut) {
 // A peer that waits for its region each time before it leaves and joins again buys a cut for its
 // join and one for its leave: at most two recuts a join_interval, however fast it loops.
 TEST(CoordinatorTest, APeerThatJoinsAndLeavesInALoopRecutsAtMostTwiceAJoinInterval) {
-  Coordinator c(128, 128);
+  Coordinator c(128, 128, ungathered());
   join_two(&c);
   run(&c, 0.0, 3.0, {{1, 100000.0}, {2, 100000.0}});
   const uint64_t before = c.recuts();
@@ -206,6 +271,7 @@ TEST(CoordinatorTest, APeerThatJoinsAndLeavesInALoopRecutsAtMostTwiceAJoinInterv
 
 TEST(CoordinatorTest, AreasFollowMeasuredRatesWithHysteresis) {
   CoordinatorOptions o;
+  o.join_gather = 0.0;
   o.settle_seconds = 0.0;
   o.recut_interval = 1.0;
   Coordinator c(200, 100, o);
@@ -229,6 +295,7 @@ TEST(CoordinatorTest, OnlyAnOverloadedMemberIsReasonToRecut) {
   // share: 14% over, inside the hysteresis. A recut (two pool restarts) would gain less than it
   // costs. At 40:60, sampler 2 carries 0.91 / 0.60 = 1.5x: recut.
   CoordinatorOptions o;
+  o.join_gather = 0.0;
   o.settle_seconds = 0.0;
   o.recut_interval = 1.0;
   Coordinator c(200, 100, o);
@@ -243,6 +310,7 @@ TEST(CoordinatorTest, OnlyAnOverloadedMemberIsReasonToRecut) {
 TEST(CoordinatorTest, NoDriftRecutUntilEveryRegionHasSettled) {
   // A new region restarts the sampler's pool: for settle_seconds its figures are not used.
   CoordinatorOptions o;
+  o.join_gather = 0.0;
   o.settle_seconds = 2.0;
   o.recut_interval = 1.0;
   Coordinator c(200, 100, o);
@@ -271,6 +339,7 @@ TEST(CoordinatorTest, ErrorSharesFollowRatesOnceTheErrorIsKnown) {
   // Equal rates; then the error sits mostly in the left quarter of the image: the cut gives
   // each sampler half of the error, so the left region shrinks to about an eighth.
   CoordinatorOptions o;
+  o.join_gather = 0.0;
   o.settle_seconds = 0.0;
   o.recut_interval = 1.0;
   Coordinator c(200, 100, o);
@@ -311,6 +380,7 @@ TEST(CoordinatorTest, ErrorThatNoCutCanShareOutMovesNoBorder) {
   const std::map<uint32_t, double> rates = {{1, 100000.0}, {2, 100000.0}};
   const auto recuts = [&](double min_gain) {
     CoordinatorOptions o;
+    o.join_gather = 0.0;
     o.settle_seconds = 0.0;
     o.recut_interval = 1.0;
     o.min_gain = min_gain;
@@ -355,7 +425,7 @@ TEST(CoordinatorTest, ATileCountsNoMoreErrorThanTheDisplayCanShow) {
 // equal share, and loses even that within starve_seconds when nothing comes from it; the two
 // samplers that deliver keep the image between them.
 TEST(CoordinatorTest, GreedyJoinThatSendsNothingDoesNotTakeTheRealSamplersRegions) {
-  Coordinator c(256, 256);
+  Coordinator c(256, 256, ungathered());
   join_two(&c);
   const std::map<uint32_t, double> real = {{1, 100000.0}, {2, 100000.0}};
   run(&c, 0.0, 1.0, real);
@@ -380,6 +450,7 @@ TEST(CoordinatorTest, GreedyJoinThatSendsNothingDoesNotTakeTheRealSamplersRegion
 // fast sampler, whatever it says about itself.
 TEST(CoordinatorTest, NewMemberStartsWithTheMeanMeasuredRate) {
   CoordinatorOptions o;
+  o.join_gather = 0.0;
   o.settle_seconds = 0.5;
   Coordinator c(300, 100, o);
   join_two(&c);
@@ -395,7 +466,7 @@ TEST(CoordinatorTest, NewMemberStartsWithTheMeanMeasuredRate) {
 // A sampler that starved while it loaded the scene comes back at once when it delivers: its
 // first return recuts immediately, with the provisional share.
 TEST(CoordinatorTest, StarvedMemberThatStartsDeliveringGetsAShareBack) {
-  Coordinator c(256, 256);
+  Coordinator c(256, 256, ungathered());
   join(&c, "a", 0.0);
   join(&c, "b", 0.0);
   join(&c, "slow", 0.0);
@@ -413,7 +484,7 @@ TEST(CoordinatorTest, StarvedMemberThatStartsDeliveringGetsAShareBack) {
 // the network down) nobody's region moves, and a stall of this display itself (no measure()
 // for a while) is not the members' silence.
 TEST(CoordinatorTest, NoStarvationWhileNobodyDeliversOrWhileTheDisplayStalled) {
-  Coordinator c(128, 128);
+  Coordinator c(128, 128, ungathered());
   join_two(&c);
   EXPECT_TRUE(run(&c, 0.0, 3.0, {}).empty());
   EXPECT_FALSE(c.members().at(1).starved || c.members().at(2).starved);
@@ -433,7 +504,7 @@ TEST(CoordinatorTest, NoStarvationWhileNobodyDeliversOrWhileTheDisplayStalled) {
 // A sampler that has delivered before gets settle_seconds after a region change (its pool
 // restarts and sends nothing meanwhile) before its silence counts.
 TEST(CoordinatorTest, ARestartingPoolIsNotTakenForStarvation) {
-  Coordinator c(128, 128);
+  Coordinator c(128, 128, ungathered());
   join_two(&c);
   run(&c, 0.0, 3.0, {{1, 100000.0}, {2, 100000.0}});
   join(&c, "c", 3.0);
@@ -456,7 +527,7 @@ TEST(CoordinatorTest, ARestartingPoolIsNotTakenForStarvation) {
 // times that, so the next such gap, or a somewhat longer one, does not take its region. A
 // member that never delivered has no such history: starve_seconds.
 TEST(CoordinatorTest, ASamplerThatDeliversInBurstsGetsMorePatience) {
-  Coordinator c(128, 128);
+  Coordinator c(128, 128, ungathered());
   join_two(&c);
   run(&c, 0.0, 3.0, {{1, 100000.0}, {2, 100000.0}});
   double t = 3.0;
@@ -483,6 +554,7 @@ TEST(CoordinatorTest, ASamplerThatDeliversInBurstsGetsMorePatience) {
 // its pace. (No settling and no extra patience here, to see the rule alone.)
 TEST(CoordinatorTest, ReturnsFromStarvingRecutAtOnceAtMostOncePerInterval) {
   CoordinatorOptions o;
+  o.join_gather = 0.0;
   o.recut_interval = 10.0;
   o.settle_seconds = 0.0;
   o.starve_ceiling = o.starve_seconds;

@@ -81,7 +81,7 @@ TEST_F(ServiceTest, TwoSamplersConvergeToTheInProcessImage) {
       display({kStaticScene, "--size", "96x72", "--seconds", "6", "--fps", "60"}, "display.log");
   auto s1 = sampler({"--seed", "7"}, "s1.log");
   auto s2 = sampler({"--seed", "7"}, "s2.log");
-  ASSERT_TRUE(wait_members(2, 4.0)) << d->log();
+  ASSERT_TRUE(wait_members(2, scaled(4.0))) << d->log();
   ASSERT_EQ(d->wait(10.0), 0) << d->log();
   const Image served = read_image(path("out/final.png"));
   const double rms = rms_error_255(served, reference);

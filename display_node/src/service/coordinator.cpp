@@ -153,9 +153,10 @@ std::vector<std::pair<uint32_t, bool>> Coordinator::measure(double now) {
         m.came_back_at_ = now;
       }
     }
-    // Not measured: across this display's stall, while the member's pool hands over, and while
-    // it is starved (it is measured afresh from its return).
-    if (stalled || dt <= 0.0 || m.starved || now - m.region_since < options_.settle_seconds) {
+    // Not measured: across this display's stall, while the member waits for its first region,
+    // while its pool hands over, and while it is starved (measured afresh from its return).
+    if (stalled || dt <= 0.0 || m.region.empty() || m.starved ||
+        now - m.region_since < options_.settle_seconds) {
       continue;
     }
     // Exponential smoothing of the arrival rate over time steps of any length, and its bias
@@ -268,7 +269,9 @@ bool Coordinator::same_regions(const std::vector<PixelRect>& parts) const {
 void Coordinator::cut(double now, const std::vector<PixelRect>& parts) {
   size_t i = 0;
   for (auto& [id, m] : members_) {
-    if (m.region.empty()) {
+    // A join cut in (a cut for a leave or a starvation leaves waiting members waiting, and does
+    // not put their cut off).
+    if (m.region.empty() && !parts[i].empty()) {
       m.assigned_at_ = now;
       last_join_cut_ = now;
     }
@@ -289,10 +292,20 @@ bool Coordinator::maybe_recut(double now) {
     return false;
   }
   // Joins are cut in once their interval is up, when their peers are still members (a peer that
-  // left before its cut leaves nothing to do, not even a cut on shares that drifted meanwhile).
-  const bool joins_due = now - last_join_cut_ >= options_.join_interval &&
-                         std::any_of(members_.begin(), members_.end(),
-                                     [](const auto& e) { return e.second.region.empty(); });
+  // left before its cut leaves nothing to do, not even a cut on shares that drifted meanwhile),
+  // and without waiting for it when no member has a region (the image has no sampler); either
+  // way once the first of them has waited join_gather for others.
+  double first_waiting = std::numeric_limits<double>::infinity();
+  bool all_waiting = true;
+  for (const auto& [id, m] : members_) {
+    if (m.region.empty()) {
+      first_waiting = std::min(first_waiting, m.joined_at);
+    } else {
+      all_waiting = false;
+    }
+  }
+  const bool joins_due = now - first_waiting >= options_.join_gather &&
+                         (now - last_join_cut_ >= options_.join_interval || all_waiting);
   if (dirty_ || joins_due) {
     // A cut for anything else leaves the joins waiting (else a peer's leave would cut in its
     // next join at once). A change that moves no region (a member on a strip starving again)

@@ -959,6 +959,7 @@ void DisplayService::Control::send_regions() {
   for (const auto& [id, m] : coordinator_.members()) {
     // The gate first: the member's snapshots of its new region must not meet the old one.
     service_.gate_.set_region(id, m.region);
+    if (m.region.empty()) continue;  // a join still waiting for its cut
     send(m.peer, RegionAssignment{id, coordinator_.epoch(), options_.image.width,
                                   options_.image.height, m.region});
     service_.metrics_.on_region(id, m.region, coordinator_.epoch(), coordinator_.recuts());

@@ -55,13 +55,18 @@ struct CoordinatorOptions {
   // with recuts at most once a second and 21.0 (17.7-24.3) at most once in 10 s
   // (docs/benchmarks.md, "Live accuracy").
   double recut_interval = 10.0;
-  // Seconds at least between recuts that joins make. A join waits for its region until then;
+  // Seconds at least between recuts that joins make. A join waits for its region until then
+  // (at once when no member has one);
   // the joins meanwhile come in with one cut, and a peer that leaves before its cut costs no
   // cut at all (a member that never had a region leaves none to cover). Without it, a peer that
   // joined and left in a loop recut every member twice a round trip, each recut a handover for
   // every sampler whose region moved. Samplers started together still join within one
   // interval's wait.
   double join_interval = 1.0;
+  // A join also waits this long for others (samplers started together, or coming back after a
+  // display restart, join within a few tens of milliseconds of each other): they come in with
+  // one cut, instead of the first at once and the rest an interval later.
+  double join_gather = 0.2;
   // Samplers admitted at once (display_node --max-samplers). A join beyond it is refused with
   // the reason: membership is state a peer could otherwise grow without end, and each member
   // costs a region, a heartbeat and per-sampler metrics.
@@ -86,7 +91,8 @@ struct CoordinatorOptions {
   // A member from which nothing was accepted for this long while others delivered is starved:
   // the next cut leaves it a strip of the image (kStarvedWeight), which it keeps until it
   // delivers again. A member that has delivered before also gets settle_seconds after each
-  // region change (its pool hands over); one that never delivered counts from its join. A member
+  // region change (its pool hands over); one that never delivered counts from its first region
+  // (a join waits for its cut, join_interval, with nothing to sample). A member
   // whose deliveries came with long gaps (a loaded machine) gets kPatienceFactor times the
   // longest recent gap, up to starve_ceiling.
   double starve_seconds = 0.75;
