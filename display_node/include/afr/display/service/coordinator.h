@@ -6,9 +6,10 @@
 // join or a stats message claims (docs/service.md, "Shares"). The error is what the samplers'
 // tiling snapshots say, set with set_error(); before any, the area. The cut is redone at once
 // when a member leaves, dies, stops delivering (starves) or first delivers after starving; when
-// samplers join, at most once per join_interval (the joins meanwhile wait and are cut in
-// together); and at most once per recut_interval when a member's part of the error grows beyond
-// its throughput share by more than the hysteresis. Plain logic, no I/O: the display service
+// samplers join, at most once per join_interval, once the first join has waited join_gather for
+// others (the joins meanwhile wait and are cut in together; without the interval when no member
+// has a region); and at most once per recut_interval when a member's part of the error grows
+// beyond its throughput share by more than the hysteresis. Plain logic, no I/O: the display service
 // feeds it and sends what it decides.
 //
 // Order of calls, on one thread: join / heard / add_samples / remove / expire as messages and
